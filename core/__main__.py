@@ -1,0 +1,5 @@
+import sys
+
+from hapticdesk.cli import main
+
+sys.exit(main())

@@ -1,0 +1,78 @@
+"""The ``hapticdesk`` command line.
+
+Each sub-command lives in ``hapticdesk.commands.<name>`` with ``configure(parser)`` and
+``run(args) -> int``; modules are imported only when their command runs, so ``hapticdesk
+contacts`` never imports paho, python-can or matplotlib.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import importlib.util
+import logging
+import sys
+
+from hapticdesk.yamlfile import ConfigError
+
+# name -> (module, one-line help)
+COMMANDS: dict[str, tuple[str, str]] = {
+    "contacts": ("hapticdesk.commands.contacts", "estimate contacts from a recording"),
+    "simulate": ("hapticdesk.commands.simulate", "simulate a scene on a desk into a recording"),
+    "bench": ("hapticdesk.commands.bench", "error against run time for every method"),
+    "thresholds": ("hapticdesk.commands.thresholds", "derive F_tth and F_rth from presses"),
+    "characterize": ("hapticdesk.commands.characterize", "measure a desk's noise, modes, drift"),
+    "plot": ("hapticdesk.commands.plot", "plot a recording and its contacts"),
+    "check": ("hapticdesk.commands.check", "validate and explain a layout"),
+    "strokes": ("hapticdesk.commands.strokes", "classify or record stroke templates"),
+    "run": ("hapticdesk.commands.run", "sense, recognise gestures and dispatch actions"),
+    "demo": ("hapticdesk.commands.demo", "the whole path on a simulated desk and a local broker"),
+    "plugins": ("hapticdesk.commands.plugins", "list installed plugins"),
+    "record": ("hapticdesk.commands.record", "record a source to a recording or CAN log"),
+    "emulate": ("hapticdesk.commands.emulate", "send a simulated desk's frames onto a CAN bus"),
+}
+
+
+def _available() -> dict[str, tuple[str, str]]:
+    out = {}
+    for name, (module, text) in COMMANDS.items():
+        if importlib.util.find_spec(module) is not None:
+            out[name] = (module, text)
+    return out
+
+
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="hapticdesk", description=__doc__.splitlines()[0])
+    parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name, (module, text) in _available().items():
+        p = sub.add_parser(name, help=text, description=text)
+        if only is None or only == name:
+            importlib.import_module(module).configure(p)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    command = next((a for a in argv if not a.startswith("-")), None)
+    parser = build_parser(only=command if command in COMMANDS else None)
+    args = parser.parse_args(argv)
+    logging.basicConfig(
+        level=logging.WARNING - 10 * min(args.verbose, 2),
+        format="%(levelname)s %(name)s: %(message)s",
+    )
+    if not args.command:
+        parser.print_help()
+        return 2
+    module = importlib.import_module(COMMANDS[args.command][0])
+    try:
+        return int(module.run(args) or 0)
+    except ConfigError as err:
+        print(f"hapticdesk {args.command}: error: {err}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

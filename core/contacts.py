@@ -1,0 +1,159 @@
+"""Contact samples (one per input sample, struct of arrays) and contact events (down, move, up).
+
+This is what the estimator gives and what the gesture recognizers consume (DESIGN.md: gestures
+see contacts only). Arrays never hold NaN or infinity: where a contact is not located,
+``located`` is False and x, y, z hold 0.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+from typing import Literal
+
+import numpy as np
+
+# source codes
+SOURCE_NONE, SOURCE_FORCE, SOURCE_DIFF, SOURCE_FUSED = 0, 1, 2, 3
+SOURCE_NAMES = ("", "force", "diff", "fused")
+# phase codes
+PHASE_NONE, PHASE_TOUCH, PHASE_HOLD, PHASE_RELEASE = 0, 1, 2, 3
+PHASE_NAMES = ("", "touch", "hold", "release")
+# bad-sample flags (bits)
+FLAG_NAN = 1  # NaN or infinity in a channel or the time
+FLAG_SATURATED = 2  # a channel at or beyond the sensor's rated range
+FLAG_TIME_BACK = 4  # time did not increase
+FLAG_GAP = 8  # the time jumped by more than max_gap_s before this sample; filters restarted
+FLAG_NOT_TARED = 16  # no zero yet (tare pending or refused)
+FLAG_NAMES = {
+    FLAG_NAN: "nan",
+    FLAG_SATURATED: "saturated",
+    FLAG_TIME_BACK: "time_back",
+    FLAG_GAP: "gap",
+    FLAG_NOT_TARED: "not_tared",
+}
+UNCERTAINTY_CAP_M = 10.0  # stands for "unknown" so the arrays stay finite
+
+
+@dataclass
+class ContactBlock:
+    """Estimator output for k input samples."""
+
+    t: np.ndarray  # (k,) float64
+    in_contact: np.ndarray  # (k,) bool: the fast path says a finger is on the desk
+    located: np.ndarray  # (k,) bool: a contact point was found on a surface
+    surface: np.ndarray  # (k,) int16 index into the profile's surfaces, -1 if not located
+    x: np.ndarray  # (k,) desk frame, metres
+    y: np.ndarray
+    z: np.ndarray
+    force_n: np.ndarray  # (k,) |F| of the external force (fast path), newtons
+    source: np.ndarray  # (k,) int8 SOURCE_*
+    phase: np.ndarray  # (k,) int8 PHASE_*
+    sigma_m: np.ndarray  # (k,) 1-σ radial uncertainty of (x, y, z), metres
+    flags: np.ndarray  # (k,) uint8 FLAG_* bits
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    @classmethod
+    def concat(cls, blocks: list[ContactBlock]) -> ContactBlock:
+        """Join blocks in order."""
+        if not blocks:
+            return cls.empty()
+        return cls(
+            **{f.name: np.concatenate([getattr(b, f.name) for b in blocks]) for f in fields(cls)}
+        )
+
+    @classmethod
+    def empty(cls) -> ContactBlock:
+        z = np.zeros(0)
+        return cls(
+            z,
+            z.astype(bool),
+            z.astype(bool),
+            z.astype(np.int16),
+            z,
+            z.copy(),
+            z.copy(),
+            z.copy(),
+            z.astype(np.int8),
+            z.astype(np.int8),
+            z.copy(),
+            z.astype(np.uint8),
+        )
+
+    def take(self, index: np.ndarray | slice) -> ContactBlock:
+        """A sub-block (boolean mask, index array or slice)."""
+        return ContactBlock(**{f.name: getattr(self, f.name)[index] for f in fields(self)})
+
+
+@dataclass(frozen=True)
+class ContactEvent:
+    """One contact event on sample time: ``down`` starts a touch, ``move`` updates, ``up`` ends.
+
+    ``located`` False means the position is not known at this sample (x, y hold the last
+    located values of this touch, or 0). ``sigma_m`` is the 1-σ uncertainty of the position.
+    """
+
+    t: float
+    kind: Literal["down", "move", "up"]
+    x: float
+    y: float
+    surface: int
+    force_n: float
+    sigma_m: float
+    phase: str
+    located: bool
+
+
+def contact_events(block: ContactBlock, was_in_contact: bool = False) -> list[ContactEvent]:
+    """Turn a block into events. ``was_in_contact``: the state before the block's first sample.
+
+    Every contact sample gives one event; the first of a touch is ``down``; the sample after
+    the last (the first sample out of contact) gives ``up`` with the last located position.
+    """
+    events: list[ContactEvent] = []
+    prev = was_in_contact
+    last_xy = (0.0, 0.0, -1)
+    # plain Python over the block: events are consumed one by one by state machines anyway
+    t = block.t.tolist()
+    inc = block.in_contact.tolist()
+    loc = block.located.tolist()
+    xs, ys = block.x.tolist(), block.y.tolist()
+    surf = block.surface.tolist()
+    force = block.force_n.tolist()
+    sig = block.sigma_m.tolist()
+    phase = block.phase.tolist()
+    for i in range(len(t)):
+        if loc[i]:
+            last_xy = (xs[i], ys[i], surf[i])
+        if inc[i]:
+            kind: Literal["down", "move", "up"] = "move" if prev else "down"
+            events.append(
+                ContactEvent(
+                    t[i],
+                    kind,
+                    last_xy[0],
+                    last_xy[1],
+                    last_xy[2],
+                    force[i],
+                    sig[i] if loc[i] else UNCERTAINTY_CAP_M,
+                    PHASE_NAMES[phase[i]],
+                    bool(loc[i]),
+                )
+            )
+        elif prev:
+            events.append(
+                ContactEvent(
+                    t[i],
+                    "up",
+                    last_xy[0],
+                    last_xy[1],
+                    last_xy[2],
+                    force[i],
+                    sig[i],
+                    "release",
+                    False,
+                )
+            )
+        prev = inc[i]
+    return events

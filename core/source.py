@@ -1,0 +1,48 @@
+"""Sources of wrench blocks: one shape for the simulator, replayed files and CAN buses.
+
+A source opens, yields blocks, and closes idempotently; it is a context manager
+(python-can's ``BusABC`` habit, STYLE.md 6). Everything downstream runs on sample time.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from types import TracebackType
+
+import numpy as np
+
+
+@dataclass
+class WrenchBlock:
+    """``t`` (k,) sample times in seconds on the sensor clock; ``wrench`` (k, S, 6)."""
+
+    t: np.ndarray
+    wrench: np.ndarray
+    truth: dict[str, np.ndarray] | None = None  # ground truth where the source knows it
+
+
+class Source:
+    """Base class of all sources. Subclasses implement :meth:`blocks` and may override close."""
+
+    #: sensor names in the order of ``wrench``'s second axis
+    sensor_names: list[str]
+    sample_rate_hz: float
+
+    def blocks(self) -> Iterator[WrenchBlock]:
+        """Yield blocks until the source ends (finite sources) or is closed."""
+        raise NotImplementedError
+
+    def close(self) -> None:
+        """Release what the source holds. Safe to call more than once."""
+
+    def __enter__(self) -> Source:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()

@@ -1,0 +1,586 @@
+"""The contact estimator: sensor wrenches in, contact samples out (paper §2–3, Fig. 3).
+
+One pass per block, the same code for a single sample or a million (``push``), so streaming
+and batch give the same output for any split of the input:
+
+1. Bad samples (NaN/inf, a saturated channel, time not increasing) are flagged and replaced
+   by the last good sample, so no filter state is poisoned; a gap in time restarts the
+   filters.
+2. The 6·S channels become the resultant wrench [F_o; M_o] about P_o by one linear map
+   (paper eqs. 1–4; :meth:`DeskProfile.wrench_map`).
+3. Filters on that wrench: the conventional second-order low-pass; the pseudo-differentiated
+   wrench (paper eq. 8: an n-sample difference, then the low-pass); and a fast low-pass of
+   the force for touch-down/release detection that does not wait for the position filters.
+4. Zero: an automatic tare over the first ``tare_s`` of a quiet desk (refused with a warning
+   and retried while the desk is not quiet); later a load held perfectly still for
+   ``settle_s`` (an object put down, or slow drift) becomes part of the zero, with a notice.
+5. Candidates: P_er from the force and P_ed from the differentiated force, each the
+   intersection of its line of action with the surfaces (paper eqs. 5, 12;
+   :mod:`hapticdesk.geometry`), each with a covariance propagated from the sensor noise.
+6. Method: ``force`` (the conventional), ``diff``, ``switched`` (paper Fig. 3 with F_tth,
+   F_rth) or ``fused`` (inverse-covariance combination of both candidates, no threshold).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from hapticdesk.contacts import (
+    FLAG_GAP,
+    FLAG_NAN,
+    FLAG_NOT_TARED,
+    FLAG_SATURATED,
+    FLAG_TIME_BACK,
+    PHASE_HOLD,
+    PHASE_RELEASE,
+    PHASE_TOUCH,
+    SOURCE_DIFF,
+    SOURCE_FORCE,
+    SOURCE_FUSED,
+    UNCERTAINTY_CAP_M,
+    ContactBlock,
+)
+from hapticdesk.filters import DelayLine, SosFilter, butter_lowpass_sos, noise_gain
+from hapticdesk.geometry import Intersection, SurfaceFrame, intersect
+from hapticdesk.profile import METHODS, DeskProfile, EstimationSettings
+from hapticdesk.recording import Recording
+
+log = logging.getLogger("hapticdesk.estimator")
+
+WINDOW_S = 0.2  # tare and stillness are judged on windows of this length
+MAX_SIGMA_M = 0.02  # `diff` and `fused` report a point only when its 1-σ is below this
+
+
+@dataclass(frozen=True)
+class Notice:
+    """Something the estimator did on its own that a user should know about."""
+
+    t: float
+    kind: str  # tare, tare_refused, absorbed, drift, gap
+    message: str
+
+
+class ContactEstimator:
+    """Streaming contact estimator for one desk. See the module docstring for the stages.
+
+    ``push(t, wrench)`` takes k samples (k ≥ 0): ``t`` (k,) seconds, ``wrench`` (k, S, 6) in
+    each sensor's own frame, and returns a :class:`ContactBlock` for exactly those samples.
+    """
+
+    def __init__(
+        self,
+        profile: DeskProfile,
+        method: str | None = None,
+        settings: EstimationSettings | None = None,
+    ) -> None:
+        settings = settings or profile.estimation
+        if method is not None:
+            if method not in METHODS:
+                raise ValueError(f"method must be one of {', '.join(METHODS)}, found {method!r}")
+            settings = replace(settings, method=method)
+        self.profile = profile
+        self.settings = s = settings
+        self.method = s.method
+        fs = profile.sample_rate_hz
+        self.sample_rate_hz = fs
+        self._map = np.ascontiguousarray(profile.wrench_map())  # (6, 6S)
+        limits = profile.saturation_limits()
+        if limits is None:
+            limits = np.full((len(profile.sensors), 6), np.inf)
+        self._range_flat = limits.reshape(-1)  # (6S,)
+        self._inv_range2 = 1.0 / self._range_flat**2  # 0 for unrated channels
+        self._frames = [SurfaceFrame.of(surf) for surf in profile.surfaces]
+        self._normals = (
+            np.array([surf.normal for surf in profile.surfaces])
+            if profile.surfaces
+            else np.zeros((0, 3))
+        )
+
+        # filters (settings) — state is created from the first sample
+        self._lp_sos = butter_lowpass_sos(s.force_lowpass_hz, fs)
+        self._diff_sos = butter_lowpass_sos(s.diff_lowpass_hz, fs)
+        self._det_sos = butter_lowpass_sos(min(s.detect_lowpass_hz, 0.45 * fs), fs)
+        self._n_diff = max(1, round(s.diff_window_s * fs))
+        self._diff_scale = 1.0 / (self._n_diff / fs)
+        # A difference commutes with an LTI filter: when both low-passes are equal, the
+        # differentiated wrench is the difference of the low-passed one (one filter, not two).
+        self._shared_lp = bool(np.allclose(self._lp_sos, self._diff_sos))
+        fir = np.zeros(self._n_diff + 1)
+        fir[0], fir[-1] = self._diff_scale, -self._diff_scale
+        long = int(8 * fs / min(s.force_lowpass_hz, s.diff_lowpass_hz)) + self._n_diff
+        self._gain_lp = noise_gain(self._lp_sos, length=long)
+        self._gain_diff = noise_gain(self._diff_sos, fir, length=long)
+
+        self._window = max(1, round(WINDOW_S * fs))
+        self._n_tare = max(1, math.ceil(s.tare_s / (self._window / fs) - 1e-9))
+        self._n_settle = max(1, math.ceil(s.settle_s / (self._window / fs) - 1e-9))
+        self.notices: list[Notice] = []
+        self.reset()
+
+    # --- state --------------------------------------------------------------------------------
+
+    def reset(self) -> None:
+        """Forget everything: filters, zero and contact state (a new run)."""
+        self._lp = SosFilter(self._lp_sos, 6)
+        self._diff_lp = None if self._shared_lp else SosFilter(self._diff_sos, 6)
+        self._delay = DelayLine(self._n_diff, 6)
+        self._det = SosFilter(self._det_sos, 3)
+        self._last_good: np.ndarray | None = None  # raw wrench (6,)
+        self._last_t = -math.inf
+        self._in_contact = False
+        self._zero: np.ndarray | None = None
+        self._noise_cov: np.ndarray | None = None
+        self._cov_lp: np.ndarray | None = None
+        self._cov_diff: np.ndarray | None = None
+        self._win_lp = np.zeros((3, 0))
+        self._win_raw = np.zeros((6, 0))
+        self._win_bad = np.zeros(0, bool)
+        self._last_window_t = float("nan")
+        self._zero_list: list[float] = []
+        self._tare_raw: list[np.ndarray] = []
+        self._tare_means: list[list[float]] = []
+        self._windows_seen = 0
+        self._still_run = 0
+        self._still_lo: list[float] = [0.0, 0.0, 0.0]
+        self._still_hi: list[float] = [0.0, 0.0, 0.0]
+
+    @property
+    def tared(self) -> bool:
+        return self._zero is not None
+
+    @property
+    def zero(self) -> np.ndarray | None:
+        """The current zero of [F_o; M_o] (6,), or None before the tare."""
+        return None if self._zero is None else self._zero.copy()
+
+    # --- the pass -----------------------------------------------------------------------------
+
+    def push(self, t: np.ndarray, wrench: np.ndarray) -> ContactBlock:
+        """Estimate contacts for k more samples. See the class docstring."""
+        t = np.asarray(t, dtype=float).reshape(-1)
+        wrench = np.asarray(wrench, dtype=float)
+        n_sensors = len(self.profile.sensors)
+        if wrench.shape != (len(t), n_sensors, 6):
+            raise ValueError(
+                f"wrench must have shape (k, S, 6) = ({len(t)}, {n_sensors}, 6) for desk "
+                f"{self.profile.name!r}, found {wrench.shape}"
+            )
+        k = len(t)
+        if k == 0:
+            return ContactBlock.empty()
+        flags, raw = self._clean(t, wrench)
+        lp, det, diff = self._filter(raw, flags)
+        zero_starts, zeros = self._update_zero(t, lp[:3], raw, flags)
+        return self._contacts(t, flags, lp, det, diff, zero_starts, zeros)
+
+    def _clean(self, t: np.ndarray, wrench: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Flag bad samples and hold the last good wrench over them. Returns flags, raw (6, k)."""
+        k = len(t)
+        flags = np.zeros(k, np.uint8)
+        flat = wrench.reshape(k, -1)
+        # Σ (channel / rating)² < 1 proves no channel is saturated and all are finite; only
+        # the rare rows that fail it are checked channel by channel (a fast first pass).
+        suspect = ~(np.einsum("ij,ij,j->i", flat, flat, self._inv_range2) < 1.0)
+        suspect |= ~np.isfinite(t)
+        if suspect.any():
+            rows = np.flatnonzero(suspect)
+            sub = flat[rows]
+            finite = np.isfinite(sub).all(axis=1) & np.isfinite(t[rows])
+            flags[rows[~finite]] |= FLAG_NAN
+            with np.errstate(invalid="ignore"):
+                sat = (np.abs(sub) >= self._range_flat).any(axis=1)
+            flags[rows[finite & sat]] |= FLAG_SATURATED
+        # time must increase: compare with the running maximum of earlier good times
+        t_clean = np.where(flags & FLAG_NAN, -np.inf, t)
+        prev_max = np.maximum.accumulate(np.concatenate([[self._last_t], t_clean]))[:-1]
+        back = (t <= prev_max) & ((flags & FLAG_NAN) == 0)
+        flags[back] |= FLAG_TIME_BACK
+        good = flags == 0
+        all_good = bool(good.all())
+        if all_good or good.any():
+            good_t = t if all_good else t[good]
+            before = np.concatenate([[self._last_t], good_t[:-1]])
+            gap = (good_t - before) > self.settings.max_gap_s
+            if self._last_t == -math.inf:
+                gap[0] = False
+            if gap.any():
+                flags[np.flatnonzero(good)[gap]] |= FLAG_GAP
+            self._last_t = float(good_t[-1])
+
+        raw = self._map @ flat.T  # (6, k): paper eqs. (1)–(4) as one linear map
+        if not all_good:
+            index = np.where(good, np.arange(k), -1)
+            np.maximum.accumulate(index, out=index)
+            held = index >= 0
+            raw = np.where(held, raw[:, np.maximum(index, 0)], 0.0)
+            if self._last_good is not None:
+                raw[:, ~held] = self._last_good[:, None]
+            elif good.any():  # bad samples before the first good one ever: back-fill it
+                raw[:, ~held] = raw[:, np.flatnonzero(good)[0]][:, None]
+        if all_good:
+            self._last_good = raw[:, -1].copy()
+        elif good.any():
+            self._last_good = raw[:, np.flatnonzero(good)[-1]].copy()
+        return flags, np.ascontiguousarray(raw)
+
+    def _filter(
+        self, raw: np.ndarray, flags: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Low-passed wrench, fast force, differentiated wrench; restarts at gaps."""
+        starts = np.flatnonzero(flags & FLAG_GAP)
+        if self._last_good is None:  # nothing good seen yet: nothing to filter
+            z = np.zeros_like(raw)
+            return z, z[:3].copy(), z.copy()
+        bounds = [0, *starts.tolist(), raw.shape[1]]
+        parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+            if b <= a:
+                continue
+            seg = raw[:, a:b]
+            if a in starts:  # restart every filter at the first sample after the gap
+                self._lp.restart(seg[:, 0])
+                self._det.restart(seg[:3, 0])
+                if self._diff_lp is not None:
+                    self._diff_lp.restart(np.zeros(6))
+                    self._delay.restart(seg[:, 0])
+                else:
+                    self._delay.restart(seg[:, 0])
+                self.notices.append(
+                    Notice(float("nan"), "gap", "gap in sample times: filters restarted")
+                )
+            lp = self._lp.process(seg)
+            det = self._det.process(seg[:3])
+            if self._diff_lp is None:
+                diff = (lp - self._delay.delayed(lp)) * self._diff_scale  # paper eq. (8)
+            else:
+                if self._diff_lp.zi is None:
+                    self._diff_lp.restart(np.zeros(6))
+                diff = self._diff_lp.process((seg - self._delay.delayed(seg)) * self._diff_scale)
+            parts.append((lp, det, diff))
+        if len(parts) == 1:
+            return parts[0]
+        return tuple(np.concatenate(p, axis=1) for p in zip(*parts, strict=True))  # type: ignore[return-value]
+
+    # --- zero: tare, drift and objects ----------------------------------------------------------
+
+    def _update_zero(
+        self, t: np.ndarray, lp_force: np.ndarray, raw: np.ndarray, flags: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The zero in force for each sample, as segments.
+
+        Returns ``starts`` (n,) sample indices where a zero takes effect and ``zeros`` (6, n)
+        (NaN before the tare). The zero decided at the end of a window applies from the next
+        sample on, whatever the block boundaries, so streaming equals batch.
+        """
+        w = self._window
+        m = self._win_lp.shape[1]
+        bad = (flags & (FLAG_NAN | FLAG_SATURATED | FLAG_TIME_BACK | FLAG_GAP)) != 0
+        all_lp = np.concatenate([self._win_lp, lp_force], axis=1)
+        all_raw = np.concatenate([self._win_raw, raw], axis=1)
+        all_bad = np.concatenate([self._win_bad, bad])
+        n_full = all_lp.shape[1] // w
+        starts = [0]
+        zeros = [self._zero_or_nan()]
+        if n_full:
+            cut = n_full * w
+            lp_w = all_lp[:, :cut].reshape(3, n_full, w)
+            spread: list[float] = (lp_w.max(axis=2) - lp_w.min(axis=2)).max(axis=0).tolist()
+            means = all_raw[:, :cut].reshape(6, n_full, w).mean(axis=2)
+            any_bad: list[bool] = all_bad[:cut].reshape(n_full, w).any(axis=1).tolist()
+            ends = np.arange(1, n_full + 1) * w - 1 - m  # block index of each window's end
+            t_end = np.where(ends >= 0, t[np.maximum(ends, 0)], self._last_window_t).tolist()
+            mean_rows = means.T.tolist()
+            for j in range(n_full):  # a loop over 0.2 s windows, not over samples
+                before = self._zero
+                self._window_done(
+                    spread[j], any_bad[j], mean_rows[j], all_raw[:, j * w : (j + 1) * w], t_end[j]
+                )
+                if self._zero is not before:
+                    starts.append(int(ends[j]) + 1)
+                    zeros.append(self._zero_or_nan())
+            self._win_lp = all_lp[:, cut:].copy()
+            self._win_raw = all_raw[:, cut:].copy()
+            self._win_bad = all_bad[cut:].copy()
+        else:
+            self._win_lp, self._win_raw, self._win_bad = all_lp, all_raw, all_bad
+        self._last_window_t = float(t[-1])
+        return np.array(starts), np.stack(zeros, axis=1)
+
+    def _zero_or_nan(self) -> np.ndarray:
+        return np.full(6, np.nan) if self._zero is None else self._zero
+
+    def _window_done(
+        self, spread: float, bad: bool, mean: list[float], raw: np.ndarray, t_end: float
+    ) -> None:
+        """Advance the tare / stillness state machine by one window (plain floats: it is hot)."""
+        s = self.settings
+        self._windows_seen += 1
+        if self._zero is None:
+            self._tare_window(spread, bad, mean, raw, t_end)
+            return
+        if bad or spread >= s.still_n:
+            self._still_run = 0
+            return
+        z = self._zero_list
+        f = (mean[0] - z[0], mean[1] - z[1], mean[2] - z[2])
+        if self._still_run:
+            lo = [min(a, b) for a, b in zip(self._still_lo, f, strict=True)]
+            hi = [max(a, b) for a, b in zip(self._still_hi, f, strict=True)]
+            if max(b - a for a, b in zip(lo, hi, strict=True)) >= s.still_n:
+                self._still_run = 0  # the load moved: a new still run starts here
+        if self._still_run == 0:
+            lo, hi = list(f), list(f)
+        self._still_lo, self._still_hi = lo, hi
+        self._still_run += 1
+        if self._still_run % self._n_settle:
+            return
+        load = math.sqrt(f[0] ** 2 + f[1] ** 2 + f[2] ** 2)
+        self._set_zero(np.array(mean))
+        self._still_run = 0
+        if load >= s.contact_force_n:
+            up = self._up()
+            sign = "put on" if f[0] * up[0] + f[1] * up[1] + f[2] * up[2] >= 0 else "taken off"
+            self._notice(
+                t_end,
+                "absorbed",
+                f"a still load of {load:.1f} N (an object {sign} the desk?) held for "
+                f"{s.settle_s:g} s became part of the zero",
+            )
+        else:
+            self._notice(t_end, "drift", f"zero drift of {load:.3f} N corrected", logging.DEBUG)
+
+    def _tare_window(
+        self, spread: float, bad: bool, mean: list[float], raw: np.ndarray, t_end: float
+    ) -> None:
+        s = self.settings
+        if not bad and spread < s.tare_quiet_n:
+            self._tare_raw.append(raw)
+            self._tare_means.append(mean[:3])
+            if len(self._tare_raw) > self._n_tare:
+                self._tare_raw.pop(0)
+                self._tare_means.pop(0)
+            if np.ptp(np.array(self._tare_means), axis=0).max() >= s.tare_quiet_n:
+                # each window was quiet, but the load moved between them: start again here
+                self._tare_raw, self._tare_means = [raw], [mean[:3]]
+        else:
+            self._tare_raw, self._tare_means = [], []
+        if len(self._tare_raw) >= self._n_tare:
+            samples = np.concatenate(self._tare_raw, axis=1)
+            self._set_zero(samples.mean(axis=1))
+            self._set_noise(np.cov(samples))
+            self._tare_raw, self._tare_means = [], []
+            self._notice(t_end, "tare", f"tared over {s.tare_s:g} s of a quiet desk")
+        elif self._windows_seen % self._n_tare == 0:
+            self._notice(
+                t_end,
+                "tare_refused",
+                f"tare refused: the desk was not quiet in the {s.tare_s:g} s before "
+                f"t = {t_end:.2f} s (is someone touching or leaning on it?); retrying",
+                logging.WARNING,
+            )
+
+    def _up(self) -> np.ndarray:
+        return self._normals[0] if len(self._normals) else np.array([0.0, 0.0, 1.0])
+
+    def _set_zero(self, zero: np.ndarray) -> None:
+        self._zero = np.array(zero, dtype=float)
+        self._zero_list = self._zero.tolist()
+
+    def _set_noise(self, measured: np.ndarray) -> None:
+        s = self.settings
+        if s.noise_force_n > 0 or s.noise_moment_nm > 0:
+            per_channel = np.tile(
+                [s.noise_force_n] * 3 + [s.noise_moment_nm] * 3, len(self.profile.sensors)
+            )
+            cov = self._map @ np.diag(per_channel**2) @ self._map.T
+        else:
+            cov = np.atleast_2d(measured)
+        # a floor so that a perfectly noise-free input (simulation) still gives finite weights
+        cov = cov + np.eye(6) * 1e-12
+        self._noise_cov = cov
+        self._cov_lp = cov * self._gain_lp
+        self._cov_diff = cov * self._gain_diff
+
+    def _notice(self, t: float, kind: str, message: str, level: int = logging.INFO) -> None:
+        self.notices.append(Notice(t, kind, message))
+        log.log(level, "t=%.3f s: %s", t, message)
+
+    # --- contacts -------------------------------------------------------------------------------
+
+    def _contacts(
+        self,
+        t: np.ndarray,
+        flags: np.ndarray,
+        lp: np.ndarray,
+        det: np.ndarray,
+        diff: np.ndarray,
+        zero_starts: np.ndarray,
+        zeros: np.ndarray,
+    ) -> ContactBlock:
+        s = self.settings
+        k = len(t)
+        block = ContactBlock(
+            t=t.copy(),
+            in_contact=np.zeros(k, bool),
+            located=np.zeros(k, bool),
+            surface=np.full(k, -1, np.int16),
+            x=np.zeros(k),
+            y=np.zeros(k),
+            z=np.zeros(k),
+            force_n=np.zeros(k),
+            source=np.zeros(k, np.int8),
+            phase=np.zeros(k, np.int8),
+            sigma_m=np.full(k, UNCERTAINTY_CAP_M),
+            flags=flags,
+        )
+        tared_zero = ~np.isnan(zeros[0])
+        if not tared_zero.any():
+            block.flags |= FLAG_NOT_TARED
+            return block
+        # the zero is piecewise constant: subtract it segment by segment
+        ends = [*zero_starts[1:].tolist(), k]
+        f_det = det.copy()
+        tared = np.ones(k, bool)
+        for a, b, j in zip(zero_starts.tolist(), ends, range(len(ends)), strict=True):
+            if tared_zero[j]:
+                f_det[:, a:b] -= zeros[:3, j : j + 1]
+            else:
+                tared[a:b] = False
+        block.flags[~tared] |= FLAG_NOT_TARED
+        f_det_mag = np.sqrt(np.einsum("ik,ik->k", f_det, f_det))
+        block.force_n = np.where(tared, f_det_mag, 0.0)
+
+        # fast path: touch-down at contact_force_n, release below it less the hysteresis,
+        # and only for a force that presses into a surface (a lifted object pulls)
+        if len(self._normals):
+            pressing = (self._normals @ f_det).max(axis=0) >= s.min_normal_cos * f_det_mag
+        else:
+            pressing = np.zeros(k, bool)
+        above = tared & pressing & (f_det_mag >= s.contact_force_n)
+        below = ~tared | ~pressing | (f_det_mag < s.contact_force_n - s.release_hysteresis_n)
+        block.in_contact = _hysteresis(above, below, self._in_contact)
+        self._in_contact = bool(block.in_contact[-1])
+        idx = np.flatnonzero(block.in_contact)
+        if len(idx) == 0:
+            return block
+        # from here on only the samples in contact: the candidates are the costly part
+        seg = np.searchsorted(zero_starts, idx, side="right") - 1
+        wrench = lp[:, idx] - zeros[:, seg]
+        d_wrench = diff[:, idx]
+        fd = f_det[:, idx]
+        fd_mag = f_det_mag[idx]
+
+        # motion: the sign of the differentiated force magnitude (paper Fig. 3, step 2)
+        rate = np.einsum("ik,ik->k", fd, d_wrench[:3]) / np.where(fd_mag > 0, fd_mag, 1.0)
+        phase = np.full(len(idx), PHASE_HOLD, np.int8)
+        phase[rate > s.phase_rate_n_s] = PHASE_TOUCH
+        phase[rate < -s.phase_rate_n_s] = PHASE_RELEASE
+        block.phase[idx] = phase
+        motion = np.where(rate >= 0, 1.0, -1.0)
+
+        f_mag = np.sqrt(np.einsum("ik,ik->k", wrench[:3], wrench[:3]))
+        method = self.method
+        cand_f = cand_d = None
+        if method in ("force", "switched", "fused"):
+            cand_f = intersect(self._frames, wrench, 1.0, self._cov_lp, s.min_normal_cos)
+        if method in ("diff", "switched", "fused"):
+            d_mag = np.sqrt(np.einsum("ik,ik->k", d_wrench[:3], d_wrench[:3]))
+            # the term F_e × Ṗ_e dropped in eq. (11): a finger drifting at contact_speed_m_s
+            model = (f_mag * s.contact_speed_m_s / np.maximum(d_mag, 1e-9)) ** 2
+            cand_d = intersect(
+                self._frames, d_wrench, motion, self._cov_diff, s.min_normal_cos, model
+            )
+
+        if method == "force":
+            assert cand_f is not None
+            self._emit(
+                block, idx, cand_f.valid & (f_mag >= s.contact_force_n), cand_f, SOURCE_FORCE
+            )
+        elif method == "diff":
+            assert cand_d is not None
+            self._emit(
+                block, idx, cand_d.valid & (cand_d.sigma() <= MAX_SIGMA_M), cand_d, SOURCE_DIFF
+            )
+        elif method == "switched":
+            assert cand_f is not None and cand_d is not None
+            gate = f_mag >= s.contact_force_n  # paper Fig. 3, step 4
+            threshold = np.where(motion > 0, s.touch_threshold_n, s.release_threshold_n)
+            want_diff = f_mag <= threshold  # paper Fig. 3, step 3
+            use_d = gate & cand_d.valid & (want_diff | ~cand_f.valid)
+            self._emit(block, idx, gate & cand_f.valid & ~use_d, cand_f, SOURCE_FORCE)
+            self._emit(block, idx, use_d, cand_d, SOURCE_DIFF)
+        else:
+            assert cand_f is not None and cand_d is not None
+            self._emit_fused(block, idx, cand_f, cand_d)
+        return block
+
+    def _emit(
+        self, block: ContactBlock, idx: np.ndarray, use: np.ndarray, cand: Intersection, source: int
+    ) -> None:
+        """Write the candidate's samples ``use`` (over ``idx``) into the block."""
+        if not use.any():
+            return
+        at = idx[use]
+        point = cand.points(self._frames)[:, use]
+        block.located[at] = True
+        block.surface[at] = cand.surface[use]
+        block.x[at], block.y[at], block.z[at] = point
+        block.sigma_m[at] = cand.sigma()[use]
+        block.source[at] = source
+
+    def _emit_fused(
+        self, block: ContactBlock, idx: np.ndarray, f: Intersection, d: Intersection
+    ) -> None:
+        """Inverse-covariance combination of both candidates where they lie on one surface;
+        elsewhere the one that is valid (or the surer one)."""
+        both = f.valid & d.valid & (f.surface == d.surface)
+        u, v, var_u, var_v = _fuse(f, d)
+        fused = Intersection(both, f.surface, np.stack([u, v]), var_u, var_v, np.zeros_like(u))
+        sigma_fused, sigma_f, sigma_d = fused.sigma(), f.sigma(), d.sigma()
+        only_f = f.valid & ~both & (~d.valid | (sigma_f <= sigma_d))
+        only_d = d.valid & ~both & ~only_f
+        self._emit(block, idx, both & (sigma_fused <= MAX_SIGMA_M), fused, SOURCE_FUSED)
+        self._emit(block, idx, only_f & (sigma_f <= MAX_SIGMA_M), f, SOURCE_FORCE)
+        self._emit(block, idx, only_d & (sigma_d <= MAX_SIGMA_M), d, SOURCE_DIFF)
+
+
+def _fuse(
+    f: Intersection, d: Intersection
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """p = (Σ_f⁻¹ + Σ_d⁻¹)⁻¹ (Σ_f⁻¹ p_f + Σ_d⁻¹ p_d) per sample, 2×2 in closed form."""
+
+    def information(c: Intersection) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        det = np.maximum(c.var_uu * c.var_vv - c.cov_uv**2, 1e-30)
+        return c.var_vv / det, -c.cov_uv / det, c.var_uu / det  # [[a, b], [b, c]]
+
+    af, bf, cf = information(f)
+    ad, bd, cd = information(d)
+    a, b, c = af + ad, bf + bd, cf + cd
+    ru = af * f.uv[0] + bf * f.uv[1] + ad * d.uv[0] + bd * d.uv[1]
+    rv = bf * f.uv[0] + cf * f.uv[1] + bd * d.uv[0] + cd * d.uv[1]
+    det = np.maximum(a * c - b * b, 1e-30)
+    return (c * ru - b * rv) / det, (a * rv - b * ru) / det, c / det, a / det
+
+
+def _hysteresis(on: np.ndarray, off: np.ndarray, state: bool) -> np.ndarray:
+    """Vectorised two-threshold switch: set where ``on``, cleared where ``off``, else held."""
+    k = len(on)
+    decided = on | off
+    index = np.where(decided, np.arange(k), -1)
+    np.maximum.accumulate(index, out=index)
+    out = np.where(index >= 0, on[np.maximum(index, 0)], state)
+    return out.astype(bool)
+
+
+def estimate(profile: DeskProfile, recording: Recording, method: str | None = None) -> ContactBlock:
+    """Batch estimation of a whole recording (identical to streaming it in any blocks)."""
+    if recording.sensor_names != profile.sensor_names:
+        raise ValueError(
+            f"the recording's sensors {recording.sensor_names} are not the desk's "
+            f"{profile.sensor_names}"
+        )
+    return ContactEstimator(profile, method=method).push(recording.t, recording.wrench)

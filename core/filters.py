@@ -1,0 +1,106 @@
+"""Streaming filters: second-order sections with carried state, and the pseudo-differentiator.
+
+Settings (the SOS coefficients) are kept apart from state (``zi``, the history ring) that is
+created from the first block (ezmsg-sigproc's habit, STYLE.md 7). Arrays are channels-first,
+``(C, k)``, so each channel is contiguous in memory for the C filter loop.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import signal
+
+try:  # the C loop behind scipy.signal.sosfilt, without its per-call checks and copies
+    from scipy.signal._sosfilt import _sosfilt as _sosfilt_inplace
+except ImportError:  # pragma: no cover - scipy moved it; the public function is equivalent
+    _sosfilt_inplace = None
+
+
+def butter_lowpass_sos(cutoff_hz: float, sample_rate_hz: float, order: int = 2) -> np.ndarray:
+    """Butterworth low-pass as second-order sections (stable at any cut-off/rate ratio)."""
+    nyquist = sample_rate_hz / 2.0
+    if not 0.0 < cutoff_hz < nyquist:
+        raise ValueError(
+            f"low-pass cut-off must lie between 0 and the Nyquist frequency {nyquist:g} Hz, "
+            f"found {cutoff_hz:g} Hz"
+        )
+    return np.ascontiguousarray(signal.butter(order, cutoff_hz, fs=sample_rate_hz, output="sos"))
+
+
+def noise_gain(sos: np.ndarray, extra_fir: np.ndarray | None = None, length: int = 0) -> float:
+    """Variance gain Σ h² of the filter for white noise (optionally after an FIR stage)."""
+    n = length or 1
+    impulse = np.zeros(max(n, 64))
+    impulse[0] = 1.0
+    if extra_fir is not None:
+        impulse = np.convolve(impulse, extra_fir)[: len(impulse)]
+    h = signal.sosfilt(sos, impulse)
+    return float(np.sum(h * h))
+
+
+class SosFilter:
+    """A low-pass over C channels, pushed one block at a time.
+
+    The first sample sets the state to steady state (no start-up transient), as does
+    :meth:`restart` after a gap. Output is identical for any split of the input into blocks.
+    """
+
+    def __init__(self, sos: np.ndarray, channels: int) -> None:
+        self.sos = np.ascontiguousarray(sos, dtype=float)
+        self.channels = channels
+        self._zi_unit = signal.sosfilt_zi(self.sos)  # (n_sections, 2) for a unit step
+        self.zi: np.ndarray | None = None  # (C, n_sections, 2)
+
+    def restart(self, x0: np.ndarray) -> None:
+        """Set the state as if ``x0`` (C,) had been the input forever."""
+        self.zi = np.ascontiguousarray(np.asarray(x0, dtype=float)[:, None, None] * self._zi_unit)
+
+    def shift(self, delta: np.ndarray) -> None:
+        """Move the state as if ``delta`` had been subtracted from all past input."""
+        if self.zi is not None:
+            self.zi -= np.asarray(delta, dtype=float)[:, None, None] * self._zi_unit
+
+    def process(self, x: np.ndarray) -> np.ndarray:
+        """Filter ``x`` (C, k); returns a new (C, k) array."""
+        y = np.array(x, dtype=float, order="C", copy=True)
+        if y.shape[1] == 0:
+            return y
+        if self.zi is None:
+            self.restart(y[:, 0])
+        assert self.zi is not None
+        if _sosfilt_inplace is not None:
+            _sosfilt_inplace(self.sos, y, self.zi)  # filters y and updates zi in place
+            return y
+        out, zf = signal.sosfilt(self.sos, y, axis=1, zi=np.moveaxis(self.zi, 0, 1))
+        self.zi = np.ascontiguousarray(np.moveaxis(zf, 1, 0))
+        return np.ascontiguousarray(out)
+
+
+class DelayLine:
+    """Remembers the last ``n`` samples of C channels to give x[i − n] for every new x[i].
+
+    Used by the pseudo-differentiator, paper eq. (8): f'(t) = (f(t) − f(t − n·T_s)) / (n·T_s).
+    """
+
+    def __init__(self, n: int, channels: int) -> None:
+        if n < 1:
+            raise ValueError(f"the delay must be at least one sample, found {n}")
+        self.n = n
+        self.channels = channels
+        self.history: np.ndarray | None = None  # (C, n), oldest first
+
+    def restart(self, x0: np.ndarray) -> None:
+        """Fill the history with ``x0`` so the first differences are zero."""
+        self.history = np.repeat(np.asarray(x0, dtype=float)[:, None], self.n, axis=1)
+
+    def delayed(self, x: np.ndarray) -> np.ndarray:
+        """x[i − n] for each column of ``x`` (C, k); updates the history."""
+        k = x.shape[1]
+        if k == 0:
+            return x.copy()
+        if self.history is None:
+            self.restart(x[:, 0])
+        assert self.history is not None
+        joined = np.concatenate([self.history, x], axis=1)
+        self.history = np.array(joined[:, -self.n :])
+        return joined[:, :k]

@@ -1,0 +1,190 @@
+"""Where the line of action of a force meets the desk's surfaces (paper eqs. 5, 6, 12).
+
+From the equilibrium r × F_o = M_o (METHOD.md), the contact lies on the line
+r(s) = (F_o × M_o)/|F_o|² + s·F_o. Each surface is a plane with an outline; in the surface's
+own frame (axes u, v, normal n, origin c) the wrench moved to c is F' = Rᵀ F,
+M' = Rᵀ (M − c × F), and the plane z' = 0 is met at
+
+    u = −M'_y / F'_z ,   v = M'_x / F'_z                      (paper eq. 5 with h = 0)
+
+The same formula holds for the differentiated wrench (Ḟ_o, Ṁ_o), paper eq. (12). Noise in
+the wrench with covariance Σ is carried to (u, v) through the Jacobian of these formulas.
+All functions work on channels-first arrays (3, k) and never return NaN or infinity.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hapticdesk.profile import Surface
+
+EDGE_TOLERANCE_M = 1e-9  # a point this close to an outline counts as inside
+
+
+@dataclass(frozen=True)
+class SurfaceFrame:
+    """A surface prepared for fast intersection: its 6×6 wrench transform and its outline."""
+
+    surface: Surface
+    transform: np.ndarray  # (6, 6): [F'; M'] = T [F; M]
+    polygon: np.ndarray  # (N, 2) outline in (u − offset_u, v − offset_v), i.e. about the origin
+    bounds: tuple[float, float, float, float]  # u0, v0, u1, v1 of the outline
+    is_rectangle: bool
+
+    @classmethod
+    def of(cls, surface: Surface) -> SurfaceFrame:
+        rot = np.stack([surface.u_axis, surface.v_axis, surface.normal], axis=1)  # columns
+        c = surface.origin
+        cx = np.array([[0, -c[2], c[1]], [c[2], 0, -c[0]], [-c[1], c[0], 0]])
+        t = np.zeros((6, 6))
+        t[:3, :3] = rot.T
+        t[3:, 3:] = rot.T
+        t[3:, :3] = -rot.T @ cx
+        poly = surface.polygon - surface.offset_uv
+        u0, v0 = poly.min(axis=0)
+        u1, v1 = poly.max(axis=0)
+        rect = (
+            len(poly) == 4
+            and all(np.isclose(p[0], u0) or np.isclose(p[0], u1) for p in poly)
+            and all(np.isclose(p[1], v0) or np.isclose(p[1], v1) for p in poly)
+        )
+        return cls(surface, t, poly, (float(u0), float(v0), float(u1), float(v1)), bool(rect))
+
+    def to_desk(self, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Local (u, v) about the origin -> desk points (3, k)."""
+        s = self.surface
+        return s.origin[:, None] + s.u_axis[:, None] * u + s.v_axis[:, None] * v
+
+    def contains(self, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Inside or on the outline (edges and corners count, within EDGE_TOLERANCE_M)."""
+        u0, v0, u1, v1 = self.bounds
+        tol = EDGE_TOLERANCE_M
+        inside = (u >= u0 - tol) & (u <= u1 + tol) & (v >= v0 - tol) & (v <= v1 + tol)
+        if self.is_rectangle or not inside.any():
+            return inside
+        return inside & _in_polygon(self.polygon, u, v, tol)
+
+
+def _in_polygon(poly: np.ndarray, u: np.ndarray, v: np.ndarray, tol: float) -> np.ndarray:
+    """Crossing-number test, vectorised over points; points on an edge count as inside."""
+    a = poly
+    b = np.roll(poly, -1, axis=0)
+    pu, pv = u[None, :], v[None, :]
+    au, av, bu, bv = a[:, 0:1], a[:, 1:2], b[:, 0:1], b[:, 1:2]
+    straddles = (av > pv) != (bv > pv)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cross_u = au + (pv - av) * (bu - au) / np.where(bv == av, 1.0, bv - av)
+    inside = (np.count_nonzero(straddles & (pu < cross_u), axis=0) % 2) == 1
+    # distance to each edge, so the outline itself belongs to the surface
+    eu, ev = bu - au, bv - av
+    length2 = np.maximum(eu * eu + ev * ev, 1e-300)
+    s = np.clip(((pu - au) * eu + (pv - av) * ev) / length2, 0.0, 1.0)
+    du, dv = pu - (au + s * eu), pv - (av + s * ev)
+    on_edge = np.any(du * du + dv * dv <= tol * tol, axis=0)
+    return inside | on_edge
+
+
+@dataclass
+class Intersection:
+    """Where one candidate wrench meets the desk, per sample ((n,) arrays)."""
+
+    valid: np.ndarray  # bool: pressing into a surface, inside its outline, not too oblique
+    surface: np.ndarray  # int16 index, -1 where not valid
+    uv: np.ndarray  # (2, n) in the chosen surface's plane, about its origin; 0 where not valid
+    var_uu: np.ndarray  # in-plane variances (m²), finite; VAR_CAP where not valid
+    var_vv: np.ndarray
+    cov_uv: np.ndarray
+
+    def sigma(self) -> np.ndarray:
+        """1-σ radial uncertainty: the square root of the covariance's trace."""
+        return np.sqrt(self.var_uu + self.var_vv)
+
+    def points(self, frames: list[SurfaceFrame]) -> np.ndarray:
+        """Desk-frame points (3, n); 0 where not valid."""
+        out = np.zeros((3, len(self.valid)))
+        for index, frame in enumerate(frames):
+            on = self.surface == index
+            if on.any():
+                out[:, on] = frame.to_desk(self.uv[0, on], self.uv[1, on])
+        return out
+
+
+VAR_CAP = 1e2  # m², stands for "unknown" so the arrays stay finite
+
+
+def intersect(
+    frames: list[SurfaceFrame],
+    wrench: np.ndarray,
+    direction_sign: np.ndarray | float,
+    wrench_cov: np.ndarray | None,
+    min_normal_cos: float,
+    extra_var: np.ndarray | float = 0.0,
+) -> Intersection:
+    """Intersect the lines of action of ``wrench`` (6, n) = [F; M] with every surface.
+
+    ``direction_sign`` (n,) or scalar: +1 where F points like the supports' force F_o (the
+    finger pushes along −F_o), −1 where it points the other way (a releasing differentiated
+    force). ``wrench_cov`` (6, 6): noise covariance of [F; M]. ``extra_var`` (n,) is added to
+    both in-plane variances (a model error). Where surfaces overlap, the one the finger
+    reaches first along its push wins.
+    """
+    n = wrench.shape[1]
+    force = wrench[:3]
+    norm = np.sqrt(np.einsum("ik,ik->k", force, force))
+    best: Intersection | None = None
+    best_key = np.full(n, -np.inf)
+    for index, frame in enumerate(frames):
+        local = frame.transform[2:5] @ wrench  # F'z, M'x, M'y
+        fz = local[0]
+        ok = fz * direction_sign > min_normal_cos * norm  # pressing into this surface
+        safe_fz = np.where(ok, fz, 1.0)
+        u = -local[2] / safe_fz  # paper eq. (5) in the surface's frame
+        v = local[1] / safe_fz
+        u[~ok] = 0.0
+        v[~ok] = 0.0
+        ok &= frame.contains(u, v)
+        if wrench_cov is not None:
+            c = frame.transform[2:5] @ wrench_cov @ frame.transform[2:5].T  # Fz, Mx, My
+            inv2 = 1.0 / (safe_fz * safe_fz)
+            # du = −(u dF'z + dM'y)/F'z, dv = −(v dF'z − dM'x)/F'z
+            var_u = (u * u * c[0, 0] + 2 * u * c[0, 2] + c[2, 2]) * inv2 + extra_var
+            var_v = (v * v * c[0, 0] - 2 * v * c[0, 1] + c[1, 1]) * inv2 + extra_var
+            cov = (u * v * c[0, 0] - u * c[0, 1] + v * c[0, 2] - c[1, 2]) * inv2
+            var_u = np.where(ok, np.minimum(var_u, VAR_CAP), VAR_CAP)
+            var_v = np.where(ok, np.minimum(var_v, VAR_CAP), VAR_CAP)
+            cov = np.where(ok, np.clip(cov, -VAR_CAP, VAR_CAP), 0.0)
+        else:
+            var_u = np.where(ok, 0.0, VAR_CAP)
+            var_v = var_u.copy()
+            cov = np.zeros(n)
+        here = Intersection(
+            ok, np.where(ok, index, -1).astype(np.int16), np.stack([u, v]), var_u, var_v, cov
+        )
+        if len(frames) == 1:
+            return here
+        point = frame.to_desk(u, v)
+        key = np.einsum("ik,ik->k", point, force) * direction_sign / np.where(norm > 0, norm, 1)
+        take = ok & (key > best_key)
+        best_key = np.where(take, key, best_key)
+        if best is None:
+            best = here
+            continue
+        best.valid |= take
+        best.surface[take] = index
+        best.uv[:, take] = here.uv[:, take]
+        best.var_uu[take] = var_u[take]
+        best.var_vv[take] = var_v[take]
+        best.cov_uv[take] = cov[take]
+    if best is None:
+        z = np.zeros(n)
+        return Intersection(
+            np.zeros(n, bool),
+            np.full(n, -1, np.int16),
+            np.zeros((2, n)),
+            z + VAR_CAP,
+            z + VAR_CAP,
+            z,
+        )
+    return best

@@ -51,7 +51,10 @@ from hapticdesk.recording import Recording
 
 log = logging.getLogger("hapticdesk.estimator")
 
+BAD_SAMPLE = FLAG_NAN | FLAG_SATURATED | FLAG_TIME_BACK  # replaced by the last good sample
+
 WINDOW_S = 0.2  # tare and stillness are judged on windows of this length
+RATE_WINDOW_S = 0.05  # slope of the fast force for the touch/hold/release phase
 MAX_SIGMA_M = 0.02  # `diff` and `fused` report a point only when its 1-σ is below this
 
 
@@ -115,6 +118,9 @@ class ContactEstimator:
         self._gain_lp = noise_gain(self._lp_sos, length=long)
         self._gain_diff = noise_gain(self._diff_sos, fir, length=long)
 
+        # the touch phase follows the fast force's slope over a short window
+        self._n_rate = max(1, round(RATE_WINDOW_S * fs))
+        self._rate_scale = fs / self._n_rate
         self._window = max(1, round(WINDOW_S * fs))
         self._n_tare = max(1, math.ceil(s.tare_s / (self._window / fs) - 1e-9))
         self._n_settle = max(1, math.ceil(s.settle_s / (self._window / fs) - 1e-9))
@@ -129,6 +135,7 @@ class ContactEstimator:
         self._diff_lp = None if self._shared_lp else SosFilter(self._diff_sos, 6)
         self._delay = DelayLine(self._n_diff, 6)
         self._det = SosFilter(self._det_sos, 3)
+        self._det_delay = DelayLine(self._n_rate, 3)
         self._last_good: np.ndarray | None = None  # raw wrench (6,)
         self._last_t = -math.inf
         self._in_contact = False
@@ -173,9 +180,9 @@ class ContactEstimator:
         if k == 0:
             return ContactBlock.empty()
         flags, raw = self._clean(t, wrench)
-        lp, det, diff = self._filter(raw, flags)
+        lp, det, diff, det_slope = self._filter(raw, flags)
         zero_starts, zeros = self._update_zero(t, lp[:3], raw, flags)
-        return self._contacts(t, flags, lp, det, diff, zero_starts, zeros)
+        return self._contacts(t, flags, lp, det, diff, det_slope, zero_starts, zeros)
 
     def _clean(self, t: np.ndarray, wrench: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Flag bad samples and hold the last good wrench over them. Returns flags, raw (6, k)."""
@@ -211,7 +218,8 @@ class ContactEstimator:
                 flags[np.flatnonzero(good)[gap]] |= FLAG_GAP
             self._last_t = float(good_t[-1])
 
-        raw = self._map @ flat.T  # (6, k): paper eqs. (1)–(4) as one linear map
+        with np.errstate(invalid="ignore", over="ignore"):  # bad rows are replaced below
+            raw = self._map @ flat.T  # (6, k): paper eqs. (1)–(4) as one linear map
         if not all_good:
             index = np.where(good, np.arange(k), -1)
             np.maximum.accumulate(index, out=index)
@@ -229,14 +237,15 @@ class ContactEstimator:
 
     def _filter(
         self, raw: np.ndarray, flags: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Low-passed wrench, fast force, differentiated wrench; restarts at gaps."""
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Low-passed wrench, fast force, differentiated wrench, fast force slope (restarts
+        at gaps)."""
         starts = np.flatnonzero(flags & FLAG_GAP)
         if self._last_good is None:  # nothing good seen yet: nothing to filter
             z = np.zeros_like(raw)
-            return z, z[:3].copy(), z.copy()
+            return z, z[:3].copy(), z.copy(), z[:3].copy()
         bounds = [0, *starts.tolist(), raw.shape[1]]
-        parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        parts: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
         for a, b in zip(bounds[:-1], bounds[1:], strict=True):
             if b <= a:
                 continue
@@ -244,6 +253,7 @@ class ContactEstimator:
             if a in starts:  # restart every filter at the first sample after the gap
                 self._lp.restart(seg[:, 0])
                 self._det.restart(seg[:3, 0])
+                self._det_delay.restart(seg[:3, 0])
                 if self._diff_lp is not None:
                     self._diff_lp.restart(np.zeros(6))
                     self._delay.restart(seg[:, 0])
@@ -254,13 +264,14 @@ class ContactEstimator:
                 )
             lp = self._lp.process(seg)
             det = self._det.process(seg[:3])
+            det_slope = (det - self._det_delay.delayed(det)) * self._rate_scale
             if self._diff_lp is None:
                 diff = (lp - self._delay.delayed(lp)) * self._diff_scale  # paper eq. (8)
             else:
                 if self._diff_lp.zi is None:
                     self._diff_lp.restart(np.zeros(6))
                 diff = self._diff_lp.process((seg - self._delay.delayed(seg)) * self._diff_scale)
-            parts.append((lp, det, diff))
+            parts.append((lp, det, diff, det_slope))
         if len(parts) == 1:
             return parts[0]
         return tuple(np.concatenate(p, axis=1) for p in zip(*parts, strict=True))  # type: ignore[return-value]
@@ -278,7 +289,7 @@ class ContactEstimator:
         """
         w = self._window
         m = self._win_lp.shape[1]
-        bad = (flags & (FLAG_NAN | FLAG_SATURATED | FLAG_TIME_BACK | FLAG_GAP)) != 0
+        bad = (flags & (BAD_SAMPLE | FLAG_GAP)) != 0
         all_lp = np.concatenate([self._win_lp, lp_force], axis=1)
         all_raw = np.concatenate([self._win_raw, raw], axis=1)
         all_bad = np.concatenate([self._win_bad, bad])
@@ -290,7 +301,7 @@ class ContactEstimator:
             lp_w = all_lp[:, :cut].reshape(3, n_full, w)
             spread: list[float] = (lp_w.max(axis=2) - lp_w.min(axis=2)).max(axis=0).tolist()
             means = all_raw[:, :cut].reshape(6, n_full, w).mean(axis=2)
-            any_bad: list[bool] = all_bad[:cut].reshape(n_full, w).any(axis=1).tolist()
+            any_bad = np.any(all_bad[:cut].reshape(n_full, w), axis=1).astype(bool).tolist()
             ends = np.arange(1, n_full + 1) * w - 1 - m  # block index of each window's end
             t_end = np.where(ends >= 0, t[np.maximum(ends, 0)], self._last_window_t).tolist()
             mean_rows = means.T.tolist()
@@ -418,6 +429,7 @@ class ContactEstimator:
         lp: np.ndarray,
         det: np.ndarray,
         diff: np.ndarray,
+        det_slope: np.ndarray,
         zero_starts: np.ndarray,
         zeros: np.ndarray,
     ) -> ContactBlock:
@@ -464,10 +476,11 @@ class ContactEstimator:
         below = ~tared | ~pressing | (f_det_mag < s.contact_force_n - s.release_hysteresis_n)
         block.in_contact = _hysteresis(above, below, self._in_contact)
         self._in_contact = bool(block.in_contact[-1])
-        idx = np.flatnonzero(block.in_contact)
+        # candidates only for good samples in contact (a bad one keeps the contact state
+        # but has no position of its own); they are the costly part
+        idx = np.flatnonzero(block.in_contact & ((flags & BAD_SAMPLE) == 0))
         if len(idx) == 0:
             return block
-        # from here on only the samples in contact: the candidates are the costly part
         seg = np.searchsorted(zero_starts, idx, side="right") - 1
         wrench = lp[:, idx] - zeros[:, seg]
         d_wrench = diff[:, idx]
@@ -475,12 +488,15 @@ class ContactEstimator:
         fd_mag = f_det_mag[idx]
 
         # motion: the sign of the differentiated force magnitude (paper Fig. 3, step 2)
-        rate = np.einsum("ik,ik->k", fd, d_wrench[:3]) / np.where(fd_mag > 0, fd_mag, 1.0)
-        phase = np.full(len(idx), PHASE_HOLD, np.int8)
-        phase[rate > s.phase_rate_n_s] = PHASE_TOUCH
-        phase[rate < -s.phase_rate_n_s] = PHASE_RELEASE
-        block.phase[idx] = phase
+        inv_mag = 1.0 / np.where(fd_mag > 0, fd_mag, 1.0)
+        rate = np.einsum("ik,ik->k", fd, d_wrench[:3]) * inv_mag
         motion = np.where(rate >= 0, 1.0, -1.0)
+        # the phase follows the fast path, which does not wait for the 166 ms window
+        slope = np.einsum("ik,ik->k", fd, det_slope[:, idx]) * inv_mag
+        phase = np.full(len(idx), PHASE_HOLD, np.int8)
+        phase[slope > s.phase_rate_n_s] = PHASE_TOUCH
+        phase[slope < -s.phase_rate_n_s] = PHASE_RELEASE
+        block.phase[idx] = phase
 
         f_mag = np.sqrt(np.einsum("ik,ik->k", wrench[:3], wrench[:3]))
         method = self.method

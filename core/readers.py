@@ -1,0 +1,21 @@
+"""Read any recording a user hands us: CSV, NPZ, or a CAN log decoded through the profile."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from hapticdesk.profile import DeskProfile
+from hapticdesk.recording import RECORDING_SUFFIXES, Recording, read_recording
+
+
+def read_any_recording(path: str | Path, profile: DeskProfile) -> Recording:
+    """A recording (.csv, .npz) or a CAN log (.asc, .blf, .log, .trc, candump text).
+
+    CAN logs are decoded through the profile's ``can:`` section; python-can and cantools are
+    imported only for them.
+    """
+    if Path(path).suffix.lower() in RECORDING_SUFFIXES:
+        return read_recording(path, profile.sensor_names)
+    from hapticdesk.canbus.logs import read_can_log  # a CAN log: imports python-can lazily
+
+    return read_can_log(path, profile)

@@ -1,0 +1,238 @@
+"""The contact estimator: exactness, chunk invariance, tare, objects, bad samples, extremes."""
+
+from dataclasses import fields, replace
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from hapticdesk.contacts import (
+    FLAG_GAP,
+    FLAG_NAN,
+    FLAG_SATURATED,
+    FLAG_TIME_BACK,
+    ContactBlock,
+    contact_events,
+)
+from hapticdesk.estimator import ContactEstimator
+from hapticdesk.profile import METHODS, load_profile
+
+POINTS = [(0.2, 0.1, 0.733), (-0.3, -0.2, 0.733), (0.0, 0.0, 0.733)]
+
+
+@pytest.fixture(autouse=True)
+def _helpers(statics):
+    global PUSH, PRESS, READINGS
+    PUSH, PRESS, READINGS = statics
+
+
+def all_finite(block: ContactBlock) -> bool:
+    return all(
+        np.isfinite(getattr(block, f.name)).all()
+        for f in fields(block)
+        if getattr(block, f.name).dtype.kind == "f"
+    )
+
+
+def split_push(est: ContactEstimator, t, w, cuts) -> ContactBlock:
+    bounds = [0, *sorted(cuts), len(t)]
+    return ContactBlock.concat(
+        [est.push(t[a:b], w[a:b]) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+    )
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_noise_free_presses_are_located_exactly(paper_desk, press_recording, method):
+    t, w, _ = press_recording(paper_desk, POINTS)
+    est = ContactEstimator(paper_desk, method=method)
+    block = est.push(t, w)
+    assert [n.kind for n in est.notices] == ["tare"]
+    for i, p in enumerate(POINTS):
+        window = (t > 1.5 + 4 * i) & (t < 1.5 + 4 * (i + 1)) & block.located
+        assert window.sum() > 100
+        err = np.hypot(block.x[window] - p[0], block.y[window] - p[1])
+        assert err.max() < 1e-9, (method, i, err.max())
+        assert np.allclose(block.z[window], 0.733)
+    events = contact_events(block)
+    assert [e.kind for e in events].count("down") == 3
+    assert [e.kind for e in events].count("up") == 3
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    cuts=st.lists(st.integers(1, 8999), max_size=40, unique=True), method=st.sampled_from(METHODS)
+)
+def test_streaming_in_any_blocks_equals_batch(noisy_presses, cuts, method):
+    desk = load_profile("kitamura2017")
+    t, w = noisy_presses
+    batch = ContactEstimator(desk, method=method).push(t, w)
+    assert batch.located.sum() > 1000 and (batch.flags & FLAG_NAN).sum() == 10
+    stream = split_push(ContactEstimator(desk, method=method), t, w, cuts)
+    for f in fields(ContactBlock):
+        a, b = getattr(batch, f.name), getattr(stream, f.name)
+        if a.dtype.kind == "f":
+            np.testing.assert_allclose(b, a, rtol=1e-9, atol=1e-9, err_msg=f.name)
+        else:
+            np.testing.assert_array_equal(b, a, err_msg=f.name)
+
+
+def test_single_sample_pushes_equal_batch(noisy_presses):
+    desk = load_profile("kitamura2017")
+    t, w = noisy_presses
+    batch = ContactEstimator(desk, method="fused").push(t, w)
+    est = ContactEstimator(desk, method="fused")
+    stream = ContactBlock.concat([est.push(t[i : i + 1], w[i : i + 1]) for i in range(len(t))])
+    np.testing.assert_array_equal(stream.located, batch.located)
+    np.testing.assert_allclose(stream.x, batch.x, atol=1e-9)
+
+
+def lean_then_press(desk, lean_until: float):
+    """Someone leans on the desk (a wavering 30 N) until ``lean_until``, then lets go."""
+    fs = desk.sample_rate_hz
+    t = np.arange(int((lean_until + 6.0) * fs)) / fs
+    lean = np.where(t < lean_until, 30 + 3 * np.sin(2 * np.pi * 1.3 * t), 0.0)
+    f_o, m_o = PUSH(np.array([0.0, -0.2, 0.733]), np.outer(lean, [0, 0, -1.0]))
+    press = PRESS(t, lean_until + 2.5)
+    f2, m2 = PUSH(np.array([0.25, 0.1, 0.733]), np.outer(press, [0, 0, -1.0]))
+    f_o = f_o + f2
+    f_o[:, 2] += 134.4
+    return t, READINGS(desk, f_o, m_o + m2)
+
+
+def test_tare_is_refused_while_someone_leans_and_retried(paper_desk):
+    t, w = lean_then_press(paper_desk, 3.0)
+    est = ContactEstimator(paper_desk)
+    block = est.push(t, w)
+    kinds = [n.kind for n in est.notices]
+    assert kinds.count("tare_refused") >= 2 and kinds[-1] == "tare"
+    tare_t = next(n.t for n in est.notices if n.kind == "tare")
+    assert tare_t > 3.0  # not a silent bad zero taken while leaning
+    assert not block.in_contact[t < tare_t].any()
+    press = block.located & (t > 5.0)
+    assert press.sum() > 500
+    assert np.abs(block.x[press] - 0.25).max() < 1e-6
+
+
+def test_an_object_put_down_becomes_part_of_the_zero(paper_desk):
+    fs = paper_desk.sample_rate_hz
+    settings_ = replace(paper_desk.estimation, settle_s=3.0)
+    t = np.arange(int(14 * fs)) / fs
+    mug = np.where(t > 2.0, 4.0, 0.0)  # a 4 N mug put down at t = 2 s, perfectly still
+    f_o, m_o = PUSH(np.array([-0.3, 0.2, 0.733]), np.outer(mug, [0, 0, -1.0]))
+    press = PRESS(t, 9.0)
+    f2, m2 = PUSH(np.array([0.1, -0.1, 0.733]), np.outer(press, [0, 0, -1.0]))
+    f_o = f_o + f2
+    f_o[:, 2] += 134.4
+    w = READINGS(paper_desk, f_o, m_o + m2)
+    est = ContactEstimator(paper_desk, settings=settings_)
+    block = est.push(t, w)
+    absorbed = [n for n in est.notices if n.kind == "absorbed"]
+    assert len(absorbed) == 1 and "4.0 N" in absorbed[0].message
+    assert 5.0 < absorbed[0].t < 5.5
+    # the mug was a touch until absorbed, then not; the later press is located exactly
+    assert block.in_contact[(t > 2.5) & (t < 4.5)].all()
+    assert not block.in_contact[(t > 5.6) & (t < 8.9)].any()
+    later = block.located & (t > 9.0)
+    assert later.sum() > 500 and np.abs(block.x[later] - 0.1).max() < 1e-6
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_nan_bursts_are_flagged_and_skipped(paper_desk, press_recording, method):
+    t, w, _ = press_recording(paper_desk, POINTS[:1], noise=0.05)
+    clean = ContactEstimator(paper_desk, method=method).push(t, w)
+    bad = w.copy()
+    burst = slice(int(2.5 * 1200), int(2.5 * 1200) + 24)  # 20 ms of NaN mid-press
+    bad[burst, 1, :] = np.nan
+    bad[int(2.0 * 1200), 0, 2] = np.inf
+    block = ContactEstimator(paper_desk, method=method).push(t, bad)
+    assert all_finite(block)
+    assert (block.flags[burst] & FLAG_NAN).all()
+    assert block.in_contact[burst].all()  # a burst is not a release
+    assert not block.located[burst].any()
+    after = slice(burst.stop + 600, burst.stop + 1200)
+    np.testing.assert_allclose(block.x[after], clean.x[after], atol=2e-3)
+
+
+def test_time_going_backwards_and_gaps(paper_desk, press_recording):
+    t, w, _ = press_recording(paper_desk, POINTS[:1])
+    t = t.copy()
+    t[2000] = t[1990]  # a repeated (late) time stamp
+    t[2700:] += 0.5  # the sensor stalled for half a second, mid-press
+    est = ContactEstimator(paper_desk)
+    block = est.push(t, w)
+    assert block.flags[2000] & FLAG_TIME_BACK
+    assert block.flags[2700] & FLAG_GAP
+    assert any(n.kind == "gap" for n in est.notices)
+    assert all_finite(block)
+    later = block.located & (t > t[2700])
+    assert later.sum() > 300
+    assert np.abs(block.x[later] - 0.2).max() < 1e-9
+
+
+def test_forces_at_and_beyond_the_rated_range(paper_desk):
+    fs = paper_desk.sample_rate_hz
+    t = np.arange(int(4 * fs)) / fs
+    mag = np.clip(200 * (t - 1.5), 0, 1200)  # up to 1200 N on one corner: beyond ±300 N
+    f_o, m_o = PUSH(np.array([0.33, 0.21, 0.733]), np.outer(mag, [0, 0, -1.0]))
+    f_o[:, 2] += 134.4
+    w = READINGS(paper_desk, f_o, m_o)
+    block = ContactEstimator(paper_desk).push(t, w)
+    sat = (block.flags & FLAG_SATURATED) != 0
+    assert sat.any() and all_finite(block)
+    limits = paper_desk.saturation_limits()
+    assert np.array_equal(sat, (np.abs(w) >= limits).any(axis=(1, 2)))
+    ok = block.located & ~sat
+    assert ok.sum() > 100 and np.abs(block.x[ok] - 0.33).max() < 1e-6
+
+
+def test_10_khz_with_a_half_hertz_low_pass_stays_stable(tmp_path):
+    text = (
+        load_profile("kitamura2017")
+        .path.read_text()
+        .replace("sample_rate_hz: 1200", "sample_rate_hz: 10000")
+        .replace("diff_lowpass_hz: 4.77", "diff_lowpass_hz: 0.5")
+        .replace("force_lowpass_hz: 4.77", "force_lowpass_hz: 0.5")
+    )
+    path = tmp_path / "fast.yaml"
+    path.write_text(text)
+    desk = load_profile(path)
+    fs = desk.sample_rate_hz
+    t = np.arange(int(20 * fs)) / fs
+    mag = PRESS(t, 3.0, hold=4.0)  # shorter than settle_s: not taken for an object
+    f_o, m_o = PUSH(np.array([-0.1, 0.2, 0.733]), np.outer(mag, [0, 0, -1.0]))
+    f_o[:, 2] += 134.4
+    w = READINGS(desk, f_o, m_o) + np.random.default_rng(1).normal(0, 0.05, (len(t), 4, 6))
+    for method in METHODS:
+        block = ContactEstimator(desk, method=method).push(t, w)
+        assert all_finite(block)
+        # `diff` alone locates only while the force changes; the others through the hold
+        window = (t > 3.0) & (t < 4.0) if method == "diff" else (t > 5.5) & (t < 7.5)
+        located = block.located & window
+        assert located.sum() > 2000, method
+        assert np.abs(block.x[located] + 0.1).max() < 5e-3, method
+
+
+def test_an_hour_streamed_in_blocks_keeps_memory_flat(paper_desk, press_recording):
+    import tracemalloc
+
+    t, w, _ = press_recording(paper_desk, POINTS, noise=0.05)
+    est = ContactEstimator(paper_desk, method="fused")
+    block_size = 600
+    n_blocks = int(3600 * 1200 / block_size)
+    tracemalloc.start()
+    peak_early = 0
+    located = 0
+    for i in range(n_blocks):
+        a = (i * block_size) % (len(t) - block_size)
+        out = est.push(t[a : a + block_size] + i * block_size / 1200 - t[a], w[a : a + block_size])
+        located += int(out.located.sum())
+        if i == 50:
+            tracemalloc.reset_peak()
+            peak_early = tracemalloc.get_traced_memory()[0]
+    current, _ = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    assert n_blocks * block_size == 4_320_000
+    assert located > 100_000
+    assert current - peak_early < 200_000  # bytes: no growth over an hour
+    assert len(est.notices) < 20_000  # drift notices only; nothing per sample

@@ -45,7 +45,7 @@ from hapticdesk.contacts import (
     ContactBlock,
 )
 from hapticdesk.filters import DelayLine, SosFilter, butter_lowpass_sos, noise_gain
-from hapticdesk.geometry import Intersection, SurfaceFrame, intersect
+from hapticdesk.geometry import VAR_CAP, Intersection, SurfaceFrame, intersect, intersect_one
 from hapticdesk.profile import METHODS, DeskProfile, EstimationSettings
 from hapticdesk.recording import Recording
 
@@ -141,11 +141,13 @@ class ContactEstimator:
         self._in_contact = False
         self._zero: np.ndarray | None = None
         self._noise_cov: np.ndarray | None = None
-        self._cov_lp: np.ndarray | None = None
-        self._cov_diff: np.ndarray | None = None
-        self._win_lp = np.zeros((3, 0))
-        self._win_raw = np.zeros((6, 0))
-        self._win_bad = np.zeros(0, bool)
+        self._covs_lp: list[np.ndarray] | None = None  # per surface, see project_cov
+        self._covs_diff: list[np.ndarray] | None = None
+        self._win_lp = np.zeros((3, self._window))  # the current, unfinished window
+        self._win_raw = np.zeros((6, self._window))
+        self._win_bad = np.zeros(self._window, bool)
+        self._win_fill = 0
+        self._zero_segment = (np.zeros(1, int), np.full((6, 1), np.nan))
         self._last_window_t = float("nan")
         self._zero_list: list[float] = []
         self._tare_raw: list[np.ndarray] = []
@@ -180,7 +182,7 @@ class ContactEstimator:
         if k == 0:
             return ContactBlock.empty()
         flags, raw = self._clean(t, wrench)
-        lp, det, diff, det_slope = self._filter(raw, flags)
+        lp, det, diff, det_slope = self._filter(t, raw, flags)
         zero_starts, zeros = self._update_zero(t, lp[:3], raw, flags)
         return self._contacts(t, flags, lp, det, diff, det_slope, zero_starts, zeros)
 
@@ -190,91 +192,108 @@ class ContactEstimator:
         flags = np.zeros(k, np.uint8)
         flat = wrench.reshape(k, -1)
         # Σ (channel / rating)² < 1 proves no channel is saturated and all are finite; only
-        # the rare rows that fail it are checked channel by channel (a fast first pass).
-        suspect = ~(np.einsum("ij,ij,j->i", flat, flat, self._inv_range2) < 1.0)
-        suspect |= ~np.isfinite(t)
-        if suspect.any():
-            rows = np.flatnonzero(suspect)
-            sub = flat[rows]
-            finite = np.isfinite(sub).all(axis=1) & np.isfinite(t[rows])
-            flags[rows[~finite]] |= FLAG_NAN
-            with np.errstate(invalid="ignore"):
-                sat = (np.abs(sub) >= self._range_flat).any(axis=1)
-            flags[rows[finite & sat]] |= FLAG_SATURATED
+        # blocks where it fails are checked channel by channel (a fast first pass).
+        clean = bool(np.einsum("ij,ij,j->i", flat, flat, self._inv_range2).max() < 1.0)
+        previous = self._last_t if self._last_t > -math.inf else t[0] - 1.0 / self.sample_rate_hz
+        steps = np.empty(k)  # time steps; NaN where a time is NaN
+        steps[0] = t[0] - previous
+        steps[1:] = t[1:] - t[:-1]
+        if clean and steps.min() > 0:  # the common case: finite, in range, time increasing
+            gap = steps > self.settings.max_gap_s
+            if gap.any():
+                flags[gap] = FLAG_GAP
+            self._last_t = float(t[-1])
+            with np.errstate(invalid="ignore", over="ignore"):
+                raw = self._map @ flat.T  # (6, k): paper eqs. (1)–(4) as one linear map
+            self._last_good = raw[:, -1].copy()
+            return flags, raw
+        return self._clean_slowly(t, flat, flags)
+
+    def _clean_slowly(
+        self, t: np.ndarray, flat: np.ndarray, flags: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The checks sample by sample (vectorised) for a block with something wrong in it."""
+        k = len(t)
+        finite = np.isfinite(flat).all(axis=1) & np.isfinite(t)
+        flags[~finite] |= FLAG_NAN
+        with np.errstate(invalid="ignore"):
+            sat = (np.abs(flat) >= self._range_flat).any(axis=1)
+        flags[finite & sat] |= FLAG_SATURATED
         # time must increase: compare with the running maximum of earlier good times
-        t_clean = np.where(flags & FLAG_NAN, -np.inf, t)
+        t_clean = np.where(finite, t, -np.inf)
         prev_max = np.maximum.accumulate(np.concatenate([[self._last_t], t_clean]))[:-1]
-        back = (t <= prev_max) & ((flags & FLAG_NAN) == 0)
-        flags[back] |= FLAG_TIME_BACK
+        flags[finite & (t <= prev_max)] |= FLAG_TIME_BACK
         good = flags == 0
-        all_good = bool(good.all())
-        if all_good or good.any():
-            good_t = t if all_good else t[good]
+        if good.any():
+            good_t = t[good]
             before = np.concatenate([[self._last_t], good_t[:-1]])
             gap = (good_t - before) > self.settings.max_gap_s
             if self._last_t == -math.inf:
                 gap[0] = False
-            if gap.any():
-                flags[np.flatnonzero(good)[gap]] |= FLAG_GAP
+            flags[np.flatnonzero(good)[gap]] |= FLAG_GAP
             self._last_t = float(good_t[-1])
-
         with np.errstate(invalid="ignore", over="ignore"):  # bad rows are replaced below
-            raw = self._map @ flat.T  # (6, k): paper eqs. (1)–(4) as one linear map
-        if not all_good:
-            index = np.where(good, np.arange(k), -1)
-            np.maximum.accumulate(index, out=index)
-            held = index >= 0
-            raw = np.where(held, raw[:, np.maximum(index, 0)], 0.0)
-            if self._last_good is not None:
-                raw[:, ~held] = self._last_good[:, None]
-            elif good.any():  # bad samples before the first good one ever: back-fill it
-                raw[:, ~held] = raw[:, np.flatnonzero(good)[0]][:, None]
-        if all_good:
-            self._last_good = raw[:, -1].copy()
-        elif good.any():
+            raw = self._map @ flat.T
+        index = np.where(good, np.arange(k), -1)
+        np.maximum.accumulate(index, out=index)
+        held = index >= 0
+        raw = np.where(held, raw[:, np.maximum(index, 0)], 0.0)
+        if self._last_good is not None:
+            raw[:, ~held] = self._last_good[:, None]
+        elif good.any():  # bad samples before the first good one ever: back-fill it
+            raw[:, ~held] = raw[:, np.flatnonzero(good)[0]][:, None]
+        if good.any():
             self._last_good = raw[:, np.flatnonzero(good)[-1]].copy()
         return flags, np.ascontiguousarray(raw)
 
     def _filter(
-        self, raw: np.ndarray, flags: np.ndarray
+        self, t: np.ndarray, raw: np.ndarray, flags: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Low-passed wrench, fast force, differentiated wrench, fast force slope (restarts
-        at gaps)."""
-        starts = np.flatnonzero(flags & FLAG_GAP)
+        """Low-passed wrench, fast force, differentiated wrench, fast force slope; the filters
+        restart after a gap."""
         if self._last_good is None:  # nothing good seen yet: nothing to filter
             z = np.zeros_like(raw)
             return z, z[:3].copy(), z.copy(), z[:3].copy()
-        bounds = [0, *starts.tolist(), raw.shape[1]]
-        parts: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
+        gaps = flags & FLAG_GAP
+        if not gaps.any():
+            return self._filter_segment(raw)
+        starts = np.flatnonzero(gaps).tolist()
+        bounds = [0, *starts, raw.shape[1]]
+        parts = []
         for a, b in zip(bounds[:-1], bounds[1:], strict=True):
             if b <= a:
                 continue
-            seg = raw[:, a:b]
-            if a in starts:  # restart every filter at the first sample after the gap
-                self._lp.restart(seg[:, 0])
-                self._det.restart(seg[:3, 0])
-                self._det_delay.restart(seg[:3, 0])
-                if self._diff_lp is not None:
-                    self._diff_lp.restart(np.zeros(6))
-                    self._delay.restart(seg[:, 0])
-                else:
-                    self._delay.restart(seg[:, 0])
-                self.notices.append(
-                    Notice(float("nan"), "gap", "gap in sample times: filters restarted")
+            if a in starts:
+                self._restart_filters(raw[:, a])
+                self._notice(
+                    float(t[a]), "gap", "gap in sample times: filters restarted", logging.WARNING
                 )
-            lp = self._lp.process(seg)
-            det = self._det.process(seg[:3])
-            det_slope = (det - self._det_delay.delayed(det)) * self._rate_scale
-            if self._diff_lp is None:
-                diff = (lp - self._delay.delayed(lp)) * self._diff_scale  # paper eq. (8)
-            else:
-                if self._diff_lp.zi is None:
-                    self._diff_lp.restart(np.zeros(6))
-                diff = self._diff_lp.process((seg - self._delay.delayed(seg)) * self._diff_scale)
-            parts.append((lp, det, diff, det_slope))
-        if len(parts) == 1:
-            return parts[0]
-        return tuple(np.concatenate(p, axis=1) for p in zip(*parts, strict=True))  # type: ignore[return-value]
+            parts.append(self._filter_segment(raw[:, a:b]))
+        lp, det, diff, slope = (np.concatenate(p, axis=1) for p in zip(*parts, strict=True))
+        return lp, det, diff, slope
+
+    def _restart_filters(self, x0: np.ndarray) -> None:
+        """Every filter as if ``x0`` had been the input forever (after a gap)."""
+        self._lp.restart(x0)
+        self._det.restart(x0[:3])
+        self._det_delay.restart(x0[:3])
+        self._delay.restart(x0)
+        if self._diff_lp is not None:
+            self._diff_lp.restart(np.zeros(6))
+
+    def _filter_segment(
+        self, raw: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        lp = self._lp.process(raw)
+        det = self._det.process(raw[:3])
+        det_slope = (det - self._det_delay.delayed(det)) * self._rate_scale
+        if self._diff_lp is None:
+            diff = (lp - self._delay.delayed(lp)) * self._diff_scale  # paper eq. (8)
+        else:
+            if self._diff_lp.zi is None:
+                self._diff_lp.restart(np.zeros(6))
+            diff = self._diff_lp.process((raw - self._delay.delayed(raw)) * self._diff_scale)
+        return lp, det, diff, det_slope
 
     # --- zero: tare, drift and objects ----------------------------------------------------------
 
@@ -288,11 +307,19 @@ class ContactEstimator:
         sample on, whatever the block boundaries, so streaming equals batch.
         """
         w = self._window
-        m = self._win_lp.shape[1]
+        m = self._win_fill
+        k = len(t)
         bad = (flags & (BAD_SAMPLE | FLAG_GAP)) != 0
-        all_lp = np.concatenate([self._win_lp, lp_force], axis=1)
-        all_raw = np.concatenate([self._win_raw, raw], axis=1)
-        all_bad = np.concatenate([self._win_bad, bad])
+        if m + k < w:  # the block ends inside the current window: only remember it
+            self._win_lp[:, m : m + k] = lp_force
+            self._win_raw[:, m : m + k] = raw
+            self._win_bad[m : m + k] = bad
+            self._win_fill = m + k
+            self._last_window_t = float(t[-1])
+            return self._zero_segment
+        all_lp = np.concatenate([self._win_lp[:, :m], lp_force], axis=1)
+        all_raw = np.concatenate([self._win_raw[:, :m], raw], axis=1)
+        all_bad = np.concatenate([self._win_bad[:m], bad])
         n_full = all_lp.shape[1] // w
         starts = [0]
         zeros = [self._zero_or_nan()]
@@ -313,11 +340,11 @@ class ContactEstimator:
                 if self._zero is not before:
                     starts.append(int(ends[j]) + 1)
                     zeros.append(self._zero_or_nan())
-            self._win_lp = all_lp[:, cut:].copy()
-            self._win_raw = all_raw[:, cut:].copy()
-            self._win_bad = all_bad[cut:].copy()
-        else:
-            self._win_lp, self._win_raw, self._win_bad = all_lp, all_raw, all_bad
+            rest = all_lp.shape[1] - cut
+            self._win_lp[:, :rest] = all_lp[:, cut:]
+            self._win_raw[:, :rest] = all_raw[:, cut:]
+            self._win_bad[:rest] = all_bad[cut:]
+            self._win_fill = rest
         self._last_window_t = float(t[-1])
         return np.array(starts), np.stack(zeros, axis=1)
 
@@ -400,6 +427,7 @@ class ContactEstimator:
     def _set_zero(self, zero: np.ndarray) -> None:
         self._zero = np.array(zero, dtype=float)
         self._zero_list = self._zero.tolist()
+        self._zero_segment = (np.zeros(1, int), self._zero[:, None].copy())
 
     def _set_noise(self, measured: np.ndarray) -> None:
         s = self.settings
@@ -413,8 +441,8 @@ class ContactEstimator:
         # a floor so that a perfectly noise-free input (simulation) still gives finite weights
         cov = cov + np.eye(6) * 1e-12
         self._noise_cov = cov
-        self._cov_lp = cov * self._gain_lp
-        self._cov_diff = cov * self._gain_diff
+        self._covs_lp = [f.project_cov(cov * self._gain_lp) for f in self._frames]
+        self._covs_diff = [f.project_cov(cov * self._gain_diff) for f in self._frames]
 
     def _notice(self, t: float, kind: str, message: str, level: int = logging.INFO) -> None:
         self.notices.append(Notice(t, kind, message))
@@ -481,6 +509,11 @@ class ContactEstimator:
         idx = np.flatnonzero(block.in_contact & ((flags & BAD_SAMPLE) == 0))
         if len(idx) == 0:
             return block
+        if k == 1:  # a single-sample push: plain floats beat numpy's per-call cost
+            self._locate_one(
+                block, lp[:, 0] - zeros[:, 0], diff[:, 0], f_det[:, 0], det_slope[:, 0]
+            )
+            return block
         seg = np.searchsorted(zero_starts, idx, side="right") - 1
         wrench = lp[:, idx] - zeros[:, seg]
         d_wrench = diff[:, idx]
@@ -502,13 +535,13 @@ class ContactEstimator:
         method = self.method
         cand_f = cand_d = None
         if method in ("force", "switched", "fused"):
-            cand_f = intersect(self._frames, wrench, 1.0, self._cov_lp, s.min_normal_cos)
+            cand_f = intersect(self._frames, wrench, 1.0, self._covs_lp, s.min_normal_cos)
         if method in ("diff", "switched", "fused"):
             d_mag = np.sqrt(np.einsum("ik,ik->k", d_wrench[:3], d_wrench[:3]))
             # the term F_e × Ṗ_e dropped in eq. (11): a finger drifting at contact_speed_m_s
             model = (f_mag * s.contact_speed_m_s / np.maximum(d_mag, 1e-9)) ** 2
             cand_d = intersect(
-                self._frames, d_wrench, motion, self._cov_diff, s.min_normal_cos, model
+                self._frames, d_wrench, motion, self._covs_diff, s.min_normal_cos, model
             )
 
         if method == "force":
@@ -533,6 +566,81 @@ class ContactEstimator:
             assert cand_f is not None and cand_d is not None
             self._emit_fused(block, idx, cand_f, cand_d)
         return block
+
+    def _locate_one(
+        self,
+        block: ContactBlock,
+        wrench_a: np.ndarray,
+        d_wrench_a: np.ndarray,
+        f_det_a: np.ndarray,
+        slope_a: np.ndarray,
+    ) -> None:
+        """The candidate stage of :meth:`_contacts` for one sample, on plain floats.
+
+        Kept equal to the vectorised stage by the single-sample tests."""
+        s = self.settings
+        wrench, d_wrench = wrench_a.tolist(), d_wrench_a.tolist()
+        fx, fy, fz = f_det_a.tolist()
+        mag = math.sqrt(fx * fx + fy * fy + fz * fz)
+        inv = 1.0 / mag if mag > 0 else 1.0
+        rate = (fx * d_wrench[0] + fy * d_wrench[1] + fz * d_wrench[2]) * inv
+        motion = 1.0 if rate >= 0 else -1.0
+        sx, sy, sz = slope_a.tolist()
+        slope = (fx * sx + fy * sy + fz * sz) * inv
+        block.phase[0] = (
+            PHASE_TOUCH
+            if slope > s.phase_rate_n_s
+            else PHASE_RELEASE
+            if slope < -s.phase_rate_n_s
+            else PHASE_HOLD
+        )
+        f_mag = math.sqrt(wrench[0] ** 2 + wrench[1] ** 2 + wrench[2] ** 2)
+        method = self.method
+        cf = cd = (-1, 0.0, 0.0, VAR_CAP, VAR_CAP, 0.0)
+        if method != "diff":
+            cf = intersect_one(self._frames, wrench, 1.0, self._covs_lp, s.min_normal_cos)
+        if method != "force":
+            d_mag = math.sqrt(d_wrench[0] ** 2 + d_wrench[1] ** 2 + d_wrench[2] ** 2)
+            model = (f_mag * s.contact_speed_m_s / max(d_mag, 1e-9)) ** 2
+            cd = intersect_one(
+                self._frames, d_wrench, motion, self._covs_diff, s.min_normal_cos, model
+            )
+        sig_f = math.sqrt(cf[3] + cf[4])
+        sig_d = math.sqrt(cd[3] + cd[4])
+        f_ok, d_ok = cf[0] >= 0, cd[0] >= 0
+        chosen, source = None, 0
+        if method == "force":
+            if f_ok and f_mag >= s.contact_force_n:
+                chosen, source = cf, SOURCE_FORCE
+        elif method == "diff":
+            if d_ok and sig_d <= MAX_SIGMA_M:
+                chosen, source = cd, SOURCE_DIFF
+        elif method == "switched":
+            if f_mag >= s.contact_force_n:
+                threshold = s.touch_threshold_n if motion > 0 else s.release_threshold_n
+                if d_ok and (f_mag <= threshold or not f_ok):
+                    chosen, source = cd, SOURCE_DIFF
+                elif f_ok:
+                    chosen, source = cf, SOURCE_FORCE
+        elif f_ok and d_ok and cf[0] == cd[0]:
+            fused = _fuse_one(cf, cd)
+            if math.sqrt(fused[3] + fused[4]) <= MAX_SIGMA_M:
+                chosen, source = fused, SOURCE_FUSED
+        elif f_ok and (not d_ok or sig_f <= sig_d):
+            if sig_f <= MAX_SIGMA_M:
+                chosen, source = cf, SOURCE_FORCE
+        elif d_ok and sig_d <= MAX_SIGMA_M:
+            chosen, source = cd, SOURCE_DIFF
+        if chosen is None:
+            return
+        index, u, v, var_u, var_v = chosen[:5]
+        surface = self._frames[index].surface
+        px, py, pz = (surface.origin + u * surface.u_axis + v * surface.v_axis).tolist()
+        block.located[0] = True
+        block.surface[0] = index
+        block.x[0], block.y[0], block.z[0] = px, py, pz
+        block.sigma_m[0] = math.sqrt(var_u + var_v)
+        block.source[0] = source
 
     def _emit(
         self, block: ContactBlock, idx: np.ndarray, use: np.ndarray, cand: Intersection, source: int
@@ -564,6 +672,25 @@ class ContactEstimator:
         self._emit(block, idx, only_d & (sigma_d <= MAX_SIGMA_M), d, SOURCE_DIFF)
 
 
+def _fuse_one(
+    f: tuple[int, float, float, float, float, float],
+    d: tuple[int, float, float, float, float, float],
+) -> tuple[int, float, float, float, float, float]:
+    """:func:`_fuse` for one sample on plain floats."""
+
+    def information(c: tuple[int, float, float, float, float, float]) -> tuple[float, float, float]:
+        det = max(c[3] * c[4] - c[5] ** 2, 1e-30)
+        return c[4] / det, -c[5] / det, c[3] / det
+
+    af, bf, cf = information(f)
+    ad, bd, cd = information(d)
+    a, b, c = af + ad, bf + bd, cf + cd
+    ru = af * f[1] + bf * f[2] + ad * d[1] + bd * d[2]
+    rv = bf * f[1] + cf * f[2] + bd * d[1] + cd * d[2]
+    det = max(a * c - b * b, 1e-30)
+    return f[0], (c * ru - b * rv) / det, (a * rv - b * ru) / det, c / det, a / det, 0.0
+
+
 def _fuse(
     f: Intersection, d: Intersection
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -585,6 +712,8 @@ def _fuse(
 def _hysteresis(on: np.ndarray, off: np.ndarray, state: bool) -> np.ndarray:
     """Vectorised two-threshold switch: set where ``on``, cleared where ``off``, else held."""
     k = len(on)
+    if k == 1:
+        return np.array([bool(on[0]) or (state and not off[0])])
     decided = on | off
     index = np.where(decided, np.arange(k), -1)
     np.maximum.accumulate(index, out=index)

@@ -80,6 +80,7 @@ class DelayLine:
     """Remembers the last ``n`` samples of C channels to give x[i − n] for every new x[i].
 
     Used by the pseudo-differentiator, paper eq. (8): f'(t) = (f(t) − f(t − n·T_s)) / (n·T_s).
+    A ring buffer, so a one-sample push costs the same as any other.
     """
 
     def __init__(self, n: int, channels: int) -> None:
@@ -87,20 +88,30 @@ class DelayLine:
             raise ValueError(f"the delay must be at least one sample, found {n}")
         self.n = n
         self.channels = channels
-        self.history: np.ndarray | None = None  # (C, n), oldest first
+        self.ring: np.ndarray | None = None  # (C, n); ring[:, pos] is the oldest sample
+        self.pos = 0
 
     def restart(self, x0: np.ndarray) -> None:
         """Fill the history with ``x0`` so the first differences are zero."""
-        self.history = np.repeat(np.asarray(x0, dtype=float)[:, None], self.n, axis=1)
+        self.ring = np.repeat(np.asarray(x0, dtype=float)[:, None], self.n, axis=1)
+        self.pos = 0
 
     def delayed(self, x: np.ndarray) -> np.ndarray:
         """x[i − n] for each column of ``x`` (C, k); updates the history."""
         k = x.shape[1]
         if k == 0:
             return x.copy()
-        if self.history is None:
+        if self.ring is None:
             self.restart(x[:, 0])
-        assert self.history is not None
-        joined = np.concatenate([self.history, x], axis=1)
-        self.history = np.array(joined[:, -self.n :])
+        assert self.ring is not None
+        n, pos = self.n, self.pos
+        if k == 1:
+            out = self.ring[:, pos : pos + 1].copy()
+            self.ring[:, pos] = x[:, 0]
+            self.pos = pos + 1 if pos + 1 < n else 0
+            return out
+        history = np.concatenate([self.ring[:, pos:], self.ring[:, :pos]], axis=1)
+        joined = np.concatenate([history, x], axis=1)
+        self.ring = np.array(joined[:, -n:])
+        self.pos = 0
         return joined[:, :k]

@@ -14,6 +14,7 @@ All functions work on channels-first arrays (3, k) and never return NaN or infin
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,6 +33,7 @@ class SurfaceFrame:
     polygon: np.ndarray  # (N, 2) outline in (u − offset_u, v − offset_v), i.e. about the origin
     bounds: tuple[float, float, float, float]  # u0, v0, u1, v1 of the outline
     is_rectangle: bool
+    rows: tuple[tuple[float, ...], ...]  # transform rows of F'z, M'x, M'y as plain floats
 
     @classmethod
     def of(cls, surface: Surface) -> SurfaceFrame:
@@ -50,7 +52,24 @@ class SurfaceFrame:
             and all(np.isclose(p[0], u0) or np.isclose(p[0], u1) for p in poly)
             and all(np.isclose(p[1], v0) or np.isclose(p[1], v1) for p in poly)
         )
-        return cls(surface, t, poly, (float(u0), float(v0), float(u1), float(v1)), bool(rect))
+        rows = tuple(tuple(float(x) for x in row) for row in t[2:5])
+        bounds = (float(u0), float(v0), float(u1), float(v1))
+        return cls(surface, t, poly, bounds, bool(rect), rows)
+
+    def contains_one(self, u: float, v: float) -> bool:
+        """:meth:`contains` for one point."""
+        u0, v0, u1, v1 = self.bounds
+        tol = EDGE_TOLERANCE_M
+        if not (u0 - tol <= u <= u1 + tol and v0 - tol <= v <= v1 + tol):
+            return False
+        return self.is_rectangle or bool(
+            _in_polygon(self.polygon, np.array([u]), np.array([v]), tol)[0]
+        )
+
+    def project_cov(self, wrench_cov: np.ndarray) -> np.ndarray:
+        """The (3, 3) covariance of (F'z, M'x, M'y) for a (6, 6) covariance of [F; M]."""
+        rows = self.transform[2:5]
+        return rows @ wrench_cov @ rows.T
 
     def to_desk(self, u: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Local (u, v) about the origin -> desk points (3, k)."""
@@ -118,7 +137,7 @@ def intersect(
     frames: list[SurfaceFrame],
     wrench: np.ndarray,
     direction_sign: np.ndarray | float,
-    wrench_cov: np.ndarray | None,
+    covs: list[np.ndarray] | None,
     min_normal_cos: float,
     extra_var: np.ndarray | float = 0.0,
 ) -> Intersection:
@@ -126,9 +145,10 @@ def intersect(
 
     ``direction_sign`` (n,) or scalar: +1 where F points like the supports' force F_o (the
     finger pushes along −F_o), −1 where it points the other way (a releasing differentiated
-    force). ``wrench_cov`` (6, 6): noise covariance of [F; M]. ``extra_var`` (n,) is added to
-    both in-plane variances (a model error). Where surfaces overlap, the one the finger
-    reaches first along its push wins.
+    force). ``covs``: per surface, :meth:`SurfaceFrame.project_cov` of the wrench's noise
+    covariance (None: no uncertainty). ``extra_var`` (n,) is added to both in-plane variances
+    (a model error). Where surfaces overlap, the one the finger reaches first along its push
+    wins. :func:`intersect_one` is the same for one sample, on plain floats.
     """
     n = wrench.shape[1]
     force = wrench[:3]
@@ -145,8 +165,8 @@ def intersect(
         u[~ok] = 0.0
         v[~ok] = 0.0
         ok &= frame.contains(u, v)
-        if wrench_cov is not None:
-            c = frame.transform[2:5] @ wrench_cov @ frame.transform[2:5].T  # Fz, Mx, My
+        if covs is not None:
+            c = covs[index]  # of F'z, M'x, M'y
             inv2 = 1.0 / (safe_fz * safe_fz)
             # du = −(u dF'z + dM'y)/F'z, dv = −(v dF'z − dM'x)/F'z
             var_u = (u * u * c[0, 0] + 2 * u * c[0, 2] + c[2, 2]) * inv2 + extra_var
@@ -187,4 +207,62 @@ def intersect(
             z + VAR_CAP,
             z,
         )
+    return best
+
+
+def intersect_one(
+    frames: list[SurfaceFrame],
+    wrench: list[float],
+    direction_sign: float,
+    covs: list[np.ndarray] | None,
+    min_normal_cos: float,
+    extra_var: float = 0.0,
+) -> tuple[int, float, float, float, float, float]:
+    """:func:`intersect` for one sample on plain floats, where numpy's per-call cost would
+    dominate (a single-sample push). Returns (surface or −1, u, v, var_u, var_v, cov_uv).
+    Kept equal to :func:`intersect` by the estimator's single-sample test."""
+    fx, fy, fz_, mx, my, mz = wrench
+    norm = math.sqrt(fx * fx + fy * fy + fz_ * fz_)
+    best = (-1, 0.0, 0.0, VAR_CAP, VAR_CAP, 0.0)
+    best_key = -math.inf
+    for index, frame in enumerate(frames):
+        r = frame.rows
+        fz = (
+            r[0][0] * fx + r[0][1] * fy + r[0][2] * fz_ + r[0][3] * mx + r[0][4] * my + r[0][5] * mz
+        )
+        if not fz * direction_sign > min_normal_cos * norm:
+            continue
+        lx = (
+            r[1][0] * fx + r[1][1] * fy + r[1][2] * fz_ + r[1][3] * mx + r[1][4] * my + r[1][5] * mz
+        )
+        ly = (
+            r[2][0] * fx + r[2][1] * fy + r[2][2] * fz_ + r[2][3] * mx + r[2][4] * my + r[2][5] * mz
+        )
+        u = -ly / fz  # paper eq. (5) in the surface's frame
+        v = lx / fz
+        if not frame.contains_one(u, v):
+            continue
+        if len(frames) > 1:
+            s = frame.surface
+            px = s.origin[0] + s.u_axis[0] * u + s.v_axis[0] * v
+            py = s.origin[1] + s.u_axis[1] * u + s.v_axis[1] * v
+            pz = s.origin[2] + s.u_axis[2] * u + s.v_axis[2] * v
+            key = (px * fx + py * fy + pz * fz_) * direction_sign / (norm if norm > 0 else 1.0)
+            if not key > best_key:
+                continue
+            best_key = key
+        if covs is not None:
+            c = covs[index]
+            inv2 = 1.0 / (fz * fz)
+            var_u = (u * u * c[0, 0] + 2 * u * c[0, 2] + c[2, 2]) * inv2 + extra_var
+            var_v = (v * v * c[0, 0] - 2 * v * c[0, 1] + c[1, 1]) * inv2 + extra_var
+            cov = (u * v * c[0, 0] - u * c[0, 1] + v * c[0, 2] - c[1, 2]) * inv2
+            var_u = min(var_u, VAR_CAP)
+            var_v = min(var_v, VAR_CAP)
+            cov = min(max(cov, -VAR_CAP), VAR_CAP)
+        else:
+            var_u = var_v = cov = 0.0
+        best = (index, u, v, float(var_u), float(var_v), float(cov))
+        if len(frames) == 1:
+            break
     return best

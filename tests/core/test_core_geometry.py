@@ -31,8 +31,10 @@ def random_surface(draw) -> Surface:
     v = np.cross(normal, u)
     origin = np.array([draw(st.floats(-1, 1)), draw(st.floats(-1, 1)), draw(st.floats(0, 2))])
     n_vertices = draw(st.integers(3, 7))
-    angles = np.sort(np.array([draw(st.floats(0, 2 * np.pi)) for _ in range(n_vertices)]))
-    angles += np.linspace(0, 1e-3, n_vertices)  # keep them distinct
+    # a convex polygon: vertices on a circle, evenly spread with some jitter
+    step = 2 * np.pi / n_vertices
+    jitter = np.array([draw(st.floats(-0.4, 0.4)) for _ in range(n_vertices)])
+    angles = draw(st.floats(0, 2 * np.pi)) + step * (np.arange(n_vertices) + jitter)
     radius = draw(st.floats(0.1, 1.0))
     polygon = radius * np.stack([np.cos(angles), np.sin(angles)], axis=1)  # convex
     return Surface("s", origin, normal, u, v, polygon)
@@ -81,7 +83,7 @@ def hit_at(x: float, y: float, force_dir) -> tuple[bool, np.ndarray]:
     f_o = -np.asarray(force_dir, float)
     point = np.array([x, y, 0.733])
     wrench = np.concatenate([f_o, np.cross(point, f_o)])[:, None]
-    hit = intersect([frame], wrench, 1.0, np.eye(6) * 1e-4, 0.2)
+    hit = intersect([frame], wrench, 1.0, [frame.project_cov(np.eye(6) * 1e-4)], 0.2)
     assert np.isfinite(hit.uv).all() and np.isfinite(hit.var_uu).all()
     return bool(hit.valid[0]), hit.points([frame])[:, 0]
 

@@ -317,9 +317,12 @@ class ContactEstimator:
             self._win_fill = m + k
             self._last_window_t = float(t[-1])
             return self._zero_segment
-        all_lp = np.concatenate([self._win_lp[:, :m], lp_force], axis=1)
-        all_raw = np.concatenate([self._win_raw[:, :m], raw], axis=1)
-        all_bad = np.concatenate([self._win_bad[:m], bad])
+        if m:
+            all_lp = np.concatenate([self._win_lp[:, :m], lp_force], axis=1)
+            all_raw = np.concatenate([self._win_raw[:, :m], raw], axis=1)
+            all_bad = np.concatenate([self._win_bad[:m], bad])
+        else:  # windows start with the block: no copies
+            all_lp, all_raw, all_bad = lp_force, raw, bad
         n_full = all_lp.shape[1] // w
         starts = [0]
         zeros = [self._zero_or_nan()]
@@ -492,16 +495,22 @@ class ContactEstimator:
                 tared[a:b] = False
         block.flags[~tared] |= FLAG_NOT_TARED
         f_det_mag = np.sqrt(np.einsum("ik,ik->k", f_det, f_det))
-        block.force_n = np.where(tared, f_det_mag, 0.0)
+        all_tared = bool(tared.all())
+        block.force_n = f_det_mag if all_tared else np.where(tared, f_det_mag, 0.0)
 
         # fast path: touch-down at contact_force_n, release below it less the hysteresis,
         # and only for a force that presses into a surface (a lifted object pulls)
-        if len(self._normals):
+        if len(self._normals) == 1:
+            pressing = self._normals[0] @ f_det >= s.min_normal_cos * f_det_mag
+        elif len(self._normals):
             pressing = (self._normals @ f_det).max(axis=0) >= s.min_normal_cos * f_det_mag
         else:
             pressing = np.zeros(k, bool)
-        above = tared & pressing & (f_det_mag >= s.contact_force_n)
-        below = ~tared | ~pressing | (f_det_mag < s.contact_force_n - s.release_hysteresis_n)
+        above = pressing & (f_det_mag >= s.contact_force_n)
+        below = ~pressing | (f_det_mag < s.contact_force_n - s.release_hysteresis_n)
+        if not all_tared:
+            above &= tared
+            below |= ~tared
         block.in_contact = _hysteresis(above, below, self._in_contact)
         self._in_contact = bool(block.in_contact[-1])
         # candidates only for good samples in contact (a bad one keeps the contact state

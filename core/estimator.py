@@ -55,7 +55,6 @@ BAD_SAMPLE = FLAG_NAN | FLAG_SATURATED | FLAG_TIME_BACK  # replaced by the last 
 
 WINDOW_S = 0.2  # tare and stillness are judged on windows of this length
 RATE_WINDOW_S = 0.05  # slope of the fast force for the touch/hold/release phase
-MAX_SIGMA_M = 0.02  # `diff` and `fused` report a point only when its 1-σ is below this
 
 
 @dataclass(frozen=True)
@@ -124,6 +123,7 @@ class ContactEstimator:
         self._window = max(1, round(WINDOW_S * fs))
         self._n_tare = max(1, math.ceil(s.tare_s / (self._window / fs) - 1e-9))
         self._n_settle = max(1, math.ceil(s.settle_s / (self._window / fs) - 1e-9))
+        self._n_drift = max(1, math.ceil(s.drift_settle_s / (self._window / fs) - 1e-9))
         self.notices: list[Notice] = []
         self.reset()
 
@@ -143,11 +143,13 @@ class ContactEstimator:
         self._noise_cov: np.ndarray | None = None
         self._covs_lp: list[np.ndarray] | None = None  # per surface, see project_cov
         self._covs_diff: list[np.ndarray] | None = None
+        self._covs_drift: list[np.ndarray] | None = None
         self._win_lp = np.zeros((3, self._window))  # the current, unfinished window
         self._win_raw = np.zeros((6, self._window))
         self._win_bad = np.zeros(self._window, bool)
         self._win_fill = 0
-        self._zero_segment = (np.zeros(1, int), np.full((6, 1), np.nan))
+        self._zero_t = 0.0  # when the zero was last set, for the drift since then
+        self._zero_segment = (np.zeros(1, int), np.full((7, 1), np.nan))
         self._last_window_t = float("nan")
         self._zero_list: list[float] = []
         self._tare_raw: list[np.ndarray] = []
@@ -156,6 +158,7 @@ class ContactEstimator:
         self._still_run = 0
         self._still_lo: list[float] = [0.0, 0.0, 0.0]
         self._still_hi: list[float] = [0.0, 0.0, 0.0]
+        self._still_means: list[list[float]] = []
 
     @property
     def tared(self) -> bool:
@@ -352,7 +355,10 @@ class ContactEstimator:
         return np.array(starts), np.stack(zeros, axis=1)
 
     def _zero_or_nan(self) -> np.ndarray:
-        return np.full(6, np.nan) if self._zero is None else self._zero
+        """The zero (6,) and the time it was set, as one column; NaN before the tare."""
+        if self._zero is None:
+            return np.full(7, np.nan)
+        return np.append(self._zero, self._zero_t)
 
     def _window_done(
         self, spread: float, bad: bool, mean: list[float], raw: np.ndarray, t_end: float
@@ -375,12 +381,23 @@ class ContactEstimator:
                 self._still_run = 0  # the load moved: a new still run starts here
         if self._still_run == 0:
             lo, hi = list(f), list(f)
+            self._still_means = []
         self._still_lo, self._still_hi = lo, hi
         self._still_run += 1
+        self._still_means.append(mean)
+        load = math.sqrt(f[0] ** 2 + f[1] ** 2 + f[2] ** 2)
+        if load < s.drift_max_n and s.drift_settle_s > 0:
+            # an idle, still desk: what is left is sensor drift; follow it (often, so a
+            # drifting zero never builds up between touches)
+            if self._still_run >= self._n_drift:
+                recent = self._still_means[-self._n_drift :]
+                self._set_zero(np.mean(np.array(recent), axis=0), t_end)
+                self._still_run = 0
+                log.debug("t=%.3f s: zero drift of %.3f N followed", t_end, load)
+            return
         if self._still_run % self._n_settle:
             return
-        load = math.sqrt(f[0] ** 2 + f[1] ** 2 + f[2] ** 2)
-        self._set_zero(np.array(mean))
+        self._set_zero(np.array(mean), t_end)
         self._still_run = 0
         if load >= s.contact_force_n:
             up = self._up()
@@ -392,7 +409,7 @@ class ContactEstimator:
                 f"{s.settle_s:g} s became part of the zero",
             )
         else:
-            self._notice(t_end, "drift", f"zero drift of {load:.3f} N corrected", logging.DEBUG)
+            self._notice(t_end, "drift", f"a still load of {load:.2f} N became part of the zero")
 
     def _tare_window(
         self, spread: float, bad: bool, mean: list[float], raw: np.ndarray, t_end: float
@@ -411,7 +428,7 @@ class ContactEstimator:
             self._tare_raw, self._tare_means = [], []
         if len(self._tare_raw) >= self._n_tare:
             samples = np.concatenate(self._tare_raw, axis=1)
-            self._set_zero(samples.mean(axis=1))
+            self._set_zero(samples.mean(axis=1), t_end)
             self._set_noise(np.cov(samples))
             self._tare_raw, self._tare_means = [], []
             self._notice(t_end, "tare", f"tared over {s.tare_s:g} s of a quiet desk")
@@ -427,10 +444,11 @@ class ContactEstimator:
     def _up(self) -> np.ndarray:
         return self._normals[0] if len(self._normals) else np.array([0.0, 0.0, 1.0])
 
-    def _set_zero(self, zero: np.ndarray) -> None:
+    def _set_zero(self, zero: np.ndarray, t: float) -> None:
         self._zero = np.array(zero, dtype=float)
+        self._zero_t = t
         self._zero_list = self._zero.tolist()
-        self._zero_segment = (np.zeros(1, int), self._zero[:, None].copy())
+        self._zero_segment = (np.zeros(1, int), self._zero_or_nan()[:, None])
 
     def _set_noise(self, measured: np.ndarray) -> None:
         s = self.settings
@@ -445,6 +463,13 @@ class ContactEstimator:
         cov = cov + np.eye(6) * 1e-12
         self._noise_cov = cov
         self._covs_lp = [f.project_cov(cov * self._gain_lp) for f in self._frames]
+        # the zero drifts after it is set: its covariance grows as (age · rate)²
+        rates = np.tile(
+            [s.drift_force_n_per_min / 60.0] * 3 + [s.drift_moment_nm_per_min / 60.0] * 3,
+            len(self.profile.sensors),
+        )
+        drift_cov = self._map @ np.diag(rates**2) @ self._map.T
+        self._covs_drift = [f.project_cov(drift_cov) for f in self._frames]
         self._covs_diff = [f.project_cov(cov * self._gain_diff) for f in self._frames]
 
     def _notice(self, t: float, kind: str, message: str, level: int = logging.INFO) -> None:
@@ -520,11 +545,17 @@ class ContactEstimator:
             return block
         if k == 1:  # a single-sample push: plain floats beat numpy's per-call cost
             self._locate_one(
-                block, lp[:, 0] - zeros[:, 0], diff[:, 0], f_det[:, 0], det_slope[:, 0]
+                block,
+                lp[:, 0] - zeros[:6, 0],
+                diff[:, 0],
+                f_det[:, 0],
+                det_slope[:, 0],
+                float(t[0] - zeros[6, 0]),
             )
             return block
         seg = np.searchsorted(zero_starts, idx, side="right") - 1
-        wrench = lp[:, idx] - zeros[:, seg]
+        wrench = lp[:, idx] - zeros[:6, seg]
+        age2 = (t[idx] - zeros[6, seg]) ** 2  # (time since the zero was set)²
         d_wrench = diff[:, idx]
         fd = f_det[:, idx]
         fd_mag = f_det_mag[idx]
@@ -544,7 +575,15 @@ class ContactEstimator:
         method = self.method
         cand_f = cand_d = None
         if method in ("force", "switched", "fused"):
-            cand_f = intersect(self._frames, wrench, 1.0, self._covs_lp, s.min_normal_cos)
+            cand_f = intersect(
+                self._frames,
+                wrench,
+                1.0,
+                self._covs_lp,
+                s.min_normal_cos,
+                drift_covs=self._covs_drift,
+                drift_scale=age2,
+            )
         if method in ("diff", "switched", "fused"):
             d_mag = np.sqrt(np.einsum("ik,ik->k", d_wrench[:3], d_wrench[:3]))
             # the term F_e × Ṗ_e dropped in eq. (11): a finger drifting at contact_speed_m_s
@@ -561,7 +600,7 @@ class ContactEstimator:
         elif method == "diff":
             assert cand_d is not None
             self._emit(
-                block, idx, cand_d.valid & (cand_d.sigma() <= MAX_SIGMA_M), cand_d, SOURCE_DIFF
+                block, idx, cand_d.valid & (cand_d.sigma() <= s.max_sigma_m), cand_d, SOURCE_DIFF
             )
         elif method == "switched":
             assert cand_f is not None and cand_d is not None
@@ -583,6 +622,7 @@ class ContactEstimator:
         d_wrench_a: np.ndarray,
         f_det_a: np.ndarray,
         slope_a: np.ndarray,
+        zero_age_s: float,
     ) -> None:
         """The candidate stage of :meth:`_contacts` for one sample, on plain floats.
 
@@ -607,7 +647,15 @@ class ContactEstimator:
         method = self.method
         cf = cd = (-1, 0.0, 0.0, VAR_CAP, VAR_CAP, 0.0)
         if method != "diff":
-            cf = intersect_one(self._frames, wrench, 1.0, self._covs_lp, s.min_normal_cos)
+            cf = intersect_one(
+                self._frames,
+                wrench,
+                1.0,
+                self._covs_lp,
+                s.min_normal_cos,
+                drift_covs=self._covs_drift,
+                drift_scale=zero_age_s**2,
+            )
         if method != "force":
             d_mag = math.sqrt(d_wrench[0] ** 2 + d_wrench[1] ** 2 + d_wrench[2] ** 2)
             model = (f_mag * s.contact_speed_m_s / max(d_mag, 1e-9)) ** 2
@@ -622,7 +670,7 @@ class ContactEstimator:
             if f_ok and f_mag >= s.contact_force_n:
                 chosen, source = cf, SOURCE_FORCE
         elif method == "diff":
-            if d_ok and sig_d <= MAX_SIGMA_M:
+            if d_ok and sig_d <= s.max_sigma_m:
                 chosen, source = cd, SOURCE_DIFF
         elif method == "switched":
             if f_mag >= s.contact_force_n:
@@ -633,12 +681,12 @@ class ContactEstimator:
                     chosen, source = cf, SOURCE_FORCE
         elif f_ok and d_ok and cf[0] == cd[0]:
             fused = _fuse_one(cf, cd)
-            if math.sqrt(fused[3] + fused[4]) <= MAX_SIGMA_M:
+            if math.sqrt(fused[3] + fused[4]) <= s.max_sigma_m:
                 chosen, source = fused, SOURCE_FUSED
         elif f_ok and (not d_ok or sig_f <= sig_d):
-            if sig_f <= MAX_SIGMA_M:
+            if sig_f <= s.max_sigma_m:
                 chosen, source = cf, SOURCE_FORCE
-        elif d_ok and sig_d <= MAX_SIGMA_M:
+        elif d_ok and sig_d <= s.max_sigma_m:
             chosen, source = cd, SOURCE_DIFF
         if chosen is None:
             return
@@ -670,15 +718,16 @@ class ContactEstimator:
     ) -> None:
         """Inverse-covariance combination of both candidates where they lie on one surface;
         elsewhere the one that is valid (or the surer one)."""
+        s = self.settings
         both = f.valid & d.valid & (f.surface == d.surface)
         u, v, var_u, var_v = _fuse(f, d)
         fused = Intersection(both, f.surface, np.stack([u, v]), var_u, var_v, np.zeros_like(u))
         sigma_fused, sigma_f, sigma_d = fused.sigma(), f.sigma(), d.sigma()
         only_f = f.valid & ~both & (~d.valid | (sigma_f <= sigma_d))
         only_d = d.valid & ~both & ~only_f
-        self._emit(block, idx, both & (sigma_fused <= MAX_SIGMA_M), fused, SOURCE_FUSED)
-        self._emit(block, idx, only_f & (sigma_f <= MAX_SIGMA_M), f, SOURCE_FORCE)
-        self._emit(block, idx, only_d & (sigma_d <= MAX_SIGMA_M), d, SOURCE_DIFF)
+        self._emit(block, idx, both & (sigma_fused <= s.max_sigma_m), fused, SOURCE_FUSED)
+        self._emit(block, idx, only_f & (sigma_f <= s.max_sigma_m), f, SOURCE_FORCE)
+        self._emit(block, idx, only_d & (sigma_d <= s.max_sigma_m), d, SOURCE_DIFF)
 
 
 def _fuse_one(

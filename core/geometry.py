@@ -140,6 +140,8 @@ def intersect(
     covs: list[np.ndarray] | None,
     min_normal_cos: float,
     extra_var: np.ndarray | float = 0.0,
+    drift_covs: list[np.ndarray] | None = None,
+    drift_scale: np.ndarray | float = 0.0,
 ) -> Intersection:
     """Intersect the lines of action of ``wrench`` (6, n) = [F; M] with every surface.
 
@@ -147,8 +149,10 @@ def intersect(
     finger pushes along −F_o), −1 where it points the other way (a releasing differentiated
     force). ``covs``: per surface, :meth:`SurfaceFrame.project_cov` of the wrench's noise
     covariance (None: no uncertainty). ``extra_var`` (n,) is added to both in-plane variances
-    (a model error). Where surfaces overlap, the one the finger reaches first along its push
-    wins. :func:`intersect_one` is the same for one sample, on plain floats.
+    (a model error). ``drift_covs`` (like ``covs``) times ``drift_scale`` (n,) is added to
+    the wrench covariance: the zero's uncertainty, growing with its age. Where surfaces
+    overlap, the one the finger reaches first along its push wins. :func:`intersect_one` is
+    the same for one sample, on plain floats.
     """
     n = wrench.shape[1]
     force = wrench[:3]
@@ -167,6 +171,8 @@ def intersect(
         ok &= frame.contains(u, v)
         if covs is not None:
             c = covs[index]  # of F'z, M'x, M'y
+            if drift_covs is not None:
+                c = c[:, :, None] + drift_covs[index][:, :, None] * drift_scale  # (3, 3, n)
             inv2 = 1.0 / (safe_fz * safe_fz)
             # du = −(u dF'z + dM'y)/F'z, dv = −(v dF'z − dM'x)/F'z
             var_u = (u * u * c[0, 0] + 2 * u * c[0, 2] + c[2, 2]) * inv2 + extra_var
@@ -217,6 +223,8 @@ def intersect_one(
     covs: list[np.ndarray] | None,
     min_normal_cos: float,
     extra_var: float = 0.0,
+    drift_covs: list[np.ndarray] | None = None,
+    drift_scale: float = 0.0,
 ) -> tuple[int, float, float, float, float, float]:
     """:func:`intersect` for one sample on plain floats, where numpy's per-call cost would
     dominate (a single-sample push). Returns (surface or −1, u, v, var_u, var_v, cov_uv).
@@ -253,6 +261,8 @@ def intersect_one(
             best_key = key
         if covs is not None:
             c = covs[index]
+            if drift_covs is not None:
+                c = c + drift_covs[index] * drift_scale
             inv2 = 1.0 / (fz * fz)
             var_u = (u * u * c[0, 0] + 2 * u * c[0, 2] + c[2, 2]) * inv2 + extra_var
             var_v = (v * v * c[0, 0] - 2 * v * c[0, 1] + c[1, 1]) * inv2 + extra_var

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
 from hapticdesk.yamlfile import (
     ConfigError,
     MarkedDict,
@@ -119,8 +120,13 @@ class EstimationSettings:
     release_threshold_n: float = 11.8  # F_rth
     phase_rate_n_s: float = 4.0  # |d|F|/dt| below this is "hold"
     min_normal_cos: float = 0.2  # |n·F̂| below this is too oblique to trust
+    max_sigma_m: float = 0.005  # `diff` and `fused` report a point only when its 1-σ is below
     contact_speed_m_s: float = 0.005  # expected finger drift, the model error of eq. (11)
     settle_s: float = 5.0  # a still load held this long becomes part of the zero
+    drift_settle_s: float = 0.6  # a desk idle and still this long is re-zeroed (0: never)
+    drift_max_n: float = 1.0  # ... when what is left on it is less than this (0 s: never)
+    drift_force_n_per_min: float = 0.05  # expected σ of a force channel's drift rate
+    drift_moment_nm_per_min: float = 0.001  # ... and of a moment channel's
     still_n: float = 0.15  # "still": low-passed |F| varies less than this per window
     max_gap_s: float = 0.05  # a gap in sample times longer than this restarts the filters
     noise_force_n: float = 0.0  # per-channel noise σ if known; 0 = measure during the tare
@@ -400,6 +406,9 @@ def _estimation(item: Any, where: Any) -> EstimationSettings:
                 "min_normal_cos",
                 "contact_speed_m_s",
                 "release_hysteresis_n",
+                "drift_settle_s",
+                "drift_force_n_per_min",
+                "drift_moment_nm_per_min",
             )
             values[key] = number(m, key, "`estimation`", minimum=0.0, exclusive_minimum=strict)
     settings = EstimationSettings(**values)

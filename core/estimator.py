@@ -58,6 +58,37 @@ RATE_WINDOW_S = 0.05  # slope of the fast force for the touch/hold/release phase
 
 
 @dataclass(frozen=True)
+class CandidateTrace:
+    """Both candidates for the samples in contact of one push (``trace=True``).
+
+    ``force_n``: |F_o| after the conventional low-pass; ``rate_n_s``: the differentiated force
+    magnitude (paper Fig. 3, its sign is the motion); points (3, n) in the desk frame with
+    their validity and 1-σ uncertainty: P_er from the force, P_ed from its derivative.
+    """
+
+    t: np.ndarray
+    force_n: np.ndarray
+    rate_n_s: np.ndarray
+    force_point: np.ndarray
+    force_valid: np.ndarray
+    force_sigma_m: np.ndarray
+    diff_point: np.ndarray
+    diff_valid: np.ndarray
+    diff_sigma_m: np.ndarray
+
+    @classmethod
+    def concat(cls, traces: list[CandidateTrace]) -> CandidateTrace:
+        """Join the traces of several pushes."""
+        names = [f for f in cls.__dataclass_fields__]
+        if not traces:
+            z = np.zeros(0)
+            return cls(
+                z, z, z, np.zeros((3, 0)), z.astype(bool), z, np.zeros((3, 0)), z.astype(bool), z
+            )
+        return cls(**{n: np.concatenate([getattr(tr, n) for tr in traces], axis=-1) for n in names})
+
+
+@dataclass(frozen=True)
 class Notice:
     """Something the estimator did on its own that a user should know about."""
 
@@ -78,8 +109,13 @@ class ContactEstimator:
         profile: DeskProfile,
         method: str | None = None,
         settings: EstimationSettings | None = None,
+        trace: bool = False,
     ) -> None:
+        """``trace``: also keep both candidates of every sample in contact in :attr:`traces`
+        (for research: the paper's D_er and D_ed, threshold derivation, plots)."""
         settings = settings or profile.estimation
+        self.trace = trace
+        self.traces: list[CandidateTrace] = []
         if method is not None:
             if method not in METHODS:
                 raise ValueError(f"method must be one of {', '.join(METHODS)}, found {method!r}")
@@ -543,7 +579,7 @@ class ContactEstimator:
         idx = np.flatnonzero(block.in_contact & ((flags & BAD_SAMPLE) == 0))
         if len(idx) == 0:
             return block
-        if k == 1:  # a single-sample push: plain floats beat numpy's per-call cost
+        if k == 1 and not self.trace:  # one sample: plain floats beat numpy's per-call cost
             self._locate_one(
                 block,
                 lp[:, 0] - zeros[:6, 0],
@@ -573,6 +609,8 @@ class ContactEstimator:
 
         f_mag = np.sqrt(np.einsum("ik,ik->k", wrench[:3], wrench[:3]))
         method = self.method
+        if self.trace:
+            method = "fused"  # compute both candidates
         cand_f = cand_d = None
         if method in ("force", "switched", "fused"):
             cand_f = intersect(
@@ -592,6 +630,22 @@ class ContactEstimator:
                 self._frames, d_wrench, motion, self._covs_diff, s.min_normal_cos, model
             )
 
+        if self.trace:
+            assert cand_f is not None and cand_d is not None
+            self.traces.append(
+                CandidateTrace(
+                    t=t[idx],
+                    force_n=f_mag,
+                    rate_n_s=rate,
+                    force_point=cand_f.points(self._frames),
+                    force_valid=cand_f.valid,
+                    force_sigma_m=cand_f.sigma(),
+                    diff_point=cand_d.points(self._frames),
+                    diff_valid=cand_d.valid,
+                    diff_sigma_m=cand_d.sigma(),
+                )
+            )
+            method = self.method
         if method == "force":
             assert cand_f is not None
             self._emit(

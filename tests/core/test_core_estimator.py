@@ -242,3 +242,25 @@ def test_an_hour_streamed_in_blocks_keeps_memory_flat(paper_desk, press_recordin
     assert located > 100_000
     assert current - peak_early < 200_000  # bytes: no growth over an hour
     assert len(est.notices) < 20_000  # drift notices only; nothing per sample
+
+
+def test_trace_keeps_both_candidates_and_changes_nothing(noisy_presses):
+    from hapticdesk.estimator import CandidateTrace
+
+    desk = load_profile("kitamura2017")
+    t, w = noisy_presses
+    plain = ContactEstimator(desk, method="switched").push(t, w)
+    est = ContactEstimator(desk, method="switched", trace=True)
+    traced = ContactBlock.concat(
+        [est.push(t[i : i + 500], w[i : i + 500]) for i in range(0, len(t), 500)]
+    )
+    for f in fields(ContactBlock):
+        np.testing.assert_array_equal(getattr(traced, f.name), getattr(plain, f.name))
+    trace = CandidateTrace.concat(est.traces)
+    good_contact = plain.in_contact & ((plain.flags & (FLAG_NAN | FLAG_SATURATED)) == 0)
+    assert len(trace.t) == good_contact.sum()
+    # where switched used a candidate, the trace holds that same point
+    used = plain.located[good_contact]
+    src = plain.source[good_contact]
+    point = np.where(src == 1, trace.force_point, trace.diff_point)
+    np.testing.assert_allclose(point[0, used], plain.x[good_contact][used])

@@ -255,7 +255,7 @@ def test_trace_keeps_both_candidates_and_changes_nothing(noisy_presses):
         [est.push(t[i : i + 500], w[i : i + 500]) for i in range(0, len(t), 500)]
     )
     for f in fields(ContactBlock):
-        np.testing.assert_array_equal(getattr(traced, f.name), getattr(plain, f.name))
+        np.testing.assert_allclose(getattr(traced, f.name), getattr(plain, f.name), atol=1e-9)
     trace = CandidateTrace.concat(est.traces)
     good_contact = plain.in_contact & ((plain.flags & (FLAG_NAN | FLAG_SATURATED)) == 0)
     assert len(trace.t) == good_contact.sum()

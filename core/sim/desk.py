@@ -1,0 +1,362 @@
+"""The physical desk: a rigid body standing on S legs, each leg a 6-DOF spring-damper.
+
+A desk on four legs is statically indeterminate: how a load splits between the legs, and how
+much of it each sensor carries as its own moment, depends on the legs' stiffness. Each leg is
+modelled as a spring-damper with six degrees of freedom at its *spring point*, a height
+``leg_spring_height_m`` above its sensor (by default half-way up to the top board, where a leg
+bent in double curvature has its inflection point, so a horizontal shear ``f`` reaches the
+sensor with a moment ``h·f``). The sensor under the leg reads the spring's wrench moved to the
+sensor's position, rotated into the sensor's frame and signed as the sensor reports it.
+
+Small motions of the rigid desk about the desk origin P_o, ``q = [d; θ]`` (translation and
+rotation), obey
+
+    M q̈ + C q̇ + K q = u,       u = Σ [F_j; P_j × F_j]   (loads, about P_o)
+
+with ``K = Σ T_iᵀ K_i T_i`` and ``T_i`` mapping the desk's motion to leg i's spring point.
+The supports' resultant (what :meth:`DeskProfile.wrench_map` recovers from the readings) is
+``-K q - C q̇ = M q̈ - u``: the negated load plus the inertial term, paper eqs. (1)–(2) for a
+desk at rest.
+
+Stiffness is set from the frequencies a user knows: the horizontal ("sway") stiffness of the
+legs is scaled so the lowest mode is the desk's natural frequency (the paper's 5.9 Hz) and
+the vertical stiffness puts the vertical mode at ``vertical_frequency_hz``, far above the
+sample rate. Sway and vertical damping are stiffness-proportional per leg with separate
+factors, so each family of modes gets roughly its own damping ratio.
+
+Integration is exact for an input held constant over each sample interval (zero-order hold;
+each sample's load is held over the interval that ends at it, so a reading responds to the
+load at its own time): the discrete model comes from the matrix exponential of the augmented
+matrix ``[[A, B], [0, 0]]`` (``scipy.linalg.expm``), so modes far above the sample rate
+neither blow up nor need a smaller step. The discrete recursion is diagonalised and each
+mode runs as a first-order ``scipy.signal.lfilter`` with carried state: vectorised, and
+identical for any split into blocks.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+import scipy.optimize
+import scipy.signal
+
+from hapticdesk.profile import DeskProfile
+
+STANDARD_GRAVITY = 9.80665  # m/s²
+DEFAULT_MASS_KG = 13.7  # the paper's desk (Table 1)
+DEFAULT_SWAY_HZ = 5.9  # the paper's desk (§3.2)
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """[v]×, the matrix with [v]× w = v × w."""
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def point_load(force: np.ndarray, point: np.ndarray) -> np.ndarray:
+    """Wrench [F; P × F] about the desk origin of forces (..., 3) applied at points (..., 3)."""
+    force = np.asarray(force, dtype=float)
+    point = np.asarray(point, dtype=float)
+    return np.concatenate([force, np.cross(point, force)], axis=-1)
+
+
+@dataclass(frozen=True)
+class DeskParameters:
+    """Mechanical parameters of the simulated desk. ``None`` means "derive from the profile".
+
+    - ``mass_kg``: the desk's mass (profile ``desk.mass_kg``, else the paper's 13.7 kg).
+    - ``sway_frequency_hz``: the lowest natural frequency (profile ``desk.natural_frequency_hz``,
+      else the paper's 5.9 Hz).
+    - ``vertical_frequency_hz``: the desk bouncing on its legs' (and sensors') axial stiffness.
+    - ``sway_damping``, ``vertical_damping``: damping ratios of the two families of modes.
+    - ``center_of_mass``: desk frame, metres (default: above the sensors' centroid at 85 % of
+      the top board's height, a heavy top on light legs).
+    - ``inertia_kg_m2``: principal moments about the centre of mass along the desk axes
+      (default: a solid box as wide and deep as the top board and as tall as the desk).
+    - ``leg_spring_height_m``: height of each leg's spring point above its sensor (default:
+      half the top board's height, the inflection point of a leg bent in double curvature).
+    - ``leg_rotation_ratio``: each leg's rotational stiffness as a fraction of
+      ``k_horizontal · leg_spring_height²`` (how much moment a leg joint resists itself).
+    """
+
+    mass_kg: float | None = None
+    sway_frequency_hz: float | None = None
+    vertical_frequency_hz: float = 3000.0
+    sway_damping: float = 0.03
+    vertical_damping: float = 0.05
+    center_of_mass: tuple[float, float, float] | None = None
+    inertia_kg_m2: tuple[float, float, float] | None = None
+    leg_spring_height_m: float | None = None
+    leg_rotation_ratio: float = 0.25
+
+
+class DeskModel:
+    """The continuous-time model of a desk described by a profile (see the module docstring).
+
+    Attributes: ``mass_matrix``, ``stiffness``, ``damping`` (6, 6) about the desk origin;
+    ``center_of_mass`` (3,); ``spring_points`` (S, 3); ``mass_kg``.
+    """
+
+    def __init__(self, profile: DeskProfile, params: DeskParameters | None = None) -> None:
+        params = params or DeskParameters()
+        self.profile = profile
+        self.params = params
+        sensors = profile.sensors
+        n = len(sensors)
+        positions = np.array([s.position for s in sensors], dtype=float)
+        height = _top_height(profile, positions)
+        self.mass_kg = float(params.mass_kg or profile.mass_kg or DEFAULT_MASS_KG)
+        self.sway_frequency_hz = float(
+            params.sway_frequency_hz or profile.natural_frequency_hz or DEFAULT_SWAY_HZ
+        )
+        self.vertical_frequency_hz = float(params.vertical_frequency_hz)
+        _check_positive(
+            mass_kg=self.mass_kg,
+            sway_frequency_hz=self.sway_frequency_hz,
+            vertical_frequency_hz=self.vertical_frequency_hz,
+        )
+        if self.vertical_frequency_hz <= self.sway_frequency_hz:
+            raise ValueError(
+                f"vertical_frequency_hz ({self.vertical_frequency_hz:g}) must be above the sway "
+                f"frequency ({self.sway_frequency_hz:g})"
+            )
+
+        com = (
+            np.array(params.center_of_mass, dtype=float)
+            if params.center_of_mass is not None
+            else np.array([*positions[:, :2].mean(axis=0), positions[:, 2].mean() + 0.85 * height])
+        )
+        self.center_of_mass = com
+        if params.inertia_kg_m2 is not None:
+            inertia = np.diag(np.asarray(params.inertia_kg_m2, dtype=float))
+        else:
+            lx, ly = _footprint(profile, positions)
+            m = self.mass_kg
+            inertia = np.diag(
+                [
+                    m / 12 * (ly**2 + height**2),
+                    m / 12 * (lx**2 + height**2),
+                    m / 12 * (lx**2 + ly**2),
+                ]
+            )
+        # spatial inertia about the origin for small motions (d, θ): momentum = M [ḋ; θ̇]
+        cx = skew(com)
+        mass = np.zeros((6, 6))
+        mass[:3, :3] = self.mass_kg * np.eye(3)
+        mass[:3, 3:] = -self.mass_kg * cx
+        mass[3:, :3] = self.mass_kg * cx
+        mass[3:, 3:] = inertia - self.mass_kg * cx @ cx
+        self.mass_matrix = mass
+
+        h_spring = params.leg_spring_height_m
+        h_spring = 0.5 * height if h_spring is None else float(h_spring)
+        self.spring_points = positions + np.array([0.0, 0.0, h_spring])
+        # T_i: desk motion about the origin -> displacement and rotation at spring point i
+        self._transfer = np.zeros((n, 6, 6))
+        for i, s in enumerate(self.spring_points):
+            self._transfer[i] = np.eye(6)
+            self._transfer[i, :3, 3:] = -skew(s)
+
+        # vertical stiffness from the vertical mode of the desk as one mass on all legs
+        k_vertical = self.mass_kg * (2 * math.pi * self.vertical_frequency_hz) ** 2 / n
+        rot_ratio = params.leg_rotation_ratio * max(h_spring, 0.05) ** 2
+        sway_unit = np.array([1.0, 1.0, 0.0, rot_ratio, rot_ratio, rot_ratio])
+        vert_unit = np.array([0.0, 0.0, k_vertical, 0.0, 0.0, 0.0])
+        target = 2 * math.pi * self.sway_frequency_hz
+
+        def lowest(log_k: float) -> float:
+            k = self._assemble(math.exp(log_k) * sway_unit + vert_unit)
+            return float(np.sqrt(scipy.linalg.eigh(k, mass, eigvals_only=True)[0])) - target
+
+        # the lowest mode rises monotonically with the sway stiffness: bracket, then solve
+        lo, hi = math.log(1e-3), math.log(1e9)
+        if lowest(lo) > 0 or lowest(hi) < 0:
+            raise ValueError(
+                f"cannot place the lowest mode at {self.sway_frequency_hz:g} Hz with these legs"
+            )
+        k_h = math.exp(scipy.optimize.brentq(lowest, lo, hi, xtol=1e-13, rtol=1e-14))
+        leg_sway = k_h * sway_unit
+        self.leg_stiffness = leg_sway + vert_unit  # (6,) diagonal of each K_i
+        beta_sway = 2 * params.sway_damping / target
+        beta_vert = 2 * params.vertical_damping / (2 * math.pi * self.vertical_frequency_hz)
+        self.leg_damping = beta_sway * leg_sway + beta_vert * vert_unit
+        self.stiffness = self._assemble(self.leg_stiffness)
+        self.damping = self._assemble(self.leg_damping)
+
+        # readings: leg spring wrench -> at the sensor -> sensor frame and sign
+        readout = np.zeros((n, 6, 6))
+        for i, s in enumerate(sensors):
+            move = np.eye(6)
+            move[3:, :3] = skew(self.spring_points[i] - s.position)
+            frame = np.zeros((6, 6))
+            frame[:3, :3] = frame[3:, 3:] = s.sign * s.rotation.T
+            readout[i] = frame @ move
+        self._readout = readout
+        # stacked readings (6S,) = read_q @ q + read_v @ q̇
+        self.read_q = -np.concatenate(
+            [readout[i] @ (self.leg_stiffness[:, None] * self._transfer[i]) for i in range(n)]
+        )
+        self.read_v = -np.concatenate(
+            [readout[i] @ (self.leg_damping[:, None] * self._transfer[i]) for i in range(n)]
+        )
+        self._static = self.read_q @ np.linalg.inv(self.stiffness)  # (6S, 6)
+
+    def _assemble(self, leg_diag: np.ndarray) -> np.ndarray:
+        return np.einsum("iab,a,iac->bc", self._transfer, leg_diag, self._transfer)
+
+    @property
+    def n_sensors(self) -> int:
+        return len(self.profile.sensors)
+
+    def weight(self) -> np.ndarray:
+        """The desk's own weight as a load (6,) about the origin."""
+        return point_load(
+            np.array([0.0, 0.0, -self.mass_kg * STANDARD_GRAVITY]), self.center_of_mass
+        )
+
+    def natural_frequencies_hz(self) -> np.ndarray:
+        """Undamped natural frequencies (6,), ascending."""
+        eig = scipy.linalg.eigh(self.stiffness, self.mass_matrix, eigvals_only=True)
+        return np.sqrt(np.maximum(eig, 0.0)) / (2 * math.pi)
+
+    def state_matrices(self) -> tuple[np.ndarray, np.ndarray]:
+        """Continuous ``ẋ = A x + B u`` for ``x = [q; q̇]`` (12,) and loads ``u`` (6,)."""
+        m_inv = np.linalg.inv(self.mass_matrix)
+        a = np.zeros((12, 12))
+        a[:6, 6:] = np.eye(6)
+        a[6:, :6] = -m_inv @ self.stiffness
+        a[6:, 6:] = -m_inv @ self.damping
+        b = np.zeros((12, 6))
+        b[6:] = m_inv
+        return a, b
+
+    def static_readings(self, loads: np.ndarray) -> np.ndarray:
+        """Readings (k, S, 6) in each sensor's frame for loads (k, 6) held still (no dynamics)."""
+        loads = np.atleast_2d(np.asarray(loads, dtype=float))
+        return (loads @ self._static.T).reshape(len(loads), self.n_sensors, 6)
+
+    def readings(self, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
+        """Readings (k, S, 6) for desk motions q, q̇ (k, 6)."""
+        flat = np.atleast_2d(q) @ self.read_q.T + np.atleast_2d(qdot) @ self.read_v.T
+        return flat.reshape(len(flat), self.n_sensors, 6)
+
+    def discretize(self, dt: float) -> DiscreteDesk:
+        """The exact zero-order-hold discrete model for sample time ``dt``."""
+        return DiscreteDesk(self, dt)
+
+
+class DiscreteDesk:
+    """``x[k] = Ad x[k-1] + Bd u[k]``, readings ``y[k] = Cy x[k]``, run mode by mode.
+
+    The state is scaled, ``x̃ = [q; q̇/ω_max]``, so position and velocity have comparable
+    magnitudes in the matrix exponential even with modes 10⁴ times apart.
+    """
+
+    def __init__(self, model: DeskModel, dt: float) -> None:
+        if not dt > 0:
+            raise ValueError(f"the sample time must be positive, found {dt}")
+        self.model = model
+        self.dt = float(dt)
+        a, b = model.state_matrices()
+        omega = float(np.max(np.abs(np.linalg.eigvals(a))))
+        scale = np.concatenate([np.ones(6), np.full(6, omega)])  # x = scale * x̃
+        a_s = a * scale[None, :] / scale[:, None]
+        b_s = b / scale[:, None]
+        aug = np.zeros((18, 18))
+        aug[:12, :12] = a_s * dt
+        aug[:12, 12:] = b_s * dt
+        phi = scipy.linalg.expm(aug)  # ZOH: exact for an input held over each sample
+        self.ad = phi[:12, :12]
+        self.bd = phi[:12, 12:]
+        self._scale = scale
+        self.cy = np.hstack([model.read_q, model.read_v]) * scale[None, :]  # (6S, 12)
+
+        lam, vec = np.linalg.eig(self.ad)
+        self._modal = bool(np.linalg.cond(vec) < 1e10)
+        if self._modal:
+            vec_inv = np.linalg.inv(vec)
+            self.poles = lam
+            self._to_modal = vec_inv
+            self._from_modal = vec
+            self._b_modal = vec_inv @ self.bd  # (12, 6)
+            self._c_modal = self.cy @ vec  # (6S, 12)
+
+    def initial_state(self, load: np.ndarray) -> np.ndarray:
+        """The state at rest under a constant load (6,): the discrete model's fixed point, to
+        start :meth:`run` from."""
+        x = np.linalg.solve(np.eye(12) - self.ad, self.bd @ np.asarray(load, dtype=float))
+        return self._to_internal(x)
+
+    def _to_internal(self, x: np.ndarray) -> np.ndarray:
+        return self._to_modal @ x if self._modal else x.astype(complex)
+
+    def run(self, loads: np.ndarray, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Readings (k, S, 6) for loads (k, 6); returns the state to continue from.
+
+        Each sample's load is held over the sample interval that ends at it (a zero-order
+        hold aligned so a reading responds to the load at its own time, not one sample
+        late). ``state`` comes from :meth:`initial_state` or a previous ``run``; running two
+        blocks in turn equals running them joined.
+        """
+        loads = np.asarray(loads, dtype=float)
+        k = len(loads)
+        x, state = self._states(loads, state)
+        flat = (x @ self._c_modal.T).real if self._modal else (x @ self.cy.T).real
+        return flat.reshape(k, self.model.n_sensors, 6), state
+
+    def motion(self, loads: np.ndarray, state: np.ndarray) -> np.ndarray:
+        """The desk's motion ``[q, q̇]`` (k, 12) at each sample (for tests and accelerometers)."""
+        x, _ = self._states(np.asarray(loads, dtype=float), state)
+        if self._modal:
+            x = (x @ self._from_modal.T).real
+        return np.asarray(x.real) * self._scale
+
+    def _states(self, loads: np.ndarray, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """States after each sample, ``x[n] = Ad x[n-1] + Bd u[n]`` from ``x[-1] = state``
+        (modal coordinates when diagonalised). Returns them and the last one."""
+        k = len(loads)
+        if k == 0:
+            return np.zeros((0, 12), dtype=complex), state
+        if self._modal:
+            drive = loads @ self._b_modal.T  # (k, 12) complex
+            z = np.empty((k, 12), dtype=complex)
+            for j, pole in enumerate(self.poles):
+                # one first-order recursion per mode, z[n] = pole·z[n-1] + drive[n]
+                z[:, j], _ = scipy.signal.lfilter(
+                    [1.0], np.array([1.0, -pole]), drive[:, j], zi=pole * state[j : j + 1]
+                )
+            return z, z[-1].copy()
+        # A defective (non-diagonalisable) system: fall back to the plain recursion.
+        xs = np.empty((k, 12))
+        x = state.real.copy()
+        for n in range(k):
+            x = self.ad @ x + self.bd @ loads[n]
+            xs[n] = x
+        return xs, x.astype(complex)
+
+
+def _check_positive(**values: float) -> None:
+    for name, value in values.items():
+        if not (value > 0 and math.isfinite(value)):
+            raise ValueError(f"{name} must be a positive number, found {value}")
+
+
+def _top_height(profile: DeskProfile, positions: np.ndarray) -> float:
+    """Height of the first surface above the sensors (0.7 m when the profile has none)."""
+    if profile.surfaces:
+        h = float(profile.surfaces[0].origin[2] - positions[:, 2].mean())
+        if h > 0.05:
+            return h
+    return 0.7
+
+
+def _footprint(profile: DeskProfile, positions: np.ndarray) -> tuple[float, float]:
+    """Width and depth of the desk: the first horizontal surface's outline, else the legs'."""
+    for surf in profile.surfaces:
+        if surf.is_desk_xy:
+            span = np.ptp(surf.polygon, axis=0)
+            return float(span[0]), float(span[1])
+    span = np.ptp(positions[:, :2], axis=0) + 0.1
+    return float(span[0]), float(span[1])

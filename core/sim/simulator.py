@@ -1,0 +1,221 @@
+"""Run a scene on a simulated desk: loads → desk dynamics → sensors → a recording or a source.
+
+The run is computed in fixed chunks of :data:`CHUNK` samples. Each chunk's sensor noise comes
+from its own generator (spawned from the seed and the chunk's index) and the desk's state is
+carried from chunk to chunk, so :func:`simulate` and :class:`SimSource` give the same samples
+for any block size, and a seed gives the same run every time.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from hapticdesk.profile import DeskProfile
+from hapticdesk.recording import Recording
+from hapticdesk.sim.desk import DeskModel, DeskParameters
+from hapticdesk.sim.scene import Scene
+from hapticdesk.sim.sensors import SensorModel, SensorParameters
+from hapticdesk.sim.timeline import (
+    STREAM_DRIFT,
+    STREAM_NOISE,
+    TRUTH_COLUMNS,
+    Timeline,
+    stream,
+)
+from hapticdesk.source import Source, WrenchBlock
+
+CHUNK = 4096  # samples per internal chunk (noise streams are per chunk)
+
+
+@dataclass(frozen=True)
+class SimEffects:
+    """Which physical effects a run includes; switch any off for tests.
+
+    ``dynamics`` off: the desk answers every load at once (statics only). ``desk_weight``
+    off: the desk itself weighs nothing (objects put on it still do).
+    """
+
+    dynamics: bool = True
+    noise: bool = True
+    drift: bool = True
+    quantisation: bool = True
+    saturation: bool = True
+    desk_weight: bool = True
+
+    @classmethod
+    def ideal(cls) -> SimEffects:
+        """Statics only, perfect sensors: readings equal the load split exactly (the desk
+        still weighs what it weighs)."""
+        return cls(**{f.name: f.name == "desk_weight" for f in fields(cls)})
+
+
+class SimulationRun:
+    """One run of a scene on a desk with a seed; produces chunks on demand."""
+
+    def __init__(
+        self,
+        profile: DeskProfile,
+        scene: Scene,
+        seed: int | None = None,
+        *,
+        noise: bool = True,
+        effects: SimEffects | None = None,
+        desk: DeskParameters | None = None,
+        sensors: SensorParameters | None = None,
+    ) -> None:
+        effects = effects or SimEffects()
+        if not noise:
+            effects = SimEffects(
+                dynamics=effects.dynamics,
+                noise=False,
+                drift=False,
+                quantisation=effects.quantisation,
+                saturation=effects.saturation,
+                desk_weight=effects.desk_weight,
+            )
+        self.profile = profile
+        self.scene = scene
+        self.seed = int(scene.seed if seed is None else seed)
+        self.effects = effects
+        self.timeline = Timeline(profile, scene, self.seed)
+        self.model = DeskModel(profile, desk)
+        self.sensor_model = SensorModel(profile, sensors, quantisation=effects.quantisation)
+        self.fs = float(profile.sample_rate_hz)
+        self.n_samples = self.timeline.n_samples
+        self._base = self.model.weight() if effects.desk_weight else np.zeros(6)
+        self._drift = (
+            self.sensor_model.draw_drift(stream(self.seed, STREAM_DRIFT)) if effects.drift else None
+        )
+        self._discrete = self.model.discretize(1.0 / self.fs) if effects.dynamics else None
+
+    def chunks(self) -> Iterator[tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]]:
+        """Yield ``(t, wrench, truth)`` chunk by chunk, from the start."""
+        state = None
+        for c, k0 in enumerate(range(0, self.n_samples, CHUNK)):
+            k1 = min(k0 + CHUNK, self.n_samples)
+            loads, truth = self.timeline.render(k0, k1)
+            loads += self._base
+            t = np.arange(k0, k1) / self.fs
+            if self._discrete is not None:
+                if state is None:
+                    state = self._discrete.initial_state(loads[0])
+                true, state = self._discrete.run(loads, state)
+            else:
+                true = self.model.static_readings(loads)
+            wrench = self.sensor_model.apply(
+                true,
+                t,
+                noise_rng=stream(self.seed, STREAM_NOISE, c) if self.effects.noise else None,
+                drift=self._drift,
+                quantisation=self.effects.quantisation,
+                saturation=self.effects.saturation,
+            )
+            yield t, wrench, truth
+
+
+def simulate(
+    profile: DeskProfile,
+    scene: Scene,
+    seed: int | None = None,
+    noise: bool = True,
+    *,
+    effects: SimEffects | None = None,
+    desk: DeskParameters | None = None,
+    sensors: SensorParameters | None = None,
+) -> Recording:
+    """Simulate ``scene`` on the desk ``profile`` into a recording with ground truth.
+
+    ``seed`` None uses the scene's seed. ``noise=False`` switches off every random sensor
+    error (noise, offset and drift); ``effects`` chooses effects one by one. The recording's
+    ``extra`` holds the truth per sample: ``true_x, true_y, true_z`` (the contact point, the
+    centre of pressure when several fingers touch; NaN when nobody touches), ``true_fn`` (the
+    normal force, 0 when not touching), ``true_fx, true_fy, true_fz`` (the force the fingers
+    apply, desk frame), ``true_surface`` and ``true_action`` (indices, -1 when not touching).
+    """
+    run = SimulationRun(
+        profile, scene, seed, noise=noise, effects=effects, desk=desk, sensors=sensors
+    )
+    parts = list(run.chunks())
+    t = np.concatenate([p[0] for p in parts])
+    wrench = np.concatenate([p[1] for p in parts])
+    extra = {c: np.concatenate([p[2][c] for p in parts]) for c in TRUTH_COLUMNS}
+    return Recording(t, wrench, profile.sensor_names, extra)
+
+
+class SimSource(Source):
+    """A simulated desk as a source of wrench blocks (``hapticdesk run --source sim:…``).
+
+    Blocks carry the ground truth in ``WrenchBlock.truth``. The samples equal
+    :func:`simulate`'s for the same arguments, whatever ``block_size``.
+    """
+
+    def __init__(
+        self,
+        profile: DeskProfile,
+        scene: Scene,
+        seed: int | None = None,
+        block_size: int = 12,
+        *,
+        noise: bool = True,
+        effects: SimEffects | None = None,
+        desk: DeskParameters | None = None,
+        sensors: SensorParameters | None = None,
+    ) -> None:
+        if block_size < 1:
+            raise ValueError(f"block_size must be >= 1, found {block_size}")
+        self.run = SimulationRun(
+            profile, scene, seed, noise=noise, effects=effects, desk=desk, sensors=sensors
+        )
+        self.block_size = int(block_size)
+        self.sensor_names = profile.sensor_names
+        self.sample_rate_hz = float(profile.sample_rate_hz)
+        self._closed = False
+
+    @property
+    def n_samples(self) -> int:
+        """How many samples the run has."""
+        return self.run.n_samples
+
+    @property
+    def duration_s(self) -> float:
+        return self.run.timeline.duration_s
+
+    def blocks(self) -> Iterator[WrenchBlock]:
+        """Blocks of ``block_size`` samples (the last may be shorter) until the scene ends."""
+        pending_t: list[np.ndarray] = []
+        pending_w: list[np.ndarray] = []
+        pending_truth: list[dict[str, np.ndarray]] = []
+        size = 0
+        for t, wrench, truth in self.run.chunks():
+            pending_t.append(t)
+            pending_w.append(wrench)
+            pending_truth.append(truth)
+            size += len(t)
+            if size < self.block_size:
+                continue
+            t_all = np.concatenate(pending_t)
+            w_all = np.concatenate(pending_w)
+            tr_all = {c: np.concatenate([p[c] for p in pending_truth]) for c in TRUTH_COLUMNS}
+            full = (len(t_all) // self.block_size) * self.block_size
+            for a in range(0, full, self.block_size):
+                if self._closed:
+                    return
+                b = a + self.block_size
+                yield WrenchBlock(t_all[a:b], w_all[a:b], {c: v[a:b] for c, v in tr_all.items()})
+            pending_t, pending_w = [t_all[full:]], [w_all[full:]]
+            pending_truth = [{c: v[full:] for c, v in tr_all.items()}]
+            size = len(t_all) - full
+        if size and not self._closed:
+            t_all = np.concatenate(pending_t)
+            yield WrenchBlock(
+                t_all,
+                np.concatenate(pending_w),
+                {c: np.concatenate([p[c] for p in pending_truth]) for c in TRUTH_COLUMNS},
+            )
+
+    def close(self) -> None:
+        """Stop yielding blocks. Safe to call more than once."""
+        self._closed = True

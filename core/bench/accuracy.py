@@ -184,6 +184,25 @@ def measure_accuracy(
     )
 
 
+def truth_with_release(
+    block: ContactBlock, truth: dict[str, np.ndarray], presses: list[Press]
+) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """The true point per sample, held at the last point touched until the estimator ends the
+    contact (at most 0.5 s); and where each press's release ends."""
+    t = block.t
+    true_x = np.asarray(truth["true_x"], dtype=float).copy()
+    true_y = np.asarray(truth["true_y"], dtype=float).copy()
+    longest = int(0.5 / max(float(np.median(np.diff(t))), 1e-9)) if len(t) > 1 else 0
+    ends = []
+    for p in presses:
+        off = np.flatnonzero(~block.in_contact[p.stop :])
+        end = min(p.stop + (int(off[0]) if len(off) else 0), p.stop + longest)
+        true_x[p.stop : end] = true_x[p.stop - 1]
+        true_y[p.stop : end] = true_y[p.stop - 1]
+        ends.append(end)
+    return true_x, true_y, ends
+
+
 def _crossing(t: np.ndarray, f: np.ndarray, index: int, level: float) -> float:
     """The time the true force crossed ``level`` between samples index−1 and index."""
     if index <= 0 or index >= len(t):

@@ -1,0 +1,90 @@
+"""``hapticdesk bench``: error against run time for every method, and the paper reproduced."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from hapticdesk.profile import DeskProfile, load_profile
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--desk", default="kitamura2017", help="desk profile (default: the paper's)"
+    )
+    parser.add_argument(
+        "--quick", action="store_true", help="fewer settings and one seed (< 1 min)"
+    )
+    parser.add_argument("--seeds", type=int, default=None, help="simulated sessions to pool")
+    parser.add_argument("--json", action="store_true", help="print the results as JSON")
+    parser.add_argument("--plot", type=Path, help="PNG of error against µs per sample")
+    parser.add_argument(
+        "--paper", action="store_true", help="reproduce the paper's Fig. 2, 8, 14 and 16 instead"
+    )
+    parser.add_argument(
+        "--paper-png",
+        type=Path,
+        default=None,
+        help="with --paper: where to draw the traced 北 (Fig. 16)",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    profile = load_profile(args.desk)
+    if args.paper:
+        return _paper(args, profile)
+    from hapticdesk.bench.report import plot_pareto, table
+    from hapticdesk.bench.runner import default_configs, run_config
+    from hapticdesk.bench.scenes import paper_experiment
+    from hapticdesk.sim import simulate
+
+    started = time.perf_counter()
+    seeds = args.seeds or (1 if args.quick else 3)
+    recordings = [simulate(profile, paper_experiment(), seed=s) for s in range(seeds)]
+    rows = []
+    for config in default_configs(args.quick):
+        rows.append(run_config(profile, config, recordings, repeats=2 if args.quick else 3))
+        if not args.json:
+            print(f"  {config.label}", file=sys.stderr)
+    if args.plot:
+        plot_pareto(rows, args.plot)
+    info = {
+        "desk": profile.name,
+        "scene": "paper-experiment (9 points × 3 presses)",
+        "seeds": seeds,
+        "samples": int(sum(len(r.t) for r in recordings)),
+        "seconds": round(time.perf_counter() - started, 1),
+        "methods": rows,
+    }
+    if args.json:
+        print(json.dumps(info, indent=1))
+    else:
+        print(
+            f"hapticdesk bench: {profile.name}, the paper's experiment simulated with the "
+            f"paper's noise, {seeds} session(s), {info['samples']} samples"
+        )
+        print(
+            "errors in mm against the truth (touch/hold/release of each press), delays in ms "
+            "after the true force crosses 2 N\n"
+        )
+        print(table(rows))
+        if args.plot:
+            print(f"\nplot: {args.plot}")
+    return 0
+
+
+def _paper(args: argparse.Namespace, profile: DeskProfile) -> int:
+    from hapticdesk.bench.paper import reproduce
+
+    seeds = tuple(range(args.seeds or 3))
+    findings = reproduce(profile, seeds, args.paper_png)
+    if args.json:
+        print(json.dumps([f.__dict__ for f in findings], indent=1, default=float))
+        return 0
+    for f in findings:
+        mark = "holds" if f.holds else "DOES NOT HOLD"
+        print(f"{f.figure}  [{mark}]\n  paper: {f.paper}\n  ours:  {f.ours}\n")
+    return 0

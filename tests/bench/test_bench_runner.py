@@ -1,0 +1,87 @@
+"""The benchmark: deterministic accuracy, the JSON contract, the Pareto front."""
+
+import json
+
+import numpy as np
+import pytest
+
+from hapticdesk.bench.accuracy import find_presses, measure_accuracy
+from hapticdesk.bench.runner import Config, pareto_front, run_config
+from hapticdesk.bench.scenes import paper_experiment
+from hapticdesk.cli import main
+from hapticdesk.contacts import ContactBlock
+from hapticdesk.estimator import estimate
+from hapticdesk.sim import simulate
+
+JSON_KEYS = {
+    "method",
+    "touch_p95_mm",
+    "release_p95_mm",
+    "hold_median_mm",
+    "touch_delay_ms",
+    "release_delay_ms",
+    "samples_per_s",
+    "us_per_sample_stream",
+}
+
+
+@pytest.fixture(scope="module")
+def session(paper_desk):
+    return simulate(paper_desk, paper_experiment(), seed=5)
+
+
+def test_presses_are_found_from_the_truth(session):
+    presses = find_presses(session.extra["true_fn"])
+    assert len(presses) == 27
+    for p in presses:
+        assert p.start < p.half_up <= p.half_down < p.stop
+        assert 15.0 <= p.peak_n <= 27.0  # the human model's 15–25 N, with tremor
+
+
+def test_accuracy_is_deterministic_and_judges_every_method_on_the_same_samples(paper_desk, session):
+    a = measure_accuracy(estimate(paper_desk, session, "switched"), session.extra).summary()
+    b = measure_accuracy(estimate(paper_desk, session, "switched"), session.extra).summary()
+    assert a == b
+    assert a["presses"] == 27 and a["missed"] == 0 and a["false_touches"] == 0
+    assert 0 < a["touch_delay_ms"] < 30 and 0 < a["release_delay_ms"] < 40
+
+
+def test_a_method_that_reports_nothing_scores_no_coverage(paper_desk, session):
+    block = estimate(paper_desk, session, "force")
+    empty = ContactBlock(**{**block.__dict__, "located": np.zeros(len(block), bool)})
+    acc = measure_accuracy(empty, session.extra)
+    assert acc.touch.coverage == acc.hold.coverage == acc.release.coverage == 0.0
+    assert acc.summary()["touch_p95_mm"] is None
+
+
+def test_a_row_has_the_contract_keys(paper_desk, session):
+    row = run_config(
+        paper_desk,
+        Config("fused", {"diff_window_s": 0.1}),
+        [session],
+        repeats=1,
+        stream_samples=600,
+    )
+    assert JSON_KEYS <= row.keys()
+    assert row["label"] == "fused window 0.1 s"
+    assert row["samples_per_s"] > 0 and row["us_per_sample_stream"] > 0
+
+
+def test_pareto_front():
+    rows = [
+        {"e": 1.0, "c": 10.0},
+        {"e": 2.0, "c": 5.0},
+        {"e": 3.0, "c": 6.0},
+        {"e": 0.5, "c": 20.0},
+        {"e": None, "c": 1.0},
+    ]
+    assert pareto_front(rows, "e", "c") == [0, 1, 3]
+
+
+def test_paper_reproduction_findings_hold(capsys):
+    assert main(["bench", "--paper", "--seeds", "2", "--json"]) == 0
+    findings = json.loads(capsys.readouterr().out)
+    assert [f["figure"] for f in findings] == ["Fig. 2", "Fig. 8", "Fig. 14", "Fig. 16"]
+    for f in findings:
+        assert f["holds"], f
+    assert findings[0]["numbers"]["crossover_n"] == pytest.approx(3.8, abs=0.1)

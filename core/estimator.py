@@ -370,7 +370,9 @@ class ContactEstimator:
             lp_w = all_lp[:, :cut].reshape(3, n_full, w)
             spread: list[float] = (lp_w.max(axis=2) - lp_w.min(axis=2)).max(axis=0).tolist()
             means = all_raw[:, :cut].reshape(6, n_full, w).mean(axis=2)
-            any_bad = np.any(all_bad[:cut].reshape(n_full, w), axis=1).astype(bool).tolist()
+            # a window is unusable for the zero when more than a tenth of it was held over
+            bad_share = all_bad[:cut].reshape(n_full, w).mean(axis=1)
+            any_bad = (bad_share > 0.1).tolist()
             ends = np.arange(1, n_full + 1) * w - 1 - m  # block index of each window's end
             t_end = np.where(ends >= 0, t[np.maximum(ends, 0)], self._last_window_t).tolist()
             mean_rows = means.T.tolist()

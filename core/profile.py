@@ -9,7 +9,7 @@ which every consumer of sensor data uses.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -29,6 +29,7 @@ from hapticdesk.yamlfile import (
 )
 
 METHODS = ("force", "diff", "switched", "fused")
+LOWPASS_PER_NATURAL_FREQUENCY = 4.77 / 5.9  # the paper's cut-off for its desk's lowest mode
 AXES = ("fx", "fy", "fz", "mx", "my", "mz")
 
 
@@ -282,6 +283,14 @@ def profile_from_mapping(doc: MarkedDict, path: Path) -> DeskProfile:
         check_keys(desk, _DESK_KEYS, "`desk`")
         mass = number(desk, "mass_kg", "`desk`", default=0.0, minimum=0.0) or None
         natural = number(desk, "natural_frequency_hz", "`desk`", default=0.0, minimum=0.0) or None
+    given = doc["estimation"] if isinstance(doc.get("estimation"), MarkedDict) else {}
+    if natural is not None:
+        # the filters must stay below the desk's lowest mode, as the paper's 4.77 Hz stays
+        # below its 5.9 Hz (ratio 0.81); a value given in `estimation` wins
+        cutoff = round(LOWPASS_PER_NATURAL_FREQUENCY * natural, 2)
+        for key in ("force_lowpass_hz", "diff_lowpass_hz"):
+            if key not in given:
+                estimation = replace(estimation, **{key: cutoff})
     return DeskProfile(
         name=name,
         sample_rate_hz=rate,

@@ -3,5 +3,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 python -m pip install -q -e '.[test]'
-if [ -d examples/plugin-example ]; then python -m pip install -q -e examples/plugin-example; fi
+python -m pip install -q -e examples/plugin-example
 python -m pytest -q "$@"
+# the example plugin package carries its own tests (and its own pytest settings)
+(cd examples/plugin-example && python -m pytest -q)

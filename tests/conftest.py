@@ -11,6 +11,15 @@ from hapticdesk.profile import DeskProfile, load_profile, profile_from_mapping
 from hapticdesk.yamlfile import load_marked_yaml
 
 
+@pytest.fixture(autouse=True)
+def _no_installed_plugins(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Tests never auto-load installed entry points (STYLE.md 10); the test that checks
+    entry-point loading turns this off itself. Subprocesses inherit it."""
+    from hapticdesk.registry import DISABLE_AUTOLOAD_ENV
+
+    monkeypatch.setenv(DISABLE_AUTOLOAD_ENV, "1")
+
+
 @pytest.fixture(scope="session")
 def paper_desk() -> DeskProfile:
     """The paper's desk (profiles/kitamura2017.yaml)."""

@@ -1,0 +1,12 @@
+"""Force/torque sensors over CAN (python-can, cantools), imported only by desks that use it.
+
+:mod:`~hapticdesk.canbus.config` the profile's ``can:`` section;
+:mod:`~hapticdesk.canbus.frames` frames as numpy arrays;
+:mod:`~hapticdesk.canbus.dbc_signals` database signals as vectorised bit extraction;
+:mod:`~hapticdesk.canbus.ati_netcanoem` the ATI NETCANOEM protocol;
+:mod:`~hapticdesk.canbus.decoding` frame kinds and sensor readings of a desk;
+:mod:`~hapticdesk.canbus.assembler` frames into samples;
+:mod:`~hapticdesk.canbus.source` the live CAN source;
+:mod:`~hapticdesk.canbus.logs` CAN logs (read, replay, write);
+:mod:`~hapticdesk.canbus.emulator` a desk's sensors as frames on a bus. See docs/can.md.
+"""

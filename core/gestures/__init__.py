@@ -1,0 +1,15 @@
+"""Gestures: layouts of regions and bindings, and the recognizers that turn contacts into
+gesture events (DESIGN.md, "Layout", "Gesture events", "Strokes").
+
+    from hapticdesk.gestures.layout import load_layout
+    from hapticdesk.gestures.engine import GestureEngine
+    layout = load_layout("examples/layouts/demo.yaml")
+    engine = GestureEngine(layout)              # builds only the recognizers it binds
+    events = engine.feed(contact_block) + engine.flush(t_end)
+
+Modules: layout (loading, validation, bindings), options (gesture settings), regions
+(shapes on a surface), touch (one touch and its best position), recognizer (the interface),
+engine; the recognizers taps, long_press, pressure, swipe, slide, stroke; unistroke
+($1/Protractor), shapes (the built-in shapes), strokefile, capture. Nothing is imported
+here, so a scene loads only what it uses.
+"""

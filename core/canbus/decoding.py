@@ -1,0 +1,272 @@
+"""How a desk's frames become fields and fields become each sensor's six channels.
+
+A *frame kind* is one identifier and length that carries data (a database message, or one of
+the two sample frames of an ATI board); decoding it fills some columns of a per-sample
+*field table*. A *sensor reading* turns its columns into Fx … Mz in N and N·m and says which
+samples its status marks invalid. Both are built once from the validated ``can:`` section;
+the assembler (:mod:`hapticdesk.canbus.assembler`) decides which frames form one sample.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from hapticdesk.canbus import ati_netcanoem as ati
+from hapticdesk.canbus.config import AtiSensor, CanConfig, SignalSensor
+from hapticdesk.canbus.dbc_signals import SignalLayout, frame_words
+from hapticdesk.canbus.frames import ERROR, EXTENDED, REMOTE, FrameArray
+from hapticdesk.profile import AXES, DeskProfile
+from hapticdesk.yamlfile import ConfigError
+
+# classification codes (kind indices are >= 0)
+FOREIGN = -1  # an identifier the desk does not use (CANopen traffic, other devices)
+WRONG_LENGTH = -2  # a desk identifier with a length no frame kind has
+PROTOCOL = -3  # a desk identifier that is not sample data (ATI calibration traffic, …)
+REQUEST = -4  # a poll for an ATI sample (length 0)
+ERROR_FRAME = -5
+REMOTE_FRAME = -6
+
+
+@dataclass(frozen=True)
+class FrameKind:
+    """One identifier and length carrying sample data."""
+
+    name: str
+    ident: int  # with frames.EXTENDED set for 29-bit identifiers
+    length: int
+    slots: np.ndarray  # (nf,) field-table columns this kind fills
+    decode: Callable[[np.ndarray], np.ndarray]  # (n, 8) uint8 -> (n, nf) float64
+    counter: SignalLayout | None = None
+    sensors: tuple[int, ...] = ()
+
+    def label(self) -> str:
+        return f"{self.name} (0x{self.ident & 0x1FFFFFFF:03X})"
+
+
+class SensorReading:
+    """A sensor's columns of the field table -> (k, 6) channels, invalid samples, status."""
+
+    name: str
+    columns: np.ndarray  # every column of this sensor
+
+    def channels(self, table: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
+        """(wrench (k, 6), invalid (k,) bool, status counts by description)."""
+        raise NotImplementedError
+
+
+class SignalReading(SensorReading):
+    """Channels straight from database signals (already scaled); unmapped axes read 0."""
+
+    def __init__(
+        self, name: str, axis_columns: dict[int, int], status_columns: list[tuple[str, int]]
+    ):
+        self.name = name
+        self.axis_columns = axis_columns
+        self.status_columns = status_columns
+        self.columns = np.array(list(axis_columns.values()) + [c for _, c in status_columns])
+
+    def channels(self, table: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
+        wrench = np.zeros((len(table), 6))
+        for axis, col in self.axis_columns.items():
+            wrench[:, axis] = table[:, col]
+        invalid = np.zeros(len(table), dtype=bool)
+        counts: dict[str, int] = {}
+        for label, col in self.status_columns:
+            bad = np.abs(table[:, col]) > 0  # NaN (frame missing) is not a status
+            invalid |= bad
+            if bad.any():
+                counts[f"{label} non-zero"] = int(bad.sum())
+        return wrench, invalid, counts
+
+
+class AtiReading(SensorReading):
+    """Gauges through the calibration; critical status bits invalidate the sample."""
+
+    def __init__(self, name: str, first_column: int, calibration: ati.AtiCalibration):
+        self.name = name
+        # columns: status, sg0, sg2, sg4 (frame 0x0), then sg1, sg3, sg5 (frame 0x1)
+        self.columns = np.arange(first_column, first_column + 7)
+        self.calibration = calibration
+        self.gauge_map = calibration.gauge_map()
+
+    def channels(self, table: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
+        c = self.columns
+        gauges = ati.gauges_from_fields(table[:, c[1:4]], table[:, c[4:7]])
+        wrench = gauges @ self.gauge_map.T
+        status = table[:, c[0]]
+        known = ~np.isnan(status)
+        word = np.where(known, status, 0).astype(np.int64)
+        invalid = (word & ati.CRITICAL_MASK) != 0
+        counts: dict[str, int] = {}
+        if word.any():
+            for bit in range(16):
+                n = int(np.count_nonzero(word & (1 << bit)))
+                if n:
+                    counts[ati.status_bit_name(bit)] = n
+        return wrench, invalid, counts
+
+
+@dataclass
+class DeskDecoding:
+    """Everything needed to turn a desk's frames into samples."""
+
+    kinds: list[FrameKind]
+    readings: list[SensorReading]  # in the profile's sensor order
+    n_fields: int
+    request_sensor: dict[int, int]  # ATI sample-request identifier -> sensor index
+    protocol_ids: frozenset[int]
+    counter_modulus: int | None  # set when every kind has a counter
+
+    def __post_init__(self) -> None:
+        keys, codes = [], []
+        for i, kind in enumerate(self.kinds):
+            keys.append(_lookup_key(kind.ident, kind.length))
+            codes.append(i)
+        for ident in self.request_sensor:
+            keys.append(_lookup_key(ident, 0))
+            codes.append(REQUEST)
+        order = np.argsort(keys)
+        self._keys = np.asarray(keys, dtype=np.uint64)[order]
+        self._codes = np.asarray(codes, dtype=np.int64)[order]
+        self._data_ids = np.unique(np.array([k.ident for k in self.kinds], dtype=np.uint32))
+        self._protocol_ids = np.array(sorted(self.protocol_ids), dtype=np.uint32)
+        self.kind_sensors = [np.array(k.sensors, dtype=np.int64) for k in self.kinds]
+
+    @property
+    def sensor_names(self) -> list[str]:
+        return [r.name for r in self.readings]
+
+    def classify(self, frames: FrameArray) -> np.ndarray:
+        """Code per frame: a kind index (>= 0) or FOREIGN, WRONG_LENGTH, PROTOCOL, REQUEST, …"""
+        n = len(frames)
+        codes = np.full(n, FOREIGN, dtype=np.int64)
+        if n == 0:
+            return codes
+        keys = (frames.ident.astype(np.uint64) << np.uint64(8)) | frames.dlc.astype(np.uint64)
+        pos = np.minimum(np.searchsorted(self._keys, keys), len(self._keys) - 1)
+        hit = self._keys[pos] == keys
+        codes[hit] = self._codes[pos[hit]]
+        rest = ~hit
+        codes[rest & np.isin(frames.ident, self._data_ids)] = WRONG_LENGTH
+        codes[rest & np.isin(frames.ident, self._protocol_ids)] = PROTOCOL
+        codes[(frames.flags & REMOTE) != 0] = REMOTE_FRAME
+        codes[(frames.flags & ERROR) != 0] = ERROR_FRAME
+        return codes
+
+
+def _lookup_key(ident: int, length: int) -> int:
+    return (int(ident) << 8) | int(length)
+
+
+def build_decoding(
+    config: CanConfig,
+    profile: DeskProfile,
+    calibrations: dict[str, ati.AtiCalibration] | None = None,
+) -> DeskDecoding:
+    """Frame kinds and sensor readings for ``profile``; ATI boards need a calibration each
+    (from the profile, or ``calibrations`` read from the bus or a capture)."""
+    calibrations = calibrations or {}
+    kinds: list[FrameKind] = []
+    readings: list[SensorReading] = []
+    request_sensor: dict[int, int] = {}
+    protocol: set[int] = set()
+    column = 0
+    # database messages may carry several sensors' signals: one kind per message
+    message_fields: dict[str, list[tuple[int, SignalLayout]]] = {}
+    message_sensors: dict[str, list[int]] = {}
+    message_counter: dict[str, SignalLayout] = {}
+    for index, name in enumerate(profile.sensor_names):
+        sensor = config.sensors[name]
+        if isinstance(sensor, AtiSensor):
+            cal = sensor.calibration or calibrations.get(name)
+            if cal is None:
+                raise ConfigError(
+                    config.where,
+                    f"ATI sensor `{name}` (base 0x{sensor.base:02X}) has no calibration: it is "
+                    "read from the bus at start, taken from the replies in a capture, or given "
+                    "as `calibration` in the profile",
+                )
+            first = column
+            column += 7
+            kinds.append(
+                FrameKind(
+                    f"{name} gauges 0x0",
+                    ati.frame_id(sensor.base, ati.OP_GAUGES_A),
+                    ati.GAUGES_A_LENGTH,
+                    np.arange(first, first + 4),
+                    ati.decode_gauges_a,
+                    None,
+                    (index,),
+                )
+            )
+            kinds.append(
+                FrameKind(
+                    f"{name} gauges 0x1",
+                    ati.frame_id(sensor.base, ati.OP_GAUGES_B),
+                    ati.GAUGES_B_LENGTH,
+                    np.arange(first + 4, first + 7),
+                    ati.decode_gauges_b,
+                    None,
+                    (index,),
+                )
+            )
+            request_sensor[ati.frame_id(sensor.base, ati.OP_GAUGES_A)] = index
+            protocol |= ati.ati_frame_ids(sensor.base) - {
+                ati.frame_id(sensor.base, ati.OP_GAUGES_A),
+                ati.frame_id(sensor.base, ati.OP_GAUGES_B),
+            }
+            readings.append(AtiReading(name, first, cal))
+            continue
+        assert isinstance(sensor, SignalSensor)
+        axis_columns: dict[int, int] = {}
+        status_columns: list[tuple[str, int]] = []
+        for axis, ref in sensor.axes.items():
+            axis_columns[AXES.index(axis)] = column
+            message_fields.setdefault(ref.message, []).append((column, _layout(config, ref)))
+            message_sensors.setdefault(ref.message, []).append(index)
+            column += 1
+        for ref in sensor.status:
+            status_columns.append((str(ref), column))
+            message_fields.setdefault(ref.message, []).append((column, _layout(config, ref)))
+            column += 1
+        for ref in sensor.counters:
+            message_counter[ref.message] = _layout(config, ref)
+        readings.append(SignalReading(name, axis_columns, status_columns))
+    for message_name, slots in message_fields.items():
+        message = config.database.get_message_by_name(message_name)
+        layouts = [layout for _, layout in slots]
+        ident = int(message.frame_id) | (int(EXTENDED) if message.is_extended_frame else 0)
+        kinds.append(
+            FrameKind(
+                message_name,
+                ident,
+                int(message.length),
+                np.array([c for c, _ in slots]),
+                _signal_decoder(layouts),
+                message_counter.get(message_name),
+                tuple(sorted(set(message_sensors.get(message_name, [])))),
+            )
+        )
+    modulus = None
+    if kinds and all(k.counter is not None for k in kinds):
+        modulus = 1 << kinds[0].counter.length  # type: ignore[union-attr]
+    return DeskDecoding(kinds, readings, column, request_sensor, frozenset(protocol), modulus)
+
+
+def _layout(config: CanConfig, ref: object) -> SignalLayout:
+    message = config.database.get_message_by_name(ref.message)  # type: ignore[attr-defined]
+    return SignalLayout.from_cantools(message, message.get_signal_by_name(ref.signal))  # type: ignore[attr-defined]
+
+
+def _signal_decoder(layouts: list[SignalLayout]) -> Callable[[np.ndarray], np.ndarray]:
+    def decode(data: np.ndarray) -> np.ndarray:
+        words = frame_words(data)
+        out = np.empty((len(data), len(layouts)))
+        for i, layout in enumerate(layouts):
+            out[:, i] = layout.decode(words)
+        return out
+
+    return decode

@@ -1,0 +1,342 @@
+"""CAN logs: read them as frames or as a desk's samples, and write them.
+
+Read: python-can's formats (``.asc`` Vector ASCII, ``.blf`` Vector binary, ``.trc`` PEAK
+trace, ``.log`` candump ``-l`` files, each also ``.gz``) and candump's printed text through
+cantools' log reader (``candump can0`` without times, ``-tz``/``-td`` relative, ``-ta``/``-tA``
+absolute; any suffix other than the above, e.g. ``.txt``, ``.candump``). A log without times
+gets them from the profile's sample rate. Write: python-can's ``Logger`` by suffix.
+
+Every command that reads a recording reads these through :func:`read_can_log` (a
+:class:`~hapticdesk.recording.Recording`) or :func:`open_can_log` (a finite
+:class:`~hapticdesk.source.Source`).
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hapticdesk.canbus.assembler import AssembledBlock, CanNotice, CanStats, FrameAssembler
+from hapticdesk.canbus.ati_netcanoem import AtiCalibration, CalibrationCollector, ati_frame_ids
+from hapticdesk.canbus.config import CanConfig, can_config
+from hapticdesk.canbus.decoding import build_decoding
+from hapticdesk.canbus.frames import FrameArray
+from hapticdesk.profile import DeskProfile
+from hapticdesk.recording import Recording
+from hapticdesk.source import Source, WrenchBlock
+from hapticdesk.yamlfile import ConfigError
+
+log = logging.getLogger("hapticdesk.canbus.logs")
+
+PYTHON_CAN_SUFFIXES = (".asc", ".blf", ".log", ".trc")
+WRITE_SUFFIXES = PYTHON_CAN_SUFFIXES
+CANDUMP_TEXT_SUFFIXES = (".txt", ".candump", ".dump")
+CHUNK_FRAMES = 50_000
+# candump -l / python-can .log lines: "(1700000000.000000) can0 123#DEADBEEF"
+_CANUTILS_LINE = re.compile(r"^\s*\(\d+(\.\d+)?\)\s+\S+\s+[0-9A-Fa-f]+#")
+
+
+def _suffix(path: str | Path) -> str:
+    suffixes = [s.lower() for s in Path(path).suffixes]
+    if suffixes and suffixes[-1] == ".gz":
+        suffixes = suffixes[:-1]
+    return suffixes[-1] if suffixes else ""
+
+
+def is_can_log(path: str | Path) -> bool:
+    """True when ``path``'s suffix is a CAN log format this module reads."""
+    return _suffix(path) in PYTHON_CAN_SUFFIXES + CANDUMP_TEXT_SUFFIXES
+
+
+# --- frames -----------------------------------------------------------------------------------
+
+
+def read_frames(path: str | Path, chunk_frames: int = CHUNK_FRAMES) -> Iterator[FrameArray]:
+    """The log's frames in chunks, in file order. ConfigError when it cannot be read."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(str(path), "no such CAN log")
+    suffix = _suffix(path)
+    any_frame = False
+    if suffix in (".asc", ".blf", ".trc") or (suffix == ".log" and _looks_canutils(path)):
+        chunks = _python_can_frames(path, chunk_frames)
+    else:
+        chunks = _candump_text_frames(path, chunk_frames)
+    for chunk in chunks:
+        any_frame = any_frame or len(chunk) > 0
+        yield chunk
+    if not any_frame:
+        raise ConfigError(
+            str(path),
+            "no CAN frames found; expected a python-can log (.asc, .blf, .log, .trc) or "
+            "candump output (`candump can0`, `-tz`, `-ta`, `-l`)",
+        )
+
+
+def _looks_canutils(path: Path) -> bool:
+    try:
+        with _open_text(path) as fh:
+            for line in fh:
+                if line.strip():
+                    return bool(_CANUTILS_LINE.match(line))
+    except (OSError, UnicodeDecodeError):
+        return True  # let python-can report what is wrong
+    return True
+
+
+def _open_text(path: Path) -> Any:
+    if path.suffix.lower() == ".gz":
+        import gzip
+
+        return gzip.open(path, "rt", encoding="utf-8", errors="replace")
+    return path.open(encoding="utf-8", errors="replace")
+
+
+_READERS = {
+    ".asc": "ASCReader",
+    ".blf": "BLFReader",
+    ".trc": "TRCReader",
+    ".log": "CanutilsLogReader",
+}
+
+
+def _python_can_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
+    import gzip
+
+    import can  # lazily: only CAN paths need python-can
+
+    fmt = _suffix(path)
+    mode = "rb" if fmt == ".blf" else "rt"
+    batch: list[Any] = []
+    try:
+        # we open the file so that it is closed whatever the reader raises
+        opener = gzip.open if path.suffix.lower() == ".gz" else open
+        with opener(path, mode) as fh:
+            for msg in getattr(can, _READERS[fmt])(fh):
+                batch.append(msg)
+                if len(batch) >= chunk_frames:
+                    yield FrameArray.from_messages(batch)
+                    batch = []
+    except (ValueError, OSError, EOFError, KeyError, IndexError, can.CanError) as err:
+        raise ConfigError(str(path), f"not a readable {fmt} CAN log: {err}") from None
+    except Exception as err:  # BLF and gzip readers raise their own kinds on corrupt files
+        raise ConfigError(str(path), f"not a readable {fmt} CAN log: {err!r}") from None
+    if batch:
+        yield FrameArray.from_messages(batch)
+
+
+def _candump_text_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
+    import datetime
+
+    from cantools.logreader import Parser
+
+    deltas: bool | None = None  # candump -td prints the time since the previous frame
+    clock = 0.0
+    unknown_lines: list[int] = []
+    t: list[float] = []
+    idents: list[int] = []
+    exts: list[bool] = []
+    datas: list[bytes] = []
+    remote: list[bool] = []
+
+    def chunk() -> FrameArray:
+        nonlocal deltas, clock
+        times = np.array(t, dtype=float)
+        if deltas is None and np.isfinite(times).all() and relative:
+            deltas = bool(np.any(np.diff(times) < 0))
+        if deltas:
+            times = clock + np.cumsum(times)
+            clock = float(times[-1]) if len(times) else clock
+        out = FrameArray.build(times, idents, datas, extended=np.array(exts, dtype=bool))
+        out.flags[np.array(remote, dtype=bool)] |= 1
+        for lst in (t, idents, exts, datas, remote):
+            lst.clear()
+        return out
+
+    relative = False
+    try:
+        with _open_text(path) as fh:
+            for number, (line, frame) in enumerate(Parser(fh).iterlines(keep_unknowns=True), 1):
+                if frame is None:
+                    if line.strip() and not line.lstrip().startswith(("#", ";")):
+                        unknown_lines.append(number)
+                    continue
+                stamp = frame.timestamp
+                if isinstance(stamp, datetime.timedelta):
+                    relative = True
+                    t.append(stamp.total_seconds())
+                elif isinstance(stamp, datetime.datetime):
+                    t.append(stamp.timestamp())
+                else:
+                    t.append(np.nan)
+                idents.append(frame.frame_id)
+                exts.append(frame.is_extended_frame)
+                datas.append(frame.data)
+                remote.append(frame.is_remote_frame)
+                if len(datas) >= chunk_frames:
+                    yield chunk()
+    except (OSError, UnicodeDecodeError) as err:
+        raise ConfigError(str(path), f"cannot read: {err}") from None
+    if datas:
+        yield chunk()
+    if unknown_lines:
+        shown = ", ".join(f"{path}:{n}" for n in unknown_lines[:3])
+        log.warning(
+            "%d line(s) are not CAN frames and were skipped (%s%s)",
+            len(unknown_lines),
+            shown,
+            " …" if len(unknown_lines) > 3 else "",
+        )
+
+
+def write_frames(path: str | Path, frames: Iterable[FrameArray], channel: Any = None) -> int:
+    """Write frames to a python-can log chosen by suffix; returns the number written."""
+    import can
+
+    path = Path(path)
+    if _suffix(path) not in WRITE_SUFFIXES:
+        raise ConfigError(
+            str(path), f"cannot write CAN logs as {path.suffix!r}; use {', '.join(WRITE_SUFFIXES)}"
+        )
+    n = 0
+    with can.Logger(str(path)) as logger:
+        for chunk in frames:
+            for msg in chunk.to_messages(channel=channel):
+                logger.on_message_received(msg)
+            n += len(chunk)
+    return n
+
+
+# --- samples ----------------------------------------------------------------------------------
+
+
+@dataclass
+class CanLogDecoding:
+    """What decoding a log gave: the samples and what was seen on the way."""
+
+    recording: Recording
+    stats: CanStats
+    notices: list[CanNotice] = field(default_factory=list)
+
+
+def log_calibrations(path: str | Path, config: CanConfig) -> dict[str, AtiCalibration]:
+    """Calibrations of the ATI boards the profile gives none for, from the replies in a log."""
+    wanted = {n: s for n, s in config.ati_sensors.items() if s.calibration is None}
+    if not wanted:
+        return {}
+    collectors = {n: CalibrationCollector(s.base) for n, s in wanted.items()}
+    ids = np.array(sorted(set().union(*(ati_frame_ids(s.base) for s in wanted.values()))))
+    for chunk in read_frames(path):
+        sel = np.flatnonzero(np.isin(chunk.ident, ids))
+        idents = chunk.ident[sel].tolist()
+        dlcs = chunk.dlc[sel].tolist()
+        for j, i in enumerate(sel.tolist()):
+            payload = chunk.data[i, : dlcs[j]].tobytes()
+            for c in collectors.values():
+                c.feed(idents[j], payload)
+        if all(c.calibration() is not None for c in collectors.values()):
+            break
+    out = {}
+    for name, c in collectors.items():
+        cal = c.calibration()
+        if cal is None:
+            hint = " (row replies without their requests)" if c.unpaired_rows else ""
+            raise ConfigError(
+                str(path),
+                f"ATI sensor `{name}` (base 0x{c.base:02X}): the log lacks "
+                f"{', '.join(c.missing()) or 'a usable matrix'}{hint}; record the start-up "
+                "exchange with `hapticdesk record`, or give `calibration` in the profile",
+            )
+        if c.units is None:
+            log.warning("ATI sensor %s: the log has no units reply (0x8); assuming N and N·m", name)
+        out[name] = cal
+    return out
+
+
+def _assembler(path: str | Path, profile: DeskProfile) -> FrameAssembler:
+    config = can_config(profile)
+    decoding = build_decoding(config, profile, log_calibrations(path, config))
+    return FrameAssembler(
+        decoding,
+        profile.sample_rate_hz,
+        assemble=config.assemble,
+        frame_gap_s=config.frame_gap_s,
+        silent_timeout_s=config.silent_timeout_s,
+        silent_sensor=config.silent_sensor,
+        where=str(path),
+    )
+
+
+def _blocks(path: str | Path, assembler: FrameAssembler) -> Iterator[AssembledBlock]:
+    for chunk in read_frames(path):
+        block = assembler.push(chunk)
+        yield block
+        if block.stop is not None:
+            raise block.stop
+    block = assembler.flush()
+    yield block
+    if block.stop is not None:
+        raise block.stop
+
+
+def decode_can_log(path: str | Path, profile: DeskProfile) -> CanLogDecoding:
+    """Decode a whole log into a Recording, with the statistics of what was in it."""
+    assembler = _assembler(path, profile)
+    ts, ws = [], []
+    for block in _blocks(path, assembler):
+        ts.append(block.t)
+        ws.append(block.wrench)
+    t = np.concatenate(ts)
+    if not len(t):
+        raise ConfigError(
+            str(path),
+            f"no samples of desk `{profile.name}` in this log: {assembler.stats.frames} frames, "
+            f"none with the identifiers its `can:` section decodes",
+        )
+    recording = Recording(t, np.concatenate(ws), profile.sensor_names)
+    return CanLogDecoding(recording, assembler.stats, list(assembler.notices))
+
+
+def read_can_log(path: str | Path, profile: DeskProfile) -> Recording:
+    """A CAN log decoded through the profile's ``can:`` section (problems logged as warnings)."""
+    result = decode_can_log(path, profile)
+    lines = result.stats.summary()
+    if len(lines) > 1:
+        log.warning("%s: %s", path, "; ".join(lines))
+    return result.recording
+
+
+class CanLogSource(Source):
+    """A CAN log as a finite source of wrench blocks, decoded chunk by chunk."""
+
+    def __init__(self, path: str | Path, profile: DeskProfile) -> None:
+        self.path = Path(path)
+        self.sensor_names = profile.sensor_names
+        self.sample_rate_hz = profile.sample_rate_hz
+        self.assembler = _assembler(path, profile)
+        self._closed = False
+
+    @property
+    def stats(self) -> CanStats:
+        return self.assembler.stats
+
+    def blocks(self) -> Iterator[WrenchBlock]:
+        for block in _blocks(self.path, self.assembler):
+            if self._closed:
+                return
+            if len(block.t):
+                yield WrenchBlock(block.t, block.wrench)
+
+    def close(self) -> None:
+        self._closed = True
+
+
+def open_can_log(path: str | Path, profile: DeskProfile) -> Source:
+    """A finite :class:`~hapticdesk.source.Source` of the log's samples."""
+    return CanLogSource(path, profile)

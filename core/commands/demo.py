@@ -1,0 +1,192 @@
+"""``hapticdesk demo``: the whole path on a simulated desk, with real MQTT, in under a minute.
+
+The paper's desk (simulated) plays examples/scenes/demo.yaml: tap the lamp button, slide the
+dimmer, draw a circle, tap again. examples/layouts/demo.yaml turns the gestures into
+Zigbee2MQTT commands; they travel through a broker (an embedded one on loopback unless
+``--mqtt URL`` names yours) to a subscriber that plays the desk lamp and prints its state.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import threading
+import time
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+import hapticdesk
+from hapticdesk.registry import load_registry
+from hapticdesk.runtime import Runtime, build_scene
+from hapticdesk.yamlfile import ConfigError
+
+LAMP_TOPIC = "zigbee2mqtt/+/set"
+ACTION_TOPIC = "hapticdesk/+/action"  # the desk's own gesture stream
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--mqtt", metavar="URL", help="use this broker instead of the embedded one")
+    parser.add_argument(
+        "--speed", type=float, default=1.0, help="1 real time (default), 0 as fast as possible"
+    )
+    parser.add_argument("--layout", help="another layout (default: examples/layouts/demo.yaml)")
+    parser.add_argument("--scene", help="another scene (default: examples/scenes/demo.yaml)")
+
+
+def examples_dir() -> Path:
+    """The repository's examples/ folder (the demo's layout and scene live there)."""
+    return Path(hapticdesk.__file__).resolve().parent.parent / "examples"
+
+
+class Lamp:
+    """A stand-in for a Zigbee2MQTT light: subscribes to ``<device>/set`` and keeps its state.
+
+    It speaks the Home Assistant JSON light schema Zigbee2MQTT uses: ``state`` ON, OFF or
+    TOGGLE, ``brightness`` 0..254 (which also switches the light on).
+    """
+
+    def __init__(self, url: str, out: Any) -> None:
+        import paho.mqtt.client as mqtt
+
+        from hapticdesk.plugins.mqtt_link import parse_broker_url
+
+        tls, self.host, self.port, username = parse_broker_url(url, "--mqtt")
+        self.out = out
+        self.state: dict[str, dict[str, Any]] = {}
+        self.received = 0
+        self._printed: dict[str, tuple[str, int]] = {}
+        self._subscribed = threading.Event()
+        self._lock = threading.Lock()
+        self.client = mqtt.Client(
+            mqtt.CallbackAPIVersion.VERSION2, client_id="hapticdesk-demo-lamp"
+        )
+        if username:
+            self.client.username_pw_set(username)
+        if tls:
+            self.client.tls_set()
+        self.client.on_connect = lambda c, u, f, reason, p: c.subscribe(
+            [(LAMP_TOPIC, 2), (ACTION_TOPIC, 1)]
+        )
+        self.client.on_subscribe = lambda *a: self._subscribed.set()
+        self.client.on_message = self._on_message
+
+    def start(self, timeout: float = 10.0) -> Lamp:
+        try:
+            self.client.connect(self.host, self.port)
+        except OSError as err:
+            raise ConfigError(
+                "--mqtt", f"cannot reach the broker at {self.host}:{self.port}: {err}"
+            ) from None
+        self.client.loop_start()
+        if not self._subscribed.wait(timeout):
+            raise ConfigError(
+                "--mqtt", f"the broker at {self.host}:{self.port} did not accept a subscription"
+            )
+        return self
+
+    def stop(self) -> None:
+        self.client.disconnect()
+        self.client.loop_stop()
+
+    def _on_message(self, client: Any, userdata: Any, message: Any) -> None:
+        if message.topic.startswith("hapticdesk/"):
+            action = message.payload.decode("utf-8", "replace")
+            if not action.endswith("_slide"):  # slide updates come every 50 ms
+                print(f"gesture {action}", file=self.out, flush=True)
+            return
+        device = message.topic.split("/")[1]
+        try:
+            command = json.loads(message.payload)
+        except ValueError:
+            command = {}
+        with self._lock:
+            self.received += 1
+            lamp = self.state.setdefault(device, {"state": "OFF", "brightness": 254})
+            state = str(command.get("state", "")).upper()
+            if state == "TOGGLE":
+                lamp["state"] = "OFF" if lamp["state"] == "ON" else "ON"
+            elif state in ("ON", "OFF"):
+                lamp["state"] = state
+            if isinstance(command.get("brightness"), int | float):
+                lamp["brightness"] = max(0, min(254, int(command["brightness"])))
+                lamp["state"] = "ON" if lamp["brightness"] > 0 else "OFF"
+            self._show(device, lamp)
+
+    def _show(self, device: str, lamp: dict[str, Any], force: bool = False) -> None:
+        # a slide sends a command every 50 ms; print on/off changes and steps of 10 %
+        last = self._printed.get(device)
+        now = (lamp["state"], lamp["brightness"])
+        if not force and last is not None and last[0] == now[0] and abs(last[1] - now[1]) < 25:
+            return
+        self._printed[device] = now
+        percent = round(100 * lamp["brightness"] / 254)
+        light = "ON " if lamp["state"] == "ON" else "OFF"
+        print(
+            f"  {device}: {light} brightness {percent:3d} %   (command {self.received})",
+            file=self.out,
+            flush=True,
+        )
+
+    def final(self) -> None:
+        with self._lock:
+            for device, lamp in self.state.items():
+                self._show(
+                    device,
+                    lamp,
+                    force=self._printed.get(device) != (lamp["state"], lamp["brightness"]),
+                )
+
+
+def run(args: argparse.Namespace) -> int:
+    out = sys.stdout
+    examples = examples_dir()
+    layout = Path(args.layout) if args.layout else examples / "layouts" / "demo.yaml"
+    scene_file = Path(args.scene) if args.scene else examples / "scenes" / "demo.yaml"
+    for path in (layout, scene_file):
+        if not path.is_file():
+            raise ConfigError(
+                str(path), "the demo's file is missing; run the demo from a clone of the repository"
+            )
+    broker = None
+    url = args.mqtt
+    if url is None:
+        from hapticdesk.broker import EmbeddedBroker
+
+        broker = EmbeddedBroker().start()
+        url = broker.url
+        print(f"embedded MQTT broker on {url}", file=out)
+    lamp = None
+    try:
+        lamp = Lamp(url, out).start()
+        registry = load_registry()
+        scene = build_scene(layout, f"sim:{scene_file}", registry, speed=args.speed, mqtt_url=url)
+        print(
+            f"simulated desk `{scene.profile.name}` playing {scene_file.name} with layout "
+            f"{layout.name}; the lamp listens on {LAMP_TOPIC}",
+            file=out,
+            flush=True,
+        )
+        report = Runtime(scene, status=sys.stderr if sys.stderr.isatty() else None).run()
+        sent = sum(lane.stats.ok for route in scene.dispatcher.routes for lane in route.lanes)
+        deadline = time.monotonic() + 5.0
+        while lamp.received < sent and time.monotonic() < deadline:
+            time.sleep(0.02)
+        lamp.final()
+    finally:
+        if lamp is not None:
+            lamp.stop()
+        if broker is not None:
+            broker.stop()
+    gestures = Counter(report.gestures)
+    shown = ", ".join(f"{n} {g}" for g, n in gestures.most_common()) or "none"
+    print(f"gestures: {shown}", file=out)
+    print(f"commands: {sent} sent, {lamp.received} received by the lamp", file=out)
+    for line in report.notes:
+        print(line, file=out)
+    for device, state in lamp.state.items():
+        print(f"{device} ends {state['state']} at brightness {state['brightness']}", file=out)
+    if report.error:
+        print(f"error: {report.error}", file=out)
+    return 0 if lamp.received == sent and not report.error else 1

@@ -1,0 +1,120 @@
+"""``hapticdesk emulate --desk D --scene S --bus INTERFACE:CHANNEL [--encoding dbc|ati]``.
+
+Sends a simulated desk's sensor frames onto a CAN bus (python-can's virtual bus, a SocketCAN
+vcan or real hardware), so the whole CAN path can be tried without sensors. ``--recording``
+sends a recorded CSV/NPZ instead of a scene. Database desks stream, paced by sample time
+(``--speed 1``, the default; ``--speed 0`` as fast as possible); ATI boards answer polls, one
+sample per poll, and their calibration requests, so the poller sets the pace.
+
+python-can's ``virtual`` bus only reaches buses in the same process: to emulate for another
+program use a SocketCAN ``vcan`` interface (``ip link add dev vcan0 type vcan``) or
+``udp_multicast``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from typing import Any
+
+import numpy as np
+
+from hapticdesk.profile import load_profile
+from hapticdesk.recording import read_recording
+from hapticdesk.yamlfile import ConfigError
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--desk", required=True, help="desk profile name or path")
+    what = parser.add_mutually_exclusive_group(required=True)
+    what.add_argument("--scene", help="scene YAML to simulate and send")
+    what.add_argument("--recording", help="recording (.csv, .npz) to send instead of a scene")
+    parser.add_argument(
+        "--bus", required=True, help="INTERFACE:CHANNEL, e.g. socketcan:vcan0 or virtual:desk"
+    )
+    parser.add_argument(
+        "--encoding",
+        choices=("dbc", "ati"),
+        help="frames as the profile's database signals or ATI NETCANOEM boards "
+        "(default: as the profile's `can:` says)",
+    )
+    parser.add_argument(
+        "--speed", type=float, default=1.0, help="1 real time (default), 0 as fast as possible"
+    )
+    parser.add_argument("--loop", action="store_true", help="start over at the end, until Ctrl-C")
+    parser.add_argument("--bitrate", type=int, help="CAN bit rate")
+    parser.add_argument("--seed", type=int, help="simulation seed")
+    parser.add_argument("--json", action="store_true", help="print a JSON summary")
+
+
+def run(args: argparse.Namespace) -> int:
+    import can
+
+    from hapticdesk.canbus.config import can_config
+    from hapticdesk.canbus.emulator import CanEmulator, encoder_for
+
+    if not (args.speed >= 0 and np.isfinite(args.speed)):
+        raise ConfigError("--speed", f"must be 0 (as fast as possible) or more, found {args.speed}")
+    interface, sep, channel = args.bus.partition(":")
+    if not sep or not interface:
+        raise ConfigError(
+            "--bus", f"expected INTERFACE:CHANNEL (e.g. virtual:desk), found {args.bus!r}"
+        )
+    profile = load_profile(args.desk)
+    config = can_config(profile) if profile.can is not None else None
+    encoder, used = encoder_for(profile, config, args.encoding)
+    if args.recording:
+        rec = read_recording(args.recording, profile.sensor_names)
+    else:
+        from hapticdesk.sim import load_scene, simulate
+
+        rec = simulate(profile, load_scene(args.scene), args.seed)
+    if not len(rec):
+        raise ConfigError(args.recording or args.scene, "nothing to send: no samples")
+    if used is not config:
+        bases = ", ".join(
+            f"{n}: {{ati_netcanoem: {{base: 0x{s.base:02X}}}}}" for n, s in used.sensors.items()
+        )
+        print(
+            f"emulating ATI boards; decode them with  can: {{sensors: {{{bases}}}}}",
+            file=sys.stderr,
+        )
+    kwargs: dict[str, Any] = {"interface": interface, "channel": channel}
+    if interface == "virtual":  # frames keep their sample times, whatever the speed
+        kwargs["preserve_timestamps"] = True
+    if args.bitrate:
+        kwargs["bitrate"] = args.bitrate
+    try:
+        bus = can.Bus(**kwargs)
+    except (can.CanError, OSError, ValueError, ImportError) as err:
+        raise ConfigError(
+            "--bus", f"cannot open CAN interface {interface!r} channel {channel!r}: {err}"
+        ) from None
+    emulator = CanEmulator(encoder, rec.t, rec.wrench, bus, speed=args.speed, loop=args.loop)
+    start = time.perf_counter()
+    try:
+        emulator.run()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        bus.shutdown()
+    stats = emulator.stats
+    summary = {
+        "desk": profile.name,
+        "bus": args.bus,
+        "encoding": "ati" if used.ati_sensors else "dbc",
+        "samples": stats.samples,
+        "frames": stats.frames,
+        "polls": stats.polls,
+        "seconds": round(time.perf_counter() - start, 3),
+    }
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        print(
+            f"sent {stats.frames} frames ({stats.samples} samples, {summary['encoding']}) "
+            f"on {args.bus} in {summary['seconds']:.2f} s"
+        )
+    return 0

@@ -1,0 +1,43 @@
+"""``hapticdesk plugins``: what is installed, with versions, and what each plugin provides."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+
+from hapticdesk.registry import DISABLE_AUTOLOAD_ENV, KINDS, load_registry
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--json", action="store_true", help="one JSON object per plugin")
+    parser.add_argument(
+        "--strict", action="store_true", help="a plugin that fails to load is fatal"
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    registry = load_registry(strict=args.strict)
+    if args.json:
+        for info in registry.plugins.values():
+            print(json.dumps(info.to_dict()))
+        for warning in registry.warnings:
+            print(json.dumps({"warning": warning}))
+        return 0
+    for info in registry.plugins.values():
+        print(f"{info.name} {info.version} ({info.origin})")
+        for kind in KINDS:
+            for name in info.provides[kind]:
+                record = getattr(registry, kind)[name]
+                print(f"  {kind[:-1]:<10} {name:<12} {record.description}")
+        others = [h for h in info.hooks if not h.startswith("register_")]
+        if others:
+            print(f"  hooks      {', '.join(others)}")
+    from hapticdesk.gestures.engine import BUILTIN_RECOGNIZERS
+
+    print(f"built-in gestures: {', '.join(BUILTIN_RECOGNIZERS)}")
+    if os.environ.get(DISABLE_AUTOLOAD_ENV):
+        print(f"third-party plugins are not loaded: {DISABLE_AUTOLOAD_ENV} is set")
+    for warning in registry.warnings:
+        print(f"warning: {warning}")
+    return 0

@@ -1,0 +1,84 @@
+"""``hapticdesk run``: sense, recognise gestures and dispatch actions until the source ends.
+
+    hapticdesk run --layout living-room.yaml --source can:socketcan:can0
+    hapticdesk run --layout demo.yaml --source replay:session.csv --speed 0 --events out.jsonl
+
+SIGINT (Ctrl-C) or SIGTERM stop it cleanly: queued commands get ``--drain`` seconds to go out
+and whatever did not is reported. A second signal stops at once.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from hapticdesk.registry import load_registry
+from hapticdesk.runtime import Runtime, build_scene, report_json
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--layout", required=True, help="the layout YAML")
+    parser.add_argument("--desk", help="desk profile name or path (overrides the layout's desk:)")
+    parser.add_argument(
+        "--source",
+        required=True,
+        help="sim:SCENE.yaml, replay:FILE (recording or CAN log), can:INTERFACE:CHANNEL",
+    )
+    parser.add_argument(
+        "--speed",
+        type=float,
+        default=1.0,
+        help="replay/simulation speed: 1 real time (default), 0 as fast as possible",
+    )
+    parser.add_argument("--events", metavar="FILE.jsonl", help="write every gesture event here")
+    parser.add_argument(
+        "--mqtt", metavar="URL", help="broker URL, overriding the layout's mqtt.broker"
+    )
+    parser.add_argument(
+        "--strict", action="store_true", help="a plugin that fails to load is fatal"
+    )
+    parser.add_argument(
+        "--status",
+        action="store_true",
+        help="show the live status line even when stderr is not a terminal",
+    )
+    parser.add_argument(
+        "--action-timeout",
+        type=float,
+        metavar="S",
+        help="give up on an action call after S seconds (default: the action's own, else 5)",
+    )
+    parser.add_argument(
+        "--drain",
+        type=float,
+        default=5.0,
+        metavar="S",
+        help="at the end, wait up to S seconds for queued commands (default 5)",
+    )
+    parser.add_argument("--json", action="store_true", help="print the run's report as JSON")
+
+
+def run(args: argparse.Namespace) -> int:
+    registry = load_registry(strict=args.strict)
+    scene = build_scene(
+        args.layout,
+        args.source,
+        registry,
+        desk=args.desk,
+        speed=args.speed,
+        mqtt_url=args.mqtt,
+        action_timeout_s=args.action_timeout,
+    )
+    show_status = args.status or sys.stderr.isatty()
+    runtime = Runtime(
+        scene,
+        events_path=args.events,
+        status=sys.stderr if show_status else None,
+        drain_timeout_s=args.drain,
+    )
+    report = runtime.run()
+    for line in report.summary():
+        print(line, file=sys.stderr)
+    if args.json:
+        print(report_json(report))
+    return 1 if report.error else 0

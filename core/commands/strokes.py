@@ -1,0 +1,231 @@
+"""``hapticdesk strokes``: classify stroke files, or record stroke templates from a source.
+
+    hapticdesk strokes classify PATH... [--templates DIR] [--no-builtin] [--json]
+    hapticdesk strokes record NAME --layout L --source SPEC [--desk D] [--into DIR] [--count N]
+
+``classify`` prints, per stroke, the file, the recognised shape (null when nothing matches
+well enough) and the score; with ``--json`` one JSON object a line (DESIGN.md, "Strokes").
+A file that cannot be read is reported and the others are still classified (exit code 1).
+
+``record`` runs a source (``sim:SCENE.yaml``, ``replay:REC.csv``, a live CAN bus …) through
+the estimator and saves every touch big enough to be a stroke as ``DIR/NAME/NAME-<n>.csv``,
+each as soon as it ends, so Ctrl-C loses nothing already drawn. DIR defaults to the layout's
+template folder (its ``templates:`` when that names a folder, else ``strokes/`` beside it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import sys
+from pathlib import Path
+from typing import Any
+
+from hapticdesk.gestures.options import GESTURE_OPTIONS
+from hapticdesk.gestures.strokefile import (
+    SHAPE_NAME,
+    STROKE_SUFFIXES,
+    read_stroke,
+    read_template_dir,
+    write_stroke,
+)
+from hapticdesk.yamlfile import ConfigError
+
+_STROKE = GESTURE_OPTIONS["stroke"]
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    sub = parser.add_subparsers(dest="strokes_command", metavar="SUBCOMMAND", required=True)
+    c = sub.add_parser("classify", help="recognise the shape of stroke files")
+    c.add_argument("paths", nargs="+", metavar="PATH", help="stroke files or folders of them")
+    c.add_argument("--templates", metavar="DIR", help="user templates: one sub-folder per shape")
+    c.add_argument(
+        "--no-builtin", action="store_true", help="match only the --templates, not the built-ins"
+    )
+    c.add_argument(
+        "--min-score",
+        type=float,
+        default=_STROKE["min_score"].default,
+        help="similarity needed to accept a shape (default %(default)s)",
+    )
+    c.add_argument(
+        "--max-rotation",
+        type=float,
+        default=_STROKE["max_rotation_deg"].default,
+        metavar="DEG",
+        help="how far a stroke may be turned from a template (default %(default)s)",
+    )
+    c.add_argument("--json", action="store_true", help="one JSON object per stroke")
+    r = sub.add_parser("record", help="capture stroke templates from a source")
+    r.add_argument("name", help="the shape name the strokes are templates of")
+    r.add_argument("--layout", required=True, help="the layout whose templates these are")
+    r.add_argument("--source", required=True, metavar="SPEC", help="sim:SCENE, replay:FILE, …")
+    r.add_argument("--desk", help="a desk profile name or path (overrides the layout's)")
+    r.add_argument("--into", metavar="DIR", help="template folder (default: the layout's)")
+    r.add_argument("--count", type=int, default=0, help="stop after N strokes (default: all)")
+    r.add_argument(
+        "--speed", type=float, default=0.0, help="replay speed: 1 real time, 0 (default) at once"
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.strokes_command == "classify":
+        return classify(args)
+    return record(args)
+
+
+# --- classify --------------------------------------------------------------------------------
+
+
+def _stroke_paths(paths: list[str]) -> list[Path]:
+    out: list[Path] = []
+    for text in paths:
+        path = Path(text)
+        if path.is_dir():
+            out += sorted(
+                p for p in path.rglob("*") if p.is_file() and p.suffix.lower() in STROKE_SUFFIXES
+            )
+        else:
+            out.append(path)  # a missing file is reported when it is read
+    return out
+
+
+def classify(args: argparse.Namespace) -> int:
+    from hapticdesk.gestures.unistroke import template_set
+
+    if not 0.0 <= args.min_score <= 1.0:
+        raise ConfigError("--min-score", f"must be between 0 and 1, found {args.min_score:g}")
+    if not 0.0 <= args.max_rotation <= 180.0:
+        raise ConfigError("--max-rotation", f"must be 0..180 degrees, found {args.max_rotation:g}")
+    user = read_template_dir(args.templates) if args.templates else None
+    if args.no_builtin and not user:
+        raise ConfigError("--no-builtin", "needs --templates DIR holding at least one shape")
+    templates = template_set(user, builtin=not args.no_builtin)
+    failed = 0
+    rows: list[dict[str, Any]] = []
+    for path in _stroke_paths(args.paths):
+        try:
+            points = read_stroke(path)
+        except ConfigError as err:
+            print(f"hapticdesk strokes: error: {err}", file=sys.stderr)
+            failed += 1
+            continue
+        match = templates.classify(points, args.min_score, args.max_rotation)
+        row: dict[str, Any] = {
+            "file": str(path),
+            "shape": match.shape,
+            "score": round(match.score, 4),
+        }
+        if match.shape is None and match.best_shape is not None:
+            row["nearest"] = match.best_shape
+        rows.append(row)
+        if args.json:
+            print(json.dumps(row, ensure_ascii=False), flush=True)
+    if not args.json and rows:
+        width = max(len(r["file"]) for r in rows)
+        for r in rows:
+            shape = r["shape"] or f"-- (nearest {r.get('nearest')})"
+            print(f"{r['file']:<{width}}  {r['score']:.3f}  {shape}")
+    return 1 if failed else 0
+
+
+# --- record ----------------------------------------------------------------------------------
+
+
+def _next_index(folder: Path, name: str) -> int:
+    pattern = re.compile(rf"^{re.escape(name)}-(\d+)\.(csv|json)$")
+    found = [int(m.group(1)) for p in folder.iterdir() if (m := pattern.match(p.name))]
+    return max(found, default=0) + 1
+
+
+def record(args: argparse.Namespace) -> int:
+    from hapticdesk.estimator import ContactEstimator
+    from hapticdesk.gestures.capture import StrokeCapture
+    from hapticdesk.gestures.layout import load_layout
+    from hapticdesk.gestures.unistroke import template_set
+    from hapticdesk.profile import load_profile
+    from hapticdesk.registry import load_registry
+    from hapticdesk.source_spec import open_source
+
+    if not SHAPE_NAME.match(args.name):
+        raise ConfigError(
+            "NAME",
+            f"a shape name is letters, digits and _, starting with a letter; found {args.name!r}",
+        )
+    if args.count < 0:
+        raise ConfigError("--count", f"must be 0 (all) or more, found {args.count}")
+    registry = load_registry()
+    profile = load_profile(args.desk) if args.desk else None
+    layout = load_layout(args.layout, profile=profile, recognizer_types=registry.recognizer_types())
+    into = Path(args.into) if args.into else layout.template_dir
+    folder = into / args.name
+    options = layout.options_for("stroke", None)
+    capture = StrokeCapture(layout.desk, min_size=options["min_size"])
+    templates = template_set(layout.templates)
+    estimator = ContactEstimator(layout.desk)
+    saved: list[Path] = []
+    source = open_source(args.source, layout.desk, registry, speed=args.speed)
+    t_last = None
+    try:
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            raise ConfigError(str(folder), f"cannot create it: {err.strerror or err}") from None
+        for block in source.blocks():
+            if len(block.t) == 0:
+                continue
+            t_last = float(block.t[-1])
+            for stroke in capture.feed(estimator.push(block.t, block.wrench)):
+                saved.append(_save(stroke, folder, args.name, templates, options))
+            if args.count and len(saved) >= args.count:
+                break
+        else:
+            if t_last is not None:
+                for stroke in capture.flush(t_last):
+                    saved.append(_save(stroke, folder, args.name, templates, options))
+    except KeyboardInterrupt:
+        print("stopped; the strokes drawn so far are saved", file=sys.stderr)
+    finally:
+        source.close()
+    print(
+        f"recorded {len(saved)} stroke(s) of `{args.name}` into {folder}"
+        + (f" ({capture.small} smaller touches skipped)" if capture.small else ""),
+        file=sys.stderr,
+    )
+    if saved and not _layout_uses(layout, into, args.name):
+        hint = (
+            f"templates: {_relative(into, layout.path.parent)}"
+            if "templates" not in layout.raw
+            else f"{args.name}: [{_relative(folder, layout.path.parent)}] under `templates:`"
+        )
+        print(f"to use them, add to {layout.path}:  {hint}", file=sys.stderr)
+    return 0 if saved else 1
+
+
+def _save(stroke: Any, folder: Path, name: str, templates: Any, options: dict[str, Any]) -> Path:
+    path = folder / f"{name}-{_next_index(folder, name):03d}.csv"
+    write_stroke(path, stroke.points, stroke.t - stroke.t[0])
+    match = templates.classify(stroke.points, options["min_score"], options["max_rotation_deg"])
+    row = {
+        "file": str(path),
+        "size_cm": round(stroke.size * 100, 1),
+        "duration_s": round(float(stroke.t[-1] - stroke.t[0]), 3),
+        "looks_like": match.shape,
+        "score": round(match.score, 4),
+    }
+    print(json.dumps(row, ensure_ascii=False), flush=True)
+    return path
+
+
+def _layout_uses(layout: Any, into: Path, name: str) -> bool:
+    """Whether the layout already loads the templates recorded into ``into``/``name``."""
+    value = layout.raw.get("templates")
+    if isinstance(value, str):
+        return (layout.path.parent / value).resolve() == into.resolve()
+    return isinstance(value, dict) and name in value
+
+
+def _relative(path: Path, base: Path) -> str:
+    return os.path.relpath(path.resolve(), base.resolve())

@@ -1,0 +1,365 @@
+"""The dispatcher: gesture events to actions, off the sensing thread, each action on its own.
+
+Every action use of a layout gets a *lane*: a bounded queue and a worker thread. The sensing
+thread only matches bindings and puts events on lanes (never blocks), so a slow action cannot
+delay sensing, and one action cannot delay another. Each call runs in its own ``try``; a
+watchdog gives up on a call that runs past its timeout, counts it, and starts a fresh worker
+for the lane (Python cannot kill the hung thread, it is left behind as a daemon; after
+:data:`MAX_ABANDONED` of them the lane is stopped and its events are dropped and counted).
+Events within one lane keep their order.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any, Protocol
+
+from hapticdesk.gestures.event import GestureEvent
+
+log = logging.getLogger(__name__)
+
+DEFAULT_TIMEOUT_S = 5.0
+DEFAULT_LANE_QUEUE = 256
+MAX_ABANDONED = 3  # hung calls per lane before the lane is given up
+_STOP = object()
+
+
+class Action(Protocol):
+    """What an action factory returns: called once per matching gesture event.
+
+    Optional: ``close()`` (called once at the end of a run) and ``timeout_s`` (how long one
+    call may run before the dispatcher gives up on it; default :data:`DEFAULT_TIMEOUT_S`).
+    """
+
+    def __call__(self, event: GestureEvent) -> None: ...
+
+
+class ActionContext:
+    """What an action factory gets besides its options: the desk, the layout, shared resources.
+
+    ``settings`` is the layout's top-level mapping (e.g. its ``mqtt:`` section);
+    ``mqtt_url`` the ``--mqtt`` override. :meth:`shared` lets all actions of a run share one
+    resource (one MQTT connection); resources are closed at the end, newest first, each with
+    ``close(timeout)``: how long it may still take to deliver what it holds.
+    """
+
+    def __init__(
+        self,
+        desk: str,
+        *,
+        layout_path: Path | None = None,
+        settings: Mapping[str, Any] | None = None,
+        mqtt_url: str | None = None,
+        profile: Any = None,
+        layout: Any = None,
+    ) -> None:
+        self.desk = desk
+        self.layout_path = layout_path
+        self.settings: Mapping[str, Any] = settings if settings is not None else {}
+        self.mqtt_url = mqtt_url
+        self.profile = profile
+        self.layout = layout
+        self._resources: dict[str, Any] = {}
+        self._lock = threading.Lock()
+
+    def resolve_path(self, path: str | Path) -> Path:
+        """A path from the layout, relative to the layout file's folder."""
+        p = Path(path).expanduser()
+        if not p.is_absolute() and self.layout_path is not None:
+            p = self.layout_path.parent / p
+        return p
+
+    def shared(self, key: str, create: Callable[[], Any]) -> Any:
+        """The run's resource called ``key``, created by ``create()`` the first time."""
+        with self._lock:
+            if key not in self._resources:
+                self._resources[key] = create()
+            return self._resources[key]
+
+    def peek(self, key: str) -> Any:
+        """The shared resource ``key`` if it was created, else None."""
+        return self._resources.get(key)
+
+    def close_resources(self, timeout_s: float = 5.0) -> list[str]:
+        """Close every shared resource (newest first) within ``timeout_s`` in total; returns
+        what each reported."""
+        notes: list[str] = []
+        deadline = time.monotonic() + timeout_s
+        for key, resource in reversed(list(self._resources.items())):
+            close = getattr(resource, "close", None)
+            if close is None:
+                continue
+            try:
+                result = close(max(0.0, deadline - time.monotonic()))
+            except Exception as err:
+                log.warning("closing %s failed: %s: %s", key, type(err).__name__, err)
+                notes.append(f"{key}: closing failed: {err}")
+                continue
+            if isinstance(result, str) and result:
+                notes.append(result)
+        self._resources.clear()
+        return notes
+
+
+@dataclass
+class LaneStats:
+    """Counts for one lane (one action use)."""
+
+    submitted: int = 0
+    ok: int = 0
+    failed: int = 0
+    timed_out: int = 0
+    dropped: int = 0  # the lane's queue was full, or the lane was given up
+    not_run: int = 0  # still queued when the run ended
+
+    def add(self, other: LaneStats) -> None:
+        for f in fields(self):
+            setattr(self, f.name, getattr(self, f.name) + getattr(other, f.name))
+
+
+class Lane:
+    """One action with its own bounded queue and worker thread."""
+
+    def __init__(
+        self,
+        label: str,
+        action: Callable[[GestureEvent], Any],
+        *,
+        timeout_s: float | None = None,
+        queue_size: int = DEFAULT_LANE_QUEUE,
+    ) -> None:
+        self.label = label
+        self.action = action
+        own = getattr(action, "timeout_s", None)
+        self.timeout_s = float(timeout_s or own or DEFAULT_TIMEOUT_S)
+        self.stats = LaneStats()
+        self._queue: queue.Queue[Any] = queue.Queue(maxsize=queue_size)
+        self._lock = threading.Lock()
+        self._busy_since: float | None = None
+        self._generation = 0
+        self._abandoned = 0
+        self._closed = False
+        self._stopped = threading.Event()
+        self._start_worker()
+
+    @property
+    def given_up(self) -> bool:
+        return self._abandoned > MAX_ABANDONED
+
+    def submit(self, event: GestureEvent) -> bool:
+        """Queue ``event`` without blocking; False (and counted) when it cannot be queued."""
+        with self._lock:
+            if self._closed:
+                return False
+            if self.given_up:
+                self.stats.dropped += 1
+                return False
+            try:
+                self._queue.put_nowait(event)
+            except queue.Full:
+                self.stats.dropped += 1
+                if self.stats.dropped in (1, 10, 100) or self.stats.dropped % 1000 == 0:
+                    log.warning(
+                        "%s: its queue is full (%d waiting); %d event(s) dropped so far",
+                        self.label,
+                        self._queue.maxsize,
+                        self.stats.dropped,
+                    )
+                return False
+            self.stats.submitted += 1
+            return True
+
+    def check_timeout(self, now: float) -> None:
+        """Give up on a call running past the timeout (called by the watchdog)."""
+        with self._lock:
+            if self._busy_since is None or now - self._busy_since <= self.timeout_s:
+                return
+            self.stats.timed_out += 1
+            self._busy_since = None
+            self._generation += 1
+            self._abandoned += 1
+            if self.given_up:
+                log.error(
+                    "%s: a call ran past its %.3g s timeout again (%d times); this action is "
+                    "given up for the rest of the run, its events are dropped",
+                    self.label,
+                    self.timeout_s,
+                    self._abandoned,
+                )
+                self.stats.dropped += self._drain()
+                self._stopped.set()  # no worker will take anything any more
+                return
+            log.warning(
+                "%s: a call ran past its %.3g s timeout; it is left behind and the action "
+                "goes on with the next event",
+                self.label,
+                self.timeout_s,
+            )
+            self._start_worker()
+
+    def close(self, deadline: float) -> None:
+        """Stop taking events, let queued ones run until ``deadline``, then close the action."""
+        with self._lock:
+            self._closed = True
+        if not self.given_up:
+            while True:
+                try:
+                    self._queue.put(_STOP, timeout=max(0.0, deadline - time.monotonic()))
+                    break
+                except queue.Full:
+                    if time.monotonic() >= deadline:
+                        break
+            # whichever worker takes the stop (the watchdog may replace a hung one meanwhile)
+            self._stopped.wait(max(0.0, deadline - time.monotonic()))
+        with self._lock:
+            self.stats.not_run += self._drain()
+            if self._busy_since is not None:  # still inside a call at the deadline
+                self.stats.timed_out += 1
+                self._generation += 1
+        self._close_action(max(0.5, deadline - time.monotonic()))
+
+    # --- internals ----------------------------------------------------------------------------
+
+    def _start_worker(self) -> None:
+        threading.Thread(
+            target=self._run,
+            args=(self._generation,),
+            name=f"action {self.label}",
+            daemon=True,  # a hung action must not keep the process alive
+        ).start()
+
+    def _run(self, generation: int) -> None:
+        while True:
+            item = self._queue.get()
+            if item is _STOP:
+                self._stopped.set()
+                return
+            with self._lock:
+                self._busy_since = time.monotonic()
+            ok = False
+            try:
+                self.action(item)
+                ok = True
+            except Exception as err:
+                error = err
+            with self._lock:
+                if generation != self._generation:  # the watchdog gave up on this call
+                    log.info("%s: a call that timed out has finished after all", self.label)
+                    return
+                self._busy_since = None
+                if ok:
+                    self.stats.ok += 1
+                else:
+                    self.stats.failed += 1
+                    log.warning("%s failed: %s: %s", self.label, type(error).__name__, error)
+
+    def _drain(self) -> int:
+        count = 0
+        while True:
+            try:
+                item = self._queue.get_nowait()
+            except queue.Empty:
+                return count
+            if item is not _STOP:
+                count += 1
+
+    def _close_action(self, timeout: float) -> None:
+        close = getattr(self.action, "close", None)
+        if close is None:
+            return
+        done = threading.Event()
+
+        def run() -> None:
+            try:
+                close()
+            except Exception as err:
+                log.warning("%s: close failed: %s: %s", self.label, type(err).__name__, err)
+            finally:
+                done.set()
+
+        threading.Thread(target=run, name=f"close {self.label}", daemon=True).start()
+        if not done.wait(timeout):
+            log.warning("%s: close did not finish within %.3g s", self.label, timeout)
+
+
+@dataclass
+class Route:
+    """A binding: which events it takes, and the lanes of its actions."""
+
+    label: str
+    matches: Callable[[GestureEvent], bool]
+    lanes: list[Lane] = field(default_factory=list)
+
+
+@dataclass
+class DispatchReport:
+    """Totals over all lanes, and the per-lane counts by label."""
+
+    events: int = 0
+    totals: LaneStats = field(default_factory=LaneStats)
+    lanes: dict[str, LaneStats] = field(default_factory=dict)
+
+
+class Dispatcher:
+    """Routes gesture events to lanes; a watchdog enforces every lane's timeout."""
+
+    def __init__(self, *, watchdog_interval_s: float = 0.05) -> None:
+        self.routes: list[Route] = []
+        self.sinks: list[Lane] = []  # lanes that see every event (the desk's MQTT topics)
+        self.events = 0
+        self.match_errors = 0
+        self._closed = threading.Event()
+        self._interval = watchdog_interval_s
+        self._watchdog = threading.Thread(target=self._watch, name="action watchdog", daemon=True)
+        self._watchdog.start()
+
+    @property
+    def lanes(self) -> list[Lane]:
+        return [lane for route in self.routes for lane in route.lanes] + self.sinks
+
+    def add_route(self, route: Route) -> None:
+        self.routes.append(route)
+
+    def add_sink(self, lane: Lane) -> None:
+        self.sinks.append(lane)
+
+    def submit(self, event: GestureEvent) -> None:
+        """Hand ``event`` to every matching action. Never blocks; called on the sensing thread."""
+        self.events += 1
+        for route in self.routes:
+            try:
+                matched = route.matches(event)
+            except Exception as err:  # a recognizer or binding bug must not stop sensing
+                self.match_errors += 1
+                log.warning("%s: matching failed: %s: %s", route.label, type(err).__name__, err)
+                continue
+            if matched:
+                for lane in route.lanes:
+                    lane.submit(event)
+        for lane in self.sinks:
+            lane.submit(event)
+
+    def close(self, timeout_s: float = 5.0) -> DispatchReport:
+        """Let queued calls run for up to ``timeout_s`` in total, then close every action."""
+        deadline = time.monotonic() + timeout_s
+        for lane in self.lanes:
+            lane.close(deadline)
+        self._closed.set()
+        self._watchdog.join(1.0)
+        report = DispatchReport(events=self.events)
+        for lane in self.lanes:
+            report.lanes[lane.label] = lane.stats
+            report.totals.add(lane.stats)
+        return report
+
+    def _watch(self) -> None:
+        while not self._closed.wait(self._interval):
+            now = time.monotonic()
+            for lane in self.lanes:
+                lane.check_timeout(now)

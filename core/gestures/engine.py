@@ -1,0 +1,118 @@
+"""The gesture engine: contact blocks in, gesture events out, on sample time.
+
+It builds only the recognizers the layout binds (a taps-only layout never imports the stroke
+recognizer): built-ins come from a table of ``"module:Class"`` strings imported on first use
+(python-can's ``BACKENDS`` habit, STYLE.md 4), plugin recognizers from ``recognizer_types``.
+Output does not depend on how the contact stream is cut into blocks: state is carried
+across blocks and timers fire at the first sample time at or after their deadline.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Mapping
+
+import numpy as np
+
+from hapticdesk.contacts import ContactBlock, ContactEvent
+from hapticdesk.gestures.event import GestureEvent
+from hapticdesk.gestures.layout import Layout
+from hapticdesk.gestures.recognizer import Recognizer
+from hapticdesk.gestures.touch import TouchTracker
+
+#: built-in gesture -> "module:Class"; one class may serve several gestures
+BUILTIN_RECOGNIZERS: dict[str, str] = {
+    "tap": "hapticdesk.gestures.taps:TapRecognizer",
+    "double_tap": "hapticdesk.gestures.taps:TapRecognizer",
+    "long_press": "hapticdesk.gestures.long_press:LongPressRecognizer",
+    "press": "hapticdesk.gestures.pressure:PressRecognizer",
+    "force": "hapticdesk.gestures.pressure:ForceRecognizer",
+    "swipe": "hapticdesk.gestures.swipe:SwipeRecognizer",
+    "slide": "hapticdesk.gestures.slide:SlideRecognizer",
+    "stroke": "hapticdesk.gestures.stroke:StrokeRecognizer",
+}
+
+
+def _import(target: str) -> type:
+    module, _, name = target.partition(":")
+    cls: type = getattr(importlib.import_module(module), name)
+    return cls
+
+
+class GestureEngine:
+    """Runs the layout's recognizers over contact blocks.
+
+    ``recognizers`` maps each bound gesture name to its recognizer (gestures served by one
+    class share the instance).
+    """
+
+    def __init__(self, layout: Layout, recognizer_types: Mapping[str, type] | None = None) -> None:
+        self.layout = layout
+        plugins = dict(recognizer_types or {})
+        classes: dict[str, type] = {}
+        for gesture in layout.gestures:
+            if gesture in BUILTIN_RECOGNIZERS:
+                classes[gesture] = _import(BUILTIN_RECOGNIZERS[gesture])
+            elif gesture in plugins:
+                classes[gesture] = plugins[gesture]
+            else:
+                raise ValueError(f"no recognizer for gesture {gesture!r}; is its plugin installed?")
+        instances: dict[type, Recognizer] = {}
+        self.recognizers: dict[str, Recognizer] = {}
+        for gesture, cls in classes.items():
+            if cls not in instances:
+                served = {g for g, c in classes.items() if c is cls}
+                instances[cls] = cls(layout, [b for b in layout.bindings if b.gesture in served])
+            self.recognizers[gesture] = instances[cls]
+        self._active = list(instances.values())
+        self._tracker = TouchTracker(layout.desk)
+
+    def feed(self, block: ContactBlock) -> list[GestureEvent]:
+        """Recognise gestures in the next block (any length, including 0)."""
+        if len(block) == 0:
+            return []
+        return self._run(self._tracker.events(block), block.t)
+
+    def flush(self, t_end: float) -> list[GestureEvent]:
+        """The source ended at sample time ``t_end``: end the touch and decide what is pending."""
+        out: list[GestureEvent] = []
+        up = self._tracker.end(t_end)
+        if up is not None:
+            out += self._on_contact(up)
+        for recognizer in self._active:
+            out += recognizer.flush(t_end)
+        return out
+
+    def _run(self, events: list[ContactEvent], times: np.ndarray) -> list[GestureEvent]:
+        """Contact events and timers in sample-time order; a timer due at or before a contact
+        event's sample fires first."""
+        out: list[GestureEvent] = []
+        i = 0
+        while True:
+            due = [(d, r) for r in self._active if (d := r.next_deadline()) is not None]
+            if due:
+                k = int(np.searchsorted(times, min(d for d, _ in due), side="left"))
+                if k < len(times) and (i >= len(events) or times[k] <= events[i].t):
+                    t = float(times[k])
+                    for deadline, recognizer in due:
+                        if deadline <= t:
+                            out += recognizer.on_deadline(t)
+                            again = recognizer.next_deadline()
+                            if again is not None and again <= t:
+                                raise RuntimeError(
+                                    f"{type(recognizer).__name__} did not clear its deadline"
+                                )
+                    continue
+            if i >= len(events):
+                return out
+            out += self._on_contact(events[i])
+            i += 1
+
+    def _on_contact(self, event: ContactEvent) -> list[GestureEvent]:
+        touch = self._tracker.add(event)
+        if touch is None:
+            return []
+        out: list[GestureEvent] = []
+        for recognizer in self._active:
+            out += recognizer.on_contact(event, touch)
+        return out

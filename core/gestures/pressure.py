@@ -1,0 +1,125 @@
+"""Pressure gestures: ``press`` with named force levels, and ``force``, a continuous value.
+
+``press`` fires when the force rises past a level (light, firm, hard, …) and re-arms that
+level once the force has dropped ``hysteresis_n`` below it, so a trembling finger at the
+threshold does not fire twice. ``force`` maps the force between ``min_n`` and ``max_n`` to
+0..1 with begin/update/end, updates rate-limited by ``interval_s`` and ``step``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from hapticdesk.contacts import ContactEvent
+from hapticdesk.gestures.event import GestureEvent
+from hapticdesk.gestures.layout import Binding, Layout
+from hapticdesk.gestures.recognizer import BoundRegions, Recognizer
+from hapticdesk.gestures.touch import Touch
+
+
+class PressRecognizer(Recognizer):
+    """``press``."""
+
+    gestures = ("press",)
+
+    def __init__(self, layout: Layout, bindings: Sequence[Binding]) -> None:
+        super().__init__(layout, bindings)
+        self.bound = BoundRegions(layout, "press")
+        self.lowest = min(min(b.options["levels"].values()) for b in self.bindings)
+        self._reset()
+
+    def _reset(self) -> None:
+        self._placed = False
+        self._ignore = False
+        self._region: str | None = None
+        self._armed: dict[str, bool] = {}
+
+    def on_contact(self, event: ContactEvent, touch: Touch) -> list[GestureEvent]:
+        if event.kind == "up":
+            self._reset()
+            return []
+        if event.kind == "down":
+            self._reset()
+        force = event.force_n
+        if self._ignore or not touch.located:
+            return []
+        if not self._placed:
+            if force < self.lowest:
+                return []  # place the press where it is when it first matters
+            self._placed = True
+            x, y, _ = touch.best()
+            found, self._region = self.bound.find(x, y, touch.surface)
+            if not found:
+                self._ignore = True
+                return []
+            self._armed = dict.fromkeys(self.bound.options(self._region)["levels"], True)
+        options = self.bound.options(self._region)
+        out: list[GestureEvent] = []
+        for name, level in options["levels"].items():
+            if self._armed[name] and force >= level:
+                self._armed[name] = False
+                x, y, _ = touch.best()
+                out.append(
+                    GestureEvent(event.t, "press", self._region, x, y, level=name, force_n=force)
+                )
+            elif not self._armed[name] and force < level - options["hysteresis_n"]:
+                self._armed[name] = True
+        return out
+
+
+class ForceRecognizer(Recognizer):
+    """``force``: value 0..1 from the force while the finger stays on the region."""
+
+    gestures = ("force",)
+
+    def __init__(self, layout: Layout, bindings: Sequence[Binding]) -> None:
+        super().__init__(layout, bindings)
+        self.bound = BoundRegions(layout, "force")
+        self._reset()
+
+    def _reset(self) -> None:
+        self._state = "idle"  # idle -> active | ignored
+        self._region: str | None = None
+        self._last_t = 0.0
+        self._last_value = 0.0
+
+    def _value(self, force: float) -> float:
+        o = self.bound.options(self._region)
+        return min(1.0, max(0.0, (force - o["min_n"]) / (o["max_n"] - o["min_n"])))
+
+    def on_contact(self, event: ContactEvent, touch: Touch) -> list[GestureEvent]:
+        if event.kind == "down":
+            self._reset()
+        if event.kind == "up":
+            active = self._state == "active"
+            region = self._region
+            value = self._value(event.force_n) if active else 0.0
+            self._reset()
+            if not active:
+                return []
+            x, y, _ = touch.best()
+            return [self._event(event.t, region, x, y, value, "end", event.force_n)]
+        if self._state == "ignored" or not touch.located:
+            return []
+        x, y, _ = touch.best()
+        if self._state == "idle":
+            found, self._region = self.bound.find(x, y, touch.surface)
+            if not found:
+                self._state = "ignored"
+                return []
+            self._state = "active"
+            value = self._value(event.force_n)
+            self._last_t, self._last_value = event.t, value
+            return [self._event(event.t, self._region, x, y, value, "begin", event.force_n)]
+        value = self._value(event.force_n)
+        o = self.bound.options(self._region)
+        if event.t - self._last_t >= o["interval_s"] and abs(value - self._last_value) >= o["step"]:
+            self._last_t, self._last_value = event.t, value
+            return [self._event(event.t, self._region, x, y, value, "update", event.force_n)]
+        return []
+
+    @staticmethod
+    def _event(
+        t: float, region: str | None, x: float, y: float, value: float, phase: str, force: float
+    ) -> GestureEvent:
+        return GestureEvent(t, "force", region, x, y, value=value, phase=phase, force_n=force)

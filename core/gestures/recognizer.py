@@ -1,0 +1,75 @@
+"""The recognizer interface every gesture state machine implements, built-in or plugin.
+
+A recognizer is created once per layout for the gestures it handles, with the bindings of
+those gestures. The engine gives it every contact event with the current :class:`Touch`, in
+sample-time order, and asks it for timers: ``next_deadline()`` is the sample time at which it
+wants ``on_deadline(t)`` to be called, with ``t`` the first sample time at or after the
+deadline. Each event it returns carries ``t`` = the sample time at which it was decided.
+A desk senses one resultant force, so there is at most one touch at a time.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, ClassVar
+
+from hapticdesk.contacts import ContactEvent
+from hapticdesk.gestures.event import GestureEvent
+from hapticdesk.gestures.layout import Binding, Layout
+from hapticdesk.gestures.options import OptionSpec
+from hapticdesk.gestures.touch import Touch
+
+
+class Recognizer:
+    """Base class: override what the gesture needs."""
+
+    #: gesture names this class recognises (one instance serves all of them)
+    gestures: ClassVar[tuple[str, ...]] = ()
+    #: plugin recognizers may describe their options so layouts are validated
+    option_specs: ClassVar[dict[str, OptionSpec] | None] = None
+
+    def __init__(self, layout: Layout, bindings: Sequence[Binding]) -> None:
+        self.layout = layout
+        self.bindings = list(bindings)
+
+    def on_contact(self, event: ContactEvent, touch: Touch) -> list[GestureEvent]:
+        """One contact event (down, move, up) of ``touch``, already added to it."""
+        return []
+
+    def next_deadline(self) -> float | None:
+        """Sample time at which :meth:`on_deadline` is wanted, or None."""
+        return None
+
+    def on_deadline(self, t: float) -> list[GestureEvent]:
+        """Called at the first sample time ``t`` >= the deadline; must clear or move it."""
+        return []
+
+    def flush(self, t: float) -> list[GestureEvent]:
+        """The source ended at ``t``: decide whatever is pending now."""
+        return self.on_deadline(t) if self.next_deadline() is not None else []
+
+
+class BoundRegions:
+    """The regions a gesture is bound in, to place a point, and their settings."""
+
+    def __init__(self, layout: Layout, gesture: str) -> None:
+        self.layout = layout
+        self.gesture = gesture
+        names = [b.region for b in layout.bindings if b.gesture == gesture]
+        self.regions = [layout.regions[n] for n in dict.fromkeys(n for n in names if n is not None)]
+        self.anywhere = any(n is None for n in names)
+
+    def __bool__(self) -> bool:
+        return bool(self.regions) or self.anywhere
+
+    def find(self, x: float, y: float, surface: int) -> tuple[bool, str | None]:
+        """(found, region name): the bound region holding the point, else (True, None) when
+        the gesture is bound anywhere, else (False, None)."""
+        for region in self.regions:
+            if region.surface_index == surface and bool(region.contains(x, y)):
+                return True, region.name
+        return self.anywhere, None
+
+    def options(self, region: str | None) -> dict[str, Any]:
+        """Resolved recognizer settings of the gesture in ``region``."""
+        return self.layout.options_for(self.gesture, region)

@@ -1,0 +1,70 @@
+"""Swipes: a quick, nearly straight stroke, decided at the release, in 4 or 8 directions.
+
+Directions are as seen from above by the person at the desk: ``right`` is +x, ``up`` is
+away from them (+y), ``down`` towards them. The ends are judged by the precision-weighted
+line fit over the first and last few samples, where the estimator's differentiated-force
+candidate places touching and releasing well (paper §3).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from hapticdesk.contacts import ContactEvent
+from hapticdesk.gestures.event import GestureEvent
+from hapticdesk.gestures.layout import Binding, Layout
+from hapticdesk.gestures.options import DIRECTIONS_4, DIRECTIONS_8
+from hapticdesk.gestures.recognizer import BoundRegions, Recognizer
+from hapticdesk.gestures.touch import Touch
+
+#: the start and the end of a swipe are averaged over this long
+END_WINDOW_S = 0.04
+
+
+def direction_name(dx: float, dy: float, directions: int) -> str:
+    """The nearest of 4 or 8 compass directions of the vector (dx, dy)."""
+    names = DIRECTIONS_8 if directions == 8 else DIRECTIONS_4
+    sector = 2 * math.pi / len(names)
+    return names[round(math.atan2(dy, dx) / sector) % len(names)]
+
+
+class SwipeRecognizer(Recognizer):
+    """``swipe``."""
+
+    gestures = ("swipe",)
+
+    def __init__(self, layout: Layout, bindings: Sequence[Binding]) -> None:
+        super().__init__(layout, bindings)
+        self.bound = BoundRegions(layout, "swipe")
+        self.sliders = BoundRegions(layout, "slide")
+
+    def on_contact(self, event: ContactEvent, touch: Touch) -> list[GestureEvent]:
+        if event.kind != "up" or touch.samples < 2:
+            return []
+        t = touch.times()
+        start = touch.position_at(t[0], t[0], t[0] + END_WINDOW_S)
+        end = touch.position_at(t[-1], t[-1] - END_WINDOW_S, t[-1])
+        assert start is not None and end is not None
+        found, region = self.bound.find(start[0], start[1], touch.surface)
+        if not found or (region is None and self.sliders.find(*start, touch.surface)[0]):
+            return []  # a drag that starts on a slider is the slider's, not a swipe anywhere
+        o = self.bound.options(region)
+        dx, dy = end[0] - start[0], end[1] - start[1]
+        distance = math.hypot(dx, dy)
+        if touch.duration() > o["max_duration_s"] or distance < o["min_distance"]:
+            return []
+        # how far the path bows away from the straight line between the ends
+        track = touch.track() - np.asarray(start)
+        deviation = float(np.max(np.abs(track[:, 0] * dy - track[:, 1] * dx))) / distance
+        if deviation > o["max_deviation"] * distance:
+            return []
+        return [
+            GestureEvent(
+                event.t, "swipe", region, start[0], start[1],
+                direction=direction_name(dx, dy, o["directions"]),
+                extra={"distance": round(distance, 6)},
+            )
+        ]  # fmt: skip

@@ -1,0 +1,133 @@
+"""Taps and double taps: one state machine, because they decide together.
+
+A touch is a tap when it is short (``max_duration_s``) and does not move (``max_move``),
+judged at the best position over the touch. Where a double tap is bound at that point, the
+tap waits up to ``interval_s`` for a second touch; everywhere else it fires at the release,
+so a button reacts without the double-tap delay.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from hapticdesk.contacts import ContactEvent
+from hapticdesk.gestures.event import GestureEvent
+from hapticdesk.gestures.layout import Binding, Layout
+from hapticdesk.gestures.recognizer import BoundRegions, Recognizer
+from hapticdesk.gestures.touch import Touch
+
+
+@dataclass
+class _PendingTap:
+    """A tap waiting for a possible second one."""
+
+    t_up: float
+    x: float
+    y: float
+    surface: int
+    force_n: float
+    tap_region: str | None  # set when it also counts as a single tap there
+    is_single: bool
+    double_region: str | None
+    double_options: dict[str, Any]
+
+
+def _is_tap(touch: Touch, x: float, y: float, options: dict[str, Any]) -> bool:
+    return (
+        touch.duration() <= options["max_duration_s"] and touch.moved(x, y) <= options["max_move"]
+    )
+
+
+class TapRecognizer(Recognizer):
+    """``tap`` and ``double_tap``."""
+
+    gestures = ("tap", "double_tap")
+
+    def __init__(self, layout: Layout, bindings: Sequence[Binding]) -> None:
+        super().__init__(layout, bindings)
+        self.taps = BoundRegions(layout, "tap")
+        self.doubles = BoundRegions(layout, "double_tap")
+        self._pending: _PendingTap | None = None
+        self._second_down = False  # a touch began inside the double-tap window
+        self._deadline: float | None = None
+
+    def next_deadline(self) -> float | None:
+        return self._deadline
+
+    def on_contact(self, event: ContactEvent, touch: Touch) -> list[GestureEvent]:
+        if event.kind == "down":
+            pending = self._pending
+            if pending is not None:
+                # the deadline fires before a later down, so this one is inside the window;
+                # a second touch held too long means the first was a single tap after all
+                self._second_down = True
+                self._deadline = event.t + pending.double_options["max_duration_s"]
+            return []
+        if event.kind != "up":
+            return []
+        out: list[GestureEvent] = []
+        if self._pending is not None:
+            first = self._pending
+            self._second_down = False
+            self._pending = None
+            self._deadline = None
+            double = self._double(first, touch, event.t)
+            if double is not None:
+                return [double]
+            out += self._single(first, event.t)
+        out += self._judge(touch, event.t)
+        return out
+
+    def on_deadline(self, t: float) -> list[GestureEvent]:
+        self._deadline = None
+        self._second_down = False
+        first, self._pending = self._pending, None
+        return self._single(first, t) if first is not None else []
+
+    def _judge(self, touch: Touch, t: float) -> list[GestureEvent]:
+        """A released touch on its own: a tap now, a tap waiting for its double, or nothing."""
+        if not touch.located:
+            return []
+        x, y, _ = touch.best()
+        tap_found, tap_region = self.taps.find(x, y, touch.surface)
+        is_single = tap_found and _is_tap(touch, x, y, self.taps.options(tap_region))
+        double_found, double_region = self.doubles.find(x, y, touch.surface)
+        if double_found:
+            options = self.doubles.options(double_region)
+            if _is_tap(touch, x, y, options):
+                self._pending = _PendingTap(
+                    t, x, y, touch.surface, touch.peak_force_n, tap_region, is_single,
+                    double_region, options,
+                )  # fmt: skip
+                self._deadline = t + options["interval_s"]
+                return []
+        if is_single:
+            return [GestureEvent(t, "tap", tap_region, x, y, force_n=touch.peak_force_n)]
+        return []
+
+    def _double(self, first: _PendingTap, touch: Touch, t: float) -> GestureEvent | None:
+        """The double tap made by ``first`` and the just released ``touch``, if they make one."""
+        if not touch.located:
+            return None
+        x, y, _ = touch.best()
+        found, region = self.doubles.find(x, y, touch.surface)
+        options = first.double_options
+        if (
+            not found
+            or region != first.double_region
+            or touch.surface != first.surface
+            or math.hypot(x - first.x, y - first.y) > options["max_distance"]
+            or not _is_tap(touch, x, y, options)
+        ):
+            return None
+        force = max(first.force_n, touch.peak_force_n)
+        return GestureEvent(t, "double_tap", region, first.x, first.y, force_n=force)
+
+    @staticmethod
+    def _single(first: _PendingTap, t: float) -> list[GestureEvent]:
+        if not first.is_single:
+            return []
+        return [GestureEvent(t, "tap", first.tap_region, first.x, first.y, force_n=first.force_n)]

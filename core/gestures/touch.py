@@ -1,0 +1,233 @@
+"""One touch as the recognizers see it: from ``down`` to ``up``, with the best position so far.
+
+The estimator gives every contact sample a 1-σ uncertainty ``sigma_m``. A tap or press is
+judged by the precision-weighted mean over the whole touch (weights 1/σ², the minimum-variance
+combination of independent estimates), not by the first, noisiest samples. Moving gestures
+(slide, stroke) use a track smoothed the same way over a short sliding time constant.
+
+A sample that jumps away from the last accepted one by much more than both σ allow (and
+farther than a finger moves in the time between) is left out: the differentiated-force
+candidate assumes a still finger (paper eq. 11), and a finger lifting off while it moves
+can place the release tens of centimetres away with a σ that does not say so.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from hapticdesk.contacts import UNCERTAINTY_CAP_M, ContactBlock, ContactEvent, contact_events
+from hapticdesk.profile import DeskProfile
+
+#: time constant of the smoothed track used by slides and strokes, seconds
+TRACK_TIME_CONSTANT_S = 0.03
+#: no sample is trusted to better than this (keeps weights finite on noise-free input)
+SIGMA_FLOOR_M = 1e-4
+#: a sample farther from the last accepted one than this many combined σ (plus what a finger
+#: can travel meanwhile) is an outlier
+GATE_SIGMAS = 4.0
+#: fastest finger motion taken into account by the gate, m/s
+MAX_FINGER_SPEED_M_S = 1.5
+#: outliers that last longer than this are believed after all (the touch did move there)
+GATE_RESET_S = 0.08
+
+
+class Touch:
+    """What is known about the current touch. The engine updates it; recognizers read it."""
+
+    def __init__(self, t_down: float) -> None:
+        self.t_down = t_down
+        self.t_up: float | None = None
+        self.t_last = t_down
+        self.surface = -1  # surface of the first located sample
+        self.force_n = 0.0
+        self.peak_force_n = 0.0
+        self._t: list[float] = []
+        self._x: list[float] = []
+        self._y: list[float] = []
+        self._sigma: list[float] = []
+        self._sx: list[float] = []  # smoothed track
+        self._sy: list[float] = []
+        self._sum_w = self._sum_wx = self._sum_wy = 0.0
+        self._ema_w = self._ema_wx = self._ema_wy = 0.0
+        self._outliers_since: float | None = None  # start of the current run of outliers
+        self.outliers = 0  # samples left out by the gate
+
+    def add(self, event: ContactEvent) -> None:
+        """Take one contact event of this touch (the engine calls this before the recognizers)."""
+        self.t_last = event.t
+        self.force_n = event.force_n
+        if event.kind == "up":
+            self.t_up = event.t
+            return
+        self.peak_force_n = max(self.peak_force_n, event.force_n)
+        if not event.located:
+            return
+        if self.surface < 0:
+            self.surface = event.surface
+        elif event.surface != self.surface:
+            return  # one resultant force cannot touch two surfaces; keep the first
+        sigma = max(event.sigma_m, SIGMA_FLOOR_M)
+        if self._t and not self._accept(event, sigma):
+            self.outliers += 1
+            return
+        w = 1.0 / (sigma * sigma)
+        self._sum_w += w
+        self._sum_wx += w * event.x
+        self._sum_wy += w * event.y
+        if self._t:
+            decay = math.exp(-(event.t - self._t[-1]) / TRACK_TIME_CONSTANT_S)
+            self._ema_w *= decay
+            self._ema_wx *= decay
+            self._ema_wy *= decay
+        self._ema_w += w
+        self._ema_wx += w * event.x
+        self._ema_wy += w * event.y
+        self._t.append(event.t)
+        self._x.append(event.x)
+        self._y.append(event.y)
+        self._sigma.append(sigma)
+        self._sx.append(self._ema_wx / self._ema_w)
+        self._sy.append(self._ema_wy / self._ema_w)
+
+    def _accept(self, event: ContactEvent, sigma: float) -> bool:
+        """The gate (see the module docstring)."""
+        last_sigma = self._sigma[-1]
+        allowed = GATE_SIGMAS * math.sqrt(sigma * sigma + last_sigma * last_sigma)
+        allowed += MAX_FINGER_SPEED_M_S * (event.t - self._t[-1])
+        if math.hypot(event.x - self._x[-1], event.y - self._y[-1]) <= allowed:
+            self._outliers_since = None
+            return True
+        if self._outliers_since is None:
+            self._outliers_since = event.t
+        if event.t - self._outliers_since > GATE_RESET_S:
+            self._outliers_since = None
+            self._ema_w = self._ema_wx = self._ema_wy = 0.0  # the track restarts here
+            return True
+        return False
+
+    @property
+    def located(self) -> bool:
+        """Whether any sample of the touch was placed on a surface."""
+        return bool(self._t)
+
+    @property
+    def samples(self) -> int:
+        """Number of located samples."""
+        return len(self._t)
+
+    def duration(self) -> float:
+        """Seconds from down to up (or to the latest sample while still down)."""
+        return (self.t_up if self.t_up is not None else self.t_last) - self.t_down
+
+    def best(self) -> tuple[float, float, float]:
+        """(x, y, σ): the precision-weighted mean of every located sample so far."""
+        if not self._t:
+            raise ValueError("the touch has no located sample")
+        return (
+            self._sum_wx / self._sum_w,
+            self._sum_wy / self._sum_w,
+            1.0 / math.sqrt(self._sum_w),
+        )
+
+    def current(self) -> tuple[float, float]:
+        """The latest point of the smoothed track."""
+        if not self._t:
+            raise ValueError("the touch has no located sample")
+        return self._sx[-1], self._sy[-1]
+
+    def times(self) -> np.ndarray:
+        """Sample times of the located samples."""
+        return np.asarray(self._t)
+
+    def points(self) -> np.ndarray:
+        """(n, 2) located samples as the estimator gave them (outliers left out)."""
+        return np.column_stack([self._x, self._y]) if self._t else np.zeros((0, 2))
+
+    def track(self) -> np.ndarray:
+        """(n, 2) smoothed track (for strokes and slides)."""
+        return np.column_stack([self._sx, self._sy]) if self._t else np.zeros((0, 2))
+
+    def moved(self, x: float, y: float) -> float:
+        """How far the touch went from (x, y) beyond its own uncertainty, metres.
+
+        The largest distance of a sample from (x, y) less twice that sample's σ: a noisy
+        sample at touch-down does not count as movement, a real slide does.
+        """
+        if not self._t:
+            return 0.0
+        d = np.hypot(np.asarray(self._x) - x, np.asarray(self._y) - y) - 2 * np.asarray(self._sigma)
+        return max(0.0, float(d.max()))
+
+    def position_at(self, t: float, t0: float, t1: float) -> tuple[float, float] | None:
+        """Position at time ``t`` from a precision-weighted straight-line fit over the located
+        samples with t0 <= time <= t1: it averages the noise of a swipe's ends without the
+        bias a plain mean has while the finger moves. None when there is no sample there."""
+        times = np.asarray(self._t)
+        sel = (times >= t0) & (times <= t1)
+        if not sel.any():
+            return None
+        w = 1.0 / np.asarray(self._sigma)[sel] ** 2
+        dt = times[sel] - t
+        xy = np.column_stack([np.asarray(self._x)[sel], np.asarray(self._y)[sel]])
+        sw, swt, swtt = w.sum(), (w * dt).sum(), (w * dt * dt).sum()
+        det = sw * swtt - swt * swt
+        if det <= 1e-12 * sw * max(swtt, 1e-30):  # one sample, or all at one time: the mean
+            mean = (w[:, None] * xy).sum(axis=0) / sw
+            return float(mean[0]), float(mean[1])
+        swx = (w[:, None] * xy).sum(axis=0)
+        swtx = (w[:, None] * dt[:, None] * xy).sum(axis=0)
+        at_t = (swtt * swx - swt * swtx) / det  # intercept of the weighted least squares line
+        return float(at_t[0]), float(at_t[1])
+
+
+class TouchTracker:
+    """Turns contact blocks into contact events and keeps the current :class:`Touch`.
+
+    Positions on a surface whose local axes are not the desk's (x, y) are given in that
+    surface's (u, v), the coordinates its layout regions use. State carries across blocks.
+    """
+
+    def __init__(self, desk: DeskProfile) -> None:
+        self.touch: Touch | None = None
+        self._in_contact = False
+        self._local_surfaces = [(i, s) for i, s in enumerate(desk.surfaces) if not s.is_desk_xy]
+
+    def events(self, block: ContactBlock) -> list[ContactEvent]:
+        """The block's contact events (built only from the samples in or just after contact,
+        so long quiet stretches cost one vectorised pass)."""
+        if len(block) == 0:
+            return []
+        inc = block.in_contact
+        previous = np.concatenate([[self._in_contact], inc[:-1]])
+        sub = block.take(np.flatnonzero(inc | previous))
+        if self._local_surfaces and len(sub):
+            sub.x, sub.y = sub.x.copy(), sub.y.copy()
+            for index, surface in self._local_surfaces:
+                on = sub.located & (sub.surface == index)
+                if on.any():
+                    uv = surface.to_local(np.column_stack([sub.x[on], sub.y[on], sub.z[on]]))
+                    sub.x[on], sub.y[on] = uv[:, 0], uv[:, 1]
+        events = contact_events(sub, was_in_contact=self._in_contact)
+        self._in_contact = bool(inc[-1])
+        return events
+
+    def add(self, event: ContactEvent) -> Touch | None:
+        """Update the touch with ``event``; returns it (None for a stray event without down).
+        After an ``up`` the returned touch is complete and no touch is current."""
+        if event.kind == "down":
+            self.touch = Touch(event.t)
+        touch = self.touch
+        if touch is not None:
+            touch.add(event)
+            if event.kind == "up":
+                self.touch = None
+        return touch
+
+    def end(self, t_end: float) -> ContactEvent | None:
+        """The ``up`` that ends a touch still going when the source stops at ``t_end``."""
+        self._in_contact = False
+        if self.touch is None:
+            return None
+        return ContactEvent(t_end, "up", 0.0, 0.0, -1, 0.0, UNCERTAINTY_CAP_M, "release", False)

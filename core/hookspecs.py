@@ -1,0 +1,95 @@
+"""The hooks a hapticdesk plugin can implement.
+
+A plugin is a module (or any object) with functions marked ``@hookimpl``. Built-in plugins
+(``hapticdesk.plugins.*``) and third-party ones (the ``hapticdesk`` entry-point group) use the
+same hooks. A hookimpl may take fewer arguments than its spec, so specs can grow without
+breaking plugins::
+
+    from hapticdesk.hookspecs import hookimpl
+
+    @hookimpl
+    def register_actions(register):
+        register("beep", Beep, "ring the terminal bell", validate=check_beep_options)
+
+Registration hooks receive a ``register(...)`` callback and run once when the registry is
+built (:func:`hapticdesk.registry.load_registry`). Observer hooks run once per ``run``; none
+is called on the per-sample or per-gesture path (pluggy stops at the first exception there,
+so the dispatcher calls actions itself, each in its own ``try``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pluggy
+
+hookspec = pluggy.HookspecMarker("hapticdesk")
+hookimpl = pluggy.HookimplMarker("hapticdesk")
+
+
+@hookspec
+def register_sources(register: Any) -> None:
+    """Register source kinds, the ``KIND`` of ``--source KIND:ARGUMENT``.
+
+    Called once while the registry is built, with ``register`` the callback to call as
+    ``register(name, factory, description="")`` for each kind, where ``factory`` is a callable
+    or a lazy ``"module:attr"`` string (imported only when a run uses that kind) and is called
+    as ``factory(argument, profile, **options) -> hapticdesk.source.Source`` with ``argument``
+    the text after ``KIND:``, ``profile`` the :class:`~hapticdesk.profile.DeskProfile`, and
+    ``options`` keyword options the factory may ignore (``speed``: replay speed, 1 = real time,
+    0 = as fast as possible). Bad arguments raise :class:`~hapticdesk.yamlfile.ConfigError`.
+    """
+
+
+@hookspec
+def register_actions(register: Any) -> None:
+    """Register actions, the keys under a binding's ``do:`` in a layout.
+
+    Called once while the registry is built, with ``register`` the callback to call as
+    ``register(name, factory, description="", validate=None)`` for each action:
+
+    - ``factory(options, context) -> action``: ``options`` the action's mapping from the
+      layout, ``context`` an :class:`~hapticdesk.dispatcher.ActionContext`. The action is a
+      callable taking one :class:`~hapticdesk.gestures.event.GestureEvent`; it may have a
+      ``close()`` method (called once at the end) and a ``timeout_s`` attribute (how long one
+      call may take before the dispatcher gives up on it).
+    - ``validate(options, position)``: raise :class:`~hapticdesk.yamlfile.ConfigError` naming
+      ``file:line:column`` when the options are wrong, so ``hapticdesk check`` and ``run`` stop
+      before anything starts. ``position`` is where the action stands in the layout.
+
+    ``factory`` and ``validate`` may be lazy ``"module:attr"`` strings.
+    """
+
+
+@hookspec
+def register_recognizers(register: Any) -> None:
+    """Register gesture recognizers, the ``gesture:`` names a layout can bind.
+
+    Called once while the registry is built, with ``register`` the callback to call as
+    ``register(name, factory, description="")``, where ``factory`` (a class, or a lazy
+    ``"module:attr"`` string) is a :class:`~hapticdesk.gestures.recognizer.Recognizer`
+    subclass, as :class:`~hapticdesk.gestures.engine.GestureEngine` takes in its
+    ``recognizer_types``; its ``option_specs`` let layouts validate the gesture's options.
+    """
+
+
+@hookspec
+def startup(desk: Any, layout: Any) -> None:
+    """A run is about to start sensing.
+
+    Called once per ``hapticdesk run`` or ``demo`` after the source, the estimator, the gesture
+    engine and the actions are built, before the first block is read. ``desk`` is the
+    :class:`~hapticdesk.profile.DeskProfile`, ``layout`` the loaded layout. An exception here
+    is logged with the plugin's name (and is fatal under ``--strict``).
+    """
+
+
+@hookspec
+def shutdown(desk: Any, layout: Any, report: Any) -> None:
+    """A run has ended (its source finished, or SIGINT/SIGTERM).
+
+    Called once after the dispatcher has flushed or given up on queued commands. ``desk`` is
+    the :class:`~hapticdesk.profile.DeskProfile`, ``layout`` the loaded layout, ``report``
+    the :class:`~hapticdesk.runtime.RunReport` (samples, gestures, action counts, commands
+    not delivered). An exception here is logged with the plugin's name.
+    """

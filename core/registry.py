@@ -1,0 +1,384 @@
+"""The plugin registry: which sources, actions and recognizers exist, and which plugin gave each.
+
+Built-in plugins (:data:`DEFAULT_PLUGINS`) and third-party ones (entry-point group
+``hapticdesk``) go through the same hooks (:mod:`hapticdesk.hookspecs`). Each entry point is
+loaded on its own: one that fails to import, or whose registration hook raises, is skipped with
+a warning naming it (``strict=True`` makes that fatal). Two plugins registering the same name
+is always an error naming both, since either choice would surprise someone.
+
+Factories may be ``"module:attr"`` strings, imported the first time a run uses them, so a
+scene imports only what it uses (python-can's ``BACKENDS`` habit).
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.metadata
+import logging
+import os
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+import pluggy
+
+from hapticdesk import __version__, hookspecs
+from hapticdesk.yamlfile import ConfigError, Position
+
+log = logging.getLogger(__name__)
+
+ENTRY_POINT_GROUP = "hapticdesk"
+#: set to 1 to load no third-party plugins (tests; like PYTEST_DISABLE_PLUGIN_AUTOLOAD)
+DISABLE_AUTOLOAD_ENV = "HAPTICDESK_DISABLE_PLUGIN_AUTOLOAD"
+
+#: built-in plugins, registered exactly like third-party ones
+DEFAULT_PLUGINS: tuple[str, ...] = (
+    "hapticdesk.plugins.sim",
+    "hapticdesk.plugins.replay",
+    "hapticdesk.plugins.can",
+    "hapticdesk.plugins.log",
+    "hapticdesk.plugins.exec",
+    "hapticdesk.plugins.http",
+    "hapticdesk.plugins.mqtt",
+)
+
+KINDS = ("sources", "actions", "recognizers")
+
+
+class PluginError(ConfigError):
+    """A plugin could not be loaded or registered something wrong."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(None, message)
+
+
+def resolve(ref: Any) -> Any:
+    """A lazy ``"module:attr"`` reference imported, or ``ref`` itself when it is not text."""
+    if not isinstance(ref, str):
+        return ref
+    module_name, _, attr = ref.partition(":")
+    obj: Any = importlib.import_module(module_name)
+    for part in attr.split(".") if attr else ():
+        obj = getattr(obj, part)
+    return obj
+
+
+@dataclass(frozen=True)
+class Registered:
+    """One named thing a plugin provides."""
+
+    name: str
+    factory: Any  # callable or "module:attr"
+    description: str
+    plugin: str
+
+    def load(self) -> Any:
+        """The factory, importing it on first use; import problems become a PluginError."""
+        try:
+            return resolve(self.factory)
+        except (ImportError, AttributeError) as err:
+            raise PluginError(
+                f"`{self.name}` from plugin `{self.plugin}` cannot be loaded: "
+                f"{type(err).__name__}: {err}"
+            ) from err
+
+
+@dataclass(frozen=True)
+class SourceType(Registered):
+    """A source kind: ``factory(argument, profile, **options) -> Source``."""
+
+    def open(self, argument: str, profile: Any, **options: Any) -> Any:
+        return self.load()(argument, profile, **options)
+
+
+@dataclass(frozen=True)
+class ActionType(Registered):
+    """An action: ``factory(options, context) -> callable(event)``; ``validate(options, pos)``."""
+
+    validate: Any = None  # callable, "module:attr" or None
+
+    def check(self, options: Any, position: Position | str) -> None:
+        """Run the plugin's validation; a crash in it is reported as the plugin's fault."""
+        if self.validate is None:
+            return
+        try:
+            validator = resolve(self.validate)
+        except (ImportError, AttributeError) as err:
+            raise PluginError(
+                f"the validator of action `{self.name}` from plugin `{self.plugin}` cannot be "
+                f"loaded: {type(err).__name__}: {err}"
+            ) from err
+        try:
+            validator(options, position)
+        except ConfigError:
+            raise
+        except Exception as err:  # a bug in the plugin, not the user's layout
+            raise PluginError(
+                f"{position}: plugin `{self.plugin}` crashed validating action `{self.name}`: "
+                f"{type(err).__name__}: {err}"
+            ) from err
+
+
+@dataclass(frozen=True)
+class RecognizerType(Registered):
+    """A gesture recognizer the gesture engine can build."""
+
+
+@dataclass
+class PluginInfo:
+    """What ``hapticdesk plugins`` shows for one plugin."""
+
+    name: str
+    version: str
+    origin: str  # "built-in" or "entry point (distribution name)"
+    hooks: list[str] = field(default_factory=list)
+    provides: dict[str, list[str]] = field(default_factory=lambda: {k: [] for k in KINDS})
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "name": self.name,
+            "version": self.version,
+            "origin": self.origin,
+            "hooks": list(self.hooks),
+            **{k: list(v) for k, v in self.provides.items()},
+        }
+
+
+_RECORD_TYPES: dict[str, type[Registered]] = {
+    "sources": SourceType,
+    "actions": ActionType,
+    "recognizers": RecognizerType,
+}
+
+
+class Registry:
+    """Plugins and what they registered. Build it with :func:`load_registry`."""
+
+    def __init__(self, *, strict: bool = False) -> None:
+        self.strict = strict
+        self.manager = pluggy.PluginManager("hapticdesk")
+        self.manager.add_hookspecs(hookspecs)
+        self.plugins: dict[str, PluginInfo] = {}
+        self.warnings: list[str] = []
+        self.sources: dict[str, SourceType] = {}
+        self.actions: dict[str, ActionType] = {}
+        self.recognizers: dict[str, RecognizerType] = {}
+
+    # --- loading ------------------------------------------------------------------------------
+
+    def add_plugin(
+        self, plugin: object, name: str, *, version: str = __version__, origin: str = "built-in"
+    ) -> bool:
+        """Register one plugin object (a module or any object with hookimpls).
+
+        Returns False (after a warning, or raises under ``strict``) when pluggy rejects it,
+        e.g. for a hookimpl whose name or arguments match no hookspec.
+        """
+        if name in self.plugins:
+            self._fail(f"two plugins are called `{name}`; the second ({origin}) is skipped")
+            return False
+        try:
+            self.manager.register(plugin, name=name)
+        except (pluggy.PluginValidationError, ValueError) as err:
+            self._fail(f"plugin `{name}` ({origin}) is not a valid hapticdesk plugin: {err}")
+            return False
+        callers = self.manager.get_hookcallers(plugin) or []
+        unknown = sorted(hook.name for hook in callers if not hook.has_spec())
+        if unknown:  # pluggy accepts these silently; a typo would never be called
+            self.manager.unregister(plugin)
+            known = ", ".join(hookspec_names())
+            self._fail(
+                f"plugin `{name}` ({origin}) is not a valid hapticdesk plugin: it implements "
+                f"{', '.join(unknown)}, which hapticdesk does not have; hooks: {known}"
+            )
+            return False
+        hooks = sorted(hook.name for hook in callers)
+        self.plugins[name] = PluginInfo(name, version, origin, hooks)
+        return True
+
+    def load_default_plugins(self) -> None:
+        """Import and register every module in :data:`DEFAULT_PLUGINS`."""
+        for dotted in DEFAULT_PLUGINS:
+            try:
+                module = importlib.import_module(dotted)
+            except Exception as err:  # a broken install; say which module
+                self._fail(f"built-in plugin `{dotted}` failed to import: {err}")
+                continue
+            self.add_plugin(module, dotted)
+
+    def load_entry_points(self) -> None:
+        """Load every entry point of the ``hapticdesk`` group, each on its own."""
+        for ep in sorted(
+            importlib.metadata.entry_points(group=ENTRY_POINT_GROUP), key=lambda e: e.name
+        ):
+            dist = getattr(ep, "dist", None)
+            dist_name = dist.metadata["Name"] if dist is not None else "unknown distribution"
+            version = dist.version if dist is not None else "unknown"
+            origin = f"entry point of {dist_name}"
+            try:
+                plugin = ep.load()
+            except Exception as err:  # anything a third-party import can raise
+                self._fail(
+                    f"plugin `{ep.name}` ({origin}, {ep.value}) failed to load and is skipped: "
+                    f"{type(err).__name__}: {err}"
+                )
+                continue
+            self.add_plugin(plugin, ep.name, version=version, origin=origin)
+
+    def collect(self) -> None:
+        """Call the registration hooks of every plugin and build the name tables.
+
+        A plugin whose hook raises is skipped with a warning (fatal under ``strict``); a name
+        registered twice raises :class:`PluginError` naming both plugins.
+        """
+        for kind in KINDS:
+            table: dict[str, Registered] = getattr(self, kind)
+            hook = getattr(self.manager.hook, f"register_{kind}")
+            # registration order: built-ins first, then entry points by name
+            for impl in sorted(hook.get_hookimpls(), key=self._plugin_order):
+                found: list[Registered] = []
+                register = self._registrar(kind, impl.plugin_name, found)
+                try:
+                    self._call_impl(impl, register=register)
+                except PluginError:
+                    raise
+                except Exception as err:
+                    self._fail(
+                        f"plugin `{impl.plugin_name}` failed in register_{kind} and its "
+                        f"{kind} are skipped: {type(err).__name__}: {err}"
+                    )
+                    continue
+                for record in found:
+                    if record.name in table:
+                        raise PluginError(
+                            f"{kind[:-1]} `{record.name}` is registered by both plugin "
+                            f"`{table[record.name].plugin}` and plugin `{record.plugin}`; "
+                            "uninstall or disable one of them"
+                        )
+                    table[record.name] = record
+                    self.plugins[impl.plugin_name].provides[kind].append(record.name)
+
+    @staticmethod
+    def _registrar(kind: str, plugin: str, found: list[Registered]) -> Any:
+        """The ``register`` callback one plugin's registration hook receives."""
+        record_type = _RECORD_TYPES[kind]
+        what = kind[:-1]
+
+        def register(name: str, factory: Any, description: str = "", **extra: Any) -> None:
+            if not isinstance(name, str) or not name.isidentifier():
+                raise PluginError(
+                    f"plugin `{plugin}` registered {what} name {name!r}; "
+                    "names must be identifiers (letters, digits, _)"
+                )
+            if factory is None or not (callable(factory) or isinstance(factory, str)):
+                raise PluginError(
+                    f"plugin `{plugin}` registered {what} `{name}` with factory {factory!r}; "
+                    "expected a callable or a 'module:attr' string"
+                )
+            found.append(record_type(name, factory, str(description), plugin, **extra))
+
+        return register
+
+    # --- use ----------------------------------------------------------------------------------
+
+    def action(self, name: str, position: Position | str | None = None) -> ActionType:
+        """The action called ``name``, or a ConfigError listing the installed ones."""
+        try:
+            return self.actions[name]
+        except KeyError:
+            raise ConfigError(
+                position,
+                f"unknown action `{name}`; installed actions: {', '.join(sorted(self.actions))}",
+            ) from None
+
+    def source(self, kind: str, where: Position | str | None = "--source") -> SourceType:
+        """The source kind called ``kind``, or a ConfigError listing the installed ones."""
+        try:
+            return self.sources[kind]
+        except KeyError:
+            raise ConfigError(
+                where,
+                f"unknown source kind `{kind}`; installed: {', '.join(sorted(self.sources))} "
+                "(as KIND:ARGUMENT, e.g. sim:scene.yaml, replay:rec.csv, can:socketcan:can0)",
+            ) from None
+
+    @property
+    def action_names(self) -> list[str]:
+        return sorted(self.actions)
+
+    def validate_action(self, name: str, options: Any, position: Position | str) -> None:
+        """Validate one action use of a layout (unknown name or bad options: ConfigError)."""
+        self.action(name, position).check(options, position)
+
+    def recognizer_types(self) -> dict[str, Any]:
+        """Recognizer factories by name, imported now (only call when building an engine)."""
+        return {name: rec.load() for name, rec in self.recognizers.items()}
+
+    def notify(self, hook_name: str, **kwargs: Any) -> None:
+        """Call an observer hook on every plugin, each in its own ``try``."""
+        hook = getattr(self.manager.hook, hook_name)
+        for impl in sorted(hook.get_hookimpls(), key=self._plugin_order):
+            try:
+                self._call_impl(impl, **kwargs)
+            except Exception as err:
+                message = (
+                    f"plugin `{impl.plugin_name}` failed in {hook_name}: "
+                    f"{type(err).__name__}: {err}"
+                )
+                if self.strict:
+                    raise PluginError(message) from err
+                log.warning("%s", message)
+                self.warnings.append(message)
+
+    # --- internals ----------------------------------------------------------------------------
+
+    def _plugin_order(self, impl: Any) -> int:
+        return list(self.plugins).index(impl.plugin_name)
+
+    @staticmethod
+    def _call_impl(impl: Any, **kwargs: Any) -> Any:
+        # hookimpls may take fewer arguments than the spec (pluggy's rule, kept when we call
+        # each implementation on its own)
+        return impl.function(*[kwargs[name] for name in impl.argnames])
+
+    def _fail(self, message: str) -> None:
+        if self.strict:
+            raise PluginError(message + " (--strict)")
+        log.warning("%s", message)
+        self.warnings.append(message)
+
+
+def load_registry(
+    *,
+    entry_points: bool | None = None,
+    strict: bool = False,
+    plugins: Iterable[tuple[str, object]] = (),
+    defaults: bool = True,
+) -> Registry:
+    """Build the registry: built-ins, then entry points, then ``plugins`` (name, object) pairs.
+
+    ``entry_points`` None loads them unless the environment variable
+    ``HAPTICDESK_DISABLE_PLUGIN_AUTOLOAD`` is set. Tests pass ``entry_points=False`` (or set
+    the variable for the command line) so whatever is installed on the machine cannot change
+    their outcome, and add their own plugins through ``plugins``.
+    """
+    if entry_points is None:
+        entry_points = not os.environ.get(DISABLE_AUTOLOAD_ENV)
+    registry = Registry(strict=strict)
+    if defaults:
+        registry.load_default_plugins()
+    if entry_points:
+        registry.load_entry_points()
+    for name, plugin in plugins:
+        registry.add_plugin(plugin, name, origin="given by the caller")
+    registry.collect()
+    return registry
+
+
+def _is_hookspec(name: str) -> bool:
+    return hasattr(getattr(hookspecs, name, None), "hapticdesk_spec")
+
+
+def hookspec_names() -> list[str]:
+    """Every hook a plugin can implement."""
+    return sorted(name for name in dir(hookspecs) if _is_hookspec(name))

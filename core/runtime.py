@@ -1,0 +1,414 @@
+"""The run loop: source → estimator → gesture engine → dispatcher, until the source ends.
+
+One *sensing* thread reads blocks, estimates contacts, recognises gestures, writes the events
+file and hands events to the dispatcher (which never blocks it). The calling thread watches:
+it draws the status line and turns SIGINT/SIGTERM into a clean stop. At the end the gesture
+engine is flushed (a pending tap is decided), queued commands get a bounded time to go out,
+and what did not is reported.
+
+:func:`build_scene` turns a layout, a desk and a source spec into the parts, importing only
+what the layout uses (no paho without MQTT, no python-can without a CAN source).
+"""
+
+from __future__ import annotations
+
+import collections
+import contextlib
+import json
+import logging
+import re
+import signal
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import FrameType
+from typing import IO, Any
+
+from hapticdesk.contacts import FLAG_NOT_TARED, ContactBlock
+from hapticdesk.dispatcher import ActionContext, Dispatcher, DispatchReport, Lane, Route
+from hapticdesk.gestures.event import GestureEvent
+from hapticdesk.profile import DeskProfile, load_profile
+from hapticdesk.registry import Registry
+from hapticdesk.source import Source
+from hapticdesk.source_spec import open_source
+from hapticdesk.yamlfile import ConfigError
+
+log = logging.getLogger(__name__)
+
+STATUS_INTERVAL_S = 0.1
+
+
+@dataclass
+class Scene:
+    """Everything a run is made of, built and checked, nothing started but the actions."""
+
+    profile: DeskProfile
+    layout: Any  # hapticdesk.gestures.layout.Layout
+    registry: Registry
+    source: Source
+    estimator: Any  # hapticdesk.estimator.ContactEstimator
+    engine: Any  # hapticdesk.gestures.GestureEngine
+    dispatcher: Dispatcher
+    context: ActionContext
+
+    def close(self) -> None:
+        """Release what was built without running."""
+        _release(self.source, self.dispatcher, self.context)
+
+
+def _release(source: Source, dispatcher: Dispatcher, context: ActionContext) -> None:
+    source.close()
+    dispatcher.close(0.0)
+    context.close_resources(0.0)
+
+
+def load_scene_layout(
+    layout_path: str | Path, registry: Registry, desk: str | None = None
+) -> tuple[Any, DeskProfile]:
+    """The layout, validated against the installed actions and recognizers, and its desk."""
+    from hapticdesk.gestures.layout import load_layout
+
+    profile = load_profile(desk) if desk is not None else None
+    layout = load_layout(
+        layout_path,
+        profile=profile,
+        action_names=registry.action_names,
+        validate_action=registry.validate_action,
+        recognizer_types=registry.recognizer_types(),
+    )
+    for warning in getattr(layout, "warnings", []):
+        log.warning("%s", warning)
+    return layout, layout.desk
+
+
+def build_scene(
+    layout_path: str | Path,
+    source_spec: str,
+    registry: Registry,
+    *,
+    desk: str | None = None,
+    speed: float = 1.0,
+    mqtt_url: str | None = None,
+    action_timeout_s: float | None = None,
+) -> Scene:
+    """Load the layout and desk, open the source, build every action (ConfigError if wrong)."""
+    layout, profile = load_scene_layout(layout_path, registry, desk)
+    name = _desk_name(layout, profile)
+    source = open_source(source_spec, profile, registry, speed=speed)
+    context = ActionContext(
+        name,
+        layout_path=Path(layout_path),
+        settings=layout.raw,
+        mqtt_url=mqtt_url,
+        profile=profile,
+        layout=layout,
+    )
+    dispatcher = Dispatcher()
+    try:
+        _add_actions(dispatcher, layout, registry, context, action_timeout_s)
+        from hapticdesk.estimator import ContactEstimator
+        from hapticdesk.gestures.engine import GestureEngine
+
+        estimator = ContactEstimator(profile)
+        engine = GestureEngine(layout, recognizer_types=registry.recognizer_types())
+    except BaseException:
+        _release(source, dispatcher, context)
+        raise
+    return Scene(profile, layout, registry, source, estimator, engine, dispatcher, context)
+
+
+_DESK_NAME = re.compile(r"[A-Za-z0-9_-]+")
+
+
+def _desk_name(layout: Any, profile: DeskProfile) -> str:
+    """The layout's ``desk_name:`` (it goes into MQTT topics), else the profile's name."""
+    raw = layout.raw
+    if "desk_name" in raw:
+        name = raw["desk_name"]
+        if not isinstance(name, str) or not _DESK_NAME.fullmatch(name):
+            raise ConfigError(
+                raw.where("desk_name"),
+                f"`desk_name` must be letters, digits, _ and - (it goes into MQTT topics), "
+                f"found {name!r}",
+            )
+        return name
+    return re.sub(r"[^A-Za-z0-9_-]", "_", profile.name)
+
+
+def _add_actions(
+    dispatcher: Dispatcher,
+    layout: Any,
+    registry: Registry,
+    context: ActionContext,
+    timeout_s: float | None,
+) -> None:
+    for binding in layout.bindings:
+        where = f" in {binding.region}" if binding.region else ""
+        label = f"binding {binding.index + 1} ({binding.gesture}{where})"
+        route = Route(label, binding.matches)
+        names = [use.name for use in binding.actions]
+        for k, use in enumerate(binding.actions):
+            factory = registry.action(use.name, use.position).load()
+            try:
+                action = factory(use.options, context)
+            except ConfigError:
+                raise
+            except Exception as err:  # a plugin failing to build its action
+                raise ConfigError(
+                    use.position,
+                    f"action `{use.name}` (plugin `{registry.actions[use.name].plugin}`) could "
+                    f"not be set up: {type(err).__name__}: {err}",
+                ) from err
+            lane = f"{label} → {use.name}" + (f" #{k + 1}" if names.count(use.name) > 1 else "")
+            route.lanes.append(Lane(lane, action, timeout_s=timeout_s))
+        dispatcher.add_route(route)
+    from hapticdesk.plugins.mqtt import DeskPublisher, uses_mqtt
+
+    if uses_mqtt(layout.raw, layout.bindings, context.mqtt_url):
+        dispatcher.add_sink(Lane("desk topics → mqtt", DeskPublisher(context)))
+
+
+# --- the run ----------------------------------------------------------------------------------
+
+
+@dataclass
+class LiveStatus:
+    """What the status line shows; written by the sensing thread, read by the watcher."""
+
+    t: float = 0.0
+    in_contact: bool = False
+    x: float = 0.0
+    y: float = 0.0
+    force_n: float = 0.0
+    last_gesture: str = ""
+    gestures: int = 0
+    tared: bool = False
+
+    def line(self) -> str:
+        where = f"x {self.x:+.3f} y {self.y:+.3f} m" if self.in_contact else "—"
+        tare = "" if self.tared else " (taring: keep the desk still)"
+        last = self.last_gesture or "none yet"
+        return (
+            f"t {self.t:7.2f} s  {'●' if self.in_contact else '○'} {where}  "
+            f"F {self.force_n:5.1f} N  gestures {self.gestures}  last: {last}{tare}"
+        )
+
+
+@dataclass
+class RunReport:
+    """What happened in a run."""
+
+    samples: int = 0
+    sample_time_s: float = 0.0
+    wall_s: float = 0.0
+    gestures: collections.Counter[str] = field(default_factory=collections.Counter)
+    dispatch: DispatchReport = field(default_factory=DispatchReport)
+    notes: list[str] = field(default_factory=list)
+    stopped_by: str | None = None  # a signal's name, or None when the source ended
+    error: str | None = None
+
+    @property
+    def gesture_count(self) -> int:
+        return sum(self.gestures.values())
+
+    def summary(self) -> list[str]:
+        d = self.dispatch.totals
+        how = f"stopped by {self.stopped_by}" if self.stopped_by else "the source ended"
+        lines = [
+            f"{how}: {self.samples} samples ({self.sample_time_s:.2f} s of sensor time) in "
+            f"{self.wall_s:.2f} s; {self.gesture_count} gestures"
+            + (
+                " (" + ", ".join(f"{n} {g}" for g, n in self.gestures.most_common()) + ")"
+                if self.gestures
+                else ""
+            ),
+            f"actions: {d.ok} done, {d.failed} failed, {d.timed_out} timed out, "
+            f"{d.dropped} dropped, {d.not_run} not run",
+        ]
+        return lines + self.notes + ([f"error: {self.error}"] if self.error else [])
+
+
+class Runtime:
+    """Runs a :class:`Scene` until its source ends or :meth:`stop` is called."""
+
+    def __init__(
+        self,
+        scene: Scene,
+        *,
+        events_path: str | Path | None = None,
+        status: IO[str] | None = None,
+        drain_timeout_s: float = 5.0,
+    ) -> None:
+        self.scene = scene
+        self.events_path = Path(events_path) if events_path is not None else None
+        self.status_stream = status
+        self.drain_timeout_s = drain_timeout_s
+        self.live = LiveStatus()
+        self.report = RunReport()
+        self._stop = threading.Event()
+        self._force = False
+        self._events_out: IO[str] | None = None
+
+    def stop(self, reason: str = "request", *, force: bool = False) -> None:
+        """Ask the run to end; ``force`` skips waiting for queued commands."""
+        if self.report.stopped_by is None:
+            self.report.stopped_by = reason
+        self._force = self._force or force
+        self._stop.set()
+        self.scene.source.close()  # unblocks a source waiting for data or for its pace
+
+    def run(self, *, handle_signals: bool = True) -> RunReport:
+        """Sense until the source ends or a stop; returns the report (also on errors)."""
+        scene = self.scene
+        started = time.monotonic()
+        try:
+            self._events_out = self._open_events()
+            scene.registry.notify("startup", desk=scene.profile, layout=scene.layout)
+        except BaseException:  # an unwritable events file, or --strict and a plugin failed
+            if self._events_out is not None:
+                self._events_out.close()
+            scene.close()
+            raise
+        sensing = threading.Thread(target=self._sense_guarded, name="sensing", daemon=True)
+        with self._signals(handle_signals):
+            sensing.start()
+            while sensing.is_alive():
+                sensing.join(STATUS_INTERVAL_S)
+                self._draw_status()
+            self._draw_status(final=True)
+            if self._events_out is not None:
+                self._events_out.close()
+            # queued commands get drain_timeout_s in all: first the actions' own queues, then
+            # the shared connections they handed their messages to
+            deadline = time.monotonic() + (0.0 if self._force else self.drain_timeout_s)
+            self.report.dispatch = scene.dispatcher.close(max(0.0, deadline - time.monotonic()))
+            remaining = 0.0 if self._force else max(0.0, deadline - time.monotonic())
+            self.report.notes.extend(scene.context.close_resources(remaining))
+        scene.source.close()
+        self.report.wall_s = time.monotonic() - started
+        scene.registry.notify(
+            "shutdown", desk=scene.profile, layout=scene.layout, report=self.report
+        )
+        return self.report
+
+    # --- the sensing thread -------------------------------------------------------------------
+
+    def _sense_guarded(self) -> None:
+        try:
+            self._sense()
+        except ConfigError as err:  # e.g. a bad line in a replayed file
+            self.report.error = str(err)
+        except Exception as err:  # a bug: keep the trace for the log, still shut down cleanly
+            log.exception("sensing stopped by an internal error")
+            self.report.error = f"internal error: {type(err).__name__}: {err}"
+
+    def _sense(self) -> None:
+        scene = self.scene
+        t_first = t_last = None
+        for block in scene.source.blocks():
+            if self._stop.is_set():
+                break
+            if len(block.t) == 0:
+                continue
+            if t_first is None:
+                t_first = float(block.t[0])
+            contacts = scene.estimator.push(block.t, block.wrench)  # it logs its own notices
+            self._emit(scene.engine.feed(contacts))
+            self._update_live(contacts)
+            self.report.samples += len(block.t)
+            t_last = float(block.t[-1])
+        if t_first is not None and t_last is not None:
+            self._emit(scene.engine.flush(t_last))
+            self.report.sample_time_s = t_last - t_first
+
+    def _emit(self, events: list[GestureEvent]) -> None:
+        for event in events:
+            if self._events_out is not None:
+                self._events_out.write(event.to_json() + "\n")
+                self._events_out.flush()
+            self.scene.dispatcher.submit(event)
+            self.report.gestures[event.gesture] += 1
+            self.live.last_gesture = f"{event.action_name} at {event.t:.2f} s"
+            self.live.gestures += 1
+
+    def _update_live(self, contacts: ContactBlock) -> None:
+        live = self.live
+        live.t = float(contacts.t[-1])
+        live.in_contact = bool(contacts.in_contact[-1])
+        live.force_n = float(contacts.force_n[-1])
+        if contacts.located[-1]:
+            live.x, live.y = float(contacts.x[-1]), float(contacts.y[-1])
+        live.tared = not bool(contacts.flags[-1] & FLAG_NOT_TARED)
+
+    # --- the watcher --------------------------------------------------------------------------
+
+    def _draw_status(self, final: bool = False) -> None:
+        stream = self.status_stream
+        if stream is None:
+            return
+        stream.write("\r\x1b[K" + self.live.line() + ("\n" if final else ""))
+        stream.flush()
+
+    def _open_events(self) -> IO[str] | None:
+        if self.events_path is None:
+            return None
+        try:
+            return self.events_path.open("w", encoding="utf-8")
+        except OSError as err:
+            raise ConfigError(
+                "--events", f"cannot write {self.events_path}: {err.strerror}"
+            ) from None
+
+    @contextlib.contextmanager
+    def _signals(self, enabled: bool) -> Iterator[None]:
+        if not enabled or threading.current_thread() is not threading.main_thread():
+            yield
+            return
+
+        def on_signal(signum: int, frame: FrameType | None) -> None:
+            name = signal.Signals(signum).name
+            if self._stop.is_set():
+                print(
+                    f"\n{name} again: stopping without waiting for queued commands", file=sys.stderr
+                )
+                self.stop(name, force=True)
+            else:
+                print(
+                    f"\n{name}: stopping (queued commands get {self.drain_timeout_s:g} s; "
+                    "again to stop at once)",
+                    file=sys.stderr,
+                )
+                self.stop(name)
+
+        previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+        try:
+            yield
+        finally:
+            for s, handler in previous.items():
+                signal.signal(s, handler)
+
+
+def report_json(report: RunReport) -> str:
+    """The report as one JSON object (for scripts)."""
+    d = report.dispatch.totals
+    return json.dumps(
+        {
+            "samples": report.samples,
+            "sample_time_s": round(report.sample_time_s, 6),
+            "wall_s": round(report.wall_s, 3),
+            "gestures": dict(report.gestures),
+            "actions": {
+                "ok": d.ok,
+                "failed": d.failed,
+                "timed_out": d.timed_out,
+                "dropped": d.dropped,
+                "not_run": d.not_run,
+            },
+            "notes": report.notes,
+            "stopped_by": report.stopped_by,
+            "error": report.error,
+        }
+    )

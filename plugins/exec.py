@@ -1,0 +1,105 @@
+"""The ``exec`` action: run a program with templated arguments, never through a shell.
+
+    do: {exec: {argv: [notify-send, "desk", "{{ region }}: {{ gesture }}"], timeout_s: 5}}
+
+Each argument is rendered on its own and passed as one argv item, so nothing a template
+renders can become shell syntax. A non-zero exit status or a timeout counts as a failure
+(with the end of the program's stderr in the log).
+"""
+
+from __future__ import annotations
+
+import logging
+import shutil
+import subprocess
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from hapticdesk.dispatcher import ActionContext
+from hapticdesk.gestures.event import GestureEvent
+from hapticdesk.hookspecs import hookimpl
+from hapticdesk.plugins.options import options_mapping, seconds, text, where
+from hapticdesk.plugins.templating import Template, compile_template, event_variables
+from hapticdesk.yamlfile import ConfigError, MarkedList, Position
+
+log = logging.getLogger(__name__)
+
+DEFAULT_TIMEOUT_S = 10.0
+
+
+class ExecFailed(RuntimeError):
+    """The program exited with an error or ran too long."""
+
+
+@dataclass(frozen=True)
+class ExecOptions:
+    argv: tuple[Template, ...]
+    timeout_s: float
+    cwd: str | None
+
+
+def parse_options(options: Any, position: Position | str) -> ExecOptions:
+    m = options_mapping(options, position, "`exec`", {"argv", "timeout_s", "cwd"}, {"argv"})
+    raw = m["argv"]
+    if not isinstance(raw, list) or not raw:
+        raise ConfigError(
+            m.where("argv"), "`argv` of `exec` must be a non-empty list: [program, arg, ...]"
+        )
+    argv = []
+    for i, item in enumerate(raw):
+        pos = raw.where(i) if isinstance(raw, MarkedList) else m.where("argv")
+        if isinstance(item, bool) or not isinstance(item, str | int | float):
+            raise ConfigError(pos, f"argument {i + 1} of `exec` must be text, found {item!r}")
+        argv.append(compile_template(str(item), pos, f"argument {i + 1} of `exec`"))
+    cwd = text(m, "cwd", "`exec`") if "cwd" in m else None
+    return ExecOptions(tuple(argv), seconds(m, "timeout_s", "`exec`", DEFAULT_TIMEOUT_S), cwd)
+
+
+def validate(options: Any, position: Position | str) -> None:
+    parse_options(options, position)
+
+
+class ExecAction:
+    """Runs the program once per event and waits for it (up to its timeout)."""
+
+    def __init__(self, options: Any, context: ActionContext) -> None:
+        self.options = parse_options(options, where(options, "`exec`"))
+        self.desk = context.desk
+        self.cwd: Path | None = context.resolve_path(self.options.cwd) if self.options.cwd else None
+        # the dispatcher's watchdog only steps in when the program's own timeout failed
+        self.timeout_s = self.options.timeout_s + 2.0
+        program = self.options.argv[0]
+        if program.compiled is None and shutil.which(program.text, path=None) is None:
+            log.warning("exec: program %r is not found on PATH; its calls will fail", program.text)
+
+    def __call__(self, event: GestureEvent) -> None:
+        variables = event_variables(event, self.desk)
+        argv = [arg.render(variables) for arg in self.options.argv]
+        try:
+            done = subprocess.run(
+                argv,
+                cwd=self.cwd,
+                stdin=subprocess.DEVNULL,
+                capture_output=True,
+                timeout=self.options.timeout_s,
+                check=False,
+            )
+        except subprocess.TimeoutExpired:
+            raise ExecFailed(
+                f"{argv[0]} ran longer than {self.options.timeout_s:g} s and was killed"
+            ) from None
+        except OSError as err:
+            raise ExecFailed(f"cannot run {argv[0]}: {err.strerror or err}") from None
+        if done.returncode != 0:
+            tail = done.stderr.decode("utf-8", "replace").strip()[-300:]
+            raise ExecFailed(
+                f"{argv[0]} exited with status {done.returncode}" + (f": {tail}" if tail else "")
+            )
+
+
+@hookimpl
+def register_actions(register: Any) -> None:
+    register(
+        "exec", ExecAction, "run a program with templated arguments (no shell)", validate=validate
+    )

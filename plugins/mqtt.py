@@ -1,0 +1,191 @@
+"""The ``mqtt`` action, and the desk as a device on the network.
+
+    mqtt:                                   # optional; defaults shown
+      broker: mqtt://localhost:1883         # mqtts:// for TLS
+      username: desk
+      password_env: DESK_MQTT_PASSWORD      # or password_file: secrets/mqtt.txt
+      tls: {ca: ca.crt, cert: desk.crt, key: desk.key}
+      client_id: hapticdesk-<desk>
+      keepalive: 60
+      qos: 2                                # 2: a TOGGLE is delivered exactly once
+      retain: false
+      discovery: false                      # Home Assistant device triggers
+      base_topic: hapticdesk
+    desk_name: study                        # in topics; default: the profile's name
+    bindings:
+      - gesture: tap
+        region: lamp
+        do: {mqtt: {topic: zigbee2mqtt/desk_lamp/set, payload: {state: TOGGLE}}}
+
+When a run uses MQTT (an ``mqtt`` action, an ``mqtt:`` section or ``--mqtt``), every gesture
+is also published to ``<base_topic>/<desk>/action`` as a Zigbee2MQTT-style string
+(``lamp_tap``) and in full to ``<base_topic>/<desk>/event`` (JSON), with the retained
+availability ``<base_topic>/<desk>/availability`` (``online``; ``offline`` as last will).
+paho is imported only when the connection is opened.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from hapticdesk.dispatcher import ActionContext
+from hapticdesk.gestures.event import GestureEvent
+from hapticdesk.hookspecs import hookimpl
+from hapticdesk.plugins.mqtt_discovery import device_triggers
+from hapticdesk.plugins.mqtt_link import (
+    Message,
+    MqttLink,
+    MqttSettings,
+    qos_of,
+    settings_from_layout,
+)
+from hapticdesk.plugins.options import options_mapping, text, where
+from hapticdesk.plugins.templating import (
+    Template,
+    TemplatedValue,
+    compile_template,
+    compile_value,
+    event_variables,
+)
+from hapticdesk.yamlfile import ConfigError, Position
+
+LINK = "mqtt"  # the ActionContext.shared key of the run's connection
+
+
+def uses_mqtt(raw: Any, bindings: Any, mqtt_url: str | None) -> bool:
+    """Whether a run needs a broker: an ``mqtt`` action, an ``mqtt:`` section or ``--mqtt``."""
+    if mqtt_url is not None or (raw is not None and "mqtt" in raw):
+        return True
+    return any(use.name == "mqtt" for b in bindings for use in b.actions)
+
+
+def settings_for(context: ActionContext) -> MqttSettings:
+    """The run's MQTT settings from the layout's ``mqtt:`` and ``--mqtt``."""
+    raw = context.settings
+    return settings_from_layout(
+        raw.get("mqtt"),
+        desk=context.desk,
+        url_override=context.mqtt_url,
+        relative_to=context.layout_path.parent if context.layout_path else None,
+        where=raw.where("mqtt") if hasattr(raw, "where") and "mqtt" in raw else "the layout",
+    )
+
+
+def desk_topic(settings: MqttSettings, desk: str, leaf: str) -> str:
+    return f"{settings.base_topic}/{desk}/{leaf}"
+
+
+def link_for(context: ActionContext) -> MqttLink:
+    """The run's one MQTT connection, opened on first use."""
+    return context.shared(LINK, lambda: open_link(context))
+
+
+def open_link(context: ActionContext) -> MqttLink:
+    settings = settings_for(context)
+    availability = desk_topic(settings, context.desk, "availability")
+    birth = [Message(availability, b"online", 1, True, command=False)]
+    birth_again_on = None
+    if settings.discovery:
+        bindings = getattr(context.layout, "bindings", [])
+        model = f"hapticdesk on {getattr(context.profile, 'name', 'a desk')}"
+        for trigger in device_triggers(
+            bindings,
+            desk=context.desk,
+            model=model,
+            action_topic=desk_topic(settings, context.desk, "action"),
+            prefix=settings.discovery_prefix,
+            qos=min(settings.qos, 1),
+        ):
+            birth.append(Message(trigger.topic, trigger.payload, 1, True, command=False))
+        # Home Assistant forgets non-retained state when it restarts; it says so here
+        birth_again_on = (f"{settings.discovery_prefix}/status", b"online")
+    return MqttLink(
+        settings,
+        will=Message(availability, b"offline", 1, True, command=False),
+        birth=birth,
+        birth_again_on=birth_again_on,
+    ).start()
+
+
+# --- the action -------------------------------------------------------------------------------
+
+
+def parse_options(
+    options: Any, position: Position | str
+) -> tuple[Template, TemplatedValue | None, int | None, bool | None]:
+    m = options_mapping(
+        options, position, "`mqtt`", {"topic", "payload", "qos", "retain"}, {"topic"}
+    )
+    topic = text(m, "topic", "`mqtt`")
+    compiled = compile_template(topic, m.where("topic"), "`topic` of `mqtt`")
+    if compiled.compiled is None:
+        _check_topic(topic, m.where("topic"))
+    payload = (
+        compile_value(m["payload"], m.where("payload"), "`payload` of `mqtt`")
+        if "payload" in m
+        else None
+    )
+    qos = qos_of(m, "`mqtt`", -1)
+    if "retain" in m and not isinstance(m["retain"], bool):
+        raise ConfigError(m.where("retain"), "`retain` of `mqtt` must be true or false")
+    return compiled, payload, None if qos < 0 else qos, m.get("retain")
+
+
+def validate(options: Any, position: Position | str) -> None:
+    parse_options(options, position)
+
+
+def _check_topic(topic: str, where: Position | str) -> None:
+    if not topic or any(c in topic for c in "+#\0"):
+        raise ConfigError(
+            where, f"an MQTT topic to publish to must not be empty or hold + or #, found {topic!r}"
+        )
+
+
+class MqttAction:
+    """Publishes the rendered payload to the rendered topic on the run's connection."""
+
+    timeout_s = 2.0  # publishing only queues; it never waits for the broker
+
+    def __init__(self, options: Any, context: ActionContext) -> None:
+        self.topic, self.payload, self.qos, self.retain = parse_options(
+            options, where(options, "`mqtt`")
+        )
+        self.desk = context.desk
+        self.link = link_for(context)
+
+    def __call__(self, event: GestureEvent) -> None:
+        variables = event_variables(event, self.desk)
+        topic = self.topic.render(variables)
+        _check_topic(topic, f"topic template {self.topic.text!r}")
+        if self.payload is None:
+            payload: Any = {**event.to_dict(), "action": event.action_name}
+        else:
+            payload = self.payload.render(variables)
+        self.link.publish(topic, payload, qos=self.qos, retain=self.retain)
+
+
+class DeskPublisher:
+    """Publishes every gesture to the desk's ``action`` and ``event`` topics (a dispatcher sink)."""
+
+    timeout_s = 2.0
+
+    def __init__(self, context: ActionContext) -> None:
+        self.link = link_for(context)
+        self.action_topic = desk_topic(self.link.settings, context.desk, "action")
+        self.event_topic = desk_topic(self.link.settings, context.desk, "event")
+
+    def __call__(self, event: GestureEvent) -> None:
+        action = event.action_name
+        self.link.publish(self.action_topic, action, retain=False)
+        self.link.publish(self.event_topic, {**event.to_dict(), "action": action}, retain=False)
+
+
+@hookimpl
+def register_actions(register: Any) -> None:
+    register(
+        "mqtt",
+        MqttAction,
+        "publish to an MQTT broker (templated topic and payload, QoS 0/1/2, TLS)",
+        validate=validate,
+    )

@@ -1,0 +1,602 @@
+"""One MQTT connection per run: settings from the layout, and delivery that loses nothing.
+
+Commands (a TOGGLE, a brightness) go through :meth:`MqttLink.publish`, which never blocks:
+the message joins a bounded queue and a sender thread hands it to paho when the broker is
+there. Delivery is tracked by message id in ``on_publish``:
+
+- While the broker is away, commands wait in *our* queue. paho's ``publish`` returns
+  ``MQTT_ERR_NO_CONN`` when the connection is gone; for QoS 1 and 2 paho then keeps the message
+  itself and sends it after reconnecting (``Client._out_messages``), so such a message is
+  tracked as in flight and is *not* queued again: nothing is sent twice. A QoS 0 message is
+  dropped by paho in that case and goes back to the front of our queue.
+- Messages in flight when the connection drops are resent by paho on reconnect. With QoS 2
+  and a persistent session (``clean_session=False``) the broker recognises them, so a TOGGLE
+  never fires twice (with QoS 1 a resend can arrive twice; that is MQTT's at-least-once). New
+  commands wait until those resends are acknowledged, so the order is kept.
+- A persistent session could hold a half-finished QoS 2 exchange left by an earlier process
+  that crashed, and the broker would then drop our new message with the same id. So the very
+  first connection is a clean one, which clears that session, before the persistent one.
+- When the queue is full the **oldest** command is dropped (and counted and logged): after a
+  long outage the latest commands are the ones that still say what the person wants now.
+
+The connection retries with back-off (1 s doubling to 30 s). The password never appears in
+``repr`` or the log.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import ssl
+import threading
+import time
+import urllib.parse
+from collections import deque
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from hapticdesk.yamlfile import (
+    ConfigError,
+    MarkedDict,
+    Position,
+    check_keys,
+    number,
+    require_mapping,
+)
+
+log = logging.getLogger(__name__)
+
+DEFAULT_QUEUE_SIZE = 1000
+WINDOW = 20  # commands in flight at once (paho's default maximum)
+RECONNECT_MIN_S, RECONNECT_MAX_S = 1, 30
+_MQTT_KEYS = {
+    "broker",
+    "username",
+    "password_env",
+    "password_file",
+    "tls",
+    "client_id",
+    "keepalive",
+    "qos",
+    "retain",
+    "discovery",
+    "discovery_prefix",
+    "base_topic",
+    "queue_size",
+}
+
+
+# --- settings ---------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class MqttSettings:
+    """The layout's ``mqtt:`` section, checked. ``password`` is never shown."""
+
+    host: str = "localhost"
+    port: int = 1883
+    tls: bool = False
+    username: str | None = None
+    password: str | None = field(default=None, repr=False)
+    ca: Path | None = None
+    cert: Path | None = None
+    key: Path | None = None
+    client_id: str = "hapticdesk"
+    keepalive: int = 60
+    qos: int = 2
+    retain: bool = False
+    discovery: bool = False
+    discovery_prefix: str = "homeassistant"
+    base_topic: str = "hapticdesk"
+    queue_size: int = DEFAULT_QUEUE_SIZE
+
+    @property
+    def url(self) -> str:
+        """The broker as a URL, without any secret."""
+        user = f"{self.username}@" if self.username else ""
+        return f"{'mqtts' if self.tls else 'mqtt'}://{user}{self.host}:{self.port}"
+
+
+def parse_broker_url(url: str, where: Position | str) -> tuple[bool, str, int, str | None]:
+    """``mqtt://[user@]host[:port]`` or ``mqtts://…`` -> (tls, host, port, username)."""
+    parts = urllib.parse.urlsplit(url if "://" in url else f"mqtt://{url}")
+    if parts.scheme not in ("mqtt", "mqtts"):
+        raise ConfigError(
+            where, f"broker must be mqtt://host[:port] or mqtts://host[:port], found {url!r}"
+        )
+    if parts.password is not None:
+        raise ConfigError(
+            where,
+            "do not put a password in the broker URL (it would be logged and shown in `ps`); "
+            "use `password_env: VARIABLE` or `password_file: PATH` in the layout's `mqtt:`",
+        )
+    if not parts.hostname:
+        raise ConfigError(where, f"broker URL {url!r} has no host")
+    try:
+        port = parts.port
+    except ValueError:
+        raise ConfigError(where, f"broker URL {url!r} has an invalid port") from None
+    tls = parts.scheme == "mqtts"
+    return tls, parts.hostname, port or (8883 if tls else 1883), parts.username
+
+
+def settings_from_layout(
+    section: Any,
+    *,
+    desk: str,
+    url_override: str | None = None,
+    relative_to: Path | None = None,
+    where: Position | str = "the layout",
+) -> MqttSettings:
+    """Check the ``mqtt:`` section (may be None) and apply ``--mqtt URL``."""
+    if section is None:
+        section = MarkedDict()
+        section.position = where if isinstance(where, Position) else Position(str(where), 0, 0)
+        section.key_positions, section.value_positions = {}, {}
+    m = require_mapping(section, where, "`mqtt`")
+    check_keys(m, _MQTT_KEYS, "`mqtt`")
+    url = str(m.get("broker", "mqtt://localhost:1883"))
+    tls, host, port, username = parse_broker_url(url, m.where("broker"))
+    if url_override is not None:
+        tls, host, port, url_user = parse_broker_url(url_override, "--mqtt")
+        username = url_user or username
+    if "username" in m:
+        if not isinstance(m["username"], str):
+            raise ConfigError(m.where("username"), "`username` of `mqtt` must be text")
+        username = m["username"]
+    password = _password(m, relative_to)
+    ca = cert = key = None
+    if "tls" in m:
+        t = require_mapping(m["tls"], m.where("tls"), "`tls` of `mqtt`")
+        check_keys(t, {"ca", "cert", "key"}, "`tls` of `mqtt`")
+        ca, cert, key = (_file(t, name, relative_to) for name in ("ca", "cert", "key"))
+        if (cert is None) != (key is None):
+            raise ConfigError(
+                t.where(), "`tls` needs both `cert` and `key` for a client certificate"
+            )
+        tls = True if url_override is None else tls
+    client_id = str(m.get("client_id", f"hapticdesk-{desk}"))
+    if not client_id or len(client_id) > 128:
+        raise ConfigError(m.where("client_id"), "`client_id` must be 1 to 128 characters")
+    for key_name in ("base_topic", "discovery_prefix"):
+        value = m.get(key_name, "x")
+        if not isinstance(value, str) or not value or any(c in value for c in "+#"):
+            raise ConfigError(
+                m.where(key_name), f"`{key_name}` must be a topic without + or #, found {value!r}"
+            )
+    for key_name in ("retain", "discovery"):
+        if key_name in m and not isinstance(m[key_name], bool):
+            raise ConfigError(m.where(key_name), f"`{key_name}` of `mqtt` must be true or false")
+    return MqttSettings(
+        host=host,
+        port=port,
+        tls=tls,
+        username=username,
+        password=password,
+        ca=ca,
+        cert=cert,
+        key=key,
+        client_id=client_id,
+        keepalive=int(number(m, "keepalive", "`mqtt`", default=60, minimum=5, maximum=65535)),
+        qos=qos_of(m, "`mqtt`", 2),
+        retain=bool(m.get("retain", False)),
+        discovery=bool(m.get("discovery", False)),
+        discovery_prefix=str(m.get("discovery_prefix", "homeassistant")).strip("/"),
+        base_topic=str(m.get("base_topic", "hapticdesk")).strip("/"),
+        queue_size=int(number(m, "queue_size", "`mqtt`", default=DEFAULT_QUEUE_SIZE, minimum=1)),
+    )
+
+
+def qos_of(m: MarkedDict, what: str, default: int) -> int:
+    """An MQTT QoS (0, 1 or 2) at ``qos``."""
+    if "qos" not in m:
+        return default
+    if m["qos"] not in (0, 1, 2) or isinstance(m["qos"], bool):
+        raise ConfigError(m.where("qos"), f"`qos` of {what} must be 0, 1 or 2, found {m['qos']!r}")
+    return int(m["qos"])
+
+
+def _password(m: MarkedDict, relative_to: Path | None) -> str | None:
+    if "password_env" in m and "password_file" in m:
+        raise ConfigError(
+            m.where("password_file", of_key=True),
+            "give `password_env` or `password_file`, not both",
+        )
+    if "password_env" in m:
+        var = m["password_env"]
+        if not isinstance(var, str) or not var:
+            raise ConfigError(
+                m.where("password_env"), "`password_env` must name an environment variable"
+            )
+        if var not in os.environ:
+            raise ConfigError(m.where("password_env"), f"the environment variable {var} is not set")
+        return os.environ[var]
+    if "password_file" in m:
+        path = _file(m, "password_file", relative_to)
+        assert path is not None
+        try:
+            return path.read_text(encoding="utf-8").rstrip("\r\n")
+        except OSError as err:
+            raise ConfigError(
+                m.where("password_file"), f"cannot read {path}: {err.strerror}"
+            ) from None
+    return None
+
+
+def _file(m: MarkedDict, key: str, relative_to: Path | None) -> Path | None:
+    if key not in m:
+        return None
+    if not isinstance(m[key], str) or not m[key]:
+        raise ConfigError(m.where(key), f"`{key}` must be a file path")
+    path = Path(m[key]).expanduser()
+    if not path.is_absolute() and relative_to is not None:
+        path = relative_to / path
+    if not path.is_file():
+        raise ConfigError(m.where(key), f"`{key}`: no such file {path}")
+    return path
+
+
+# --- the connection ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Message:
+    """One message to publish. ``command`` False marks availability and discovery messages."""
+
+    topic: str
+    payload: bytes
+    qos: int
+    retain: bool
+    command: bool = True
+
+
+def encode_payload(payload: Any) -> bytes:
+    """Text as UTF-8, mappings and lists as JSON (never NaN), numbers as their text."""
+    if isinstance(payload, bytes):
+        return payload
+    if isinstance(payload, str):
+        return payload.encode("utf-8")
+    if payload is None:
+        return b""
+    if isinstance(payload, bool | int | float):
+        return json.dumps(payload, allow_nan=False).encode("utf-8")
+    return json.dumps(payload, allow_nan=False, ensure_ascii=False).encode("utf-8")
+
+
+@dataclass
+class LinkStats:
+    queued: int = 0  # commands handed to publish()
+    delivered: int = 0  # acknowledged by the broker (QoS 0: written to the socket)
+    dropped: int = 0  # pushed out of a full queue
+    pending: int = 0  # queued or in flight when the link closed
+
+
+class MqttLink:
+    """The run's MQTT connection. Start it, :meth:`publish`, :meth:`close`."""
+
+    def __init__(
+        self,
+        settings: MqttSettings,
+        *,
+        will: Message | None = None,
+        birth: Sequence[Message] = (),
+        birth_again_on: tuple[str, bytes] | None = None,
+    ) -> None:
+        """``will``: the last will (and what :meth:`close` publishes); ``birth``: published on
+        every (re)connect; ``birth_again_on``: (topic, payload) that asks for the birth again
+        (Home Assistant's ``homeassistant/status`` = ``online``)."""
+        import paho.mqtt.client as mqtt
+
+        self._mqtt = mqtt
+        self.settings = settings
+        self.stats = LinkStats()
+        self._will = will
+        self._birth = list(birth)
+        self._birth_again_on = birth_again_on
+        self._cond = threading.Condition()
+        self._queue: deque[Message] = deque()
+        self._control: deque[Message] = deque()
+        self._inflight: dict[int, Message] = {}
+        self._early_acks: set[int] = set()
+        self._connected = False
+        self._resuming = False  # waiting for paho's resends before sending new commands
+        self._closing = False
+        self._ever_connected = threading.Event()
+        self._outage_logged = False
+        self._client = self._new_client(clean_session=False)
+        self._client.on_connect = self._on_connect
+        self._client.on_disconnect = self._on_disconnect
+        self._client.on_publish = self._on_publish
+        self._client.on_message = self._on_message
+        self._client.on_connect_fail = self._on_connect_fail
+        self._client.reconnect_delay_set(RECONNECT_MIN_S, RECONNECT_MAX_S)
+        self._client.max_inflight_messages_set(0)  # our WINDOW limits commands; control adds a few
+        self._sender = threading.Thread(target=self._run, name="mqtt sender", daemon=True)
+
+    # --- public ------------------------------------------------------------------------------
+
+    def start(self) -> MqttLink:
+        self._sender.start()
+        return self
+
+    def publish(
+        self, topic: str, payload: Any, *, qos: int | None = None, retain: bool | None = None
+    ) -> None:
+        """Queue a command. Never blocks; when the queue is full the oldest command goes."""
+        message = Message(
+            topic,
+            encode_payload(payload),
+            self.settings.qos if qos is None else qos,
+            self.settings.retain if retain is None else retain,
+        )
+        with self._cond:
+            if self._closing:
+                raise RuntimeError("the MQTT link is closed")
+            if len(self._queue) >= self.settings.queue_size:
+                old = self._queue.popleft()
+                self.stats.dropped += 1
+                n = self.stats.dropped
+                if n in (1, 10, 100) or n % 1000 == 0:
+                    log.warning(
+                        "MQTT: %d commands are waiting for %s (the queue is full); the oldest "
+                        "is dropped (%s), %d dropped so far",
+                        len(self._queue) + 1,
+                        self.settings.url,
+                        old.topic,
+                        n,
+                    )
+            self._queue.append(message)
+            self.stats.queued += 1
+            self._cond.notify_all()
+
+    def wait_connected(self, timeout: float) -> bool:
+        """True once the first connection is up (for the demo and tests)."""
+        return self._ever_connected.wait(timeout)
+
+    @property
+    def connected(self) -> bool:
+        return self._connected
+
+    def flush(self, timeout: float) -> bool:
+        """Wait until every queued command is acknowledged; False after ``timeout``."""
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while self._queue or self._control or self._inflight:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    return False
+                self._cond.wait(min(remaining, 0.1))
+        return True
+
+    def close(self, timeout: float = 5.0) -> str:
+        """Deliver what is queued (up to ``timeout``), say goodbye, disconnect; a report line."""
+        if not self._sender.is_alive():
+            return ""
+        flushed = self.flush(timeout)
+        if self._will is not None and self._connected:
+            with self._cond:
+                self._control.append(self._will)
+                self._cond.notify_all()
+            self.flush(1.0)
+        with self._cond:
+            self._closing = True
+            lost = [m for m in list(self._inflight.values()) + list(self._queue) if m.command]
+            self.stats.pending = len(lost)
+            self._cond.notify_all()
+        self._sender.join(2.0)
+        self._client.disconnect()  # a clean disconnect: the broker does not send the will
+        self._client.loop_stop()
+        s = self.stats
+        line = f"MQTT {self.settings.url}: {s.delivered} of {s.queued} messages delivered" + (
+            f", {s.dropped} dropped from the full queue" if s.dropped else ""
+        )
+        if not flushed and lost:
+            shown = "; ".join(
+                f"{m.topic} {m.payload[:60].decode('utf-8', 'replace')}" for m in lost[:5]
+            )
+            line += f", {len(lost)} NOT delivered (broker away): {shown}" + (
+                " …" if len(lost) > 5 else ""
+            )
+        return line
+
+    # --- paho callbacks (paho's network thread) ------------------------------------------------
+
+    def _on_connect(self, client: Any, userdata: Any, flags: Any, reason: Any, props: Any) -> None:
+        if reason.is_failure:  # paho retries with back-off; say it once per outage
+            if not self._outage_logged:
+                log.error("MQTT: %s refused the connection: %s", self.settings.url, reason)
+                self._outage_logged = True
+            return
+        if self._birth_again_on is not None:
+            client.subscribe(self._birth_again_on[0], qos=1)
+        with self._cond:
+            self._connected = True
+            self._resuming = bool(self._inflight)
+            self._control.extend(self._birth)
+            self._cond.notify_all()
+        if self._outage_logged:
+            log.warning("MQTT: connected to %s again", self.settings.url)
+            self._outage_logged = False
+        else:
+            log.info("MQTT: connected to %s", self.settings.url)
+        self._ever_connected.set()
+
+    def _on_disconnect(
+        self, client: Any, userdata: Any, flags: Any, reason: Any, props: Any
+    ) -> None:
+        with self._cond:
+            self._connected = False
+            # paho resends QoS 1/2 messages after reconnecting; a QoS 0 message that was not
+            # yet written is gone (at most once), so stop waiting for it
+            for mid in [mid for mid, m in self._inflight.items() if m.qos == 0]:
+                if self._inflight.pop(mid).command:
+                    self.stats.dropped += 1
+            waiting = len(self._queue) + len(self._inflight)
+            self._cond.notify_all()
+        if not self._closing and not self._outage_logged:
+            log.warning(
+                "MQTT: lost the connection to %s (%s); reconnecting, %d command(s) are kept "
+                "and sent when it is back",
+                self.settings.url,
+                reason,
+                waiting,
+            )
+            self._outage_logged = True
+
+    def _on_connect_fail(self, client: Any, userdata: Any) -> None:
+        if not self._outage_logged:
+            log.warning("MQTT: cannot reach %s; retrying", self.settings.url)
+            self._outage_logged = True
+
+    def _on_publish(self, client: Any, userdata: Any, mid: int, reason: Any, props: Any) -> None:
+        with self._cond:
+            message = self._inflight.pop(mid, None)
+            if message is None:  # acknowledged before _run registered it
+                self._early_acks.add(mid)
+                return
+            self._acknowledged(message)
+
+    def _on_message(self, client: Any, userdata: Any, message: Any) -> None:
+        if self._birth_again_on and message.payload == self._birth_again_on[1]:
+            with self._cond:
+                self._control.extend(self._birth)
+                self._cond.notify_all()
+
+    # --- the sender thread --------------------------------------------------------------------
+
+    def _run(self) -> None:
+        if not self._clean_start():
+            return
+        self._client.connect_async(self.settings.host, self.settings.port, self.settings.keepalive)
+        self._client.loop_start()
+        while True:
+            with self._cond:
+                message = None
+                while message is None and not self._closing:
+                    if self._connected and self._control:
+                        message = self._control.popleft()
+                    elif (
+                        self._connected
+                        and not self._resuming
+                        and self._queue
+                        and len(self._inflight) < WINDOW
+                    ):
+                        message = self._queue.popleft()
+                    else:
+                        self._cond.wait(0.5)
+                if message is None:
+                    return
+            self._send(message)
+
+    def _send(self, message: Message) -> None:
+        try:
+            info = self._client.publish(message.topic, message.payload, message.qos, message.retain)
+        except ValueError as err:  # e.g. a topic with a wildcard: this message can never go
+            log.error("MQTT: cannot publish to %r: %s; the message is dropped", message.topic, err)
+            return
+        mqtt = self._mqtt
+        with self._cond:
+            if info.rc == mqtt.MQTT_ERR_SUCCESS or (
+                info.rc == mqtt.MQTT_ERR_NO_CONN and message.qos > 0
+            ):
+                # in flight; with NO_CONN paho keeps a QoS 1/2 message and sends it on reconnect
+                if info.mid in self._early_acks:
+                    self._early_acks.discard(info.mid)
+                    self._acknowledged(message)
+                else:
+                    self._inflight[info.mid] = message
+                    if info.rc == mqtt.MQTT_ERR_NO_CONN:
+                        self._resuming = True
+            else:  # QoS 0 without a connection, or paho's own queue full: ours keeps it
+                (self._queue if message.command else self._control).appendleft(message)
+                self._connected = self._connected and info.rc != mqtt.MQTT_ERR_NO_CONN
+                self._cond.wait(0.05)
+
+    def _acknowledged(self, message: Message) -> None:
+        # under self._cond
+        if message.command:
+            self.stats.delivered += 1
+        if not self._inflight:
+            self._resuming = False
+        self._cond.notify_all()
+
+    def _clean_start(self) -> bool:
+        """Connect once with a clean session (see the module docstring), retrying with back-off."""
+        delay = 0.5
+        while True:
+            error = self._try_clean_connect()
+            if error is None:
+                return True
+            if not self._outage_logged:
+                log.warning(
+                    "MQTT: cannot connect to %s (%s); commands are kept (up to %d) and sent "
+                    "when it can be reached",
+                    self.settings.url,
+                    error,
+                    self.settings.queue_size,
+                )
+                self._outage_logged = True
+            with self._cond:
+                self._cond.wait(delay)
+                if self._closing:
+                    return False
+            delay = min(delay * 2, RECONNECT_MAX_S)
+
+    def _try_clean_connect(self) -> str | None:
+        client = self._new_client(clean_session=True, with_will=False)
+        answered = threading.Event()
+        outcome: list[Any] = []
+
+        def on_connect(c: Any, u: Any, flags: Any, reason: Any, props: Any) -> None:
+            outcome.append(reason)
+            answered.set()
+
+        def on_disconnect(c: Any, u: Any, flags: Any, reason: Any, props: Any) -> None:
+            # e.g. TLS without the client certificate the broker requires
+            outcome.append(f"the broker closed the connection ({reason})")
+            answered.set()
+
+        client.on_connect = on_connect
+        client.on_disconnect = on_disconnect
+        try:
+            client.connect(self.settings.host, self.settings.port, self.settings.keepalive)
+        except (OSError, ssl.SSLError, ValueError) as err:
+            return f"{type(err).__name__}: {err}"
+        client.loop_start()
+        try:
+            if not answered.wait(10.0):
+                return "no answer to CONNECT within 10 s"
+            if isinstance(outcome[0], str):
+                return outcome[0]
+            if outcome[0].is_failure:
+                return f"refused: {outcome[0]}"
+            return None
+        finally:
+            client.disconnect()
+            client.loop_stop()
+
+    def _new_client(self, *, clean_session: bool, with_will: bool = True) -> Any:
+        mqtt = self._mqtt
+        s = self.settings
+        client = mqtt.Client(
+            mqtt.CallbackAPIVersion.VERSION2,
+            client_id=s.client_id,
+            clean_session=clean_session,
+            protocol=mqtt.MQTTv311,
+        )
+        if s.username is not None:
+            client.username_pw_set(s.username, s.password)
+        if s.tls:
+            client.tls_set(
+                ca_certs=str(s.ca) if s.ca else None,
+                certfile=str(s.cert) if s.cert else None,
+                keyfile=str(s.key) if s.key else None,
+                cert_reqs=ssl.CERT_REQUIRED,
+            )
+        if with_will and self._will is not None:
+            w = self._will
+            client.will_set(w.topic, w.payload, qos=w.qos, retain=w.retain)
+        return client

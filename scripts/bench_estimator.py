@@ -1,0 +1,82 @@
+#!/usr/bin/env python3
+"""Benchmark of the contact estimator alone (issue 2): batch throughput and streaming cost.
+
+Input: the paper's experiment simulated on the paper's four-sensor desk with the paper's
+noise (about a third of the samples in contact), repeated to two million samples for the
+batch figure. Each figure is the best of several runs. Run on an otherwise idle machine:
+
+    python scripts/bench_estimator.py [--samples 2000000] [--repeats 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+
+import numpy as np
+
+from hapticdesk.bench.scenes import paper_experiment
+from hapticdesk.bench.timing import measure_cost
+from hapticdesk.estimator import ContactEstimator
+from hapticdesk.profile import METHODS, load_profile
+from hapticdesk.sim import simulate
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--samples", type=int, default=2_000_000)
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--json", action="store_true")
+    args = parser.parse_args()
+
+    desk = load_profile("kitamura2017")
+    rec = simulate(desk, paper_experiment(), seed=0)
+    reps = -(-args.samples // len(rec.t))
+    wrench = np.ascontiguousarray(np.tile(rec.wrench, (reps, 1, 1))[: args.samples])
+    t = np.arange(args.samples) / desk.sample_rate_hz
+    rows = []
+    for method in METHODS:
+        best = float("inf")
+        for _ in range(args.repeats):
+            est = ContactEstimator(desk, method=method)
+            start = time.perf_counter()
+            block = est.push(t, wrench)
+            best = min(best, time.perf_counter() - start)
+        cost = measure_cost(
+            desk, rec.t, rec.wrench, method, repeats=args.repeats, stream_samples=12_000
+        )
+        rows.append(
+            {
+                "method": method,
+                "batch_samples_per_s": round(args.samples / best),
+                "us_per_sample_block1": round(cost.us_per_sample_stream, 1),
+                "us_per_sample_block12": round(cost.us_per_sample_block12, 2),
+                "contact_share": round(float(block.in_contact.mean()), 2),
+            }
+        )
+    info = {
+        "desk": desk.name,
+        "sensors": len(desk.sensors),
+        "batch_samples": args.samples,
+        "cpu_count": os.cpu_count(),
+        "methods": rows,
+    }
+    if args.json:
+        print(json.dumps(info, indent=1))
+        return
+    print(
+        f"{desk.name}: {len(desk.sensors)} sensors, batch of {args.samples:,} samples, "
+        f"best of {args.repeats}"
+    )
+    print(f"{'method':<10}{'batch samples/s':>18}{'µs/sample k=1':>16}{'µs/sample k=12':>16}")
+    for r in rows:
+        print(
+            f"{r['method']:<10}{r['batch_samples_per_s']:>18,}{r['us_per_sample_block1']:>16}"
+            f"{r['us_per_sample_block12']:>16}"
+        )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,96 @@
+"""Meta-test: every hookspec is documented, and every one is exercised by a real run."""
+
+from __future__ import annotations
+
+import inspect
+from types import SimpleNamespace
+
+import pytest
+
+from hapticdesk import hookspecs
+from hapticdesk.contacts import ContactEvent
+from hapticdesk.gestures.event import GestureEvent
+from hapticdesk.gestures.recognizer import Recognizer
+from hapticdesk.gestures.touch import Touch
+from hapticdesk.hookspecs import hookimpl
+from hapticdesk.plugins.replay import RecordingSource
+from hapticdesk.registry import hookspec_names, load_registry
+from hapticdesk.runtime import RunReport, Runtime, build_scene
+
+from .taps import Tap, tap_recording
+
+LAYOUT = """\
+desk: kitamura2017
+bindings:
+  - gesture: knock
+    do: {spy: {}}
+"""
+
+
+@pytest.mark.parametrize("name", hookspec_names())
+def test_every_hookspec_is_documented(name):
+    spec = getattr(hookspecs, name)
+    doc = inspect.getdoc(spec) or ""
+    assert "Called" in doc, f"{name}: say when it is called"
+    for argument in inspect.signature(spec).parameters:
+        assert f"``{argument}``" in doc, f"{name}: document the argument `{argument}`"
+
+
+class Knock(Recognizer):
+    """A plugin gesture: every touch is a knock, placed where it was released."""
+
+    gestures = ("knock",)
+
+    def on_contact(self, event: ContactEvent, touch: Touch) -> list[GestureEvent]:
+        if event.kind == "up":
+            return [GestureEvent(event.t, "knock", None, event.x, event.y)]
+        return []
+
+
+def test_every_hookspec_is_exercised_by_a_run(tmp_path, paper_desk):
+    called: dict[str, dict] = {}
+    knocks: list[GestureEvent] = []
+    recording = tap_recording(paper_desk, [Tap(1.5, 0.1, 0.0), Tap(2.5, -0.1, 0.05)], 3.2)
+
+    def register_sources(register):
+        called["register_sources"] = {}
+        register("spy", lambda argument, profile, **o: RecordingSource(recording, 1200.0))
+
+    def register_actions(register):
+        called["register_actions"] = {}
+        register("spy", lambda options, context: knocks.append, "collect events")
+
+    def register_recognizers(register):
+        called["register_recognizers"] = {}
+        register("knock", Knock, "a touch-down")
+
+    def startup(desk, layout):
+        called["startup"] = {"desk": desk, "layout": layout}
+
+    def shutdown(report):  # fewer arguments than the spec: allowed
+        called["shutdown"] = {"report": report}
+
+    spy = SimpleNamespace(
+        **{
+            fn.__name__: hookimpl(fn)
+            for fn in (
+                register_sources,
+                register_actions,
+                register_recognizers,
+                startup,
+                shutdown,
+            )
+        }
+    )
+    registry = load_registry(entry_points=False, plugins=[("spy", spy)])
+    layout_path = tmp_path / "knock.yaml"
+    layout_path.write_text(LAYOUT)
+    scene = build_scene(layout_path, "spy:", registry, speed=0)
+    report = Runtime(scene).run(handle_signals=False)
+
+    assert sorted(called) == hookspec_names()
+    assert called["startup"]["desk"].name == paper_desk.name
+    assert called["startup"]["layout"].path == layout_path
+    assert isinstance(called["shutdown"]["report"], RunReport)
+    assert [round(e.x, 2) for e in knocks] == [0.1, -0.1]
+    assert report.gestures == {"knock": 2}

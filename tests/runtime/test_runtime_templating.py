@@ -1,0 +1,84 @@
+"""Action templates: the event's fields as variables, numbers kept numbers, errors positioned."""
+
+from __future__ import annotations
+
+import pytest
+
+from hapticdesk.gestures.event import GestureEvent
+from hapticdesk.plugins.templating import (
+    VARIABLES,
+    TemplateError,
+    compile_template,
+    compile_value,
+    event_variables,
+)
+from hapticdesk.yamlfile import ConfigError, load_marked_yaml
+
+SLIDE = GestureEvent(3.25, "slide", "dimmer", 0.1, -0.05, value=0.5, phase="update")
+
+
+def render(value, event=SLIDE):
+    return compile_value(value, "layout.yaml:1:1", "payload").render(
+        event_variables(event, "study")
+    )
+
+
+def test_payload_leaves_that_render_numbers_become_numbers():
+    payload = {
+        "brightness": "{{ (value * 254) | round | int }}",
+        "fraction": "{{ value }}",
+        "state": "ON",
+        "note": "{{ region }} {{ gesture }}",
+        "steps": ["{{ value * 10 }}", 3, True, None],
+    }
+    assert render(payload) == {
+        "brightness": 127,
+        "fraction": 0.5,
+        "state": "ON",
+        "note": "dimmer slide",
+        "steps": [5.0, 3, True, None],
+    }
+
+
+def test_a_literal_string_that_looks_like_a_number_stays_a_string():
+    assert render({"code": "0042"}) == {"code": "0042"}
+
+
+def test_every_event_field_and_the_extras_are_available():
+    stroke = GestureEvent(
+        1.0, "stroke", None, 0.0, 0.0, shape="circle", score=0.93, extra={"hand": "left"}
+    )
+    text = "{{ action }}|{{ desk }}|{{ shape }}|{{ score }}|{{ event.hand }}|{{ region }}"
+    assert render(text, stroke) == "desk_stroke_circle|study|circle|0.93|left|None"
+    assert set(event_variables(stroke, "d")) == set(VARIABLES)
+
+
+def test_unknown_variables_and_syntax_errors_name_the_place():
+    doc = load_marked_yaml("layout.yaml", 'payload:\n  level: "{{ valeu * 100 }}"\n')
+    with pytest.raises(ConfigError) as err:
+        compile_value(doc["payload"], doc.where("payload"), "`payload`")
+    assert str(err.value).startswith("layout.yaml:2:10: ")
+    assert "valeu" in str(err.value) and "value" in str(err.value)
+    with pytest.raises(ConfigError, match="layout.yaml:9:3: .*not a valid template"):
+        compile_template("{{ value ", "layout.yaml:9:3")
+
+
+def test_the_sandbox_refuses_reaching_into_python():
+    template = compile_template("{{ gesture.__class__.__mro__ }}", "x")
+    with pytest.raises(TemplateError):
+        template.render(event_variables(SLIDE, "d"))
+
+
+def test_nan_and_infinity_never_reach_a_payload():
+    template = compile_value({"v": "{{ value / 0.0 if false else 'nan' }}"}, "x", "payload")
+    with pytest.raises(TemplateError, match="NaN"):
+        template.render(event_variables(SLIDE, "d"))
+    with pytest.raises(ConfigError, match="NaN"):
+        compile_value({"v": float("inf")}, "x", "payload")
+
+
+def test_a_template_failing_on_an_event_says_which_template():
+    template = compile_template("{{ value * 2 }}", "layout.yaml:5:7")
+    tap = GestureEvent(1.0, "tap", "lamp", 0.0, 0.0)  # a tap has no value
+    with pytest.raises(TemplateError, match="layout.yaml:5:7"):
+        template.render(event_variables(tap, "d"))

@@ -75,6 +75,9 @@ class CandidateTrace:
     diff_point: np.ndarray
     diff_valid: np.ndarray
     diff_sigma_m: np.ndarray
+    fast_point: np.ndarray  # from the fast (detection) low-pass: the third `fused` candidate
+    fast_valid: np.ndarray
+    fast_sigma_m: np.ndarray
 
     @classmethod
     def concat(cls, traces: list[CandidateTrace]) -> CandidateTrace:
@@ -82,8 +85,9 @@ class CandidateTrace:
         names = [f for f in cls.__dataclass_fields__]
         if not traces:
             z = np.zeros(0)
+            none = np.zeros((3, 0))
             return cls(
-                z, z, z, np.zeros((3, 0)), z.astype(bool), z, np.zeros((3, 0)), z.astype(bool), z
+                z, z, z, none, z.astype(bool), z, none, z.astype(bool), z, none, z.astype(bool), z
             )
         return cls(**{n: np.concatenate([getattr(tr, n) for tr in traces], axis=-1) for n in names})
 
@@ -152,6 +156,7 @@ class ContactEstimator:
         long = int(8 * fs / min(s.force_lowpass_hz, s.diff_lowpass_hz)) + self._n_diff
         self._gain_lp = noise_gain(self._lp_sos, length=long)
         self._gain_diff = noise_gain(self._diff_sos, fir, length=long)
+        self._gain_det = noise_gain(self._det_sos, length=long)
 
         # the touch phase follows the fast force's slope over a short window
         self._n_rate = max(1, round(RATE_WINDOW_S * fs))
@@ -170,7 +175,7 @@ class ContactEstimator:
         self._lp = SosFilter(self._lp_sos, 6)
         self._diff_lp = None if self._shared_lp else SosFilter(self._diff_sos, 6)
         self._delay = DelayLine(self._n_diff, 6)
-        self._det = SosFilter(self._det_sos, 3)
+        self._det = SosFilter(self._det_sos, 6)
         self._det_delay = DelayLine(self._n_rate, 3)
         self._last_good: np.ndarray | None = None  # raw wrench (6,)
         self._last_t = -math.inf
@@ -180,6 +185,7 @@ class ContactEstimator:
         self._covs_lp: list[np.ndarray] | None = None  # per surface, see project_cov
         self._covs_diff: list[np.ndarray] | None = None
         self._covs_drift: list[np.ndarray] | None = None
+        self._covs_det: list[np.ndarray] | None = None
         self._win_lp = np.zeros((3, self._window))  # the current, unfinished window
         self._win_raw = np.zeros((6, self._window))
         self._win_bad = np.zeros(self._window, bool)
@@ -292,7 +298,7 @@ class ContactEstimator:
         restart after a gap."""
         if self._last_good is None:  # nothing good seen yet: nothing to filter
             z = np.zeros_like(raw)
-            return z, z[:3].copy(), z.copy(), z[:3].copy()
+            return z, z.copy(), z.copy(), z[:3].copy()
         gaps = flags & FLAG_GAP
         if not gaps.any():
             return self._filter_segment(raw)
@@ -314,7 +320,7 @@ class ContactEstimator:
     def _restart_filters(self, x0: np.ndarray) -> None:
         """Every filter as if ``x0`` had been the input forever (after a gap)."""
         self._lp.restart(x0)
-        self._det.restart(x0[:3])
+        self._det.restart(x0)
         self._det_delay.restart(x0[:3])
         self._delay.restart(x0)
         if self._diff_lp is not None:
@@ -324,8 +330,8 @@ class ContactEstimator:
         self, raw: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         lp = self._lp.process(raw)
-        det = self._det.process(raw[:3])
-        det_slope = (det - self._det_delay.delayed(det)) * self._rate_scale
+        det = self._det.process(raw)  # the fast wrench: detection, and a third candidate
+        det_slope = (det[:3] - self._det_delay.delayed(det[:3])) * self._rate_scale
         if self._diff_lp is None:
             diff = (lp - self._delay.delayed(lp)) * self._diff_scale  # paper eq. (8)
         else:
@@ -509,6 +515,7 @@ class ContactEstimator:
         drift_cov = self._map @ np.diag(rates**2) @ self._map.T
         self._covs_drift = [f.project_cov(drift_cov) for f in self._frames]
         self._covs_diff = [f.project_cov(cov * self._gain_diff) for f in self._frames]
+        self._covs_det = [f.project_cov(cov * self._gain_det) for f in self._frames]
 
     def _notice(self, t: float, kind: str, message: str, level: int = logging.INFO) -> None:
         self.notices.append(Notice(t, kind, message))
@@ -549,7 +556,7 @@ class ContactEstimator:
             return block
         # the zero is piecewise constant: subtract it segment by segment
         ends = [*zero_starts[1:].tolist(), k]
-        f_det = det.copy()
+        f_det = det[:3].copy()
         tared = np.ones(k, bool)
         for a, b, j in zip(zero_starts.tolist(), ends, range(len(ends)), strict=True):
             if tared_zero[j]:
@@ -586,7 +593,7 @@ class ContactEstimator:
                 block,
                 lp[:, 0] - zeros[:6, 0],
                 diff[:, 0],
-                f_det[:, 0],
+                det[:, 0] - zeros[:6, 0],
                 det_slope[:, 0],
                 float(t[0] - zeros[6, 0]),
             )
@@ -632,8 +639,19 @@ class ContactEstimator:
                 self._frames, d_wrench, motion, self._covs_diff, s.min_normal_cos, model
             )
 
+        cand_q = None
+        if method == "fused":  # the fast wrench: noisier, but it does not lag
+            cand_q = intersect(
+                self._frames,
+                det[:, idx] - zeros[:6, seg],
+                1.0,
+                self._covs_det,
+                s.min_normal_cos,
+                drift_covs=self._covs_drift,
+                drift_scale=age2,
+            )
         if self.trace:
-            assert cand_f is not None and cand_d is not None
+            assert cand_f is not None and cand_d is not None and cand_q is not None
             self.traces.append(
                 CandidateTrace(
                     t=t[idx],
@@ -645,6 +663,9 @@ class ContactEstimator:
                     diff_point=cand_d.points(self._frames),
                     diff_valid=cand_d.valid,
                     diff_sigma_m=cand_d.sigma(),
+                    fast_point=cand_q.points(self._frames),
+                    fast_valid=cand_q.valid,
+                    fast_sigma_m=cand_q.sigma(),
                 )
             )
             method = self.method
@@ -667,8 +688,12 @@ class ContactEstimator:
             self._emit(block, idx, gate & cand_f.valid & ~use_d, cand_f, SOURCE_FORCE)
             self._emit(block, idx, use_d, cand_d, SOURCE_DIFF)
         else:
-            assert cand_f is not None and cand_d is not None
-            self._emit_fused(block, idx, cand_f, cand_d)
+            assert cand_f is not None and cand_d is not None and cand_q is not None
+            # the fast and the low-passed candidates share their noise (one filtered from the
+            # other's input), so they are not fused: the fast one stands in where the
+            # low-passed force has not caught up yet, or has already let go
+            cand_q.valid &= ~cand_f.valid | (cand_q.sigma() < cand_f.sigma())
+            self._emit_fused(block, idx, [cand_f, cand_d, cand_q])
         return block
 
     def _locate_one(
@@ -676,7 +701,7 @@ class ContactEstimator:
         block: ContactBlock,
         wrench_a: np.ndarray,
         d_wrench_a: np.ndarray,
-        f_det_a: np.ndarray,
+        fast_a: np.ndarray,
         slope_a: np.ndarray,
         zero_age_s: float,
     ) -> None:
@@ -684,8 +709,8 @@ class ContactEstimator:
 
         Kept equal to the vectorised stage by the single-sample tests."""
         s = self.settings
-        wrench, d_wrench = wrench_a.tolist(), d_wrench_a.tolist()
-        fx, fy, fz = f_det_a.tolist()
+        wrench, d_wrench, fast = wrench_a.tolist(), d_wrench_a.tolist(), fast_a.tolist()
+        fx, fy, fz = fast[:3]
         mag = math.sqrt(fx * fx + fy * fy + fz * fz)
         inv = 1.0 / mag if mag > 0 else 1.0
         rate = (fx * d_wrench[0] + fy * d_wrench[1] + fz * d_wrench[2]) * inv
@@ -718,7 +743,6 @@ class ContactEstimator:
             cd = intersect_one(
                 self._frames, d_wrench, motion, self._covs_diff, s.min_normal_cos, model
             )
-        sig_f = math.sqrt(cf[3] + cf[4])
         sig_d = math.sqrt(cd[3] + cd[4])
         f_ok, d_ok = cf[0] >= 0, cd[0] >= 0
         chosen, source = None, 0
@@ -735,15 +759,33 @@ class ContactEstimator:
                     chosen, source = cd, SOURCE_DIFF
                 elif f_ok:
                     chosen, source = cf, SOURCE_FORCE
-        elif f_ok and d_ok and cf[0] == cd[0]:
-            fused = _fuse_one(cf, cd)
-            if math.sqrt(fused[3] + fused[4]) <= s.max_sigma_m:
-                chosen, source = fused, SOURCE_FUSED
-        elif f_ok and (not d_ok or sig_f <= sig_d):
-            if sig_f <= s.max_sigma_m:
-                chosen, source = cf, SOURCE_FORCE
-        elif d_ok and sig_d <= s.max_sigma_m:
-            chosen, source = cd, SOURCE_DIFF
+        else:
+            cq = intersect_one(
+                self._frames,
+                fast,
+                1.0,
+                self._covs_det,
+                s.min_normal_cos,
+                drift_covs=self._covs_drift,
+                drift_scale=zero_age_s**2,
+            )
+            if (
+                cf[0] >= 0
+                and cq[0] >= 0
+                and not (math.sqrt(cq[3] + cq[4]) < math.sqrt(cf[3] + cf[4]))
+            ):
+                cq = (-1, 0.0, 0.0, VAR_CAP, VAR_CAP, 0.0)  # see the vectorised stage
+            fused, members = _fuse_one([cf, cd, cq])
+            if fused[0] >= 0 and math.sqrt(fused[3] + fused[4]) <= s.max_sigma_m:
+                chosen = fused
+                if members > 1:
+                    source = SOURCE_FUSED
+                else:
+                    source = (
+                        SOURCE_DIFF
+                        if cd[0] == fused[0] and cf[0] != fused[0] and (cq[0] != fused[0])
+                        else SOURCE_FORCE
+                    )
         if chosen is None:
             return
         index, u, v, var_u, var_v = chosen[:5]
@@ -769,58 +811,94 @@ class ContactEstimator:
         block.sigma_m[at] = cand.sigma()[use]
         block.source[at] = source
 
-    def _emit_fused(
-        self, block: ContactBlock, idx: np.ndarray, f: Intersection, d: Intersection
-    ) -> None:
-        """Inverse-covariance combination of both candidates where they lie on one surface;
-        elsewhere the one that is valid (or the surer one)."""
-        s = self.settings
-        both = f.valid & d.valid & (f.surface == d.surface)
-        u, v, var_u, var_v = _fuse(f, d)
-        fused = Intersection(both, f.surface, np.stack([u, v]), var_u, var_v, np.zeros_like(u))
-        sigma_fused, sigma_f, sigma_d = fused.sigma(), f.sigma(), d.sigma()
-        only_f = f.valid & ~both & (~d.valid | (sigma_f <= sigma_d))
-        only_d = d.valid & ~both & ~only_f
-        self._emit(block, idx, both & (sigma_fused <= s.max_sigma_m), fused, SOURCE_FUSED)
-        self._emit(block, idx, only_f & (sigma_f <= s.max_sigma_m), f, SOURCE_FORCE)
-        self._emit(block, idx, only_d & (sigma_d <= s.max_sigma_m), d, SOURCE_DIFF)
+    def _emit_fused(self, block: ContactBlock, idx: np.ndarray, cands: list[Intersection]) -> None:
+        """Inverse-covariance combination of the candidates that lie on the surface of the
+        surest one (force, differentiated, fast; see :func:`_fuse`)."""
+        fused, members = _fuse(cands)
+        single = members == 1
+        use = fused.valid & (fused.sigma() <= self.settings.max_sigma_m)
+        self._emit(block, idx, use & ~single, fused, SOURCE_FUSED)
+        if (use & single).any():  # one candidate alone: say which
+            for cand, source in zip(cands, (SOURCE_FORCE, SOURCE_DIFF, SOURCE_FORCE), strict=True):
+                self._emit(
+                    block,
+                    idx,
+                    use & single & cand.valid & (cand.surface == fused.surface),
+                    fused,
+                    source,
+                )
 
 
-def _fuse_one(
-    f: tuple[int, float, float, float, float, float],
-    d: tuple[int, float, float, float, float, float],
-) -> tuple[int, float, float, float, float, float]:
+Candidate = tuple[int, float, float, float, float, float]  # surface, u, v, var_u, var_v, cov
+
+
+def _fuse_one(cands: list[Candidate]) -> tuple[Candidate, int]:
     """:func:`_fuse` for one sample on plain floats."""
+    valid = [c for c in cands if c[0] >= 0]
+    if not valid:
+        return (-1, 0.0, 0.0, VAR_CAP, VAR_CAP, 0.0), 0
+    surest = min(valid, key=lambda c: math.sqrt(c[3] + c[4]))
+    a = b = c_ = ru = rv = 0.0
+    members = 0
+    for cand in valid:
+        if cand[0] != surest[0]:
+            continue
+        det = max(cand[3] * cand[4] - cand[5] * cand[5], 1e-30)
+        ia, ib, ic = cand[4] / det, -cand[5] / det, cand[3] / det
+        a, b, c_ = a + ia, b + ib, c_ + ic
+        ru += ia * cand[1] + ib * cand[2]
+        rv += ib * cand[1] + ic * cand[2]
+        members += 1
+    det = max(a * c_ - b * b, 1e-30)
+    fused = (
+        surest[0],
+        (c_ * ru - b * rv) / det,
+        (a * rv - b * ru) / det,
+        min(c_ / det, VAR_CAP),
+        min(a / det, VAR_CAP),
+        -b / det,
+    )
+    return fused, members
 
-    def information(c: tuple[int, float, float, float, float, float]) -> tuple[float, float, float]:
-        det = max(c[3] * c[4] - c[5] ** 2, 1e-30)
-        return c[4] / det, -c[5] / det, c[3] / det
 
-    af, bf, cf = information(f)
-    ad, bd, cd = information(d)
-    a, b, c = af + ad, bf + bd, cf + cd
-    ru = af * f[1] + bf * f[2] + ad * d[1] + bd * d[2]
-    rv = bf * f[1] + cf * f[2] + bd * d[1] + cd * d[2]
-    det = max(a * c - b * b, 1e-30)
-    return f[0], (c * ru - b * rv) / det, (a * rv - b * ru) / det, c / det, a / det, 0.0
+def _information(
+    var_u: np.ndarray, var_v: np.ndarray, cov: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The inverse of [[var_u, cov], [cov, var_v]] as (a, b, c) = [[a, b], [b, c]]."""
+    det = np.maximum(var_u * var_v - cov * cov, 1e-30)
+    return var_v / det, -cov / det, var_u / det
 
 
-def _fuse(
-    f: Intersection, d: Intersection
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """p = (Σ_f⁻¹ + Σ_d⁻¹)⁻¹ (Σ_f⁻¹ p_f + Σ_d⁻¹ p_d) per sample, 2×2 in closed form."""
-
-    def information(c: Intersection) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        det = np.maximum(c.var_uu * c.var_vv - c.cov_uv**2, 1e-30)
-        return c.var_vv / det, -c.cov_uv / det, c.var_uu / det  # [[a, b], [b, c]]
-
-    af, bf, cf = information(f)
-    ad, bd, cd = information(d)
-    a, b, c = af + ad, bf + bd, cf + cd
-    ru = af * f.uv[0] + bf * f.uv[1] + ad * d.uv[0] + bd * d.uv[1]
-    rv = bf * f.uv[0] + cf * f.uv[1] + bd * d.uv[0] + cd * d.uv[1]
-    det = np.maximum(a * c - b * b, 1e-30)
-    return (c * ru - b * rv) / det, (a * rv - b * ru) / det, c / det, a / det
+def _fuse(cands: list[Intersection]) -> tuple[Intersection, np.ndarray]:
+    """p = (Σ Σ_i⁻¹)⁻¹ Σ Σ_i⁻¹ p_i over the valid candidates on the surface of the surest one,
+    per sample, 2×2 in closed form. Returns the fused candidate and how many were fused."""
+    sigmas = np.stack([np.where(c.valid, c.sigma(), np.inf) for c in cands])
+    best = np.argmin(sigmas, axis=0)
+    surface = np.choose(best, [c.surface for c in cands]).astype(np.int16)
+    valid = np.isfinite(sigmas.min(axis=0))
+    a = b = c_ = ru = rv = np.zeros(len(valid))
+    members = np.zeros(len(valid), int)
+    for cand in cands:
+        take = cand.valid & (cand.surface == surface)
+        ia, ib, ic = _information(cand.var_uu, cand.var_vv, cand.cov_uv)
+        ia, ib, ic = (np.where(take, x, 0.0) for x in (ia, ib, ic))
+        a, b, c_ = a + ia, b + ib, c_ + ic
+        ru = ru + ia * cand.uv[0] + ib * cand.uv[1]
+        rv = rv + ib * cand.uv[0] + ic * cand.uv[1]
+        members += take
+    det = np.maximum(a * c_ - b * b, 1e-30)
+    var_u = np.where(valid, c_ / det, VAR_CAP)
+    var_v = np.where(valid, a / det, VAR_CAP)
+    cov = np.where(valid, -b / det, 0.0)
+    uv = np.where(valid, np.stack([(c_ * ru - b * rv) / det, (a * rv - b * ru) / det]), 0.0)
+    return Intersection(
+        valid,
+        np.where(valid, surface, -1).astype(np.int16),
+        uv,
+        np.minimum(var_u, VAR_CAP),
+        np.minimum(var_v, VAR_CAP),
+        cov,
+    ), members
 
 
 def _hysteresis(on: np.ndarray, off: np.ndarray, state: bool) -> np.ndarray:

@@ -121,7 +121,7 @@ class EstimationSettings:
     release_threshold_n: float = 11.8  # F_rth
     phase_rate_n_s: float = 4.0  # |d|F|/dt| below this is "hold"
     min_normal_cos: float = 0.2  # |n·F̂| below this is too oblique to trust
-    max_sigma_m: float = 0.005  # `diff` and `fused` report a point only when its 1-σ is below
+    max_sigma_m: float = 0.008  # `diff` and `fused` report a point only when its 1-σ is below
     contact_speed_m_s: float = 0.005  # expected finger drift, the model error of eq. (11)
     settle_s: float = 5.0  # a still load held this long becomes part of the zero
     drift_settle_s: float = 0.6  # a desk idle and still this long is re-zeroed (0: never)

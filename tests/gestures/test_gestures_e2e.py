@@ -105,8 +105,8 @@ def test_light_3_newton_taps_are_still_recognised(paper_desk, buttons):
     rec, events, touches = recognise(paper_desk, buttons, scene)
     paired, spurious = match_taps(events, touches)
     found = [(e, w) for e, w in zip(paired, which, strict=True) if e is not None]
-    # the estimator places ~97 % of 3 N taps (a tap it cannot place cannot be judged)
-    assert len(found) / len(touches) >= 0.9, f"{len(found)}/{len(touches)} recognised"
+    # the fused estimate places light taps through the fast candidate
+    assert len(found) / len(touches) >= 0.98, f"{len(found)}/{len(touches)} recognised"
     assert all(e.region == f"b{w + 1}" for e, w in found)  # and never in the wrong button
     assert spurious == []
 

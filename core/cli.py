@@ -42,7 +42,10 @@ def _available() -> dict[str, tuple[str, str]]:
 
 
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="hapticdesk", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        prog="hapticdesk",
+        description="A desk on force/torque sensors as a touch and gesture surface.",
+    )
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, (module, text) in _available().items():

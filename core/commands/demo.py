@@ -186,7 +186,8 @@ def run(args: argparse.Namespace) -> int:
     for line in report.notes:
         print(line, file=out)
     for device, state in lamp.state.items():
-        print(f"{device} ends {state['state']} at brightness {state['brightness']}", file=out)
+        percent = round(100 * state["brightness"] / 254)
+        print(f"{device} ends {state['state']} at brightness {percent} %", file=out)
     if report.error:
         print(f"error: {report.error}", file=out)
     return 0 if lamp.received == sent and not report.error else 1

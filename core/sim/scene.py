@@ -38,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from hapticdesk.gestures.strokefile import read_stroke
 from hapticdesk.sim.actions import (
     Action,
     DeskObject,
@@ -53,7 +54,7 @@ from hapticdesk.sim.actions import (
     Tap,
 )
 from hapticdesk.sim.human import HumanModel
-from hapticdesk.sim.shapes import SHAPES, read_stroke_file, shape_path, text_paths
+from hapticdesk.sim.shapes import SHAPES, shape_path, text_paths
 from hapticdesk.yamlfile import (
     ConfigError,
     MarkedDict,
@@ -438,7 +439,7 @@ def _strokes(
                 raise ConfigError(p.where("file"), f"`file` of {what} must be a path")
             target = Path(file) if Path(file).is_absolute() else path.parent / file
             try:
-                pts = read_stroke_file(target)  # metres, as the stroke file format says
+                pts = read_stroke(target)  # metres, as the stroke file format says (DESIGN.md)
             except ConfigError as err:
                 raise ConfigError(p.where("file"), f"{what}: {err}") from None
         if size is not None or center is not None:

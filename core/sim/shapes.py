@@ -7,15 +7,9 @@ are defined in a unit box [-0.5, 0.5]² and placed with a centre, a size and a r
 
 from __future__ import annotations
 
-import csv
-import io
-import json
 import math
-from pathlib import Path
 
 import numpy as np
-
-from hapticdesk.yamlfile import ConfigError
 
 
 def _circle() -> np.ndarray:
@@ -150,53 +144,3 @@ def text_paths(
 def path_length(points: np.ndarray) -> float:
     """Length of a polyline (n, 2)."""
     return float(np.sum(np.linalg.norm(np.diff(points, axis=0), axis=1)))
-
-
-def read_stroke_file(path: str | Path) -> np.ndarray:
-    """A stroke file (DESIGN.md "Strokes"): CSV ``x,y[,t]`` with a header, or JSON
-    ``{"points": [[x, y], ...]}``; desk coordinates in metres. Returns (n, 2)."""
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as err:
-        raise ConfigError(
-            str(path), f"cannot read the stroke file: {err.strerror or err}"
-        ) from None
-    if path.suffix.lower() == ".json":
-        try:
-            doc = json.loads(text)
-        except json.JSONDecodeError as err:
-            raise ConfigError(
-                f"{path}:{err.lineno}:{err.colno}", f"not valid JSON: {err.msg}"
-            ) from None
-        pts = doc.get("points") if isinstance(doc, dict) else None
-        try:
-            arr = np.array(pts, dtype=float)
-        except (TypeError, ValueError):
-            arr = np.zeros((0, 0))
-        if arr.ndim != 2 or arr.shape[1] != 2 or not np.isfinite(arr).all():
-            raise ConfigError(str(path), 'expected {"points": [[x, y], ...]} with finite numbers')
-        return _at_least_two(arr, str(path))
-    rows = list(csv.reader(io.StringIO(text)))
-    if not rows or [h.strip() for h in rows[0][:2]] != ["x", "y"]:
-        raise ConfigError(f"{path}:1:1", "expected a CSV header starting with `x,y`")
-    points = []
-    for line, row in enumerate(rows[1:], start=2):
-        if not row or not "".join(row).strip():
-            continue
-        try:
-            x, y = float(row[0]), float(row[1])
-        except (ValueError, IndexError):
-            raise ConfigError(
-                f"{path}:{line}:1", f"expected two numbers x,y, found {row}"
-            ) from None
-        if not (math.isfinite(x) and math.isfinite(y)):
-            raise ConfigError(f"{path}:{line}:1", "x and y must be finite")
-        points.append((x, y))
-    return _at_least_two(np.array(points, dtype=float).reshape(-1, 2), str(path))
-
-
-def _at_least_two(points: np.ndarray, where: str) -> np.ndarray:
-    if len(points) < 2 or path_length(points) <= 0:
-        raise ConfigError(where, "a stroke needs at least two distinct points")
-    return points

@@ -175,7 +175,9 @@ class ContactEstimator:
         self._lp = SosFilter(self._lp_sos, 6)
         self._diff_lp = None if self._shared_lp else SosFilter(self._diff_sos, 6)
         self._delay = DelayLine(self._n_diff, 6)
-        self._det = SosFilter(self._det_sos, 6)
+        # the fast wrench: the force for detection; all six for `fused`'s third candidate
+        self._det_lanes = 6 if (self.method == "fused" or self.trace) else 3
+        self._det = SosFilter(self._det_sos, self._det_lanes)
         self._det_delay = DelayLine(self._n_rate, 3)
         self._last_good: np.ndarray | None = None  # raw wrench (6,)
         self._last_t = -math.inf
@@ -320,7 +322,7 @@ class ContactEstimator:
     def _restart_filters(self, x0: np.ndarray) -> None:
         """Every filter as if ``x0`` had been the input forever (after a gap)."""
         self._lp.restart(x0)
-        self._det.restart(x0)
+        self._det.restart(x0[: self._det_lanes])
         self._det_delay.restart(x0[:3])
         self._delay.restart(x0)
         if self._diff_lp is not None:
@@ -330,14 +332,14 @@ class ContactEstimator:
         self, raw: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         lp = self._lp.process(raw)
-        det = self._det.process(raw)  # the fast wrench: detection, and a third candidate
-        det_slope = (det[:3] - self._det_delay.delayed(det[:3])) * self._rate_scale
+        det = self._det.process(raw[: self._det_lanes])
+        det_slope = self._det_delay.difference(det[:3]) * self._rate_scale
         if self._diff_lp is None:
-            diff = (lp - self._delay.delayed(lp)) * self._diff_scale  # paper eq. (8)
+            diff = self._delay.difference(lp) * self._diff_scale  # paper eq. (8)
         else:
             if self._diff_lp.zi is None:
                 self._diff_lp.restart(np.zeros(6))
-            diff = self._diff_lp.process((raw - self._delay.delayed(raw)) * self._diff_scale)
+            diff = self._diff_lp.process(self._delay.difference(raw) * self._diff_scale)
         return lp, det, diff, det_slope
 
     # --- zero: tare, drift and objects ----------------------------------------------------------
@@ -554,15 +556,22 @@ class ContactEstimator:
         if not tared_zero.any():
             block.flags |= FLAG_NOT_TARED
             return block
-        # the zero is piecewise constant: subtract it segment by segment
+        # the zero is piecewise constant: subtract it segment by segment, in place
         ends = [*zero_starts[1:].tolist(), k]
-        f_det = det[:3].copy()
+        fast = det.copy()  # the fast wrench (or force), tared
+        n_fast = fast.shape[0]
         tared = np.ones(k, bool)
+        wrench_all = lp  # tared in place below: the low-passed wrench is not needed untared
+        age = np.empty(k)  # time since the zero in force was set
         for a, b, j in zip(zero_starts.tolist(), ends, range(len(ends)), strict=True):
             if tared_zero[j]:
-                f_det[:, a:b] -= zeros[:3, j : j + 1]
+                fast[:, a:b] -= zeros[:n_fast, j : j + 1]
+                wrench_all[:, a:b] -= zeros[:6, j : j + 1]
+                age[a:b] = t[a:b] - zeros[6, j]
             else:
                 tared[a:b] = False
+                age[a:b] = 0.0
+        f_det = fast[:3]
         block.flags[~tared] |= FLAG_NOT_TARED
         f_det_mag = np.sqrt(np.einsum("ik,ik->k", f_det, f_det))
         all_tared = bool(tared.all())
@@ -590,27 +599,19 @@ class ContactEstimator:
             return block
         if k == 1 and not self.trace:  # one sample: plain floats beat numpy's per-call cost
             self._locate_one(
-                block,
-                lp[:, 0] - zeros[:6, 0],
-                diff[:, 0],
-                det[:, 0] - zeros[:6, 0],
-                det_slope[:, 0],
-                float(t[0] - zeros[6, 0]),
+                block, wrench_all[:, 0], diff[:, 0], fast[:, 0], det_slope[:, 0], float(age[0])
             )
             return block
-        seg = np.searchsorted(zero_starts, idx, side="right") - 1
-        wrench = lp[:, idx] - zeros[:6, seg]
-        age2 = (t[idx] - zeros[6, seg]) ** 2  # (time since the zero was set)²
+        wrench = wrench_all[:, idx]
+        age2 = age[idx] ** 2
         d_wrench = diff[:, idx]
-        fd = f_det[:, idx]
-        fd_mag = f_det_mag[idx]
 
-        # motion: the sign of the differentiated force magnitude (paper Fig. 3, step 2)
-        inv_mag = 1.0 / np.where(fd_mag > 0, fd_mag, 1.0)
-        rate = np.einsum("ik,ik->k", fd, d_wrench[:3]) * inv_mag
+        # motion: the sign of the differentiated force magnitude (paper Fig. 3, step 2),
+        # and the phase from the fast path's slope, which does not wait for the 166 ms window
+        inv_mag = 1.0 / np.where(f_det_mag > 0, f_det_mag, 1.0)
+        rate = (np.einsum("ik,ik->k", f_det, diff[:3]) * inv_mag)[idx]
+        slope = (np.einsum("ik,ik->k", f_det, det_slope) * inv_mag)[idx]
         motion = np.where(rate >= 0, 1.0, -1.0)
-        # the phase follows the fast path, which does not wait for the 166 ms window
-        slope = np.einsum("ik,ik->k", fd, det_slope[:, idx]) * inv_mag
         phase = np.full(len(idx), PHASE_HOLD, np.int8)
         phase[slope > s.phase_rate_n_s] = PHASE_TOUCH
         phase[slope < -s.phase_rate_n_s] = PHASE_RELEASE
@@ -643,7 +644,7 @@ class ContactEstimator:
         if method == "fused":  # the fast wrench: noisier, but it does not lag
             cand_q = intersect(
                 self._frames,
-                det[:, idx] - zeros[:6, seg],
+                fast[:, idx],
                 1.0,
                 self._covs_det,
                 s.min_normal_cos,
@@ -798,35 +799,32 @@ class ContactEstimator:
         block.source[0] = source
 
     def _emit(
-        self, block: ContactBlock, idx: np.ndarray, use: np.ndarray, cand: Intersection, source: int
+        self,
+        block: ContactBlock,
+        idx: np.ndarray,
+        use: np.ndarray,
+        cand: Intersection,
+        source: int | np.ndarray,
     ) -> None:
         """Write the candidate's samples ``use`` (over ``idx``) into the block."""
         if not use.any():
             return
         at = idx[use]
-        point = cand.points(self._frames)[:, use]
         block.located[at] = True
         block.surface[at] = cand.surface[use]
-        block.x[at], block.y[at], block.z[at] = point
-        block.sigma_m[at] = cand.sigma()[use]
-        block.source[at] = source
+        block.x[at], block.y[at], block.z[at] = cand.points(self._frames, use)
+        block.sigma_m[at] = np.sqrt(cand.var_uu[use] + cand.var_vv[use])
+        block.source[at] = source if np.isscalar(source) else source[use]  # type: ignore[index]
 
     def _emit_fused(self, block: ContactBlock, idx: np.ndarray, cands: list[Intersection]) -> None:
         """Inverse-covariance combination of the candidates that lie on the surface of the
         surest one (force, differentiated, fast; see :func:`_fuse`)."""
         fused, members = _fuse(cands)
-        single = members == 1
         use = fused.valid & (fused.sigma() <= self.settings.max_sigma_m)
-        self._emit(block, idx, use & ~single, fused, SOURCE_FUSED)
-        if (use & single).any():  # one candidate alone: say which
-            for cand, source in zip(cands, (SOURCE_FORCE, SOURCE_DIFF, SOURCE_FORCE), strict=True):
-                self._emit(
-                    block,
-                    idx,
-                    use & single & cand.valid & (cand.surface == fused.surface),
-                    fused,
-                    source,
-                )
+        # one candidate alone: say which (the differentiated one, or one from the force)
+        only_diff = (members == 1) & cands[1].valid & (cands[1].surface == fused.surface)
+        source = np.where(members > 1, SOURCE_FUSED, np.where(only_diff, SOURCE_DIFF, SOURCE_FORCE))
+        self._emit(block, idx, use, fused, source.astype(np.int8))
 
 
 Candidate = tuple[int, float, float, float, float, float]  # surface, u, v, var_u, var_v, cov
@@ -872,10 +870,13 @@ def _information(
 def _fuse(cands: list[Intersection]) -> tuple[Intersection, np.ndarray]:
     """p = (Σ Σ_i⁻¹)⁻¹ Σ Σ_i⁻¹ p_i over the valid candidates on the surface of the surest one,
     per sample, 2×2 in closed form. Returns the fused candidate and how many were fused."""
-    sigmas = np.stack([np.where(c.valid, c.sigma(), np.inf) for c in cands])
-    best = np.argmin(sigmas, axis=0)
-    surface = np.choose(best, [c.surface for c in cands]).astype(np.int16)
-    valid = np.isfinite(sigmas.min(axis=0))
+    valid = np.logical_or.reduce([c.valid for c in cands])
+    if max(int(c.surface.max(initial=-1)) for c in cands) <= 0:
+        surface = np.where(valid, 0, -1).astype(np.int16)  # one surface: nothing to choose
+    else:
+        sigmas = np.stack([np.where(c.valid, c.sigma(), np.inf) for c in cands])
+        best = np.argmin(sigmas, axis=0)
+        surface = np.choose(best, [c.surface for c in cands]).astype(np.int16)
     a = b = c_ = ru = rv = np.zeros(len(valid))
     members = np.zeros(len(valid), int)
     for cand in cands:

@@ -96,6 +96,27 @@ class DelayLine:
         self.ring = np.repeat(np.asarray(x0, dtype=float)[:, None], self.n, axis=1)
         self.pos = 0
 
+    def difference(self, x: np.ndarray) -> np.ndarray:
+        """x[i] − x[i − n] for each column of ``x`` (C, k); updates the history. Saves the
+        copy :meth:`delayed` makes when the block is longer than the delay."""
+        k = x.shape[1]
+        if k <= self.n:
+            return x - self.delayed(x)
+        if self.ring is None:
+            self.restart(x[:, 0])
+        assert self.ring is not None
+        out = np.empty_like(x)
+        pos = self.pos
+        np.subtract(x[:, : self.n - pos], self.ring[:, pos:], out=out[:, : self.n - pos])
+        if pos:
+            np.subtract(
+                x[:, self.n - pos : self.n], self.ring[:, :pos], out=out[:, self.n - pos : self.n]
+            )
+        np.subtract(x[:, self.n :], x[:, : k - self.n], out=out[:, self.n :])
+        self.ring = np.array(x[:, -self.n :])
+        self.pos = 0
+        return out
+
     def delayed(self, x: np.ndarray) -> np.ndarray:
         """x[i − n] for each column of ``x`` (C, k); updates the history."""
         k = x.shape[1]

@@ -120,13 +120,21 @@ class Intersection:
         """1-σ radial uncertainty: the square root of the covariance's trace."""
         return np.sqrt(self.var_uu + self.var_vv)
 
-    def points(self, frames: list[SurfaceFrame]) -> np.ndarray:
-        """Desk-frame points (3, n); 0 where not valid."""
-        out = np.zeros((3, len(self.valid)))
+    def points(self, frames: list[SurfaceFrame], mask: np.ndarray | None = None) -> np.ndarray:
+        """Desk-frame points (3, n), or (3, count) for the samples in ``mask``; 0 where not
+        valid."""
+        surface = self.surface if mask is None else self.surface[mask]
+        uv = self.uv if mask is None else self.uv[:, mask]
+        out = np.zeros((3, len(surface)))
         for index, frame in enumerate(frames):
-            on = self.surface == index
+            if len(frames) == 1:
+                on = surface == 0
+                if on.all():  # the common case: no per-sample selection
+                    return frame.to_desk(uv[0], uv[1])
+            else:
+                on = surface == index
             if on.any():
-                out[:, on] = frame.to_desk(self.uv[0, on], self.uv[1, on])
+                out[:, on] = frame.to_desk(uv[0, on], uv[1, on])
         return out
 
 
@@ -170,14 +178,25 @@ def intersect(
         v[~ok] = 0.0
         ok &= frame.contains(u, v)
         if covs is not None:
-            c = covs[index]  # of F'z, M'x, M'y
+            c = covs[index]  # of F'z, M'x, M'y; with the zero's drift, each entry is (n,)
+            cz, czx, czy, cx, cxy, cy = (c[0, 0], c[0, 1], c[0, 2], c[1, 1], c[1, 2], c[2, 2])
             if drift_covs is not None:
-                c = c[:, :, None] + drift_covs[index][:, :, None] * drift_scale  # (3, 3, n)
+                d = drift_covs[index]
+                cz, czx, czy = (
+                    cz + d[0, 0] * drift_scale,
+                    czx + d[0, 1] * drift_scale,
+                    czy + d[0, 2] * drift_scale,
+                )
+                cx, cxy, cy = (
+                    cx + d[1, 1] * drift_scale,
+                    cxy + d[1, 2] * drift_scale,
+                    cy + d[2, 2] * drift_scale,
+                )
             inv2 = 1.0 / (safe_fz * safe_fz)
             # du = −(u dF'z + dM'y)/F'z, dv = −(v dF'z − dM'x)/F'z
-            var_u = (u * u * c[0, 0] + 2 * u * c[0, 2] + c[2, 2]) * inv2 + extra_var
-            var_v = (v * v * c[0, 0] - 2 * v * c[0, 1] + c[1, 1]) * inv2 + extra_var
-            cov = (u * v * c[0, 0] - u * c[0, 1] + v * c[0, 2] - c[1, 2]) * inv2
+            var_u = (u * u * cz + 2 * u * czy + cy) * inv2 + extra_var
+            var_v = (v * v * cz - 2 * v * czx + cx) * inv2 + extra_var
+            cov = (u * v * cz - u * czx + v * czy - cxy) * inv2
             var_u = np.where(ok, np.minimum(var_u, VAR_CAP), VAR_CAP)
             var_v = np.where(ok, np.minimum(var_v, VAR_CAP), VAR_CAP)
             cov = np.where(ok, np.clip(cov, -VAR_CAP, VAR_CAP), 0.0)

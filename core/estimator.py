@@ -384,7 +384,18 @@ class ContactEstimator:
             ends = np.arange(1, n_full + 1) * w - 1 - m  # block index of each window's end
             t_end = np.where(ends >= 0, t[np.maximum(ends, 0)], self._last_window_t).tolist()
             mean_rows = means.T.tolist()
-            for j in range(n_full):  # a loop over 0.2 s windows, not over samples
+            # Once tared, a window that is not still only ends a still run: the loop (over
+            # 0.2 s windows, not samples) visits the still ones and notes the breaks.
+            still = [
+                not b and sp < self.settings.still_n for b, sp in zip(any_bad, spread, strict=True)
+            ]
+            previous = -1
+            for j in range(n_full):
+                if self._zero is not None and not still[j]:
+                    continue
+                if self._zero is not None and j != previous + 1:
+                    self._still_run = 0  # windows in between were not still
+                previous = j
                 before = self._zero
                 self._window_done(
                     spread[j], any_bad[j], mean_rows[j], all_raw[:, j * w : (j + 1) * w], t_end[j]
@@ -392,6 +403,8 @@ class ContactEstimator:
                 if self._zero is not before:
                     starts.append(int(ends[j]) + 1)
                     zeros.append(self._zero_or_nan())
+            if previous != n_full - 1:
+                self._still_run = 0  # the block ended on windows that were not still
             rest = all_lp.shape[1] - cut
             self._win_lp[:, :rest] = all_lp[:, cut:]
             self._win_raw[:, :rest] = all_raw[:, cut:]
@@ -415,7 +428,7 @@ class ContactEstimator:
         if self._zero is None:
             self._tare_window(spread, bad, mean, raw, t_end)
             return
-        if bad or spread >= s.still_n:
+        if bad or spread >= s.still_n:  # (only before the tare: see _update_zero)
             self._still_run = 0
             return
         z = self._zero_list
@@ -631,13 +644,20 @@ class ContactEstimator:
                 s.min_normal_cos,
                 drift_covs=self._covs_drift,
                 drift_scale=age2,
+                force_norm=f_mag,
             )
         if method in ("diff", "switched", "fused"):
             d_mag = np.sqrt(np.einsum("ik,ik->k", d_wrench[:3], d_wrench[:3]))
             # the term F_e × Ṗ_e dropped in eq. (11): a finger drifting at contact_speed_m_s
             model = (f_mag * s.contact_speed_m_s / np.maximum(d_mag, 1e-9)) ** 2
             cand_d = intersect(
-                self._frames, d_wrench, motion, self._covs_diff, s.min_normal_cos, model
+                self._frames,
+                d_wrench,
+                motion,
+                self._covs_diff,
+                s.min_normal_cos,
+                model,
+                force_norm=d_mag,
             )
 
         cand_q = None

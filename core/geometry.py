@@ -34,6 +34,7 @@ class SurfaceFrame:
     bounds: tuple[float, float, float, float]  # u0, v0, u1, v1 of the outline
     is_rectangle: bool
     rows: tuple[tuple[float, ...], ...]  # transform rows of F'z, M'x, M'y as plain floats
+    desk_xy: bool  # a horizontal board whose (u, v) are the desk's (x, y)
 
     @classmethod
     def of(cls, surface: Surface) -> SurfaceFrame:
@@ -54,7 +55,7 @@ class SurfaceFrame:
         )
         rows = tuple(tuple(float(x) for x in row) for row in t[2:5])
         bounds = (float(u0), float(v0), float(u1), float(v1))
-        return cls(surface, t, poly, bounds, bool(rect), rows)
+        return cls(surface, t, poly, bounds, bool(rect), rows, surface.is_desk_xy)
 
     def contains_one(self, u: float, v: float) -> bool:
         """:meth:`contains` for one point."""
@@ -74,6 +75,12 @@ class SurfaceFrame:
     def to_desk(self, u: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Local (u, v) about the origin -> desk points (3, k)."""
         s = self.surface
+        if self.desk_xy:  # a horizontal board: (u, v) are x, y about the origin
+            out = np.empty((3, len(u)))
+            np.add(u, s.origin[0], out=out[0])
+            np.add(v, s.origin[1], out=out[1])
+            out[2] = s.origin[2]
+            return out
         return s.origin[:, None] + s.u_axis[:, None] * u + s.v_axis[:, None] * v
 
     def contains(self, u: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -150,6 +157,7 @@ def intersect(
     extra_var: np.ndarray | float = 0.0,
     drift_covs: list[np.ndarray] | None = None,
     drift_scale: np.ndarray | float = 0.0,
+    force_norm: np.ndarray | None = None,
 ) -> Intersection:
     """Intersect the lines of action of ``wrench`` (6, n) = [F; M] with every surface.
 
@@ -157,14 +165,15 @@ def intersect(
     finger pushes along −F_o), −1 where it points the other way (a releasing differentiated
     force). ``covs``: per surface, :meth:`SurfaceFrame.project_cov` of the wrench's noise
     covariance (None: no uncertainty). ``extra_var`` (n,) is added to both in-plane variances
-    (a model error). ``drift_covs`` (like ``covs``) times ``drift_scale`` (n,) is added to
+    (a model error). ``force_norm`` (n,): |F| when the caller has it. ``drift_covs`` (like
+    ``covs``) times ``drift_scale`` (n,) is added to
     the wrench covariance: the zero's uncertainty, growing with its age. Where surfaces
     overlap, the one the finger reaches first along its push wins. :func:`intersect_one` is
     the same for one sample, on plain floats.
     """
     n = wrench.shape[1]
     force = wrench[:3]
-    norm = np.sqrt(np.einsum("ik,ik->k", force, force))
+    norm = np.sqrt(np.einsum("ik,ik->k", force, force)) if force_norm is None else force_norm
     best: Intersection | None = None
     best_key = np.full(n, -np.inf)
     for index, frame in enumerate(frames):

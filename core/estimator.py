@@ -9,16 +9,20 @@ and batch give the same output for any split of the input:
 2. The 6·S channels become the resultant wrench [F_o; M_o] about P_o by one linear map
    (paper eqs. 1–4; :meth:`DeskProfile.wrench_map`).
 3. Filters on that wrench: the conventional second-order low-pass; the pseudo-differentiated
-   wrench (paper eq. 8: an n-sample difference, then the low-pass); and a fast low-pass of
-   the force for touch-down/release detection that does not wait for the position filters.
+   wrench (paper eq. 8: an n-sample difference, then the low-pass); and a fast (30 Hz)
+   low-pass for touch-down/release detection that does not wait for the position filters.
 4. Zero: an automatic tare over the first ``tare_s`` of a quiet desk (refused with a warning
-   and retried while the desk is not quiet); later a load held perfectly still for
-   ``settle_s`` (an object put down, or slow drift) becomes part of the zero, with a notice.
-5. Candidates: P_er from the force and P_ed from the differentiated force, each the
-   intersection of its line of action with the surfaces (paper eqs. 5, 12;
-   :mod:`hapticdesk.geometry`), each with a covariance propagated from the sensor noise.
+   and retried while the desk is not quiet); the zero then follows sensor drift whenever the
+   idle desk rests for ``drift_settle_s``, and a load held perfectly still for ``settle_s``
+   (an object put down) becomes part of it, with a notice.
+5. Candidates: P_er from the force and P_ed from the differentiated force (and, for
+   ``fused``, one from the fast wrench), each the intersection of its line of action with the
+   surfaces (paper eqs. 5, 12; :mod:`hapticdesk.geometry`), each with a covariance propagated
+   from the noise measured at the tare, plus the zero's drift since it was set and, for P_ed,
+   the term eq. (11) drops.
 6. Method: ``force`` (the conventional), ``diff``, ``switched`` (paper Fig. 3 with F_tth,
-   F_rth) or ``fused`` (inverse-covariance combination of both candidates, no threshold).
+   F_rth) or ``fused`` (inverse-covariance combination of the candidates, no threshold; a
+   point is reported when its 1-σ is below ``max_sigma_m``).
 """
 
 from __future__ import annotations

@@ -640,16 +640,7 @@ class ContactEstimator:
             method = "fused"  # compute both candidates
         cand_f = cand_d = None
         if method in ("force", "switched", "fused"):
-            cand_f = intersect(
-                self._frames,
-                wrench,
-                1.0,
-                self._covs_lp,
-                s.min_normal_cos,
-                drift_covs=self._covs_drift,
-                drift_scale=age2,
-                force_norm=f_mag,
-            )
+            cand_f = self._tared_candidate(wrench, self._covs_lp, age2, f_mag)
         if method in ("diff", "switched", "fused"):
             d_mag = np.sqrt(np.einsum("ik,ik->k", d_wrench[:3], d_wrench[:3]))
             # the term F_e × Ṗ_e dropped in eq. (11): a finger drifting at contact_speed_m_s
@@ -666,15 +657,7 @@ class ContactEstimator:
 
         cand_q = None
         if method == "fused":  # the fast wrench: noisier, but it does not lag
-            cand_q = intersect(
-                self._frames,
-                fast[:, idx],
-                1.0,
-                self._covs_det,
-                s.min_normal_cos,
-                drift_covs=self._covs_drift,
-                drift_scale=age2,
-            )
+            cand_q = self._tared_candidate(fast[:, idx], self._covs_det, age2)
         if self.trace:
             assert cand_f is not None and cand_d is not None and cand_q is not None
             self.traces.append(
@@ -720,6 +703,26 @@ class ContactEstimator:
             cand_q.valid &= ~cand_f.valid | (cand_q.sigma() < cand_f.sigma())
             self._emit_fused(block, idx, [cand_f, cand_d, cand_q])
         return block
+
+    def _tared_candidate(
+        self,
+        wrench: np.ndarray,
+        covs: list[np.ndarray] | None,
+        age2: np.ndarray,
+        force_norm: np.ndarray | None = None,
+    ) -> Intersection:
+        """A candidate from a tared (low-passed or fast) wrench: its noise, plus the drift of
+        the zero since it was set (``age2``: that time, squared)."""
+        return intersect(
+            self._frames,
+            wrench,
+            1.0,
+            covs,
+            self.settings.min_normal_cos,
+            drift_covs=self._covs_drift,
+            drift_scale=age2,
+            force_norm=force_norm,
+        )
 
     def _locate_one(
         self,

@@ -58,6 +58,8 @@ log = logging.getLogger("hapticdesk.estimator")
 BAD_SAMPLE = FLAG_NAN | FLAG_SATURATED | FLAG_TIME_BACK  # replaced by the last good sample
 
 WINDOW_S = 0.2  # tare and stillness are judged on windows of this length
+DIFF_INFO_RATIO = 25.0  # `fused` leaves out a differentiated candidate this much less sure
+LAG_SHARE = 0.6  # `fused` uses the fast candidate where the low-passed force is below this share
 RATE_WINDOW_S = 0.05  # slope of the fast force for the touch/hold/release phase
 
 
@@ -657,7 +659,14 @@ class ContactEstimator:
 
         cand_q = None
         if method == "fused":  # the fast wrench: noisier, but it does not lag
-            cand_q = self._tared_candidate(fast[:, idx], self._covs_det, age2)
+            lagging = ~cand_f.valid | (f_mag < LAG_SHARE * f_det_mag[idx])  # type: ignore[union-attr]
+            if self.trace:
+                cand_q = self._tared_candidate(fast[:, idx], self._covs_det, age2)
+            else:  # only where it can stand in: most samples need no fast candidate
+                cand_q = _embed(
+                    self._tared_candidate(fast[:, idx[lagging]], self._covs_det, age2[lagging]),
+                    lagging,
+                )
         if self.trace:
             assert cand_f is not None and cand_d is not None and cand_q is not None
             self.traces.append(
@@ -700,7 +709,13 @@ class ContactEstimator:
             # the fast and the low-passed candidates share their noise (one filtered from the
             # other's input), so they are not fused: the fast one stands in where the
             # low-passed force has not caught up yet, or has already let go
-            cand_q.valid &= ~cand_f.valid | (cand_q.sigma() < cand_f.sigma())
+            cand_q.valid &= lagging & (~cand_f.valid | (cand_q.sigma() < cand_f.sigma()))
+            # a differentiated candidate 5 times less sure than the force's adds under 4 %
+            # of the information: leave it out (and the combination to the few that matter)
+            var_f = cand_f.var_uu + cand_f.var_vv
+            cand_d.valid &= ~cand_f.valid | (
+                cand_d.var_uu + cand_d.var_vv <= DIFF_INFO_RATIO * var_f
+            )
             self._emit_fused(block, idx, [cand_f, cand_d, cand_q])
         return block
 
@@ -788,21 +803,26 @@ class ContactEstimator:
                 elif f_ok:
                     chosen, source = cf, SOURCE_FORCE
         else:
-            cq = intersect_one(
-                self._frames,
-                fast,
-                1.0,
-                self._covs_det,
-                s.min_normal_cos,
-                drift_covs=self._covs_drift,
-                drift_scale=zero_age_s**2,
-            )
+            if cf[0] < 0 or f_mag < LAG_SHARE * mag:
+                cq = intersect_one(
+                    self._frames,
+                    fast,
+                    1.0,
+                    self._covs_det,
+                    s.min_normal_cos,
+                    drift_covs=self._covs_drift,
+                    drift_scale=zero_age_s**2,
+                )
+            else:
+                cq = (-1, 0.0, 0.0, VAR_CAP, VAR_CAP, 0.0)
             if (
                 cf[0] >= 0
                 and cq[0] >= 0
                 and not (math.sqrt(cq[3] + cq[4]) < math.sqrt(cf[3] + cf[4]))
             ):
                 cq = (-1, 0.0, 0.0, VAR_CAP, VAR_CAP, 0.0)  # see the vectorised stage
+            if cf[0] >= 0 and cd[0] >= 0 and cd[3] + cd[4] > DIFF_INFO_RATIO * (cf[3] + cf[4]):
+                cd = (-1, 0.0, 0.0, VAR_CAP, VAR_CAP, 0.0)  # see the vectorised stage
             fused, members = _fuse_one([cf, cd, cq])
             if fused[0] >= 0 and math.sqrt(fused[3] + fused[4]) <= s.max_sigma_m:
                 chosen = fused
@@ -886,6 +906,26 @@ def _fuse_one(cands: list[Candidate]) -> tuple[Candidate, int]:
     return fused, members
 
 
+def _embed(part: Intersection, mask: np.ndarray) -> Intersection:
+    """A candidate computed for the samples in ``mask``, as one for all (invalid elsewhere)."""
+    n = len(mask)
+    full = Intersection(
+        np.zeros(n, bool),
+        np.full(n, -1, np.int16),
+        np.zeros((2, n)),
+        np.full(n, VAR_CAP),
+        np.full(n, VAR_CAP),
+        np.zeros(n),
+    )
+    full.valid[mask] = part.valid
+    full.surface[mask] = part.surface
+    full.uv[:, mask] = part.uv
+    full.var_uu[mask] = part.var_uu
+    full.var_vv[mask] = part.var_vv
+    full.cov_uv[mask] = part.cov_uv
+    return full
+
+
 def _information(
     var_u: np.ndarray, var_v: np.ndarray, cov: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -896,7 +936,10 @@ def _information(
 
 def _fuse(cands: list[Intersection]) -> tuple[Intersection, np.ndarray]:
     """p = (Σ Σ_i⁻¹)⁻¹ Σ Σ_i⁻¹ p_i over the valid candidates on the surface of the surest one,
-    per sample, 2×2 in closed form. Returns the fused candidate and how many were fused."""
+    per sample, 2×2 in closed form. Returns the fused candidate and how many were fused.
+
+    The first candidate is the usual one (the low-passed force): a sample where it alone is
+    valid is copied, and only samples with two or more candidates are combined."""
     valid = np.logical_or.reduce([c.valid for c in cands])
     if max(int(c.surface.max(initial=-1)) for c in cands) <= 0:
         surface = np.where(valid, 0, -1).astype(np.int16)  # one surface: nothing to choose
@@ -904,24 +947,45 @@ def _fuse(cands: list[Intersection]) -> tuple[Intersection, np.ndarray]:
         sigmas = np.stack([np.where(c.valid, c.sigma(), np.inf) for c in cands])
         best = np.argmin(sigmas, axis=0)
         surface = np.choose(best, [c.surface for c in cands]).astype(np.int16)
-    a = b = c_ = ru = rv = np.zeros(len(valid))
-    members = np.zeros(len(valid), int)
-    for cand in cands:
-        take = cand.valid & (cand.surface == surface)
-        ia, ib, ic = _information(cand.var_uu, cand.var_vv, cand.cov_uv)
-        ia, ib, ic = (np.where(take, x, 0.0) for x in (ia, ib, ic))
-        a, b, c_ = a + ia, b + ib, c_ + ic
-        ru = ru + ia * cand.uv[0] + ib * cand.uv[1]
-        rv = rv + ib * cand.uv[0] + ic * cand.uv[1]
-        members += take
-    det = np.maximum(a * c_ - b * b, 1e-30)
-    var_u = np.where(valid, c_ / det, VAR_CAP)
-    var_v = np.where(valid, a / det, VAR_CAP)
-    cov = np.where(valid, -b / det, 0.0)
-    uv = np.where(valid, np.stack([(c_ * ru - b * rv) / det, (a * rv - b * ru) / det]), 0.0)
+    takes = [c.valid & (c.surface == surface) for c in cands]
+    members = np.sum(takes, axis=0)
+    first = cands[0]
+    uv, var_u, var_v, cov = (
+        first.uv.copy(),
+        first.var_uu.copy(),
+        first.var_vv.copy(),
+        first.cov_uv.copy(),
+    )
+    for cand, take in zip(cands[1:], takes[1:], strict=True):  # another candidate alone
+        alone = take & (members == 1)
+        if alone.any():
+            uv[:, alone] = cand.uv[:, alone]
+            var_u[alone], var_v[alone], cov[alone] = (
+                cand.var_uu[alone],
+                cand.var_vv[alone],
+                cand.cov_uv[alone],
+            )
+    multi = np.flatnonzero(members >= 2)
+    if len(multi):
+        a = b = c_ = ru = rv = np.zeros(len(multi))
+        for cand, take in zip(cands, takes, strict=True):
+            t = take[multi]
+            ia, ib, ic = _information(cand.var_uu[multi], cand.var_vv[multi], cand.cov_uv[multi])
+            ia, ib, ic = (np.where(t, x, 0.0) for x in (ia, ib, ic))
+            cu, cv = cand.uv[0, multi], cand.uv[1, multi]
+            a, b, c_ = a + ia, b + ib, c_ + ic
+            ru = ru + ia * cu + ib * cv
+            rv = rv + ib * cu + ic * cv
+        det = np.maximum(a * c_ - b * b, 1e-30)
+        uv[0, multi] = (c_ * ru - b * rv) / det
+        uv[1, multi] = (a * rv - b * ru) / det
+        var_u[multi], var_v[multi], cov[multi] = c_ / det, a / det, -b / det
+    none = ~valid
+    uv[:, none] = 0.0
+    var_u[none], var_v[none], cov[none] = VAR_CAP, VAR_CAP, 0.0
     return Intersection(
         valid,
-        np.where(valid, surface, -1).astype(np.int16),
+        surface,
         uv,
         np.minimum(var_u, VAR_CAP),
         np.minimum(var_v, VAR_CAP),

@@ -644,18 +644,27 @@ class ContactEstimator:
         if method in ("force", "switched", "fused"):
             cand_f = self._tared_candidate(wrench, self._covs_lp, age2, f_mag)
         if method in ("diff", "switched", "fused"):
-            d_mag = np.sqrt(np.einsum("ik,ik->k", d_wrench[:3], d_wrench[:3]))
+            # `switched` looks at P_ed only at small forces (paper Fig. 3, steps 3–4)
+            want_d: np.ndarray | None = None
+            if self.method == "switched":
+                assert cand_f is not None
+                threshold = np.where(motion > 0, s.touch_threshold_n, s.release_threshold_n)
+                want_d = (f_mag >= s.contact_force_n) & ((f_mag <= threshold) | ~cand_f.valid)
+            some = want_d if want_d is not None and not self.trace else slice(None)
+            d_mag = np.sqrt(np.einsum("ik,ik->k", d_wrench[:3, some], d_wrench[:3, some]))
             # the term F_e × Ṗ_e dropped in eq. (11): a finger drifting at contact_speed_m_s
-            model = (f_mag * s.contact_speed_m_s / np.maximum(d_mag, 1e-9)) ** 2
+            model = (f_mag[some] * s.contact_speed_m_s / np.maximum(d_mag, 1e-9)) ** 2
             cand_d = intersect(
                 self._frames,
-                d_wrench,
-                motion,
+                d_wrench[:, some],
+                motion[some],
                 self._covs_diff,
                 s.min_normal_cos,
                 model,
                 force_norm=d_mag,
             )
+            if want_d is not None and not self.trace:
+                cand_d = _embed(cand_d, want_d)
 
         cand_q = None
         if method == "fused":  # the fast wrench: noisier, but it does not lag
@@ -699,9 +708,7 @@ class ContactEstimator:
         elif method == "switched":
             assert cand_f is not None and cand_d is not None
             gate = f_mag >= s.contact_force_n  # paper Fig. 3, step 4
-            threshold = np.where(motion > 0, s.touch_threshold_n, s.release_threshold_n)
-            want_diff = f_mag <= threshold  # paper Fig. 3, step 3
-            use_d = gate & cand_d.valid & (want_diff | ~cand_f.valid)
+            use_d = cand_d.valid & want_d  # step 3, see above
             self._emit(block, idx, gate & cand_f.valid & ~use_d, cand_f, SOURCE_FORCE)
             self._emit(block, idx, use_d, cand_d, SOURCE_DIFF)
         else:

@@ -49,7 +49,14 @@ from hapticdesk.contacts import (
     ContactBlock,
 )
 from hapticdesk.filters import DelayLine, SosFilter, butter_lowpass_sos, noise_gain
-from hapticdesk.geometry import VAR_CAP, Intersection, SurfaceFrame, intersect, intersect_one
+from hapticdesk.geometry import (
+    VAR_CAP,
+    Intersection,
+    SurfaceFrame,
+    intersect,
+    intersect_one,
+    pack_cov,
+)
 from hapticdesk.profile import METHODS, DeskProfile, EstimationSettings
 from hapticdesk.recording import Recording
 
@@ -194,6 +201,7 @@ class ContactEstimator:
         self._covs_diff: list[np.ndarray] | None = None
         self._covs_drift: list[np.ndarray] | None = None
         self._covs_det: list[np.ndarray] | None = None
+        self._packed: dict[str, list[tuple[float, float, float, float, float, float]]] = {}
         self._win_lp = np.zeros((3, self._window))  # the current, unfinished window
         self._win_raw = np.zeros((6, self._window))
         self._win_bad = np.zeros(self._window, bool)
@@ -537,6 +545,16 @@ class ContactEstimator:
         self._covs_drift = [f.project_cov(drift_cov) for f in self._frames]
         self._covs_diff = [f.project_cov(cov * self._gain_diff) for f in self._frames]
         self._covs_det = [f.project_cov(cov * self._gain_det) for f in self._frames]
+        # the same, packed as plain floats for the single-sample path
+        self._packed = {
+            name: [pack_cov(c) for c in covs]
+            for name, covs in (
+                ("lp", self._covs_lp),
+                ("diff", self._covs_diff),
+                ("det", self._covs_det),
+                ("drift", self._covs_drift),
+            )
+        }
 
     def _notice(self, t: float, kind: str, message: str, level: int = logging.INFO) -> None:
         self.notices.append(Notice(t, kind, message))
@@ -613,13 +631,15 @@ class ContactEstimator:
         self._in_contact = bool(block.in_contact[-1])
         # candidates only for good samples in contact (a bad one keeps the contact state
         # but has no position of its own); they are the costly part
-        idx = np.flatnonzero(block.in_contact & ((flags & BAD_SAMPLE) == 0))
-        if len(idx) == 0:
-            return block
         if k == 1 and not self.trace:  # one sample: plain floats beat numpy's per-call cost
+            if not block.in_contact[0] or flags[0] & BAD_SAMPLE:
+                return block
             self._locate_one(
                 block, wrench_all[:, 0], diff[:, 0], fast[:, 0], det_slope[:, 0], float(age[0])
             )
+            return block
+        idx = np.flatnonzero(block.in_contact & ((flags & BAD_SAMPLE) == 0))
+        if len(idx) == 0:
             return block
         wrench = wrench_all[:, idx]
         age2 = age[idx] ** 2
@@ -782,16 +802,16 @@ class ContactEstimator:
                 self._frames,
                 wrench,
                 1.0,
-                self._covs_lp,
+                self._packed["lp"],
                 s.min_normal_cos,
-                drift_covs=self._covs_drift,
+                drift_covs=self._packed["drift"],
                 drift_scale=zero_age_s**2,
             )
         if method != "force":
             d_mag = math.sqrt(d_wrench[0] ** 2 + d_wrench[1] ** 2 + d_wrench[2] ** 2)
             model = (f_mag * s.contact_speed_m_s / max(d_mag, 1e-9)) ** 2
             cd = intersect_one(
-                self._frames, d_wrench, motion, self._covs_diff, s.min_normal_cos, model
+                self._frames, d_wrench, motion, self._packed["diff"], s.min_normal_cos, model
             )
         sig_d = math.sqrt(cd[3] + cd[4])
         f_ok, d_ok = cf[0] >= 0, cd[0] >= 0
@@ -815,9 +835,9 @@ class ContactEstimator:
                     self._frames,
                     fast,
                     1.0,
-                    self._covs_det,
+                    self._packed["det"],
                     s.min_normal_cos,
-                    drift_covs=self._covs_drift,
+                    drift_covs=self._packed["drift"],
                     drift_scale=zero_age_s**2,
                 )
             else:
@@ -845,7 +865,10 @@ class ContactEstimator:
             return
         index, u, v, var_u, var_v = chosen[:5]
         surface = self._frames[index].surface
-        px, py, pz = (surface.origin + u * surface.u_axis + v * surface.v_axis).tolist()
+        o, ua, va = surface.origin, surface.u_axis, surface.v_axis
+        px = float(o[0] + u * ua[0] + v * va[0])
+        py = float(o[1] + u * ua[1] + v * va[1])
+        pz = float(o[2] + u * ua[2] + v * va[2])
         block.located[0] = True
         block.surface[0] = index
         block.x[0], block.y[0], block.z[0] = px, py, pz

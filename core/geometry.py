@@ -248,15 +248,16 @@ def intersect_one(
     frames: list[SurfaceFrame],
     wrench: list[float],
     direction_sign: float,
-    covs: list[np.ndarray] | None,
+    covs: list[tuple[float, float, float, float, float, float]] | None,
     min_normal_cos: float,
     extra_var: float = 0.0,
-    drift_covs: list[np.ndarray] | None = None,
+    drift_covs: list[tuple[float, float, float, float, float, float]] | None = None,
     drift_scale: float = 0.0,
 ) -> tuple[int, float, float, float, float, float]:
     """:func:`intersect` for one sample on plain floats, where numpy's per-call cost would
-    dominate (a single-sample push). Returns (surface or −1, u, v, var_u, var_v, cov_uv).
-    Kept equal to :func:`intersect` by the estimator's single-sample test."""
+    dominate (a single-sample push); covariances come packed (:func:`pack_cov`). Returns
+    (surface or −1, u, v, var_u, var_v, cov_uv). Kept equal to :func:`intersect` by the
+    estimator's single-sample test."""
     fx, fy, fz_, mx, my, mz = wrench
     norm = math.sqrt(fx * fx + fy * fy + fz_ * fz_)
     best = (-1, 0.0, 0.0, VAR_CAP, VAR_CAP, 0.0)
@@ -288,13 +289,19 @@ def intersect_one(
                 continue
             best_key = key
         if covs is not None:
-            c = covs[index]
+            cz, czx, czy, cx, cxy, cy = covs[index]
             if drift_covs is not None:
-                c = c + drift_covs[index] * drift_scale
+                dz, dzx, dzy, dx, dxy, dy = drift_covs[index]
+                cz, czx, czy = (
+                    cz + dz * drift_scale,
+                    czx + dzx * drift_scale,
+                    czy + dzy * drift_scale,
+                )
+                cx, cxy, cy = cx + dx * drift_scale, cxy + dxy * drift_scale, cy + dy * drift_scale
             inv2 = 1.0 / (fz * fz)
-            var_u = (u * u * c[0, 0] + 2 * u * c[0, 2] + c[2, 2]) * inv2 + extra_var
-            var_v = (v * v * c[0, 0] - 2 * v * c[0, 1] + c[1, 1]) * inv2 + extra_var
-            cov = (u * v * c[0, 0] - u * c[0, 1] + v * c[0, 2] - c[1, 2]) * inv2
+            var_u = (u * u * cz + 2 * u * czy + cy) * inv2 + extra_var
+            var_v = (v * v * cz - 2 * v * czx + cx) * inv2 + extra_var
+            cov = (u * v * cz - u * czx + v * czy - cxy) * inv2
             var_u = min(var_u, VAR_CAP)
             var_v = min(var_v, VAR_CAP)
             cov = min(max(cov, -VAR_CAP), VAR_CAP)
@@ -304,3 +311,16 @@ def intersect_one(
         if len(frames) == 1:
             break
     return best
+
+
+def pack_cov(c: np.ndarray) -> tuple[float, float, float, float, float, float]:
+    """The six entries of a (3, 3) covariance of (F'z, M'x, M'y) as plain floats, for
+    :func:`intersect_one`: (zz, zx, zy, xx, xy, yy)."""
+    return (
+        float(c[0, 0]),
+        float(c[0, 1]),
+        float(c[0, 2]),
+        float(c[1, 1]),
+        float(c[1, 2]),
+        float(c[2, 2]),
+    )

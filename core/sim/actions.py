@@ -144,8 +144,8 @@ class Swipe(TouchAction):
 
 
 @dataclass(frozen=True)
-class Drag(TouchAction):
-    """Touch, slide along ``path`` with a firm force against friction, stop, release."""
+class PathTouch(TouchAction):
+    """A finger that moves along ``path`` while it touches (the base of Drag and Stroke)."""
 
     path: tuple[Point, ...]
     force_n: float | None = None
@@ -158,17 +158,13 @@ class Drag(TouchAction):
 
 
 @dataclass(frozen=True)
-class Stroke(TouchAction):
+class Drag(PathTouch):
+    """Touch, slide along ``path`` with a firm force against friction, stop, release."""
+
+
+@dataclass(frozen=True)
+class Stroke(PathTouch):
     """Trace ``path`` like a pen stroke, at ≈3.4 cm/s (the paper's 3.37 ± 0.64 cm/s)."""
-
-    path: tuple[Point, ...]
-    force_n: float | None = None
-    speed: float | None = None  # m/s
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        _check(self, positive=("force_n", "speed"))
-        object.__setattr__(self, "path", _path(self.path))
 
 
 @dataclass(frozen=True)

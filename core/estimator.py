@@ -48,7 +48,7 @@ from hapticdesk.contacts import (
     UNCERTAINTY_CAP_M,
     ContactBlock,
 )
-from hapticdesk.filters import DelayLine, SosFilter, butter_lowpass_sos, noise_gain
+from hapticdesk.filters import DelayLine, SosFilter, butter_lowpass_sos, noise_gain, pack_pairs
 from hapticdesk.geometry import (
     VAR_CAP,
     Intersection,
@@ -186,12 +186,15 @@ class ContactEstimator:
 
     def reset(self) -> None:
         """Forget everything: filters, zero and contact state (a new run)."""
-        self._lp = SosFilter(self._lp_sos, 6)
-        self._diff_lp = None if self._shared_lp else SosFilter(self._diff_sos, 6)
-        self._delay = DelayLine(self._n_diff, 6)
-        # the fast wrench: the force for detection; all six for `fused`'s third candidate
-        self._det_lanes = 6 if (self.method == "fused" or self.trace) else 3
-        self._det = SosFilter(self._det_sos, self._det_lanes)
+        # Wrenches are filtered packed, force + 1j·moment (filters.pack_pairs): three
+        # complex lanes cost about what three real ones do.
+        self._lp = SosFilter(self._lp_sos, 3)
+        self._diff_lp = None if self._shared_lp else SosFilter(self._diff_sos, 3)
+        self._delay = DelayLine(self._n_diff, 3)
+        # the fast wrench: the force for detection (real); the whole wrench (packed) for
+        # `fused`'s third candidate
+        self._det_full = self.method == "fused" or self.trace
+        self._det = SosFilter(self._det_sos, 3)
         self._det_delay = DelayLine(self._n_rate, 3)
         self._last_good: np.ndarray | None = None  # raw wrench (6,)
         self._last_t = -math.inf
@@ -257,7 +260,7 @@ class ContactEstimator:
     def _push(self, t: np.ndarray, wrench: np.ndarray) -> ContactBlock:
         flags, raw = self._clean(t, wrench)
         lp, det, diff, det_slope = self._filter(t, raw, flags)
-        zero_starts, zeros = self._update_zero(t, lp[:3], raw, flags)
+        zero_starts, zeros = self._update_zero(t, lp.real, raw, flags)
         return self._contacts(t, flags, lp, det, diff, det_slope, zero_starts, zeros)
 
     def _clean(self, t: np.ndarray, wrench: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -323,11 +326,12 @@ class ContactEstimator:
     def _filter(
         self, t: np.ndarray, raw: np.ndarray, flags: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Low-passed wrench, fast force, differentiated wrench, fast force slope; the filters
-        restart after a gap."""
+        """Low-passed wrench, fast force (or wrench), differentiated wrench, fast force slope;
+        wrenches packed (3, k) complex, force + 1j·moment. The filters restart after a gap."""
         if self._last_good is None:  # nothing good seen yet: nothing to filter
-            z = np.zeros_like(raw)
-            return z, z.copy(), z.copy(), z[:3].copy()
+            z = np.zeros((3, raw.shape[1]), complex)
+            det = z.copy() if self._det_full else np.zeros((3, raw.shape[1]))
+            return z, det, z.copy(), np.zeros((3, raw.shape[1]))
         gaps = flags & FLAG_GAP
         if not gaps.any():
             return self._filter_segment(raw)
@@ -348,25 +352,32 @@ class ContactEstimator:
 
     def _restart_filters(self, x0: np.ndarray) -> None:
         """Every filter as if ``x0`` had been the input forever (after a gap)."""
-        self._lp.restart(x0)
-        self._det.restart(x0[: self._det_lanes])
+        packed = x0[:3] + 1j * x0[3:]
+        self._lp.restart(packed)
+        self._det.restart(packed if self._det_full else x0[:3])
         self._det_delay.restart(x0[:3])
-        self._delay.restart(x0)
+        self._delay.restart(packed)
         if self._diff_lp is not None:
-            self._diff_lp.restart(np.zeros(6))
+            self._diff_lp.restart(np.zeros(3, complex))
 
     def _filter_segment(
         self, raw: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        lp = self._lp.process(raw)
-        det = self._det.process(raw[: self._det_lanes])
-        det_slope = self._det_delay.difference(det[:3]) * self._rate_scale
+        packed = pack_pairs(raw)  # force + 1j·moment
+        det = self._det.process(packed if self._det_full else raw[:3])
+        det_slope = self._det_delay.difference(det.real if self._det_full else det)
+        det_slope *= self._rate_scale
         if self._diff_lp is None:
-            diff = self._delay.difference(lp) * self._diff_scale  # paper eq. (8)
+            lp = self._lp.process(packed, in_place=True)
+            diff = self._delay.difference(lp)  # paper eq. (8)
+            diff *= self._diff_scale
         else:
             if self._diff_lp.zi is None:
-                self._diff_lp.restart(np.zeros(6))
-            diff = self._diff_lp.process(self._delay.difference(raw) * self._diff_scale)
+                self._diff_lp.restart(np.zeros(3, complex))
+            raw_diff = self._delay.difference(packed)
+            raw_diff *= self._diff_scale
+            diff = self._diff_lp.process(raw_diff, in_place=True)
+            lp = self._lp.process(packed, in_place=True)
         return lp, det, diff, det_slope
 
     # --- zero: tare, drift and objects ----------------------------------------------------------
@@ -608,20 +619,22 @@ class ContactEstimator:
             return block
         # the zero is piecewise constant: subtract it segment by segment, in place
         ends = [*zero_starts[1:].tolist(), k]
+        # (wrenches packed: force + 1j·moment, see _filter)
         fast = det.copy()  # the fast wrench (or force), tared
-        n_fast = fast.shape[0]
+        packed_zeros = zeros[:3] + 1j * zeros[3:6]
+        fast_zeros = packed_zeros if self._det_full else zeros[:3]
         tared = np.ones(k, bool)
         wrench_all = lp  # tared in place below: the low-passed wrench is not needed untared
         age = np.empty(k)  # time since the zero in force was set
         for a, b, j in zip(zero_starts.tolist(), ends, range(len(ends)), strict=True):
             if tared_zero[j]:
-                fast[:, a:b] -= zeros[:n_fast, j : j + 1]
-                wrench_all[:, a:b] -= zeros[:6, j : j + 1]
+                fast[:, a:b] -= fast_zeros[:, j : j + 1]
+                wrench_all[:, a:b] -= packed_zeros[:, j : j + 1]
                 age[a:b] = t[a:b] - zeros[6, j]
             else:
                 tared[a:b] = False
                 age[a:b] = 0.0
-        f_det = fast[:3]
+        f_det = fast.real if self._det_full else fast
         block.flags[~tared] |= FLAG_NOT_TARED
         f_det_mag = np.sqrt(np.einsum("ik,ik->k", f_det, f_det))
         all_tared = bool(tared.all())
@@ -648,21 +661,28 @@ class ContactEstimator:
             if not block.in_contact[0] or flags[0] & BAD_SAMPLE:
                 return block
             self._locate_one(
-                block, wrench_all[:, 0], diff[:, 0], fast[:, 0], det_slope[:, 0], float(age[0])
+                block,
+                _unpacked_at(wrench_all, 0),
+                _unpacked_at(diff, 0),
+                _unpacked_at(fast, 0) if self._det_full else fast[:, 0],
+                det_slope[:, 0],
+                float(age[0]),
             )
             return block
         idx = np.flatnonzero(block.in_contact & ((flags & BAD_SAMPLE) == 0))
         if len(idx) == 0:
             return block
-        wrench = wrench_all[:, idx]
+        wrench = _unpacked_at(wrench_all, idx)
         age2 = age[idx] ** 2
-        d_wrench = diff[:, idx]
+        d_wrench = _unpacked_at(diff, idx)
 
         # motion: the sign of the differentiated force magnitude (paper Fig. 3, step 2),
         # and the phase from the fast path's slope, which does not wait for the 166 ms window
-        inv_mag = 1.0 / np.where(f_det_mag > 0, f_det_mag, 1.0)
-        rate = (np.einsum("ik,ik->k", f_det, diff[:3]) * inv_mag)[idx]
-        slope = (np.einsum("ik,ik->k", f_det, det_slope) * inv_mag)[idx]
+        f_det_at = np.take(f_det, idx, axis=1)
+        f_det_mag_at = f_det_mag[idx]
+        inv_mag = 1.0 / np.where(f_det_mag_at > 0, f_det_mag_at, 1.0)
+        rate = np.einsum("ik,ik->k", f_det_at, d_wrench[:3]) * inv_mag
+        slope = np.einsum("ik,ik->k", f_det_at, np.take(det_slope, idx, axis=1)) * inv_mag
         motion = np.where(rate >= 0, 1.0, -1.0)
         phase = np.full(len(idx), PHASE_HOLD, np.int8)
         phase[slope > s.phase_rate_n_s] = PHASE_TOUCH
@@ -715,12 +735,14 @@ class ContactEstimator:
 
         cand_q = None
         if method == "fused":  # the fast wrench: noisier, but it does not lag
-            lagging = ~cand_f.valid | (f_mag < LAG_SHARE * f_det_mag[idx])  # type: ignore[union-attr]
+            lagging = ~cand_f.valid | (f_mag < LAG_SHARE * f_det_mag_at)  # type: ignore[union-attr]
             if self.trace:
-                cand_q = self._tared_candidate(fast[:, idx], self._covs_det, age2)
+                cand_q = self._tared_candidate(_unpacked_at(fast, idx), self._covs_det, age2)
             else:  # only where it can stand in: most samples need no fast candidate
                 cand_q = _embed(
-                    self._tared_candidate(fast[:, idx[lagging]], self._covs_det, age2[lagging]),
+                    self._tared_candidate(
+                        _unpacked_at(fast, idx[lagging]), self._covs_det, age2[lagging]
+                    ),
                     lagging,
                 )
         if self.trace:
@@ -961,6 +983,20 @@ def _fuse_one(cands: list[Candidate]) -> tuple[Candidate, int]:
         -b / det,
     )
     return fused, members
+
+
+def _unpacked_at(packed: np.ndarray, at: np.ndarray | int) -> np.ndarray:
+    """The wrench [F; M] (6, n) at the samples ``at`` of a packed one (3, k), F + 1j·M;
+    (6,) for one sample."""
+    if isinstance(at, int):
+        return np.concatenate([packed[:, at].real, packed[:, at].imag])
+    # np.take, not packed[:, at]: numpy's fancy indexing of a 2-D array is several times
+    # slower than a take along one axis
+    taken = np.take(packed, at, axis=1)
+    out = np.empty((6, len(at)))
+    out[:3] = taken.real
+    out[3:] = taken.imag
+    return out
 
 
 def _embed(part: Intersection, mask: np.ndarray) -> Intersection:

@@ -47,33 +47,59 @@ class SosFilter:
 
     def __init__(self, sos: np.ndarray, channels: int) -> None:
         self.sos = np.ascontiguousarray(sos, dtype=float)
+        # for lanes packed in pairs as complex numbers (see :func:`pack_pairs`)
+        self._sos_complex = self.sos.astype(complex)
         self.channels = channels
         self._zi_unit = signal.sosfilt_zi(self.sos)  # (n_sections, 2) for a unit step
         self.zi: np.ndarray | None = None  # (C, n_sections, 2)
 
     def restart(self, x0: np.ndarray) -> None:
         """Set the state as if ``x0`` (C,) had been the input forever."""
-        self.zi = np.ascontiguousarray(np.asarray(x0, dtype=float)[:, None, None] * self._zi_unit)
+        x0 = np.asarray(x0)
+        x0 = x0.astype(complex if np.iscomplexobj(x0) else float, copy=False)
+        self.zi = np.ascontiguousarray(x0[:, None, None] * self._zi_unit)
 
     def shift(self, delta: np.ndarray) -> None:
         """Move the state as if ``delta`` had been subtracted from all past input."""
         if self.zi is not None:
-            self.zi -= np.asarray(delta, dtype=float)[:, None, None] * self._zi_unit
+            self.zi -= np.asarray(delta)[:, None, None] * self._zi_unit
 
-    def process(self, x: np.ndarray) -> np.ndarray:
-        """Filter ``x`` (C, k); returns a new (C, k) array."""
-        y = np.array(x, dtype=float, order="C", copy=True)
+    def process(self, x: np.ndarray, in_place: bool = False) -> np.ndarray:
+        """Filter ``x`` (C, k), real or complex (lanes packed in pairs: one recursion filters
+        two lanes, as the real and imaginary part); returns a new (C, k) array, or ``x``
+        itself filtered when ``in_place`` (it must then be C-contiguous)."""
+        dtype = complex if np.iscomplexobj(x) else float
+        y = x if in_place else np.array(x, dtype=dtype, order="C", copy=True)
         if y.shape[1] == 0:
             return y
         if self.zi is None:
             self.restart(y[:, 0])
         assert self.zi is not None
         if _sosfilt_inplace is not None:
-            _sosfilt_inplace(self.sos, y, self.zi)  # filters y and updates zi in place
+            # filters y and updates zi in place; a real coefficient times a complex sample
+            # gives exactly the real lane's products, so packing changes no bit
+            _sosfilt_inplace(self._sos_complex if dtype is complex else self.sos, y, self.zi)
             return y
         out, zf = signal.sosfilt(self.sos, y, axis=1, zi=np.moveaxis(self.zi, 0, 1))
         self.zi = np.ascontiguousarray(np.moveaxis(zf, 1, 0))
-        return np.ascontiguousarray(out)
+        y[...] = out
+        return y
+
+
+def pack_pairs(x: np.ndarray) -> np.ndarray:
+    """(2C, k) real lanes as (C, k) complex ones: lane i + 1j·lane C+i. A recursive filter is
+    latency-bound per lane, so filtering a complex lane costs little more than a real one:
+    force and moment of a wrench go through together."""
+    c = x.shape[0] // 2
+    out = np.empty((c, x.shape[1]), complex)
+    out.real = x[:c]
+    out.imag = x[c:]
+    return out
+
+
+def unpack_pairs(z: np.ndarray) -> np.ndarray:
+    """The inverse of :func:`pack_pairs`: (C, k) complex as (2C, k) real."""
+    return np.concatenate([z.real, z.imag])
 
 
 class DelayLine:
@@ -93,7 +119,9 @@ class DelayLine:
 
     def restart(self, x0: np.ndarray) -> None:
         """Fill the history with ``x0`` so the first differences are zero."""
-        self.ring = np.repeat(np.asarray(x0, dtype=float)[:, None], self.n, axis=1)
+        x0 = np.asarray(x0)
+        x0 = x0.astype(complex if np.iscomplexobj(x0) else float, copy=False)
+        self.ring = np.repeat(x0[:, None], self.n, axis=1)
         self.pos = 0
 
     def difference(self, x: np.ndarray) -> np.ndarray:

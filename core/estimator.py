@@ -149,6 +149,7 @@ class ContactEstimator:
             limits = np.full((len(profile.sensors), 6), np.inf)
         self._range_flat = limits.reshape(-1)  # (6S,)
         self._inv_range2 = 1.0 / self._range_flat**2  # 0 for unrated channels
+        self._squares = np.empty((4096, len(self._range_flat)))  # see _in_range
         self._frames = [SurfaceFrame.of(surf) for surf in profile.surfaces]
         self._normals = (
             np.array([surf.normal for surf in profile.surfaces])
@@ -211,7 +212,10 @@ class ContactEstimator:
         self._win_bad = np.zeros(self._window, bool)
         self._win_fill = 0
         self._zero_t = 0.0  # when the zero was last set, for the drift since then
-        self._zero_segment = (np.zeros(1, int), np.full((7, 1), np.nan))
+        self._zero_segment: tuple[np.ndarray, np.ndarray] = (
+            np.zeros(1, int),
+            np.full((7, 1), np.nan),
+        )
         self._last_window_t = float("nan")
         self._zero_list: list[float] = []
         self._tare_raw: list[np.ndarray] = []
@@ -268,9 +272,7 @@ class ContactEstimator:
         k = len(t)
         flags = np.zeros(k, np.uint8)
         flat = wrench.reshape(k, -1)
-        # Σ (channel / rating)² < 1 proves no channel is saturated and all are finite; only
-        # blocks where it fails are checked channel by channel (a fast first pass).
-        clean = bool(np.einsum("ij,ij,j->i", flat, flat, self._inv_range2).max() < 1.0)
+        clean = self._in_range(flat)
         previous = self._last_t if self._last_t > -math.inf else t[0] - 1.0 / self.sample_rate_hz
         steps = np.empty(k)  # time steps; NaN where a time is NaN
         steps[0] = t[0] - previous
@@ -285,6 +287,20 @@ class ContactEstimator:
             self._last_good = raw[:, -1].copy()
             return flags, raw
         return self._clean_slowly(t, flat, flags)
+
+    def _in_range(self, flat: np.ndarray) -> bool:
+        """Σ (channel / rating)² < 1 for every sample: proves no channel is saturated and all
+        are finite. A fast first pass: only blocks where it fails are checked channel by
+        channel. In pieces small enough that the squares stay in the CPU cache."""
+        squares = self._squares
+        for a in range(0, len(flat), len(squares)):
+            piece = flat[a : a + len(squares)]
+            sq = squares[: len(piece)]
+            with np.errstate(over="ignore"):  # an overflow is saturation too
+                np.square(piece, out=sq)
+            if not (sq @ self._inv_range2).max() < 1.0:
+                return False
+        return True
 
     def _clean_slowly(
         self, t: np.ndarray, flat: np.ndarray, flags: np.ndarray
@@ -449,13 +465,13 @@ class ContactEstimator:
             self._win_bad[:rest] = all_bad[cut:]
             self._win_fill = rest
         self._last_window_t = float(t[-1])
-        return np.array(starts), np.stack(zeros, axis=1)
+        return np.array(starts), np.array(zeros).T
 
-    def _zero_or_nan(self) -> np.ndarray:
+    def _zero_or_nan(self) -> list[float]:
         """The zero (6,) and the time it was set, as one column; NaN before the tare."""
         if self._zero is None:
-            return np.full(7, np.nan)
-        return np.append(self._zero, self._zero_t)
+            return [math.nan] * 7
+        return [*self._zero_list, self._zero_t]
 
     def _window_done(
         self, spread: float, bad: bool, mean: list[float], raw: np.ndarray, t_end: float
@@ -488,13 +504,14 @@ class ContactEstimator:
             # drifting zero never builds up between touches)
             if self._still_run >= self._n_drift:
                 recent = self._still_means[-self._n_drift :]
-                self._set_zero(np.mean(np.array(recent), axis=0), t_end)
+                columns = zip(*recent, strict=True)
+                self._set_zero([math.fsum(c) / len(recent) for c in columns], t_end)
                 self._still_run = 0
                 log.debug("t=%.3f s: zero drift of %.3f N followed", t_end, load)
             return
         if self._still_run % self._n_settle:
             return
-        self._set_zero(np.array(mean), t_end)
+        self._set_zero(mean, t_end)
         self._still_run = 0
         if load >= s.contact_force_n:
             up = self._up()
@@ -541,11 +558,11 @@ class ContactEstimator:
     def _up(self) -> np.ndarray:
         return self._normals[0] if len(self._normals) else np.array([0.0, 0.0, 1.0])
 
-    def _set_zero(self, zero: np.ndarray, t: float) -> None:
-        self._zero = np.array(zero, dtype=float)
+    def _set_zero(self, zero: np.ndarray | list[float], t: float) -> None:
+        self._zero_list = [float(z) for z in zero]
+        self._zero = np.array(self._zero_list)
         self._zero_t = t
-        self._zero_list = self._zero.tolist()
-        self._zero_segment = (np.zeros(1, int), self._zero_or_nan()[:, None])
+        self._zero_segment = (np.zeros(1, int), np.array(self._zero_or_nan())[:, None])
 
     def _set_noise(self, measured: np.ndarray) -> None:
         s = self.settings
@@ -935,12 +952,16 @@ class ContactEstimator:
         """Write the candidate's samples ``use`` (over ``idx``) into the block."""
         if not use.any():
             return
-        at = idx[use]
+        pick = np.flatnonzero(use)
+        at = idx[pick]
         block.located[at] = True
-        block.surface[at] = cand.surface[use]
-        block.x[at], block.y[at], block.z[at] = cand.points(self._frames, use)
-        block.sigma_m[at] = np.sqrt(cand.var_uu[use] + cand.var_vv[use])
-        block.source[at] = source if np.isscalar(source) else source[use]  # type: ignore[index]
+        block.surface[at] = cand.surface[pick]
+        x, y, z = cand.points(self._frames, use)
+        block.x[at] = x
+        block.y[at] = y
+        block.z[at] = z
+        block.sigma_m[at] = np.sqrt(cand.var_uu[pick] + cand.var_vv[pick])
+        block.source[at] = source if np.isscalar(source) else source[pick]  # type: ignore[index]
 
     def _emit_fused(self, block: ContactBlock, idx: np.ndarray, cands: list[Intersection]) -> None:
         """Inverse-covariance combination of the candidates that lie on the surface of the
@@ -1010,12 +1031,14 @@ def _embed(part: Intersection, mask: np.ndarray) -> Intersection:
         np.full(n, VAR_CAP),
         np.zeros(n),
     )
-    full.valid[mask] = part.valid
-    full.surface[mask] = part.surface
-    full.uv[:, mask] = part.uv
-    full.var_uu[mask] = part.var_uu
-    full.var_vv[mask] = part.var_vv
-    full.cov_uv[mask] = part.cov_uv
+    at = np.flatnonzero(mask)
+    full.valid[at] = part.valid
+    full.surface[at] = part.surface
+    full.uv[0, at] = part.uv[0]  # row by row: 2-D fancy assignment is several times slower
+    full.uv[1, at] = part.uv[1]
+    full.var_uu[at] = part.var_uu
+    full.var_vv[at] = part.var_vv
+    full.cov_uv[at] = part.cov_uv
     return full
 
 
@@ -1031,8 +1054,35 @@ def _fuse(cands: list[Intersection]) -> tuple[Intersection, np.ndarray]:
     """p = (Σ Σ_i⁻¹)⁻¹ Σ Σ_i⁻¹ p_i over the valid candidates on the surface of the surest one,
     per sample, 2×2 in closed form. Returns the fused candidate and how many were fused.
 
-    The first candidate is the usual one (the low-passed force): a sample where it alone is
-    valid is copied, and only samples with two or more candidates are combined."""
+    The first candidate is the usual one (the low-passed force): where no other is valid
+    (most samples of a held press) it is the result as it is; only the other samples go
+    through :func:`_fuse_dense`."""
+    first = cands[0]
+    fused = Intersection(
+        first.valid.copy(),
+        first.surface.copy(),
+        first.uv.copy(),
+        first.var_uu.copy(),
+        first.var_vv.copy(),
+        first.cov_uv.copy(),
+    )
+    members = first.valid.astype(np.int64)
+    at = np.flatnonzero(np.logical_or.reduce([c.valid for c in cands[1:]]))
+    if len(at):
+        part, part_members = _fuse_dense([c.take(at) for c in cands])
+        fused.valid[at] = part.valid
+        fused.surface[at] = part.surface
+        fused.uv[0, at] = part.uv[0]
+        fused.uv[1, at] = part.uv[1]
+        fused.var_uu[at] = part.var_uu
+        fused.var_vv[at] = part.var_vv
+        fused.cov_uv[at] = part.cov_uv
+        members[at] = part_members
+    return fused, members
+
+
+def _fuse_dense(cands: list[Intersection]) -> tuple[Intersection, np.ndarray]:
+    """:func:`_fuse` for samples where any candidate may be valid."""
     valid = np.logical_or.reduce([c.valid for c in cands])
     if max(int(c.surface.max(initial=-1)) for c in cands) <= 0:
         surface = np.where(valid, 0, -1).astype(np.int16)  # one surface: nothing to choose
@@ -1091,11 +1141,18 @@ def _hysteresis(on: np.ndarray, off: np.ndarray, state: bool) -> np.ndarray:
     k = len(on)
     if k == 1:
         return np.array([bool(on[0]) or (state and not off[0])])
-    decided = on | off
-    index = np.where(decided, np.arange(k), -1)
-    np.maximum.accumulate(index, out=index)
-    out = np.where(index >= 0, on[np.maximum(index, 0)], state)
-    return out.astype(bool)
+    decided = np.flatnonzero(on | off)
+    if len(decided) == 0:
+        return np.full(k, state)
+    value = on[decided]  # what each decided sample sets
+    before = np.empty(len(value), bool)
+    before[0] = state
+    before[1:] = value[:-1]
+    flips = np.flatnonzero(value != before)  # the decided samples that change the state
+    # runs of a constant state between the flips, written out with one np.repeat
+    bounds = np.concatenate(([0], decided[flips], [k]))
+    values = np.concatenate(([state], value[flips]))
+    return np.repeat(values, np.diff(bounds))
 
 
 def estimate(profile: DeskProfile, recording: Recording, method: str | None = None) -> ContactBlock:

@@ -131,7 +131,8 @@ class Intersection:
         """Desk-frame points (3, n), or (3, count) for the samples in ``mask``; 0 where not
         valid."""
         surface = self.surface if mask is None else self.surface[mask]
-        uv = self.uv if mask is None else self.uv[:, mask]
+        # np.compress, not uv[:, mask]: 2-D boolean indexing is several times slower
+        uv = self.uv if mask is None else np.compress(mask, self.uv, axis=1)
         out = np.zeros((3, len(surface)))
         for index, frame in enumerate(frames):
             if len(frames) == 1:
@@ -143,6 +144,17 @@ class Intersection:
             if on.any():
                 out[:, on] = frame.to_desk(uv[0, on], uv[1, on])
         return out
+
+    def take(self, index: np.ndarray) -> Intersection:
+        """The samples at ``index`` (an integer array) as a candidate of their own."""
+        return Intersection(
+            self.valid[index],
+            self.surface[index],
+            np.take(self.uv, index, axis=1),
+            self.var_uu[index],
+            self.var_vv[index],
+            self.cov_uv[index],
+        )
 
 
 VAR_CAP = 1e2  # m², stands for "unknown" so the arrays stay finite
@@ -181,11 +193,15 @@ def intersect(
         fz = local[0]
         ok = fz * direction_sign > min_normal_cos * norm  # pressing into this surface
         safe_fz = np.where(ok, fz, 1.0)
-        u = -local[2] / safe_fz  # paper eq. (5) in the surface's frame
-        v = local[1] / safe_fz
-        u[~ok] = 0.0
-        v[~ok] = 0.0
+        uv = np.empty((2, n))
+        u, v = uv
+        np.divide(local[2], safe_fz, out=u)  # paper eq. (5) in the surface's frame
+        np.negative(u, out=u)
+        np.divide(local[1], safe_fz, out=v)
         ok &= frame.contains(u, v)
+        not_ok = ~ok
+        u[not_ok] = 0.0  # (not needed, but no stray numbers where there is no point)
+        v[not_ok] = 0.0
         if covs is not None:
             c = covs[index]  # of F'z, M'x, M'y; with the zero's drift, each entry is (n,)
             cz, czx, czy, cx, cxy, cy = (c[0, 0], c[0, 1], c[0, 2], c[1, 1], c[1, 2], c[2, 2])
@@ -213,9 +229,7 @@ def intersect(
             var_u = np.where(ok, 0.0, VAR_CAP)
             var_v = var_u.copy()
             cov = np.zeros(n)
-        here = Intersection(
-            ok, np.where(ok, index, -1).astype(np.int16), np.stack([u, v]), var_u, var_v, cov
-        )
+        here = Intersection(ok, np.where(ok, index, -1).astype(np.int16), uv, var_u, var_v, cov)
         if len(frames) == 1:
             return here
         point = frame.to_desk(u, v)

@@ -156,6 +156,7 @@ class ContactEstimator:
             if profile.surfaces
             else np.zeros((0, 3))
         )
+        self._normals_list: list[list[float]] = self._normals.tolist()
 
         # filters (settings) — state is created from the first sample
         self._lp_sos = butter_lowpass_sos(s.force_lowpass_hz, fs)
@@ -259,7 +260,79 @@ class ContactEstimator:
                     for a in range(0, k, BATCH_CHUNK)
                 ]
             )
+        if k == 1:
+            block = self._push_one(float(t[0]), wrench)
+            if block is not None:
+                return block
         return self._push(t, wrench)
+
+    def _push_one(self, t: float, wrench: np.ndarray) -> ContactBlock | None:
+        """One sample on the common path (a tared desk, a good sample, no window ending), with
+        plain floats where numpy's per-call cost would dominate: the same stages as
+        :meth:`_push`, kept equal to it by the single-sample tests. None where the sample
+        needs the general path."""
+        s = self.settings
+        if (
+            self.trace
+            or self._zero is None
+            or self._last_good is None
+            or self._diff_lp is not None
+            or self._win_fill + 1 >= self._window  # a zero window ends here
+            or not (0.0 < t - self._last_t <= s.max_gap_s)
+        ):
+            return None
+        flat = wrench.reshape(-1)
+        with np.errstate(over="ignore", invalid="ignore"):
+            if not float(np.square(flat) @ self._inv_range2) < 1.0:  # see _in_range
+                return None
+        self._last_t = t
+        raw = self._map @ flat  # (6,): paper eqs. (1)–(4)
+        self._last_good = raw
+        # filters (see _filter_segment), on (3, 1) lanes
+        packed = (raw[:3] + 1j * raw[3:])[:, None]
+        det = self._det.process(packed if self._det_full else raw[:3, None])
+        f_det_raw = det.real[:, 0] if self._det_full else det[:, 0]
+        det_slope = (self._det_delay.step(f_det_raw) * self._rate_scale).tolist()
+        lp = self._lp.process(packed, in_place=True)[:, 0]
+        diff = (self._delay.step(lp) * self._diff_scale).tolist()
+        # zero window (see _update_zero): only remembered, the window does not end here
+        m = self._win_fill
+        lp_force = lp.real
+        self._win_lp[:, m] = lp_force
+        self._win_raw[:, m] = raw
+        self._win_bad[m] = False
+        self._win_fill = m + 1
+        self._last_window_t = t
+        # contacts (see _contacts)
+        z = self._zero_list
+        lp_l = lp.tolist()
+        wrench6 = [lp_l[i].real - z[i] for i in range(3)] + [
+            lp_l[i].imag - z[i + 3] for i in range(3)
+        ]
+        det_l = det[:, 0].tolist()
+        if self._det_full:
+            fast = [det_l[i].real - z[i] for i in range(3)] + [
+                det_l[i].imag - z[i + 3] for i in range(3)
+            ]
+        else:
+            fast = [det_l[i] - z[i] for i in range(3)]
+        fx, fy, fz = fast[:3]
+        mag = math.sqrt(fx * fx + fy * fy + fz * fz)
+        normals = self._normals_list
+        if normals:
+            along = max(n[0] * fx + n[1] * fy + n[2] * fz for n in normals)
+            pressing = along >= s.min_normal_cos * mag
+        else:
+            pressing = False
+        above = pressing and mag >= s.contact_force_n
+        below = not pressing or mag < s.contact_force_n - s.release_hysteresis_n
+        in_contact = above or (self._in_contact and not below)
+        self._in_contact = in_contact
+        block = _single_block(t, in_contact, mag)
+        if in_contact:
+            d6 = [d.real for d in diff] + [d.imag for d in diff]
+            self._locate_one(block, wrench6, d6, fast, det_slope, t - self._zero_t)
+        return block
 
     def _push(self, t: np.ndarray, wrench: np.ndarray) -> ContactBlock:
         flags, raw = self._clean(t, wrench)
@@ -679,10 +752,10 @@ class ContactEstimator:
                 return block
             self._locate_one(
                 block,
-                _unpacked_at(wrench_all, 0),
-                _unpacked_at(diff, 0),
-                _unpacked_at(fast, 0) if self._det_full else fast[:, 0],
-                det_slope[:, 0],
+                _unpacked_at(wrench_all, 0).tolist(),
+                _unpacked_at(diff, 0).tolist(),
+                (_unpacked_at(fast, 0) if self._det_full else fast[:, 0]).tolist(),
+                det_slope[:, 0].tolist(),
                 float(age[0]),
             )
             return block
@@ -835,23 +908,24 @@ class ContactEstimator:
     def _locate_one(
         self,
         block: ContactBlock,
-        wrench_a: np.ndarray,
-        d_wrench_a: np.ndarray,
-        fast_a: np.ndarray,
-        slope_a: np.ndarray,
+        wrench: list[float],
+        d_wrench: list[float],
+        fast: list[float],
+        det_slope: list[float],
         zero_age_s: float,
     ) -> None:
-        """The candidate stage of :meth:`_contacts` for one sample, on plain floats.
+        """The candidate stage of :meth:`_contacts` for one sample, on plain floats: the
+        tared wrench, the differentiated one, the fast force (or wrench, for `fused`) and its
+        slope.
 
         Kept equal to the vectorised stage by the single-sample tests."""
         s = self.settings
-        wrench, d_wrench, fast = wrench_a.tolist(), d_wrench_a.tolist(), fast_a.tolist()
         fx, fy, fz = fast[:3]
         mag = math.sqrt(fx * fx + fy * fy + fz * fz)
         inv = 1.0 / mag if mag > 0 else 1.0
         rate = (fx * d_wrench[0] + fy * d_wrench[1] + fz * d_wrench[2]) * inv
         motion = 1.0 if rate >= 0 else -1.0
-        sx, sy, sz = slope_a.tolist()
+        sx, sy, sz = det_slope
         slope = (fx * sx + fy * sy + fz * sz) * inv
         block.phase[0] = (
             PHASE_TOUCH
@@ -1004,6 +1078,24 @@ def _fuse_one(cands: list[Candidate]) -> tuple[Candidate, int]:
         -b / det,
     )
     return fused, members
+
+
+def _single_block(t: float, in_contact: bool, force_n: float) -> ContactBlock:
+    """A one-sample block, not yet located."""
+    return ContactBlock(
+        t=np.array([t]),
+        in_contact=np.array([in_contact]),
+        located=np.zeros(1, bool),
+        surface=np.full(1, -1, np.int16),
+        x=np.zeros(1),
+        y=np.zeros(1),
+        z=np.zeros(1),
+        force_n=np.array([force_n]),
+        source=np.zeros(1, np.int8),
+        phase=np.zeros(1, np.int8),
+        sigma_m=np.full(1, UNCERTAINTY_CAP_M),
+        flags=np.zeros(1, np.uint8),
+    )
 
 
 def _unpacked_at(packed: np.ndarray, at: np.ndarray | int) -> np.ndarray:

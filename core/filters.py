@@ -145,6 +145,17 @@ class DelayLine:
         self.pos = 0
         return out
 
+    def step(self, x: np.ndarray) -> np.ndarray:
+        """:meth:`difference` for one sample ``x`` (C,): x − x[−n]; updates the history."""
+        if self.ring is None:
+            self.restart(x)
+        assert self.ring is not None
+        pos = self.pos
+        out = x - self.ring[:, pos]
+        self.ring[:, pos] = x
+        self.pos = pos + 1 if pos + 1 < self.n else 0
+        return out
+
     def delayed(self, x: np.ndarray) -> np.ndarray:
         """x[i − n] for each column of ``x`` (C, k); updates the history."""
         k = x.shape[1]

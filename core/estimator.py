@@ -875,7 +875,12 @@ class ContactEstimator:
             # the fast and the low-passed candidates share their noise (one filtered from the
             # other's input), so they are not fused: the fast one stands in where the
             # low-passed force has not caught up yet, or has already let go
-            cand_q.valid &= lagging & (~cand_f.valid | (cand_q.sigma() < cand_f.sigma()))
+            cand_q.valid &= lagging
+            q_at = np.flatnonzero(cand_q.valid)  # (few: where the force lags)
+            cand_q.valid[q_at] = ~cand_f.valid[q_at] | (
+                cand_q.var_uu[q_at] + cand_q.var_vv[q_at]
+                < cand_f.var_uu[q_at] + cand_f.var_vv[q_at]
+            )
             # a differentiated candidate 5 times less sure than the force's adds under 4 %
             # of the information: leave it out (and the combination to the few that matter)
             var_f = cand_f.var_uu + cand_f.var_vv
@@ -1040,12 +1045,23 @@ class ContactEstimator:
     def _emit_fused(self, block: ContactBlock, idx: np.ndarray, cands: list[Intersection]) -> None:
         """Inverse-covariance combination of the candidates that lie on the surface of the
         surest one (force, differentiated, fast; see :func:`_fuse`)."""
-        fused, members = _fuse(cands)
-        use = fused.valid & (fused.sigma() <= self.settings.max_sigma_m)
+        max_sigma = self.settings.max_sigma_m
+        first = cands[0]
+        others = np.logical_or.reduce([c.valid for c in cands[1:]])
+        # where the low-passed force's candidate is alone (most samples of a held press) it
+        # is the result as it is; only the other samples are fused
+        alone = first.valid & ~others
+        self._emit(block, idx, alone & (first.sigma() <= max_sigma), first, SOURCE_FORCE)
+        at = np.flatnonzero(others)
+        if len(at) == 0:
+            return
+        some = [c.take(at) for c in cands]
+        fused, members = _fuse(some)
+        use = fused.valid & (fused.sigma() <= max_sigma)
         # one candidate alone: say which (the differentiated one, or one from the force)
-        only_diff = (members == 1) & cands[1].valid & (cands[1].surface == fused.surface)
+        only_diff = (members == 1) & some[1].valid & (some[1].surface == fused.surface)
         source = np.where(members > 1, SOURCE_FUSED, np.where(only_diff, SOURCE_DIFF, SOURCE_FORCE))
-        self._emit(block, idx, use, fused, source.astype(np.int8))
+        self._emit(block, idx[at], use, fused, source.astype(np.int8))
 
 
 Candidate = tuple[int, float, float, float, float, float]  # surface, u, v, var_u, var_v, cov
@@ -1146,35 +1162,8 @@ def _fuse(cands: list[Intersection]) -> tuple[Intersection, np.ndarray]:
     """p = (Σ Σ_i⁻¹)⁻¹ Σ Σ_i⁻¹ p_i over the valid candidates on the surface of the surest one,
     per sample, 2×2 in closed form. Returns the fused candidate and how many were fused.
 
-    The first candidate is the usual one (the low-passed force): where no other is valid
-    (most samples of a held press) it is the result as it is; only the other samples go
-    through :func:`_fuse_dense`."""
-    first = cands[0]
-    fused = Intersection(
-        first.valid.copy(),
-        first.surface.copy(),
-        first.uv.copy(),
-        first.var_uu.copy(),
-        first.var_vv.copy(),
-        first.cov_uv.copy(),
-    )
-    members = first.valid.astype(np.int64)
-    at = np.flatnonzero(np.logical_or.reduce([c.valid for c in cands[1:]]))
-    if len(at):
-        part, part_members = _fuse_dense([c.take(at) for c in cands])
-        fused.valid[at] = part.valid
-        fused.surface[at] = part.surface
-        fused.uv[0, at] = part.uv[0]
-        fused.uv[1, at] = part.uv[1]
-        fused.var_uu[at] = part.var_uu
-        fused.var_vv[at] = part.var_vv
-        fused.cov_uv[at] = part.cov_uv
-        members[at] = part_members
-    return fused, members
-
-
-def _fuse_dense(cands: list[Intersection]) -> tuple[Intersection, np.ndarray]:
-    """:func:`_fuse` for samples where any candidate may be valid."""
+    A sample where one candidate alone is valid takes it as it is; only samples with two or
+    more are combined."""
     valid = np.logical_or.reduce([c.valid for c in cands])
     if max(int(c.surface.max(initial=-1)) for c in cands) <= 0:
         surface = np.where(valid, 0, -1).astype(np.int16)  # one surface: nothing to choose

@@ -81,6 +81,25 @@ class ContactBlock:
             z.astype(np.uint8),
         )
 
+    @classmethod
+    def blank(cls, t: np.ndarray) -> ContactBlock:
+        """A block for the samples at times ``t``: not in contact, nothing located."""
+        k = len(t)
+        return cls(
+            t=np.array(t, dtype=float),
+            in_contact=np.zeros(k, bool),
+            located=np.zeros(k, bool),
+            surface=np.full(k, -1, np.int16),
+            x=np.zeros(k),
+            y=np.zeros(k),
+            z=np.zeros(k),
+            force_n=np.zeros(k),
+            source=np.zeros(k, np.int8),
+            phase=np.zeros(k, np.int8),
+            sigma_m=np.full(k, UNCERTAINTY_CAP_M),
+            flags=np.zeros(k, np.uint8),
+        )
+
     def take(self, index: np.ndarray | slice) -> ContactBlock:
         """A sub-block (boolean mask, index array or slice)."""
         return ContactBlock(**{f.name: getattr(self, f.name)[index] for f in fields(self)})

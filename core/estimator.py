@@ -251,20 +251,17 @@ class ContactEstimator:
         k = len(t)
         if k == 0:
             return ContactBlock.empty()
-        if k > BATCH_CHUNK:
-            # a long block goes through in pieces: the same output (streaming equals batch),
-            # but each piece's arrays stay in the CPU cache between the stages
-            return ContactBlock.concat(
-                [
-                    self._push(t[a : a + BATCH_CHUNK], wrench[a : a + BATCH_CHUNK])
-                    for a in range(0, k, BATCH_CHUNK)
-                ]
-            )
         if k == 1:
-            block = self._push_one(float(t[0]), wrench)
-            if block is not None:
-                return block
-        return self._push(t, wrench)
+            one = self._push_one(float(t[0]), wrench)
+            if one is not None:
+                return one
+        block = ContactBlock.blank(t)
+        # a long block goes through in pieces: the same output (streaming equals batch), but
+        # each piece's arrays stay in the CPU cache between the stages
+        for a in range(0, k, BATCH_CHUNK):
+            piece = slice(a, a + BATCH_CHUNK)
+            self._push(t[piece], wrench[piece], block.take(piece) if k > BATCH_CHUNK else block)
+        return block
 
     def _push_one(self, t: float, wrench: np.ndarray) -> ContactBlock | None:
         """One sample on the common path (a tared desk, a good sample, no window ending), with
@@ -334,11 +331,13 @@ class ContactEstimator:
             self._locate_one(block, wrench6, d6, fast, det_slope, t - self._zero_t)
         return block
 
-    def _push(self, t: np.ndarray, wrench: np.ndarray) -> ContactBlock:
+    def _push(self, t: np.ndarray, wrench: np.ndarray, block: ContactBlock) -> None:
+        """The stages for one block, written into ``block`` (blank, see ContactBlock.blank)."""
         flags, raw = self._clean(t, wrench)
+        block.flags[:] = flags
         lp, det, diff, det_slope = self._filter(t, raw, flags)
         zero_starts, zeros = self._update_zero(t, lp.real, raw, flags)
-        return self._contacts(t, flags, lp, det, diff, det_slope, zero_starts, zeros)
+        self._contacts(block, t, flags, lp, det, diff, det_slope, zero_starts, zeros)
 
     def _clean(self, t: np.ndarray, wrench: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Flag bad samples and hold the last good wrench over them. Returns flags, raw (6, k)."""
@@ -678,6 +677,7 @@ class ContactEstimator:
 
     def _contacts(
         self,
+        block: ContactBlock,
         t: np.ndarray,
         flags: np.ndarray,
         lp: np.ndarray,
@@ -686,27 +686,13 @@ class ContactEstimator:
         det_slope: np.ndarray,
         zero_starts: np.ndarray,
         zeros: np.ndarray,
-    ) -> ContactBlock:
+    ) -> None:
         s = self.settings
         k = len(t)
-        block = ContactBlock(
-            t=t.copy(),
-            in_contact=np.zeros(k, bool),
-            located=np.zeros(k, bool),
-            surface=np.full(k, -1, np.int16),
-            x=np.zeros(k),
-            y=np.zeros(k),
-            z=np.zeros(k),
-            force_n=np.zeros(k),
-            source=np.zeros(k, np.int8),
-            phase=np.zeros(k, np.int8),
-            sigma_m=np.full(k, UNCERTAINTY_CAP_M),
-            flags=flags,
-        )
         tared_zero = ~np.isnan(zeros[0])
         if not tared_zero.any():
             block.flags |= FLAG_NOT_TARED
-            return block
+            return
         # the zero is piecewise constant: subtract it segment by segment, in place
         ends = [*zero_starts[1:].tolist(), k]
         # (wrenches packed: force + 1j·moment, see _filter)
@@ -728,7 +714,10 @@ class ContactEstimator:
         block.flags[~tared] |= FLAG_NOT_TARED
         f_det_mag = np.sqrt(np.einsum("ik,ik->k", f_det, f_det))
         all_tared = bool(tared.all())
-        block.force_n = f_det_mag if all_tared else np.where(tared, f_det_mag, 0.0)
+        if all_tared:
+            block.force_n[:] = f_det_mag
+        else:
+            np.copyto(block.force_n, f_det_mag, where=tared)
 
         # fast path: touch-down at contact_force_n, release below it less the hysteresis,
         # and only for a force that presses into a surface (a lifted object pulls)
@@ -743,13 +732,13 @@ class ContactEstimator:
         if not all_tared:
             above &= tared
             below |= ~tared
-        block.in_contact = _hysteresis(above, below, self._in_contact)
+        block.in_contact[:] = _hysteresis(above, below, self._in_contact)
         self._in_contact = bool(block.in_contact[-1])
         # candidates only for good samples in contact (a bad one keeps the contact state
         # but has no position of its own); they are the costly part
         if k == 1 and not self.trace:  # one sample: plain floats beat numpy's per-call cost
             if not block.in_contact[0] or flags[0] & BAD_SAMPLE:
-                return block
+                return
             self._locate_one(
                 block,
                 _unpacked_at(wrench_all, 0).tolist(),
@@ -758,22 +747,19 @@ class ContactEstimator:
                 det_slope[:, 0].tolist(),
                 float(age[0]),
             )
-            return block
+            return
         idx = np.flatnonzero(block.in_contact & ((flags & BAD_SAMPLE) == 0))
         if len(idx) == 0:
-            return block
+            return
+        n = len(idx)
         wrench = _unpacked_at(wrench_all, idx)
         age2 = age[idx] ** 2
-        d_wrench = _unpacked_at(diff, idx)
 
-        # motion: the sign of the differentiated force magnitude (paper Fig. 3, step 2),
-        # and the phase from the fast path's slope, which does not wait for the 166 ms window
+        # the phase from the fast path's slope, which does not wait for the 166 ms window
         f_det_at = np.take(f_det, idx, axis=1)
         f_det_mag_at = f_det_mag[idx]
         inv_mag = 1.0 / np.where(f_det_mag_at > 0, f_det_mag_at, 1.0)
-        rate = np.einsum("ik,ik->k", f_det_at, d_wrench[:3]) * inv_mag
         slope = np.einsum("ik,ik->k", f_det_at, np.take(det_slope, idx, axis=1)) * inv_mag
-        motion = np.where(rate >= 0, 1.0, -1.0)
         phase = np.full(len(idx), PHASE_HOLD, np.int8)
         phase[slope > s.phase_rate_n_s] = PHASE_TOUCH
         phase[slope < -s.phase_rate_n_s] = PHASE_RELEASE
@@ -787,20 +773,26 @@ class ContactEstimator:
         if method in ("force", "switched", "fused"):
             cand_f = self._tared_candidate(wrench, self._covs_lp, age2, f_mag)
         if method in ("diff", "switched", "fused"):
-            # `switched` looks at P_ed only at small forces (paper Fig. 3, steps 3–4)
-            want_d: np.ndarray | None = None
+            # motion: the sign of the differentiated force magnitude (paper Fig. 3, step 2)
+            diff_at = np.take(diff, idx, axis=1)  # packed
+            d_force = diff_at.real
+            rate = np.einsum("ik,ik->k", f_det_at, d_force) * inv_mag
+            motion = np.where(rate >= 0, 1.0, -1.0)
+            want_d: np.ndarray | None = None  # where P_ed is needed, if not everywhere
             if self.method == "switched":
+                # `switched` looks at P_ed only at small forces (paper Fig. 3, steps 3–4)
                 assert cand_f is not None
                 threshold = np.where(motion > 0, s.touch_threshold_n, s.release_threshold_n)
                 want_d = (f_mag >= s.contact_force_n) & ((f_mag <= threshold) | ~cand_f.valid)
-                some = want_d if not self.trace else slice(None)
-                d_mag = np.sqrt(np.einsum("ik,ik->k", d_wrench[:3, some], d_wrench[:3, some]))
+                d_at = np.flatnonzero(want_d) if not self.trace else np.arange(n)
+                d_force = np.take(d_force, d_at, axis=1)
+                d_mag = np.sqrt(np.einsum("ik,ik->k", d_force, d_force))
                 # the term F_e × Ṗ_e dropped in eq. (11): a finger drifting at contact_speed_m_s
-                model = (f_mag[some] * s.contact_speed_m_s / np.maximum(d_mag, 1e-9)) ** 2
+                model = (f_mag[d_at] * s.contact_speed_m_s / np.maximum(d_mag, 1e-9)) ** 2
             else:
-                d_mag = np.sqrt(np.einsum("ik,ik->k", d_wrench[:3], d_wrench[:3]))
+                d_mag = np.sqrt(np.einsum("ik,ik->k", d_force, d_force))
                 model = (f_mag * s.contact_speed_m_s / np.maximum(d_mag, 1e-9)) ** 2
-                some = slice(None)
+                d_at = np.arange(n)
                 if self.method == "fused" and not self.trace:
                     # the model term alone (added to both variances) makes most of P_ed far
                     # less sure than P_er while a press is held: `fused` would leave those out
@@ -810,11 +802,12 @@ class ContactEstimator:
                     want_d = ~cand_f.valid | (
                         2.0 * np.minimum(model, VAR_CAP) <= DIFF_INFO_RATIO * var_f
                     )
-                    some, d_mag, model = want_d, d_mag[want_d], model[want_d]
+                    d_at = np.flatnonzero(want_d)
+                    d_mag, model = d_mag[d_at], model[d_at]
             cand_d = intersect(
                 self._frames,
-                d_wrench[:, some],
-                motion[some],
+                _unpacked_at(diff_at, d_at),
+                motion[d_at],
                 self._covs_diff,
                 s.min_normal_cos,
                 model,
@@ -888,7 +881,7 @@ class ContactEstimator:
                 cand_d.var_uu + cand_d.var_vv <= DIFF_INFO_RATIO * var_f
             )
             self._emit_fused(block, idx, [cand_f, cand_d, cand_q])
-        return block
+        return
 
     def _tared_candidate(
         self,

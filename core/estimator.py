@@ -1028,10 +1028,16 @@ class ContactEstimator:
         at = idx[pick]
         block.located[at] = True
         block.surface[at] = cand.surface[pick]
-        x, y, z = cand.points(self._frames, use)
-        block.x[at] = x
-        block.y[at] = y
-        block.z[at] = z
+        if len(self._frames) == 1 and self._frames[0].desk_xy:  # one horizontal board
+            origin = self._frames[0].surface.origin
+            block.x[at] = cand.uv[0][pick] + origin[0]
+            block.y[at] = cand.uv[1][pick] + origin[1]
+            block.z[at] = origin[2]
+        else:
+            x, y, z = cand.points(self._frames, pick)
+            block.x[at] = x
+            block.y[at] = y
+            block.z[at] = z
         block.sigma_m[at] = np.sqrt(cand.var_uu[pick] + cand.var_vv[pick])
         block.source[at] = source if np.isscalar(source) else source[pick]  # type: ignore[index]
 
@@ -1044,7 +1050,8 @@ class ContactEstimator:
         # where the low-passed force's candidate is alone (most samples of a held press) it
         # is the result as it is; only the other samples are fused
         alone = first.valid & ~others
-        self._emit(block, idx, alone & (first.sigma() <= max_sigma), first, SOURCE_FORCE)
+        sure = first.var_uu + first.var_vv <= max_sigma * max_sigma
+        self._emit(block, idx, alone & sure, first, SOURCE_FORCE)
         at = np.flatnonzero(others)
         if len(at) == 0:
             return
@@ -1143,70 +1150,40 @@ def _embed(part: Intersection, mask: np.ndarray) -> Intersection:
     return full
 
 
-def _information(
-    var_u: np.ndarray, var_v: np.ndarray, cov: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The inverse of [[var_u, cov], [cov, var_v]] as (a, b, c) = [[a, b], [b, c]]."""
-    det = np.maximum(var_u * var_v - cov * cov, 1e-30)
-    return var_v / det, -cov / det, var_u / det
-
-
 def _fuse(cands: list[Intersection]) -> tuple[Intersection, np.ndarray]:
     """p = (Σ Σ_i⁻¹)⁻¹ Σ Σ_i⁻¹ p_i over the valid candidates on the surface of the surest one,
     per sample, 2×2 in closed form. Returns the fused candidate and how many were fused.
-
-    A sample where one candidate alone is valid takes it as it is; only samples with two or
-    more are combined."""
+    (:func:`_fuse_one` is the same for one sample.)"""
     valid = np.logical_or.reduce([c.valid for c in cands])
     if max(int(c.surface.max(initial=-1)) for c in cands) <= 0:
         surface = np.where(valid, 0, -1).astype(np.int16)  # one surface: nothing to choose
+        takes = [c.valid for c in cands]
     else:
         sigmas = np.stack([np.where(c.valid, c.sigma(), np.inf) for c in cands])
         best = np.argmin(sigmas, axis=0)
         surface = np.choose(best, [c.surface for c in cands]).astype(np.int16)
-    takes = [c.valid & (c.surface == surface) for c in cands]
+        takes = [c.valid & (c.surface == surface) for c in cands]
     members = np.sum(takes, axis=0)
-    first = cands[0]
-    uv, var_u, var_v, cov = (
-        first.uv.copy(),
-        first.var_uu.copy(),
-        first.var_vv.copy(),
-        first.cov_uv.copy(),
-    )
-    for cand, take in zip(cands[1:], takes[1:], strict=True):  # another candidate alone
-        alone = take & (members == 1)
-        if alone.any():
-            uv[:, alone] = cand.uv[:, alone]
-            var_u[alone], var_v[alone], cov[alone] = (
-                cand.var_uu[alone],
-                cand.var_vv[alone],
-                cand.cov_uv[alone],
-            )
-    multi = np.flatnonzero(members >= 2)
-    if len(multi):
-        a = b = c_ = ru = rv = np.zeros(len(multi))
-        for cand, take in zip(cands, takes, strict=True):
-            t = take[multi]
-            ia, ib, ic = _information(cand.var_uu[multi], cand.var_vv[multi], cand.cov_uv[multi])
-            ia, ib, ic = (np.where(t, x, 0.0) for x in (ia, ib, ic))
-            cu, cv = cand.uv[0, multi], cand.uv[1, multi]
-            a, b, c_ = a + ia, b + ib, c_ + ic
-            ru = ru + ia * cu + ib * cv
-            rv = rv + ib * cu + ic * cv
-        det = np.maximum(a * c_ - b * b, 1e-30)
-        uv[0, multi] = (c_ * ru - b * rv) / det
-        uv[1, multi] = (a * rv - b * ru) / det
-        var_u[multi], var_v[multi], cov[multi] = c_ / det, a / det, -b / det
+    a = b = c_ = ru = rv = np.zeros(len(valid))
+    for cand, take in zip(cands, takes, strict=True):
+        # the information Σ_i⁻¹ = [[ia, ib], [ib, ic]]; zero for a candidate not taken
+        weight = take / np.maximum(cand.var_uu * cand.var_vv - cand.cov_uv * cand.cov_uv, 1e-30)
+        ia, ib, ic = cand.var_vv * weight, -cand.cov_uv * weight, cand.var_uu * weight
+        cu, cv = cand.uv
+        a, b, c_ = a + ia, b + ib, c_ + ic
+        ru = ru + ia * cu + ib * cv
+        rv = rv + ib * cu + ic * cv
+    inv_det = 1.0 / np.maximum(a * c_ - b * b, 1e-30)
+    uv = np.stack([(c_ * ru - b * rv) * inv_det, (a * rv - b * ru) * inv_det])
     none = ~valid
     uv[:, none] = 0.0
-    var_u[none], var_v[none], cov[none] = VAR_CAP, VAR_CAP, 0.0
     return Intersection(
         valid,
         surface,
         uv,
-        np.minimum(var_u, VAR_CAP),
-        np.minimum(var_v, VAR_CAP),
-        cov,
+        np.where(valid, np.minimum(c_ * inv_det, VAR_CAP), VAR_CAP),
+        np.where(valid, np.minimum(a * inv_det, VAR_CAP), VAR_CAP),
+        np.where(valid, -b * inv_det, 0.0),
     ), members
 
 

@@ -127,12 +127,12 @@ class Intersection:
         """1-σ radial uncertainty: the square root of the covariance's trace."""
         return np.sqrt(self.var_uu + self.var_vv)
 
-    def points(self, frames: list[SurfaceFrame], mask: np.ndarray | None = None) -> np.ndarray:
-        """Desk-frame points (3, n), or (3, count) for the samples in ``mask``; 0 where not
-        valid."""
-        surface = self.surface if mask is None else self.surface[mask]
-        # np.compress, not uv[:, mask]: 2-D boolean indexing is several times slower
-        uv = self.uv if mask is None else np.compress(mask, self.uv, axis=1)
+    def points(self, frames: list[SurfaceFrame], at: np.ndarray | None = None) -> np.ndarray:
+        """Desk-frame points (3, n), or (3, len(at)) for the samples at the indices ``at``;
+        0 where not valid."""
+        surface = self.surface if at is None else self.surface[at]
+        # np.take, not uv[:, at]: 2-D fancy indexing is several times slower
+        uv = self.uv if at is None else np.take(self.uv, at, axis=1)
         out = np.zeros((3, len(surface)))
         for index, frame in enumerate(frames):
             if len(frames) == 1:

@@ -101,7 +101,8 @@ class ContactBlock:
         )
 
     def take(self, index: np.ndarray | slice) -> ContactBlock:
-        """A sub-block (boolean mask, index array or slice)."""
+        """A sub-block (boolean mask, index array or slice; a slice gives views, so writing
+        into the sub-block writes into this one)."""
         return ContactBlock(**{f.name: getattr(self, f.name)[index] for f in fields(self)})
 
 

@@ -65,10 +65,15 @@ log = logging.getLogger("hapticdesk.estimator")
 BAD_SAMPLE = FLAG_NAN | FLAG_SATURATED | FLAG_TIME_BACK  # replaced by the last good sample
 
 WINDOW_S = 0.2  # tare and stillness are judged on windows of this length
+DET_FLOOR = 1e-12  # a 2×2 covariance is inverted as if its determinant were at least this share
+# of the product of its variances (never singular, whatever the scale)
 DIFF_INFO_RATIO = 25.0  # `fused` leaves out a differentiated candidate this much less sure
 LAG_SHARE = 0.6  # `fused` uses the fast candidate where the low-passed force is below this share
 RATE_WINDOW_S = 0.05  # slope of the fast force for the touch/hold/release phase
-BATCH_CHUNK = 16384  # samples per piece of a long push (its working arrays fit the L2 cache)
+# samples per piece of a long push: small enough that a piece's working arrays stay in the
+# CPU caches between the stages (measured best between 8k and 32k here)
+BATCH_CHUNK = 16384
+UNRATED_LIMIT = 1e12  # a channel without a rating counts as saturated beyond this
 
 
 @dataclass(frozen=True)
@@ -147,8 +152,11 @@ class ContactEstimator:
         limits = profile.saturation_limits()
         if limits is None:
             limits = np.full((len(profile.sensors), 6), np.inf)
+        # an unrated channel counts as rated at UNRATED_LIMIT, so that no finite reading
+        # can overflow the resultant wrench (and put infinity into the filters)
+        limits = np.where(np.isfinite(limits), limits, UNRATED_LIMIT)
         self._range_flat = limits.reshape(-1)  # (6S,)
-        self._inv_range2 = 1.0 / self._range_flat**2  # 0 for unrated channels
+        self._inv_range2 = 1.0 / self._range_flat**2
         self._squares = np.empty((4096, len(self._range_flat)))  # see _in_range
         self._frames = [SurfaceFrame.of(surf) for surf in profile.surfaces]
         self._normals = (
@@ -256,18 +264,22 @@ class ContactEstimator:
             if one is not None:
                 return one
         block = ContactBlock.blank(t)
+        noticed = len(self.notices)
         # a long block goes through in pieces: the same output (streaming equals batch), but
-        # each piece's arrays stay in the CPU cache between the stages
+        # each piece's arrays stay in the CPU caches between the stages
         for a in range(0, k, BATCH_CHUNK):
             piece = slice(a, a + BATCH_CHUNK)
             self._push(t[piece], wrench[piece], block.take(piece) if k > BATCH_CHUNK else block)
+        if len(self.notices) - noticed > 1:  # in time order, however the stages found them
+            self.notices[noticed:] = sorted(self.notices[noticed:], key=lambda n: n.t)
         return block
 
     def _push_one(self, t: float, wrench: np.ndarray) -> ContactBlock | None:
-        """One sample on the common path (a tared desk, a good sample, no window ending), with
-        plain floats where numpy's per-call cost would dominate: the same stages as
-        :meth:`_push`, kept equal to it by the single-sample tests. None where the sample
-        needs the general path."""
+        """One sample on the common path, with plain floats where numpy's per-call cost would
+        dominate: the same stages as :meth:`_push`, kept equal to it by the single-sample
+        tests. None where the sample needs the general path: before the tare, in trace mode,
+        with a separate low-pass for the differentiated force, for a bad sample (NaN,
+        saturated, time not increasing, a gap) and where a zero window ends."""
         s = self.settings
         if (
             self.trace
@@ -351,6 +363,8 @@ class ContactEstimator:
         steps[1:] = t[1:] - t[:-1]
         if clean and steps.min() > 0:  # the common case: finite, in range, time increasing
             gap = steps > self.settings.max_gap_s
+            if self._last_t == -math.inf:
+                gap[0] = False  # the very first sample follows nothing
             if gap.any():
                 flags[gap] = FLAG_GAP
             self._last_t = float(t[-1])
@@ -368,10 +382,10 @@ class ContactEstimator:
         for a in range(0, len(flat), len(squares)):
             piece = flat[a : a + len(squares)]
             sq = squares[: len(piece)]
-            with np.errstate(over="ignore"):  # an overflow is saturation too
+            with np.errstate(over="ignore", invalid="ignore"):  # (NaN, overflow: not in range)
                 np.square(piece, out=sq)
-            if not (sq @ self._inv_range2).max() < 1.0:
-                return False
+                if not (sq @ self._inv_range2).max() < 1.0:
+                    return False
         return True
 
     def _clean_slowly(
@@ -836,13 +850,13 @@ class ContactEstimator:
                     force_n=f_mag,
                     rate_n_s=rate,
                     force_point=cand_f.points(self._frames),
-                    force_valid=cand_f.valid,
+                    force_valid=cand_f.valid.copy(),
                     force_sigma_m=cand_f.sigma(),
                     diff_point=cand_d.points(self._frames),
-                    diff_valid=cand_d.valid,
+                    diff_valid=cand_d.valid.copy(),  # (`fused` narrows them below)
                     diff_sigma_m=cand_d.sigma(),
                     fast_point=cand_q.points(self._frames),
-                    fast_valid=cand_q.valid,
+                    fast_valid=cand_q.valid.copy(),
                     fast_sigma_m=cand_q.sigma(),
                 )
             )
@@ -1078,13 +1092,13 @@ def _fuse_one(cands: list[Candidate]) -> tuple[Candidate, int]:
     for cand in valid:
         if cand[0] != surest[0]:
             continue
-        det = max(cand[3] * cand[4] - cand[5] * cand[5], 1e-30)
+        det = max(cand[3] * cand[4] - cand[5] * cand[5], DET_FLOOR * cand[3] * cand[4], 1e-300)
         ia, ib, ic = cand[4] / det, -cand[5] / det, cand[3] / det
         a, b, c_ = a + ia, b + ib, c_ + ic
         ru += ia * cand[1] + ib * cand[2]
         rv += ib * cand[1] + ic * cand[2]
         members += 1
-    det = max(a * c_ - b * b, 1e-30)
+    det = max(a * c_ - b * b, DET_FLOOR * a * c_, 1e-300)
     fused = (
         surest[0],
         (c_ * ru - b * rv) / det,
@@ -1167,13 +1181,15 @@ def _fuse(cands: list[Intersection]) -> tuple[Intersection, np.ndarray]:
     a = b = c_ = ru = rv = np.zeros(len(valid))
     for cand, take in zip(cands, takes, strict=True):
         # the information Σ_i⁻¹ = [[ia, ib], [ib, ic]]; zero for a candidate not taken
-        weight = take / np.maximum(cand.var_uu * cand.var_vv - cand.cov_uv * cand.cov_uv, 1e-30)
+        product = cand.var_uu * cand.var_vv
+        det = np.maximum(product - cand.cov_uv * cand.cov_uv, DET_FLOOR * product)
+        weight = take / np.maximum(det, 1e-300)
         ia, ib, ic = cand.var_vv * weight, -cand.cov_uv * weight, cand.var_uu * weight
         cu, cv = cand.uv
         a, b, c_ = a + ia, b + ib, c_ + ic
         ru = ru + ia * cu + ib * cv
         rv = rv + ib * cu + ic * cv
-    inv_det = 1.0 / np.maximum(a * c_ - b * b, 1e-30)
+    inv_det = 1.0 / np.maximum(np.maximum(a * c_ - b * b, DET_FLOOR * a * c_), 1e-300)
     uv = np.stack([(c_ * ru - b * rv) * inv_det, (a * rv - b * ru) * inv_det])
     none = ~valid
     uv[:, none] = 0.0

@@ -77,7 +77,8 @@ class SosFilter:
         assert self.zi is not None
         if _sosfilt_inplace is not None:
             # filters y and updates zi in place; a real coefficient times a complex sample
-            # gives exactly the real lane's products, so packing changes no bit
+            # gives exactly the real lane's products, so packing changes no bit (for finite
+            # samples: the estimator filters no other)
             _sosfilt_inplace(self._sos_complex if dtype is complex else self.sos, y, self.zi)
             return y
         out, zf = signal.sosfilt(self.sos, y, axis=1, zi=np.moveaxis(self.zi, 0, 1))

@@ -128,8 +128,10 @@ class Intersection:
         return np.sqrt(self.var_uu + self.var_vv)
 
     def points(self, frames: list[SurfaceFrame], at: np.ndarray | None = None) -> np.ndarray:
-        """Desk-frame points (3, n), or (3, len(at)) for the samples at the indices ``at``;
+        """Desk-frame points (3, n), or for the samples ``at`` (indices, or a boolean mask);
         0 where not valid."""
+        if at is not None and at.dtype == bool:
+            at = np.flatnonzero(at)
         surface = self.surface if at is None else self.surface[at]
         # np.take, not uv[:, at]: 2-D fancy indexing is several times slower
         uv = self.uv if at is None else np.take(self.uv, at, axis=1)

@@ -264,3 +264,79 @@ def test_trace_keeps_both_candidates_and_changes_nothing(noisy_presses):
     src = plain.source[good_contact]
     point = np.where(src == 1, trace.force_point, trace.diff_point)
     np.testing.assert_allclose(point[0, used], plain.x[good_contact][used])
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_a_long_push_goes_through_in_pieces_with_the_same_output(
+    noisy_presses, method, monkeypatch
+):
+    # a push longer than BATCH_CHUNK is cut into pieces (for the CPU caches): the output and
+    # the notices must be those of one piece
+    import hapticdesk.estimator as estimator
+
+    desk = load_profile("kitamura2017")
+    t, w = noisy_presses
+    whole = ContactEstimator(desk, method=method)
+    one_piece = whole.push(t, w)
+    monkeypatch.setattr(estimator, "BATCH_CHUNK", 997)
+    pieces_est = ContactEstimator(desk, method=method)
+    pieces = pieces_est.push(t, w)
+    assert len(t) > 5 * 997
+    for f in fields(ContactBlock):
+        a, b = getattr(one_piece, f.name), getattr(pieces, f.name)
+        if a.dtype.kind == "f":
+            np.testing.assert_allclose(b, a, rtol=1e-9, atol=1e-9, err_msg=f.name)
+        else:
+            np.testing.assert_array_equal(b, a, err_msg=f.name)
+    assert [(n.t, n.kind) for n in pieces_est.notices] == [(n.t, n.kind) for n in whole.notices]
+    assert [n.t for n in pieces_est.notices] == sorted(n.t for n in pieces_est.notices)
+
+
+def test_an_unrated_channel_cannot_overflow_the_sums(paper_desk, press_recording):
+    # without a rating every finite reading is accepted, but one so large that the resultant
+    # would overflow is flagged as saturated, not turned into infinity
+    sensors = tuple(replace(s, force_range=None, moment_range=None) for s in paper_desk.sensors)
+    desk = replace(paper_desk, sensors=sensors)
+    assert desk.saturation_limits() is None
+    t, w, _ = press_recording(desk, POINTS[:1])
+    w = w.copy()
+    w[2500, 1, 2] = 1e300
+    w[2600:2610, 0, 4] = -1e308
+    for k in (len(t), 1):
+        est = ContactEstimator(desk, method="fused")
+        block = ContactBlock.concat(
+            [est.push(t[i : i + k], w[i : i + k]) for i in range(0, len(t), k)]
+        )
+        sat = np.flatnonzero(block.flags & FLAG_SATURATED)
+        assert sat.tolist() == [2500, *range(2600, 2610)]
+        assert all_finite(block) and block.located.sum() > 100
+
+
+def test_the_first_sample_is_never_a_gap(paper_desk):
+    # however the first block ends, even with max_gap_s shorter than a sample period
+    s = replace(paper_desk.estimation, max_gap_s=0.5 / paper_desk.sample_rate_hz)
+    t = np.arange(10) / paper_desk.sample_rate_hz
+    w = np.random.default_rng(0).normal(0, 0.01, (10, 4, 6))
+    w[5, 0, 0] = np.nan  # the first block of five is clean, the whole is not
+    whole = ContactEstimator(paper_desk, settings=s).push(t, w)
+    est = ContactEstimator(paper_desk, settings=s)
+    split = ContactBlock.concat([est.push(t[:5], w[:5]), est.push(t[5:], w[5:])])
+    assert not whole.flags[0] & FLAG_GAP
+    np.testing.assert_array_equal(split.flags, whole.flags)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_noise_free_single_sample_pushes_equal_batch(paper_desk, press_recording, method):
+    # tiny variances (noise-free input, no drift): the 2×2 inversions must not clamp them
+    # differently on the two paths
+    s = replace(
+        paper_desk.estimation, method=method, drift_force_n_per_min=0.0, drift_moment_nm_per_min=0.0
+    )
+    t, w, _ = press_recording(paper_desk, POINTS[:2])
+    batch = ContactEstimator(paper_desk, settings=s).push(t, w)
+    est = ContactEstimator(paper_desk, settings=s)
+    single = ContactBlock.concat([est.push(t[i : i + 1], w[i : i + 1]) for i in range(len(t))])
+    np.testing.assert_array_equal(single.located, batch.located)
+    assert batch.located.sum() > 100
+    np.testing.assert_allclose(single.sigma_m, batch.sigma_m, rtol=1e-6, atol=1e-12)
+    np.testing.assert_allclose(single.x, batch.x, rtol=0, atol=1e-9)

@@ -48,7 +48,14 @@ from hapticdesk.contacts import (
     UNCERTAINTY_CAP_M,
     ContactBlock,
 )
-from hapticdesk.filters import DelayLine, SosFilter, butter_lowpass_sos, noise_gain, pack_pairs
+from hapticdesk.filters import (
+    DelayLine,
+    SosFilter,
+    butter_lowpass_sos,
+    group_delay_s,
+    noise_gain,
+    pack_pairs,
+)
 from hapticdesk.geometry import (
     VAR_CAP,
     Intersection,
@@ -181,6 +188,9 @@ class ContactEstimator:
         self._gain_lp = noise_gain(self._lp_sos, length=long)
         self._gain_diff = noise_gain(self._diff_sos, fir, length=long)
         self._gain_det = noise_gain(self._det_sos, length=long)
+        #: how far the located points run behind a moving finger: the force low-pass's
+        #: delay (the gesture engine carries a swipe's end on by it)
+        self.position_delay_s = group_delay_s(self._lp_sos, fs, long)
 
         # the touch phase follows the fast force's slope over a short window
         self._n_rate = max(1, round(RATE_WINDOW_S * fs))

@@ -38,6 +38,15 @@ def noise_gain(sos: np.ndarray, extra_fir: np.ndarray | None = None, length: int
     return float(np.sum(h * h))
 
 
+def group_delay_s(sos: np.ndarray, sample_rate_hz: float, length: int) -> float:
+    """The low-pass's delay at low frequencies, seconds: the centroid of its impulse response
+    over ``length`` samples (how far a ramp lags behind once the filter has settled)."""
+    impulse = np.zeros(length)
+    impulse[0] = 1.0
+    h = signal.sosfilt(sos, impulse)
+    return float(np.sum(np.arange(length) * h) / np.sum(h)) / sample_rate_hz
+
+
 class SosFilter:
     """A low-pass over C channels, pushed one block at a time.
 

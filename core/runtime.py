@@ -113,7 +113,11 @@ def build_scene(
         from hapticdesk.gestures.engine import GestureEngine
 
         estimator = ContactEstimator(profile)
-        engine = GestureEngine(layout, recognizer_types=registry.recognizer_types())
+        engine = GestureEngine(
+            layout,
+            recognizer_types=registry.recognizer_types(),
+            position_delay_s=estimator.position_delay_s,
+        )
     except BaseException:
         _release(source, dispatcher, context)
         raise

@@ -43,10 +43,17 @@ class GestureEngine:
     """Runs the layout's recognizers over contact blocks.
 
     ``recognizers`` maps each bound gesture name to its recognizer (gestures served by one
-    class share the instance).
+    class share the instance). ``position_delay_s``: how far the contacts' positions run
+    behind the finger, :attr:`ContactEstimator.position_delay_s` for the estimator's output
+    (recognizers read it as ``touch.delay_s``).
     """
 
-    def __init__(self, layout: Layout, recognizer_types: Mapping[str, type] | None = None) -> None:
+    def __init__(
+        self,
+        layout: Layout,
+        recognizer_types: Mapping[str, type] | None = None,
+        position_delay_s: float = 0.0,
+    ) -> None:
         self.layout = layout
         plugins = dict(recognizer_types or {})
         classes: dict[str, type] = {}
@@ -65,7 +72,7 @@ class GestureEngine:
                 instances[cls] = cls(layout, [b for b in layout.bindings if b.gesture in served])
             self.recognizers[gesture] = instances[cls]
         self._active = list(instances.values())
-        self._tracker = TouchTracker(layout.desk)
+        self._tracker = TouchTracker(layout.desk, position_delay_s)
 
     def feed(self, block: ContactBlock) -> list[GestureEvent]:
         """Recognise gestures in the next block (any length, including 0)."""

@@ -4,6 +4,12 @@ Directions are as seen from above by the person at the desk: ``right`` is +x, ``
 away from them (+y), ``down`` towards them. The ends are judged by the precision-weighted
 line fit over the first and last few samples, where the estimator's differentiated-force
 candidate places touching and releasing well (paper §3).
+
+A swipe lifts off while the finger still moves, and the estimator's low-passed position lags
+a moving finger by the low-pass's delay (``touch.delay_s``, 47 ms on the paper's desk: 3 cm
+at 0.6 m/s). The end is therefore the line fitted over the last ``END_FIT_S``, carried on by
+that delay (on simulated swipes: 97 of 100 recognised instead of 92, lengths 0.93 of the
+true median instead of 0.77).
 """
 
 from __future__ import annotations
@@ -20,8 +26,10 @@ from hapticdesk.gestures.options import DIRECTIONS_4, DIRECTIONS_8
 from hapticdesk.gestures.recognizer import BoundRegions, Recognizer
 from hapticdesk.gestures.touch import Touch
 
-#: the start and the end of a swipe are averaged over this long
+#: the start of a swipe is averaged over this long
 END_WINDOW_S = 0.04
+#: the end's line is fitted over this long (longer: its slope is carried on, see above)
+END_FIT_S = 0.2
 
 
 def direction_name(dx: float, dy: float, directions: int) -> str:
@@ -46,7 +54,7 @@ class SwipeRecognizer(Recognizer):
             return []
         t = touch.times()
         start = touch.position_at(t[0], t[0], t[0] + END_WINDOW_S)
-        end = touch.position_at(t[-1], t[-1] - END_WINDOW_S, t[-1])
+        end = touch.position_at(t[-1] + touch.delay_s, t[-1] - END_FIT_S, t[-1])
         assert start is not None and end is not None
         found, region = self.bound.find(start[0], start[1], touch.surface)
         if not found or (region is None and self.sliders.find(*start, touch.surface)[0]):

@@ -36,8 +36,11 @@ GATE_RESET_S = 0.08
 class Touch:
     """What is known about the current touch. The engine updates it; recognizers read it."""
 
-    def __init__(self, t_down: float) -> None:
+    def __init__(self, t_down: float, delay_s: float = 0.0) -> None:
         self.t_down = t_down
+        #: how far the positions run behind the finger: the estimator's low-pass delay (a
+        #: moving finger is seen where it was this long ago); 0 for contacts that do not lag
+        self.delay_s = delay_s
         self.t_up: float | None = None
         self.t_last = t_down
         self.surface = -1  # surface of the first located sample
@@ -189,8 +192,9 @@ class TouchTracker:
     surface's (u, v), the coordinates its layout regions use. State carries across blocks.
     """
 
-    def __init__(self, desk: DeskProfile) -> None:
+    def __init__(self, desk: DeskProfile, position_delay_s: float = 0.0) -> None:
         self.touch: Touch | None = None
+        self.position_delay_s = position_delay_s  # see Touch.delay_s
         self._in_contact = False
         self._local_surfaces = [(i, s) for i, s in enumerate(desk.surfaces) if not s.is_desk_xy]
 
@@ -217,7 +221,7 @@ class TouchTracker:
         """Update the touch with ``event``; returns it (None for a stray event without down).
         After an ``up`` the returned touch is complete and no touch is current."""
         if event.kind == "down":
-            self.touch = Touch(event.t)
+            self.touch = Touch(event.t, self.position_delay_s)
         touch = self.touch
         if touch is not None:
             touch.add(event)

@@ -4,12 +4,13 @@ show")."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from hapticdesk.estimator import estimate
+from hapticdesk.estimator import ContactEstimator, estimate
 from hapticdesk.gestures.engine import GestureEngine
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.layout import load_layout
@@ -24,7 +25,7 @@ def recognise(desk, layout, scene: Scene, seed: int = 0):
     """Simulate, estimate, recognise. Returns (recording, events, true touches (start, end))."""
     rec = simulate(desk, scene, seed=seed)
     contacts = estimate(desk, rec)
-    engine = GestureEngine(layout)
+    engine = GestureEngine(layout, position_delay_s=ContactEstimator(desk).position_delay_s)
     events = engine.feed(contacts) + engine.flush(float(contacts.t[-1]))
     touching = np.flatnonzero(rec.extra["true_fn"] > 0)
     gaps = np.diff(touching) > 1
@@ -209,6 +210,31 @@ def test_swipes_in_four_directions(paper_desk, write_layout):
     assert [(e.gesture, e.direction) for e in events] == [("swipe", d) for d in moves]
     paired, spurious = match_taps(events, touches, margin_s=0.1)
     assert None not in paired and spurious == []
+
+
+def test_swipes_come_out_as_long_as_they_were(paper_desk, write_layout):
+    # the low-passed position lags a moving finger by the low-pass's delay: the swipe's end
+    # is carried on by it, so lengths are not cut short (they were by a quarter without)
+    layout = load_layout(
+        write_layout(
+            "desk: kitamura2017\nbindings:\n  - {gesture: swipe, directions: 8, do: log}\n"
+        )
+    )
+    moves = [(0.2, 0.0), (-0.2, 0.0), (0.0, 0.16), (0.0, -0.16), (0.16, 0.12)]
+    ratios = []
+    for seed in range(3):
+        scene = Scene(
+            actions=[
+                Swipe(from_point=(-dx / 2, -dy / 2), to_point=(dx / 2, dy / 2)) for dx, dy in moves
+            ]
+        )
+        _, events, _ = recognise(paper_desk, layout, scene, seed=seed)
+        swipes = [e for e in events if e.gesture == "swipe"]
+        assert [e.direction for e in swipes] == [
+            "right", "left", "up", "down", "up_right"
+        ]  # fmt: skip
+        ratios += [e.extra["distance"] / math.hypot(*m) for e, m in zip(swipes, moves, strict=True)]
+    assert 0.85 < float(np.median(ratios)) < 1.15, ratios
 
 
 def test_slide_along_the_demo_dimmer(paper_desk):

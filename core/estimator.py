@@ -75,7 +75,6 @@ WINDOW_S = 0.2  # tare and stillness are judged on windows of this length
 DET_FLOOR = 1e-12  # a 2×2 covariance is inverted as if its determinant were at least this share
 # of the product of its variances (never singular, whatever the scale)
 DIFF_INFO_RATIO = 25.0  # `fused` leaves out a differentiated candidate this much less sure
-LAG_SHARE = 0.6  # `fused` uses the fast candidate where the low-passed force is below this share
 RATE_WINDOW_S = 0.05  # slope of the fast force for the touch/hold/release phase
 # samples per piece of a long push: small enough that a piece's working arrays stay in the
 # CPU caches between the stages (measured best between 8k and 32k here)
@@ -842,16 +841,10 @@ class ContactEstimator:
 
         cand_q = None
         if method == "fused":  # the fast wrench: noisier, but it does not lag
-            lagging = ~cand_f.valid | (f_mag < LAG_SHARE * f_det_mag_at)  # type: ignore[union-attr]
-            if self.trace:
-                cand_q = self._tared_candidate(_unpacked_at(fast, idx), self._covs_det, age2)
-            else:  # only where it can stand in: most samples need no fast candidate
-                cand_q = _embed(
-                    self._tared_candidate(
-                        _unpacked_at(fast, idx[lagging]), self._covs_det, age2[lagging]
-                    ),
-                    lagging,
-                )
+            # (everywhere: it also stands in along a drawn stroke, where the zero's drift
+            # makes both about as sure and the fast one does not lag behind the finger —
+            # limiting it to where the force lags cost 3 points of stroke recognition)
+            cand_q = self._tared_candidate(_unpacked_at(fast, idx), self._covs_det, age2)
         if self.trace:
             assert cand_f is not None and cand_d is not None and cand_q is not None
             self.traces.append(
@@ -890,13 +883,10 @@ class ContactEstimator:
         else:
             assert cand_f is not None and cand_d is not None and cand_q is not None
             # the fast and the low-passed candidates share their noise (one filtered from the
-            # other's input), so they are not fused: the fast one stands in where the
-            # low-passed force has not caught up yet, or has already let go
-            cand_q.valid &= lagging
-            q_at = np.flatnonzero(cand_q.valid)  # (few: where the force lags)
-            cand_q.valid[q_at] = ~cand_f.valid[q_at] | (
-                cand_q.var_uu[q_at] + cand_q.var_vv[q_at]
-                < cand_f.var_uu[q_at] + cand_f.var_vv[q_at]
+            # other's input), so they are not fused: the fast one stands in where it is the
+            # surer (the low-passed force has not caught up yet, or has already let go)
+            cand_q.valid &= ~cand_f.valid | (
+                cand_q.var_uu + cand_q.var_vv < cand_f.var_uu + cand_f.var_vv
             )
             # a differentiated candidate 5 times less sure than the force's adds under 4 %
             # of the information: leave it out (and the combination to the few that matter)
@@ -992,23 +982,16 @@ class ContactEstimator:
                 elif f_ok:
                     chosen, source = cf, SOURCE_FORCE
         else:
-            if cf[0] < 0 or f_mag < LAG_SHARE * mag:
-                cq = intersect_one(
-                    self._frames,
-                    fast,
-                    1.0,
-                    self._packed["det"],
-                    s.min_normal_cos,
-                    drift_covs=self._packed["drift"],
-                    drift_scale=zero_age_s**2,
-                )
-            else:
-                cq = (-1, 0.0, 0.0, VAR_CAP, VAR_CAP, 0.0)
-            if (
-                cf[0] >= 0
-                and cq[0] >= 0
-                and not (math.sqrt(cq[3] + cq[4]) < math.sqrt(cf[3] + cf[4]))
-            ):
+            cq = intersect_one(
+                self._frames,
+                fast,
+                1.0,
+                self._packed["det"],
+                s.min_normal_cos,
+                drift_covs=self._packed["drift"],
+                drift_scale=zero_age_s**2,
+            )
+            if cf[0] >= 0 and cq[0] >= 0 and not (cq[3] + cq[4] < cf[3] + cf[4]):
                 cq = (-1, 0.0, 0.0, VAR_CAP, VAR_CAP, 0.0)  # see the vectorised stage
             if cf[0] >= 0 and cd[0] >= 0 and cd[3] + cd[4] > DIFF_INFO_RATIO * (cf[3] + cf[4]):
                 cd = (-1, 0.0, 0.0, VAR_CAP, VAR_CAP, 0.0)  # see the vectorised stage

@@ -189,21 +189,24 @@ def intersect(
     force = wrench[:3]
     norm = np.sqrt(np.einsum("ik,ik->k", force, force)) if force_norm is None else force_norm
     best: Intersection | None = None
-    best_key = np.full(n, -np.inf)
+    best_key = np.full(n if len(frames) > 1 else 0, -np.inf)  # (one surface: not needed)
     for index, frame in enumerate(frames):
         local = frame.transform[2:5] @ wrench  # F'z, M'x, M'y
         fz = local[0]
         ok = fz * direction_sign > min_normal_cos * norm  # pressing into this surface
-        safe_fz = np.where(ok, fz, 1.0)
+        all_press = bool(ok.all())
+        safe_fz = fz if all_press else np.where(ok, fz, 1.0)
         uv = np.empty((2, n))
         u, v = uv
         np.divide(local[2], safe_fz, out=u)  # paper eq. (5) in the surface's frame
         np.negative(u, out=u)
         np.divide(local[1], safe_fz, out=v)
         ok &= frame.contains(u, v)
-        not_ok = ~ok
-        u[not_ok] = 0.0  # (not needed, but no stray numbers where there is no point)
-        v[not_ok] = 0.0
+        everywhere = all_press and bool(ok.all())  # the usual case: no masks needed below
+        if not everywhere:
+            not_ok = ~ok
+            u[not_ok] = 0.0  # (not needed, but no stray numbers where there is no point)
+            v[not_ok] = 0.0
         if covs is not None:
             c = covs[index]  # of F'z, M'x, M'y; with the zero's drift, each entry is (n,)
             cz, czx, czy, cx, cxy, cy = (c[0, 0], c[0, 1], c[0, 2], c[1, 1], c[1, 2], c[2, 2])
@@ -224,14 +227,22 @@ def intersect(
             var_u = (u * u * cz + 2 * u * czy + cy) * inv2 + extra_var
             var_v = (v * v * cz - 2 * v * czx + cx) * inv2 + extra_var
             cov = (u * v * cz - u * czx + v * czy - cxy) * inv2
-            var_u = np.where(ok, np.minimum(var_u, VAR_CAP), VAR_CAP)
-            var_v = np.where(ok, np.minimum(var_v, VAR_CAP), VAR_CAP)
-            cov = np.where(ok, np.clip(cov, -VAR_CAP, VAR_CAP), 0.0)
+            if everywhere:
+                np.minimum(var_u, VAR_CAP, out=var_u)
+                np.minimum(var_v, VAR_CAP, out=var_v)
+                np.clip(cov, -VAR_CAP, VAR_CAP, out=cov)
+            else:
+                var_u = np.where(ok, np.minimum(var_u, VAR_CAP), VAR_CAP)
+                var_v = np.where(ok, np.minimum(var_v, VAR_CAP), VAR_CAP)
+                cov = np.where(ok, np.clip(cov, -VAR_CAP, VAR_CAP), 0.0)
         else:
             var_u = np.where(ok, 0.0, VAR_CAP)
             var_v = var_u.copy()
             cov = np.zeros(n)
-        here = Intersection(ok, np.where(ok, index, -1).astype(np.int16), uv, var_u, var_v, cov)
+        surface = (
+            np.full(n, index, np.int16) if everywhere else np.where(ok, index, -1).astype(np.int16)
+        )
+        here = Intersection(ok, surface, uv, var_u, var_v, cov)
         if len(frames) == 1:
             return here
         point = frame.to_desk(u, v)

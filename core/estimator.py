@@ -844,7 +844,9 @@ class ContactEstimator:
             # (everywhere: it also stands in along a drawn stroke, where the zero's drift
             # makes both about as sure and the fast one does not lag behind the finger —
             # limiting it to where the force lags cost 3 points of stroke recognition)
-            cand_q = self._tared_candidate(_unpacked_at(fast, idx), self._covs_det, age2)
+            cand_q = self._tared_candidate(
+                _unpacked_at(fast, idx), self._covs_det, age2, f_det_mag_at
+            )
         if self.trace:
             assert cand_f is not None and cand_d is not None and cand_q is not None
             self.traces.append(

@@ -36,8 +36,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def examples_dir() -> Path:
-    """The repository's examples/ folder (the demo's layout and scene live there)."""
-    return Path(hapticdesk.__file__).resolve().parent.parent / "examples"
+    """The examples/ folder (the demo's layout and scene live there): the repository's, or
+    the copy installed with the package."""
+    package = Path(hapticdesk.__file__).resolve().parent
+    repository = package.parent / "examples"
+    if (repository / "layouts" / "demo.yaml").is_file():
+        return repository
+    return package / "examples"  # installed from a wheel (package data hapticdesk.examples)
 
 
 class Lamp:
@@ -147,7 +152,8 @@ def run(args: argparse.Namespace) -> int:
     for path in (layout, scene_file):
         if not path.is_file():
             raise ConfigError(
-                str(path), "the demo's file is missing; run the demo from a clone of the repository"
+                str(path),
+                "the demo's file is missing (examples/ not installed?); give --layout, --scene",
             )
     broker = None
     url = args.mqtt

@@ -13,7 +13,7 @@ import importlib.util
 import logging
 import sys
 
-from hapticdesk.yamlfile import ConfigError
+from hapticdesk.files.yamlfile import ConfigError
 
 # name -> (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {

@@ -34,10 +34,10 @@ def register_sources(register: Any) -> None:
     Called once while the registry is built, with ``register`` the callback to call as
     ``register(name, factory, description="")`` for each kind, where ``factory`` is a callable
     or a lazy ``"module:attr"`` string (imported only when a run uses that kind) and is called
-    as ``factory(argument, profile, **options) -> hapticdesk.source.Source`` with ``argument``
-    the text after ``KIND:``, ``profile`` the :class:`~hapticdesk.profile.DeskProfile`, and
+    as ``factory(argument, profile, **options) -> hapticdesk.runtime.source.Source`` with ``argument``
+    the text after ``KIND:``, ``profile`` the :class:`~hapticdesk.files.profile.DeskProfile`, and
     ``options`` keyword options the factory may ignore (``speed``: replay speed, 1 = real time,
-    0 = as fast as possible). Bad arguments raise :class:`~hapticdesk.yamlfile.ConfigError`.
+    0 = as fast as possible). Bad arguments raise :class:`~hapticdesk.files.yamlfile.ConfigError`.
     """
 
 
@@ -49,11 +49,11 @@ def register_actions(register: Any) -> None:
     ``register(name, factory, description="", validate=None)`` for each action:
 
     - ``factory(options, context) -> action``: ``options`` the action's mapping from the
-      layout, ``context`` an :class:`~hapticdesk.dispatcher.ActionContext`. The action is a
+      layout, ``context`` an :class:`~hapticdesk.runtime.dispatcher.ActionContext`. The action is a
       callable taking one :class:`~hapticdesk.gestures.event.GestureEvent`; it may have a
       ``close()`` method (called once at the end) and a ``timeout_s`` attribute (how long one
       call may take before the dispatcher gives up on it).
-    - ``validate(options, position)``: raise :class:`~hapticdesk.yamlfile.ConfigError` naming
+    - ``validate(options, position)``: raise :class:`~hapticdesk.files.yamlfile.ConfigError` naming
       ``file:line:column`` when the options are wrong, so ``hapticdesk check`` and ``run`` stop
       before anything starts. ``position`` is where the action stands in the layout.
 
@@ -79,7 +79,7 @@ def startup(desk: Any, layout: Any) -> None:
 
     Called once per ``hapticdesk run`` or ``demo`` after the source, the estimator, the gesture
     engine and the actions are built, before the first block is read. ``desk`` is the
-    :class:`~hapticdesk.profile.DeskProfile`, ``layout`` the loaded layout. An exception here
+    :class:`~hapticdesk.files.profile.DeskProfile`, ``layout`` the loaded layout. An exception here
     is logged with the plugin's name (and is fatal under ``--strict``).
     """
 
@@ -89,7 +89,7 @@ def shutdown(desk: Any, layout: Any, report: Any) -> None:
     """A run has ended (its source finished, or SIGINT/SIGTERM).
 
     Called once after the dispatcher has flushed or given up on queued commands. ``desk`` is
-    the :class:`~hapticdesk.profile.DeskProfile`, ``layout`` the loaded layout, ``report``
-    the :class:`~hapticdesk.runtime.RunReport` (samples, gestures, action counts, commands
+    the :class:`~hapticdesk.files.profile.DeskProfile`, ``layout`` the loaded layout, ``report``
+    the :class:`~hapticdesk.runtime.service.RunReport` (samples, gestures, action counts, commands
     not delivered). An exception here is logged with the plugin's name.
     """

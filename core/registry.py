@@ -23,7 +23,7 @@ from typing import Any
 import pluggy
 
 from hapticdesk import __version__, hookspecs
-from hapticdesk.yamlfile import ConfigError, Position
+from hapticdesk.files.yamlfile import ConfigError, Position
 
 log = logging.getLogger(__name__)
 

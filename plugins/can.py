@@ -10,9 +10,9 @@ from __future__ import annotations
 
 from typing import Any
 
+from hapticdesk.files.profile import DeskProfile
 from hapticdesk.hookspecs import hookimpl
-from hapticdesk.profile import DeskProfile
-from hapticdesk.source import Source
+from hapticdesk.runtime.source import Source
 
 
 def open_can(argument: str, profile: DeskProfile, **options: Any) -> Source:

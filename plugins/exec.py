@@ -16,12 +16,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from hapticdesk.dispatcher import ActionContext
+from hapticdesk.files.yamlfile import ConfigError, MarkedList, Position
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.hookspecs import hookimpl
-from hapticdesk.plugins.options import options_mapping, seconds, text, where
+from hapticdesk.plugins.action_options import options_mapping, seconds, text, where
 from hapticdesk.plugins.templating import Template, compile_template, event_variables
-from hapticdesk.yamlfile import ConfigError, MarkedList, Position
+from hapticdesk.runtime.dispatcher import ActionContext
 
 log = logging.getLogger(__name__)
 

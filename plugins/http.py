@@ -18,10 +18,10 @@ import urllib.request
 from dataclasses import dataclass
 from typing import Any
 
-from hapticdesk.dispatcher import ActionContext
+from hapticdesk.files.yamlfile import ConfigError, Position, choice, require_mapping
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.hookspecs import hookimpl
-from hapticdesk.plugins.options import options_mapping, seconds, text, where
+from hapticdesk.plugins.action_options import options_mapping, seconds, text, where
 from hapticdesk.plugins.templating import (
     Template,
     TemplatedValue,
@@ -29,7 +29,7 @@ from hapticdesk.plugins.templating import (
     compile_value,
     event_variables,
 )
-from hapticdesk.yamlfile import ConfigError, Position, choice, require_mapping
+from hapticdesk.runtime.dispatcher import ActionContext
 
 DEFAULT_TIMEOUT_S = 5.0
 METHODS = ("POST", "PUT", "PATCH", "GET", "DELETE")

@@ -11,12 +11,12 @@ import threading
 from dataclasses import dataclass
 from typing import Any
 
-from hapticdesk.dispatcher import ActionContext
+from hapticdesk.files.yamlfile import Position
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.hookspecs import hookimpl
-from hapticdesk.plugins.options import options_mapping, text, where
+from hapticdesk.plugins.action_options import options_mapping, text, where
 from hapticdesk.plugins.templating import Template, compile_template, event_variables
-from hapticdesk.yamlfile import Position
+from hapticdesk.runtime.dispatcher import ActionContext
 
 _print_lock = threading.Lock()  # lines from several action threads must not interleave
 

@@ -19,11 +19,11 @@ from typing import Any
 
 import numpy as np
 
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.recording import RECORDING_SUFFIXES, Recording, read_recording
+from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.hookspecs import hookimpl
-from hapticdesk.profile import DeskProfile
-from hapticdesk.recording import RECORDING_SUFFIXES, Recording, read_recording
-from hapticdesk.source import Source, WrenchBlock
-from hapticdesk.yamlfile import ConfigError
+from hapticdesk.runtime.source import Source, WrenchBlock
 
 BLOCK_SIZE = 12
 

@@ -11,11 +11,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.plugins.replay import PacedSource
-from hapticdesk.profile import DeskProfile
-from hapticdesk.source import Source
-from hapticdesk.yamlfile import ConfigError
+from hapticdesk.runtime.source import Source
 
 
 def open_sim(

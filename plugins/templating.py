@@ -20,8 +20,8 @@ from dataclasses import dataclass
 from functools import cache
 from typing import Any
 
+from hapticdesk.files.yamlfile import ConfigError, MarkedDict, MarkedList, Position
 from hapticdesk.gestures.event import GestureEvent
-from hapticdesk.yamlfile import ConfigError, MarkedDict, MarkedList, Position
 
 #: the GestureEvent fields a template sees under their own names
 EVENT_FIELDS = (

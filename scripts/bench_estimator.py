@@ -32,7 +32,7 @@ import numpy as np  # noqa: E402
 from hapticdesk.bench.scenes import desk_day, paper_experiment  # noqa: E402
 from hapticdesk.bench.timing import measure_cost  # noqa: E402
 from hapticdesk.estimator import ContactEstimator  # noqa: E402
-from hapticdesk.profile import METHODS, load_profile  # noqa: E402
+from hapticdesk.files.profile import METHODS, load_profile  # noqa: E402
 from hapticdesk.sim import simulate  # noqa: E402
 
 

@@ -21,7 +21,7 @@ import numpy as np
 
 from hapticdesk.bench.scenes import desk_day, paper_experiment
 from hapticdesk.estimator import ContactEstimator
-from hapticdesk.profile import METHODS, load_profile
+from hapticdesk.files.profile import METHODS, load_profile
 from hapticdesk.sim import Press, Scene, simulate
 
 FIELDS = ("in_contact", "located", "surface", "x", "y", "z", "force_n", "source", "phase")

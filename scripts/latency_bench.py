@@ -28,11 +28,11 @@ from pathlib import Path
 
 import numpy as np
 
+from hapticdesk.files.profile import load_profile
+from hapticdesk.files.recording import write_recording
 from hapticdesk.plugins.replay import PacedSource
-from hapticdesk.profile import load_profile
-from hapticdesk.recording import write_recording
 from hapticdesk.registry import load_registry
-from hapticdesk.runtime import Runtime, build_scene
+from hapticdesk.runtime.service import Runtime, build_scene
 
 TARGET_P95_MS = 40.0
 TOPIC = "bench/lamp/set"
@@ -83,7 +83,7 @@ def true_releases(fn: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 def start_broker(folder: Path) -> tuple[str, object]:
     """mosquitto on a free port if installed, else the embedded amqtt broker."""
-    from hapticdesk.broker import EmbeddedBroker, free_loopback_port
+    from hapticdesk.plugins.mqtt.broker import EmbeddedBroker, free_loopback_port
 
     program = shutil.which("mosquitto") or shutil.which("mosquitto", path="/usr/sbin")
     if program is None:

@@ -30,8 +30,8 @@ from collections import Counter
 import numpy as np
 
 from hapticdesk.gestures.options import GESTURE_OPTIONS
-from hapticdesk.gestures.shapes import SHAPES, hand_drawn, normalised, resample
-from hapticdesk.gestures.unistroke import TemplateSet, template_set
+from hapticdesk.gestures.strokes.shapes import SHAPES, hand_drawn, normalised, resample
+from hapticdesk.gestures.strokes.unistroke import TemplateSet, template_set
 
 MIN_SCORE = GESTURE_OPTIONS["stroke"]["min_score"].default
 MAX_ROTATION = GESTURE_OPTIONS["stroke"]["max_rotation_deg"].default
@@ -80,8 +80,8 @@ def drawings(rng: np.random.Generator, per_shape: int, with_others: bool, style:
 def trace_on_desk(items, seed: int) -> list[np.ndarray]:
     """Simulate the strokes one after the other, estimate, capture: one path per stroke."""
     from hapticdesk.estimator import estimate
-    from hapticdesk.gestures.capture import StrokeCapture
-    from hapticdesk.profile import load_profile
+    from hapticdesk.files.profile import load_profile
+    from hapticdesk.gestures.strokes.capture import StrokeCapture
     from hapticdesk.sim import Idle, Scene, Stroke, simulate
 
     desk = load_profile("kitamura2017")

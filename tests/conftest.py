@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from hapticdesk.profile import DeskProfile, load_profile, profile_from_mapping
-from hapticdesk.yamlfile import load_marked_yaml
+from hapticdesk.files.profile import DeskProfile, load_profile, profile_from_mapping
+from hapticdesk.files.yamlfile import load_marked_yaml
 
 
 @pytest.fixture(autouse=True)

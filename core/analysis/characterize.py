@@ -37,9 +37,9 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
-from hapticdesk.profile import AXES, LOWPASS_PER_NATURAL_FREQUENCY, DeskProfile
-from hapticdesk.recording import Recording
-from hapticdesk.yamlfile import ConfigError
+from hapticdesk.files.profile import AXES, LOWPASS_PER_NATURAL_FREQUENCY, DeskProfile
+from hapticdesk.files.recording import Recording
+from hapticdesk.files.yamlfile import ConfigError
 
 QUIET_WINDOW_S = 0.5
 FLOOR_PERCENTILE = 5.0  # works while at least 5 % of the recording is quiet

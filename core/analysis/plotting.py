@@ -22,17 +22,17 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from hapticdesk.contacts import (
+from hapticdesk.estimator import CandidateTrace, ContactEstimator
+from hapticdesk.estimator.contacts import (
     SOURCE_DIFF,
     SOURCE_FORCE,
     SOURCE_FUSED,
     SOURCE_NAMES,
     ContactBlock,
 )
-from hapticdesk.estimator import CandidateTrace, ContactEstimator
-from hapticdesk.profile import AXES, DeskProfile
-from hapticdesk.recording import Recording
-from hapticdesk.yamlfile import ConfigError
+from hapticdesk.files.profile import AXES, DeskProfile
+from hapticdesk.files.recording import Recording
+from hapticdesk.files.yamlfile import ConfigError
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes

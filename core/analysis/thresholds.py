@@ -42,9 +42,9 @@ from typing import Any
 import numpy as np
 
 from hapticdesk.estimator import BAD_SAMPLE, CandidateTrace, ContactEstimator
-from hapticdesk.profile import DeskProfile
-from hapticdesk.recording import Recording
-from hapticdesk.yamlfile import ConfigError
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.recording import Recording
+from hapticdesk.files.yamlfile import ConfigError
 
 CONVERGED_M_S = 0.2  # paper §5.2: |dD_er/dt| ≤ 0.2 m/s
 DIVERGED_M = 0.01  # paper §5.2: |D_er − D_ed| ≥ 0.01 m

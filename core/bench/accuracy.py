@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hapticdesk.contacts import ContactBlock
+from hapticdesk.estimator.contacts import ContactBlock
 
 
 @dataclass(frozen=True)

@@ -15,12 +15,11 @@ from typing import Any
 
 import numpy as np
 
-from hapticdesk import error_model
 from hapticdesk.bench.accuracy import find_presses, measure_accuracy, truth_with_release
 from hapticdesk.bench.scenes import kita, paper_experiment
-from hapticdesk.estimator import CandidateTrace, ContactEstimator
-from hapticdesk.profile import DeskProfile, EstimationSettings
-from hapticdesk.recording import Recording
+from hapticdesk.estimator import CandidateTrace, ContactEstimator, error_model
+from hapticdesk.files.profile import DeskProfile, EstimationSettings
+from hapticdesk.files.recording import Recording
 from hapticdesk.sim import simulate
 
 

@@ -8,9 +8,9 @@ from typing import Any
 import numpy as np
 
 from hapticdesk.bench.runner import pareto_front
-from hapticdesk.contacts import SOURCE_DIFF, SOURCE_FORCE, SOURCE_FUSED, ContactBlock
-from hapticdesk.profile import DeskProfile
-from hapticdesk.recording import Recording
+from hapticdesk.estimator.contacts import SOURCE_DIFF, SOURCE_FORCE, SOURCE_FUSED, ContactBlock
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.recording import Recording
 
 COLUMNS = [
     ("label", "configuration", "{}"),

@@ -16,8 +16,8 @@ import numpy as np
 from hapticdesk.bench.accuracy import Accuracy, PhaseErrors, measure_accuracy
 from hapticdesk.bench.timing import measure_cost
 from hapticdesk.estimator import ContactEstimator
-from hapticdesk.profile import METHODS, DeskProfile
-from hapticdesk.recording import Recording
+from hapticdesk.files.profile import METHODS, DeskProfile
+from hapticdesk.files.recording import Recording
 
 
 @dataclass(frozen=True)

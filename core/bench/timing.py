@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from hapticdesk.estimator import ContactEstimator
-from hapticdesk.profile import DeskProfile, EstimationSettings
+from hapticdesk.files.profile import DeskProfile, EstimationSettings
 
 
 @dataclass(frozen=True)

@@ -40,7 +40,7 @@ from hapticdesk.canbus.decoding import (
     DeskDecoding,
 )
 from hapticdesk.canbus.frames import FrameArray
-from hapticdesk.yamlfile import ConfigError, Position
+from hapticdesk.files.yamlfile import ConfigError, Position
 
 log = logging.getLogger("hapticdesk.canbus")
 

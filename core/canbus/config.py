@@ -1,7 +1,7 @@
 """The desk profile's ``can:`` section: which bus, and how each sensor's frames are decoded.
 
 Validated here with ``file:line:column`` positions (the profile keeps the section as a raw
-:class:`~hapticdesk.yamlfile.MarkedDict`). Two decodings, chosen per sensor:
+:class:`~hapticdesk.files.yamlfile.MarkedDict`). Two decodings, chosen per sensor:
 
 - signals of a CAN database (DBC, KCD, SYM, ARXML, loaded by cantools; the path is relative
   to the profile): ``fl: {fx: FL_FORCE.Fx, …, counter: [FL_FORCE.Seq, FL_MOMENT.Seq]}``;
@@ -23,8 +23,8 @@ from hapticdesk.canbus.ati_netcanoem import (
     TORQUE_UNITS,
     AtiCalibration,
 )
-from hapticdesk.profile import AXES, DeskProfile
-from hapticdesk.yamlfile import (
+from hapticdesk.files.profile import AXES, DeskProfile
+from hapticdesk.files.yamlfile import (
     ConfigError,
     MarkedDict,
     MarkedList,

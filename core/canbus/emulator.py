@@ -22,7 +22,7 @@ from hapticdesk.canbus import ati_netcanoem as ati
 from hapticdesk.canbus.config import AtiSensor, CanConfig, SignalSensor
 from hapticdesk.canbus.dbc_signals import SignalLayout, words_to_frames
 from hapticdesk.canbus.frames import EXTENDED, SENT, FrameArray
-from hapticdesk.profile import AXES, DeskProfile
+from hapticdesk.files.profile import AXES, DeskProfile
 
 log = logging.getLogger("hapticdesk.canbus.emulator")
 
@@ -359,7 +359,7 @@ def encoder_for(
     ``ati`` on a profile whose sensors are not ATI boards gives them bases 0x20, 0x21, … with
     example calibrations (the returned config says so, to decode the frames with).
     """
-    from hapticdesk.yamlfile import ConfigError
+    from hapticdesk.files.yamlfile import ConfigError
 
     where = str(profile.path) if profile.path else profile.name
     if encoding == "ati" and (

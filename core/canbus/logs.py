@@ -7,8 +7,8 @@ absolute; any suffix other than the above, e.g. ``.txt``, ``.candump``). A log w
 gets them from the profile's sample rate. Write: python-can's ``Logger`` by suffix.
 
 Every command that reads a recording reads these through :func:`read_can_log` (a
-:class:`~hapticdesk.recording.Recording`) or :func:`open_can_log` (a finite
-:class:`~hapticdesk.source.Source`).
+:class:`~hapticdesk.files.recording.Recording`) or :func:`open_can_log` (a finite
+:class:`~hapticdesk.runtime.source.Source`).
 """
 
 from __future__ import annotations
@@ -27,10 +27,10 @@ from hapticdesk.canbus.ati_netcanoem import AtiCalibration, CalibrationCollector
 from hapticdesk.canbus.config import CanConfig, can_config
 from hapticdesk.canbus.decoding import build_decoding
 from hapticdesk.canbus.frames import FrameArray
-from hapticdesk.profile import DeskProfile
-from hapticdesk.recording import Recording
-from hapticdesk.source import Source, WrenchBlock
-from hapticdesk.yamlfile import ConfigError
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.recording import Recording
+from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.runtime.source import Source, WrenchBlock
 
 log = logging.getLogger("hapticdesk.canbus.logs")
 
@@ -338,5 +338,5 @@ class CanLogSource(Source):
 
 
 def open_can_log(path: str | Path, profile: DeskProfile) -> Source:
-    """A finite :class:`~hapticdesk.source.Source` of the log's samples."""
+    """A finite :class:`~hapticdesk.runtime.source.Source` of the log's samples."""
     return CanLogSource(path, profile)

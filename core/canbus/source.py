@@ -27,9 +27,9 @@ from hapticdesk.canbus.assembler import AssembledBlock, CanNotice, CanStats, Fra
 from hapticdesk.canbus.config import CanConfig, can_config
 from hapticdesk.canbus.decoding import build_decoding
 from hapticdesk.canbus.frames import FrameArray
-from hapticdesk.profile import DeskProfile
-from hapticdesk.source import Source, WrenchBlock
-from hapticdesk.yamlfile import ConfigError
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.runtime.source import Source, WrenchBlock
 
 log = logging.getLogger("hapticdesk.canbus.source")
 

@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from hapticdesk.profile import DeskProfile, load_profile
+from hapticdesk.files.profile import DeskProfile, load_profile
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

@@ -19,8 +19,8 @@ from hapticdesk.analysis.characterize import (
     Characterization,
     characterize,
 )
-from hapticdesk.profile import load_profile
-from hapticdesk.readers import read_any_recording
+from hapticdesk.files.profile import load_profile
+from hapticdesk.files.readers import read_any_recording
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

@@ -11,10 +11,10 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from hapticdesk.files.profile import load_profile
+from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.gestures.layout import Binding, Layout, load_layout
 from hapticdesk.gestures.options import GESTURE_OPTIONS, describe_value
-from hapticdesk.profile import load_profile
-from hapticdesk.yamlfile import ConfigError
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

@@ -12,10 +12,10 @@ from typing import TextIO
 
 import numpy as np
 
-from hapticdesk.contacts import FLAG_NAMES, PHASE_NAMES, SOURCE_NAMES, ContactBlock
 from hapticdesk.estimator import ContactEstimator
-from hapticdesk.profile import METHODS, DeskProfile, load_profile
-from hapticdesk.readers import read_any_recording
+from hapticdesk.estimator.contacts import FLAG_NAMES, PHASE_NAMES, SOURCE_NAMES, ContactBlock
+from hapticdesk.files.profile import METHODS, DeskProfile, load_profile
+from hapticdesk.files.readers import read_any_recording
 
 HEADER = ["t", "x", "y", "z", "surface", "force_n", "source", "phase"]
 

@@ -18,9 +18,9 @@ from pathlib import Path
 from typing import Any
 
 import hapticdesk
+from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.registry import load_registry
-from hapticdesk.runtime import Runtime, build_scene
-from hapticdesk.yamlfile import ConfigError
+from hapticdesk.runtime.service import Runtime, build_scene
 
 LAMP_TOPIC = "zigbee2mqtt/+/set"
 ACTION_TOPIC = "hapticdesk/+/action"  # the desk's own gesture stream
@@ -55,7 +55,7 @@ class Lamp:
     def __init__(self, url: str, out: Any) -> None:
         import paho.mqtt.client as mqtt
 
-        from hapticdesk.plugins.mqtt_link import parse_broker_url
+        from hapticdesk.plugins.mqtt.link import parse_broker_url
 
         tls, self.host, self.port, username = parse_broker_url(url, "--mqtt")
         self.out = out
@@ -158,7 +158,7 @@ def run(args: argparse.Namespace) -> int:
     broker = None
     url = args.mqtt
     if url is None:
-        from hapticdesk.broker import EmbeddedBroker
+        from hapticdesk.plugins.mqtt.broker import EmbeddedBroker
 
         broker = EmbeddedBroker().start()
         url = broker.url

@@ -21,9 +21,9 @@ from typing import Any
 
 import numpy as np
 
-from hapticdesk.profile import load_profile
-from hapticdesk.recording import read_recording
-from hapticdesk.yamlfile import ConfigError
+from hapticdesk.files.profile import load_profile
+from hapticdesk.files.recording import read_recording
+from hapticdesk.files.yamlfile import ConfigError
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

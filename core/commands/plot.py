@@ -10,9 +10,9 @@ import json
 import math
 from pathlib import Path
 
-from hapticdesk.profile import METHODS, load_profile
-from hapticdesk.readers import read_any_recording
-from hapticdesk.yamlfile import ConfigError
+from hapticdesk.files.profile import METHODS, load_profile
+from hapticdesk.files.readers import read_any_recording
+from hapticdesk.files.yamlfile import ConfigError
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

@@ -20,9 +20,14 @@ from typing import Any
 
 import numpy as np
 
-from hapticdesk.profile import DeskProfile, load_profile
-from hapticdesk.recording import RECORDING_SUFFIXES, Recording, read_recording, write_recording
-from hapticdesk.yamlfile import ConfigError
+from hapticdesk.files.profile import DeskProfile, load_profile
+from hapticdesk.files.recording import (
+    RECORDING_SUFFIXES,
+    Recording,
+    read_recording,
+    write_recording,
+)
+from hapticdesk.files.yamlfile import ConfigError
 
 LOG_SUFFIXES = (".asc", ".blf", ".log", ".trc")
 

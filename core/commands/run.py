@@ -13,7 +13,7 @@ import argparse
 import sys
 
 from hapticdesk.registry import load_registry
-from hapticdesk.runtime import Runtime, build_scene, report_json
+from hapticdesk.runtime.service import Runtime, build_scene, report_json
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

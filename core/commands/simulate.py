@@ -11,12 +11,12 @@ from pathlib import Path
 
 import numpy as np
 
-from hapticdesk.profile import load_profile
-from hapticdesk.recording import RECORDING_SUFFIXES, write_recording
+from hapticdesk.files.profile import load_profile
+from hapticdesk.files.recording import RECORDING_SUFFIXES, write_recording
+from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.sim.scene import load_scene
 from hapticdesk.sim.sensors import SensorParameters
 from hapticdesk.sim.simulator import SimEffects, simulate
-from hapticdesk.yamlfile import ConfigError
 
 DEFAULT_DESK = "kitamura2017"
 

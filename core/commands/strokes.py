@@ -23,15 +23,15 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from hapticdesk.gestures.options import GESTURE_OPTIONS
-from hapticdesk.gestures.strokefile import (
+from hapticdesk.files.strokefile import (
     SHAPE_NAME,
     STROKE_SUFFIXES,
     read_stroke,
     read_template_dir,
     write_stroke,
 )
-from hapticdesk.yamlfile import ConfigError
+from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.gestures.options import GESTURE_OPTIONS
 
 _STROKE = GESTURE_OPTIONS["stroke"]
 
@@ -93,7 +93,7 @@ def _stroke_paths(paths: list[str]) -> list[Path]:
 
 
 def classify(args: argparse.Namespace) -> int:
-    from hapticdesk.gestures.unistroke import template_set
+    from hapticdesk.gestures.strokes.unistroke import template_set
 
     if not 0.0 <= args.min_score <= 1.0:
         raise ConfigError("--min-score", f"must be between 0 and 1, found {args.min_score:g}")
@@ -142,12 +142,12 @@ def _next_index(folder: Path, name: str) -> int:
 
 def record(args: argparse.Namespace) -> int:
     from hapticdesk.estimator import ContactEstimator
-    from hapticdesk.gestures.capture import StrokeCapture
+    from hapticdesk.files.profile import load_profile
     from hapticdesk.gestures.layout import load_layout
-    from hapticdesk.gestures.unistroke import template_set
-    from hapticdesk.profile import load_profile
+    from hapticdesk.gestures.strokes.capture import StrokeCapture
+    from hapticdesk.gestures.strokes.unistroke import template_set
     from hapticdesk.registry import load_registry
-    from hapticdesk.source_spec import open_source
+    from hapticdesk.runtime.source_spec import open_source
 
     if not SHAPE_NAME.match(args.name):
         raise ConfigError(

@@ -14,7 +14,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from hapticdesk.contacts import ContactBlock, ContactEvent
+from hapticdesk.estimator.contacts import ContactBlock, ContactEvent
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.layout import Layout
 from hapticdesk.gestures.recognizer import Recognizer
@@ -22,14 +22,14 @@ from hapticdesk.gestures.touch import TouchTracker
 
 #: built-in gesture -> "module:Class"; one class may serve several gestures
 BUILTIN_RECOGNIZERS: dict[str, str] = {
-    "tap": "hapticdesk.gestures.taps:TapRecognizer",
-    "double_tap": "hapticdesk.gestures.taps:TapRecognizer",
-    "long_press": "hapticdesk.gestures.long_press:LongPressRecognizer",
-    "press": "hapticdesk.gestures.pressure:PressRecognizer",
-    "force": "hapticdesk.gestures.pressure:ForceRecognizer",
-    "swipe": "hapticdesk.gestures.swipe:SwipeRecognizer",
-    "slide": "hapticdesk.gestures.slide:SlideRecognizer",
-    "stroke": "hapticdesk.gestures.stroke:StrokeRecognizer",
+    "tap": "hapticdesk.gestures.recognizers.taps:TapRecognizer",
+    "double_tap": "hapticdesk.gestures.recognizers.taps:TapRecognizer",
+    "long_press": "hapticdesk.gestures.recognizers.long_press:LongPressRecognizer",
+    "press": "hapticdesk.gestures.recognizers.pressure:PressRecognizer",
+    "force": "hapticdesk.gestures.recognizers.pressure:ForceRecognizer",
+    "swipe": "hapticdesk.gestures.recognizers.swipe:SwipeRecognizer",
+    "slide": "hapticdesk.gestures.recognizers.slide:SlideRecognizer",
+    "stroke": "hapticdesk.gestures.recognizers.stroke:StrokeRecognizer",
 }
 
 

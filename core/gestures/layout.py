@@ -19,6 +19,25 @@ from typing import Any
 
 import numpy as np
 
+from hapticdesk.files.profile import DeskProfile, load_profile
+from hapticdesk.files.strokefile import (
+    SHAPE_NAME,
+    read_stroke,
+    read_template_dir,
+    stroke_files,
+)
+from hapticdesk.files.yamlfile import (
+    ConfigError,
+    MarkedDict,
+    MarkedList,
+    Position,
+    check_keys,
+    choice,
+    load_marked_yaml,
+    number,
+    require_mapping,
+    vector,
+)
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.options import (
     ANYWHERE_GESTURES,
@@ -36,25 +55,6 @@ from hapticdesk.gestures.regions import (
     points_in_polygon,
     polygon_area,
     regions_overlap,
-)
-from hapticdesk.gestures.strokefile import (
-    SHAPE_NAME,
-    read_stroke,
-    read_template_dir,
-    stroke_files,
-)
-from hapticdesk.profile import DeskProfile, load_profile
-from hapticdesk.yamlfile import (
-    ConfigError,
-    MarkedDict,
-    MarkedList,
-    Position,
-    check_keys,
-    choice,
-    load_marked_yaml,
-    number,
-    require_mapping,
-    vector,
 )
 
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
@@ -739,7 +739,7 @@ def builtin_shape_names() -> set[str]:
     """Names of the shipped stroke templates (the file names under templates/)."""
     from importlib import resources
 
-    root = resources.files("hapticdesk.gestures").joinpath("templates")
+    root = resources.files("hapticdesk.gestures.strokes").joinpath("templates")
     if not root.is_dir():
         return set()
     return {Path(str(p)).stem for p in root.iterdir() if str(p).endswith(".json")}

@@ -18,7 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Literal
 
-from hapticdesk.yamlfile import ConfigError, MarkedDict, Position, number
+from hapticdesk.files.yamlfile import ConfigError, MarkedDict, Position, number
 
 Kind = Literal[
     "seconds", "length", "newtons", "fraction", "degrees", "choice", "bool", "names", "levels"

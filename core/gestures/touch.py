@@ -17,8 +17,13 @@ import math
 
 import numpy as np
 
-from hapticdesk.contacts import UNCERTAINTY_CAP_M, ContactBlock, ContactEvent, contact_events
-from hapticdesk.profile import DeskProfile
+from hapticdesk.estimator.contacts import (
+    UNCERTAINTY_CAP_M,
+    ContactBlock,
+    ContactEvent,
+    contact_events,
+)
+from hapticdesk.files.profile import DeskProfile
 
 #: time constant of the smoothed track used by slides and strokes, seconds
 TRACK_TIME_CONSTANT_S = 0.03

@@ -8,7 +8,7 @@
 Modules: :mod:`~hapticdesk.sim.desk` (rigid desk on spring legs, exact discretisation),
 :mod:`~hapticdesk.sim.sensors` (noise, resolution, saturation, drift),
 :mod:`~hapticdesk.sim.human` (force and contact over time), :mod:`~hapticdesk.sim.actions`
-and :mod:`~hapticdesk.sim.scene` (what happens when), :mod:`~hapticdesk.sim.shapes` (paths),
+and :mod:`~hapticdesk.sim.scene` (what happens when), :mod:`~hapticdesk.sim.paths` (paths),
 :mod:`~hapticdesk.sim.timeline` (a scene made concrete), :mod:`~hapticdesk.sim.simulator`.
 See docs/simulator.md.
 """
@@ -29,9 +29,9 @@ from hapticdesk.sim.actions import (
 )
 from hapticdesk.sim.desk import DeskModel, DeskParameters
 from hapticdesk.sim.human import HumanModel
+from hapticdesk.sim.paths import GLYPHS, SHAPES, shape_path, text_paths
 from hapticdesk.sim.scene import Scene, load_scene
 from hapticdesk.sim.sensors import SensorParameters
-from hapticdesk.sim.shapes import GLYPHS, SHAPES, shape_path, text_paths
 from hapticdesk.sim.simulator import SimEffects, SimSource, SimulationRun, simulate
 from hapticdesk.sim.timeline import TRUTH_COLUMNS
 

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from hapticdesk.yamlfile import Position
+from hapticdesk.files.yamlfile import Position
 
 Point = tuple[float, float]
 

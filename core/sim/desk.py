@@ -43,7 +43,7 @@ import scipy.linalg
 import scipy.optimize
 import scipy.signal
 
-from hapticdesk.profile import DeskProfile
+from hapticdesk.files.profile import DeskProfile
 
 STANDARD_GRAVITY = 9.80665  # m/s²
 DEFAULT_MASS_KG = 13.7  # the paper's desk (Table 1)

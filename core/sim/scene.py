@@ -38,7 +38,19 @@ from typing import Any
 
 import numpy as np
 
-from hapticdesk.gestures.strokefile import read_stroke
+from hapticdesk.files.strokefile import read_stroke
+from hapticdesk.files.yamlfile import (
+    ConfigError,
+    MarkedDict,
+    MarkedList,
+    Position,
+    check_keys,
+    choice,
+    load_marked_yaml,
+    number,
+    require_mapping,
+    vector,
+)
 from hapticdesk.sim.actions import (
     Action,
     DeskObject,
@@ -54,19 +66,7 @@ from hapticdesk.sim.actions import (
     Tap,
 )
 from hapticdesk.sim.human import HumanModel
-from hapticdesk.sim.shapes import SHAPES, shape_path, text_paths
-from hapticdesk.yamlfile import (
-    ConfigError,
-    MarkedDict,
-    MarkedList,
-    Position,
-    check_keys,
-    choice,
-    load_marked_yaml,
-    number,
-    require_mapping,
-    vector,
-)
+from hapticdesk.sim.paths import SHAPES, shape_path, text_paths
 
 MIN_QUIET_S = 1.5  # the estimator tares over the first second; leave it a margin
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}

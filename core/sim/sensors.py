@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hapticdesk.profile import DeskProfile
+from hapticdesk.files.profile import DeskProfile
 
 PAPER_RATING = np.array([150.0, 150.0, 300.0, 4.0, 4.0, 4.0])  # Table 2
 

@@ -13,8 +13,9 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from hapticdesk.profile import DeskProfile
-from hapticdesk.recording import Recording
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.recording import Recording
+from hapticdesk.runtime.source import Source, WrenchBlock
 from hapticdesk.sim.desk import DeskModel, DeskParameters
 from hapticdesk.sim.scene import Scene
 from hapticdesk.sim.sensors import SensorModel, SensorParameters
@@ -25,7 +26,6 @@ from hapticdesk.sim.timeline import (
     Timeline,
     stream,
 )
-from hapticdesk.source import Source, WrenchBlock
 
 CHUNK = 4096  # samples per internal chunk (noise streams are per chunk)
 

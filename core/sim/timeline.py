@@ -12,7 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hapticdesk.profile import DeskProfile, Surface
+from hapticdesk.files.profile import DeskProfile, Surface
+from hapticdesk.files.yamlfile import ConfigError, Position
 from hapticdesk.sim.actions import (
     Action,
     Drag,
@@ -29,7 +30,6 @@ from hapticdesk.sim.actions import (
 from hapticdesk.sim.desk import STANDARD_GRAVITY, point_load
 from hapticdesk.sim.human import Touch, touch_track
 from hapticdesk.sim.scene import Scene
-from hapticdesk.yamlfile import ConfigError, Position
 
 STREAM_HUMAN = 1  # SeedSequence spawn keys: one stream per purpose, independent of each other
 STREAM_NOISE = 2

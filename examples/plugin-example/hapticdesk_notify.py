@@ -16,9 +16,9 @@ import threading
 from pathlib import Path
 from typing import Any
 
+from hapticdesk.files.yamlfile import ConfigError, MarkedDict, check_keys
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.plugins.templating import compile_template, event_variables
-from hapticdesk.yamlfile import ConfigError, MarkedDict, check_keys
 
 __version__ = "0.1.0"
 

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from hapticdesk.profile import DeskProfile, load_profile
-from hapticdesk.recording import Recording
+from hapticdesk.files.profile import DeskProfile, load_profile
+from hapticdesk.files.recording import Recording
 from hapticdesk.sim import Idle, Scene, Swipe, load_scene, simulate
 
 SCENES = Path(__file__).resolve().parents[2] / "examples" / "scenes"

@@ -11,8 +11,9 @@ import yaml
 
 from hapticdesk.analysis.characterize import CUTOFF_RATIO, characterize
 from hapticdesk.cli import main
-from hapticdesk.profile import DeskProfile, load_profile
-from hapticdesk.recording import Recording, write_recording
+from hapticdesk.files.profile import DeskProfile, load_profile
+from hapticdesk.files.recording import Recording, write_recording
+from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.sim import (
     DeskParameters,
     Idle,
@@ -21,7 +22,6 @@ from hapticdesk.sim import (
     SimEffects,
     simulate,
 )
-from hapticdesk.yamlfile import ConfigError
 
 from .conftest import knock_scene
 

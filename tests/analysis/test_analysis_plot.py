@@ -10,10 +10,10 @@ import pytest
 
 from hapticdesk.analysis.plotting import plot_recording
 from hapticdesk.cli import main
-from hapticdesk.profile import DeskProfile
-from hapticdesk.recording import Recording, write_recording
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.recording import Recording, write_recording
+from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.sim import Idle, Scene, simulate
-from hapticdesk.yamlfile import ConfigError
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 

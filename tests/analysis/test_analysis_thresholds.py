@@ -11,10 +11,10 @@ import yaml
 
 from hapticdesk.analysis.thresholds import ThresholdSummary, derive_thresholds, local_slope
 from hapticdesk.cli import main
-from hapticdesk.profile import DeskProfile
-from hapticdesk.recording import Recording, write_recording
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.recording import Recording, write_recording
+from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.sim import Idle, Scene, SensorParameters, load_scene, simulate
-from hapticdesk.yamlfile import ConfigError
 
 from .conftest import SCENES
 

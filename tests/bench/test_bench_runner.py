@@ -9,8 +9,8 @@ from hapticdesk.bench.accuracy import find_presses, measure_accuracy
 from hapticdesk.bench.runner import Config, pareto_front, run_config
 from hapticdesk.bench.scenes import paper_experiment
 from hapticdesk.cli import main
-from hapticdesk.contacts import ContactBlock
 from hapticdesk.estimator import estimate
+from hapticdesk.estimator.contacts import ContactBlock
 from hapticdesk.sim import simulate
 
 JSON_KEYS = {

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from hapticdesk.cli import main
-from hapticdesk.recording import Recording, read_recording, write_recording
+from hapticdesk.files.recording import Recording, read_recording, write_recording
 
 
 @pytest.fixture

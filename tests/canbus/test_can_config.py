@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from hapticdesk.canbus.config import AtiSensor, SignalSensor, can_config
-from hapticdesk.profile import load_profile
-from hapticdesk.yamlfile import ConfigError
+from hapticdesk.files.profile import load_profile
+from hapticdesk.files.yamlfile import ConfigError
 
 HEAD = """name: t
 sample_rate_hz: 1000

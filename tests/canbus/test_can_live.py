@@ -15,10 +15,10 @@ from hapticdesk.canbus.assembler import SensorSilentError
 from hapticdesk.canbus.config import can_config
 from hapticdesk.canbus.emulator import CanEmulator, FrameEncoder
 from hapticdesk.canbus.source import CanSourceError, open_can_source
-from hapticdesk.contacts import ContactBlock, contact_events
 from hapticdesk.estimator import ContactEstimator, estimate
-from hapticdesk.profile import load_profile
-from hapticdesk.recording import Recording
+from hapticdesk.estimator.contacts import ContactBlock, contact_events
+from hapticdesk.files.profile import load_profile
+from hapticdesk.files.recording import Recording
 from hapticdesk.sim import load_scene, simulate
 
 SCENE = """name: can-e2e
@@ -232,7 +232,7 @@ def test_clear_errors_when_opening(can_desk, bench, virtual_channel):
 def can_desk_without_interface(profile):
     from dataclasses import replace
 
-    from hapticdesk.yamlfile import MarkedDict
+    from hapticdesk.files.yamlfile import MarkedDict
 
     section = MarkedDict(profile.can)
     section.position = profile.can.position

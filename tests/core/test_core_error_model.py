@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from hapticdesk import error_model as em
+from hapticdesk.estimator import error_model as em
 
 
 def test_force_error_range_at_2n_is_the_papers_83_mm():

@@ -7,7 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hapticdesk.contacts import (
+from hapticdesk.estimator import ContactEstimator
+from hapticdesk.estimator.contacts import (
     FLAG_GAP,
     FLAG_NAN,
     FLAG_SATURATED,
@@ -15,8 +16,7 @@ from hapticdesk.contacts import (
     ContactBlock,
     contact_events,
 )
-from hapticdesk.estimator import ContactEstimator
-from hapticdesk.profile import METHODS, load_profile
+from hapticdesk.files.profile import METHODS, load_profile
 
 POINTS = [(0.2, 0.1, 0.733), (-0.3, -0.2, 0.733), (0.0, 0.0, 0.733)]
 

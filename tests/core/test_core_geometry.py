@@ -4,8 +4,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hapticdesk.geometry import SurfaceFrame, intersect
-from hapticdesk.profile import DeskProfile, SensorSpec, Surface, rotation_matrix
+from hapticdesk.estimator.geometry import SurfaceFrame, intersect
+from hapticdesk.files.profile import DeskProfile, SensorSpec, Surface, rotation_matrix
 
 unit = st.floats(-1.0, 1.0, allow_nan=False)
 

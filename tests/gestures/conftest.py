@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from hapticdesk.contacts import PHASE_HOLD, SOURCE_FUSED, ContactBlock
+from hapticdesk.estimator.contacts import PHASE_HOLD, SOURCE_FUSED, ContactBlock
 from hapticdesk.gestures.layout import Layout, load_layout
 
 ACTIONS = {"mqtt", "log", "exec", "http"}

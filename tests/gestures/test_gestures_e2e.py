@@ -14,7 +14,7 @@ from hapticdesk.estimator import ContactEstimator, estimate
 from hapticdesk.gestures.engine import GestureEngine
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.layout import load_layout
-from hapticdesk.gestures.shapes import hand_drawn
+from hapticdesk.gestures.strokes.shapes import hand_drawn
 from hapticdesk.sim import Drag, Idle, LongPress, Press, Ramp, Scene, Stroke, Swipe, Tap, simulate
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "layouts"

@@ -12,7 +12,7 @@ import pytest
 from hapticdesk.gestures.engine import BUILTIN_RECOGNIZERS, GestureEngine
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.recognizer import Recognizer
-from hapticdesk.gestures.shapes import hand_drawn
+from hapticdesk.gestures.strokes.shapes import hand_drawn
 
 EVERYTHING = """
 units: cm
@@ -115,7 +115,7 @@ def test_a_taps_only_layout_never_imports_the_stroke_recognizer(tmp_path):
         f"""
         import sys
         import numpy as np
-        from hapticdesk.contacts import ContactBlock
+        from hapticdesk.estimator.contacts import ContactBlock
         from hapticdesk.gestures.engine import GestureEngine
         from hapticdesk.gestures.layout import load_layout
         engine = GestureEngine(load_layout({str(layout)!r}))
@@ -129,7 +129,7 @@ def test_a_taps_only_layout_never_imports_the_stroke_recognizer(tmp_path):
     assert recognizers == "['tap']"
     for absent in ("stroke", "unistroke", "shapes", "swipe", "slide", "pressure", "long_press"):
         assert f"hapticdesk.gestures.{absent}'" not in modules
-    assert "hapticdesk.gestures.taps'" in modules
+    assert "hapticdesk.gestures.recognizers.taps'" in modules
 
 
 class KnockRecognizer(Recognizer):

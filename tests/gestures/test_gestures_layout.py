@@ -7,11 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from hapticdesk.files.profile import load_profile
+from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.layout import load_layout
 from hapticdesk.gestures.regions import regions_overlap
-from hapticdesk.profile import load_profile
-from hapticdesk.yamlfile import ConfigError
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "layouts"
 ACTIONS = {"mqtt", "log", "exec", "http"}

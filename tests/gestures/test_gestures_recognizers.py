@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from hapticdesk.gestures.engine import GestureEngine
-from hapticdesk.gestures.shapes import hand_drawn
+from hapticdesk.gestures.strokes.shapes import hand_drawn
 
 BUTTONS = """
 units: cm

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from hapticdesk.cli import main
-from hapticdesk.gestures.shapes import SHAPES, hand_drawn, template_document
-from hapticdesk.gestures.strokefile import read_stroke, read_template_dir, write_stroke
-from hapticdesk.gestures.unistroke import TemplateSet, builtin_templates, template_set
-from hapticdesk.yamlfile import ConfigError
+from hapticdesk.files.strokefile import read_stroke, read_template_dir, write_stroke
+from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.gestures.strokes.shapes import SHAPES, hand_drawn, template_document
+from hapticdesk.gestures.strokes.unistroke import TemplateSet, builtin_templates, template_set
 
 SET_OF_ONE_DOLLAR = [
     "triangle", "x", "rectangle", "circle", "check", "caret", "question_mark", "arrow",

@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hapticdesk.profile import DeskProfile
-from hapticdesk.recording import Recording
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.recording import Recording
 
 
 @dataclass(frozen=True)

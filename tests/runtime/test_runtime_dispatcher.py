@@ -5,8 +5,8 @@ from __future__ import annotations
 import threading
 import time
 
-from hapticdesk.dispatcher import MAX_ABANDONED, ActionContext, Dispatcher, Lane, Route
 from hapticdesk.gestures.event import GestureEvent
+from hapticdesk.runtime.dispatcher import MAX_ABANDONED, ActionContext, Dispatcher, Lane, Route
 
 
 def tap(i: int, region: str = "lamp") -> GestureEvent:

@@ -8,14 +8,14 @@ from types import SimpleNamespace
 import pytest
 
 from hapticdesk import hookspecs
-from hapticdesk.contacts import ContactEvent
+from hapticdesk.estimator.contacts import ContactEvent
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.recognizer import Recognizer
 from hapticdesk.gestures.touch import Touch
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.plugins.replay import RecordingSource
 from hapticdesk.registry import hookspec_names, load_registry
-from hapticdesk.runtime import RunReport, Runtime, build_scene
+from hapticdesk.runtime.service import RunReport, Runtime, build_scene
 
 from .taps import Tap, tap_recording
 

@@ -14,12 +14,12 @@ from types import SimpleNamespace
 
 import pytest
 
+from hapticdesk.files.recording import write_recording
+from hapticdesk.files.yamlfile import ConfigError, load_marked_yaml
 from hapticdesk.hookspecs import hookimpl
-from hapticdesk.plugins.mqtt_link import Message, MqttLink, MqttSettings, settings_from_layout
-from hapticdesk.recording import write_recording
+from hapticdesk.plugins.mqtt.link import Message, MqttLink, MqttSettings, settings_from_layout
 from hapticdesk.registry import load_registry
-from hapticdesk.runtime import Runtime, build_scene
-from hapticdesk.yamlfile import ConfigError, load_marked_yaml
+from hapticdesk.runtime.service import Runtime, build_scene
 
 from .conftest import Mosquitto, Subscriber, make_tls, wait_subscribed
 from .taps import Tap, tap_recording

@@ -20,10 +20,10 @@ def test_the_wheel_carries_profiles_templates_and_the_demo(tmp_path):
     for needed in (
         "hapticdesk/profiles/kitamura2017.yaml",
         "hapticdesk/profiles/kitamura2017.dbc",
-        "hapticdesk/gestures/templates/circle.json",
+        "hapticdesk/gestures/strokes/templates/circle.json",
         "hapticdesk/examples/layouts/demo.yaml",
         "hapticdesk/examples/scenes/demo.yaml",
-        "hapticdesk/plugins/mqtt.py",
+        "hapticdesk/plugins/mqtt/__init__.py",
     ):
         assert needed in names, needed
     assert not any("plugin-example" in n for n in names)  # a package of its own

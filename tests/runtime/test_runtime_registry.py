@@ -15,9 +15,9 @@ from types import SimpleNamespace
 
 import pytest
 
+from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.registry import DEFAULT_PLUGINS, DISABLE_AUTOLOAD_ENV, PluginError, load_registry
-from hapticdesk.yamlfile import ConfigError
 
 
 def plugin(**hooks):

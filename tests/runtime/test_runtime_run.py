@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from hapticdesk.cli import main
-from hapticdesk.recording import write_recording
+from hapticdesk.files.recording import write_recording
 
 from .taps import Tap, tap_recording
 
@@ -141,7 +141,7 @@ def test_a_scene_imports_only_what_it_uses(tmp_path, recording):
             "0",
         ]
     )
-    assert "hapticdesk.gestures.taps" in modules  # it did run
+    assert "hapticdesk.gestures.recognizers.taps" in modules  # it did run
     for heavy in ("paho", "can", "cantools", "jinja2", "amqtt", "matplotlib"):
         assert heavy not in modules, heavy
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pytest
 
+from hapticdesk.files.yamlfile import ConfigError, load_marked_yaml
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.plugins.templating import (
     VARIABLES,
@@ -12,7 +13,6 @@ from hapticdesk.plugins.templating import (
     compile_value,
     event_variables,
 )
-from hapticdesk.yamlfile import ConfigError, load_marked_yaml
 
 SLIDE = GestureEvent(3.25, "slide", "dimmer", 0.1, -0.05, value=0.5, phase="update")
 

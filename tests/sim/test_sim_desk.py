@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from hapticdesk.profile import DeskProfile, load_profile
+from hapticdesk.files.profile import DeskProfile, load_profile
 from hapticdesk.sim.desk import DeskModel, DeskParameters, point_load
 
 TOP = 0.733

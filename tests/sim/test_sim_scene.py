@@ -7,7 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hapticdesk.profile import DeskProfile
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.sim import (
     GLYPHS,
     Idle,
@@ -22,7 +23,6 @@ from hapticdesk.sim import (
     text_paths,
 )
 from hapticdesk.sim.timeline import Timeline
-from hapticdesk.yamlfile import ConfigError
 
 SCENES = Path(__file__).resolve().parents[2] / "examples" / "scenes"
 EXAMPLES = sorted(SCENES.glob("*.yaml"))

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hapticdesk.profile import DeskProfile
+from hapticdesk.files.profile import DeskProfile
 from hapticdesk.sim import (
     Idle,
     LiftObject,

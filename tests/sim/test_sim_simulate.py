@@ -10,8 +10,9 @@ import pytest
 
 from hapticdesk.cli import main
 from hapticdesk.estimator import estimate
-from hapticdesk.profile import DeskProfile, profile_from_mapping
-from hapticdesk.recording import read_recording
+from hapticdesk.files.profile import DeskProfile, profile_from_mapping
+from hapticdesk.files.recording import read_recording
+from hapticdesk.files.yamlfile import load_marked_yaml
 from hapticdesk.sim import (
     TRUTH_COLUMNS,
     Drag,
@@ -29,7 +30,6 @@ from hapticdesk.sim import (
     shape_path,
     simulate,
 )
-from hapticdesk.yamlfile import load_marked_yaml
 
 SCENES = Path(__file__).resolve().parents[2] / "examples" / "scenes"
 STILL = HumanModel(tremor=0.0, wander=0.0, roll_m=0.0, aim_sd_m=0.0)

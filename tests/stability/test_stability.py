@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from hapticdesk.bench.accuracy import measure_accuracy
-from hapticdesk.contacts import FLAG_NAN, FLAG_SATURATED, ContactBlock
 from hapticdesk.estimator import ContactEstimator, estimate
-from hapticdesk.profile import METHODS, DeskProfile
+from hapticdesk.estimator.contacts import FLAG_NAN, FLAG_SATURATED, ContactBlock
+from hapticdesk.files.profile import METHODS, DeskProfile
 from hapticdesk.sim import (
     DeskParameters,
     HumanModel,

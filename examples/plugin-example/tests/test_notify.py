@@ -8,11 +8,11 @@ from pathlib import Path
 import hapticdesk_notify
 import pytest
 
-from hapticdesk.dispatcher import ActionContext
+from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.layout import load_layout
 from hapticdesk.registry import load_registry
-from hapticdesk.yamlfile import ConfigError
+from hapticdesk.runtime.dispatcher import ActionContext
 
 LAYOUT = """\
 desk: kitamura2017

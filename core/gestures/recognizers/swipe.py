@@ -19,7 +19,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hapticdesk.contacts import ContactEvent
+from hapticdesk.estimator.contacts import ContactEvent
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.layout import Binding, Layout
 from hapticdesk.gestures.options import DIRECTIONS_4, DIRECTIONS_8

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hapticdesk.profile import AXES
-from hapticdesk.yamlfile import ConfigError
+from hapticdesk.files.profile import AXES
+from hapticdesk.files.yamlfile import ConfigError
 
 RECORDING_SUFFIXES = (".csv", ".npz")
 

@@ -27,14 +27,14 @@ from pathlib import Path
 from types import FrameType
 from typing import IO, Any
 
-from hapticdesk.contacts import FLAG_NOT_TARED, ContactBlock
-from hapticdesk.dispatcher import ActionContext, Dispatcher, DispatchReport, Lane, Route
+from hapticdesk.estimator.contacts import FLAG_NOT_TARED, ContactBlock
+from hapticdesk.files.profile import DeskProfile, load_profile
+from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.gestures.event import GestureEvent
-from hapticdesk.profile import DeskProfile, load_profile
 from hapticdesk.registry import Registry
-from hapticdesk.source import Source
-from hapticdesk.source_spec import open_source
-from hapticdesk.yamlfile import ConfigError
+from hapticdesk.runtime.dispatcher import ActionContext, Dispatcher, DispatchReport, Lane, Route
+from hapticdesk.runtime.source import Source
+from hapticdesk.runtime.source_spec import open_source
 
 log = logging.getLogger(__name__)
 

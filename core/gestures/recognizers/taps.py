@@ -13,7 +13,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from hapticdesk.contacts import ContactEvent
+from hapticdesk.estimator.contacts import ContactEvent
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.layout import Binding, Layout
 from hapticdesk.gestures.recognizer import BoundRegions, Recognizer

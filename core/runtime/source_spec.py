@@ -8,10 +8,10 @@ from __future__ import annotations
 
 from typing import Any
 
-from hapticdesk.profile import DeskProfile
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.registry import Registry
-from hapticdesk.source import Source
-from hapticdesk.yamlfile import ConfigError
+from hapticdesk.runtime.source import Source
 
 
 def parse_source_spec(spec: str) -> tuple[str, str]:
@@ -34,7 +34,7 @@ def open_source(spec: str, profile: DeskProfile, registry: Registry, **options: 
         raise ConfigError(
             "--source",
             f"the `{kind}` source of plugin `{registry.sources[kind].plugin}` returned "
-            f"{type(source).__name__}, not a hapticdesk.source.Source",
+            f"{type(source).__name__}, not a hapticdesk.runtime.source.Source",
         )
     names = list(source.sensor_names)
     if names != profile.sensor_names:

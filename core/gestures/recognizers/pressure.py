@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from hapticdesk.contacts import ContactEvent
+from hapticdesk.estimator.contacts import ContactEvent
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.layout import Binding, Layout
 from hapticdesk.gestures.recognizer import BoundRegions, Recognizer

@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from hapticdesk.yamlfile import (
+from hapticdesk.files.yamlfile import (
     ConfigError,
     MarkedDict,
     Position,

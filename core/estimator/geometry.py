@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hapticdesk.profile import Surface
+from hapticdesk.files.profile import Surface
 
 EDGE_TOLERANCE_M = 1e-9  # a point this close to an outline counts as inside
 

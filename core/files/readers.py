@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from hapticdesk.profile import DeskProfile
-from hapticdesk.recording import RECORDING_SUFFIXES, Recording, read_recording
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.recording import RECORDING_SUFFIXES, Recording, read_recording
 
 
 def read_any_recording(path: str | Path, profile: DeskProfile) -> Recording:

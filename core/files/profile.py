@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from hapticdesk.yamlfile import (
+from hapticdesk.files.yamlfile import (
     ConfigError,
     MarkedDict,
     MarkedList,

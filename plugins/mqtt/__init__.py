@@ -28,18 +28,18 @@ from __future__ import annotations
 
 from typing import Any
 
-from hapticdesk.dispatcher import ActionContext
+from hapticdesk.files.yamlfile import ConfigError, Position
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.hookspecs import hookimpl
-from hapticdesk.plugins.mqtt_discovery import device_triggers
-from hapticdesk.plugins.mqtt_link import (
+from hapticdesk.plugins.action_options import options_mapping, text, where
+from hapticdesk.plugins.mqtt.discovery import device_triggers
+from hapticdesk.plugins.mqtt.link import (
     Message,
     MqttLink,
     MqttSettings,
     qos_of,
     settings_from_layout,
 )
-from hapticdesk.plugins.options import options_mapping, text, where
 from hapticdesk.plugins.templating import (
     Template,
     TemplatedValue,
@@ -47,7 +47,7 @@ from hapticdesk.plugins.templating import (
     compile_value,
     event_variables,
 )
-from hapticdesk.yamlfile import ConfigError, Position
+from hapticdesk.runtime.dispatcher import ActionContext
 
 LINK = "mqtt"  # the ActionContext.shared key of the run's connection
 

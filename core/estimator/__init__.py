@@ -17,7 +17,7 @@ and batch give the same output for any split of the input:
    (an object put down) becomes part of it, with a notice.
 5. Candidates: P_er from the force and P_ed from the differentiated force (and, for
    ``fused``, one from the fast wrench), each the intersection of its line of action with the
-   surfaces (paper eqs. 5, 12; :mod:`hapticdesk.geometry`), each with a covariance propagated
+   surfaces (paper eqs. 5, 12; :mod:`hapticdesk.estimator.geometry`), each with a covariance propagated
    from the noise measured at the tare, plus the zero's drift since it was set and, for P_ed,
    the term eq. (11) drops.
 6. Method: ``force`` (the conventional), ``diff``, ``switched`` (paper Fig. 3 with F_tth,
@@ -33,7 +33,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from hapticdesk.contacts import (
+from hapticdesk.estimator.contacts import (
     FLAG_GAP,
     FLAG_NAN,
     FLAG_NOT_TARED,
@@ -48,7 +48,7 @@ from hapticdesk.contacts import (
     UNCERTAINTY_CAP_M,
     ContactBlock,
 )
-from hapticdesk.filters import (
+from hapticdesk.estimator.filters import (
     DelayLine,
     SosFilter,
     butter_lowpass_sos,
@@ -56,7 +56,7 @@ from hapticdesk.filters import (
     noise_gain,
     pack_pairs,
 )
-from hapticdesk.geometry import (
+from hapticdesk.estimator.geometry import (
     VAR_CAP,
     Intersection,
     SurfaceFrame,
@@ -64,8 +64,8 @@ from hapticdesk.geometry import (
     intersect_one,
     pack_cov,
 )
-from hapticdesk.profile import METHODS, DeskProfile, EstimationSettings
-from hapticdesk.recording import Recording
+from hapticdesk.files.profile import METHODS, DeskProfile, EstimationSettings
+from hapticdesk.files.recording import Recording
 
 log = logging.getLogger("hapticdesk.estimator")
 

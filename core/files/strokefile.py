@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hapticdesk.yamlfile import ConfigError
+from hapticdesk.files.yamlfile import ConfigError
 
 STROKE_SUFFIXES = (".csv", ".json")
 SHAPE_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")

@@ -7,7 +7,7 @@ data is not used; these are our own drawings of the same shapes, in desk coordin
 person at the desk sees them (y away from them, so a ``v`` goes down then up: y decreasing,
 then increasing).
 
-``python -m hapticdesk.gestures.shapes`` writes the shipped templates (templates/*.json);
+``python -m hapticdesk.gestures.strokes.shapes`` writes the shipped templates (templates/*.json);
 a test checks they match these definitions. :func:`hand_drawn` makes a differently drawn
 instance (size, proportions, slant, wobble, start point, direction) for tests and for
 scripts/stroke_accuracy.py.
@@ -172,7 +172,7 @@ def template_document(shape: Shape) -> dict[str, object]:
         "shape": shape.name,
         "closed": shape.closed,
         "reversible": shape.reversible,
-        "source": "hapticdesk.gestures.shapes (own drawing of the $1 gesture set's shape)",
+        "source": "hapticdesk.gestures.strokes.shapes (own drawing of the $1 gesture set's shape)",
         "strokes": [
             np.round(normalised(resample(v, TEMPLATE_POINTS), TEMPLATE_SIZE_M), 5).tolist()
             for v in shape.variants

@@ -10,10 +10,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hapticdesk.contacts import ContactBlock, ContactEvent
-from hapticdesk.gestures.stroke import extent, smoothing_s, stroke_path
+from hapticdesk.estimator.contacts import ContactBlock, ContactEvent
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.gestures.recognizers.stroke import extent, smoothing_s, stroke_path
 from hapticdesk.gestures.touch import Touch, TouchTracker
-from hapticdesk.profile import DeskProfile
 
 _KEEP_EVERY = 4  # of the smoothed path's 5 ms steps
 

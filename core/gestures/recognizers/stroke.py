@@ -18,13 +18,13 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hapticdesk.contacts import ContactEvent
+from hapticdesk.estimator.contacts import ContactEvent
+from hapticdesk.files.profile import DeskProfile
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.layout import Binding, Layout
 from hapticdesk.gestures.recognizer import BoundRegions, Recognizer
+from hapticdesk.gestures.strokes.unistroke import template_set
 from hapticdesk.gestures.touch import Touch
-from hapticdesk.gestures.unistroke import template_set
-from hapticdesk.profile import DeskProfile
 
 #: the smoothing's σ in periods of the desk's natural frequency
 SWAY_CYCLES = 0.47

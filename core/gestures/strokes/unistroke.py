@@ -35,7 +35,7 @@ from importlib import resources
 
 import numpy as np
 
-from hapticdesk.gestures.shapes import resample
+from hapticdesk.gestures.strokes.shapes import resample
 
 N_POINTS = 64
 START_POINTS = 32  # start points tried for closed templates
@@ -157,7 +157,7 @@ def _directions(points: np.ndarray) -> np.ndarray:
 def builtin_templates() -> TemplateSet:
     """The shipped templates (templates/*.json)."""
     out = TemplateSet()
-    root = resources.files("hapticdesk.gestures").joinpath("templates")
+    root = resources.files("hapticdesk.gestures.strokes").joinpath("templates")
     for entry in sorted(root.iterdir(), key=lambda p: p.name):
         if not entry.name.endswith(".json"):
             continue

@@ -5,7 +5,7 @@ x = (h·F_x − M_y)/F_z (paper eq. 5 / 7). Noise of amplitude a on F_z (with M_
 the computed x between x·F/(F + a) and x·F/(F − a): an error range that grows as 1/F. The
 same with the differentiated force (paper eq. 12 / 16), where Ḟ_z ≈ −45 N/s at touch and the
 differentiated noise is small, gives a far narrower range. Every number here is computed by
-:func:`hapticdesk.geometry.intersect`, the code the estimator runs, on a wrench built for
+:func:`hapticdesk.estimator.geometry.intersect`, the code the estimator runs, on a wrench built for
 the case — not by a formula copied beside the paper's figures.
 """
 
@@ -14,8 +14,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import brentq
 
-from hapticdesk.geometry import SurfaceFrame, intersect
-from hapticdesk.profile import Surface
+from hapticdesk.estimator.geometry import SurfaceFrame, intersect
+from hapticdesk.files.profile import Surface
 
 PAPER_X_M = 0.2  # the contact's distance from the centre in §3.1
 PAPER_HEIGHT_M = 0.733  # Table 1: sensor to top board

@@ -1,0 +1,1 @@
+"""The built-in gesture recognizers, one module each, registered through the plugin hooks."""

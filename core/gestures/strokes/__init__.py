@@ -1,0 +1,1 @@
+"""Drawn strokes: the unistroke recognizer, the built-in shapes and their templates, capture."""

@@ -43,7 +43,9 @@ MOVED: dict[str, str] = {
 class _MovedModuleFinder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
     """Imports an old module name as the module that now holds it (the same object)."""
 
-    def find_spec(self, fullname: str, path: object, target: object = None):  # type: ignore[no-untyped-def]
+    def find_spec(
+        self, fullname: str, path: object, target: object = None
+    ) -> importlib.machinery.ModuleSpec | None:
         if fullname not in MOVED:
             return None
         return importlib.machinery.ModuleSpec(fullname, self)

@@ -34,10 +34,11 @@ def register_sources(register: Any) -> None:
     Called once while the registry is built, with ``register`` the callback to call as
     ``register(name, factory, description="")`` for each kind, where ``factory`` is a callable
     or a lazy ``"module:attr"`` string (imported only when a run uses that kind) and is called
-    as ``factory(argument, profile, **options) -> hapticdesk.runtime.source.Source`` with ``argument``
-    the text after ``KIND:``, ``profile`` the :class:`~hapticdesk.files.profile.DeskProfile`, and
-    ``options`` keyword options the factory may ignore (``speed``: replay speed, 1 = real time,
-    0 = as fast as possible). Bad arguments raise :class:`~hapticdesk.files.yamlfile.ConfigError`.
+    as ``factory(argument, profile, **options) -> hapticdesk.runtime.source.Source`` with
+    ``argument`` the text after ``KIND:``, ``profile`` the
+    :class:`~hapticdesk.files.profile.DeskProfile`, and ``options`` keyword options the
+    factory may ignore (``speed``: replay speed, 1 = real time, 0 = as fast as possible). Bad
+    arguments raise :class:`~hapticdesk.files.yamlfile.ConfigError`.
     """
 
 

@@ -17,9 +17,9 @@ and batch give the same output for any split of the input:
    (an object put down) becomes part of it, with a notice.
 5. Candidates: P_er from the force and P_ed from the differentiated force (and, for
    ``fused``, one from the fast wrench), each the intersection of its line of action with the
-   surfaces (paper eqs. 5, 12; :mod:`hapticdesk.estimator.geometry`), each with a covariance propagated
-   from the noise measured at the tare, plus the zero's drift since it was set and, for P_ed,
-   the term eq. (11) drops.
+   surfaces (paper eqs. 5, 12; :mod:`hapticdesk.estimator.geometry`), each with a covariance
+   propagated from the noise measured at the tare, plus the zero's drift since it was set
+   and, for P_ed, the term eq. (11) drops.
 6. Method: ``force`` (the conventional), ``diff``, ``switched`` (paper Fig. 3 with F_tth,
    F_rth) or ``fused`` (inverse-covariance combination of the candidates, no threshold; a
    point is reported when its 1-σ is below ``max_sigma_m``).

@@ -25,7 +25,7 @@ SET_OF_ONE_DOLLAR = [
 
 
 def test_the_shipped_templates_are_the_geometric_definitions():
-    root = resources.files("hapticdesk.gestures").joinpath("templates")
+    root = resources.files("hapticdesk.gestures.strokes").joinpath("templates")
     shipped = {Path(p.name).stem: json.loads(p.read_text()) for p in root.iterdir()}
     assert set(shipped) == set(SET_OF_ONE_DOLLAR) | {"zigzag", "line"} == set(SHAPES)
     for name, shape in SHAPES.items():
@@ -34,9 +34,9 @@ def test_the_shipped_templates_are_the_geometric_definitions():
 
 def test_v_goes_down_then_up_and_caret_up_then_down_in_desk_coordinates():
     v = np.array(
-        json.loads(resources.files("hapticdesk.gestures").joinpath("templates/v.json").read_text())[
-            "strokes"
-        ][0]
+        json.loads(
+            resources.files("hapticdesk.gestures.strokes").joinpath("templates/v.json").read_text()
+        )["strokes"][0]
     )
     low = int(np.argmin(v[:, 1]))
     assert 0 < low < len(v) - 1 and v[0, 1] > v[low, 1] < v[-1, 1]

@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
-# Install hapticdesk with its test extras (and the example plugin) and run the test suite.
+# Install hapticdesk with its test extras (and the example plugin) and run the whole test suite,
+# the long soak cases (`-m slow`) included. A plain `pytest` leaves those out.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 python -m pip install -q -e '.[test]'
 python -m pip install -q -e examples/plugin-example
-python -m pytest -q "$@"
+python -m pytest -q -m "slow or not slow" "$@"
 # the example plugin package carries its own tests (and its own pytest settings)
 (cd examples/plugin-example && python -m pytest -q)

@@ -198,6 +198,10 @@ class Subscriber:
 @pytest.fixture(scope="session")
 def mosquitto_available() -> None:
     if _program("mosquitto") is None or _program("mosquitto_sub") is None:
+        if os.environ.get("HAPTICDESK_REQUIRE_BROKER"):  # CI: a missing broker is a failure
+            pytest.fail(
+                f"HAPTICDESK_REQUIRE_BROKER is set but mosquitto is missing: {INSTALL_HINT}"
+            )
         pytest.skip(INSTALL_HINT)
 
 

@@ -6,10 +6,15 @@ method reports), so a method cannot look better by reporting less:
 - a *press* is a run of samples with the true normal force ≥ ``contact_force_n`` (2 N);
 - its *touch* part runs from that crossing until the true force first reaches half its peak,
   its *release* part from the last time it is above half its peak until the estimator ends
-  the contact (its fast path, the same for every method) — what a user sees after lift-off
-  counts too, judged against the last point touched; its *hold* part lies in between;
+  the contact (its fast path, the same for every method; at most 0.5 s after the true fall)
+  — what a user sees after lift-off counts too, judged against the last point touched; its
+  *hold* part lies in between;
 - the error of a sample is the distance between the reported point and the true point, over
-  the samples a method locates; ``coverage`` says which share of the press it located.
+  the samples a method locates; ``coverage`` says which share of the press it located;
+- methods that locate different samples are compared twice more, at equal coverage: on the
+  samples every compared method locates (``common``), and at fixed times after the true
+  touch-down and before the true release (:data:`AT_MS`), where a point a method does not
+  report counts as a miss (an infinite error), so reporting less never looks better.
 
 Delays: touch-down is the first sample the estimator says "in contact" after the true force
 crosses 2 N upward; release the first sample it says "not in contact" after the true force
@@ -23,6 +28,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hapticdesk.estimator.contacts import ContactBlock
+
+#: times after the true touch-down and before the true release at which every method is judged
+AT_MS = (10, 20, 50, 100)
+MISS_MM = 1e9  # the error a point not reported counts as
 
 
 @dataclass(frozen=True)
@@ -75,6 +84,10 @@ class Accuracy:
     presses: int
     missed: int  # presses the estimator never called a contact
     false_touches: int  # contacts reported where no press was
+    #: per phase, the errors on the samples every compared method locates (``common``)
+    common: dict[str, np.ndarray] = field(default_factory=dict)
+    #: "touch+20" / "release-20" -> per press, the error at that time (inf: not located)
+    at_times: dict[str, np.ndarray] = field(default_factory=dict)
     extra: dict[str, float] = field(default_factory=dict)
 
     def summary(self) -> dict[str, float | int | None]:
@@ -90,6 +103,13 @@ class Accuracy:
             for key, value in phase.stats_mm().items():
                 out[f"{name}_{key}"] = value
             out[f"{name}_coverage"] = round(phase.coverage, 4)
+        for name, errors in self.common.items():
+            out[f"{name}_p95_common_mm"] = p95(errors * 1e3)
+        for name, errors in self.at_times.items():
+            # a miss is an error larger than any: when over 5 % are missed the p95 is a miss
+            value = p95(np.where(np.isfinite(errors), errors * 1e3, MISS_MM))
+            out[f"{name}ms_p95_mm"] = value if value is None or value < MISS_MM else None
+            out[f"{name}ms_located"] = float(np.mean(np.isfinite(errors))) if len(errors) else None
         out.update(
             touch_delay_ms=med(self.touch_delay_ms),
             touch_delay_p95_ms=p95(self.touch_delay_ms),
@@ -122,29 +142,51 @@ def measure_accuracy(
     block: ContactBlock,
     truth: dict[str, np.ndarray],
     contact_force_n: float = 2.0,
+    common: np.ndarray | None = None,
 ) -> Accuracy:
-    """Compare an estimator's output with the simulator's ground truth columns."""
+    """Compare an estimator's output with the simulator's ground truth columns.
+
+    ``common``: a mask of the samples every compared method locates (see
+    :func:`common_located`), for the errors at equal coverage.
+    """
     t = block.t
     true_fn = np.asarray(truth["true_fn"], dtype=float)
     presses = find_presses(true_fn, contact_force_n)
-    err = np.hypot(
-        block.x - np.nan_to_num(truth["true_x"]), block.y - np.nan_to_num(truth["true_y"])
-    )
+    true_x, true_y, ends = truth_with_release(block, truth, presses)
+    err = np.hypot(block.x - np.nan_to_num(true_x), block.y - np.nan_to_num(true_y))
     parts: dict[str, list[np.ndarray]] = {"touch": [], "hold": [], "release": []}
+    common_parts: dict[str, list[np.ndarray]] = {"touch": [], "hold": [], "release": []}
     counts = {"touch": [0, 0], "hold": [0, 0], "release": [0, 0]}  # located, total
     touch_delay, release_delay, first_point = [], [], []
+    at_times: dict[str, list[float]] = {
+        f"{phase}{sign}{ms}": []
+        for phase, sign in (("touch", "+"), ("release", "-"))
+        for ms in AT_MS
+    }
     missed = 0
     in_contact = block.in_contact
-    for p in presses:
+    for p, end in zip(presses, ends, strict=True):
         for name, a, b in (
             ("touch", p.start, p.half_up),
             ("hold", p.half_up, p.half_down),
-            ("release", p.half_down, p.stop),
+            ("release", p.half_down, max(end, p.stop)),
         ):
             located = block.located[a:b]
             parts[name].append(err[a:b][located])
+            if common is not None:
+                common_parts[name].append(err[a:b][common[a:b]])
             counts[name][0] += int(located.sum())
             counts[name][1] += b - a
+        down = _crossing(t, true_fn, p.start, contact_force_n)
+        up = _crossing(t, true_fn, p.stop, contact_force_n)
+        for ms in AT_MS:
+            for key, when, lo, hi in (
+                (f"touch+{ms}", down + ms / 1e3, p.start, p.stop),
+                (f"release-{ms}", up - ms / 1e3, p.start, p.stop),
+            ):
+                i = int(np.searchsorted(t, when))
+                if lo <= i < hi:  # a tap shorter than the offset has no such point
+                    at_times[key].append(float(err[i]) if block.located[i] else np.inf)
         on = np.flatnonzero(in_contact[p.start : p.stop])
         if len(on) == 0:
             missed += 1
@@ -181,7 +223,19 @@ def measure_accuracy(
         len(presses),
         missed,
         false_touches,
+        common={k: np.concatenate(v) for k, v in common_parts.items()}
+        if common is not None
+        else {},
+        at_times={k: np.array(v) for k, v in at_times.items()},
     )
+
+
+def common_located(blocks: list[ContactBlock]) -> np.ndarray:
+    """The samples every one of ``blocks`` (the same input, different methods) locates."""
+    mask = np.ones(len(blocks[0]), bool)
+    for block in blocks:
+        mask &= block.located
+    return mask
 
 
 def truth_with_release(

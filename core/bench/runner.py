@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from hapticdesk.bench.accuracy import Accuracy, PhaseErrors, measure_accuracy
+from hapticdesk.bench.accuracy import Accuracy, PhaseErrors, common_located, measure_accuracy
 from hapticdesk.bench.timing import measure_cost
 from hapticdesk.estimator import ContactEstimator
 from hapticdesk.files.profile import METHODS, DeskProfile
@@ -83,7 +83,19 @@ def pooled(results: list[Accuracy]) -> Accuracy:
         sum(r.presses for r in results),
         sum(r.missed for r in results),
         sum(r.false_touches for r in results),
+        common={k: np.concatenate([r.common[k] for r in results]) for k in results[0].common},
+        at_times={k: np.concatenate([r.at_times[k] for r in results]) for k in results[0].at_times},
     )
+
+
+def common_masks(profile: DeskProfile, recordings: list[Recording]) -> list[np.ndarray]:
+    """Per recording, the samples every one of the four methods locates with the profile's
+    settings: the sample set on which all rows' ``*_p95_common_mm`` are computed."""
+    masks = []
+    for rec in recordings:
+        blocks = [ContactEstimator(profile, method=m).push(rec.t, rec.wrench) for m in METHODS]
+        masks.append(common_located(blocks))
+    return masks
 
 
 def run_config(
@@ -93,13 +105,19 @@ def run_config(
     *,
     repeats: int = 3,
     stream_samples: int = 6000,
+    common: list[np.ndarray] | None = None,
 ) -> dict[str, Any]:
-    """Accuracy (pooled over the recordings) and cost of one configuration: one table row."""
+    """Accuracy (pooled over the recordings) and cost of one configuration: one table row.
+
+    ``common``: per recording, the samples every compared method locates
+    (:func:`common_masks`); without it the row has no ``*_p95_common_mm``.
+    """
     settings = replace(profile.estimation, method=config.method, **config.changes)
     results = []
-    for rec in recordings:
+    for i, rec in enumerate(recordings):
         block = ContactEstimator(profile, settings=settings).push(rec.t, rec.wrench)
-        results.append(measure_accuracy(block, rec.extra, settings.contact_force_n))
+        mask = None if common is None else common[i]
+        results.append(measure_accuracy(block, rec.extra, settings.contact_force_n, mask))
     acc = pooled(results)
     cost = measure_cost(
         profile,

@@ -85,3 +85,47 @@ def test_paper_reproduction_findings_hold(capsys):
     for f in findings:
         assert f["holds"], f
     assert findings[0]["numbers"]["crossover_n"] == pytest.approx(3.8, abs=0.1)
+
+
+def test_every_method_is_judged_on_the_same_samples_and_times(paper_desk, session):
+    from hapticdesk.bench.accuracy import AT_MS, common_located
+
+    blocks = {m: estimate(paper_desk, session, m) for m in ("switched", "fused")}
+    common = common_located(list(blocks.values()))
+    accs = {m: measure_accuracy(b, session.extra, common=common) for m, b in blocks.items()}
+    for phase in ("touch", "hold", "release"):
+        sizes = {len(a.common[phase]) for a in accs.values()}
+        assert len(sizes) == 1 and sizes.pop() > 0  # the same samples for both
+    # every press long enough has one judged point per offset, located or not
+    for ms in AT_MS:
+        assert len(accs["fused"].at_times[f"touch+{ms}"]) == 27
+    summary = accs["fused"].summary()
+    assert summary["touch+50ms_located"] == 1.0 and summary["touch+50ms_p95_mm"] < 20
+
+
+def test_a_point_not_reported_is_a_miss_not_a_better_score(paper_desk, session):
+    block = estimate(paper_desk, session, "fused")
+    # report only every other press's points: fewer points must not make the p95 smaller
+    presses = find_presses(session.extra["true_fn"])
+    located = block.located.copy()
+    for p in presses[::2]:
+        located[p.start : p.stop] = False
+    thinned = ContactBlock(**{**block.__dict__, "located": located})
+    summary = measure_accuracy(thinned, session.extra).summary()
+    assert summary["touch+50ms_located"] == pytest.approx(13 / 27)
+    assert summary["touch+50ms_p95_mm"] is None  # over 5 % missed: the p95 is a miss
+
+
+def test_the_release_is_judged_until_the_contact_ends(paper_desk, session):
+    block = estimate(paper_desk, session, "fused")
+    base = measure_accuracy(block, session.extra).summary()["release_max_mm"]
+    presses = find_presses(session.extra["true_fn"])
+    x = block.x.copy()
+    located = block.located.copy()
+    p = presses[0]
+    after = p.stop + np.flatnonzero(~block.in_contact[p.stop :])[0]
+    assert after > p.stop  # the estimator ends the contact after the true 2 N fall
+    x[p.stop] += 0.1  # a point 10 cm off after the true fall, while still in contact
+    located[p.stop] = True
+    moved = ContactBlock(**{**block.__dict__, "x": x, "located": located})
+    assert measure_accuracy(moved, session.extra).summary()["release_max_mm"] > max(base, 50)

@@ -67,6 +67,8 @@ class ActionContext:
         self.layout = layout
         self._resources: dict[str, Any] = {}
         self._lock = threading.Lock()
+        # what shared resources said went wrong when they closed (a run then exits non-zero)
+        self.failures: list[str] = []
 
     def resolve_path(self, path: str | Path) -> Path:
         """A path from the layout, relative to the layout file's folder."""
@@ -88,7 +90,8 @@ class ActionContext:
 
     def close_resources(self, timeout_s: float = 5.0) -> list[str]:
         """Close every shared resource (newest first) within ``timeout_s`` in total; returns
-        what each reported."""
+        what each reported. A resource's ``failure`` text after closing (e.g. commands it
+        could not deliver) is added to :attr:`failures`."""
         notes: list[str] = []
         deadline = time.monotonic() + timeout_s
         for key, resource in reversed(list(self._resources.items())):
@@ -103,6 +106,9 @@ class ActionContext:
                 continue
             if isinstance(result, str) and result:
                 notes.append(result)
+            failure = getattr(resource, "failure", None)  # e.g. commands not delivered
+            if isinstance(failure, str) and failure:
+                self.failures.append(failure)
         self._resources.clear()
         return notes
 

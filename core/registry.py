@@ -313,7 +313,12 @@ class Registry:
 
     def validate_action(self, name: str, options: Any, position: Position | str) -> None:
         """Validate one action use of a layout (unknown name or bad options: ConfigError)."""
-        self.action(name, position).check(options, position)
+        from hapticdesk.runtime.isolation import split_isolation
+
+        own, _ = split_isolation(
+            options, position
+        )  # `isolation:` is the runtime's, not the action's
+        self.action(name, position).check(own, position)
 
     def recognizer_types(self) -> dict[str, Any]:
         """Recognizer factories by name, imported now (only call when building an engine)."""

@@ -16,8 +16,10 @@ The cost: starting a child (``spawn``: a fresh interpreter that imports the acti
 a few hundred ms, paid at the start of the run and after each kill), and per call the event
 pickled through a pipe and the answer back (about a tenth of a millisecond; see
 ``tests/runtime/test_runtime_isolation.py``). The action is built in the child from its
-plugin's factory with a context holding the desk, the layout path and the layout's settings;
-resources shared between actions (``ActionContext.shared``) are the child's own.
+plugin's factory with a context holding the desk, the layout path and the layout's settings.
+An action that needs a resource shared with the rest of the run (``ActionContext.shared``,
+e.g. the run's one MQTT connection) cannot be isolated: a second connection under the same
+client id would throw the first one off the broker, so building it says so.
 """
 
 from __future__ import annotations
@@ -212,7 +214,14 @@ def _child_main(
     from hapticdesk.registry import resolve
     from hapticdesk.runtime.dispatcher import ActionContext
 
-    context = ActionContext(desk, layout_path=layout_path, settings=settings)
+    class ChildContext(ActionContext):
+        def shared(self, key: str, create: Any) -> Any:
+            raise RuntimeError(
+                f"it uses the run's shared `{key}` resource, which stays in the run's own "
+                "process; remove `isolation: process` from this action"
+            )
+
+    context = ChildContext(desk, layout_path=layout_path, settings=settings)
     try:
         action = resolve(factory)(options, context)
     except Exception as err:

@@ -174,3 +174,13 @@ def _state(pid: int) -> str:
         return Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0]
     except FileNotFoundError:
         return "gone"
+
+
+def test_an_action_that_shares_the_runs_connection_cannot_be_isolated(tmp_path):
+    from hapticdesk.plugins.mqtt import MqttAction
+
+    with pytest.raises(ConfigError, match="uses the run's shared `mqtt` resource"):
+        ProcessAction(
+            "mqtt", MqttAction, {"topic": "lamp/set"}, desk="d", layout_path=None,
+            settings={}, isolation=IsolationSettings(),
+        )  # fmt: skip

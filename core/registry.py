@@ -315,9 +315,8 @@ class Registry:
         """Validate one action use of a layout (unknown name or bad options: ConfigError)."""
         from hapticdesk.runtime.isolation import split_isolation
 
-        own, _ = split_isolation(
-            options, position
-        )  # `isolation:` is the runtime's, not the action's
+        # `isolation:` is for the runtime, not for the action's own options
+        own, _ = split_isolation(options, position)
         self.action(name, position).check(own, position)
 
     def recognizer_types(self) -> dict[str, Any]:

@@ -9,7 +9,9 @@ the run's own process. An action use that asks for it runs in a child process in
 
 - the child has its own interpreter and GIL, so a busy action cannot hold up sensing;
 - a call past its timeout kills the child (really: SIGKILL) and a fresh one is started;
-- after each call the child reports its peak memory (``ru_maxrss``); above ``max_memory_mb``
+- after each call the child reports its resident memory (``/proc/self/statm``; not the peak
+  ``ru_maxrss``, which a child started from a large run inherits across fork and exec); above
+  ``max_memory_mb``
   (default :data:`DEFAULT_MAX_MEMORY_MB`) the child is replaced and the log says so.
 
 The cost: starting a child (``spawn``: a fresh interpreter that imports the action's plugin,
@@ -129,19 +131,19 @@ class ProcessAction:
                         f"ran longer than {self.call_timeout_s:g} s; its process was killed "
                         "and a new one is started for the next event"
                     )
-                kind, detail, peak_mb = conn.recv()
+                kind, detail, resident_mb = conn.recv()
             except (EOFError, OSError, BrokenPipeError):
                 code = self._process.exitcode if self._process is not None else None
                 self._kill()
                 raise IsolatedActionFailed(
                     f"its process died (exit code {code}); a new one is started for the next event"
                 ) from None
-            if peak_mb > self.isolation.max_memory_mb:
+            if resident_mb > self.isolation.max_memory_mb:
                 log.warning(
                     "%s: its process grew to %.0f MB (limit max_memory_mb: %.0f); it is "
                     "replaced by a fresh one",
                     self.label,
-                    peak_mb,
+                    resident_mb,
                     self.isolation.max_memory_mb,
                 )
                 self._kill()
@@ -202,6 +204,19 @@ class ProcessAction:
             process.join(2.0)
 
 
+def _resident_mb() -> float:
+    """This process's resident memory now, in MB.
+
+    Not ``ru_maxrss``: Linux carries the peak over fork and exec, so a child started by a run
+    that once held 500 MB would report 500 MB before doing anything."""
+    try:
+        with open("/proc/self/statm", encoding="ascii") as statm:
+            resident_pages = int(statm.read().split()[1])
+        return resident_pages * resource.getpagesize() / 2**20
+    except (OSError, ValueError, IndexError):  # no /proc: the peak is the best there is
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # kB on Linux
+
+
 def _child_main(
     conn: Any,
     factory: Any,
@@ -240,8 +255,7 @@ def _child_main(
             answer: tuple[str, str] = ("ok", "")
         except Exception as err:
             answer = ("failed", f"{type(err).__name__}: {err}")
-        peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # kB on Linux
-        conn.send((*answer, peak_mb))
+        conn.send((*answer, _resident_mb()))
     close = getattr(action, "close", None)
     if close is not None:
         try:

@@ -117,12 +117,30 @@ def test_a_leaking_action_is_noticed_and_replaced(caplog):
     )  # fmt: skip
     try:
         with caplog.at_level(logging.WARNING):
-            for _ in range(8):
+            for _ in range(12):
                 action(TAP)
         assert "its process grew to" in caplog.text and "limit max_memory_mb: 150" in caplog.text
         assert action.restarts >= 2  # replaced, and the action went on
     finally:
         action.close()
+
+
+def test_a_child_of_a_large_run_is_not_taken_for_a_leak():
+    """Linux carries a process's peak memory over fork and exec: a child started by a run
+    that once held 200 MB must not count that against its own limit (CI, issue 11 item 15)."""
+    held = bytearray(200 << 20)
+    held[::4096] = b"x" * len(held[::4096])  # touch every page so it is resident
+    action = ProcessAction(
+        "hang", spin_plugin.Hang, {}, desk="d", layout_path=None, settings={},
+        isolation=IsolationSettings(max_memory_mb=120),
+    )  # fmt: skip
+    try:
+        for _ in range(3):
+            action(TAP)
+        assert action.restarts == 0
+    finally:
+        action.close()
+        del held
 
 
 def test_the_cost_of_a_call_through_a_process(capsys):

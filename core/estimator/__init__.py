@@ -1,28 +1,31 @@
 """The contact estimator: sensor wrenches in, contact samples out (paper §2–3, Fig. 3).
 
 One pass per block, the same code for a single sample or a million (``push``), so streaming
-and batch give the same output for any split of the input:
+and batch give the same output for any split of the input. Each stage is a module, its
+settings (:mod:`.settings`, derived once from the profile) apart from its state; a stage's
+single-sample twin sits beside its block path and shares its formulas:
 
-1. Bad samples (NaN/inf, a saturated channel, time not increasing) are flagged and replaced
-   by the last good sample, so no filter state is poisoned; a gap in time restarts the
-   filters.
-2. The 6·S channels become the resultant wrench [F_o; M_o] about P_o by one linear map
-   (paper eqs. 1–4; :meth:`DeskProfile.wrench_map`).
-3. Filters on that wrench: the conventional second-order low-pass; the pseudo-differentiated
-   wrench (paper eq. 8: an n-sample difference, then the low-pass); and a fast (30 Hz)
-   low-pass for touch-down/release detection that does not wait for the position filters.
-4. Zero: an automatic tare over the first ``tare_s`` of a quiet desk (refused with a warning
-   and retried while the desk is not quiet); the zero then follows sensor drift whenever the
-   idle desk rests for ``drift_settle_s``, and a load held perfectly still for ``settle_s``
-   (an object put down) becomes part of it, with a notice.
-5. Candidates: P_er from the force and P_ed from the differentiated force (and, for
-   ``fused``, one from the fast wrench), each the intersection of its line of action with the
-   surfaces (paper eqs. 5, 12; :mod:`hapticdesk.estimator.geometry`), each with a covariance
-   propagated from the noise measured at the tare, plus the zero's drift since it was set
-   and, for P_ed, the term eq. (11) drops.
-6. Method: ``force`` (the conventional), ``diff``, ``switched`` (paper Fig. 3 with F_tth,
-   F_rth) or ``fused`` (inverse-covariance combination of the candidates, no threshold; a
-   point is reported when its 1-σ is below ``max_sigma_m``).
+1. :mod:`.samples` — bad samples (NaN/inf, a saturated channel, time not increasing) are
+   flagged and replaced by the last good sample, so no filter state is poisoned; a gap in
+   time restarts the filters. The 6·S channels become the resultant wrench [F_o; M_o] about
+   P_o by one linear map (paper eqs. 1–4; :meth:`DeskProfile.wrench_map`).
+2. :mod:`.filter_bank` — filters on that wrench: the conventional second-order low-pass;
+   the pseudo-differentiated wrench (paper eq. 8: an n-sample difference, then the
+   low-pass); and a fast (30 Hz) low-pass for touch-down/release detection that does not
+   wait for the position filters.
+3. :mod:`.zero` — an automatic tare over the first ``tare_s`` of a quiet desk (refused with
+   a warning and retried while the desk is not quiet); the zero then follows sensor drift
+   whenever the idle desk rests for ``drift_settle_s``, and a load held perfectly still for
+   ``settle_s`` (an object put down) becomes part of it, with a notice.
+4. :mod:`.detector` — contact from the tared fast force with hysteresis, and its phase.
+5. :mod:`.candidates` — P_er from the force and P_ed from the differentiated force (and,
+   for ``fused``, one from the fast wrench), each the intersection of its line of action
+   with the surfaces (paper eqs. 5, 12; :mod:`.geometry`), each with a covariance propagated
+   from the noise measured at the tare, plus the zero's drift since it was set and, for
+   P_ed, the term eq. (11) drops.
+6. :mod:`.methods` — ``force`` (the conventional), ``diff``, ``switched`` (paper Fig. 3
+   with F_tth, F_rth) or ``fused`` (inverse-covariance combination of the candidates, no
+   threshold; a point is reported when its 1-σ is below ``max_sigma_m``).
 """
 
 from __future__ import annotations

@@ -12,7 +12,7 @@ import pytest
 
 from hapticdesk.bench.accuracy import measure_accuracy
 from hapticdesk.estimator import ContactEstimator, estimate
-from hapticdesk.estimator.contacts import FLAG_NAN, FLAG_SATURATED, ContactBlock
+from hapticdesk.estimator.contacts import FLAG_NAN, FLAG_SATURATED, FLAG_STUCK, ContactBlock
 from hapticdesk.files.profile import METHODS, DeskProfile
 from hapticdesk.sim import (
     DeskParameters,
@@ -159,6 +159,43 @@ def test_nan_bursts(paper_desk):
         "20 NaN bursts",
         f"{nan.sum()} samples flagged and skipped; 0.3 s after each "
         f"burst the estimate is within {diff.max() * 1e3:.2f} mm of the clean run's",
+    )
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_a_stuck_input_is_flagged_and_the_tap_after_it_is_not_lost(paper_desk, method):
+    # a stuck driver repeats its last sample for 3 s, from the middle of a press: what it
+    # sends is flagged, gives no position (the old code reported the frozen point for 3 s)
+    # and moves no zero, and the press after it is found where it is
+    actions = [Press(point=(0.1, -0.1)), Press(point=(-0.2, 0.15)), Idle(duration_s=3.0)]
+    scene = Scene(actions=[*actions, Press(point=(0.2, 0.1))], human=EXACT)
+    rec = simulate(paper_desk, scene, seed=1)
+    fs = paper_desk.sample_rate_hz
+    clean = estimate(paper_desk, rec, method)
+    downs = np.flatnonzero(np.diff(clean.in_contact.astype(int)) == 1) + 1
+    assert len(downs) == 3
+    first, last = int(downs[1] + 0.3 * fs), int(downs[1] + 3.3 * fs)  # in the second press
+    assert last < downs[2] - 0.2 * fs
+    w = rec.wrench.copy()
+    w[first:last] = w[first - 1]
+    block = estimate(paper_desk, replace(rec, wrench=w), method)
+    assert finite(block)
+    stuck = (block.flags & FLAG_STUCK) != 0
+    np.testing.assert_array_equal(np.flatnonzero(stuck), np.arange(first + 4, last))
+    assert not block.located[stuck].any()
+    # the third press: touched down when it was, located as in the clean run
+    third = slice(int(downs[2] - 0.1 * fs), len(w))
+    assert (np.flatnonzero(np.diff(block.in_contact[third].astype(int)) == 1) + third.start)[
+        0
+    ] == downs[2]
+    both = block.located & clean.located
+    both[: third.start] = False
+    gap = np.hypot(block.x - clean.x, block.y - clean.y)[both]
+    assert both.sum() > 500 and gap.max() < 1e-3
+    report(
+        f"stuck input for 3 s ({method})",
+        f"{stuck.sum()} samples flagged stuck, none located; the next press within "
+        f"{gap.max() * 1e3:.3f} mm of the clean run",
     )
 
 

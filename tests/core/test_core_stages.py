@@ -18,6 +18,7 @@ from hapticdesk.estimator.samples import BAD_SAMPLE, SampleStage
 from hapticdesk.estimator.settings import EstimatorSettings
 from hapticdesk.estimator.zero import ZeroStage, subtract_zero
 from hapticdesk.files.profile import METHODS, load_profile
+from hapticdesk.sim import Press, Scene, SimEffects, simulate
 
 SPLITS = ("one", "ones", "sevens", "random")
 
@@ -57,10 +58,11 @@ def desk():
 @pytest.fixture(scope="module")
 def bad_input(noisy_presses):
     """The noisy presses with a time step back, a gap and a stuck input (50 repeats of a
-    sample) added to their NaN burst."""
+    sample, then 10 of another 0.3 s later: one spell) added to their NaN burst."""
     t, w = noisy_presses
     t, w = t.copy(), w.copy()
     w[7000:7050] = w[6999]
+    w[7400:7410] = w[7399]
     t[5000] = t[4999] - 0.001  # time goes back once
     t[6000:] += 0.2  # a gap longer than max_gap_s
     return t, w
@@ -103,15 +105,38 @@ def upstream(desk, bad_input):
 def test_the_sample_stage_is_chunk_invariant(desk, bad_input, split):
     t, w = bad_input
     s = _settings(desk)
-    whole = SampleStage(s, [])
+    told: list[Notice] = []
+    whole = SampleStage(s, told)
     want = list(whole.process(t, w))
     assert (want[0] & FLAG_TIME_BACK).any() and (want[0] & FLAG_GAP).any()
     # the first STUCK_RUN − 1 repeats pass as samples, the rest are a stuck input
-    np.testing.assert_array_equal(np.flatnonzero(want[0] & FLAG_STUCK), np.arange(7004, 7050))
+    np.testing.assert_array_equal(
+        np.flatnonzero(want[0] & FLAG_STUCK), [*range(7004, 7050), *range(7404, 7410)]
+    )
     assert (want[0] & BAD_SAMPLE).sum() > 10 and np.isfinite(want[1]).all()
-    stage = SampleStage(s, [])
+    # one spell: a notice when it sticks, one a second after its last stuck sample
+    assert [(n.kind, n.t) for n in told] == [("stuck", t[7004]), ("live", t[7410 + 1199])]
+    assert f"to {t[7409]:.3f} s" in told[1].message
+    notices: list[Notice] = []
+    stage = SampleStage(s, notices)
     _assert_same(_in_blocks(len(t), split, lambda b: list(stage.process(t[b], w[b]))), want)
     assert stage.state.last_t == whole.state.last_t
+    assert notices == told
+
+
+def test_a_noise_free_input_is_not_taken_for_a_stuck_one(desk):
+    # a noise-free sensor (the simulator's ideal mode) repeats a steady load bit for bit:
+    # an exact repeat in the input's first 0.2 s turns the stuck check off
+    rec = simulate(desk, Scene([Press((0.1, 0.1))]), seed=1, effects=SimEffects.ideal())
+    notices: list[Notice] = []
+    stage = SampleStage(_settings(desk), notices)
+    flags, _ = stage.process(rec.t, rec.wrench)
+    assert stage.state.stuck_check is False and not flags.any() and not notices
+    # while the same input, noisy at first, is checked
+    noisy = rec.wrench.copy()
+    noisy[:300] += np.random.default_rng(0).normal(0, 0.1, noisy[:300].shape)
+    flags, _ = SampleStage(_settings(desk), notices).process(rec.t, noisy)
+    assert (flags & FLAG_STUCK).any() and notices[0].kind == "stuck"
 
 
 def test_the_sample_stage_one_sample_twin_equals_its_block_path(desk, noisy_presses):

@@ -1,6 +1,8 @@
 """The contact estimator: exactness, chunk invariance, tare, objects, bad samples, extremes."""
 
+import re
 from dataclasses import fields, replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -10,6 +12,7 @@ from hypothesis import strategies as st
 from hapticdesk.estimator import ContactEstimator
 from hapticdesk.estimator.contacts import (
     FLAG_GAP,
+    FLAG_NAMES,
     FLAG_NAN,
     FLAG_SATURATED,
     FLAG_STUCK,
@@ -19,6 +22,7 @@ from hapticdesk.estimator.contacts import (
 )
 from hapticdesk.files.profile import METHODS, load_profile
 
+README = Path(__file__).resolve().parents[2] / "README.md"
 POINTS = [(0.2, 0.1, 0.733), (-0.3, -0.2, 0.733), (0.0, 0.0, 0.733)]
 
 
@@ -376,3 +380,11 @@ def test_noise_free_single_sample_pushes_equal_batch(paper_desk, press_recording
     assert batch.located.sum() > 100
     np.testing.assert_allclose(single.sigma_m, batch.sigma_m, rtol=1e-6, atol=1e-12)
     np.testing.assert_allclose(single.x, batch.x, rtol=0, atol=1e-9)
+
+
+def test_the_flags_are_the_documented_ones():
+    # a contract: flags may grow, never change (README: "bits that only grow")
+    text = " ".join(README.read_text(encoding="utf-8").split())
+    listed = text.split("bits that only grow:")[1].split("(")[0]
+    documented = {int(bit): name for name, bit in re.findall(r"`(\w+)` (\d+)", listed)}
+    assert documented == FLAG_NAMES

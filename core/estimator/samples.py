@@ -225,7 +225,7 @@ class SampleStage:
         index = np.arange(k)
         last_stuck = np.maximum.accumulate(np.where(stuck, index, -1))
         live = index - last_stuck  # samples since the last stuck one
-        live[last_stuck < 0] += st.live + 1
+        live[last_stuck < 0] += st.live  # (carried over from the block before)
         before = np.concatenate([[st.live], live[:-1]])
         sticks = np.flatnonzero(stuck & (before >= n))
         again = np.flatnonzero(live == n)

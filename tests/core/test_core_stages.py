@@ -58,11 +58,13 @@ def desk():
 @pytest.fixture(scope="module")
 def bad_input(noisy_presses):
     """The noisy presses with a time step back, a gap and a stuck input (50 repeats of a
-    sample, then 10 of another 0.3 s later: one spell) added to their NaN burst."""
+    sample, then 10 of another 0.3 s later: one spell; 10 more just after it ended: another)
+    added to their NaN burst."""
     t, w = noisy_presses
     t, w = t.copy(), w.copy()
     w[7000:7050] = w[6999]
     w[7400:7410] = w[7399]
+    w[8660:8670] = w[8659]
     t[5000] = t[4999] - 0.001  # time goes back once
     t[6000:] += 0.2  # a gap longer than max_gap_s
     return t, w
@@ -111,11 +113,16 @@ def test_the_sample_stage_is_chunk_invariant(desk, bad_input, split):
     assert (want[0] & FLAG_TIME_BACK).any() and (want[0] & FLAG_GAP).any()
     # the first STUCK_RUN − 1 repeats pass as samples, the rest are a stuck input
     np.testing.assert_array_equal(
-        np.flatnonzero(want[0] & FLAG_STUCK), [*range(7004, 7050), *range(7404, 7410)]
+        np.flatnonzero(want[0] & FLAG_STUCK),
+        [*range(7004, 7050), *range(7404, 7410), *range(8664, 8670)],
     )
     assert (want[0] & BAD_SAMPLE).sum() > 10 and np.isfinite(want[1]).all()
-    # one spell: a notice when it sticks, one a second after its last stuck sample
-    assert [(n.kind, n.t) for n in told] == [("stuck", t[7004]), ("live", t[7410 + 1199])]
+    # a notice when a spell sticks, one when it has been live for a second (1200 samples)
+    assert [(n.kind, n.t) for n in told] == [
+        ("stuck", t[7004]),
+        ("live", t[7410 + 1199]),
+        ("stuck", t[8664]),
+    ]
     assert f"to {t[7409]:.3f} s" in told[1].message
     notices: list[Notice] = []
     stage = SampleStage(s, notices)

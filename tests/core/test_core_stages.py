@@ -133,7 +133,7 @@ def test_the_sample_stage_is_chunk_invariant(desk, bad_input, split):
 
 def test_a_noise_free_input_is_not_taken_for_a_stuck_one(desk):
     # a noise-free sensor (the simulator's ideal mode) repeats a steady load bit for bit:
-    # an exact repeat in the input's first 0.2 s turns the stuck check off
+    # three exact repeats in the input's first 0.2 s turn the stuck check off
     rec = simulate(desk, Scene([Press((0.1, 0.1))]), seed=1, effects=SimEffects.ideal())
     notices: list[Notice] = []
     stage = SampleStage(_settings(desk), notices)

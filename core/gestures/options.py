@@ -25,7 +25,7 @@ Kind = Literal[
 ]
 Role = Literal["recognize", "match"]
 
-PHASES = ("begin", "update", "end")
+PHASES = ("begin", "update", "end", "cancel")
 DIRECTIONS_4 = ("right", "up", "left", "down")
 DIRECTIONS_8 = (
     "right",
@@ -62,7 +62,10 @@ def _m(default: float, help: str) -> OptionSpec:
 
 def _phase_filter() -> OptionSpec:
     return OptionSpec(
-        "names", None, "match", "which phases to react to (begin, update, end); all by default"
+        "names",
+        None,
+        "match",
+        "which phases to react to (begin, update, end, cancel); all by default",
     )
 
 
@@ -90,6 +93,13 @@ GESTURE_OPTIONS: dict[str, dict[str, OptionSpec]] = {
         "release": OptionSpec(
             "bool", False, "match", "fire on the release after the tier instead of at it"
         ),
+        "repeat": OptionSpec(
+            "bool",
+            False,
+            "match",
+            "after the tier, fire again every `interval_s` while the finger stays (hold to dim)",
+        ),
+        "interval_s": _s(0.25, "time between two repeats of a held long press", 10.0),
     },
     "press": {
         "levels": OptionSpec(

@@ -44,6 +44,12 @@ class Recognizer:
         """Called at the first sample time ``t`` >= the deadline; must clear or move it."""
         return []
 
+    def cancel(self, t: float, touch: Touch) -> list[GestureEvent]:
+        """``touch`` broke off at ``t`` without a release (a gap, a stop, the end of the
+        recording): forget it. Continuous gestures return their ``cancel`` phase; nothing
+        that fires on a release may fire here."""
+        return []
+
     def flush(self, t: float) -> list[GestureEvent]:
         """The source ended at ``t``: decide whatever is pending now."""
         return self.on_deadline(t) if self.next_deadline() is not None else []

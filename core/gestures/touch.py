@@ -235,8 +235,17 @@ class TouchTracker:
         return touch
 
     def end(self, t_end: float) -> ContactEvent | None:
-        """The ``up`` that ends a touch still going when the source stops at ``t_end``."""
+        """An ``up`` for a touch still going when the source stops at ``t_end``: for stroke
+        capture, which keeps what was drawn. The gesture engine does not use it: a release
+        that was not seen fires nothing (:meth:`abort`)."""
         self._in_contact = False
         if self.touch is None:
             return None
         return ContactEvent(t_end, "up", 0.0, 0.0, -1, 0.0, UNCERTAINTY_CAP_M, "release", False)
+
+    def abort(self) -> Touch | None:
+        """The stream broke off: forget the contact state; returns the touch that was open
+        (without an ``up``: its release was not seen), or None."""
+        self._in_contact = False
+        touch, self.touch = self.touch, None
+        return touch

@@ -3,7 +3,8 @@
 ``press`` fires when the force rises past a level (light, firm, hard, …) and re-arms that
 level once the force has dropped ``hysteresis_n`` below it, so a trembling finger at the
 threshold does not fire twice. ``force`` maps the force between ``min_n`` and ``max_n`` to
-0..1 with begin/update/end, updates rate-limited by ``interval_s`` and ``step``.
+0..1 with begin/update/end, updates rate-limited by ``interval_s`` and ``step``; a touch
+that broke off without a release ends with ``cancel`` (value 0: the force is not known).
 """
 
 from __future__ import annotations
@@ -66,6 +67,10 @@ class PressRecognizer(Recognizer):
                 self._armed[name] = True
         return out
 
+    def cancel(self, t: float, touch: Touch) -> list[GestureEvent]:
+        self._reset()
+        return []
+
 
 class ForceRecognizer(Recognizer):
     """``force``: value 0..1 from the force while the finger stays on the region."""
@@ -117,6 +122,14 @@ class ForceRecognizer(Recognizer):
             self._last_t, self._last_value = event.t, value
             return [self._event(event.t, self._region, x, y, value, "update", event.force_n)]
         return []
+
+    def cancel(self, t: float, touch: Touch) -> list[GestureEvent]:
+        active, region = self._state == "active", self._region
+        self._reset()
+        if not active:
+            return []
+        x, y, _ = touch.best()
+        return [self._event(t, region, x, y, 0.0, "cancel", touch.force_n)]
 
     @staticmethod
     def _event(

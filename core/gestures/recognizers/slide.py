@@ -1,6 +1,7 @@
 """Sliders: a touch that starts on a region with an ``axis`` gives its position along the
 axis as a value 0..1, with begin (at the first located sample, so touching a dimmer sets it),
-update (rate-limited by ``interval_s`` and ``step``) and end (at the release). The finger may
+update (rate-limited by ``interval_s`` and ``step``) and end (at the release), or cancel
+when the touch broke off without a release (a gap, a stop, the end of a recording). The finger may
 leave the region while sliding; the value then stays clipped to 0 or 1.
 """
 
@@ -63,6 +64,13 @@ class SlideRecognizer(Recognizer):
             phase = "begin" if begin else "update"
             return [self._event(event.t, self._region, x, y, value, phase)]
         return []
+
+    def cancel(self, t: float, touch: Touch) -> list[GestureEvent]:
+        active, region, value, (x, y) = (
+            self._state == "active", self._region, self._value, self._xy
+        )  # fmt: skip
+        self._reset()
+        return [self._event(t, region, x, y, value, "cancel")] if active else []
 
     @staticmethod
     def _event(

@@ -112,8 +112,8 @@ class Binding:
             if o.get("release"):
                 return event.phase == "end" and hold >= o["hold_s"] - 1e-9
             # the tier itself (no phase), its repeats when asked for; never end or cancel
-            wanted = (None, "repeat") if o.get("repeat") else (None,)
-            return event.phase in wanted and abs(hold - o["hold_s"]) < 1e-9
+            phases = (None, "repeat") if o.get("repeat") else (None,)
+            return event.phase in phases and abs(hold - o["hold_s"]) < 1e-9
         for key in ("shape", "direction", "level", "phase"):
             wanted = o.get(key)
             if wanted is not None and getattr(event, key) not in wanted:

@@ -71,6 +71,7 @@ def _phase_filter() -> OptionSpec:
 
 _TAP_DURATION = "longest touch that still counts as a tap"
 _TAP_MOVE = "how far the finger may move during the touch"
+_TAP_SNAP = "a tap outside every bound region goes to the nearest one this close"
 
 #: gesture name -> option name -> spec. Built-in gestures only; plugin recognizers may carry
 #: their own table as a class attribute ``option_specs``.
@@ -78,12 +79,14 @@ GESTURE_OPTIONS: dict[str, dict[str, OptionSpec]] = {
     "tap": {
         "max_duration_s": _s(0.5, _TAP_DURATION, 5.0),
         "max_move": _m(0.015, _TAP_MOVE),
+        "snap": _m(0.01, _TAP_SNAP),
     },
     "double_tap": {
         "interval_s": _s(0.3, "longest pause between the first release and the second touch", 2.0),
         "max_distance": _m(0.03, "how far apart the two taps may be"),
         "max_duration_s": _s(0.5, _TAP_DURATION, 5.0),
         "max_move": _m(0.015, _TAP_MOVE),
+        "snap": _m(0.01, _TAP_SNAP),
     },
     "long_press": {
         "max_move": _m(0.015, "how far the finger may move before the hold is cancelled"),

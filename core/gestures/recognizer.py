@@ -68,12 +68,18 @@ class BoundRegions:
     def __bool__(self) -> bool:
         return bool(self.regions) or self.anywhere
 
-    def find(self, x: float, y: float, surface: int) -> tuple[bool, str | None]:
-        """(found, region name): the bound region holding the point, else (True, None) when
-        the gesture is bound anywhere, else (False, None)."""
-        for region in self.regions:
-            if region.surface_index == surface and bool(region.contains(x, y)):
+    def find(self, x: float, y: float, surface: int, snap: bool = False) -> tuple[bool, str | None]:
+        """(found, region name): the bound region holding the point, else (with ``snap``) the
+        nearest one when the point is within that region's ``snap`` option of it, else
+        (True, None) when the gesture is bound anywhere, else (False, None)."""
+        on_surface = [r for r in self.regions if r.surface_index == surface]
+        for region in on_surface:
+            if bool(region.contains(x, y)):
                 return True, region.name
+        if snap and on_surface:
+            distance, nearest = min((r.distance(x, y), r.name) for r in on_surface)
+            if distance <= self.options(nearest).get("snap", 0.0):
+                return True, nearest
         return self.anywhere, None
 
     def options(self, region: str | None) -> dict[str, Any]:

@@ -2,7 +2,8 @@
 
 Each sub-command lives in ``hapticdesk.commands.<name>`` with ``configure(parser)`` and
 ``run(args) -> int``; modules are imported only when their command runs, so ``hapticdesk
-contacts`` never imports paho, python-can or matplotlib.
+contacts`` never imports paho, python-can or matplotlib, and ``hapticdesk --help`` imports
+neither numpy, scipy nor yaml (it lists the commands from the table below, issue 15 item 7).
 """
 
 from __future__ import annotations
@@ -12,8 +13,6 @@ import importlib
 import importlib.util
 import logging
 import sys
-
-from hapticdesk.files.yamlfile import ConfigError
 
 # name -> (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -50,7 +49,8 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, (module, text) in _available().items():
         p = sub.add_parser(name, help=text, description=text)
-        if only is None or only == name:
+        # Only the command that runs is configured: the list of commands needs no import.
+        if only == name:
             importlib.import_module(module).configure(p)
     return parser
 
@@ -68,6 +68,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     module = importlib.import_module(COMMANDS[args.command][0])
+    # Imported here, not at the top: yaml is not needed to print the list of commands.
+    from hapticdesk.files.yamlfile import ConfigError
+
     try:
         return int(module.run(args) or 0)
     except ConfigError as err:

@@ -93,7 +93,7 @@ class HttpAction:
 
     def __init__(self, options: Any, context: ActionContext) -> None:
         self.options = parse_options(options, where(options, "`http`"))
-        self.desk = context.desk
+        self.desk = context.desk_name
         self.timeout_s = self.options.timeout_s + 2.0
 
     def __call__(self, event: GestureEvent) -> None:

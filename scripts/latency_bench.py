@@ -139,7 +139,13 @@ def main() -> int:
             print("the subscriber did not start", file=sys.stderr)
             return 2
         registry = load_registry(entry_points=False)
-        scene = build_scene(layout, f"replay:{rec_file}", registry, speed=args.speed, mqtt_url=url)
+        scene = build_scene(
+            layout,
+            f"replay:{rec_file}",
+            registry,
+            speed=args.speed,
+            overrides={"mqtt": {"broker": url}},
+        )
         source = scene.source
         assert isinstance(source, PacedSource)
         report = Runtime(scene).run(handle_signals=False)

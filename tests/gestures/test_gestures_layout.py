@@ -395,7 +395,9 @@ def test_the_desk_name_defaults_to_the_profile_name_and_is_checked(make_layout):
     layout = make_layout(GOOD_REGION + "bindings:\n  - {gesture: tap, region: lamp, do: log}\n")
     assert layout.desk_name == layout.desk.name == "kitamura2017"
     with pytest.raises(ConfigError, match=r":\d+:\d+: `desk_name` must be letters"):
-        make_layout(GOOD_REGION + "desk_name: a/b\nbindings: [{gesture: tap, do: log}]\n")
+        make_layout(
+            GOOD_REGION + "desk_name: a/b\nbindings: [{gesture: tap, region: lamp, do: log}]\n"
+        )
 
 
 def test_desk_from_the_layout_relative_path_or_override(write_layout, tmp_path, paper_desk):

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from hapticdesk.gestures.engine import GestureEngine
-from hapticdesk.plugins.recognizers import RECOGNIZERS
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.recognizer import Recognizer
 from hapticdesk.gestures.strokes.shapes import hand_drawn
+from hapticdesk.plugins.recognizers import RECOGNIZERS
 
 EVERYTHING = """
 units: cm

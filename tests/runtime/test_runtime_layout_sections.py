@@ -12,7 +12,8 @@ from hapticdesk.cli import main
 SCENE = Path(__file__).resolve().parents[2] / "examples" / "scenes" / "demo.yaml"
 HEAD = "desk: kitamura2017\n"
 BINDINGS = (
-    "regions: {b: {rect: [-0.3, -0.2, -0.1, 0]}}\nbindings:\n  - {gesture: tap, region: b, do: log}\n"
+    "regions: {b: {rect: [-0.3, -0.2, -0.1, 0]}}\n"
+    "bindings:\n  - {gesture: tap, region: b, do: log}\n"
 )
 
 

@@ -1,8 +1,8 @@
 """The hooks a hapticdesk plugin can implement.
 
 A plugin is a module (or any object) with functions marked ``@hookimpl``. Built-in plugins
-(``hapticdesk.plugins.*``) and third-party ones (the ``hapticdesk`` entry-point group) use the
-same hooks. A hookimpl may take fewer arguments than its spec, so specs can grow without
+(:data:`~hapticdesk.registry.DEFAULT_PLUGINS`) and third-party ones (the ``hapticdesk``
+entry-point group) use the same hooks. A hookimpl may take fewer arguments than its spec, so specs can grow without
 breaking plugins::
 
     from hapticdesk.hookspecs import hookimpl

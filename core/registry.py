@@ -152,7 +152,7 @@ class CommandType(Registered):
 
 @dataclass
 class PluginInfo:
-    """What ``hapticdesk plugins`` shows for one plugin."""
+    """What the ``plugins`` command shows for one plugin."""
 
     name: str
     version: str
@@ -428,8 +428,8 @@ def load_registry(
     ``HAPTICDESK_DISABLE_PLUGIN_AUTOLOAD`` is set. Tests pass ``entry_points=False`` (or set
     the variable for the command line) so whatever is installed on the machine cannot change
     their outcome, and add their own plugins through ``plugins``. ``blocked``: plugin names
-    never to load (a built-in such as ``hapticdesk.plugins.recognizers`` that a third-party
-    plugin replaces; two plugins may not register the same name).
+    never to load (a built-in from :data:`DEFAULT_PLUGINS` that a third-party plugin
+    replaces; two plugins may not register the same name).
     """
     if entry_points is None:
         entry_points = not os.environ.get(DISABLE_AUTOLOAD_ENV)

@@ -30,8 +30,8 @@ import numpy as np
 
 from hapticdesk.files.profile import load_profile
 from hapticdesk.files.recording import write_recording
-from hapticdesk.plugins.replay import PacedSource
 from hapticdesk.registry import load_registry
+from hapticdesk.runtime.pacing import PacedSource
 from hapticdesk.runtime.service import Runtime, build_scene
 
 TARGET_P95_MS = 40.0

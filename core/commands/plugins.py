@@ -1,4 +1,4 @@
-"""``hapticdesk plugins``: what is installed, with versions, and what each plugin provides."""
+"""The ``plugins`` command: what is installed, with versions, and what each plugin provides."""
 
 from __future__ import annotations
 

@@ -1,9 +1,10 @@
 """The gesture engine: contact blocks in, gesture events out, on sample time.
 
 It builds only the recognizers the layout binds (a taps-only layout never imports the stroke
-recognizer). Which class recognizes a gesture comes from the plugin registry, built-ins
-(:mod:`hapticdesk.plugins.recognizers`) and third-party ones alike, as lazy ``"module:Class"``
-references imported on first use (python-can's ``BACKENDS`` habit, STYLE.md 4, 15).
+recognizer). Which class recognizes a gesture comes from the plugin registry, built-ins (a
+plugin in :data:`~hapticdesk.registry.DEFAULT_PLUGINS`) and third-party ones alike, as lazy
+``"module:Class"`` references imported on first use (python-can's ``BACKENDS`` habit,
+STYLE.md 4, 15).
 Output does not depend on how the contact stream is cut into blocks: state is carried
 across blocks and timers fire at the first sample time at or after their deadline.
 """

@@ -2,8 +2,8 @@
 
 A plugin is a module (or any object) with functions marked ``@hookimpl``. Built-in plugins
 (:data:`~hapticdesk.registry.DEFAULT_PLUGINS`) and third-party ones (the ``hapticdesk``
-entry-point group) use the same hooks. A hookimpl may take fewer arguments than its spec, so specs can grow without
-breaking plugins::
+entry-point group) use the same hooks. A hookimpl may take fewer arguments than its spec, so
+specs can grow without breaking plugins::
 
     from hapticdesk.hookspecs import hookimpl
 

@@ -32,6 +32,8 @@ log = logging.getLogger(__name__)
 ENTRY_POINT_GROUP = "hapticdesk"
 #: set to 1 to load no third-party plugins (tests; like PYTEST_DISABLE_PLUGIN_AUTOLOAD)
 DISABLE_AUTOLOAD_ENV = "HAPTICDESK_DISABLE_PLUGIN_AUTOLOAD"
+#: comma-separated plugin names never to load, e.g. a built-in a third-party plugin replaces
+BLOCK_ENV = "HAPTICDESK_BLOCK_PLUGINS"
 
 #: built-in plugins, registered exactly like third-party ones
 DEFAULT_PLUGINS: tuple[str, ...] = (
@@ -429,13 +431,17 @@ def load_registry(
     the variable for the command line) so whatever is installed on the machine cannot change
     their outcome, and add their own plugins through ``plugins``. ``blocked``: plugin names
     never to load (a built-in from :data:`DEFAULT_PLUGINS` that a third-party plugin
-    replaces; two plugins may not register the same name).
+    replaces; two plugins may not register the same name), added to those named in the
+    environment variable ``HAPTICDESK_BLOCK_PLUGINS`` (comma-separated), which is how a
+    person installing such a replacement turns the built-in off for every command.
     """
     if entry_points is None:
         entry_points = not os.environ.get(DISABLE_AUTOLOAD_ENV)
     registry = Registry(strict=strict)
-    for name in blocked:
-        registry.block(name)
+    from_env = os.environ.get(BLOCK_ENV, "").split(",")
+    for name in [*blocked, *from_env]:
+        if name.strip():
+            registry.block(name.strip())
     if defaults:
         registry.load_default_plugins()
     if entry_points:

@@ -14,7 +14,7 @@ from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.recognizer import Recognizer
 from hapticdesk.gestures.touch import Touch
 from hapticdesk.hookspecs import hookimpl
-from hapticdesk.registry import PluginError, load_registry
+from hapticdesk.registry import BLOCK_ENV, PluginError, load_registry
 from hapticdesk.runtime.service import Runtime, build_scene
 
 from .taps import Tap, tap_recording
@@ -81,3 +81,11 @@ def test_without_blocking_the_built_in_the_same_name_is_refused_naming_both():
             blocked=["hapticdesk.plugins.log"],
             plugins=[("my-taps", replacement([]))],
         )
+
+
+def test_the_environment_blocks_a_built_in_for_every_command(monkeypatch):
+    monkeypatch.setenv(BLOCK_ENV, "hapticdesk.plugins.log, hapticdesk.plugins.recognizers")
+    registry = load_registry(entry_points=False, plugins=[("my-taps", replacement([]))])
+    assert "hapticdesk.plugins.log" not in registry.plugins
+    assert registry.actions["log"].plugin == "my-taps"
+    assert list(registry.recognizers) == ["tap"]

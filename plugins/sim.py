@@ -14,7 +14,7 @@ from typing import Any
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.hookspecs import hookimpl
-from hapticdesk.plugins.replay import PacedSource
+from hapticdesk.runtime.pacing import PacedSource
 from hapticdesk.runtime.source import Source
 
 

@@ -5,8 +5,10 @@ Loading validates everything a person can get wrong and reports ``file:line:colu
 was found and what is allowed: unknown keys, unknown region, gesture, action or shape names,
 values out of range, overlapping regions that bind the same gesture, a region off the desk.
 Gesture settings resolve at three levels (options.py): built-in, layout-wide ``settings:``,
-binding. The top-level ``mqtt:`` and ``desk_name:`` are kept raw in :attr:`Layout.raw` for
-the MQTT action plugin, which validates them.
+binding. ``desk_name:`` is the desk's name in what actions send (``{desk}`` in templates,
+MQTT topics). Any other top-level section belongs to the plugin that claimed it
+(``register_layout_sections``): it is kept raw in :attr:`Layout.raw` and handed to that
+plugin's validator while loading, so ``check`` refuses what ``run`` would.
 """
 
 from __future__ import annotations
@@ -59,9 +61,10 @@ from hapticdesk.gestures.regions import (
 
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 TOP_KEYS = frozenset(
-    {"desk", "units", "regions", "bindings", "settings", "templates", "description"}
-    | {"mqtt", "desk_name"}  # kept raw for the MQTT action plugin
+    {"desk", "desk_name", "units", "regions", "bindings", "settings", "templates", "description"}
 )
+#: a desk name goes into topics, URLs and file names: no spaces, slashes or wildcards
+DESK_NAME = re.compile(r"[A-Za-z0-9_-]+")
 REGION_KINDS = ("rect", "circle", "polygon")
 REGION_KEYS = frozenset({*REGION_KINDS, "surface", "axis", "description"})
 BINDING_KEYS = frozenset({"gesture", "region", "do", "description"})
@@ -70,6 +73,8 @@ REGION_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_-]*$")
 DEFAULT_TEMPLATE_DIR = "strokes"
 
 ValidateAction = Callable[[str, Any, Position], None]
+#: ``validate_section(name, value, position, layout_path)``: a plugin's section
+ValidateSection = Callable[[str, Any, Position, Path], None]
 
 
 @dataclass(frozen=True)
@@ -139,10 +144,14 @@ class Layout:
     raw: MarkedDict
     warnings: list[str] = field(default_factory=list)
 
-    @classmethod
-    def from_yaml(cls, path: str | Path, **kwargs: Any) -> Layout:
-        """Same as :func:`load_layout`."""
-        return load_layout(path, **kwargs)
+    @property
+    def desk_name(self) -> str:
+        """The desk's name in what actions send: ``desk_name:``, else the profile's name with
+        anything but letters, digits, _ and - replaced by _."""
+        name = self.raw.get("desk_name")
+        if isinstance(name, str):
+            return name
+        return re.sub(r"[^A-Za-z0-9_-]", "_", self.desk.name)
 
     @property
     def gestures(self) -> list[str]:
@@ -175,18 +184,38 @@ def load_layout(
     profile: DeskProfile | None = None,
     action_names: Collection[str] | None = None,
     validate_action: ValidateAction | None = None,
-    recognizer_types: Mapping[str, type] | None = None,
+    recognizer_types: Mapping[str, Any] | None = None,
+    validate_section: ValidateSection | None = None,
+    section_names: Collection[str] = (),
 ) -> Layout:
     """Load and validate a layout; raises :class:`ConfigError` on any problem.
 
     ``profile`` overrides the layout's ``desk:``. ``action_names``: the known actions (an
     unknown one is an error); ``validate_action(name, options, position)`` is called for
     every action use and may raise ConfigError. ``recognizer_types``: plugin gestures (name
-    -> recognizer class, whose optional ``option_specs`` describe its options).
+    -> recognizer class, registry record or ``"module:Class"``, whose optional
+    ``option_specs`` describe its options; a built-in gesture's options are its own whichever
+    class recognizes it, so built-ins are not imported here). ``section_names``: top-level
+    sections plugins claimed; each one present goes to ``validate_section``.
     """
     path = Path(path)
     doc = require_mapping(load_marked_yaml(path), str(path), "a layout")
-    return _LayoutReader(doc, path, profile, action_names, validate_action, recognizer_types).read()
+    extra = set(section_names) - TOP_KEYS  # a plugin cannot take over a core key
+    layout = _LayoutReader(
+        doc, path, profile, action_names, validate_action, recognizer_types, extra
+    ).read()
+    if "desk_name" in doc:
+        name = doc["desk_name"]
+        if not isinstance(name, str) or not DESK_NAME.fullmatch(name):
+            raise ConfigError(
+                doc.where("desk_name"),
+                "`desk_name` must be letters, digits, _ and - (it goes into topics and "
+                f"messages), found {name!r}",
+            )
+    for name in sorted(extra & set(doc)):
+        if validate_section is not None:
+            validate_section(name, doc[name], doc.where(name), path)
+    return layout
 
 
 class _LayoutReader:
@@ -199,7 +228,8 @@ class _LayoutReader:
         profile: DeskProfile | None,
         action_names: Collection[str] | None,
         validate_action: ValidateAction | None,
-        recognizer_types: Mapping[str, type] | None,
+        recognizer_types: Mapping[str, Any] | None,
+        sections: Collection[str] = (),
     ) -> None:
         self.doc = doc
         self.path = path
@@ -207,9 +237,17 @@ class _LayoutReader:
         self.action_names = set(action_names) if action_names is not None else None
         self.validate_action = validate_action
         self.specs: dict[str, dict[str, OptionSpec] | None] = dict(GESTURE_OPTIONS)
-        for name, cls in (recognizer_types or {}).items():
+        self.sections = frozenset(sections)
+        for name, entry in (recognizer_types or {}).items():
             if name in GESTURE_OPTIONS:
-                raise ConfigError(None, f"a plugin recognizer may not replace built-in `{name}`")
+                continue  # a built-in gesture: its options are its contract
+            load = getattr(entry, "load", None)
+            if callable(load):
+                cls = load()
+            else:
+                from hapticdesk.registry import resolve
+
+                cls = resolve(entry)
             self.specs[name] = getattr(cls, "option_specs", None)
         self.scale = 1.0
         self.units = "m"
@@ -218,7 +256,7 @@ class _LayoutReader:
     # -- top level ---------------------------------------------------------------------------
     def read(self) -> Layout:
         doc = self.doc
-        check_keys(doc, TOP_KEYS, "the layout", required={"bindings"})
+        check_keys(doc, TOP_KEYS | self.sections, "the layout", required={"bindings"})
         desk = self._desk()
         self.units = choice(doc, "units", tuple(UNITS), "the layout", default="m")
         self.scale = UNITS[self.units]

@@ -79,14 +79,14 @@ GESTURE_OPTIONS: dict[str, dict[str, OptionSpec]] = {
     "tap": {
         "max_duration_s": _s(0.5, _TAP_DURATION, 5.0),
         "max_move": _m(0.015, _TAP_MOVE),
-        "snap": _m(0.015, _TAP_SNAP),
+        "snap": _m(0.012, _TAP_SNAP),
     },
     "double_tap": {
         "interval_s": _s(0.3, "longest pause between the first release and the second touch", 2.0),
         "max_distance": _m(0.03, "how far apart the two taps may be"),
         "max_duration_s": _s(0.5, _TAP_DURATION, 5.0),
         "max_move": _m(0.015, _TAP_MOVE),
-        "snap": _m(0.015, _TAP_SNAP),
+        "snap": _m(0.012, _TAP_SNAP),
     },
     "long_press": {
         "max_move": _m(0.015, "how far the finger may move before the hold is cancelled"),

@@ -69,6 +69,17 @@ def _phase_filter() -> OptionSpec:
     )
 
 
+def _leave() -> OptionSpec:
+    return OptionSpec(
+        "choice",
+        "clip",
+        "recognize",
+        "a finger that leaves the region: clip (the gesture goes on, a slider's value held at"
+        " 0 or 1) or cancel (it ends there with phase cancel)",
+        choices=("clip", "cancel"),
+    )
+
+
 _TAP_DURATION = "longest touch that still counts as a tap"
 _TAP_MOVE = "how far the finger may move during the touch"
 _TAP_SNAP = "a tap outside every bound region goes to the nearest one this close"
@@ -127,6 +138,7 @@ GESTURE_OPTIONS: dict[str, dict[str, OptionSpec]] = {
         "step": OptionSpec(
             "fraction", 0.01, "recognize", "smallest change worth an update", 0.0, 1.0
         ),
+        "leave": _leave(),
         "phase": _phase_filter(),
     },
     "swipe": {
@@ -156,6 +168,7 @@ GESTURE_OPTIONS: dict[str, dict[str, OptionSpec]] = {
         "step": OptionSpec(
             "fraction", 0.01, "recognize", "smallest change worth an update", 0.0, 1.0
         ),
+        "leave": _leave(),
         "phase": _phase_filter(),
     },
     "stroke": {

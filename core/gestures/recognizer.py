@@ -19,6 +19,11 @@ from hapticdesk.gestures.layout import Binding, Layout
 from hapticdesk.gestures.options import OptionSpec
 from hapticdesk.gestures.touch import Touch
 
+#: how far outside its region a finger must be before a `leave: cancel` gesture ends: about
+#: twice a touch's position noise (≈ 4.5 mm 1-σ for a light touch on the paper's desk), so
+#: a finger on the region's edge does not cancel it
+LEAVE_MARGIN_M = 0.01
+
 
 class Recognizer:
     """Base class: override what the gesture needs."""
@@ -81,6 +86,13 @@ class BoundRegions:
             if distance <= self.options(nearest).get("snap", 0.0):
                 return True, nearest
         return self.anywhere, None
+
+    def left(self, region: str | None, x: float, y: float) -> bool:
+        """Whether a finger at (x, y) has left ``region`` where the gesture's ``leave`` option
+        says ``cancel``: farther outside it than :data:`LEAVE_MARGIN_M`."""
+        if region is None or self.options(region).get("leave") != "cancel":
+            return False
+        return self.layout.regions[region].distance(x, y) > LEAVE_MARGIN_M
 
     def options(self, region: str | None) -> dict[str, Any]:
         """Resolved recognizer settings of the gesture in ``region``."""

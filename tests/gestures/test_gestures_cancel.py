@@ -138,3 +138,53 @@ def test_repeats_stop_with_cancel_when_the_finger_slides_away(make_layout, timel
     assert phases[0] is None and phases[-1] == "cancel"
     assert "end" not in phases
     assert 1 <= phases.count("repeat") <= 2  # 1.7 s and maybe 1.9 s, before it left
+
+
+LEAVING = """
+units: cm
+regions:
+  dimmer: {rect: [-30, 10, 30, 20], axis: x}
+  knob: {circle: {center: [0, -10], radius: 4}}
+bindings:
+  - {gesture: slide, region: dimmer, leave: cancel, do: {log: {}}}
+  - {gesture: force, region: knob, leave: cancel, do: {log: {}}}
+"""
+
+
+def test_a_slide_that_leaves_its_region_ends_with_cancel_when_asked(make_layout, timeline):
+    # along the dimmer from x = -20 to 0 cm, then off it sideways to y = 30 cm
+    path = np.array([[-0.2, 0.15], [0.0, 0.15], [0.0, 0.30]])
+    tl = timeline(3.0).touch(1.0, 1.5, path)
+    engine = GestureEngine(make_layout(LEAVING))
+    events = engine.feed(tl.block()) + engine.flush(float(tl.t[-1]))
+    phases = [e.phase for e in events]
+    assert phases[0] == "begin" and phases[-1] == "cancel" and "end" not in phases
+    cancel = events[-1]
+    assert cancel.value == pytest.approx(0.5, abs=0.03)  # the last value on the dimmer
+    assert 0.20 <= cancel.y <= 0.21  # where it was last on the region (or just off it)
+    # the finger passes 1 cm beyond the edge (y = 21 cm) 0.26 m of 0.35 m into the 1.5 s
+    # touch, at 2.114 s; the smoothed track (30 ms) follows a little later
+    assert 2.114 < cancel.t < 2.2
+    # by default (clip) the same slide goes on to the release
+    default = make_layout(LEAVING.replace(", leave: cancel", ""))
+    engine = GestureEngine(default)
+    events = engine.feed(tl.block()) + engine.flush(float(tl.t[-1]))
+    assert [e.phase for e in events][-1] == "end" and "cancel" not in [e.phase for e in events]
+
+
+def test_a_force_that_slides_off_its_knob_ends_with_cancel_when_asked(make_layout, timeline):
+    path = np.array([[0.0, -0.1], [0.0, -0.1], [0.1, -0.1]])  # still, then 10 cm away
+    tl = timeline(3.0).touch(1.0, 1.5, path)
+    engine = GestureEngine(make_layout(LEAVING))
+    events = engine.feed(tl.block()) + engine.flush(float(tl.t[-1]))
+    assert [e.gesture for e in events] == ["force"] * len(events)
+    phases = [e.phase for e in events]
+    assert phases[0] == "begin" and phases[-1] == "cancel" and "end" not in phases
+    assert phases.count("cancel") == 1
+
+
+def test_leave_must_be_clip_or_cancel(make_layout):
+    from hapticdesk.files.yamlfile import ConfigError
+
+    with pytest.raises(ConfigError, match="`leave` .* must be one of clip, cancel, found 'away'"):
+        make_layout(LEAVING.replace("leave: cancel", "leave: away", 1))

@@ -4,7 +4,9 @@
 level once the force has dropped ``hysteresis_n`` below it, so a trembling finger at the
 threshold does not fire twice. ``force`` maps the force between ``min_n`` and ``max_n`` to
 0..1 with begin/update/end, updates rate-limited by ``interval_s`` and ``step``; a touch
-that broke off without a release ends with ``cancel`` (value 0: the force is not known).
+that broke off without a release ends with ``cancel`` (value 0: the force is not known), and
+so does one that leaves its region when the binding says ``leave: cancel`` (the value it had
+last on the region).
 """
 
 from __future__ import annotations
@@ -116,6 +118,10 @@ class ForceRecognizer(Recognizer):
             value = self._value(event.force_n)
             self._last_t, self._last_value = event.t, value
             return [self._event(event.t, self._region, x, y, value, "begin", event.force_n)]
+        if self.bound.left(self._region, *touch.current()):
+            region, value = self._region, self._last_value
+            self._state = "ignored"  # until the next touch: no update, no end
+            return [self._event(event.t, region, x, y, value, "cancel", event.force_n)]
         value = self._value(event.force_n)
         o = self.bound.options(self._region)
         if event.t - self._last_t >= o["interval_s"] and abs(value - self._last_value) >= o["step"]:

@@ -245,6 +245,11 @@ class LayoutReader:
                 return None
             raise ConfigError(m.where(), f"{what} needs `region` (one of: {names})")
         region = m["region"]
+        if not isinstance(region, str):
+            raise ConfigError(
+                m.where("region"),
+                f"`region` of {what} is one region's name (one of: {names}), found {region!r}",
+            )
         if region not in regions:
             raise ConfigError(
                 m.where("region"), f"unknown region {region!r} in {what}; regions: {names}"

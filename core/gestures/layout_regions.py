@@ -35,6 +35,8 @@ from hapticdesk.gestures.regions import (
 REGION_KINDS = ("rect", "circle", "polygon")
 REGION_KEYS = frozenset({*REGION_KINDS, "surface", "axis", "description"})
 REGION_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_-]*$")
+#: enough for any outline drawn by hand; the self-crossing check compares every pair of edges
+MAX_POLYGON_POINTS = 500
 
 
 class RegionReader:
@@ -115,15 +117,14 @@ class RegionReader:
 
     def _polygon(self, m: MarkedDict, what: str) -> np.ndarray:
         pts = m["polygon"]
-        if not isinstance(pts, MarkedList) or len(pts) < 3:
+        if not isinstance(pts, MarkedList) or not 3 <= len(pts) <= MAX_POLYGON_POINTS:
             raise ConfigError(
-                m.where("polygon"), f"`polygon` of {what} must list 3 or more [x, y] points"
+                m.where("polygon"),
+                f"`polygon` of {what} must list 3 to {MAX_POLYGON_POINTS} [x, y] points",
             )
         outline = self.scale * np.array(
             [vector(p, pts.where(i), f"point {i + 1} of {what}", 2) for i, p in enumerate(pts)]
         )
-        if abs(polygon_area(outline)) < 1e-12:
-            raise ConfigError(m.where("polygon"), f"`polygon` of {what} has no area")
         crossing = polygon_self_crossing(outline)
         if crossing is not None:
             i, j = crossing
@@ -132,6 +133,8 @@ class RegionReader:
                 f"`polygon` of {what} crosses itself: the edge from point {i + 1} crosses the "
                 f"edge from point {j + 1}; list the points in order around the outline",
             )
+        if abs(polygon_area(outline)) < 1e-12:
+            raise ConfigError(m.where("polygon"), f"`polygon` of {what} has no area")
         return outline
 
     def _axis(self, m: MarkedDict, what: str, outline: np.ndarray) -> np.ndarray:

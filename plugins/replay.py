@@ -13,16 +13,16 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
-from hapticdesk.files.profile import DeskProfile
-from hapticdesk.files.recording import RECORDING_SUFFIXES, Recording, read_recording
 from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.runtime.pacing import PacedSource, Pacer
 from hapticdesk.runtime.source import Source, WrenchBlock
+
+if TYPE_CHECKING:  # the hooks are loaded for every command, even `--help`: no numpy here
+    from hapticdesk.files.profile import DeskProfile
+    from hapticdesk.files.recording import Recording
 
 __all__ = ["BLOCK_SIZE", "PacedSource", "Pacer", "RecordingSource", "open_replay"]
 
@@ -41,6 +41,8 @@ class RecordingSource(Source):
         self.block_size = block_size
 
     def blocks(self) -> Iterator[WrenchBlock]:
+        import numpy as np
+
         rec = self.recording
         for start in range(0, len(rec), self.block_size):
             end = min(start + self.block_size, len(rec))
@@ -52,6 +54,8 @@ def open_replay(
     argument: str, profile: DeskProfile, *, speed: float = 1.0, **options: Any
 ) -> Source:
     """``replay:FILE``: a CSV/NPZ recording, or a CAN log by any other suffix."""
+    from hapticdesk.files.recording import RECORDING_SUFFIXES, read_recording
+
     if not argument:
         raise ConfigError("--source", "replay needs a file: replay:FILE.csv, .npz or a CAN log")
     path = Path(argument).expanduser()

@@ -30,9 +30,8 @@ def run(args: argparse.Namespace) -> int:
     registry = load_registry()
     # the same loading as `run`: actions, recognizers and plugins' sections all checked
     layout, _ = load_scene_layout(args.layout, registry, args.desk)
+    # (a plugin's problem was logged once by the registry as it loaded; not repeated here)
     print(explain(layout))
-    for warning in registry.warnings:
-        print(f"plugin warning: {warning}")
     if args.png:
         try:
             draw_layout(layout, Path(args.png))

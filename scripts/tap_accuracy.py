@@ -27,7 +27,7 @@ from __future__ import annotations
 import argparse
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -290,6 +290,12 @@ def main() -> None:
         "--snap", type=float, metavar="MM", help="the taps' `snap` (default: the layout's)"
     )
     parser.add_argument(
+        "--max-sigma",
+        type=float,
+        metavar="MM",
+        help="the estimator's `max_sigma_m` on every desk (default: the profile's, 8 mm)",
+    )
+    parser.add_argument(
         "--desk",
         choices=("paper", "unseen", "unseen-six", "unseen-four", "unseen-switched", "all"),
         default="all",
@@ -298,6 +304,9 @@ def main() -> None:
     print("| desk | taps | under 2 N | right | wrong | missed | phantom | light 2–3 N right |")
     print("|---|---|---|---|---|---|---|---|")
     for label, desk in desks(args.desk).items():
+        if args.max_sigma is not None:
+            estimation = replace(desk.estimation, max_sigma_m=args.max_sigma / 1000)
+            desk = replace(desk, estimation=estimation)
         started = time.monotonic()
         layout = buttons(desk, args.snap)
         tally = measure(desk, layout, args.taps, args.seed)

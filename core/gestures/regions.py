@@ -67,7 +67,8 @@ class Region:
             return 0.0
         a, b = self.outline, np.roll(self.outline, -1, axis=0)
         e = b - a
-        s = np.clip(((x - a[:, 0]) * e[:, 0] + (y - a[:, 1]) * e[:, 1]) / (e * e).sum(1), 0, 1)
+        length2 = np.maximum((e * e).sum(1), 1e-18)  # a repeated vertex: an edge of length 0
+        s = np.clip(((x - a[:, 0]) * e[:, 0] + (y - a[:, 1]) * e[:, 1]) / length2, 0, 1)
         return float(np.hypot(a[:, 0] + s * e[:, 0] - x, a[:, 1] + s * e[:, 1] - y).min())
 
     def value_along(self, x: np.ndarray | float, y: np.ndarray | float) -> np.ndarray:

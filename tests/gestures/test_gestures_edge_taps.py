@@ -85,3 +85,46 @@ def test_a_tap_is_judged_on_its_pressed_part_not_on_the_lift_off_tail(make_layou
     tl = timeline(1.5).touch(1.0, 0.13, drifting_tail, force_profile=lambda tau: 4.0 + 0 * tau)
     engine = GestureEngine(layout)
     assert engine.feed(tl.block()) + engine.flush(float(tl.t[-1])) == []
+
+
+SHAPES = """
+units: cm
+regions:
+  square: {rect: [0, 0, 10, 10]}
+  dot: {circle: {center: [30, 5], radius: 5}}
+  wedge: {polygon: [[0, 20], [10, 20], [10, 20], [0, 30]]}
+bindings:
+  - {gesture: tap, region: square, do: {log: {}}}
+  - {gesture: tap, region: dot, do: {log: {}}}
+  - {gesture: tap, region: wedge, do: {log: {}}}
+"""
+
+
+@pytest.mark.parametrize(
+    ("region", "point", "expected"),
+    [
+        ("square", (0.05, 0.05), 0.0),  # inside
+        ("square", (0.13, 0.05), 0.03),  # beside an edge
+        ("square", (0.13, 0.14), 0.05),  # off a corner: 3-4-5
+        ("dot", (0.30, 0.05), 0.0),
+        ("dot", (0.30, 0.12), 0.02),
+        ("wedge", (0.02, 0.22), 0.0),
+        ("wedge", (0.05, 0.17), 0.03),  # below the bottom edge
+        ("wedge", (0.14, 0.20), 0.04),  # beyond the repeated vertex: no NaN from it
+    ],
+)
+def test_how_far_a_point_lies_outside_a_region(make_layout, region, point, expected):
+    got = make_layout(SHAPES).regions[region].distance(*point)
+    assert got == pytest.approx(expected, abs=1e-9)
+
+
+def test_snap_takes_the_nearest_region_and_only_within_its_distance(make_layout, timeline):
+    layout = make_layout(SHAPES)  # snap 12 mm by default
+    fired = []
+    # between the square (x ≤ 10 cm) and the dot (x ≥ 25 cm): 5, 11, 13, 55 and 11 mm off
+    for x in (0.105, 0.111, 0.113, 0.195, 0.239):
+        tl = timeline(1.5).touch(1.0, 0.1, (x, 0.05), noise=False)
+        engine = GestureEngine(layout)
+        events = engine.feed(tl.block()) + engine.flush(float(tl.t[-1]))
+        fired.append(events[0].region if events else None)
+    assert fired == ["square", "square", None, None, "dot"]

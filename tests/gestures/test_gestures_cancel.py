@@ -188,3 +188,17 @@ def test_leave_must_be_clip_or_cancel(make_layout):
 
     with pytest.raises(ConfigError, match="`leave` .* must be one of clip, cancel, found 'away'"):
         make_layout(LEAVING.replace("leave: cancel", "leave: away", 1))
+
+
+def test_home_assistant_is_told_of_the_repeats_of_a_long_press(make_layout):
+    from hapticdesk.plugins.mqtt.discovery import device_triggers
+
+    triggers = device_triggers(
+        make_layout(REPEAT).bindings, desk="study", model="m", action_topic="a"
+    )
+    announced = {t.config["payload"]: t.config["type"] for t in triggers}
+    assert announced == {
+        "dim_long_press": "button_long_press",
+        "dim_long_press_repeat": "button_long_press_repeat",  # what the repeats send
+        "dim_long_press_end": "button_long_release",
+    }

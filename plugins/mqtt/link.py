@@ -38,7 +38,7 @@ import threading
 import time
 import urllib.parse
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -74,6 +74,7 @@ _MQTT_KEYS = {
     "discovery",
     "discovery_prefix",
     "base_topic",
+    "prefix",
     "queue_size",
 }
 
@@ -100,7 +101,14 @@ class MqttSettings:
     discovery: bool = False
     discovery_prefix: str = "homeassistant"
     base_topic: str = "hapticdesk"
+    #: the desk's whole topic prefix when given (``hapticdesk/site1/floor2/study``); else
+    #: ``<base_topic>/<desk>``
+    prefix: str | None = None
     queue_size: int = DEFAULT_QUEUE_SIZE
+
+    def desk_prefix(self, desk: str) -> str:
+        """The topic prefix of this desk's own topics (``action``, ``event``, ``set`` …)."""
+        return self.prefix if self.prefix is not None else f"{self.base_topic}/{desk}"
 
     @property
     def url(self) -> str:
@@ -177,7 +185,13 @@ def settings_from_layout(
     client_id = str(m.get("client_id", f"hapticdesk-{desk}"))
     if not client_id or len(client_id) > 128:
         raise ConfigError(m.where("client_id"), "`client_id` must be 1 to 128 characters")
-    for key_name in ("base_topic", "discovery_prefix"):
+    if "prefix" in m and "base_topic" in m:
+        raise ConfigError(
+            m.where("prefix", of_key=True),
+            "give `prefix` (the desk's whole topic prefix) or `base_topic` (the desk's name is "
+            "appended), not both",
+        )
+    for key_name in ("base_topic", "discovery_prefix", "prefix"):
         value = m.get(key_name, "x")
         if not isinstance(value, str) or not value or any(c in value for c in "+#"):
             raise ConfigError(
@@ -202,6 +216,7 @@ def settings_from_layout(
         discovery=bool(m.get("discovery", False)),
         discovery_prefix=str(m.get("discovery_prefix", "homeassistant")).strip("/"),
         base_topic=str(m.get("base_topic", "hapticdesk")).strip("/"),
+        prefix=str(m["prefix"]).strip("/") if "prefix" in m else None,
         queue_size=int(number(m, "queue_size", "`mqtt`", default=DEFAULT_QUEUE_SIZE, minimum=1)),
     )
 
@@ -317,6 +332,7 @@ class MqttLink:
         self._will = will
         self._birth = list(birth)
         self._birth_again_on = birth_again_on
+        self._subscriptions: dict[str, tuple[int, Callable[[bytes], None]]] = {}
         self._cond = threading.Condition()
         self._queue: deque[Message] = deque()
         self._control: deque[Message] = deque()
@@ -373,6 +389,23 @@ class MqttLink:
             self._queue.append(message)
             self.stats.queued += 1
             self._cond.notify_all()
+
+    def announce(self, topic: str, payload: Any, *, retain: bool = False) -> None:
+        """Queue a message that is not a command (availability, answers on ``set/result``):
+        not counted in what was delivered, the newest per topic kept; sent while connected."""
+        message = Message(topic, encode_payload(payload), 1, retain, command=False)
+        with self._cond:
+            if not self._closing:
+                self._announce([message])
+
+    def subscribe(self, topic: str, on_message: Callable[[bytes], None], *, qos: int = 0) -> None:
+        """Call ``on_message(payload)`` (on paho's thread: it must not block) for every
+        message on ``topic``, subscribed again on every connect. QoS 0 by default: a command
+        sent while the desk was away is not kept by the broker to arrive late."""
+        with self._cond:
+            self._subscriptions[topic] = (qos, on_message)
+        if self._connected:
+            self._client.subscribe(topic, qos=qos)
 
     def wait_connected(self, timeout: float) -> bool:
         """True once the first connection is up (for the demo and tests)."""
@@ -452,6 +485,10 @@ class MqttLink:
         if self._birth_again_on is not None:
             client.subscribe(self._birth_again_on[0], qos=1)
         with self._cond:
+            subscriptions = list(self._subscriptions.items())
+        for topic, (qos, _) in subscriptions:
+            client.subscribe(topic, qos=qos)
+        with self._cond:
             self._connected = True
             self._resuming = bool(self._inflight)
             self._announce(self._birth)
@@ -498,6 +535,13 @@ class MqttLink:
             self._acknowledged(message)
 
     def _on_message(self, client: Any, userdata: Any, message: Any) -> None:
+        handler = self._subscriptions.get(message.topic)
+        if handler is not None:
+            try:
+                handler[1](message.payload)
+            except Exception:  # a subscriber's bug must not take paho's thread down
+                log.exception("MQTT: handling a message on %s failed", message.topic)
+            return
         if self._birth_again_on and message.payload == self._birth_again_on[1]:
             with self._cond:
                 self._announce(self._birth)
@@ -675,6 +719,61 @@ class MqttLink:
             w = self._will
             client.will_set(w.topic, w.payload, qos=w.qos, retain=w.retain)
         return client
+
+
+def retained_payload(settings: MqttSettings, topic: str, timeout_s: float = 3.0) -> bytes | None:
+    """The retained message on ``topic`` (None when there is none, or the broker cannot be
+    asked within ``timeout_s``). Asked under a client id of its own: connecting with the
+    desk's would push a running desk of the same name off the broker."""
+    import paho.mqtt.client as mqtt
+
+    client = mqtt.Client(
+        mqtt.CallbackAPIVersion.VERSION2,
+        client_id=f"{settings.client_id[:100]}-probe-{os.getpid()}",
+        clean_session=True,
+        protocol=mqtt.MQTTv311,
+    )
+    if settings.username is not None:
+        client.username_pw_set(settings.username, settings.password)
+    if settings.tls:
+        client.tls_set(
+            ca_certs=str(settings.ca) if settings.ca else None,
+            certfile=str(settings.cert) if settings.cert else None,
+            keyfile=str(settings.key) if settings.key else None,
+            cert_reqs=ssl.CERT_REQUIRED,
+        )
+    subscribed, answered = threading.Event(), threading.Event()
+    found: list[bytes] = []
+
+    def on_connect(c: Any, u: Any, flags: Any, reason: Any, props: Any) -> None:
+        if reason.is_failure:
+            answered.set()
+        else:
+            c.subscribe(topic, qos=1)
+
+    def on_subscribe(c: Any, u: Any, mid: Any, reasons: Any, props: Any) -> None:
+        subscribed.set()
+
+    def on_message(c: Any, u: Any, message: Any) -> None:
+        if message.retain:
+            found.append(bytes(message.payload))
+            answered.set()
+
+    client.on_connect, client.on_subscribe, client.on_message = on_connect, on_subscribe, on_message
+    deadline = time.monotonic() + timeout_s
+    try:
+        client.connect(settings.host, settings.port, settings.keepalive)
+    except (OSError, ssl.SSLError, ValueError):
+        return None
+    client.loop_start()
+    try:
+        if subscribed.wait(timeout_s):
+            # the broker sends a retained message right after the SUBACK
+            answered.wait(min(0.5, max(0.0, deadline - time.monotonic())))
+        return found[0] if found else None
+    finally:
+        client.disconnect()
+        client.loop_stop()
 
 
 @dataclass(frozen=True)

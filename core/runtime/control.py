@@ -61,7 +61,7 @@ def parse_command(payload: bytes | str) -> ControlCommand:
         except UnicodeDecodeError:
             raise ControlError("a command must be UTF-8 JSON") from None
     text = payload.strip()
-    if text in COMMANDS:  # a bare word is accepted too
+    if text.isidentifier():  # a bare word is accepted too
         return command(text)
     try:
         value = json.loads(text)

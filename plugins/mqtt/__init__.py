@@ -5,7 +5,7 @@
       username: desk
       password_env: DESK_MQTT_PASSWORD      # or password_file: secrets/mqtt.txt
       tls: {ca: ca.crt, cert: desk.crt, key: desk.key}
-      client_id: hapticdesk-<desk>
+      client_id: hapticdesk-<desk>            # the desk prefix with - for /
       keepalive: 60
       qos: 2                                # 2: a TOGGLE is delivered exactly once
       retain: false

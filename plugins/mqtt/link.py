@@ -76,7 +76,13 @@ _MQTT_KEYS = {
     "base_topic",
     "prefix",
     "queue_size",
+    "protocol",
+    "expiry_s",
 }
+#: ``protocol:`` values: MQTT 5 where the broker speaks it (else 3.1.1), or one of them
+PROTOCOLS = ("auto", "5", "3.1.1")
+DEFAULT_EXPIRY_S = 60
+SESSION_NEVER_EXPIRES = 0xFFFFFFFF  # MQTT 5: keep the session as 3.1.1's clean_session=False
 
 
 # --- settings ---------------------------------------------------------------------------------
@@ -105,6 +111,10 @@ class MqttSettings:
     #: ``<base_topic>/<desk>``
     prefix: str | None = None
     queue_size: int = DEFAULT_QUEUE_SIZE
+    protocol: str = "auto"
+    #: MQTT 5: a command the broker could not deliver within this many seconds is dropped
+    #: (a TOGGLE must not switch a lamp an hour late); 0 keeps it until delivered
+    expiry_s: int = DEFAULT_EXPIRY_S
 
     def desk_prefix(self, desk: str) -> str:
         """The topic prefix of this desk's own topics (``action``, ``event``, ``set`` …)."""
@@ -182,9 +192,6 @@ def settings_from_layout(
                 t.where(), "`tls` needs both `cert` and `key` for a client certificate"
             )
         tls = True
-    client_id = str(m.get("client_id", f"hapticdesk-{desk}"))
-    if not client_id or len(client_id) > 128:
-        raise ConfigError(m.where("client_id"), "`client_id` must be 1 to 128 characters")
     if "prefix" in m and "base_topic" in m:
         raise ConfigError(
             m.where("prefix", of_key=True),
@@ -197,6 +204,14 @@ def settings_from_layout(
             raise ConfigError(
                 m.where(key_name), f"`{key_name}` must be a topic without + or #, found {value!r}"
             )
+    # one client id per desk prefix (hapticdesk-site1-floor2-study): two desks of one name on
+    # different floors must not push each other off the broker
+    own_prefix = (
+        str(m["prefix"]) if "prefix" in m else f"{m.get('base_topic', 'hapticdesk')}/{desk}"
+    )
+    client_id = str(m.get("client_id", own_prefix.strip("/").replace("/", "-")))
+    if not client_id or len(client_id) > 128:
+        raise ConfigError(m.where("client_id"), "`client_id` must be 1 to 128 characters")
     for key_name in ("retain", "discovery"):
         if key_name in m and not isinstance(m[key_name], bool):
             raise ConfigError(m.where(key_name), f"`{key_name}` of `mqtt` must be true or false")
@@ -218,7 +233,22 @@ def settings_from_layout(
         base_topic=str(m.get("base_topic", "hapticdesk")).strip("/"),
         prefix=str(m["prefix"]).strip("/") if "prefix" in m else None,
         queue_size=int(number(m, "queue_size", "`mqtt`", default=DEFAULT_QUEUE_SIZE, minimum=1)),
+        protocol=_protocol(m),
+        expiry_s=int(
+            number(m, "expiry_s", "`mqtt`", default=DEFAULT_EXPIRY_S, minimum=0, maximum=2**32 - 1)
+        ),
     )
+
+
+def _protocol(m: MarkedDict) -> str:
+    value = m.get("protocol", "auto")
+    text = str(value) if isinstance(value, str | int) and not isinstance(value, bool) else None
+    if text not in PROTOCOLS:
+        raise ConfigError(
+            m.where("protocol"),
+            f'`protocol` of `mqtt` must be auto, 5 or "3.1.1" (quoted), found {value!r}',
+        )
+    return text
 
 
 def _where_text(m: MarkedDict) -> str:
@@ -344,14 +374,9 @@ class MqttLink:
         self._ever_connected = threading.Event()
         self._outage_logged = False
         self.refused: str | None = None  # why the broker refused the login, if it did
-        self._client = self._new_client(clean_session=False)
-        self._client.on_connect = self._on_connect
-        self._client.on_disconnect = self._on_disconnect
-        self._client.on_publish = self._on_publish
-        self._client.on_message = self._on_message
-        self._client.on_connect_fail = self._on_connect_fail
-        self._client.reconnect_delay_set(RECONNECT_MIN_S, RECONNECT_MAX_S)
-        self._client.max_inflight_messages_set(0)  # our WINDOW limits commands; control adds a few
+        #: paho's protocol constant in use: MQTT 5 until the broker turns it down (``auto``)
+        self.protocol = mqtt.MQTTv311 if settings.protocol == "3.1.1" else mqtt.MQTTv5
+        self._client = self._persistent_client()
         self._sender = threading.Thread(target=self._run, name="mqtt sender", daemon=True)
 
     # --- public ------------------------------------------------------------------------------
@@ -577,10 +602,32 @@ class MqttLink:
 
     # --- the sender thread --------------------------------------------------------------------
 
+    def _persistent_client(self) -> Any:
+        client = self._new_client(clean_session=False)
+        client.on_connect = self._on_connect
+        client.on_disconnect = self._on_disconnect
+        client.on_publish = self._on_publish
+        client.on_message = self._on_message
+        client.on_connect_fail = self._on_connect_fail
+        client.reconnect_delay_set(RECONNECT_MIN_S, RECONNECT_MAX_S)
+        client.max_inflight_messages_set(0)  # our WINDOW limits commands; control adds a few
+        return client
+
     def _run(self) -> None:
         if not self._clean_start():
             return
-        self._client.connect_async(self.settings.host, self.settings.port, self.settings.keepalive)
+        s = self.settings
+        if self.protocol == self._mqtt.MQTTv5:
+            from paho.mqtt.packettypes import PacketTypes
+            from paho.mqtt.properties import Properties
+
+            session = Properties(PacketTypes.CONNECT)
+            session.SessionExpiryInterval = SESSION_NEVER_EXPIRES
+            self._client.connect_async(
+                s.host, s.port, s.keepalive, clean_start=False, properties=session
+            )
+        else:
+            self._client.connect_async(s.host, s.port, s.keepalive)
         self._client.loop_start()
         while True:
             with self._cond:
@@ -603,7 +650,13 @@ class MqttLink:
 
     def _send(self, message: Message) -> None:
         try:
-            info = self._client.publish(message.topic, message.payload, message.qos, message.retain)
+            info = self._client.publish(
+                message.topic,
+                message.payload,
+                message.qos,
+                message.retain,
+                properties=self._expiry if message.command else None,
+            )
         except ValueError as err:  # e.g. a topic with a wildcard: this message can never go
             log.error("MQTT: cannot publish to %r: %s; the message is dropped", message.topic, err)
             return
@@ -662,8 +715,43 @@ class MqttLink:
                     return False
             delay = min(delay * 2, RECONNECT_MAX_S)
 
+    @property
+    def _expiry(self) -> Any:
+        """MQTT 5 publish properties of a command: its expiry (None on 3.1.1 or without)."""
+        if self.protocol != self._mqtt.MQTTv5 or not self.settings.expiry_s:
+            return None
+        from paho.mqtt.packettypes import PacketTypes
+        from paho.mqtt.properties import Properties
+
+        properties = Properties(PacketTypes.PUBLISH)
+        properties.MessageExpiryInterval = self.settings.expiry_s
+        return properties
+
     def _try_clean_connect(self) -> str | _Refused | None:
-        client = self._new_client(clean_session=True, with_will=False)
+        """A clean connection, in MQTT 5 first under ``protocol: auto``: a broker that turns
+        MQTT 5 down (CONNACK 1, unacceptable protocol version) is asked again in 3.1.1, which
+        is then used."""
+        mqtt = self._mqtt
+        first = self._try_clean_connect_in(self.protocol)
+        if (
+            self.settings.protocol == "auto"
+            and self.protocol == mqtt.MQTTv5
+            and isinstance(first, str)
+            and "Unsupported protocol version" in first  # paho's reading of a 3.1.1 refusal
+        ):
+            if self._try_clean_connect_in(mqtt.MQTTv311) is None:
+                log.warning(
+                    "MQTT: %s does not speak MQTT 5 (%s); using 3.1.1 (no message expiry)",
+                    self.settings.url,
+                    first,
+                )
+                self.protocol = mqtt.MQTTv311
+                self._client = self._persistent_client()
+                return None
+        return first
+
+    def _try_clean_connect_in(self, protocol: int) -> str | _Refused | None:
+        client = self._new_client(clean_session=True, with_will=False, protocol=protocol)
         answered = threading.Event()
         outcome: list[Any] = []
 
@@ -678,8 +766,12 @@ class MqttLink:
 
         client.on_connect = on_connect
         client.on_disconnect = on_disconnect
+        s = self.settings
         try:
-            client.connect(self.settings.host, self.settings.port, self.settings.keepalive)
+            if protocol == self._mqtt.MQTTv5:
+                client.connect(s.host, s.port, s.keepalive, clean_start=True)
+            else:
+                client.connect(s.host, s.port, s.keepalive)
         except (OSError, ssl.SSLError, ValueError) as err:
             return f"{type(err).__name__}: {err}"
         client.loop_start()
@@ -697,14 +789,18 @@ class MqttLink:
             client.disconnect()
             client.loop_stop()
 
-    def _new_client(self, *, clean_session: bool, with_will: bool = True) -> Any:
+    def _new_client(
+        self, *, clean_session: bool, with_will: bool = True, protocol: int | None = None
+    ) -> Any:
+        """A paho client; in MQTT 5 the session's start is given to ``connect`` instead."""
         mqtt = self._mqtt
         s = self.settings
+        protocol = self.protocol if protocol is None else protocol
         client = mqtt.Client(
             mqtt.CallbackAPIVersion.VERSION2,
             client_id=s.client_id,
-            clean_session=clean_session,
-            protocol=mqtt.MQTTv311,
+            clean_session=None if protocol == mqtt.MQTTv5 else clean_session,
+            protocol=protocol,
         )
         if s.username is not None:
             client.username_pw_set(s.username, s.password)

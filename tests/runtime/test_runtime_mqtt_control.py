@@ -5,6 +5,7 @@ are the independent clients."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import re
 import subprocess
@@ -186,6 +187,10 @@ def test_desks_on_one_broker_under_site_and_floor_prefixes(broker, subscribe, tm
         )
     errors = [run.communicate(timeout=30)[1] for run in runs]
     assert [run.returncode for run in runs] == [0, 0], errors
+    # each desk has its own client id, so neither pushed the other off the broker
+    log = broker.log_text()
+    assert "as hapticdesk-site1-floor1-study" in log and "as hapticdesk-site1-floor2-study" in log
+    assert not any("lost the connection" in e for e in errors)
     topics = sorted(t for _, t, _ in sub.wait_for(4))
     assert (
         topics
@@ -211,3 +216,114 @@ def test_bad_prefixes_are_refused_where_they_stand(broker, tmp_path, mqtt, messa
         load_scene_layout(layout, load_registry(entry_points=False))
     assert str(err.value).startswith(f"{layout}:11:")
     assert main(["check", str(layout)]) == 2
+
+
+# --- MQTT 5 -----------------------------------------------------------------------------------
+
+
+def link_settings(broker: Mosquitto, client_id: str, **options):
+    from hapticdesk.files.yamlfile import load_marked_yaml
+    from hapticdesk.plugins.mqtt.link import settings_from_layout
+
+    section = {"broker": broker.url, "client_id": client_id, **options}
+    return settings_from_layout(load_marked_yaml("l.yaml", json.dumps(section)), desk="d")
+
+
+def test_a_command_the_broker_holds_too_long_expires(broker, tmp_path):
+    """MQTT 5 message expiry: a TOGGLE kept for a subscriber that is away is dropped after
+    ``expiry_s``; with ``expiry_s: 0`` it waits as long as the subscriber's session."""
+    import paho.mqtt.client as mqtt
+
+    from hapticdesk.plugins.mqtt.link import MqttLink
+
+    def lamp(*extra: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run(
+            [_program("mosquitto_sub") or "mosquitto_sub", "-h", "127.0.0.1", "-p",
+             str(broker.port), "-t", "lamp/set", "-q", "1", "-V", "mqttv5", "-i", "lamp",
+             "-c", "-x", "3600", *extra],
+            capture_output=True, text=True, timeout=20,
+        )  # fmt: skip
+
+    lamp("-E")  # subscribe, then go away: the broker keeps the session and queues for it
+    sent = []
+    for expiry_s, payload in ((1, "stale"), (0, "kept")):
+        link = MqttLink(link_settings(broker, f"desk{expiry_s}", expiry_s=expiry_s)).start()
+        assert link.wait_connected(10)
+        assert link.protocol == mqtt.MQTTv5
+        link.publish("lamp/set", payload, qos=1)
+        assert link.flush(10)
+        link.close()
+        sent.append(payload)
+    time.sleep(2.0)  # the lamp comes back after the first command's expiry
+    back = lamp("-W", "2")
+    assert back.stdout.split() == ["kept"]
+
+
+def test_a_broker_that_does_not_speak_mqtt5_gets_311(broker, subscribe, caplog):
+    import logging
+    import socket
+    import threading
+
+    import paho.mqtt.client as mqtt
+
+    from hapticdesk.plugins.mqtt.link import MqttLink
+
+    server = socket.create_server(("127.0.0.1", 0))
+    port = server.getsockname()[1]
+    protocols: list[int] = []
+
+    def pipe(a: socket.socket, b: socket.socket) -> None:
+        with contextlib.suppress(OSError):
+            while data := a.recv(65536):
+                b.sendall(data)
+        with contextlib.suppress(OSError):
+            b.shutdown(socket.SHUT_WR)
+
+    def serve() -> None:  # a 3.1.1-only broker: CONNACK 1 to MQTT 5, mosquitto behind it
+        while True:
+            try:
+                client, _ = server.accept()
+            except OSError:
+                return
+            first = client.recv(65536)
+            protocols.append(first[8])  # the CONNECT's protocol level (short packet)
+            if first[8] == 5:
+                client.sendall(b"\x20\x02\x00\x01")
+                client.close()
+                continue
+            upstream = socket.create_connection(("127.0.0.1", broker.port))
+            upstream.sendall(first)
+            threading.Thread(target=pipe, args=(client, upstream), daemon=True).start()
+            threading.Thread(target=pipe, args=(upstream, client), daemon=True).start()
+
+    threading.Thread(target=serve, daemon=True).start()
+    sub = subscribe("lamp/#")
+    settings = link_settings(broker, "old-broker")
+    settings = type(settings)(**{**settings.__dict__, "port": port})
+    try:
+        with caplog.at_level(logging.WARNING):
+            link = MqttLink(settings).start()
+            assert link.wait_connected(10)
+            link.publish("lamp/set", "ON")
+            assert link.flush(10)
+            link.close()
+    finally:
+        server.close()
+    assert link.protocol == mqtt.MQTTv311
+    assert protocols[:2] == [5, 4]  # asked in MQTT 5, then in 3.1.1
+    assert "does not speak MQTT 5" in caplog.text
+    assert sub.wait_for(1)[0][1:] == ("lamp/set", "ON")
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        ({"protocol": "4"}, 'must be auto, 5 or "3.1.1"'),
+        ({"expiry_s": -1}, "expiry_s"),
+    ],
+)
+def test_bad_protocol_options_are_refused(broker, options, message):
+    from hapticdesk.files.yamlfile import ConfigError
+
+    with pytest.raises(ConfigError, match=re.escape(message)):
+        link_settings(broker, "x", **options)

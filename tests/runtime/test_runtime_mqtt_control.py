@@ -327,3 +327,84 @@ def test_bad_protocol_options_are_refused(broker, options, message):
 
     with pytest.raises(ConfigError, match=re.escape(message)):
         link_settings(broker, "x", **options)
+
+
+# --- the fleet examples -----------------------------------------------------------------------
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+
+
+def test_shared_consumers_split_the_fleet(broker, tmp_path):
+    """examples/fleet: two consumers in one `$share` group get every event once between them."""
+    consumers = [
+        subprocess.Popen(
+            [
+                sys.executable,
+                str(EXAMPLES / "fleet" / "fleet_consumer.py"),
+                "--broker",
+                broker.url,
+                "--group",
+                "fleet",
+                "--client-id",
+                f"consumer{k}",
+            ],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )  # fmt: skip
+        for k in range(2)
+    ]
+    try:
+        for k, consumer in enumerate(consumers):
+            assert consumer.stderr is not None
+            assert consumer.stderr.readline().startswith("subscribed to $share/fleet/"), k
+        for n in range(20):
+            floor = n % 2 + 1
+            publish(broker, f"hapticdesk/site1/floor{floor}/study/event", json.dumps({"n": n}))
+        time.sleep(1.0)
+    finally:
+        for consumer in consumers:
+            consumer.terminate()
+    outputs = [consumer.communicate(timeout=10)[0].splitlines() for consumer in consumers]
+    got = [[json.loads(line) for line in lines] for lines in outputs]
+    numbers = sorted(row["event"]["n"] for rows in got for row in rows)
+    assert numbers == list(range(20))  # every event once, none twice
+    assert all(rows for rows in got)  # both took a share
+    desks = {row["desk"] for rows in got for row in rows}
+    assert desks == {"hapticdesk/site1/floor1/study", "hapticdesk/site1/floor2/study"}
+
+
+def test_the_acl_example_keeps_each_desk_to_its_own_prefix(mosquitto_available, tmp_path):
+    users = {"site1-floor2-study": "s3cret", "fleet": "f1eet"}
+    broker = Mosquitto(tmp_path, users=users)
+    with broker.config.open("a") as config:
+        config.write(f"acl_file {EXAMPLES / 'fleet' / 'mosquitto-acl.conf'}\n")
+    broker.start()
+    try:
+        sub = Subscriber(broker, "hapticdesk/#", extra=["-u", "fleet", "-P", "f1eet"])
+        time.sleep(0.5)
+
+        def desk_publishes(topic: str) -> None:
+            subprocess.run(
+                [_program("mosquitto_pub") or "mosquitto_pub", "-h", "127.0.0.1", "-p",
+                 str(broker.port), "-u", "site1-floor2-study", "-P", "s3cret", "-t", topic,
+                 "-m", "x", "-q", "1"],
+                check=True, timeout=10,
+            )  # fmt: skip
+
+        desk_publishes("hapticdesk/site1/floor1/lab/event")  # another desk's: refused
+        desk_publishes("hapticdesk/site1/floor2/study/event")  # its own
+        messages = sub.wait_for(1, 5)
+        time.sleep(0.3)
+        sub.stop()
+    finally:
+        broker.stop()
+    assert [topic for _, topic, _ in sub.messages()] == ["hapticdesk/site1/floor2/study/event"]
+    assert messages
+
+
+def test_the_systemd_unit_reloads_with_sighup_and_does_not_retry_a_refusal():
+    unit = (EXAMPLES / "systemd" / "hapticdesk@.service").read_text()
+    assert "ExecReload=/bin/kill -HUP $MAINPID" in unit
+    assert "RestartPreventExitStatus=2" in unit  # a bad layout or a desk already online
+    assert "--layout /etc/hapticdesk/%i/layout.yaml" in unit

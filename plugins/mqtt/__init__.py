@@ -10,7 +10,10 @@
       qos: 2                                # 2: a TOGGLE is delivered exactly once
       retain: false
       discovery: false                      # Home Assistant device triggers
-      base_topic: hapticdesk
+      base_topic: hapticdesk                # topics under <base_topic>/<desk>
+      prefix: hapticdesk/site1/floor2/study # or the desk's whole prefix (not with base_topic)
+      protocol: auto                        # MQTT 5 where the broker speaks it, else 3.1.1
+      expiry_s: 60                          # MQTT 5: a command undelivered this long is dropped
     desk_name: study                        # in topics; default: the profile's name
     bindings:
       - gesture: tap
@@ -23,7 +26,9 @@ while the layout loads, so ``hapticdesk check`` refuses what ``run`` would) and 
 ``mqtt:`` section or ``--mqtt``), its ``event_sink`` publishes every gesture to
 ``<base_topic>/<desk>/action`` as a Zigbee2MQTT-style string (``lamp_tap``) and in full to
 ``<base_topic>/<desk>/event`` (JSON), with the retained availability
-``<base_topic>/<desk>/availability`` (``online``; ``offline`` as last will).
+``<base_topic>/<desk>/availability`` (``online``; ``offline`` as last will); a desk whose
+availability is already ``online`` (another process of the same name) is refused at start.
+Its ``control_channel`` listens on ``<prefix>/set`` (:mod:`.control`).
 paho is imported only when the connection is opened.
 """
 

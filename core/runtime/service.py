@@ -234,10 +234,12 @@ class LiveStatus:
     last_gesture: str = ""
     gestures: int = 0
     tared: bool = False
+    paused: bool = False
 
     def line(self) -> str:
         where = f"x {self.x:+.3f} y {self.y:+.3f} m" if self.in_contact else "—"
         tare = "" if self.tared else " (taring: keep the desk still)"
+        tare += " (paused: gestures not sent)" if self.paused else ""
         last = self.last_gesture or "none yet"
         return (
             f"t {self.t:7.2f} s  {'●' if self.in_contact else '○'} {where}  "
@@ -351,10 +353,10 @@ class Runtime:
             self.live.tared = False
             return f"re-taring: keep the desk still for {scene.profile.estimation.tare_s:g} s"
         if cmd.name == "pause":
-            self.paused = True
+            self.paused = self.live.paused = True
             return "paused: gestures are recognised but not sent (sensing and the zero go on)"
         if cmd.name == "resume":
-            self.paused = False
+            self.paused = self.live.paused = False
             return "resumed: gestures are sent again"
         if cmd.name == "reload":
             return self._use_layout(Path(scene.context.layout_path or self.layout_path))

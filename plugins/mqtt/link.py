@@ -416,12 +416,17 @@ class MqttLink:
             self._cond.notify_all()
 
     def announce(self, topic: str, payload: Any, *, retain: bool = False) -> None:
-        """Queue a message that is not a command (availability, answers on ``set/result``):
-        not counted in what was delivered, the newest per topic kept; sent while connected."""
+        """Queue a message that is not a command (the answers on ``set/result``): not counted
+        in what was delivered, sent while connected, each one (not coalesced by topic: two
+        answers in a row are both news), at most :data:`CONTROL_LIMIT` waiting."""
         message = Message(topic, encode_payload(payload), 1, retain, command=False)
         with self._cond:
-            if not self._closing:
-                self._announce([message])
+            if self._closing:
+                return
+            self._control.append(message)
+            while len(self._control) > CONTROL_LIMIT:
+                self._control.popleft()
+            self._cond.notify_all()
 
     def subscribe(self, topic: str, on_message: Callable[[bytes], None], *, qos: int = 0) -> None:
         """Call ``on_message(payload)`` (on paho's thread: it must not block) for every

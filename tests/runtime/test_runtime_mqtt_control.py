@@ -88,7 +88,7 @@ def test_set_commands_switch_layouts_pause_and_retare_a_running_desk(
     )
     sub = subscribe("hapticdesk/study/#")
     process = subprocess.Popen(
-        [*RUN, "--layout", str(layout), "--source", f"replay:{taps(tmp_path, paper_desk, 16)}"],
+        [*RUN, "--layout", str(layout), "--source", f"replay:{taps(tmp_path, paper_desk, 40)}"],
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
     try:
@@ -408,3 +408,19 @@ def test_the_systemd_unit_reloads_with_sighup_and_does_not_retry_a_refusal():
     assert "ExecReload=/bin/kill -HUP $MAINPID" in unit
     assert "RestartPreventExitStatus=2" in unit  # a bad layout or a desk already online
     assert "--layout /etc/hapticdesk/%i/layout.yaml" in unit
+
+
+def test_answers_queued_together_all_arrive(broker, subscribe):
+    """Two answers on set/result queued before the sender runs are both sent (availability
+    announcements are coalesced by topic; answers must not be: each says something)."""
+    from hapticdesk.plugins.mqtt.link import MqttLink
+
+    sub = subscribe("hapticdesk/study/set/result")
+    link = MqttLink(link_settings(broker, "answers"))
+    link.announce("hapticdesk/study/set/result", {"command": "layout attic", "ok": False})
+    link.announce("hapticdesk/study/set/result", {"command": "tare", "ok": True})
+    link.start()
+    assert link.wait_connected(10) and link.flush(10)
+    link.close()
+    answers = [json.loads(p)["command"] for _, _, p in sub.wait_for(2, 5)]
+    assert answers == ["layout attic", "tare"]

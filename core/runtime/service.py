@@ -408,7 +408,19 @@ class Runtime:
         scene.dispatcher.replace_routes(routes, self.drain_timeout_s)
         scene.engine, scene.layout = engine, layout
         what = f"layout `{name}` ({path})" if name else f"reloaded {path}"
-        return f"{what}: {len(layout.bindings)} bindings; the zero and connections are kept"
+        line = f"{what}: {len(layout.bindings)} bindings; the zero and connections are kept"
+        # shared connections were opened from the first layout's sections and are kept
+        changed = [
+            f"`{section}:`"
+            for section in scene.registry.layout_sections
+            if before[1].get(section) != layout.raw.get(section)
+        ]
+        if changed:
+            line += (
+                f" ({', '.join(changed)} changed: its connection settings take effect at the "
+                "next start)"
+            )
+        return line
 
     def stop(self, reason: str = "request", *, force: bool = False) -> None:
         """Ask the run to end; ``force`` skips waiting for queued commands."""

@@ -288,3 +288,31 @@ def test_sighup_reloads_the_layout_of_a_running_desk(tmp_path, paper_desk):
     switch = regions.index("fan")
     assert switch >= 2 and set(regions[:switch]) == {"lamp"} and set(regions[switch:]) == {"fan"}
     assert "SIGHUP: reloading the layout" in err and "control: reloaded" in err
+
+
+def test_reload_says_when_a_plugin_section_changed_that_needs_a_restart(tmp_path, paper_desk):
+    path = write_layout(tmp_path / "a.yaml", "lamp", "spy_section: {host: a}")
+    recording = tap_recording(paper_desk, TAPS[:2], 3.0)
+    answers = []
+
+    def reload(rt):
+        write_layout(path, "lamp", "spy_section: {host: b}")
+        rt.request("reload").add_done_callback(lambda f: answers.append(f.result()))
+
+    holder: dict[str, Runtime] = {}
+    source = ScriptedSource(recording, {2.0: lambda: reload(holder["rt"])})
+    plugin = SimpleNamespace(
+        register_sources=hookimpl(
+            lambda register: register("scripted", lambda argument, profile, **o: source)
+        ),
+        register_layout_sections=hookimpl(
+            lambda register: register("spy_section", lambda value, position, path: None)
+        ),
+    )
+    registry = load_registry(entry_points=False, plugins=[("spy", plugin)])
+    runtime = holder["rt"] = Runtime(build_scene(path, "scripted:", registry, speed=0))
+    runtime.run(handle_signals=False)
+    assert (
+        "(`spy_section:` changed: its connection settings take effect at the next start)"
+        in (answers[0])
+    )

@@ -132,6 +132,15 @@ class ContactEstimator:
         self.detector = TouchDetector(s)
         self.candidates = CandidateStage(s)
 
+    def retare(self) -> None:
+        """Forget the zero and take it again over the next ``tare_s`` of a still desk (as at
+        the start); the filters keep their state, so no transient follows. Contacts are
+        reported again once the new zero is set."""
+        s = self.stage_settings
+        self.zeroing = ZeroStage(s, self.notices)
+        self.detector = TouchDetector(s)
+        self.candidates = CandidateStage(s)  # its covariances come from the new tare's noise
+
     @property
     def tared(self) -> bool:
         return self.zeroing.state.zero is not None

@@ -9,8 +9,10 @@
       keepalive: 60
       qos: 2                                # 2: a TOGGLE is delivered exactly once
       retain: false
-      discovery: false                      # Home Assistant device triggers
+      discovery: false                      # Home Assistant: triggers, event, sensors
       base_topic: hapticdesk
+      action_style: hapticdesk              # or zigbee2mqtt: lamp_single, brightness_move_up
+      zigbee2mqtt_slide: step               # or move (brightness_move_*/brightness_stop)
     desk_name: study                        # in topics; default: the profile's name
     bindings:
       - gesture: tap
@@ -23,7 +25,10 @@ while the layout loads, so ``hapticdesk check`` refuses what ``run`` would) and 
 ``mqtt:`` section or ``--mqtt``), its ``event_sink`` publishes every gesture to
 ``<base_topic>/<desk>/action`` as a Zigbee2MQTT-style string (``lamp_tap``) and in full to
 ``<base_topic>/<desk>/event`` (JSON), with the retained availability
-``<base_topic>/<desk>/availability`` (``online``; ``offline`` as last will).
+``<base_topic>/<desk>/availability`` (``online``; ``offline`` as last will), and the desk's
+state JSON (with ``action``) on ``<base_topic>/<desk>``. ``discovery: true`` announces the desk
+to Home Assistant (:mod:`.homeassistant`); ``action_style: zigbee2mqtt`` sends the actions
+Zigbee2MQTT's remotes send (:mod:`.z2m`).
 paho is imported only when the connection is opened.
 """
 
@@ -36,7 +41,6 @@ from hapticdesk.files.yamlfile import ConfigError, Position
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.plugins.action_options import options_mapping, text, where
-from hapticdesk.plugins.mqtt.discovery import device_triggers
 from hapticdesk.plugins.mqtt.link import (
     Message,
     MqttLink,
@@ -44,6 +48,7 @@ from hapticdesk.plugins.mqtt.link import (
     qos_of,
     settings_from_layout,
 )
+from hapticdesk.plugins.mqtt.z2m import Zigbee2MqttActions, style_from_section
 from hapticdesk.plugins.templating import (
     Template,
     TemplatedValue,
@@ -88,10 +93,25 @@ def validate_section(value: Any, position: Position, layout_path: Path) -> None:
     """The layout's ``mqtt:`` section, checked as a run would read it (ConfigError if wrong)."""
     # the client id's default holds the desk name; any valid one checks the same
     settings_from_layout(value, desk="desk", relative_to=Path(layout_path).parent, where=position)
+    style_from_section(value)
 
 
 def desk_topic(settings: MqttSettings, desk: str, leaf: str) -> str:
     return f"{settings.base_topic}/{desk}/{leaf}"
+
+
+def discovery_for(context: ActionContext, settings: MqttSettings) -> list[Any]:
+    """The run's Home Assistant discovery configs (see :mod:`.homeassistant`)."""
+    from hapticdesk.plugins.mqtt.homeassistant import DeskTopics, discovery_configs
+
+    return discovery_configs(
+        getattr(context.layout, "bindings", []),
+        desk=context.desk_name,
+        model=f"hapticdesk on {getattr(context.profile, 'name', 'a desk')}",
+        topics=DeskTopics(f"{settings.base_topic}/{context.desk_name}"),
+        prefix=settings.discovery_prefix,
+        qos=min(settings.qos, 1),
+    )
 
 
 def link_for(context: ActionContext) -> MqttLink:
@@ -105,17 +125,8 @@ def open_link(context: ActionContext) -> MqttLink:
     birth = [Message(availability, b"online", 1, True, command=False)]
     birth_again_on = None
     if settings.discovery:
-        bindings = getattr(context.layout, "bindings", [])
-        model = f"hapticdesk on {getattr(context.profile, 'name', 'a desk')}"
-        for trigger in device_triggers(
-            bindings,
-            desk=context.desk_name,
-            model=model,
-            action_topic=desk_topic(settings, context.desk_name, "action"),
-            prefix=settings.discovery_prefix,
-            qos=min(settings.qos, 1),
-        ):
-            birth.append(Message(trigger.topic, trigger.payload, 1, True, command=False))
+        for config in discovery_for(context, settings):
+            birth.append(Message(config.topic, config.payload, 1, True, command=False))
         # Home Assistant forgets non-retained state when it restarts; it says so here
         birth_again_on = (f"{settings.discovery_prefix}/status", b"online")
     return MqttLink(
@@ -185,19 +196,45 @@ class MqttAction:
 
 
 class DeskPublisher:
-    """Publishes every gesture to the desk's ``action`` and ``event`` topics (a dispatcher sink)."""
+    """Publishes every gesture to the desk's ``action``, ``event`` and state topics (a
+    dispatcher sink), and clears stale Home Assistant configs once at the start."""
 
     timeout_s = 2.0
 
     def __init__(self, context: ActionContext) -> None:
         self.link = link_for(context)
-        self.action_topic = desk_topic(self.link.settings, context.desk_name, "action")
-        self.event_topic = desk_topic(self.link.settings, context.desk_name, "event")
+        settings = self.link.settings
+        self.state_topic = f"{settings.base_topic}/{context.desk_name}"
+        self.action_topic = desk_topic(settings, context.desk_name, "action")
+        self.event_topic = desk_topic(settings, context.desk_name, "event")
+        raw = context.settings.get(SECTION) if context.settings is not None else None
+        style, slide = style_from_section(raw)
+        self.z2m = Zigbee2MqttActions(slide) if style == "zigbee2mqtt" else None
+        self.sensors: dict[str, Any] = {}
+        self.sweep = None
+        if settings.discovery:
+            from hapticdesk.plugins.mqtt.discovery import object_id
+            from hapticdesk.plugins.mqtt.homeassistant import start_sweep
+
+            wanted = [c.topic for c in discovery_for(context, settings)]
+            node = object_id(context.desk_name)
+            self.sweep = start_sweep(settings, settings.discovery_prefix, node, wanted)
 
     def __call__(self, event: GestureEvent) -> None:
         action = event.action_name
-        self.link.publish(self.action_topic, action, retain=False)
+        self.sensors.update(force_n=event.force_n, x=round(event.x, 6), y=round(event.y, 6))
+        if self.z2m is None:
+            payloads = [{**event.to_dict(), "action": action}]
+        else:
+            payloads = self.z2m(event)
+        for payload in payloads:
+            self.link.publish(self.action_topic, payload["action"], retain=False)
+            self.link.publish(self.state_topic, {**self.sensors, **payload}, retain=False)
         self.link.publish(self.event_topic, {**event.to_dict(), "action": action}, retain=False)
+
+    def close(self) -> None:
+        if self.sweep is not None:
+            self.sweep.join(10.0)
 
 
 @hookimpl

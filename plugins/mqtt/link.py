@@ -75,6 +75,9 @@ _MQTT_KEYS = {
     "discovery_prefix",
     "base_topic",
     "queue_size",
+    # read by the plugin's __init__ (plugins/mqtt/z2m.py: style_from_section)
+    "action_style",
+    "zigbee2mqtt_slide",
 }
 
 

@@ -76,8 +76,8 @@ def test_every_command_arrives_once_in_order(broker, subscribe, tmp_path, paper_
     payloads = [json.loads(m[2]) for m in messages]
     assert [p["state"] for p in payloads] == ["TOGGLE"] * 12
     assert [p["t"] for p in payloads] == pytest.approx([e["t"] for e in events], abs=1e-6)
-    # 12 commands, and each gesture twice on the desk's own topics (action, event)
-    assert report.notes == [f"MQTT {broker.url}: 36 of 36 messages delivered"]
+    # 12 commands, and each gesture three times on the desk's own topics (action, state, event)
+    assert report.notes == [f"MQTT {broker.url}: 48 of 48 messages delivered"]
 
 
 def test_a_broker_restart_mid_stream_loses_nothing_and_doubles_nothing(broker, tmp_path):

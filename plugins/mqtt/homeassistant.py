@@ -1,0 +1,328 @@
+"""The desk as a Home Assistant device: every discovery config, and the clearing of stale ones.
+
+Per-component discovery (``<prefix>/<component>/<node>/<object>/config``, retained), each
+config with ``origin`` (this software) and ``device`` (the desk):
+
+- ``device_automation``: one trigger per bound gesture (:mod:`.discovery`);
+- ``event`` ``gesture``: every gesture, with ``event_types`` the layout's action strings and
+  the gesture's fields (value, level, hold_s, x, y, …) as the event's attributes, so a slide's
+  value reaches Home Assistant (its ``value_template`` adds ``event_type`` to the event JSON);
+- ``sensor`` ``force``/``x``/``y``/``resting_load`` and ``binary_sensor`` ``occupancy``, read
+  from the desk's state JSON on ``<base>/<desk>`` (``state_class: measurement``);
+- ``binary_sensor`` ``connectivity`` on the retained availability topic (online/offline, the
+  last will), so Home Assistant sees the desk go offline. The entities above also take that
+  topic as their ``availability_topic``; device triggers have no availability in Home
+  Assistant's schema.
+
+Stale configs (a binding removed or renamed since the last run) are cleared with an empty
+retained payload (Home Assistant removes the entity; the broker forgets the message):
+:func:`sweep_stale` subscribes to ``<prefix>/+/<node>/+/config``, collects what the broker
+retains there, and clears each config this run does not publish. It knows it has seen every
+retained config when a probe message it sent after subscribing comes back (the broker sends
+retained messages when it handles the SUBSCRIBE, before the probe).
+Keys follow Home Assistant's MQTT integration docs (event, sensor, binary_sensor, device
+trigger, "MQTT Discovery"); tests/runtime/test_mqtt_homeassistant.py checks every payload
+against a table of the documented keys.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import ssl
+import threading
+import uuid
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from hapticdesk import __version__
+from hapticdesk.plugins.mqtt.discovery import (
+    CONTINUOUS,
+    DeviceTrigger,
+    device_triggers,
+    object_id,
+    trigger_specs,
+)
+from hapticdesk.plugins.mqtt.link import MqttSettings
+
+log = logging.getLogger(__name__)
+
+ORIGIN = {"name": "hapticdesk", "sw_version": __version__}
+SWEEP_TIMEOUT_S = 5.0
+
+#: the desk's state JSON (on ``<base>/<desk>``) keys the sensors read
+SENSORS: list[tuple[str, str, dict[str, Any]]] = [
+    # (component, object id, config without the common keys)
+    (
+        "sensor",
+        "force",
+        {
+            "name": "Force",
+            "unit_of_measurement": "N",
+            "state_class": "measurement",
+            "suggested_display_precision": 1,
+            "value_template": "{{ value_json.force_n }}",
+        },
+    ),
+    (
+        "sensor",
+        "x",
+        {
+            "name": "Touch x",
+            "device_class": "distance",
+            "unit_of_measurement": "m",
+            "state_class": "measurement",
+            "suggested_display_precision": 3,
+            "value_template": "{{ value_json.x }}",
+        },
+    ),
+    (
+        "sensor",
+        "y",
+        {
+            "name": "Touch y",
+            "device_class": "distance",
+            "unit_of_measurement": "m",
+            "state_class": "measurement",
+            "suggested_display_precision": 3,
+            "value_template": "{{ value_json.y }}",
+        },
+    ),
+    (
+        "sensor",
+        "resting_load",
+        {
+            "name": "Resting load",
+            "unit_of_measurement": "N",
+            "state_class": "measurement",
+            "suggested_display_precision": 1,
+            "value_template": "{{ value_json.resting_load_n }}",
+        },
+    ),
+    (
+        "binary_sensor",
+        "occupancy",
+        {
+            "name": "Desk in use",
+            "device_class": "occupancy",
+            "payload_on": "ON",
+            "payload_off": "OFF",
+            "value_template": "{{ 'ON' if value_json.occupancy else 'OFF' }}",
+        },
+    ),
+]
+
+
+@dataclass(frozen=True)
+class DeskTopics:
+    """The desk's own topics (DESIGN.md, "The desk as an MQTT device")."""
+
+    prefix: str  # <base>/<desk>: the state JSON
+
+    @property
+    def action(self) -> str:
+        return f"{self.prefix}/action"
+
+    @property
+    def event(self) -> str:
+        return f"{self.prefix}/event"
+
+    @property
+    def availability(self) -> str:
+        return f"{self.prefix}/availability"
+
+
+def device_info(desk: str, model: str) -> dict[str, Any]:
+    """The ``device`` every config of this desk carries (one device in Home Assistant)."""
+    return {
+        "identifiers": [f"hapticdesk_{object_id(desk)}"],
+        "name": desk,
+        "model": model,
+        "manufacturer": "hapticdesk",
+        "sw_version": __version__,
+    }
+
+
+def event_types(bindings: Iterable[Any]) -> list[str]:
+    """Every action string the layout's bindings react to (the event entity's types)."""
+    bindings = list(bindings)
+    types = {spec.action for spec in trigger_specs(bindings)}
+    for b in bindings:
+        if b.gesture in CONTINUOUS:
+            region = b.region or "desk"
+            types.update(f"{region}_{b.gesture}{s}" for s in ("", "_begin", "_end", "_cancel"))
+    return sorted(types)
+
+
+def discovery_configs(
+    bindings: Iterable[Any],
+    *,
+    desk: str,
+    model: str,
+    topics: DeskTopics,
+    prefix: str = "homeassistant",
+    qos: int = 1,
+    sensors: bool = True,
+) -> list[DeviceTrigger]:
+    """Every discovery config of the desk (device triggers, event entity, sensors,
+    connectivity), as (topic, config) pairs."""
+    bindings = list(bindings)
+    node = object_id(desk)
+    device = device_info(desk, model)
+    out = device_triggers(
+        bindings,
+        device=device,
+        origin=ORIGIN,
+        action_topic=topics.action,
+        event_topic=topics.event,
+        node=node,
+        prefix=prefix,
+        qos=qos,
+    )
+
+    def entity(component: str, name: str, config: dict[str, Any]) -> DeviceTrigger:
+        common = {
+            "unique_id": f"hapticdesk_{node}_{name}",
+            "device": device,
+            "origin": ORIGIN,
+            "qos": qos,
+        }
+        return DeviceTrigger(f"{prefix}/{component}/{node}/{name}/config", {**common, **config})
+
+    types = event_types(bindings)
+    if types:
+        out.append(
+            entity(
+                "event",
+                "gesture",
+                {
+                    "name": "Gesture",
+                    "state_topic": topics.event,
+                    "event_types": types,
+                    # the event JSON carries `action`; Home Assistant wants `event_type`
+                    "value_template": "{{ dict(value_json, event_type=value_json.action)"
+                    " | tojson }}",
+                    "availability_topic": topics.availability,
+                },
+            )
+        )
+    if sensors:
+        for component, name, config in SENSORS:
+            out.append(
+                entity(
+                    component,
+                    name,
+                    {
+                        **config,
+                        "state_topic": topics.prefix,
+                        "availability_topic": topics.availability,
+                    },
+                )
+            )
+    out.append(
+        entity(
+            "binary_sensor",
+            "connectivity",
+            {
+                # no availability of its own: offline must show as "disconnected", not unknown
+                "name": "Connected",
+                "state_topic": topics.availability,
+                "payload_on": "online",
+                "payload_off": "offline",
+                "device_class": "connectivity",
+                "entity_category": "diagnostic",
+            },
+        )
+    )
+    return out
+
+
+# --- stale configs ----------------------------------------------------------------------------
+
+
+def sweep_stale(settings: MqttSettings, prefix: str, node: str, wanted: Sequence[str]) -> list[str]:
+    """Clear this desk's retained discovery configs that are not in ``wanted``; the topics
+    cleared. Bounded by :data:`SWEEP_TIMEOUT_S`; a broker that cannot be reached clears
+    nothing (said in the log) and the run goes on."""
+    import paho.mqtt.client as mqtt
+
+    wanted_set = set(wanted)
+    pattern = f"{prefix}/+/{node}/+/config"
+    probe = f"{settings.base_topic}/{node}/sweep/{uuid.uuid4().hex}"
+    found: set[str] = set()
+    done = threading.Event()
+    client = mqtt.Client(
+        mqtt.CallbackAPIVersion.VERSION2,
+        client_id=f"{settings.client_id}-sweep"[:128],
+        clean_session=True,
+        protocol=mqtt.MQTTv311,
+    )
+    if settings.username is not None:
+        client.username_pw_set(settings.username, settings.password)
+    if settings.tls:
+        client.tls_set(
+            ca_certs=str(settings.ca) if settings.ca else None,
+            certfile=str(settings.cert) if settings.cert else None,
+            keyfile=str(settings.key) if settings.key else None,
+            cert_reqs=ssl.CERT_REQUIRED,
+        )
+
+    def on_connect(c: Any, u: Any, flags: Any, reason: Any, props: Any) -> None:
+        if not reason.is_failure:
+            c.subscribe([(pattern, 1), (probe, 1)])
+
+    def on_subscribe(c: Any, u: Any, mid: Any, reasons: Any, props: Any) -> None:
+        c.publish(probe, b"", qos=1)
+
+    def on_message(c: Any, u: Any, message: Any) -> None:
+        if message.topic == probe:
+            done.set()
+        elif message.retain and message.payload:
+            found.add(message.topic)
+
+    client.on_connect = on_connect
+    client.on_subscribe = on_subscribe
+    client.on_message = on_message
+    try:
+        client.connect(settings.host, settings.port, settings.keepalive)
+    except (OSError, ssl.SSLError, ValueError) as err:
+        log.warning("MQTT: stale discovery configs not checked (%s)", err)
+        return []
+    client.loop_start()
+    try:
+        if not done.wait(SWEEP_TIMEOUT_S):
+            log.warning("MQTT: stale discovery configs not checked (no answer in time)")
+            return []
+        stale = sorted(found - wanted_set)
+        infos = [client.publish(topic, b"", qos=1, retain=True) for topic in stale]
+        for info in infos:
+            info.wait_for_publish(SWEEP_TIMEOUT_S)
+        if stale:
+            log.info("MQTT: cleared %d stale discovery config(s): %s", len(stale), stale)
+        return stale
+    finally:
+        client.disconnect()
+        client.loop_stop()
+
+
+def start_sweep(
+    settings: MqttSettings, prefix: str, node: str, wanted: Sequence[str]
+) -> threading.Thread:
+    """:func:`sweep_stale` in its own thread (it never holds up sensing)."""
+
+    def run() -> None:
+        try:
+            sweep_stale(settings, prefix, node, wanted)
+        except Exception:  # a broker quirk must not end the run; the next run tries again
+            log.exception("MQTT: clearing stale discovery configs failed")
+
+    thread = threading.Thread(target=run, name="mqtt discovery sweep", daemon=True)
+    thread.start()
+    return thread
+
+
+def state_payload(action: dict[str, Any] | None, sensors: dict[str, Any]) -> str:
+    """The desk's state JSON (``<base>/<desk>``): the last sensor values, and ``action`` with
+    its fields when a gesture happened (Zigbee2MQTT's habit)."""
+    return json.dumps({**sensors, **(action or {})}, allow_nan=False)

@@ -138,3 +138,17 @@ def event_sink(desk: Any, layout: Any, context: Any) -> Any:
     plugin publishes the desk's own topics from here. A
     :class:`~hapticdesk.files.yamlfile.ConfigError` raised here stops the run before it starts.
     """
+
+
+@hookspec
+def contact_sink(desk: Any, layout: Any, context: Any) -> Any:
+    """A run is being built: return a callable to observe the contact state, or None.
+
+    Called once per ``hapticdesk run`` or ``demo`` next to :func:`event_sink`, with the same
+    ``desk``, ``layout`` and ``context``. The callable is
+    called on the *sensing thread* once per block the source delivers (tens of times a
+    second), with one :class:`~hapticdesk.runtime.observe.ContactSummary` (the block's last
+    sample and the estimator's zero). It must return at once: keep the latest value, throttle,
+    and hand slow work (publishing) to a queue, as the MQTT plugin's sensors do. A sink that
+    raises is logged and dropped for the rest of the run; sensing goes on.
+    """

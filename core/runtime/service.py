@@ -35,6 +35,7 @@ from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.registry import Registry
 from hapticdesk.runtime.dispatcher import ActionContext, Dispatcher, DispatchReport, Lane, Route
 from hapticdesk.runtime.isolation import ProcessAction, split_isolation
+from hapticdesk.runtime.observe import ContactObservers
 from hapticdesk.runtime.source import Source
 from hapticdesk.runtime.source_spec import open_source
 
@@ -60,6 +61,8 @@ class Assembly:
     engine: Any  # hapticdesk.gestures.GestureEngine
     dispatcher: Dispatcher
     context: ActionContext
+    #: plugins' contact sinks (``contact_sink`` hook), called once per block
+    observers: ContactObservers = field(default_factory=lambda: ContactObservers([]))
 
     def close(self) -> None:
         """Release what was built without running."""
@@ -126,6 +129,9 @@ def build_scene(
         _add_actions(dispatcher, layout, registry, context, action_timeout_s)
         for plugin, sink in registry.event_sinks(desk=profile, layout=layout, context=context):
             dispatcher.add_sink(Lane(f"every event → {plugin}", sink, timeout_s=action_timeout_s))
+        observers = ContactObservers(
+            registry.contact_sinks(desk=profile, layout=layout, context=context)
+        )
         from hapticdesk.estimator import ContactEstimator
         from hapticdesk.gestures.engine import GestureEngine
 
@@ -138,7 +144,9 @@ def build_scene(
     except BaseException:
         _release(source, dispatcher, context)
         raise
-    return Assembly(profile, layout, registry, source, estimator, engine, dispatcher, context)
+    return Assembly(
+        profile, layout, registry, source, estimator, engine, dispatcher, context, observers
+    )
 
 
 def _add_actions(
@@ -329,6 +337,8 @@ class Runtime:
             contacts = scene.estimator.push(block.t, block.wrench)  # it logs its own notices
             self._emit(scene.engine.feed(contacts))
             self._update_live(contacts)
+            if scene.observers:
+                scene.observers(contacts, scene.estimator.zero)
             self.report.samples += len(block.t)
             t_last = float(block.t[-1])
         if t_first is not None and t_last is not None:

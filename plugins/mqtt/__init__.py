@@ -111,6 +111,7 @@ def discovery_for(context: ActionContext, settings: MqttSettings) -> list[Any]:
         topics=DeskTopics(f"{settings.base_topic}/{context.desk_name}"),
         prefix=settings.discovery_prefix,
         qos=min(settings.qos, 1),
+        regions=list(getattr(context.layout, "regions", {}) or {}),
     )
 
 
@@ -210,7 +211,7 @@ class DeskPublisher:
         raw = context.settings.get(SECTION) if context.settings is not None else None
         style, slide = style_from_section(raw)
         self.z2m = Zigbee2MqttActions(slide) if style == "zigbee2mqtt" else None
-        self.sensors: dict[str, Any] = {}
+        self.state = desk_state(context)
         self.sweep = None
         if settings.discovery:
             from hapticdesk.plugins.mqtt.discovery import object_id
@@ -222,14 +223,13 @@ class DeskPublisher:
 
     def __call__(self, event: GestureEvent) -> None:
         action = event.action_name
-        self.sensors.update(force_n=event.force_n, x=round(event.x, 6), y=round(event.y, 6))
         if self.z2m is None:
             payloads = [{**event.to_dict(), "action": action}]
         else:
             payloads = self.z2m(event)
         for payload in payloads:
             self.link.publish(self.action_topic, payload["action"], retain=False)
-            self.link.publish(self.state_topic, {**self.sensors, **payload}, retain=False)
+            self.link.publish(self.state_topic, {**self.state.snapshot(), **payload}, retain=False)
         self.link.publish(self.event_topic, {**event.to_dict(), "action": action}, retain=False)
 
     def close(self) -> None:
@@ -243,6 +243,30 @@ def event_sink(layout: Any, context: ActionContext) -> DeskPublisher | None:
     if uses_mqtt(layout.raw, layout.bindings, broker_override(context)):
         return DeskPublisher(context)
     return None
+
+
+def desk_state(context: ActionContext) -> Any:
+    """The run's latest sensor values (shared by the sensor and gesture publishers)."""
+    from hapticdesk.plugins.mqtt.sensors import DeskState
+
+    return context.shared("mqtt-desk-state", DeskState)
+
+
+@hookimpl
+def contact_sink(layout: Any, context: ActionContext) -> Any:
+    """With ``discovery: true``: force, touch position, resting load and occupancy on the
+    desk's state topic, throttled (:mod:`.sensors`), for Home Assistant's sensors."""
+    if not uses_mqtt(layout.raw, layout.bindings, broker_override(context)):
+        return None
+    link = link_for(context)
+    if not link.settings.discovery:
+        return None
+    from hapticdesk.plugins.mqtt.sensors import SensorPublisher
+
+    topic = f"{link.settings.base_topic}/{context.desk_name}"
+    return SensorPublisher(
+        desk_state(context), lambda payload: link.publish(topic, payload, qos=0, retain=False)
+    )
 
 
 @hookimpl

@@ -73,7 +73,7 @@ class TriggerSpec:
         return self.action if self.hold_s is None else f"{self.action}_{float(self.hold_s)}s"
 
 
-def _details(binding: Any) -> list[dict[str, str]]:
+def details_of(binding: Any) -> list[dict[str, str]]:
     options = getattr(binding, "options", {}) or {}
     for key in _DETAIL_KEYS:
         names = options.get(key)
@@ -110,7 +110,7 @@ def binding_actions(binding: Any, tiers: Iterable[float] = ()) -> list[TriggerSp
         hold = float(options["hold_s"])
     out = []
     for phase, trigger_type in _phases(binding):
-        for detail in _details(binding):
+        for detail in details_of(binding):
             event = GestureEvent(
                 0.0, binding.gesture, binding.region, 0.0, 0.0, phase=phase, **detail
             )

@@ -37,12 +37,12 @@ from dataclasses import dataclass
 from typing import Any
 
 from hapticdesk import __version__
+from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.plugins.mqtt.discovery import (
-    CONTINUOUS,
     DeviceTrigger,
+    details_of,
     device_triggers,
     object_id,
-    trigger_specs,
 )
 from hapticdesk.plugins.mqtt.link import MqttSettings
 
@@ -144,14 +144,29 @@ def device_info(desk: str, model: str) -> dict[str, Any]:
     }
 
 
-def event_types(bindings: Iterable[Any]) -> list[str]:
-    """Every action string the layout's bindings react to (the event entity's types)."""
-    bindings = list(bindings)
-    types = {spec.action for spec in trigger_specs(bindings)}
+#: phases a recognizer emits whatever a binding filters (DeskPublisher sends every event)
+PHASES = {
+    "long_press": (None, "repeat", "end", "cancel"),
+    "slide": (None, "begin", "end", "cancel"),
+    "force": (None, "begin", "end", "cancel"),
+}
+
+
+def event_types(bindings: Iterable[Any], regions: Iterable[str] = ()) -> list[str]:
+    """Every action string the desk can publish for the layout's bindings (the event
+    entity's ``event_types``; Home Assistant drops an event whose type is not listed).
+
+    A binding without a region hears its gesture in every region (and outside them, ``desk``);
+    a recognizer emits all its phases, and details (shape, direction, level) or none."""
+    regions = [*regions, None]
+    types: set[str] = set()
     for b in bindings:
-        if b.gesture in CONTINUOUS:
-            region = b.region or "desk"
-            types.update(f"{region}_{b.gesture}{s}" for s in ("", "_begin", "_end", "_cancel"))
+        details = [{}, *details_of(b)]
+        for region in [b.region] if b.region is not None else regions:
+            for phase in PHASES.get(b.gesture, (None,)):
+                for detail in details:
+                    event = GestureEvent(0.0, b.gesture, region, 0.0, 0.0, phase=phase, **detail)
+                    types.add(event.action_name)
     return sorted(types)
 
 
@@ -164,6 +179,7 @@ def discovery_configs(
     prefix: str = "homeassistant",
     qos: int = 1,
     sensors: bool = True,
+    regions: Iterable[str] = (),
 ) -> list[DeviceTrigger]:
     """Every discovery config of the desk (device triggers, event entity, sensors,
     connectivity), as (topic, config) pairs."""
@@ -190,7 +206,7 @@ def discovery_configs(
         }
         return DeviceTrigger(f"{prefix}/{component}/{node}/{name}/config", {**common, **config})
 
-    types = event_types(bindings)
+    types = event_types(bindings, regions)
     if types:
         out.append(
             entity(

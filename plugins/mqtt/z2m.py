@@ -48,7 +48,7 @@ class Zigbee2MqttActions:
 
     ``slide``: ``step`` sends ``brightness_step_up/down`` with the step since the last update;
     ``move`` sends ``brightness_move_up/down`` with the rate when the direction changes, and
-    ``brightness_stop`` when the finger stops or lifts."""
+    ``brightness_stop`` when the slide ends (release or cancel)."""
 
     def __init__(self, slide: str = "step") -> None:
         if slide not in SLIDE_MODES:
@@ -103,7 +103,7 @@ class Zigbee2MqttActions:
         if self._moving.get(region) == direction:
             return []
         self._moving[region] = direction
-        rate = min(255, max(1, round(abs(step) / dt)))  # level units per second
+        rate = min(255, max(1, round(abs(event.value - v0) * LEVEL_MAX / dt)))  # levels per s
         return [{"action": f"brightness_move_{direction}", "action_rate": rate}]
 
 

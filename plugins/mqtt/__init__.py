@@ -215,7 +215,7 @@ class DeskPublisher:
         self.sweep = None
         if settings.discovery:
             from hapticdesk.plugins.mqtt.discovery import object_id
-            from hapticdesk.plugins.mqtt.homeassistant import start_sweep
+            from hapticdesk.plugins.mqtt.stale import start_sweep
 
             wanted = [c.topic for c in discovery_for(context, settings)]
             node = object_id(context.desk_name)

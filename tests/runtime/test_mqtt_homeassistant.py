@@ -290,8 +290,8 @@ def test_a_removed_binding_has_its_config_cleared(broker, tmp_path, paper_desk):
 
 
 def test_without_a_broker_the_sweep_gives_up_quietly(caplog):
-    from hapticdesk.plugins.mqtt.homeassistant import sweep_stale
     from hapticdesk.plugins.mqtt.link import MqttSettings
+    from hapticdesk.plugins.mqtt.stale import sweep_stale
 
     from .conftest import free_port
 

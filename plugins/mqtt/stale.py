@@ -33,7 +33,8 @@ def sweep_stale(settings: MqttSettings, prefix: str, node: str, wanted: Sequence
 
     wanted_set = set(wanted)
     pattern = f"{prefix}/+/{node}/+/config"
-    probe = f"{settings.base_topic}/{node}/sweep/{uuid.uuid4().hex}"
+    # a root of its own: subscribers to the desk's topics (hapticdesk/#) never see the probe
+    probe = f"hapticdesk-sweep/{node}/{uuid.uuid4().hex}"
     found: set[str] = set()
     done = threading.Event()
     client = mqtt.Client(

@@ -256,7 +256,8 @@ def test_home_assistant_discovery_and_availability(broker, subscribe, tmp_path, 
     report, events = run_layout(layout, taps_file(tmp_path, paper_desk, 1), broker.url)
     assert report.error is None
     # a new subscriber gets what the broker retained
-    retained = Subscriber(broker, "homeassistant/#")
+    # (the event entity, sensors and connectivity: tests/runtime/test_mqtt_homeassistant.py)
+    retained = Subscriber(broker, "homeassistant/device_automation/#")
     configs = {m[1]: (m[0], json.loads(m[2])) for m in retained.wait_for(5)}
     retained.stop()
     node = "homeassistant/device_automation/study"

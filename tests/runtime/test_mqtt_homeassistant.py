@@ -60,6 +60,16 @@ SCHEMA: dict[str, tuple[set[str], set[str]]] = {
             "off_delay",
         },
     ),  # fmt: skip
+    # the desk's controls (plugins/mqtt/control.py): MQTT button and MQTT select
+    "button": (
+        {"command_topic"},
+        ENTITY_COMMON | {"command_template", "device_class", "payload_press", "retain"},
+    ),
+    "select": (
+        {"command_topic", "options"},
+        ENTITY_COMMON
+        | {"command_template", "optimistic", "retain", "state_topic", "value_template"},
+    ),
     "device_automation": (
         {"automation_type", "topic", "type", "subtype", "device"},
         {"payload", "qos", "value_template", "origin", "platform"},

@@ -36,7 +36,7 @@ import numpy as np
 
 from hapticdesk.estimator.candidates import Candidates, CandidateStage, Covariances, unpacked_at
 from hapticdesk.estimator.contacts import FLAG_NOT_TARED, UNCERTAINTY_CAP_M, ContactBlock
-from hapticdesk.estimator.detector import TouchDetector
+from hapticdesk.estimator.detector import TouchDetector, phase_of, phases_of, slope_along
 from hapticdesk.estimator.filter_bank import FilterBank
 from hapticdesk.estimator.methods import emit_one, select, select_one
 from hapticdesk.estimator.notices import Notice
@@ -174,12 +174,12 @@ class ContactEstimator:
         flags, raw = self.samples.process(t, wrench)
         block.flags[:] = flags
         started = self.samples.state.last_good is not None
-        lp, det, diff, det_slope = self.filters.process(t, raw, flags, started)
+        lp, det, diff, det_slope, release = self.filters.process(t, raw, flags, started)
         segments = self.zeroing.process(t, lp.real, raw, flags)
         noise = self.zeroing.state.noise
         if self.candidates.covs is None and noise is not None:
             self.candidates.covs = Covariances.of(self.stage_settings, noise)
-        self._contacts(block, t, flags, lp, det, diff, det_slope, segments)
+        self._contacts(block, t, flags, lp, det, diff, det_slope, release, segments)
 
     def _push_one(self, t: float, wrench: np.ndarray) -> ContactBlock | None:
         """One sample on the common path through each stage's single-sample twin, with plain
@@ -193,7 +193,7 @@ class ContactEstimator:
         raw = self.samples.process_one(t, wrench)
         if raw is None:
             return None
-        lp, det, diff, det_slope = self.filters.process_one(raw)
+        lp, det, diff, det_slope, release = self.filters.process_one(raw)
         zero.process_one(t, lp.real, raw)
         z = zero.state.zero_list
         det_l = det.tolist()
@@ -203,7 +203,7 @@ class ContactEstimator:
             ]
         else:
             fast = [det_l[i] - z[i] for i in range(3)]
-        in_contact, mag = self.detector.process_one(fast)
+        in_contact, mag, slope = self.detector.process_one(fast, det_slope, release)
         block = _single_block(t, in_contact, mag)
         if in_contact:
             lp_l = lp.tolist()
@@ -212,7 +212,7 @@ class ContactEstimator:
             ]
             d6 = [d.real for d in diff.tolist()] + [d.imag for d in diff.tolist()]
             inv = 1.0 / mag if mag > 0 else 1.0
-            block.phase[0] = self.detector.phase_one(fast, det_slope, inv)
+            block.phase[0] = phase_of(slope, s)
             cf, cd, cq, f_mag, motion = self.candidates.process_one(
                 wrench6, d6, fast, inv, t - zero.state.zero_t
             )
@@ -230,6 +230,7 @@ class ContactEstimator:
         det: np.ndarray,
         diff: np.ndarray,
         det_slope: np.ndarray,
+        release: np.ndarray,
         segments: ZeroSegments,
     ) -> None:
         """Contact, phase and position of each sample, from the filtered wrenches."""
@@ -248,7 +249,10 @@ class ContactEstimator:
             block.force_n[:] = f_det_mag
         else:
             np.copyto(block.force_n, f_det_mag, where=tared)
-        block.in_contact[:] = self.detector.process(f_det, f_det_mag, None if all_tared else tared)
+        slope = slope_along(f_det, det_slope, f_det_mag)
+        block.in_contact[:] = self.detector.process(
+            f_det, f_det_mag, slope_along(f_det, release, f_det_mag), None if all_tared else tared
+        )
         # candidates only for good samples in contact (a bad one keeps the contact state but
         # has no position of its own); they are the costly part
         idx = np.flatnonzero(block.in_contact & ((flags & BAD_SAMPLE) == 0))
@@ -258,7 +262,7 @@ class ContactEstimator:
         f_det_mag_at = f_det_mag[idx]
         inv_mag = 1.0 / np.where(f_det_mag_at > 0, f_det_mag_at, 1.0)
         # the phase from the fast path's slope, which does not wait for the 166 ms window
-        block.phase[idx] = self.detector.phases(f_det_at, np.take(det_slope, idx, axis=1), inv_mag)
+        block.phase[idx] = phases_of(slope[idx], s)
         cands = self.candidates.process(
             unpacked_at(lp, idx),
             np.take(diff, idx, axis=1),

@@ -161,6 +161,24 @@ class DelayLine:
         self.pos = pos + 1 if pos + 1 < self.n else 0
         return out
 
+    def recent(self, m: int) -> np.ndarray:
+        """The sample ``m`` (1 ≤ m ≤ n) steps before the next one (C,), without updating."""
+        assert self.ring is not None and 1 <= m <= self.n
+        return self.ring[:, (self.pos + self.n - m) % self.n]
+
+    def recent_difference(self, x: np.ndarray, m: int) -> np.ndarray:
+        """x[i] − x[i − m] for each column of ``x`` (C, k), m ≤ n, from the same history as
+        :meth:`difference` (call it first: this one does not update the history)."""
+        assert self.ring is not None and 1 <= m <= self.n
+        k, pos = x.shape[1], self.pos
+        last = np.concatenate([self.ring[:, pos:], self.ring[:, :pos]], axis=1)[:, self.n - m :]
+        if k <= m:
+            return x - np.concatenate([last, x], axis=1)[:, :k]
+        out = np.empty_like(x)
+        np.subtract(x[:, :m], last, out=out[:, :m])
+        np.subtract(x[:, m:], x[:, : k - m], out=out[:, m:])
+        return out
+
     def delayed(self, x: np.ndarray) -> np.ndarray:
         """x[i − n] for each column of ``x`` (C, k); updates the history."""
         k = x.shape[1]

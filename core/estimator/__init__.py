@@ -185,17 +185,18 @@ class ContactEstimator:
         """One sample on the common path through each stage's single-sample twin, with plain
         floats where numpy's per-call cost would dominate. None where the sample needs the
         general path: before the tare, in trace mode, with a separate low-pass for the
-        differentiated force, for a bad sample or a gap, and where a zero window ends."""
+        differentiated force, and for a bad sample or a gap."""
         s = self.stage_settings
         zero = self.zeroing
-        if self.trace or zero.state.zero is None or not s.shared_lp or zero.ends_window_next():
+        if self.trace or zero.state.zero is None or not s.shared_lp:
             return None
         raw = self.samples.process_one(t, wrench)
         if raw is None:
             return None
         lp, det, diff, det_slope, release = self.filters.process_one(raw)
+        # the zero before this sample: one set where it ends a window applies from the next on
+        z, zero_t = zero.state.zero_list, zero.state.zero_t
         zero.process_one(t, lp.real, raw)
-        z = zero.state.zero_list
         det_l = det.tolist()
         if s.det_full:
             fast = [det_l[i].real - z[i] for i in range(3)] + [
@@ -214,7 +215,7 @@ class ContactEstimator:
             inv = 1.0 / mag if mag > 0 else 1.0
             block.phase[0] = phase_of(slope, s)
             cf, cd, cq, f_mag, motion = self.candidates.process_one(
-                wrench6, d6, fast, inv, t - zero.state.zero_t
+                wrench6, d6, fast, inv, t - zero_t
             )
             chosen, source = select_one(cf, cd, cq, f_mag, motion, s)
             if chosen is not None:

@@ -190,28 +190,27 @@ class ContactEstimator:
         zero = self.zeroing
         if self.trace or zero.state.zero is None or not s.shared_lp:
             return None
-        raw = self.samples.process_one(t, wrench)
-        if raw is None:
+        raw_a = self.samples.process_one(t, wrench)
+        if raw_a is None:
             return None
+        raw = raw_a.tolist()
         lp, det, diff, det_slope, release = self.filters.process_one(raw)
         # the zero before this sample: one set where it ends a window applies from the next on
         z, zero_t = zero.state.zero_list, zero.state.zero_t
-        zero.process_one(t, lp.real, raw)
-        det_l = det.tolist()
+        zero.process_one(t, [v.real for v in lp], raw)
         if s.det_full:
-            fast = [det_l[i].real - z[i] for i in range(3)] + [
-                det_l[i].imag - z[i + 3] for i in range(3)
+            fast = [det[i].real - z[i] for i in range(3)] + [
+                det[i].imag - z[i + 3] for i in range(3)
             ]
         else:
-            fast = [det_l[i] - z[i] for i in range(3)]
+            fast = [det[i] - z[i] for i in range(3)]
         in_contact, mag, slope = self.detector.process_one(fast, det_slope, release)
         block = _single_block(t, in_contact, mag)
         if in_contact:
-            lp_l = lp.tolist()
-            wrench6 = [lp_l[i].real - z[i] for i in range(3)] + [
-                lp_l[i].imag - z[i + 3] for i in range(3)
+            wrench6 = [lp[i].real - z[i] for i in range(3)] + [
+                lp[i].imag - z[i + 3] for i in range(3)
             ]
-            d6 = [d.real for d in diff.tolist()] + [d.imag for d in diff.tolist()]
+            d6 = [d.real for d in diff] + [d.imag for d in diff]
             inv = 1.0 / mag if mag > 0 else 1.0
             block.phase[0] = phase_of(slope, s)
             cf, cd, cq, f_mag, motion = self.candidates.process_one(

@@ -11,6 +11,7 @@ lanes cost about what three real ones do.
 from __future__ import annotations
 
 import logging
+from typing import Any
 
 import numpy as np
 
@@ -78,20 +79,27 @@ class FilterBank:
         return lp, det, diff, slope, release
 
     def process_one(
-        self, raw: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[float], list[float]]:
-        """:meth:`process` for one sample (6,) with a shared low-pass, on (3, 1) lanes:
-        ``lp`` (3,) packed, ``det`` (3,) (packed if ``det_full``), ``diff`` (3,) packed and
-        both slopes as lists."""
+        self, raw: list[float]
+    ) -> tuple[list[complex], list[Any], list[complex], list[float], list[float]]:
+        """:meth:`process` for one sample (6,) with a shared low-pass, on plain numbers (the
+        filters' :meth:`~SosFilter.step`): ``lp`` (3,) packed, ``det`` (3,) (packed if
+        ``det_full``), ``diff`` (3,) packed and both slopes."""
         st, s = self.state, self.settings
-        packed = (raw[:3] + 1j * raw[3:])[:, None]
-        det = st.det.process(packed if s.det_full else raw[:3, None])[:, 0]
-        det_f = det.real if s.det_full else det
-        release = ((det_f - st.det_delay.recent(s.n_release)) * s.release_scale).tolist()
-        det_slope = (st.det_delay.step(det_f) * s.rate_scale).tolist()
-        lp = st.lp.process(packed, in_place=True)[:, 0]
-        diff = st.delay.step(lp) * s.diff_scale  # paper eq. (8)
-        return lp, det, diff, det_slope, release
+        packed = [raw[0] + 1j * raw[3], raw[1] + 1j * raw[4], raw[2] + 1j * raw[5]]
+        det = st.det.step(packed if s.det_full else raw[:3])
+        det_f = [d.real for d in det] if s.det_full else det
+        slope, release = st.det_delay.step_one(det_f, s.n_release)
+        rate, rel = s.rate_scale, s.release_scale
+        lp = st.lp.step(packed)
+        diff, _ = st.delay.step_one(lp)  # paper eq. (8)
+        scale = s.diff_scale
+        return (
+            lp,
+            det,
+            [d * scale for d in diff],
+            [v * rate for v in slope],
+            [v * rel for v in release],
+        )
 
     def restart(self, x0: np.ndarray) -> None:
         """Every filter as if ``x0`` had been the input forever (after a gap)."""

@@ -66,7 +66,7 @@ class ZeroStage:
         self.notices = notices
         self.state = ZeroState(settings.window)
 
-    def process_one(self, t: float, lp_force: np.ndarray, raw: np.ndarray) -> None:
+    def process_one(self, t: float, lp_force: list[float], raw: list[float]) -> None:
         """:meth:`process` for one good sample once tared: remembered, and where it ends a
         window, the window judged by the same code as a block's (so a zero it sets takes
         effect from the next sample on, as in a block) — one window's work, not a block's."""

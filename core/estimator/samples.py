@@ -68,9 +68,10 @@ class SampleStage:
         if st.last_good is None or not (0.0 < t - st.last_t <= self.settings.user.max_gap_s):
             return None
         flat = wrench.reshape(-1)
-        with np.errstate(over="ignore", invalid="ignore"):
-            if not float(np.square(flat) @ self.settings.inv_range2) < 1.0:  # see _in_range
-                return None
+        # finite and below every rating (NaN compares false): exactly a sample that is not
+        # flagged; no arithmetic, so nothing can overflow and no errstate is needed
+        if not (np.abs(flat) < self.settings.range_flat).all():
+            return None
         st.last_t = t
         raw = self.settings.wrench_map @ flat  # (6,): paper eqs. (1)–(4)
         st.last_good = raw

@@ -6,8 +6,9 @@ position filters. A force falling fast is released earlier, where it is *predict
 ``contact_force_n``: the fast low-pass runs ``det_delay_s`` (≈ 7.5 ms at 30 Hz) behind the
 true force, so the true force is about ``|F| + slope · det_delay_s``; without that a slow
 release (20 N/s) took 25 ms to fall through the hysteresis. Only a steep fall
-(:data:`RELEASE_SLOPE_N_S`, far beyond what tremor and noise give a held press) is
-extrapolated, so a steady hold is never released. The phase of a contact (touch, hold,
+is extrapolated (``release_slope_n_s``, 10 N/s by default: the slope over 20 ms of a held press
+— tremor 1.5 %, wander 3 %, noise — stays under 3 N/s; the slowest releases of the human model
+fall at about 20 N/s), so a steady hold is never released. The phase of a contact (touch, hold,
 release) follows the fast force's slope. :meth:`TouchDetector.process` is the block path;
 :meth:`TouchDetector.process_one` the same for one sample on plain floats, with the decision
 (:func:`contact_decision`) and the phase (:func:`phase_of`) written once for both.
@@ -23,11 +24,6 @@ import numpy as np
 from hapticdesk.estimator.contacts import PHASE_HOLD, PHASE_RELEASE, PHASE_TOUCH
 from hapticdesk.estimator.settings import EstimatorSettings
 
-# a fall steeper than this (N/s, along the force) is extrapolated by the fast low-pass's delay:
-# the slope over RELEASE_WINDOW_S of a held press (tremor 1.5 %, wander 3 %, noise) stays under
-# 3 N/s; the slowest releases of the human model fall at about 20 N/s
-RELEASE_SLOPE_N_S = 10.0
-
 
 def contact_decision(
     pressing: Any, mag: Any, slope: Any, settings: EstimatorSettings
@@ -38,13 +34,13 @@ def contact_decision(
     meaning. A steep fall predicted through ``contact_force_n`` ends the contact (and does not
     start one: no touch right after such a release)."""
     s = settings.user
-    threshold = s.contact_force_n
+    threshold, steep = s.contact_force_n, s.release_slope_n_s
     if isinstance(pressing, bool):
-        through = slope < -RELEASE_SLOPE_N_S and mag + slope * settings.det_delay_s < threshold
+        through = 0 < steep < -slope and mag + slope * settings.det_delay_s < threshold
         above = pressing and mag >= threshold and not through
         below = not pressing or mag < threshold - s.release_hysteresis_n or through
         return above, below
-    through = (slope < -RELEASE_SLOPE_N_S) & (mag + slope * settings.det_delay_s < threshold)
+    through = (steep > 0) & (slope < -steep) & (mag + slope * settings.det_delay_s < threshold)
     return (
         pressing & (mag >= threshold) & ~through,
         ~pressing | (mag < threshold - s.release_hysteresis_n) | through,

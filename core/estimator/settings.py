@@ -20,7 +20,8 @@ from hapticdesk.files.profile import DeskProfile, EstimationSettings
 WINDOW_S = 0.2  # tare and stillness are judged on windows of this length
 RATE_WINDOW_S = 0.05  # slope of the fast force for the touch/hold/release phase
 # slope of the fast force for the release prediction: shorter, so a tap's quick fall is not
-# averaged with its hold (its noise, ≈ 3 N/s here, is still far below RELEASE_SLOPE_N_S)
+# averaged with its hold (its noise, ≈ 3 N/s here, is still far below the
+# 10 N/s of release_slope_n_s)
 RELEASE_WINDOW_S = 0.02
 UNRATED_LIMIT = 1e12  # a channel without a rating counts as saturated beyond this
 

@@ -75,3 +75,20 @@ def test_single_sample_pushes_release_where_the_batch_does(paper_desk):
         est.push(rec.t[i : i + 1], rec.wrench[i : i + 1]).in_contact[0] for i in range(len(rec.t))
     ]
     assert np.array_equal(np.array(one), batch.in_contact)
+
+
+def test_release_slope_zero_keeps_the_plain_hysteresis(paper_desk):
+    # `hapticdesk thresholds` gates on the low-passed force itself (release_slope_n_s: 0):
+    # the contact then ends only below contact_force_n − release_hysteresis_n, later
+    from dataclasses import replace
+
+    rec = simulate(paper_desk, Scene(actions=[Press(point=(0.0, 0.0))], quiet_s=1.5), seed=2)
+    plain = replace(paper_desk.estimation, release_slope_n_s=0.0)
+    blocks = [
+        ContactEstimator(paper_desk, settings=settings).push(rec.t, rec.wrench)
+        for settings in (paper_desk.estimation, plain)
+    ]
+    delays = [measure_accuracy(b, rec.extra).release_delay_ms[0] for b in blocks]
+    assert delays[0] < 5.0 < delays[1]
+    last = np.flatnonzero(blocks[1].in_contact)[-1]
+    assert blocks[1].force_n[last + 1] < 1.5 <= blocks[1].force_n[last]

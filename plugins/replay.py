@@ -5,8 +5,10 @@
     hapticdesk run --layout L --source replay:session.asc              # a CAN log
 
 Blocks of ~12 samples (10 ms at 1.2 kHz) are handed out when their last sample's time has
-come on the wall clock (scaled by ``speed``), as a live source would deliver them. CAN logs
-are read by :mod:`hapticdesk.canbus.logs`, imported only for them.
+come on the wall clock (scaled by ``speed``), as a live source would deliver them. Files are
+read in blocks of :data:`~hapticdesk.files.recording.BLOCK_ROWS` samples as they are played,
+so memory stays flat whatever the file's size. CAN logs are read by
+:mod:`hapticdesk.canbus.logs`, imported only for them.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from hapticdesk.files.profile import DeskProfile
-from hapticdesk.files.recording import RECORDING_SUFFIXES, Recording, read_recording
+from hapticdesk.files.recording import RECORDING_SUFFIXES, Recording, RecordingBlocks
 from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.runtime.source import Source, WrenchBlock
@@ -62,10 +64,18 @@ class Pacer:
 
 
 class RecordingSource(Source):
-    """A recording handed out in blocks of ``block_size`` samples, as fast as they are read."""
+    """A recording handed out in blocks of ``block_size`` samples, as fast as they are read.
+
+    ``recording``: a whole :class:`Recording`, or a :class:`RecordingBlocks` streamed from its
+    file one read block at a time.
+    """
 
     def __init__(
-        self, recording: Recording, sample_rate_hz: float, *, block_size: int = BLOCK_SIZE
+        self,
+        recording: Recording | RecordingBlocks,
+        sample_rate_hz: float,
+        *,
+        block_size: int = BLOCK_SIZE,
     ) -> None:
         self.recording = recording
         self.sensor_names = list(recording.sensor_names)
@@ -73,11 +83,17 @@ class RecordingSource(Source):
         self.block_size = block_size
 
     def blocks(self) -> Iterator[WrenchBlock]:
-        rec = self.recording
-        for start in range(0, len(rec), self.block_size):
-            end = min(start + self.block_size, len(rec))
-            truth = {k: np.asarray(v[start:end]) for k, v in rec.extra.items()} or None
-            yield WrenchBlock(rec.t[start:end], rec.wrench[start:end], truth)
+        parts = self.recording.blocks() if isinstance(self.recording, RecordingBlocks) else None
+        for rec in parts if parts is not None else [self.recording]:
+            assert isinstance(rec, Recording)
+            for start in range(0, len(rec), self.block_size):
+                end = min(start + self.block_size, len(rec))
+                truth = {k: np.asarray(v[start:end]) for k, v in rec.extra.items()} or None
+                yield WrenchBlock(rec.t[start:end], rec.wrench[start:end], truth)
+
+    def close(self) -> None:
+        if isinstance(self.recording, RecordingBlocks):
+            self.recording.close()
 
 
 class PacedSource(Source):
@@ -112,21 +128,21 @@ def open_replay(
     if not path.is_file():
         raise ConfigError("--source", f"replay: no such file {argument}")
     if path.suffix.lower() in RECORDING_SUFFIXES:
-        recording = read_recording(path, profile.sensor_names)
-    else:
-        from hapticdesk.canbus import logs
+        recording = RecordingBlocks(path, profile.sensor_names)
+        if recording.is_empty():
+            recording.close()
+            raise ConfigError(str(path), "the recording holds no samples")
+        return PacedSource(RecordingSource(recording, profile.sample_rate_hz), speed)
+    from hapticdesk.canbus import logs
 
-        if not logs.is_can_log(path):
-            kinds = ", ".join(logs.PYTHON_CAN_SUFFIXES + logs.CANDUMP_TEXT_SUFFIXES)
-            raise ConfigError(
-                str(path),
-                f"cannot replay a {path.suffix or 'suffix-less'} file; expected a recording "
-                f"({', '.join(RECORDING_SUFFIXES)}) or a CAN log ({kinds})",
-            )
-        return PacedSource(logs.open_can_log(path, profile), speed)
-    if len(recording) == 0:
-        raise ConfigError(str(path), "the recording holds no samples")
-    return PacedSource(RecordingSource(recording, profile.sample_rate_hz), speed)
+    if not logs.is_can_log(path):
+        kinds = ", ".join(logs.PYTHON_CAN_SUFFIXES + logs.CANDUMP_TEXT_SUFFIXES)
+        raise ConfigError(
+            str(path),
+            f"cannot replay a {path.suffix or 'suffix-less'} file; expected a recording "
+            f"({', '.join(RECORDING_SUFFIXES)}) or a CAN log ({kinds})",
+        )
+    return PacedSource(logs.open_can_log(path, profile), speed)
 
 
 @hookimpl

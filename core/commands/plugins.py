@@ -1,4 +1,4 @@
-"""``hapticdesk plugins``: what is installed, with versions, and what each plugin provides."""
+"""The ``plugins`` command: what is installed, with versions, and what each plugin provides."""
 
 from __future__ import annotations
 
@@ -17,27 +17,32 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    registry = load_registry(strict=args.strict)
+    # a name two plugins register is listed as an error here, not a stop: this is where one
+    # looks to find out which plugins clash
+    registry = load_registry(strict=args.strict, conflicts_fatal=False)
+    status = 1 if registry.errors else 0
     if args.json:
         for info in registry.plugins.values():
             print(json.dumps(info.to_dict()))
         for warning in registry.warnings:
             print(json.dumps({"warning": warning}))
-        return 0
+        for error in registry.errors:
+            print(json.dumps({"error": error}))
+        return status
     for info in registry.plugins.values():
         print(f"{info.name} {info.version} ({info.origin})")
         for kind in KINDS:
             for name in info.provides[kind]:
                 record = getattr(registry, kind)[name]
-                print(f"  {kind[:-1]:<10} {name:<12} {record.description}")
+                what = "section" if kind == "layout_sections" else kind[:-1]
+                print(f"  {what:<10} {name:<12} {record.description}")
         others = [h for h in info.hooks if not h.startswith("register_")]
         if others:
             print(f"  hooks      {', '.join(others)}")
-    from hapticdesk.gestures.engine import BUILTIN_RECOGNIZERS
-
-    print(f"built-in gestures: {', '.join(BUILTIN_RECOGNIZERS)}")
     if os.environ.get(DISABLE_AUTOLOAD_ENV):
         print(f"third-party plugins are not loaded: {DISABLE_AUTOLOAD_ENV} is set")
     for warning in registry.warnings:
         print(f"warning: {warning}")
-    return 0
+    for error in registry.errors:
+        print(f"error: {error}")
+    return status

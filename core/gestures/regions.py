@@ -72,6 +72,34 @@ def polygon_area(points: np.ndarray) -> float:
     return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
 
+def polygon_self_crossing(points: np.ndarray) -> tuple[int, int] | None:
+    """The first pair of edges (i, j), i < j, that properly cross, or None for a simple outline.
+
+    Edge i runs from point i to point i + 1 (the last back to the first). Neighbouring edges
+    share a point and are not compared. All pairs at once: O(n²) memory, so callers bound n.
+    """
+    a = np.asarray(points, dtype=float)
+    b = np.roll(a, -1, axis=0)
+
+    def side(p: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
+        # sign of the cross product (q - p) × (r - p) for every edge p->q against points r
+        d = q - p
+        return np.sign(
+            d[:, None, 0] * (r[None, :, 1] - p[:, None, 1])
+            - d[:, None, 1] * (r[None, :, 0] - p[:, None, 0])
+        )
+
+    apart = side(a, b, a) * side(a, b, b) < 0  # [i, j]: edge j's ends on both sides of edge i
+    crosses = apart & apart.T
+    n = len(a)
+    i, j = np.triu_indices(n, k=2)
+    hits = crosses[i, j] & ~((i == 0) & (j == n - 1))
+    if not hits.any():
+        return None
+    k = int(np.argmax(hits))
+    return int(i[k]), int(j[k])
+
+
 def points_in_polygon(
     x: np.ndarray, y: np.ndarray, polygon: np.ndarray, boundary: bool = True
 ) -> np.ndarray:

@@ -109,7 +109,10 @@ class CanStats:
                 lines.append(f"{value} {label}")
         for name, n in self.incomplete.items():
             if n:
-                lines.append(f"sensor {name}: {n} samples with missing data (NaN)")
+                # the estimator skips these samples, and a tare needs a quiet second of whole
+                # ones: many of them show up downstream as "tare refused"
+                share = 100.0 * n / max(self.samples, 1)
+                lines.append(f"sensor {name}: {n} samples ({share:.1f} %) with missing data (NaN)")
         for name, n in self.invalid.items():
             if n:
                 lines.append(f"sensor {name}: {n} samples voided by its status")

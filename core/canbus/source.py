@@ -113,6 +113,9 @@ class CanSource(Source):
     def stats(self) -> CanStats:
         return self.assembler.stats
 
+    def summary(self) -> list[str]:
+        return [f"CAN {self.interface}:{self.channel}: {line}" for line in self.stats.summary()]
+
     # --- bus ----------------------------------------------------------------------------
 
     def _open_bus(self) -> Any:

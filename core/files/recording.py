@@ -112,7 +112,11 @@ class RecordingBlocks:
             )
         self._rows = 0
         # the first block is read now: a bad first row or an empty file is refused at once
-        self._first = self._next_block()
+        try:
+            self._first = self._next_block()
+        except BaseException:
+            self.close()
+            raise
 
     def _next_block(self) -> Recording | None:
         while True:
@@ -203,7 +207,8 @@ class _CsvReader:
             return None
         self.line += len(lines)
         text = _EMPTY_CELL.sub("nan", "".join(lines))
-        while True:
+        table = np.zeros((0, len(self.needed_index) + len(self.extra)))  # blank lines only
+        while text.strip():
             usecols = self.needed_index + [i for _, i in self.extra]
             try:
                 table = np.loadtxt(
@@ -216,10 +221,8 @@ class _CsvReader:
                     quotechar='"',
                 )
                 break
-            except ValueError as err:
+            except ValueError as err:  # a bad value is raised; a text extra column dropped
                 self._explain(err, first_line, usecols, lines)
-        if table.shape[1] != len(usecols):  # no data rows in this block (only blank lines)
-            table = np.zeros((0, len(usecols)))
         rec = _from_table(table, [n for n, _ in self.extra], self.sensor_names)
         if not np.isfinite(rec.t).all():
             i = int(np.argmax(~np.isfinite(rec.t)))

@@ -108,6 +108,14 @@ class CanSource(Source):
         self._poll_ids = [
             ati.frame_id(s.base, ati.OP_GAUGES_A) for s in self.config.ati_sensors.values()
         ]
+        # the last reply frame of a poll round (the last board's second frame, the lowest
+        # priority of them): the reader tells the poller when it came
+        self._round_end_id = (
+            ati.frame_id(list(self.config.ati_sensors.values())[-1].base, ati.OP_GAUGES_B)
+            if self._poll_ids
+            else None
+        )
+        self._round_answered = threading.Event()
 
     @property
     def stats(self) -> CanStats:
@@ -245,20 +253,30 @@ class CanSource(Source):
         )
 
     def _poll(self) -> None:
-        """Request one sample of every ATI board per period, on a deadline clock."""
+        """Request one sample of every ATI board per period, on a deadline clock.
+
+        A round is not sent before the previous one's replies came (or two periods after it
+        was sent, for a board that missed its poll): polls that overrun their replies (a host
+        thread that stalled, then caught up) would put two rounds' replies after the second
+        poll, and void both samples. So a stall costs samples (counted as lost), never
+        whole samples' data.
+        """
         period = 1.0 / self.sample_rate_hz
         next_due = time.monotonic()
         while not self._closed.is_set():
+            self._round_answered.clear()
             for ident in self._poll_ids:
                 try:
                     self._send(ident, b"", poll=True)
                 except Exception as err:  # the reader reconnects; keep the rhythm
                     log.debug("poll not sent: %s", err)
                     break
+            sent_at = time.monotonic()
             next_due += period
+            self._round_answered.wait(max(next_due, sent_at + period) + period - sent_at)
             wait = next_due - time.monotonic()
             if wait > 0:
-                time.sleep(wait)
+                self._closed.wait(wait)
             elif wait < -period:
                 next_due = time.monotonic()  # fell behind: skip, do not burst
 
@@ -292,6 +310,8 @@ class CanSource(Source):
                         break
                     if msg.is_error_frame and msg.arbitration_id & CAN_ERR_BUSOFF:
                         raise can.CanOperationError("bus-off")
+                    if msg.arbitration_id == self._round_end_id and len(msg.data):
+                        self._round_answered.set()
                     batch.append(msg)
             except (can.CanError, OSError) as err:
                 if self._closed.is_set():

@@ -1,4 +1,4 @@
-"""An ATI capture from a busy bus: second reply frames delayed past the next poll (issue 11 #18).
+"""ATI on a busy bus (issue 11 #18, #19): second reply frames delayed past the next poll.
 
 The board answers a poll (0x200, no data) with 0x200 (8 bytes) then 0x201 (6 bytes), in that
 order. On a bus shared with a CANopen drive, SYNC and PDOs of higher priority can hold 0x201
@@ -8,15 +8,20 @@ is written as candump ``-l`` text, as `candump -l can0` saves it.
 
 from __future__ import annotations
 
+import time
+from pathlib import Path
+
 import numpy as np
 import pytest
+from can.interfaces.virtual import VirtualBus
 
 from hapticdesk.canbus.assembler import FrameAssembler
 from hapticdesk.canbus.config import can_config
 from hapticdesk.canbus.decoding import build_decoding
-from hapticdesk.canbus.emulator import FrameEncoder
+from hapticdesk.canbus.emulator import CanEmulator, FrameEncoder
 from hapticdesk.canbus.frames import FrameArray
 from hapticdesk.canbus.logs import decode_can_log
+from hapticdesk.canbus.source import open_can_source
 
 T0 = 1_700_000_000.0
 N = 600  # samples
@@ -136,3 +141,52 @@ def test_truly_lost_frames_are_counted_not_paired_across_samples(tmp_path, bench
     assert np.flatnonzero(bad).tolist() == [i, j]
     np.testing.assert_allclose(result.recording.wrench[~bad], wrench[~bad], atol=0.1)
     assert result.stats.incomplete == {"ft": 2} and result.stats.duplicates == 0
+
+
+class SlowBoardBus(VirtualBus):
+    """The board's side of a virtual bus: it answers each sample poll ``delay_s`` late (a
+    board slower than the poll rate, or a host that stalls), one poll after the other."""
+
+    delay_s = 0.0
+
+    def send(self, msg, timeout=None):
+        if msg.arbitration_id & 0xF == 0x0 and len(msg.data) == 8:
+            time.sleep(self.delay_s)
+        super().send(msg, timeout)
+
+
+def test_the_poller_waits_for_a_slow_board_instead_of_voiding_samples(
+    bench, profile_text, virtual_channel
+):
+    """Polls every 20 ms, replies 25 ms after their poll: polls sent on the clock alone would
+    land between every poll and its reply, and void nearly every sample."""
+    bench = profile_text(
+        Path(str(bench.path)).read_text().replace("sample_rate_hz: 500", "sample_rate_hz: 50"),
+        "bench.yaml",
+    )
+    n = 200
+    t = np.arange(n) / bench.sample_rate_hz
+    wrench = np.random.default_rng(1).normal(0, 20, (n, 1, 6))
+    wrench[:, :, 3:] *= 0.02
+    board_bus = SlowBoardBus(channel=virtual_channel)
+    emulator = CanEmulator(FrameEncoder(can_config(bench), bench), t, wrench, board_bus)
+    thread = emulator.start()
+    source = open_can_source(f"virtual:{virtual_channel}", bench)
+    SlowBoardBus.delay_s = 0.025  # after the calibration exchange
+    got = []
+    deadline = time.monotonic() + 1.5
+    try:
+        for block in source.blocks():
+            got.append(block.wrench)
+            if time.monotonic() > deadline:
+                break
+    finally:
+        source.close()
+        emulator.stop()
+        thread.join(2)
+        board_bus.shutdown()
+        SlowBoardBus.delay_s = 0.0
+    w = np.concatenate(got)[:, 0]
+    whole = ~np.isnan(w).any(axis=1)
+    assert len(w) >= 20 and whole.mean() >= 0.9, (len(w), whole.mean())
+    assert source.stats.duplicates <= 4

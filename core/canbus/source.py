@@ -116,6 +116,7 @@ class CanSource(Source):
             else None
         )
         self._round_answered = threading.Event()
+        self._check_bus_capacity()
 
     @property
     def stats(self) -> CanStats:
@@ -187,6 +188,22 @@ class CanSource(Source):
             self.reconnects += 1
             self._notice("bus", f"CAN bus {self.interface}:{self.channel} is back")
             return
+
+    def _check_bus_capacity(self) -> None:
+        """Say at start when the boards cannot be polled at the desk's rate on this bus."""
+        bitrate = self.bus_kwargs.get("bitrate")
+        if not self._poll_ids or not bitrate or self.interface in ("virtual", "udp_multicast"):
+            return  # no bit rate to run out of (software buses are bound by the host)
+        most = ati.max_poll_rate(len(self._poll_ids), float(bitrate))
+        if self.sample_rate_hz > most:
+            self._notice(
+                "capacity",
+                f"{len(self._poll_ids)} ATI board(s) polled at {self.sample_rate_hz:g} Hz need "
+                f"{len(self._poll_ids) * ati.SAMPLE_BITS * self.sample_rate_hz / 1000:.0f} "
+                f"kbit/s (a poll and two replies, {ati.SAMPLE_BITS} bits a board); the bus "
+                f"runs at {float(bitrate) / 1000:g} kbit/s and carries at most ~{most:.0f} "
+                "samples/s: lower `sample_rate_hz` or raise the bit rate (board opcode 0xE)",
+            )
 
     def _notice(self, kind: str, message: str) -> None:
         log.warning("%s", message)

@@ -11,11 +11,13 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+import can
 import numpy as np
 import pytest
 from can.interfaces.virtual import VirtualBus
 
 from hapticdesk.canbus.assembler import FrameAssembler
+from hapticdesk.canbus.ati_netcanoem import SAMPLE_BITS, max_poll_rate
 from hapticdesk.canbus.config import can_config
 from hapticdesk.canbus.decoding import build_decoding
 from hapticdesk.canbus.emulator import CanEmulator, FrameEncoder
@@ -190,3 +192,37 @@ def test_the_poller_waits_for_a_slow_board_instead_of_voiding_samples(
     whole = ~np.isnan(w).any(axis=1)
     assert len(w) >= 20 and whole.mean() >= 0.9, (len(w), whole.mean())
     assert source.stats.duplicates <= 4
+
+
+def test_the_bus_capacity_is_stated():
+    # a poll (0 bytes) and replies of 8 and 6 bytes, with worst-case bit stuffing
+    assert SAMPLE_BITS == 55 + 135 + 115
+    assert max_poll_rate(1, 250_000) == pytest.approx(820, abs=1)
+    assert max_poll_rate(4, 1_000_000) == pytest.approx(820, abs=1)  # not a 1.2 kHz desk
+
+
+def test_a_desk_faster_than_its_bus_is_told_at_start(bench, profile_text, virtual_channel, caplog):
+    bench = profile_text(
+        Path(str(bench.path)).read_text().replace("sample_rate_hz: 500", "sample_rate_hz: 1200"),
+        "bench.yaml",
+    )
+    board_bus = can.Bus(interface="virtual", channel=virtual_channel)
+    t = np.arange(10) / 1200
+    emulator = CanEmulator(
+        FrameEncoder(can_config(bench), bench), t, np.zeros((10, 1, 6)), board_bus
+    )
+    thread = emulator.start()
+    try:
+        source = open_can_source(  # a real interface's name: its bit rate is a limit
+            "socketcan:can0",
+            bench,
+            bus_factory=lambda **kw: can.Bus(interface="virtual", channel=virtual_channel),
+        )
+        source.close()
+    finally:
+        emulator.stop()
+        thread.join(2)
+        board_bus.shutdown()
+    notice = next(n for n in source.notices if n.kind == "capacity")
+    assert "1 ATI board(s) polled at 1200 Hz need 366 kbit/s" in notice.message
+    assert "runs at 250 kbit/s and carries at most ~820 samples/s" in notice.message

@@ -78,7 +78,9 @@ class Binding:
             hold = event.hold_s or 0.0
             if o.get("release"):
                 return event.phase == "end" and hold >= o["hold_s"] - 1e-9
-            return event.phase != "end" and abs(hold - o["hold_s"]) < 1e-9
+            # the tier itself (no phase), its repeats when asked for; never end or cancel
+            phases = (None, "repeat") if o.get("repeat") else (None,)
+            return event.phase in phases and abs(hold - o["hold_s"]) < 1e-9
         for key in ("shape", "direction", "level", "phase"):
             wanted = o.get(key)
             if wanted is not None and getattr(event, key) not in wanted:

@@ -40,7 +40,7 @@ POSITIONS = [(-0.34, -0.22), (0.34, -0.22), (-0.34, 0.22), (0.34, 0.22)]
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rate", type=float, default=1200.0)
-    parser.add_argument("--boards", type=int, default=4, choices=[1, 2, 3, 4])
+    parser.add_argument("--boards", type=int, default=4, choices=[3, 4])
     parser.add_argument("--seconds", type=float, default=3.0)
     parser.add_argument("--bus", choices=["virtual", "udp_multicast"], default="virtual")
     args = parser.parse_args()

@@ -116,6 +116,7 @@ class CanSource(Source):
             else None
         )
         self._round_answered = threading.Event()
+        self._poll_id_set = frozenset(self._poll_ids)
         self._check_bus_capacity()
 
     @property
@@ -329,6 +330,10 @@ class CanSource(Source):
                         raise can.CanOperationError("bus-off")
                     if msg.arbitration_id == self._round_end_id and len(msg.data):
                         self._round_answered.set()
+                    if not msg.data and msg.arbitration_id in self._poll_id_set:
+                        # our own poll echoed back (udp_multicast loops them): it is taken
+                        # from the queue of sent polls, in order; twice would split samples
+                        continue
                     batch.append(msg)
             except (can.CanError, OSError) as err:
                 if self._closed.is_set():

@@ -18,7 +18,7 @@ from hapticdesk.canbus.logs import read_frames
 from hapticdesk.files.yamlfile import ConfigError
 
 FUZZ = settings(
-    max_examples=60,
+    max_examples=40,
     deadline=None,
     suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
 )

@@ -17,7 +17,7 @@ from hapticdesk.files.yamlfile import ConfigError
 NAMES = ["fl", "fr", "bl", "br"]
 COLUMNS = ["t"] + [f"{s}_{a}" for s in NAMES for a in ("fx", "fy", "fz", "mx", "my", "mz")]
 FUZZ = settings(
-    max_examples=120,
+    max_examples=80,
     deadline=None,
     suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
 )

@@ -49,6 +49,8 @@ class RecordingSource(Source):
         self.sensor_names = list(recording.sensor_names)
         self.sample_rate_hz = sample_rate_hz
         self.block_size = block_size
+        self._reading = False
+        self._closed = False
 
     def blocks(self) -> Iterator[WrenchBlock]:
         import numpy as np
@@ -56,17 +58,30 @@ class RecordingSource(Source):
         from hapticdesk.files.recording import Recording
 
         rec_or_blocks = self.recording
-        parts = [rec_or_blocks] if isinstance(rec_or_blocks, Recording) else rec_or_blocks.blocks()
-        for rec in parts:
-            for start in range(0, len(rec), self.block_size):
-                end = min(start + self.block_size, len(rec))
-                truth = {k: np.asarray(v[start:end]) for k, v in rec.extra.items()} or None
-                yield WrenchBlock(rec.t[start:end], rec.wrench[start:end], truth)
+        if isinstance(rec_or_blocks, Recording):
+            parts: Iterator[Recording] = iter([rec_or_blocks])
+        else:
+            parts = rec_or_blocks.blocks()  # closes the file when it ends or is closed
+        self._reading = True
+        try:
+            for rec in parts:
+                for start in range(0, len(rec), self.block_size):
+                    if self._closed:
+                        return
+                    end = min(start + self.block_size, len(rec))
+                    truth = {k: np.asarray(v[start:end]) for k, v in rec.extra.items()} or None
+                    yield WrenchBlock(rec.t[start:end], rec.wrench[start:end], truth)
+        finally:
+            close = getattr(parts, "close", None)  # a generator of file blocks
+            if close is not None:
+                close()
 
     def close(self) -> None:
+        """Safe from another thread: a file being read is closed by the reading thread."""
         from hapticdesk.files.recording import Recording
 
-        if not isinstance(self.recording, Recording):
+        self._closed = True
+        if not self._reading and not isinstance(self.recording, Recording):
             self.recording.close()
 
 

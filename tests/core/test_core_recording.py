@@ -179,3 +179,34 @@ def test_blocks_join_to_the_whole_file(tmp_path, suffix):
     assert [len(p) for p in parts] == [7] * 7 + [1]
     assert np.allclose(np.concatenate([p.wrench for p in parts]), rec.wrench, rtol=1e-9)
     assert np.allclose(np.concatenate([p.extra["true_x"] for p in parts]), rec.extra["true_x"])
+
+
+def test_a_replay_closed_from_another_thread_ends_cleanly(tmp_path, paper_desk):
+    """Ctrl-C closes the source from the main thread while the sensing thread reads the file:
+    the reader ends, no 'I/O operation on closed file' from the reading thread."""
+    import threading
+
+    from hapticdesk.plugins.replay import open_replay
+
+    path = tmp_path / "rec.csv"
+    _csv(path, [_row(i / 1200) for i in range(40_000)])
+    source = open_replay(str(path), paper_desk, speed=1.0)
+    errors: list[BaseException] = []
+    got = []
+
+    def read() -> None:
+        try:
+            for block in source.blocks():
+                got.append(len(block.t))
+        except BaseException as err:  # what the sensing thread would report
+            errors.append(err)
+
+    thread = threading.Thread(target=read)
+    thread.start()
+    while not got:
+        thread.join(0.01)
+    source.close()
+    thread.join(5)
+    assert not thread.is_alive() and errors == []
+    assert 0 < sum(got) < 40_000
+    assert source.inner.recording._reader._fh is None  # the file was closed

@@ -2,7 +2,11 @@
 
 Header ``t`` then ``<sensor>_fx … <sensor>_mz`` for each sensor of the profile. Other columns
 are kept as ``extra`` (the simulator's ground truth ``true_x, true_y, true_fn``) and otherwise
-ignored. A missing column is an error that names it.
+ignored (text ones too). A missing column is an error that names it.
+
+Files are read in blocks (:class:`RecordingBlocks`) so that a replay's memory does not grow
+with the file: CSV through numpy's C parser a block of lines at a time, NPZ each column's
+``.npy`` member in slices. Errors name file:line:column (CSV) or the column (NPZ).
 """
 
 from __future__ import annotations

@@ -5,8 +5,10 @@
     hapticdesk run --layout L --source replay:session.asc              # a CAN log
 
 Blocks of ~12 samples (10 ms at 1.2 kHz) are handed out when their last sample's time has
-come on the wall clock (scaled by ``speed``), as a live source would deliver them. CAN logs
-are read by :mod:`hapticdesk.canbus.logs`, imported only for them.
+come on the wall clock (scaled by ``speed``), as a live source would deliver them. Files are
+read in blocks of :data:`~hapticdesk.files.recording.BLOCK_ROWS` samples as they are played,
+so memory stays flat whatever the file's size. CAN logs are read by
+:mod:`hapticdesk.canbus.logs`, imported only for them.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from hapticdesk.runtime.source import Source, WrenchBlock
 
 if TYPE_CHECKING:  # the hooks are loaded for every command, even `--help`: no numpy here
     from hapticdesk.files.profile import DeskProfile
-    from hapticdesk.files.recording import Recording
+    from hapticdesk.files.recording import Recording, RecordingBlocks
 
 __all__ = ["BLOCK_SIZE", "PacedSource", "Pacer", "RecordingSource", "open_replay"]
 
@@ -30,31 +32,64 @@ BLOCK_SIZE = 12
 
 
 class RecordingSource(Source):
-    """A recording handed out in blocks of ``block_size`` samples, as fast as they are read."""
+    """A recording handed out in blocks of ``block_size`` samples, as fast as they are read.
+
+    ``recording``: a whole :class:`Recording`, or a :class:`RecordingBlocks` streamed from its
+    file one read block at a time.
+    """
 
     def __init__(
-        self, recording: Recording, sample_rate_hz: float, *, block_size: int = BLOCK_SIZE
+        self,
+        recording: Recording | RecordingBlocks,
+        sample_rate_hz: float,
+        *,
+        block_size: int = BLOCK_SIZE,
     ) -> None:
         self.recording = recording
         self.sensor_names = list(recording.sensor_names)
         self.sample_rate_hz = sample_rate_hz
         self.block_size = block_size
+        self._reading = False
+        self._closed = False
 
     def blocks(self) -> Iterator[WrenchBlock]:
         import numpy as np
 
-        rec = self.recording
-        for start in range(0, len(rec), self.block_size):
-            end = min(start + self.block_size, len(rec))
-            truth = {k: np.asarray(v[start:end]) for k, v in rec.extra.items()} or None
-            yield WrenchBlock(rec.t[start:end], rec.wrench[start:end], truth)
+        from hapticdesk.files.recording import Recording
+
+        rec_or_blocks = self.recording
+        if isinstance(rec_or_blocks, Recording):
+            parts: Iterator[Recording] = iter([rec_or_blocks])
+        else:
+            parts = rec_or_blocks.blocks()  # closes the file when it ends or is closed
+        self._reading = True
+        try:
+            for rec in parts:
+                for start in range(0, len(rec), self.block_size):
+                    if self._closed:
+                        return
+                    end = min(start + self.block_size, len(rec))
+                    truth = {k: np.asarray(v[start:end]) for k, v in rec.extra.items()} or None
+                    yield WrenchBlock(rec.t[start:end], rec.wrench[start:end], truth)
+        finally:
+            close = getattr(parts, "close", None)  # a generator of file blocks
+            if close is not None:
+                close()
+
+    def close(self) -> None:
+        """Safe from another thread: a file being read is closed by the reading thread."""
+        from hapticdesk.files.recording import Recording
+
+        self._closed = True
+        if not self._reading and not isinstance(self.recording, Recording):
+            self.recording.close()
 
 
 def open_replay(
     argument: str, profile: DeskProfile, *, speed: float = 1.0, **options: Any
 ) -> Source:
     """``replay:FILE``: a CSV/NPZ recording, or a CAN log by any other suffix."""
-    from hapticdesk.files.recording import RECORDING_SUFFIXES, read_recording
+    from hapticdesk.files.recording import RECORDING_SUFFIXES, RecordingBlocks
 
     if not argument:
         raise ConfigError("--source", "replay needs a file: replay:FILE.csv, .npz or a CAN log")
@@ -62,21 +97,21 @@ def open_replay(
     if not path.is_file():
         raise ConfigError("--source", f"replay: no such file {argument}")
     if path.suffix.lower() in RECORDING_SUFFIXES:
-        recording = read_recording(path, profile.sensor_names)
-    else:
-        from hapticdesk.canbus import logs
+        recording = RecordingBlocks(path, profile.sensor_names)
+        if recording.is_empty():
+            recording.close()
+            raise ConfigError(str(path), "the recording holds no samples")
+        return PacedSource(RecordingSource(recording, profile.sample_rate_hz), speed)
+    from hapticdesk.canbus import logs
 
-        if not logs.is_can_log(path):
-            kinds = ", ".join(logs.PYTHON_CAN_SUFFIXES + logs.CANDUMP_TEXT_SUFFIXES)
-            raise ConfigError(
-                str(path),
-                f"cannot replay a {path.suffix or 'suffix-less'} file; expected a recording "
-                f"({', '.join(RECORDING_SUFFIXES)}) or a CAN log ({kinds})",
-            )
-        return PacedSource(logs.open_can_log(path, profile), speed)
-    if len(recording) == 0:
-        raise ConfigError(str(path), "the recording holds no samples")
-    return PacedSource(RecordingSource(recording, profile.sample_rate_hz), speed)
+    if not logs.is_can_log(path):
+        kinds = ", ".join(logs.PYTHON_CAN_SUFFIXES + logs.CANDUMP_TEXT_SUFFIXES)
+        raise ConfigError(
+            str(path),
+            f"cannot replay a {path.suffix or 'suffix-less'} file; expected a recording "
+            f"({', '.join(RECORDING_SUFFIXES)}) or a CAN log ({kinds})",
+        )
+    return PacedSource(logs.open_can_log(path, profile), speed)
 
 
 @hookimpl

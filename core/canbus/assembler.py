@@ -109,7 +109,10 @@ class CanStats:
                 lines.append(f"{value} {label}")
         for name, n in self.incomplete.items():
             if n:
-                lines.append(f"sensor {name}: {n} samples with missing data (NaN)")
+                # the estimator skips these samples, and a tare needs a quiet second of whole
+                # ones: many of them show up downstream as "tare refused"
+                share = 100.0 * n / max(self.samples, 1)
+                lines.append(f"sensor {name}: {n} samples ({share:.1f} %) with missing data (NaN)")
         for name, n in self.invalid.items():
             if n:
                 lines.append(f"sensor {name}: {n} samples voided by its status")
@@ -239,6 +242,9 @@ class FrameAssembler:
         self._next_rank = 0
         self._lead_request: int | None = None
         self._polled = False  # a poll request has been seen: polls start samples
+        # per reply whose frames come in order (ATI 0x0 then 0x1): the key of the last first
+        # frame still waiting for its second, if any
+        self._open_first: dict[int, int | None] = {a: None for a in decoding.second_halves.values()}
         # silence per sensor
         self._last_seen = np.full(len(names), np.nan)
         self._silent = np.zeros(len(names), dtype=bool)
@@ -347,7 +353,40 @@ class FrameAssembler:
         self._prev_t = frames.t[-1]
         self._prev_rank = int(rank[-1])
         self._polled = bool(after_polls[-1])
+        for second, first in self.decoding.second_halves.items():
+            self._pair_halves(keys, kind, first, second)
         return keys
+
+    def _pair_halves(self, keys: np.ndarray, kind: np.ndarray, first: int, second: int) -> None:
+        """Give each second frame of a reply its first frame's key, in place.
+
+        A board sends the two frames of a reply in order, but traffic of higher priority can
+        delay the second until after the host's next poll, which starts the next sample: by
+        its poll it would land there (doubled) and void two samples. So a second frame takes
+        the key of the last first frame before it that has no second yet, if that first
+        frame is of its own poll round or the one before (any older is not its reply's).
+        """
+        a_pos = np.flatnonzero(kind == first)
+        b_pos = np.flatnonzero(kind == second)
+        carried = self._open_first[first]
+        if len(b_pos):
+            # the first frame before each second one: its index in a_pos, -1 an earlier push's
+            prev = np.searchsorted(a_pos, b_pos) - 1
+            a_keys = keys[a_pos] if len(a_pos) else np.zeros(1, np.int64)
+            owner = np.where(prev >= 0, a_keys[np.maximum(prev, 0)], carried or 0)
+            # one second frame per first frame: a second after the same first keeps its key
+            takes = np.concatenate([[True], prev[1:] != prev[:-1]])
+            takes &= (prev >= 0) | (carried is not None)
+            takes &= (owner >= keys[b_pos] - 1) & (owner <= keys[b_pos])
+            keys[b_pos[takes]] = owner[takes]
+            answered = set(prev[takes].tolist())
+        else:
+            answered = set()
+        if len(a_pos):
+            last = len(a_pos) - 1
+            self._open_first[first] = None if last in answered else int(keys[a_pos[last]])
+        elif -1 in answered:
+            self._open_first[first] = None
 
     # --- samples ------------------------------------------------------------------------
 
@@ -381,7 +420,10 @@ class FrameAssembler:
         else:
             # a sample that keeps growing (polls stopped, yet frames keep coming) is given up
             overgrown = np.bincount(row_of, minlength=n_rows) > MAX_SAMPLE_FRAMES * (n_kinds + 1)
-            final = complete | (keys < self._cluster) | overgrown
+            # by polls, an incomplete sample waits one more round: its reply's second frame
+            # may come after the next poll (see _pair_halves)
+            waits = 1 if self._polled and self.decoding.second_halves else 0
+            final = complete | (keys < self._cluster - waits) | overgrown
         n_out = n_rows if final.all() else int(np.argmin(final))
         if n_out == 0:
             self._pending = p

@@ -76,6 +76,23 @@ CRITICAL_BITS = (1, 2, 3, 4, 5, 6, 7, 11, 12)
 CRITICAL_MASK = sum(1 << b for b in CRITICAL_BITS)
 
 
+def frame_bits(length: int) -> int:
+    """Bits a CAN 2.0A data frame of ``length`` bytes takes on the wire: 44 + 8 × length,
+    3 of interframe space, and at worst one stuff bit per 4 of the 34 + 8 × length stuffed
+    bits (Bosch CAN 2.0 part A)."""
+    return 47 + 8 * length + (33 + 8 * length) // 4
+
+
+# a polled sample: the poll (no data), then the replies of 8 and 6 bytes: 305 bits
+SAMPLE_BITS = frame_bits(0) + frame_bits(GAUGES_A_LENGTH) + frame_bits(GAUGES_B_LENGTH)
+
+
+def max_poll_rate(boards: int, bitrate: float) -> float:
+    """Samples per second a bus of ``bitrate`` carries for ``boards`` polled boards (no other
+    traffic): 250 kbit/s, one board ~820/s; 1 Mbit/s, four boards ~820/s."""
+    return bitrate / (max(boards, 1) * SAMPLE_BITS)
+
+
 def frame_id(base: int, opcode: int) -> int:
     """The 11-bit identifier of ``opcode`` on the board at ``base``."""
     return ((base & 0x7F) << 4) | (opcode & 0xF)

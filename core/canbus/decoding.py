@@ -10,7 +10,7 @@ the assembler (:mod:`hapticdesk.canbus.assembler`) decides which frames form one
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -119,6 +119,8 @@ class DeskDecoding:
     request_sensor: dict[int, int]  # ATI sample-request identifier -> sensor index
     protocol_ids: frozenset[int]
     counter_modulus: int | None  # set when every kind has a counter
+    # kind of a reply's second frame -> kind of its first (an ATI board's 0x1 after its 0x0)
+    second_halves: dict[int, int] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         keys, codes = [], []
@@ -173,6 +175,7 @@ def build_decoding(
     readings: list[SensorReading] = []
     request_sensor: dict[int, int] = {}
     protocol: set[int] = set()
+    second_halves: dict[int, int] = {}
     column = 0
     # database messages may carry several sensors' signals: one kind per message
     message_fields: dict[str, list[tuple[int, SignalLayout]]] = {}
@@ -213,6 +216,7 @@ def build_decoding(
                     (index,),
                 )
             )
+            second_halves[len(kinds) - 1] = len(kinds) - 2
             request_sensor[ati.frame_id(sensor.base, ati.OP_GAUGES_A)] = index
             protocol |= ati.ati_frame_ids(sensor.base) - {
                 ati.frame_id(sensor.base, ati.OP_GAUGES_A),
@@ -253,7 +257,9 @@ def build_decoding(
     modulus = None
     if kinds and all(k.counter is not None for k in kinds):
         modulus = 1 << kinds[0].counter.length  # type: ignore[union-attr]
-    return DeskDecoding(kinds, readings, column, request_sensor, frozenset(protocol), modulus)
+    return DeskDecoding(
+        kinds, readings, column, request_sensor, frozenset(protocol), modulus, second_halves
+    )
 
 
 def _layout(config: CanConfig, ref: object) -> SignalLayout:

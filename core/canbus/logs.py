@@ -40,6 +40,12 @@ CANDUMP_TEXT_SUFFIXES = (".txt", ".candump", ".dump")
 CHUNK_FRAMES = 50_000
 # candump -l / python-can .log lines: "(1700000000.000000) can0 123#DEADBEEF"
 _CANUTILS_LINE = re.compile(r"^\s*\(\d+(\.\d+)?\)\s+\S+\s+[0-9A-Fa-f]+#")
+# ... and all of one, as python-can's reader parses it without raising: an optional CAN FD
+# flag digit, hex byte pairs or a remote request ``R``/``R8``, an optional direction
+_CANUTILS_FRAME = re.compile(
+    r"^\s*\(\d+(\.\d+)?\)\s+\S+\s+[0-9A-Fa-f]{1,8}#(#[0-9A-Fa-f])?"
+    r"([Rr]\d?|([0-9A-Fa-f]{2})*)(\s+[RTrt])?\s*$"
+)
 
 
 def _suffix(path: str | Path) -> str:
@@ -118,17 +124,57 @@ def _python_can_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
         # we open the file so that it is closed whatever the reader raises
         opener = gzip.open if path.suffix.lower() == ".gz" else open
         with opener(path, mode) as fh:
-            for msg in getattr(can, _READERS[fmt])(fh):
+            lines = _CanutilsLines(fh) if fmt == ".log" else None
+            for msg in getattr(can, _READERS[fmt])(lines if lines is not None else fh):
                 batch.append(msg)
                 if len(batch) >= chunk_frames:
                     yield FrameArray.from_messages(batch)
                     batch = []
     except (ValueError, OSError, EOFError, KeyError, IndexError, can.CanError) as err:
-        raise ConfigError(str(path), f"not a readable {fmt} CAN log: {err}") from None
+        where = f"{path}:{lines.number}" if lines is not None else str(path)
+        raise ConfigError(where, f"not a readable {fmt} CAN log: {err}") from None
     except Exception as err:  # BLF and gzip readers raise their own kinds on corrupt files
         raise ConfigError(str(path), f"not a readable {fmt} CAN log: {err!r}") from None
     if batch:
         yield FrameArray.from_messages(batch)
+    if lines is not None:
+        _warn_skipped(path, lines.skipped, lines.n_skipped)
+
+
+class _CanutilsLines:
+    """The lines of a candump ``-l`` file that are frames; the others are skipped and counted
+    (python-can's reader raises on the first junk line, which would end a replay with no line
+    number). ``number`` is the line being read, for errors."""
+
+    def __init__(self, fh: Any) -> None:
+        self._fh = fh
+        self.number = 0
+        self.skipped: list[int] = []  # the first few, for the warning
+        self.n_skipped = 0
+
+    def __iter__(self) -> Iterator[str]:
+        for number, line in enumerate(self._fh, 1):
+            self.number = number
+            if _CANUTILS_FRAME.match(line):
+                yield line
+            elif line.strip() and not line.lstrip().startswith(("#", ";")):
+                self.n_skipped += 1
+                if len(self.skipped) < 3:
+                    self.skipped.append(number)
+
+    def close(self) -> None:
+        """python-can closes its file when done; ours is closed by its ``with``."""
+
+
+def _warn_skipped(path: Path, shown_lines: list[int], n: int) -> None:
+    if n:
+        shown = ", ".join(f"{path}:{number}" for number in shown_lines[:3])
+        log.warning(
+            "%d line(s) are not CAN frames and were skipped (%s%s)",
+            n,
+            shown,
+            " …" if n > 3 else "",
+        )
 
 
 def _candump_text_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
@@ -138,7 +184,8 @@ def _candump_text_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
 
     deltas: bool | None = None  # candump -td prints the time since the previous frame
     clock = 0.0
-    unknown_lines: list[int] = []
+    unknown_lines: list[int] = []  # the first few, for the warning
+    n_unknown = 0
     t: list[float] = []
     idents: list[int] = []
     exts: list[bool] = []
@@ -165,7 +212,9 @@ def _candump_text_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
             for number, (line, frame) in enumerate(Parser(fh).iterlines(keep_unknowns=True), 1):
                 if frame is None:
                     if line.strip() and not line.lstrip().startswith(("#", ";")):
-                        unknown_lines.append(number)
+                        n_unknown += 1
+                        if len(unknown_lines) < 3:
+                            unknown_lines.append(number)
                     continue
                 stamp = frame.timestamp
                 if isinstance(stamp, datetime.timedelta):
@@ -185,14 +234,7 @@ def _candump_text_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
         raise ConfigError(str(path), f"cannot read: {err}") from None
     if datas:
         yield chunk()
-    if unknown_lines:
-        shown = ", ".join(f"{path}:{n}" for n in unknown_lines[:3])
-        log.warning(
-            "%d line(s) are not CAN frames and were skipped (%s%s)",
-            len(unknown_lines),
-            shown,
-            " …" if len(unknown_lines) > 3 else "",
-        )
+    _warn_skipped(path, unknown_lines, n_unknown)
 
 
 def write_frames(path: str | Path, frames: Iterable[FrameArray], channel: Any = None) -> int:
@@ -294,13 +336,21 @@ def decode_can_log(path: str | Path, profile: DeskProfile) -> CanLogDecoding:
         ws.append(block.wrench)
     t = np.concatenate(ts)
     if not len(t):
-        raise ConfigError(
-            str(path),
-            f"no samples of desk `{profile.name}` in this log: {assembler.stats.frames} frames, "
-            f"none with the identifiers its `can:` section decodes",
-        )
+        raise _nothing_decoded(Path(path), profile.name, assembler.stats)
     recording = Recording(t, np.concatenate(ws), profile.sensor_names)
     return CanLogDecoding(recording, assembler.stats, list(assembler.notices))
+
+
+def _nothing_decoded(path: Path, desk: str, stats: CanStats) -> ConfigError:
+    """No sample decoded: say what the frames were instead."""
+    reasons = stats.summary()[1:]
+    if stats.data_frames or stats.wrong_length:
+        why = "; ".join(reasons) or "no frame kind complete"
+    else:
+        why = f"none with the identifiers its `can:` section decodes ({'; '.join(reasons)})"
+    return ConfigError(
+        str(path), f"no samples of desk `{desk}` in this log: {stats.frames} frames, {why}"
+    )
 
 
 def read_can_log(path: str | Path, profile: DeskProfile) -> Recording:
@@ -319,6 +369,7 @@ class CanLogSource(Source):
         self.path = Path(path)
         self.sensor_names = profile.sensor_names
         self.sample_rate_hz = profile.sample_rate_hz
+        self.profile_name = profile.name
         self.assembler = _assembler(path, profile)
         self._closed = False
 
@@ -326,12 +377,17 @@ class CanLogSource(Source):
     def stats(self) -> CanStats:
         return self.assembler.stats
 
+    def summary(self) -> list[str]:
+        return [f"CAN log {self.path.name}: {line}" for line in self.stats.summary()]
+
     def blocks(self) -> Iterator[WrenchBlock]:
         for block in _blocks(self.path, self.assembler):
             if self._closed:
                 return
             if len(block.t):
                 yield WrenchBlock(block.t, block.wrench)
+        if not self.stats.samples:
+            raise _nothing_decoded(self.path, self.profile_name, self.stats)
 
     def close(self) -> None:
         self._closed = True

@@ -108,10 +108,23 @@ class CanSource(Source):
         self._poll_ids = [
             ati.frame_id(s.base, ati.OP_GAUGES_A) for s in self.config.ati_sensors.values()
         ]
+        # the last reply frame of a poll round (the last board's second frame, the lowest
+        # priority of them): the reader tells the poller when it came
+        self._round_end_id = (
+            ati.frame_id(list(self.config.ati_sensors.values())[-1].base, ati.OP_GAUGES_B)
+            if self._poll_ids
+            else None
+        )
+        self._round_answered = threading.Event()
+        self._poll_id_set = frozenset(self._poll_ids)
+        self._check_bus_capacity()
 
     @property
     def stats(self) -> CanStats:
         return self.assembler.stats
+
+    def summary(self) -> list[str]:
+        return [f"CAN {self.interface}:{self.channel}: {line}" for line in self.stats.summary()]
 
     # --- bus ----------------------------------------------------------------------------
 
@@ -176,6 +189,22 @@ class CanSource(Source):
             self.reconnects += 1
             self._notice("bus", f"CAN bus {self.interface}:{self.channel} is back")
             return
+
+    def _check_bus_capacity(self) -> None:
+        """Say at start when the boards cannot be polled at the desk's rate on this bus."""
+        bitrate = self.bus_kwargs.get("bitrate")
+        if not self._poll_ids or not bitrate or self.interface in ("virtual", "udp_multicast"):
+            return  # no bit rate to run out of (software buses are bound by the host)
+        most = ati.max_poll_rate(len(self._poll_ids), float(bitrate))
+        if self.sample_rate_hz > most:
+            self._notice(
+                "capacity",
+                f"{len(self._poll_ids)} ATI board(s) polled at {self.sample_rate_hz:g} Hz need "
+                f"{len(self._poll_ids) * ati.SAMPLE_BITS * self.sample_rate_hz / 1000:.0f} "
+                f"kbit/s (a poll and two replies, {ati.SAMPLE_BITS} bits a board); the bus "
+                f"runs at {float(bitrate) / 1000:g} kbit/s and carries at most ~{most:.0f} "
+                "samples/s: lower `sample_rate_hz` or raise the bit rate (board opcode 0xE)",
+            )
 
     def _notice(self, kind: str, message: str) -> None:
         log.warning("%s", message)
@@ -242,20 +271,30 @@ class CanSource(Source):
         )
 
     def _poll(self) -> None:
-        """Request one sample of every ATI board per period, on a deadline clock."""
+        """Request one sample of every ATI board per period, on a deadline clock.
+
+        A round is not sent before the previous one's replies came (or two periods after it
+        was sent, for a board that missed its poll): polls that overrun their replies (a host
+        thread that stalled, then caught up) would put two rounds' replies after the second
+        poll, and void both samples. So a stall costs samples (counted as lost), never
+        whole samples' data.
+        """
         period = 1.0 / self.sample_rate_hz
         next_due = time.monotonic()
         while not self._closed.is_set():
+            self._round_answered.clear()
             for ident in self._poll_ids:
                 try:
                     self._send(ident, b"", poll=True)
                 except Exception as err:  # the reader reconnects; keep the rhythm
                     log.debug("poll not sent: %s", err)
                     break
+            sent_at = time.monotonic()
             next_due += period
+            self._round_answered.wait(max(next_due, sent_at + period) + period - sent_at)
             wait = next_due - time.monotonic()
             if wait > 0:
-                time.sleep(wait)
+                self._closed.wait(wait)
             elif wait < -period:
                 next_due = time.monotonic()  # fell behind: skip, do not burst
 
@@ -289,6 +328,12 @@ class CanSource(Source):
                         break
                     if msg.is_error_frame and msg.arbitration_id & CAN_ERR_BUSOFF:
                         raise can.CanOperationError("bus-off")
+                    if msg.arbitration_id == self._round_end_id and len(msg.data):
+                        self._round_answered.set()
+                    if not msg.data and msg.arbitration_id in self._poll_id_set:
+                        # our own poll echoed back (udp_multicast loops them): it is taken
+                        # from the queue of sent polls, in order; twice would split samples
+                        continue
                     batch.append(msg)
             except (can.CanError, OSError) as err:
                 if self._closed.is_set():

@@ -2,15 +2,24 @@
 
 Header ``t`` then ``<sensor>_fx … <sensor>_mz`` for each sensor of the profile. Other columns
 are kept as ``extra`` (the simulator's ground truth ``true_x, true_y, true_fn``) and otherwise
-ignored. A missing column is an error that names it.
+ignored (text ones too). A missing column is an error that names it.
+
+Files are read in blocks (:class:`RecordingBlocks`) so that a replay's memory does not grow
+with the file: CSV through numpy's C parser a block of lines at a time, NPZ each column's
+``.npy`` member in slices. Errors name file:line:column (CSV) or the column (NPZ).
 """
 
 from __future__ import annotations
 
 import csv
-import io
+import itertools
+import re
+import zipfile
+import zlib
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import IO, TextIO
 
 import numpy as np
 
@@ -18,6 +27,14 @@ from hapticdesk.files.profile import AXES
 from hapticdesk.files.yamlfile import ConfigError
 
 RECORDING_SUFFIXES = (".csv", ".npz")
+BLOCK_ROWS = 16_384  # samples per block read: ~14 s at 1.2 kHz; ~25 MB to parse a CSV block
+# an empty cell (between commas, or at either end of a line that has commas) reads as NaN
+_EMPTY_CELL = re.compile(r"(?m)(?:^|(?<=,))[ \t]*(?=,)|(?<=,)[ \t]*$")
+
+
+def _data_line_offsets(lines: list[str]) -> list[int]:
+    """Offsets of the lines numpy reads as rows (it skips empty ones); for error messages."""
+    return [j for j, line in enumerate(lines) if line.strip("\r\n")]
 
 
 @dataclass
@@ -50,83 +67,365 @@ class Recording:
         return np.hstack(parts)
 
 
-def _from_columns(
-    names: list[str], data: dict[str, np.ndarray], sensor_names: list[str], where: str
-) -> Recording:
-    needed = ["t"] + [f"{s}_{a}" for s in sensor_names for a in AXES]
-    missing = [c for c in needed if c not in data]
-    if missing:
-        shown = ", ".join(missing[:6]) + (
-            f" and {len(missing) - 6} more" if len(missing) > 6 else ""
-        )
-        raise ConfigError(
-            where, f"missing column(s) {shown}; the desk's sensors are {', '.join(sensor_names)}"
-        )
-    t = np.asarray(data["t"], dtype=float)
-    wrench = (
-        np.stack(
-            [
-                np.stack([np.asarray(data[f"{s}_{a}"], dtype=float) for a in AXES], axis=-1)
-                for s in sensor_names
-            ],
-            axis=1,
-        )
-        if sensor_names
-        else np.zeros((len(t), 0, 6))
+def needed_columns(sensor_names: list[str]) -> list[str]:
+    """The columns a recording for ``sensor_names`` must have, in order."""
+    return ["t"] + [f"{s}_{a}" for s in sensor_names for a in AXES]
+
+
+def _missing_error(where: str, missing: list[str], sensor_names: list[str]) -> ConfigError:
+    shown = ", ".join(missing[:6]) + (f" and {len(missing) - 6} more" if len(missing) > 6 else "")
+    return ConfigError(
+        where, f"missing column(s) {shown}; the desk's sensors are {', '.join(sensor_names)}"
     )
-    extra = {n: np.asarray(data[n], dtype=float) for n in names if n not in needed}
-    return Recording(t, wrench, list(sensor_names), extra)
 
 
-def read_recording(path: str | Path, sensor_names: list[str]) -> Recording:
-    """Read a CSV or NPZ recording for a desk with ``sensor_names``."""
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix == ".npz":
-        try:
-            with np.load(path, allow_pickle=False) as npz:
-                data = {k: npz[k] for k in npz.files}
-        except (OSError, ValueError) as err:
-            raise ConfigError(str(path), f"not a readable NPZ recording: {err}") from None
-        return _from_columns(list(data), data, sensor_names, str(path))
-    if suffix != ".csv":
-        raise ConfigError(
-            str(path),
-            f"unknown recording format {suffix!r}; expected .csv or .npz "
-            "(or a CAN log, see `hapticdesk record --help`)",
-        )
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as err:
-        raise ConfigError(str(path), f"cannot read: {err.strerror or err}") from None
-    return parse_csv(text, sensor_names, str(path))
+def _from_table(table: np.ndarray, extra_names: list[str], sensor_names: list[str]) -> Recording:
+    """(k, 1 + 6 S + E) floats in :func:`needed_columns` order, then the extra columns."""
+    k, n_sensors = len(table), len(sensor_names)
+    wrench = table[:, 1 : 1 + 6 * n_sensors].reshape(k, n_sensors, 6)
+    extra = {n: table[:, 1 + 6 * n_sensors + i] for i, n in enumerate(extra_names)}
+    return Recording(table[:, 0].copy(), wrench, list(sensor_names), extra)
 
 
-def parse_csv(text: str, sensor_names: list[str], where: str = "<csv>") -> Recording:
-    """Parse CSV text; empty cells and ``nan`` become NaN (flagged later, not here)."""
-    reader = csv.reader(io.StringIO(text))
-    try:
-        header = [h.strip() for h in next(reader)]
-    except StopIteration:
-        raise ConfigError(f"{where}:1", "empty file, expected a header starting with `t`") from None
-    body = text.split("\n", 1)[1] if "\n" in text else ""
-    if body.strip():
-        try:
-            table = np.loadtxt(
-                io.StringIO(body),
-                delimiter=",",
-                ndmin=2,
-                dtype=float,
-                converters=lambda s: float(s) if s.strip() else np.nan,
+class RecordingBlocks:
+    """A CSV or NPZ recording read in blocks of ``block_rows`` samples, in one pass.
+
+    Memory stays flat whatever the file's size: only one block is held. The header (and for
+    NPZ every column's type and length) is checked when the object is made, so a bad file is
+    refused before anything runs. CSV blocks are parsed by numpy's C reader, not cell by cell.
+    Use as a context manager or call :meth:`close`.
+    """
+
+    def __init__(
+        self, path: str | Path, sensor_names: list[str], *, block_rows: int = BLOCK_ROWS
+    ) -> None:
+        self.path = Path(path)
+        self.sensor_names = list(sensor_names)
+        self.block_rows = max(1, int(block_rows))
+        self.extra_names: list[str] = []
+        suffix = self.path.suffix.lower()
+        if suffix == ".npz":
+            self._reader: _CsvReader | _NpzReader = _NpzReader(self.path, self.sensor_names)
+        elif suffix == ".csv":
+            self._reader = _CsvReader(self.path, self.sensor_names)
+        else:
+            raise ConfigError(
+                str(self.path),
+                f"unknown recording format {suffix!r}; expected .csv or .npz "
+                "(or a CAN log, see `hapticdesk record --help`)",
             )
-        except ValueError as err:
-            raise ConfigError(where, f"a value is not a number: {err}") from None
-        if table.shape[1] != len(header):
-            raise ConfigError(where, f"rows have {table.shape[1]} values, the header {len(header)}")
+        self._rows = 0
+        # the first block is read now: a bad first row or an empty file is refused at once
+        try:
+            self._first = self._next_block()
+        except BaseException:
+            self.close()
+            raise
+
+    def _next_block(self) -> Recording | None:
+        while True:
+            block = self._reader.read(self.block_rows, self._rows)
+            if block is None or len(block):
+                return block
+            # a block of blank lines only: read on
+
+    def is_empty(self) -> bool:
+        """True when the file holds no samples."""
+        return self._first is None
+
+    @property
+    def rows_read(self) -> int:
+        """Samples handed out so far."""
+        return self._rows
+
+    def blocks(self) -> Iterator[Recording]:
+        """Blocks in file order (never empty ones); ConfigError names the line of a bad value."""
+        try:
+            block, self._first = self._first, None
+            while block is not None:
+                self._rows += len(block)
+                yield block
+                block = self._next_block()
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        self._reader.close()
+
+    def __enter__(self) -> RecordingBlocks:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class _CsvReader:
+    def __init__(self, path: Path, sensor_names: list[str]) -> None:
+        self.where = str(path)
+        self.sensor_names = sensor_names
+        try:
+            self._fh: TextIO | None = path.open(encoding="utf-8-sig", newline=None)
+        except OSError as err:
+            raise ConfigError(self.where, f"cannot read: {err.strerror or err}") from None
+        try:
+            first = self._fh.readline()
+        except UnicodeDecodeError as err:
+            self.close()
+            raise ConfigError(f"{self.where}:1", f"not UTF-8 text: {err.reason}") from None
+        if not first.strip():
+            self.close()
+            raise ConfigError(f"{self.where}:1", "empty file, expected a header starting with `t`")
+        header = [h.strip() for h in next(csv.reader([first]))]
+        seen: dict[str, int] = {}
+        for i, name in enumerate(header):
+            if name and name in seen:
+                self.close()
+                raise ConfigError(
+                    f"{self.where}:1:{i + 1}",
+                    f"column `{name}` appears twice (columns {seen[name] + 1} and {i + 1})",
+                )
+            seen[name] = i
+        needed = needed_columns(sensor_names)
+        missing = [c for c in needed if c not in seen]
+        if missing:
+            self.close()
+            raise _missing_error(f"{self.where}:1", missing, sensor_names)
+        self.header = header
+        self.needed_index = [seen[c] for c in needed]
+        # other named columns are kept as extras while they hold numbers, else ignored
+        self.extra = [(n, i) for i, n in enumerate(header) if n and n not in needed]
+        self.line = 1  # file lines consumed so far
+
+    def read(self, rows: int, _done: int) -> Recording | None:
+        if self._fh is None:
+            return None
+        first_line = self.line + 1
+        try:
+            lines = list(itertools.islice(self._fh, rows))
+        except UnicodeDecodeError as err:
+            raise ConfigError(
+                f"{self.where}:{first_line}", f"not UTF-8 text near here: {err.reason}"
+            ) from None
+        if not lines:
+            self.close()
+            return None
+        self.line += len(lines)
+        text = _EMPTY_CELL.sub("nan", "".join(lines))
+        table = np.zeros((0, len(self.needed_index) + len(self.extra)))  # blank lines only
+        while text.strip():
+            usecols = self.needed_index + [i for _, i in self.extra]
+            try:
+                table = np.loadtxt(
+                    text.split("\n"),  # a list of str: StringIO would hold 4 bytes a character
+                    delimiter=",",
+                    usecols=usecols,
+                    ndmin=2,
+                    dtype=float,
+                    comments=None,
+                    quotechar='"',
+                )
+                break
+            except ValueError as err:  # a bad value is raised; a text extra column dropped
+                self._explain(err, first_line, usecols, lines)
+        rec = _from_table(table, [n for n, _ in self.extra], self.sensor_names)
+        if not np.isfinite(rec.t).all():
+            i = int(np.argmax(~np.isfinite(rec.t)))
+            offset = _data_line_offsets(lines)[i]
+            column = self.needed_index[0]
+            cells = next(csv.reader([lines[offset]]))
+            cell = cells[column].strip() if column < len(cells) else ""
+            raise ConfigError(
+                f"{self.where}:{first_line + offset}:{column + 1}",
+                f"`t` is {cell or 'empty'!r}; every sample needs a finite time in seconds",
+            )
+        return rec
+
+    def _explain(
+        self, err: ValueError, first_line: int, usecols: list[int], lines: list[str]
+    ) -> None:
+        """Turn numpy's message into file:line:column, or drop a non-numeric extra column."""
+        message = str(err)
+        offsets = _data_line_offsets(lines)
+
+        def line_of(row: int) -> int:  # numpy counts rows from 0, skipping empty lines
+            return first_line + (offsets[row] if row < len(offsets) else row)
+
+        bad_value = re.search(
+            r"could not convert string (.*) to \w+ at row (\d+), column (\d+)", message
+        )
+        if bad_value:
+            row, col = int(bad_value.group(2)), usecols[int(bad_value.group(3)) - 1]
+            extra = [e for e in self.extra if e[1] == col]
+            if extra:  # other columns are ignored (DESIGN.md): a text column is not an error
+                self.extra.remove(extra[0])
+                return
+            raise ConfigError(
+                f"{self.where}:{line_of(row)}:{col + 1}",
+                f"column `{self.header[col]}`: {bad_value.group(1)} is not a number",
+            ) from None
+        # numpy counts rows from 1 in its column-count messages
+        short = re.search(r"at row (\d+) with (\d+) columns", message)
+        changed = re.search(r"changed from \d+ to (\d+) at row (\d+)", message)
+        if short or changed:
+            row, found = (
+                (int(short.group(1)), int(short.group(2)))
+                if short
+                else (int(changed.group(2)), int(changed.group(1)))  # type: ignore[union-attr]
+            )
+            raise ConfigError(
+                f"{self.where}:{line_of(row - 1)}",
+                f"this row has {found} value(s), the header {len(self.header)}",
+            ) from None
+        raise ConfigError(f"{self.where}:{first_line}", f"unreadable rows: {message}") from None
+
+    def close(self) -> None:
+        if self._fh is not None:
+            self._fh.close()
+            self._fh = None
+
+
+class _NpzReader:
+    """Each column's ``.npy`` member read in slices: no column is ever loaded whole."""
+
+    def __init__(self, path: Path, sensor_names: list[str]) -> None:
+        self.where = str(path)
+        self.sensor_names = sensor_names
+        self._members: list[tuple[str, IO[bytes], np.dtype]] = []
+        try:
+            self._zip: zipfile.ZipFile | None = zipfile.ZipFile(path)
+            columns = self._headers()
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as err:
+            self.close()
+            raise ConfigError(self.where, f"not a readable NPZ recording: {err}") from None
+        needed = needed_columns(sensor_names)
+        missing = [c for c in needed if c not in columns]
+        if missing:
+            self.close()
+            raise _missing_error(self.where, missing, sensor_names)
+        for name in needed:
+            shape, dtype = columns[name]
+            problem = _column_problem(shape, dtype)
+            if problem:
+                self.close()
+                raise ConfigError(self.where, f"column `{name}` {problem}")
+        lengths = {name: columns[name][0][0] for name in needed}
+        self.length = lengths["t"]
+        uneven = {n: k for n, k in lengths.items() if k != self.length}
+        if uneven:
+            shown = ", ".join(f"`{n}` {k}" for n, k in list(uneven.items())[:4])
+            self.close()
+            raise ConfigError(
+                self.where,
+                f"columns of different lengths: `t` has {self.length} rows, {shown}; "
+                "every column needs one value per sample",
+            )
+        # other columns are kept when they are numbers, one per sample; otherwise ignored
+        self.extra = [
+            n
+            for n, (shape, dtype) in columns.items()
+            if n not in needed and not _column_problem(shape, dtype) and shape[0] == self.length
+        ]
+        try:
+            for name in needed + self.extra:
+                self._members.append((name, self._open_data(name), columns[name][1]))
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as err:
+            self.close()
+            raise ConfigError(self.where, f"not a readable NPZ recording: {err}") from None
+
+    def _headers(self) -> dict[str, tuple[tuple[int, ...], np.dtype]]:
+        assert self._zip is not None
+        out = {}
+        for member in self._zip.namelist():
+            if member.endswith(".npy"):
+                with self._zip.open(member) as fh:
+                    out[member[:-4]] = _npy_header(fh)
+        return out
+
+    def _open_data(self, name: str) -> IO[bytes]:
+        assert self._zip is not None
+        fh = self._zip.open(name + ".npy")
+        _npy_header(fh)  # leaves the stream at the first value
+        return fh
+
+    def read(self, rows: int, done: int) -> Recording | None:
+        if self._zip is None or done >= self.length:
+            self.close()
+            return None
+        k = min(rows, self.length - done)
+        table = np.empty((k, len(self._members)))
+        try:
+            for j, (name, fh, dtype) in enumerate(self._members):
+                raw = fh.read(k * dtype.itemsize)
+                if len(raw) != k * dtype.itemsize:
+                    raise ConfigError(
+                        self.where,
+                        f"column `{name}` ends after {done + len(raw) // dtype.itemsize} of its "
+                        f"{self.length} rows (a truncated file?)",
+                    )
+                table[:, j] = np.frombuffer(raw, dtype=dtype)
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as err:
+            raise ConfigError(self.where, f"not a readable NPZ recording: {err}") from None
+        rec = _from_table(table, self.extra, self.sensor_names)
+        bad = ~np.isfinite(rec.t)
+        if bad.any():
+            row = done + int(np.argmax(bad)) + 1
+            raise ConfigError(
+                self.where,
+                f"`t` is {rec.t[np.argmax(bad)]} in row {row}; every sample needs a finite "
+                "time in seconds",
+            )
+        return rec
+
+    def close(self) -> None:
+        for _, fh, _ in self._members:
+            fh.close()
+        self._members = []
+        if getattr(self, "_zip", None) is not None:
+            assert self._zip is not None
+            self._zip.close()
+        self._zip = None
+
+
+def _npy_header(fh: IO[bytes]) -> tuple[tuple[int, ...], np.dtype]:
+    version = np.lib.format.read_magic(fh)
+    if version == (1, 0):
+        shape, fortran, dtype = np.lib.format.read_array_header_1_0(fh)
     else:
-        table = np.zeros((0, len(header)))
-    data = {name: table[:, i] for i, name in enumerate(header)}
-    return _from_columns(header, data, sensor_names, where)
+        shape, fortran, dtype = np.lib.format.read_array_header_2_0(fh)
+    return tuple(shape), np.dtype(dtype)
+
+
+def _column_problem(shape: tuple[int, ...], dtype: np.dtype) -> str:
+    """Why a stored array cannot be a column of numbers ('' when it can)."""
+    if dtype.hasobject or dtype.kind not in "biuf" or dtype.fields is not None:
+        return f"holds {dtype} values; expected numbers"
+    if len(shape) != 1:
+        return f"has shape {shape}; expected one value per sample, shape (k,)"
+    return ""
+
+
+def read_recording(
+    path: str | Path, sensor_names: list[str], *, block_rows: int = BLOCK_ROWS
+) -> Recording:
+    """Read a whole CSV or NPZ recording for a desk with ``sensor_names`` (through
+    :class:`RecordingBlocks`; for long files prefer streaming the blocks)."""
+    with RecordingBlocks(path, sensor_names, block_rows=block_rows) as reader:
+        return concat_recordings(list(reader.blocks()), sensor_names)
+
+
+def concat_recordings(parts: list[Recording], sensor_names: list[str]) -> Recording:
+    """Blocks back into one recording; an extra column dropped in any block is dropped."""
+    if not parts:
+        return Recording(np.zeros(0), np.zeros((0, len(sensor_names), 6)), list(sensor_names))
+    if len(parts) == 1:
+        return parts[0]
+    names = [n for n in parts[-1].extra if all(n in p.extra for p in parts)]
+    return Recording(
+        np.concatenate([p.t for p in parts]),
+        np.concatenate([p.wrench for p in parts]),
+        list(sensor_names),
+        {n: np.concatenate([p.extra[n] for p in parts]) for n in names},
+    )
 
 
 def write_recording(path: str | Path, rec: Recording) -> None:

@@ -68,3 +68,6 @@ class PacedSource(Source):
     def close(self) -> None:
         self._stop.set()
         self.inner.close()
+
+    def summary(self) -> list[str]:
+        return self.inner.summary()

@@ -490,6 +490,9 @@ class Runtime:
         except Exception as err:  # a bug: keep the trace for the log, still shut down cleanly
             log.exception("sensing stopped by an internal error")
             self.report.error = f"internal error: {type(err).__name__}: {err}"
+        finally:
+            # what the source read and rejected (a CAN source's decode statistics)
+            self.report.notes.extend(self.scene.source.summary())
 
     def _sense(self) -> None:
         scene = self.scene

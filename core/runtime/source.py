@@ -38,6 +38,11 @@ class Source:
     def close(self) -> None:
         """Release what the source holds. Safe to call more than once."""
 
+    def summary(self) -> list[str]:
+        """Lines for the run's report about what the source read (a CAN source: frames seen,
+        decoded and rejected by reason); none by default."""
+        return []
+
     def __enter__(self) -> Source:
         return self
 

@@ -70,3 +70,143 @@ def test_not_a_number_is_an_error(tmp_path):
     path.write_text(path.read_text().replace("\n0", "\nabc", 1))
     with pytest.raises(ConfigError, match="not a number"):
         read_recording(path, NAMES)
+
+
+# --- hardening (issue 11 items 4, 5, 17; issue 15 item 7) -------------------------------------
+
+HEADER = "t," + ",".join(f"{s}_{a}" for s in NAMES for a in ("fx", "fy", "fz", "mx", "my", "mz"))
+
+
+def _csv(path, rows: list[str], header: str = HEADER) -> None:
+    path.write_text(header + "\n" + "".join(r + "\n" for r in rows))
+
+
+def _row(t: float, value: str = "1") -> str:
+    return f"{t}," + ",".join([value] * 24)
+
+
+def test_a_text_column_is_ignored_as_the_contract_says(tmp_path):
+    path = tmp_path / "rec.csv"
+    _csv(path, [_row(0.0) + ",left hand", _row(0.001) + ",right hand"], HEADER + ",note")
+    back = read_recording(path, NAMES)
+    assert np.allclose(back.t, [0.0, 0.001])
+    assert "note" not in back.extra
+
+
+@pytest.mark.parametrize("block_rows", [2, 65536])
+def test_a_bad_value_names_its_file_line_and_column(tmp_path, block_rows):
+    path = tmp_path / "rec.csv"
+    rows = [_row(i / 1200) for i in range(6)]
+    rows.insert(2, "")  # a blank line still counts as a line of the file
+    cells = rows[5].split(",")
+    cells[3] = "oops"
+    rows[5] = ",".join(cells)  # file line 7 (header is line 1), column 4 = fl_fz
+    _csv(path, rows)
+    with pytest.raises(ConfigError, match=r"rec\.csv:7:4: column `fl_fz`: 'oops' is not a number"):
+        read_recording(path, NAMES, block_rows=block_rows)
+
+
+def test_a_short_row_names_its_line(tmp_path):
+    path = tmp_path / "rec.csv"
+    _csv(path, [_row(0.0), "", _row(0.001), "0.002,1,2"])
+    with pytest.raises(ConfigError, match=r"rec\.csv:5: this row has 3 value"):
+        read_recording(path, NAMES)
+
+
+@pytest.mark.parametrize("t", ["", "nan"])
+def test_a_row_without_a_time_is_an_error(tmp_path, t):
+    path = tmp_path / "rec.csv"
+    _csv(path, [_row(0.0), _row(0.001).replace("0.001", t, 1)])
+    with pytest.raises(ConfigError, match=r"rec\.csv:3:1: `t` is .*finite time"):
+        read_recording(path, NAMES)
+
+
+def test_all_nan_times_are_refused_by_replay(tmp_path, paper_desk):
+    from hapticdesk.plugins.replay import open_replay
+
+    path = tmp_path / "rec.csv"
+    _csv(path, [_row(float("nan")) for _ in range(5)])
+    with pytest.raises(ConfigError, match="`t` is 'nan'"):
+        open_replay(str(path), paper_desk, speed=0)
+
+
+def _npz(path, **columns):
+    np.savez(path, **columns)
+
+
+def _npz_columns(k: int) -> dict:
+    cols = {"t": np.arange(k) / 1200.0}
+    for s in NAMES:
+        for a in ("fx", "fy", "fz", "mx", "my", "mz"):
+            cols[f"{s}_{a}"] = np.ones(k)
+    return cols
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"fr_fz": np.ones(7)}, r"different lengths: `t` has 8 rows, `fr_fz` 7"),
+        ({"fr_fz": np.array(["a"] * 8)}, r"column `fr_fz` holds <U1 values; expected numbers"),
+        ({"fr_fz": np.ones((8, 2))}, r"column `fr_fz` has shape \(8, 2\); expected one value"),
+        ({"t": np.full(8, np.nan)}, r"`t` is nan in row 1"),
+    ],
+)
+def test_a_bad_npz_column_is_a_clear_error(tmp_path, change, message):
+    path = tmp_path / "rec.npz"
+    _npz(path, **{**_npz_columns(8), **change})
+    with pytest.raises(ConfigError, match=message):
+        read_recording(path, NAMES)
+
+
+def test_npz_extra_columns_of_other_kinds_are_ignored(tmp_path):
+    path = tmp_path / "rec.npz"
+    _npz(
+        path, **_npz_columns(8), note=np.array(["x"] * 8), image=np.ones((3, 3)), true_x=np.ones(8)
+    )
+    back = read_recording(path, NAMES)
+    assert len(back) == 8 and list(back.extra) == ["true_x"]
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".npz"])
+def test_blocks_join_to_the_whole_file(tmp_path, suffix):
+    from hapticdesk.files.recording import RecordingBlocks
+
+    rec = sample_recording(50)
+    path = tmp_path / f"rec{suffix}"
+    write_recording(path, rec)
+    with RecordingBlocks(path, NAMES, block_rows=7) as reader:
+        parts = list(reader.blocks())
+    assert [len(p) for p in parts] == [7] * 7 + [1]
+    assert np.allclose(np.concatenate([p.wrench for p in parts]), rec.wrench, rtol=1e-9)
+    assert np.allclose(np.concatenate([p.extra["true_x"] for p in parts]), rec.extra["true_x"])
+
+
+def test_a_replay_closed_from_another_thread_ends_cleanly(tmp_path, paper_desk):
+    """Ctrl-C closes the source from the main thread while the sensing thread reads the file:
+    the reader ends, no 'I/O operation on closed file' from the reading thread."""
+    import threading
+
+    from hapticdesk.plugins.replay import open_replay
+
+    path = tmp_path / "rec.csv"
+    _csv(path, [_row(i / 1200) for i in range(40_000)])
+    source = open_replay(str(path), paper_desk, speed=1.0)
+    errors: list[BaseException] = []
+    got = []
+
+    def read() -> None:
+        try:
+            for block in source.blocks():
+                got.append(len(block.t))
+        except BaseException as err:  # what the sensing thread would report
+            errors.append(err)
+
+    thread = threading.Thread(target=read)
+    thread.start()
+    while not got:
+        thread.join(0.01)
+    source.close()
+    thread.join(5)
+    assert not thread.is_alive() and errors == []
+    assert 0 < sum(got) < 40_000
+    assert source.inner.recording._reader._fh is None  # the file was closed

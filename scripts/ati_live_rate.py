@@ -1,0 +1,127 @@
+"""How fast can the live ATI path poll a desk of NETCANOEM boards? (issue 11 item 19)
+
+Emulated boards answer polls on a python-can bus; a live CAN source polls them at the
+profile's rate for a few seconds. Prints the samples per second delivered, the share of
+samples with missing data (NaN) and the decoder's counts.
+
+    python scripts/ati_live_rate.py --rate 1200 --boards 4 --bus virtual
+    python scripts/ati_live_rate.py --rate 1200 --boards 4 --bus udp_multicast
+
+``virtual`` runs the emulator in this process (a thread: it shares the GIL with the poller
+and the reader); ``udp_multicast`` runs ``hapticdesk emulate`` in its own process.
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+LEGS = """name: ati-rate
+sample_rate_hz: {rate}
+sensors:
+{sensors}
+surfaces:
+  - {{name: top, origin: [0, 0, 0.733], normal: [0, 0, 1],
+     polygon: [[-0.375, -0.25], [0.375, -0.25], [0.375, 0.25], [-0.375, 0.25]]}}
+can:
+  silent_timeout_s: 0.5
+  sensors:
+{boards}
+"""
+POSITIONS = [(-0.34, -0.22), (0.34, -0.22), (-0.34, 0.22), (0.34, 0.22)]
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rate", type=float, default=1200.0)
+    parser.add_argument("--boards", type=int, default=4, choices=[3, 4])
+    parser.add_argument("--seconds", type=float, default=3.0)
+    parser.add_argument("--bus", choices=["virtual", "udp_multicast"], default="virtual")
+    args = parser.parse_args()
+
+    from hapticdesk.canbus.config import can_config
+    from hapticdesk.canbus.emulator import CanEmulator, FrameEncoder
+    from hapticdesk.canbus.source import CanSource
+    from hapticdesk.files.profile import load_profile
+    from hapticdesk.files.recording import Recording, write_recording
+
+    names = ["fl", "fr", "bl", "br"][: args.boards]
+    tmp = Path(tempfile.mkdtemp(prefix="ati-rate-"))
+    profile_path = tmp / "ati-rate.yaml"
+    profile_path.write_text(
+        LEGS.format(
+            rate=args.rate,
+            sensors="\n".join(
+                f"  - {{name: {n}, position: [{x}, {y}, 0.0]}}"
+                for n, (x, y) in zip(names, POSITIONS, strict=False)
+            ),
+            boards="\n".join(
+                f"    {n}: {{ati_netcanoem: {{base: 0x2{i}}}}}" for i, n in enumerate(names)
+            ),
+        )
+    )
+    profile = load_profile(str(profile_path))
+    k = int(args.rate * 5)
+    rng = np.random.default_rng(0)
+    t = np.arange(k) / args.rate
+    wrench = rng.normal(0, 0.05, (k, len(names), 6))
+    wrench[:, :, 2] += 34.0
+    wrench[:, :, 3:] *= 0.02
+
+    channel = f"ati-rate-{time.time_ns()}" if args.bus == "virtual" else "239.74.163.2"
+    emulator_thread = None
+    process = None
+    if args.bus == "virtual":
+        import can
+
+        bus = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
+        emulator = CanEmulator(
+            FrameEncoder(can_config(profile), profile), t, wrench, bus, loop=True
+        )
+        emulator_thread = emulator.start()
+    else:
+        recording = tmp / "rec.npz"
+        write_recording(recording, Recording(t, wrench, names))
+        process = subprocess.Popen(
+            [sys.executable, "-m", "hapticdesk", "emulate", "--desk", str(profile_path),
+             "--recording", str(recording), "--bus", f"udp_multicast:{channel}", "--loop"]
+        )  # fmt: skip
+        time.sleep(1.5)  # its interpreter and imports
+    source = CanSource(f"can:{args.bus}:{channel}", profile, calibration_timeout_s=2.0)
+    got = []
+    start = time.monotonic()
+    try:
+        for block in source.blocks():
+            got.append(block.wrench)
+            if time.monotonic() - start > args.seconds:
+                break
+    finally:
+        source.close()
+        if emulator_thread is not None:
+            emulator.stop()
+            emulator_thread.join(2)
+            bus.shutdown()
+        if process is not None:
+            process.terminate()
+            process.wait(5)
+    wall = time.monotonic() - start
+    w = np.concatenate(got) if got else np.zeros((0, len(names), 6))
+    nan = np.isnan(w).any(axis=(1, 2))
+    print(
+        f"{args.boards} board(s) polled at {args.rate:g} Hz over {args.bus} for {wall:.1f} s: "
+        f"{len(w)} samples ({len(w) / wall:.0f}/s), {nan.mean() * 100 if len(w) else 0:.1f} % "
+        "with missing data"
+    )
+    for line in source.stats.summary():
+        print("  " + line)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

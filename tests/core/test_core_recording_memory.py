@@ -1,0 +1,68 @@
+"""Replaying a recording keeps memory flat whatever the file's size (issue 11 item 4).
+
+Each replay runs in a fresh interpreter so its peak resident size (``ru_maxrss``) is its own:
+replaying a file four times larger must not need more memory than a block's worth more.
+"""
+
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+NAMES = ["fl", "fr", "bl", "br"]
+HEADER = "t," + ",".join(f"{s}_{a}" for s in NAMES for a in ("fx", "fy", "fz", "mx", "my", "mz"))
+
+REPLAY = textwrap.dedent(
+    """
+    import resource, sys
+    from hapticdesk.files.profile import load_profile
+    from hapticdesk.plugins.replay import open_replay
+
+    source = open_replay(sys.argv[1], load_profile("kitamura2017"), speed=0)
+    samples = 0
+    with source:
+        for block in source.blocks():
+            samples += len(block.t)
+    print(samples, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)  # KiB on Linux
+    """
+)
+
+
+def write_csv(path, rows: int, chunk: int = 20_000) -> None:
+    rng = np.random.default_rng(0)
+    with path.open("w") as fh:
+        fh.write(HEADER + ",note\n")
+        for start in range(0, rows, chunk):
+            n = min(chunk, rows - start)
+            table = np.hstack([(start + np.arange(n))[:, None] / 1200.0, rng.normal(size=(n, 24))])
+            body = np.char.add(
+                np.array([",".join(f"{v:.6g}" for v in r) for r in table[:50]]), ",x"
+            )
+            # 50 distinct rows repeated, with their own times: fast to write, same to read
+            lines = np.resize(body, n)
+            times = np.char.mod("%.6f", table[:, 0])
+            tails = np.array([s.split(",", 1)[1] for s in lines])
+            fh.write("\n".join(np.char.add(np.char.add(times, ","), tails)) + "\n")
+
+
+def peak_kib(path) -> tuple[int, int]:
+    out = subprocess.run(
+        [sys.executable, "-c", REPLAY, str(path)], capture_output=True, text=True, check=True
+    )
+    samples, kib = out.stdout.split()
+    return int(samples), int(kib)
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="ru_maxrss in KiB is Linux's")
+def test_replay_memory_does_not_grow_with_the_file(tmp_path):
+    small, large = tmp_path / "small.csv", tmp_path / "large.csv"
+    write_csv(small, 100_000)  # ~17 MB
+    write_csv(large, 400_000)  # ~68 MB
+    n_small, kib_small = peak_kib(small)
+    n_large, kib_large = peak_kib(large)
+    assert (n_small, n_large) == (100_000, 400_000)
+    size_growth_mib = (large.stat().st_size - small.stat().st_size) / 2**20
+    # reading whole would grow by a few times the file's growth (~50 MB); blocks by ~nothing
+    assert (kib_large - kib_small) / 1024 < 0.2 * size_growth_mib, (kib_small, kib_large)

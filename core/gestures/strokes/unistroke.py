@@ -39,17 +39,12 @@ from hapticdesk.gestures.strokes.shapes import resample
 
 N_POINTS = 64
 START_POINTS = 32  # start points tried for closed templates
-ONE_D_RATIO = 0.3  # $N's threshold between 1-D and 2-D strokes
 
 
 def stroke_vector(points: np.ndarray, n: int = N_POINTS) -> np.ndarray | None:
-    """Protractor's vector: resampled, scaled to the unit box (2-D strokes only), centred,
-    flattened to (2n,) and of unit length. None when the stroke has no extent."""
+    """Protractor's vector: resampled, centred, flattened to (2n,) and of unit length (a
+    uniform scale: proportions are kept). None when the stroke has no extent."""
     p = resample(np.asarray(points, dtype=float), n)
-    lo, hi = p.min(axis=0), p.max(axis=0)
-    extent = hi - lo
-    if extent.min() > ONE_D_RATIO * extent.max():
-        p = (p - lo) / extent
     p = p - p.mean(axis=0)
     v = p.ravel()
     norm = float(np.linalg.norm(v))
@@ -132,10 +127,10 @@ class TemplateSet:
         combined = np.clip((position + direction) / 2, 0.0, 1.0)
         nearest: dict[str, int] = {}
         for i, name in enumerate(self._names):
-            if name not in nearest or position[i] > position[nearest[name]]:
+            if name not in nearest or combined[i] > combined[nearest[name]]:
                 nearest[name] = i
         scores = {name: float(combined[i]) for name, i in nearest.items()}
-        best = max(nearest, key=lambda name: position[nearest[name]])
+        best = max(scores, key=scores.__getitem__)
         score = scores[best]
         return Match(best if score >= min_score else None, score, best, scores)
 
@@ -154,8 +149,9 @@ def _directions(points: np.ndarray) -> np.ndarray:
     return d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-15)
 
 
-def builtin_templates() -> TemplateSet:
-    """The shipped templates (templates/*.json)."""
+def builtin_templates(expand: bool = True) -> TemplateSet:
+    """The shipped templates (templates/*.json); ``expand`` False adds each as drawn, without
+    the start points of closed shapes and the reversals of reversible ones."""
     out = TemplateSet()
     root = resources.files("hapticdesk.gestures.strokes").joinpath("templates")
     for entry in sorted(root.iterdir(), key=lambda p: p.name):
@@ -166,8 +162,8 @@ def builtin_templates() -> TemplateSet:
             out.add(
                 doc["shape"],
                 np.asarray(stroke),
-                doc.get("closed", False),
-                doc.get("reversible", False),
+                expand and doc.get("closed", False),
+                expand and doc.get("reversible", False),
             )
     return out
 

@@ -2,7 +2,8 @@
 
 Each sub-command lives in ``hapticdesk.commands.<name>`` with ``configure(parser)`` and
 ``run(args) -> int``; modules are imported only when their command runs, so ``hapticdesk
-contacts`` never imports paho, python-can or matplotlib.
+contacts`` never imports paho, python-can or matplotlib, and ``hapticdesk --help`` imports
+neither numpy, scipy nor yaml (it lists the commands from the table below, issue 15 item 7).
 """
 
 from __future__ import annotations
@@ -11,9 +12,20 @@ import argparse
 import importlib
 import importlib.util
 import logging
+import os
 import sys
 
-from hapticdesk.files.yamlfile import ConfigError
+# The BLAS libraries numpy and scipy load start a thread per core at import; on the estimator's
+# small matrix products those threads only spin (a replay took 3.0–3.8 s of CPU instead of
+# 1.9 s), so every command runs on one unless the user's environment says otherwise. Read by
+# the libraries when they load, so set before any command module imports numpy.
+BLAS_THREAD_VARIABLES = (
+    "OPENBLAS_NUM_THREADS",
+    "OMP_NUM_THREADS",
+    "MKL_NUM_THREADS",
+    "BLIS_NUM_THREADS",
+    "VECLIB_MAXIMUM_THREADS",
+)
 
 # name -> (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -50,14 +62,34 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, (module, text) in _available().items():
         p = sub.add_parser(name, help=text, description=text)
-        if only is None or only == name:
+        # Only the command that runs is configured: the list of commands needs no import.
+        if only == name:
             importlib.import_module(module).configure(p)
     return parser
+
+
+def load_blas_with_one_thread() -> None:
+    """Load numpy and scipy (each with its own BLAS) with one thread, unless the user's
+    environment says otherwise.
+
+    The variables are read when the library loads, so they are set just for that moment and
+    taken back: programs an ``exec`` action starts must not inherit them."""
+    added = [name for name in BLAS_THREAD_VARIABLES if name not in os.environ]
+    for name in added:
+        os.environ[name] = "1"
+    try:
+        import numpy  # noqa: F401  (each loads its own BLAS now, with the variables set)
+        import scipy.linalg  # noqa: F401
+    finally:
+        for name in added:
+            os.environ.pop(name, None)
 
 
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     command = next((a for a in argv if not a.startswith("-")), None)
+    if command in COMMANDS:
+        load_blas_with_one_thread()
     parser = build_parser(only=command if command in COMMANDS else None)
     args = parser.parse_args(argv)
     logging.basicConfig(
@@ -68,6 +100,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     module = importlib.import_module(COMMANDS[args.command][0])
+    # Imported here, not at the top: yaml is not needed to print the list of commands.
+    from hapticdesk.files.yamlfile import ConfigError
+
     try:
         return int(module.run(args) or 0)
     except ConfigError as err:

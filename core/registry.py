@@ -160,6 +160,7 @@ class Registry:
         self.manager.add_hookspecs(hookspecs)
         self.plugins: dict[str, PluginInfo] = {}
         self.warnings: list[str] = []
+        self.errors: list[str] = []  # conflicts no plugin can be blamed alone for
         self.sources: dict[str, SourceType] = {}
         self.actions: dict[str, ActionType] = {}
         self.recognizers: dict[str, RecognizerType] = {}
@@ -175,7 +176,7 @@ class Registry:
         e.g. for a hookimpl whose name or arguments match no hookspec.
         """
         if name in self.plugins:
-            self._fail(f"two plugins are called `{name}`; the second ({origin}) is skipped")
+            self._fail(f"two plugins are called `{name}` (the second: {origin})", "it is skipped")
             return False
         try:
             self.manager.register(plugin, name=name)
@@ -219,8 +220,9 @@ class Registry:
                 plugin = ep.load()
             except Exception as err:  # anything a third-party import can raise
                 self._fail(
-                    f"plugin `{ep.name}` ({origin}, {ep.value}) failed to load and is skipped: "
-                    f"{type(err).__name__}: {err}"
+                    f"plugin `{ep.name}` ({origin}, {ep.value}) failed to load: "
+                    f"{type(err).__name__}: {err}",
+                    "it is skipped",
                 )
                 continue
             self.add_plugin(plugin, ep.name, version=version, origin=origin)
@@ -229,7 +231,8 @@ class Registry:
         """Call the registration hooks of every plugin and build the name tables.
 
         A plugin whose hook raises is skipped with a warning (fatal under ``strict``); a name
-        registered twice raises :class:`PluginError` naming both plugins.
+        registered twice keeps the first and records an error naming both plugins in
+        :attr:`errors` (:func:`load_registry` raises it unless asked to list it).
         """
         for kind in KINDS:
             table: dict[str, Registered] = getattr(self, kind)
@@ -244,17 +247,19 @@ class Registry:
                     raise
                 except Exception as err:
                     self._fail(
-                        f"plugin `{impl.plugin_name}` failed in register_{kind} and its "
-                        f"{kind} are skipped: {type(err).__name__}: {err}"
+                        f"plugin `{impl.plugin_name}` failed in register_{kind}: "
+                        f"{type(err).__name__}: {err}",
+                        f"its {kind} are skipped",
                     )
                     continue
                 for record in found:
                     if record.name in table:
-                        raise PluginError(
+                        self.errors.append(
                             f"{kind[:-1]} `{record.name}` is registered by both plugin "
                             f"`{table[record.name].plugin}` and plugin `{record.plugin}`; "
                             "uninstall or disable one of them"
                         )
+                        continue
                     table[record.name] = record
                     self.plugins[impl.plugin_name].provides[kind].append(record.name)
 
@@ -308,7 +313,11 @@ class Registry:
 
     def validate_action(self, name: str, options: Any, position: Position | str) -> None:
         """Validate one action use of a layout (unknown name or bad options: ConfigError)."""
-        self.action(name, position).check(options, position)
+        from hapticdesk.runtime.isolation import split_isolation
+
+        # `isolation:` is for the runtime, not for the action's own options
+        own, _ = split_isolation(options, position)
+        self.action(name, position).check(own, position)
 
     def recognizer_types(self) -> dict[str, Any]:
         """Recognizer factories by name, imported now (only call when building an engine)."""
@@ -341,9 +350,12 @@ class Registry:
         # each implementation on its own)
         return impl.function(*[kwargs[name] for name in impl.argnames])
 
-    def _fail(self, message: str) -> None:
+    def _fail(self, message: str, consequence: str = "") -> None:
+        """A plugin problem: fatal under ``strict``, else a warning saying what is skipped."""
         if self.strict:
-            raise PluginError(message + " (--strict)")
+            raise PluginError(f"{message} (fatal because of --strict)")
+        if consequence:
+            message = f"{message}; {consequence}"
         log.warning("%s", message)
         self.warnings.append(message)
 
@@ -354,13 +366,16 @@ def load_registry(
     strict: bool = False,
     plugins: Iterable[tuple[str, object]] = (),
     defaults: bool = True,
+    conflicts_fatal: bool = True,
 ) -> Registry:
     """Build the registry: built-ins, then entry points, then ``plugins`` (name, object) pairs.
 
     ``entry_points`` None loads them unless the environment variable
     ``HAPTICDESK_DISABLE_PLUGIN_AUTOLOAD`` is set. Tests pass ``entry_points=False`` (or set
     the variable for the command line) so whatever is installed on the machine cannot change
-    their outcome, and add their own plugins through ``plugins``.
+    their outcome, and add their own plugins through ``plugins``. A name registered by two
+    plugins raises :class:`PluginError` unless ``conflicts_fatal`` is False (``hapticdesk
+    plugins`` lists it as an error instead).
     """
     if entry_points is None:
         entry_points = not os.environ.get(DISABLE_AUTOLOAD_ENV)
@@ -372,6 +387,8 @@ def load_registry(
     for name, plugin in plugins:
         registry.add_plugin(plugin, name, origin="given by the caller")
     registry.collect()
+    if registry.errors and conflicts_fatal:
+        raise PluginError(registry.errors[0])
     return registry
 
 

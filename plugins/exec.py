@@ -5,12 +5,17 @@
 Each argument is rendered on its own and passed as one argv item, so nothing a template
 renders can become shell syntax. A non-zero exit status or a timeout counts as a failure
 (with the end of the program's stderr in the log).
+
+The program runs in a session (and process group) of its own; at the timeout the whole group
+is killed, so ``sh -c "sleep 40 & sleep 100"`` leaves no orphan behind.
 """
 
 from __future__ import annotations
 
 import logging
+import os
 import shutil
+import signal
 import subprocess
 from dataclasses import dataclass
 from pathlib import Path
@@ -76,26 +81,49 @@ class ExecAction:
     def __call__(self, event: GestureEvent) -> None:
         variables = event_variables(event, self.desk)
         argv = [arg.render(variables) for arg in self.options.argv]
+        returncode, stderr = run_in_own_group(argv, self.cwd, self.options.timeout_s)
+        if returncode != 0:
+            tail = stderr.decode("utf-8", "replace").strip()[-300:]
+            raise ExecFailed(
+                f"{argv[0]} exited with status {returncode}" + (f": {tail}" if tail else "")
+            )
+
+
+def run_in_own_group(argv: list[str], cwd: Path | None, timeout_s: float) -> tuple[int, bytes]:
+    """Run ``argv`` in a new session; at ``timeout_s`` kill its whole process group.
+
+    Returns (exit status, stderr). ``subprocess.run``'s timeout kills only the direct child:
+    whatever it started in the background would live on as an orphan.
+    """
+    try:
+        process = subprocess.Popen(
+            argv,
+            cwd=cwd,
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            start_new_session=True,  # its own session and process group, with id process.pid
+        )
+    except OSError as err:
+        raise ExecFailed(f"cannot run {argv[0]}: {err.strerror or err}") from None
+    with process:
         try:
-            done = subprocess.run(
-                argv,
-                cwd=self.cwd,
-                stdin=subprocess.DEVNULL,
-                capture_output=True,
-                timeout=self.options.timeout_s,
-                check=False,
-            )
+            _, stderr = process.communicate(timeout=timeout_s)
         except subprocess.TimeoutExpired:
+            _kill_group(process.pid)
+            process.wait()
             raise ExecFailed(
-                f"{argv[0]} ran longer than {self.options.timeout_s:g} s and was killed"
+                f"{argv[0]} ran longer than {timeout_s:g} s and was killed "
+                "(with every process it started)"
             ) from None
-        except OSError as err:
-            raise ExecFailed(f"cannot run {argv[0]}: {err.strerror or err}") from None
-        if done.returncode != 0:
-            tail = done.stderr.decode("utf-8", "replace").strip()[-300:]
-            raise ExecFailed(
-                f"{argv[0]} exited with status {done.returncode}" + (f": {tail}" if tail else "")
-            )
+    return process.returncode, stderr
+
+
+def _kill_group(pgid: int) -> None:
+    try:
+        os.killpg(pgid, signal.SIGKILL)
+    except ProcessLookupError:  # everyone in it has ended meanwhile
+        pass
 
 
 @hookimpl

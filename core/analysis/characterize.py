@@ -126,12 +126,6 @@ class Characterization:
                 return item
         raise KeyError(channel)
 
-    def drift_of(self, channel: str) -> ChannelDrift:
-        for item in (*self.drift, *self.total_drift):
-            if item.channel == channel:
-                return item
-        raise KeyError(channel)
-
     def profile_values(self) -> dict[str, dict[str, float]]:
         """The measured values in the profile's terms (``desk:`` and ``estimation:``)."""
         desk: dict[str, float] = {}

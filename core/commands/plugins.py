@@ -17,13 +17,18 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    registry = load_registry(strict=args.strict)
+    # a name two plugins register is listed as an error here, not a stop: this is where one
+    # looks to find out which plugins clash
+    registry = load_registry(strict=args.strict, conflicts_fatal=False)
+    status = 1 if registry.errors else 0
     if args.json:
         for info in registry.plugins.values():
             print(json.dumps(info.to_dict()))
         for warning in registry.warnings:
             print(json.dumps({"warning": warning}))
-        return 0
+        for error in registry.errors:
+            print(json.dumps({"error": error}))
+        return status
     for info in registry.plugins.values():
         print(f"{info.name} {info.version} ({info.origin})")
         for kind in KINDS:
@@ -40,4 +45,6 @@ def run(args: argparse.Namespace) -> int:
         print(f"third-party plugins are not loaded: {DISABLE_AUTOLOAD_ENV} is set")
     for warning in registry.warnings:
         print(f"warning: {warning}")
-    return 0
+    for error in registry.errors:
+        print(f"error: {error}")
+    return status

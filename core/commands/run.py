@@ -5,15 +5,42 @@
 
 SIGINT (Ctrl-C) or SIGTERM stop it cleanly: queued commands get ``--drain`` seconds to go out
 and whatever did not is reported. A second signal stops at once.
+
+Exit status: 0 when every command was delivered, 3 when the run went through but some were
+not (an action failed, timed out or dropped events, or a broker refused the login or was away
+at the end; the last line says which), 1 on an error that stopped sensing, 2 on a bad layout
+or option.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 
 from hapticdesk.registry import load_registry
-from hapticdesk.runtime.service import Runtime, build_scene, report_json
+from hapticdesk.runtime.service import RunReport, Runtime, build_scene, report_json
+
+UNDELIVERED_EXIT = 3
+
+
+def seconds(text: str) -> float:
+    """An argparse type: a finite number of seconds, 0 or more."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected seconds (a number), found {text!r}") from None
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"expected a finite number of seconds >= 0, found {text}")
+    return value
+
+
+def positive_seconds(text: str) -> float:
+    """An argparse type: a finite number of seconds above 0."""
+    value = seconds(text)
+    if value == 0:
+        raise argparse.ArgumentTypeError("expected a number of seconds above 0, found 0")
+    return value
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -44,13 +71,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--action-timeout",
-        type=float,
+        type=positive_seconds,
         metavar="S",
         help="give up on an action call after S seconds (default: the action's own, else 5)",
     )
     parser.add_argument(
         "--drain",
-        type=float,
+        type=seconds,
         default=5.0,
         metavar="S",
         help="at the end, wait up to S seconds for queued commands (default 5)",
@@ -81,4 +108,19 @@ def run(args: argparse.Namespace) -> int:
         print(line, file=sys.stderr)
     if args.json:
         print(report_json(report))
-    return 1 if report.error else 0
+    if report.error:
+        return 1
+    problems = undelivered(report, scene.context.failures)
+    if problems:
+        print(f"error: not everything was delivered: {'; '.join(problems)}", file=sys.stderr)
+        return UNDELIVERED_EXIT
+    return 0
+
+
+def undelivered(report: RunReport, failures: list[str]) -> list[str]:
+    """What the run did not deliver: action calls that did not succeed, and what shared
+    connections (MQTT) reported when they closed."""
+    d = report.dispatch.totals
+    lost = d.failed + d.timed_out + d.dropped + d.not_run
+    calls = [f"{lost} action call(s) failed, timed out, were dropped or not run"] if lost else []
+    return calls + failures

@@ -107,11 +107,6 @@ def pack_pairs(x: np.ndarray) -> np.ndarray:
     return out
 
 
-def unpack_pairs(z: np.ndarray) -> np.ndarray:
-    """The inverse of :func:`pack_pairs`: (C, k) complex as (2C, k) real."""
-    return np.concatenate([z.real, z.imag])
-
-
 class DelayLine:
     """Remembers the last ``n`` samples of C channels to give x[i − n] for every new x[i].
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -161,6 +162,34 @@ class Intersection:
 
 VAR_CAP = 1e2  # m², stands for "unknown" so the arrays stay finite
 
+Candidate = tuple[int, float, float, float, float, float]  # surface, u, v, var_u, var_v, cov
+NO_CANDIDATE: Candidate = (-1, 0.0, 0.0, VAR_CAP, VAR_CAP, 0.0)
+PackedCov = tuple[float, float, float, float, float, float]  # zz, zx, zy, xx, xy, yy
+
+
+def with_drift(c: PackedCov, d: PackedCov, scale: Any) -> tuple[Any, ...]:
+    """The covariance ``c`` of (F'z, M'x, M'y) plus the zero's drift ``d`` times ``scale``
+    (its age², (n,) or one float); packed as by :func:`pack_cov`."""
+    return (
+        c[0] + d[0] * scale,
+        c[1] + d[1] * scale,
+        c[2] + d[2] * scale,
+        c[3] + d[3] * scale,
+        c[4] + d[4] * scale,
+        c[5] + d[5] * scale,
+    )
+
+
+def propagate(u: Any, v: Any, c: tuple[Any, ...], inv2: Any, extra_var: Any) -> tuple[Any, ...]:
+    """(var_u, var_v, cov_uv) of the point (u, v) for the covariance ``c`` of (F'z, M'x, M'y)
+    (packed) and 1/F'z² ``inv2``, before capping; arrays or plain floats. From
+    du = −(u dF'z + dM'y)/F'z, dv = −(v dF'z − dM'x)/F'z."""
+    cz, czx, czy, cx, cxy, cy = c
+    var_u = (u * u * cz + 2 * u * czy + cy) * inv2 + extra_var
+    var_v = (v * v * cz - 2 * v * czx + cx) * inv2 + extra_var
+    cov = (u * v * cz - u * czx + v * czy - cxy) * inv2
+    return var_u, var_v, cov
+
 
 def intersect(
     frames: list[SurfaceFrame],
@@ -191,63 +220,25 @@ def intersect(
     best: Intersection | None = None
     best_key = np.full(n if len(frames) > 1 else 0, -np.inf)  # (one surface: not needed)
     for index, frame in enumerate(frames):
-        local = frame.transform[2:5] @ wrench  # F'z, M'x, M'y
-        fz = local[0]
-        ok = fz * direction_sign > min_normal_cos * norm  # pressing into this surface
-        all_press = bool(ok.all())
-        safe_fz = fz if all_press else np.where(ok, fz, 1.0)
-        uv = np.empty((2, n))
-        u, v = uv
-        np.divide(local[2], safe_fz, out=u)  # paper eq. (5) in the surface's frame
-        np.negative(u, out=u)
-        np.divide(local[1], safe_fz, out=v)
-        ok &= frame.contains(u, v)
-        everywhere = all_press and bool(ok.all())  # the usual case: no masks needed below
-        if not everywhere:
-            not_ok = ~ok
-            u[not_ok] = 0.0  # (not needed, but no stray numbers where there is no point)
-            v[not_ok] = 0.0
+        cov = None
         if covs is not None:
-            c = covs[index]  # of F'z, M'x, M'y; with the zero's drift, each entry is (n,)
-            cz, czx, czy, cx, cxy, cy = (c[0, 0], c[0, 1], c[0, 2], c[1, 1], c[1, 2], c[2, 2])
-            if drift_covs is not None:
-                d = drift_covs[index]
-                cz, czx, czy = (
-                    cz + d[0, 0] * drift_scale,
-                    czx + d[0, 1] * drift_scale,
-                    czy + d[0, 2] * drift_scale,
-                )
-                cx, cxy, cy = (
-                    cx + d[1, 1] * drift_scale,
-                    cxy + d[1, 2] * drift_scale,
-                    cy + d[2, 2] * drift_scale,
-                )
-            inv2 = 1.0 / (safe_fz * safe_fz)
-            # du = −(u dF'z + dM'y)/F'z, dv = −(v dF'z − dM'x)/F'z
-            var_u = (u * u * cz + 2 * u * czy + cy) * inv2 + extra_var
-            var_v = (v * v * cz - 2 * v * czx + cx) * inv2 + extra_var
-            cov = (u * v * cz - u * czx + v * czy - cxy) * inv2
-            if everywhere:
-                np.minimum(var_u, VAR_CAP, out=var_u)
-                np.minimum(var_v, VAR_CAP, out=var_v)
-                np.clip(cov, -VAR_CAP, VAR_CAP, out=cov)
-            else:
-                var_u = np.where(ok, np.minimum(var_u, VAR_CAP), VAR_CAP)
-                var_v = np.where(ok, np.minimum(var_v, VAR_CAP), VAR_CAP)
-                cov = np.where(ok, np.clip(cov, -VAR_CAP, VAR_CAP), 0.0)
-        else:
-            var_u = np.where(ok, 0.0, VAR_CAP)
-            var_v = var_u.copy()
-            cov = np.zeros(n)
-        surface = (
-            np.full(n, index, np.int16) if everywhere else np.where(ok, index, -1).astype(np.int16)
+            cov = pack_cov(covs[index])
+            if drift_covs is not None:  # with the zero's drift, each entry is (n,)
+                cov = with_drift(cov, pack_cov(drift_covs[index]), drift_scale)
+        ok, surface, uv, inv2 = _on_surface(
+            frame, index, wrench, direction_sign, norm, min_normal_cos
         )
-        here = Intersection(ok, surface, uv, var_u, var_v, cov)
+        if cov is None:
+            var_u = np.where(ok, 0.0, VAR_CAP)
+            here = Intersection(ok, surface, uv, var_u, var_u.copy(), np.zeros(n))
+        else:
+            var_u, var_v, cov_uv = propagate(uv[0], uv[1], cov, inv2, extra_var)
+            here = _capped(ok, surface, uv, var_u, var_v, cov_uv)
         if len(frames) == 1:
             return here
-        point = frame.to_desk(u, v)
+        point = frame.to_desk(here.uv[0], here.uv[1])
         key = np.einsum("ik,ik->k", point, force) * direction_sign / np.where(norm > 0, norm, 1)
-        take = ok & (key > best_key)
+        take = here.valid & (key > best_key)
         best_key = np.where(take, key, best_key)
         if best is None:
             best = here
@@ -255,39 +246,88 @@ def intersect(
         best.valid |= take
         best.surface[take] = index
         best.uv[:, take] = here.uv[:, take]
-        best.var_uu[take] = var_u[take]
-        best.var_vv[take] = var_v[take]
-        best.cov_uv[take] = cov[take]
+        best.var_uu[take] = here.var_uu[take]
+        best.var_vv[take] = here.var_vv[take]
+        best.cov_uv[take] = here.cov_uv[take]
     if best is None:
         z = np.zeros(n)
         return Intersection(
-            np.zeros(n, bool),
-            np.full(n, -1, np.int16),
-            np.zeros((2, n)),
-            z + VAR_CAP,
-            z + VAR_CAP,
-            z,
-        )
+            np.zeros(n, bool), np.full(n, -1, np.int16), np.zeros((2, n)), z + VAR_CAP,
+            z + VAR_CAP, z,
+        )  # fmt: skip
     return best
+
+
+def _on_surface(
+    frame: SurfaceFrame,
+    index: int,
+    wrench: np.ndarray,
+    direction_sign: np.ndarray | float,
+    norm: np.ndarray,
+    min_cos: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Where the lines of action meet one surface: valid, surface index, (u, v) (2, n) and
+    1/F'z² for :func:`propagate`."""
+    n = wrench.shape[1]
+    local = frame.transform[2:5] @ wrench  # F'z, M'x, M'y
+    fz = local[0]
+    ok = fz * direction_sign > min_cos * norm  # pressing into this surface
+    all_press = bool(ok.all())
+    safe_fz = fz if all_press else np.where(ok, fz, 1.0)
+    uv = np.empty((2, n))
+    u, v = uv
+    np.divide(local[2], safe_fz, out=u)  # paper eq. (5) in the surface's frame
+    np.negative(u, out=u)
+    np.divide(local[1], safe_fz, out=v)
+    ok &= frame.contains(u, v)
+    everywhere = all_press and bool(ok.all())  # the usual case: no masks needed below
+    if not everywhere:
+        not_ok = ~ok
+        u[not_ok] = 0.0  # (not needed, but no stray numbers where there is no point)
+        v[not_ok] = 0.0
+    surface = (
+        np.full(n, index, np.int16) if everywhere else np.where(ok, index, -1).astype(np.int16)
+    )
+    return ok, surface, uv, 1.0 / (safe_fz * safe_fz)
+
+
+def _capped(
+    ok: np.ndarray,
+    surface: np.ndarray,
+    uv: np.ndarray,
+    var_u: np.ndarray,
+    var_v: np.ndarray,
+    cov: np.ndarray,
+) -> Intersection:
+    """The candidate with its variances capped, and cleared where there is no point."""
+    if bool(ok.all()):
+        np.minimum(var_u, VAR_CAP, out=var_u)
+        np.minimum(var_v, VAR_CAP, out=var_v)
+        np.clip(cov, -VAR_CAP, VAR_CAP, out=cov)
+    else:
+        var_u = np.where(ok, np.minimum(var_u, VAR_CAP), VAR_CAP)
+        var_v = np.where(ok, np.minimum(var_v, VAR_CAP), VAR_CAP)
+        cov = np.where(ok, np.clip(cov, -VAR_CAP, VAR_CAP), 0.0)
+    return Intersection(ok, surface, uv, var_u, var_v, cov)
 
 
 def intersect_one(
     frames: list[SurfaceFrame],
     wrench: list[float],
     direction_sign: float,
-    covs: list[tuple[float, float, float, float, float, float]] | None,
+    covs: list[PackedCov] | None,
     min_normal_cos: float,
     extra_var: float = 0.0,
-    drift_covs: list[tuple[float, float, float, float, float, float]] | None = None,
+    drift_covs: list[PackedCov] | None = None,
     drift_scale: float = 0.0,
-) -> tuple[int, float, float, float, float, float]:
+) -> Candidate:
     """:func:`intersect` for one sample on plain floats, where numpy's per-call cost would
     dominate (a single-sample push); covariances come packed (:func:`pack_cov`). Returns
-    (surface or −1, u, v, var_u, var_v, cov_uv). Kept equal to :func:`intersect` by the
-    estimator's single-sample test."""
+    (surface or −1, u, v, var_u, var_v, cov_uv); the covariance by the same
+    :func:`with_drift` and :func:`propagate`."""
     fx, fy, fz_, mx, my, mz = wrench
     norm = math.sqrt(fx * fx + fy * fy + fz_ * fz_)
-    best = (-1, 0.0, 0.0, VAR_CAP, VAR_CAP, 0.0)
+    best = NO_CANDIDATE
     best_key = -math.inf
     for index, frame in enumerate(frames):
         r = frame.rows
@@ -316,19 +356,10 @@ def intersect_one(
                 continue
             best_key = key
         if covs is not None:
-            cz, czx, czy, cx, cxy, cy = covs[index]
+            c: tuple[Any, ...] = covs[index]
             if drift_covs is not None:
-                dz, dzx, dzy, dx, dxy, dy = drift_covs[index]
-                cz, czx, czy = (
-                    cz + dz * drift_scale,
-                    czx + dzx * drift_scale,
-                    czy + dzy * drift_scale,
-                )
-                cx, cxy, cy = cx + dx * drift_scale, cxy + dxy * drift_scale, cy + dy * drift_scale
-            inv2 = 1.0 / (fz * fz)
-            var_u = (u * u * cz + 2 * u * czy + cy) * inv2 + extra_var
-            var_v = (v * v * cz - 2 * v * czx + cx) * inv2 + extra_var
-            cov = (u * v * cz - u * czx + v * czy - cxy) * inv2
+                c = with_drift(covs[index], drift_covs[index], drift_scale)
+            var_u, var_v, cov = propagate(u, v, c, 1.0 / (fz * fz), extra_var)
             var_u = min(var_u, VAR_CAP)
             var_v = min(var_v, VAR_CAP)
             cov = min(max(cov, -VAR_CAP), VAR_CAP)

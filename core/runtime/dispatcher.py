@@ -5,8 +5,9 @@ thread only matches bindings and puts events on lanes (never blocks), so a slow 
 delay sensing, and one action cannot delay another. Each call runs in its own ``try``; a
 watchdog gives up on a call that runs past its timeout, counts it, and starts a fresh worker
 for the lane (Python cannot kill the hung thread, it is left behind as a daemon; after
-:data:`MAX_ABANDONED` of them the lane is stopped and its events are dropped and counted).
-Events within one lane keep their order.
+:data:`MAX_ABANDONED` of them the lane pauses for :data:`PAUSE_S`, its events are dropped and
+counted meanwhile, and then it takes events again, which the log says). Events within one lane
+keep their order.
 """
 
 from __future__ import annotations
@@ -26,7 +27,8 @@ log = logging.getLogger(__name__)
 
 DEFAULT_TIMEOUT_S = 5.0
 DEFAULT_LANE_QUEUE = 256
-MAX_ABANDONED = 3  # hung calls per lane before the lane is given up
+MAX_ABANDONED = 3  # hung calls per lane before the lane pauses
+PAUSE_S = 30.0  # how long a lane that keeps hanging takes no events (a webhook server rebooting)
 _STOP = object()
 
 
@@ -67,6 +69,8 @@ class ActionContext:
         self.layout = layout
         self._resources: dict[str, Any] = {}
         self._lock = threading.Lock()
+        # what shared resources said went wrong when they closed (a run then exits non-zero)
+        self.failures: list[str] = []
 
     def resolve_path(self, path: str | Path) -> Path:
         """A path from the layout, relative to the layout file's folder."""
@@ -88,7 +92,8 @@ class ActionContext:
 
     def close_resources(self, timeout_s: float = 5.0) -> list[str]:
         """Close every shared resource (newest first) within ``timeout_s`` in total; returns
-        what each reported."""
+        what each reported. A resource's ``failure`` text after closing (e.g. commands it
+        could not deliver) is added to :attr:`failures`."""
         notes: list[str] = []
         deadline = time.monotonic() + timeout_s
         for key, resource in reversed(list(self._resources.items())):
@@ -103,6 +108,9 @@ class ActionContext:
                 continue
             if isinstance(result, str) and result:
                 notes.append(result)
+            failure = getattr(resource, "failure", None)  # e.g. commands not delivered
+            if isinstance(failure, str) and failure:
+                self.failures.append(failure)
         self._resources.clear()
         return notes
 
@@ -133,8 +141,10 @@ class Lane:
         *,
         timeout_s: float | None = None,
         queue_size: int = DEFAULT_LANE_QUEUE,
+        pause_s: float = PAUSE_S,
     ) -> None:
         self.label = label
+        self.pause_s = pause_s
         self.action = action
         own = getattr(action, "timeout_s", None)
         self.timeout_s = float(timeout_s or own or DEFAULT_TIMEOUT_S)
@@ -144,13 +154,16 @@ class Lane:
         self._busy_since: float | None = None
         self._generation = 0
         self._abandoned = 0
+        self._paused_until: float | None = None  # given up until then (monotonic time)
+        self.pauses = 0
         self._closed = False
         self._stopped = threading.Event()
         self._start_worker()
 
     @property
     def given_up(self) -> bool:
-        return self._abandoned > MAX_ABANDONED
+        """Paused after hanging too often (it takes events again after :attr:`pause_s`)."""
+        return self._paused_until is not None
 
     def submit(self, event: GestureEvent) -> bool:
         """Queue ``event`` without blocking; False (and counted) when it cannot be queued."""
@@ -176,24 +189,32 @@ class Lane:
             return True
 
     def check_timeout(self, now: float) -> None:
-        """Give up on a call running past the timeout (called by the watchdog)."""
+        """Give up on a call running past the timeout, and end a pause (called by the
+        watchdog)."""
         with self._lock:
+            if self._paused_until is not None:
+                if now >= self._paused_until and not self._closed:
+                    self._resume()
+                return
             if self._busy_since is None or now - self._busy_since <= self.timeout_s:
                 return
             self.stats.timed_out += 1
             self._busy_since = None
             self._generation += 1
             self._abandoned += 1
-            if self.given_up:
+            if self._abandoned > MAX_ABANDONED:
+                self.pauses += 1
+                self._paused_until = now + self.pause_s
                 log.error(
                     "%s: a call ran past its %.3g s timeout again (%d times); this action is "
-                    "given up for the rest of the run, its events are dropped",
+                    "paused for %.3g s, its events meanwhile are dropped",
                     self.label,
                     self.timeout_s,
                     self._abandoned,
+                    self.pause_s,
                 )
                 self.stats.dropped += self._drain()
-                self._stopped.set()  # no worker will take anything any more
+                self._stopped.set()  # no worker takes anything during the pause
                 return
             log.warning(
                 "%s: a call ran past its %.3g s timeout; it is left behind and the action "
@@ -222,9 +243,23 @@ class Lane:
             if self._busy_since is not None:  # still inside a call at the deadline
                 self.stats.timed_out += 1
                 self._generation += 1
-        self._close_action(max(0.5, deadline - time.monotonic()))
+        # the action's close gets what is left of the deadline, no more (--drain is a promise)
+        self._close_action(max(0.0, deadline - time.monotonic()))
 
     # --- internals ----------------------------------------------------------------------------
+
+    def _resume(self) -> None:
+        # under self._lock
+        log.warning(
+            "%s: taking events again after a pause of %.3g s (%d event(s) were dropped)",
+            self.label,
+            self.pause_s,
+            self.stats.dropped,
+        )
+        self._paused_until = None
+        self._abandoned = 0
+        self._stopped.clear()
+        self._start_worker()
 
     def _start_worker(self) -> None:
         threading.Thread(

@@ -33,6 +33,7 @@ from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.registry import Registry
 from hapticdesk.runtime.dispatcher import ActionContext, Dispatcher, DispatchReport, Lane, Route
+from hapticdesk.runtime.isolation import ProcessAction, split_isolation
 from hapticdesk.runtime.source import Source
 from hapticdesk.runtime.source_spec import open_source
 
@@ -155,9 +156,22 @@ def _add_actions(
         route = Route(label, binding.matches)
         names = [use.name for use in binding.actions]
         for k, use in enumerate(binding.actions):
+            lane = f"{label} → {use.name}" + (f" #{k + 1}" if names.count(use.name) > 1 else "")
             factory = registry.action(use.name, use.position).load()
+            options, isolation = split_isolation(use.options, use.position)
             try:
-                action = factory(use.options, context)
+                if isolation is None:
+                    action = factory(options, context)
+                else:  # `isolation: process`: built and called in a child process
+                    action = ProcessAction(
+                        lane,
+                        registry.actions[use.name].factory,
+                        options,
+                        desk=context.desk,
+                        layout_path=context.layout_path,
+                        settings=context.settings,
+                        isolation=isolation,
+                    )
             except ConfigError:
                 raise
             except Exception as err:  # a plugin failing to build its action
@@ -166,7 +180,6 @@ def _add_actions(
                     f"action `{use.name}` (plugin `{registry.actions[use.name].plugin}`) could "
                     f"not be set up: {type(err).__name__}: {err}",
                 ) from err
-            lane = f"{label} → {use.name}" + (f" #{k + 1}" if names.count(use.name) > 1 else "")
             route.lanes.append(Lane(lane, action, timeout_s=timeout_s))
         dispatcher.add_route(route)
     from hapticdesk.plugins.mqtt import DeskPublisher, uses_mqtt

@@ -19,8 +19,13 @@ there. Delivery is tracked by message id in ``on_publish``:
 - When the queue is full the **oldest** command is dropped (and counted and logged): after a
   long outage the latest commands are the ones that still say what the person wants now.
 
-The connection retries with back-off (1 s doubling to 30 s). The password never appears in
-``repr`` or the log.
+While the broker cannot be reached the connection is tried again every
+:data:`RECONNECT_MAX_S` at most (a local attempt costs a refused SYN), so a broker that comes
+back is used within a second; publishing does not shorten or lengthen that wait. A broker that
+*refuses the login* (bad user name or password, not authorised) is not retried: that is a
+configuration error, said once, and every command is reported as not delivered.
+Announcements (availability, discovery) are coalesced by topic and bounded, so a chatty
+``homeassistant/status`` cannot grow them. The password never appears in ``repr`` or the log.
 """
 
 from __future__ import annotations
@@ -51,7 +56,11 @@ log = logging.getLogger(__name__)
 
 DEFAULT_QUEUE_SIZE = 1000
 WINDOW = 20  # commands in flight at once (paho's default maximum)
-RECONNECT_MIN_S, RECONNECT_MAX_S = 1, 30
+# retry a lost broker quickly: the issue's 30 s back-off left a returned broker unused
+RECONNECT_MIN_S, RECONNECT_MAX_S = 0.1, 0.5
+CONTROL_LIMIT = 1000  # announcements waiting at most (they are coalesced by topic first)
+# CONNACK reason codes of a refused login: MQTT 3.1.1 return codes 4 and 5, MQTT 5 134 and 135
+LOGIN_REFUSED = {4, 5, 134, 135}
 _MQTT_KEYS = {
     "broker",
     "username",
@@ -141,8 +150,15 @@ def settings_from_layout(
     url = str(m.get("broker", "mqtt://localhost:1883"))
     tls, host, port, username = parse_broker_url(url, m.where("broker"))
     if url_override is not None:
+        layout_tls = tls or "tls" in m
         tls, host, port, url_user = parse_broker_url(url_override, "--mqtt")
         username = url_user or username
+        if layout_tls and not tls:  # never downgrade: the password would go in plaintext
+            raise ConfigError(
+                "--mqtt",
+                f"{url_override!r} is plain MQTT but the layout's `mqtt:` ({_where_text(m)}) "
+                "uses TLS; give an mqtts:// URL (the layout's `tls:` files are kept)",
+            )
     if "username" in m:
         if not isinstance(m["username"], str):
             raise ConfigError(m.where("username"), "`username` of `mqtt` must be text")
@@ -157,7 +173,7 @@ def settings_from_layout(
             raise ConfigError(
                 t.where(), "`tls` needs both `cert` and `key` for a client certificate"
             )
-        tls = True if url_override is None else tls
+        tls = True
     client_id = str(m.get("client_id", f"hapticdesk-{desk}"))
     if not client_id or len(client_id) > 128:
         raise ConfigError(m.where("client_id"), "`client_id` must be 1 to 128 characters")
@@ -188,6 +204,11 @@ def settings_from_layout(
         base_topic=str(m.get("base_topic", "hapticdesk")).strip("/"),
         queue_size=int(number(m, "queue_size", "`mqtt`", default=DEFAULT_QUEUE_SIZE, minimum=1)),
     )
+
+
+def _where_text(m: MarkedDict) -> str:
+    position = getattr(m, "position", None)
+    return str(position) if position is not None else "the layout"
 
 
 def qos_of(m: MarkedDict, what: str, default: int) -> int:
@@ -306,6 +327,7 @@ class MqttLink:
         self._closing = False
         self._ever_connected = threading.Event()
         self._outage_logged = False
+        self.refused: str | None = None  # why the broker refused the login, if it did
         self._client = self._new_client(clean_session=False)
         self._client.on_connect = self._on_connect
         self._client.on_disconnect = self._on_disconnect
@@ -360,6 +382,16 @@ class MqttLink:
     def connected(self) -> bool:
         return self._connected
 
+    @property
+    def failure(self) -> str | None:
+        """After :meth:`close`: why commands were not delivered (None when all were)."""
+        s = self.stats
+        if self.refused is not None:
+            return f"{self.settings.url} refused the login ({self.refused})"
+        if s.pending or s.dropped:
+            return f"{s.pending + s.dropped} MQTT command(s) not delivered to {self.settings.url}"
+        return None
+
     def flush(self, timeout: float) -> bool:
         """Wait until every queued command is acknowledged; False after ``timeout``."""
         deadline = time.monotonic() + timeout
@@ -373,27 +405,30 @@ class MqttLink:
 
     def close(self, timeout: float = 5.0) -> str:
         """Deliver what is queued (up to ``timeout``), say goodbye, disconnect; a report line."""
-        if not self._sender.is_alive():
+        deadline = time.monotonic() + timeout
+        if self._closing or (not self._sender.is_alive() and self.refused is None):
             return ""
-        flushed = self.flush(timeout)
+        flushed = self.refused is None and self.flush(timeout)
         if self._will is not None and self._connected:
             with self._cond:
                 self._control.append(self._will)
                 self._cond.notify_all()
-            self.flush(1.0)
+            self.flush(min(1.0, max(0.0, deadline - time.monotonic())))
         with self._cond:
             self._closing = True
             lost = [m for m in list(self._inflight.values()) + list(self._queue) if m.command]
             self.stats.pending = len(lost)
             self._cond.notify_all()
-        self._sender.join(2.0)
+        self._sender.join(max(0.1, min(2.0, deadline - time.monotonic())))
         self._client.disconnect()  # a clean disconnect: the broker does not send the will
         self._client.loop_stop()
         s = self.stats
         line = f"MQTT {self.settings.url}: {s.delivered} of {s.queued} messages delivered" + (
             f", {s.dropped} dropped from the full queue" if s.dropped else ""
         )
-        if not flushed and lost:
+        if self.refused is not None:
+            line += f", {len(lost)} NOT delivered: the broker refused the login ({self.refused})"
+        elif not flushed and lost:
             shown = "; ".join(
                 f"{m.topic} {m.payload[:60].decode('utf-8', 'replace')}" for m in lost[:5]
             )
@@ -406,6 +441,10 @@ class MqttLink:
 
     def _on_connect(self, client: Any, userdata: Any, flags: Any, reason: Any, props: Any) -> None:
         if reason.is_failure:  # paho retries with back-off; say it once per outage
+            if _login_refused(reason):
+                self._refuse(str(reason))
+                client.disconnect()  # no retry: the same credentials will be refused again
+                return
             if not self._outage_logged:
                 log.error("MQTT: %s refused the connection: %s", self.settings.url, reason)
                 self._outage_logged = True
@@ -415,8 +454,7 @@ class MqttLink:
         with self._cond:
             self._connected = True
             self._resuming = bool(self._inflight)
-            self._control.extend(self._birth)
-            self._cond.notify_all()
+            self._announce(self._birth)
         if self._outage_logged:
             log.warning("MQTT: connected to %s again", self.settings.url)
             self._outage_logged = False
@@ -462,8 +500,36 @@ class MqttLink:
     def _on_message(self, client: Any, userdata: Any, message: Any) -> None:
         if self._birth_again_on and message.payload == self._birth_again_on[1]:
             with self._cond:
-                self._control.extend(self._birth)
-                self._cond.notify_all()
+                self._announce(self._birth)
+
+    def _announce(self, messages: Sequence[Message]) -> None:
+        """Queue announcements (under ``self._cond``): one per topic, the newest, bounded."""
+        topics = {m.topic for m in messages}
+        kept = [m for m in self._control if m.topic not in topics]
+        kept.extend(messages)
+        if len(kept) > CONTROL_LIMIT:
+            log.warning(
+                "MQTT: %d announcements waiting; the oldest %d are dropped",
+                len(kept),
+                len(kept) - CONTROL_LIMIT,
+            )
+            kept = kept[-CONTROL_LIMIT:]
+        self._control = deque(kept)
+        self._cond.notify_all()
+
+    def _refuse(self, reason: str) -> None:
+        """The broker refused the login: say it once, stop trying, keep nothing waiting."""
+        if self.refused is None:
+            log.error(
+                "MQTT: %s refused the login (%s); check `username` and the password "
+                "(`password_env`/`password_file`) of the layout's `mqtt:`; MQTT commands are "
+                "not delivered in this run",
+                self.settings.url,
+                reason,
+            )
+        with self._cond:
+            self.refused = reason  # commands still queue (bounded); close() reports them
+            self._cond.notify_all()
 
     # --- the sender thread --------------------------------------------------------------------
 
@@ -525,11 +591,14 @@ class MqttLink:
 
     def _clean_start(self) -> bool:
         """Connect once with a clean session (see the module docstring), retrying with back-off."""
-        delay = 0.5
+        delay = RECONNECT_MIN_S
         while True:
             error = self._try_clean_connect()
             if error is None:
                 return True
+            if isinstance(error, _Refused):
+                self._refuse(error.reason)
+                return False
             if not self._outage_logged:
                 log.warning(
                     "MQTT: cannot connect to %s (%s); commands are kept (up to %d) and sent "
@@ -539,13 +608,17 @@ class MqttLink:
                     self.settings.queue_size,
                 )
                 self._outage_logged = True
+            # wait the whole delay: a publish also notifies the condition, and must neither
+            # shorten this wait nor (as it did) make the back-off climb to its maximum
+            retry_at = time.monotonic() + delay
             with self._cond:
-                self._cond.wait(delay)
+                while not self._closing and time.monotonic() < retry_at:
+                    self._cond.wait(retry_at - time.monotonic())
                 if self._closing:
                     return False
             delay = min(delay * 2, RECONNECT_MAX_S)
 
-    def _try_clean_connect(self) -> str | None:
+    def _try_clean_connect(self) -> str | _Refused | None:
         client = self._new_client(clean_session=True, with_will=False)
         answered = threading.Event()
         outcome: list[Any] = []
@@ -572,6 +645,8 @@ class MqttLink:
             if isinstance(outcome[0], str):
                 return outcome[0]
             if outcome[0].is_failure:
+                if _login_refused(outcome[0]):
+                    return _Refused(str(outcome[0]))
                 return f"refused: {outcome[0]}"
             return None
         finally:
@@ -600,3 +675,14 @@ class MqttLink:
             w = self._will
             client.will_set(w.topic, w.payload, qos=w.qos, retain=w.retain)
         return client
+
+
+@dataclass(frozen=True)
+class _Refused:
+    """The broker refused the login (not worth retrying)."""
+
+    reason: str
+
+
+def _login_refused(reason: Any) -> bool:
+    return getattr(reason, "value", reason) in LOGIN_REFUSED

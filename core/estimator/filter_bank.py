@@ -1,0 +1,116 @@
+"""Stage 2, the filters on the resultant wrench, restarted after a gap.
+
+The conventional second-order low-pass; the pseudo-differentiated wrench (paper eq. 8: an
+n-sample difference, then the low-pass); and a fast (30 Hz) low-pass for touch-down and
+release detection, with its slope over a short window (the touch phase). Wrenches are
+filtered packed, force + 1j·moment (:func:`filters.pack_pairs`): three complex lanes cost
+about what three real ones do.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from hapticdesk.estimator.contacts import FLAG_GAP
+from hapticdesk.estimator.filters import DelayLine, SosFilter, pack_pairs
+from hapticdesk.estimator.notices import Notice, add_notice
+from hapticdesk.estimator.settings import EstimatorSettings
+
+Filtered = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+
+class FilterState:
+    """The filters' memories (SOS states and delay rings), made from the first sample."""
+
+    def __init__(self, settings: EstimatorSettings) -> None:
+        self.lp = SosFilter(settings.lp_sos, 3)
+        self.diff_lp = None if settings.shared_lp else SosFilter(settings.diff_sos, 3)
+        self.delay = DelayLine(settings.n_diff, 3)
+        # the fast wrench: the force for detection (real); the whole wrench (packed) for
+        # `fused`'s third candidate
+        self.det = SosFilter(settings.det_sos, 3)
+        self.det_delay = DelayLine(settings.n_rate, 3)
+
+
+class FilterBank:
+    """Low-passed wrench, fast force (or wrench), differentiated wrench and the fast slope."""
+
+    def __init__(self, settings: EstimatorSettings, notices: list[Notice]) -> None:
+        self.settings = settings
+        self.notices = notices
+        self.state = FilterState(settings)
+
+    def process(self, t: np.ndarray, raw: np.ndarray, flags: np.ndarray, started: bool) -> Filtered:
+        """``lp``, ``det``, ``diff``, ``det_slope`` for the wrench ``raw`` (6, k): wrenches
+        packed (3, k) complex, force + 1j·moment (``det`` real (3, k) unless ``det_full``).
+        ``started``: a good sample has been seen (before it, nothing is filtered)."""
+        if not started:
+            z = np.zeros((3, raw.shape[1]), complex)
+            det = z.copy() if self.settings.det_full else np.zeros((3, raw.shape[1]))
+            return z, det, z.copy(), np.zeros((3, raw.shape[1]))
+        gaps = flags & FLAG_GAP
+        if not gaps.any():
+            return self._segment(raw)
+        starts = np.flatnonzero(gaps).tolist()
+        bounds = [0, *starts, raw.shape[1]]
+        parts = []
+        for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+            if b <= a:
+                continue
+            if a in starts:
+                self.restart(raw[:, a])
+                add_notice(
+                    self.notices,
+                    float(t[a]),
+                    "gap",
+                    "gap in sample times: filters restarted",
+                    logging.WARNING,
+                )
+            parts.append(self._segment(raw[:, a:b]))
+        lp, det, diff, slope = (np.concatenate(p, axis=1) for p in zip(*parts, strict=True))
+        return lp, det, diff, slope
+
+    def process_one(self, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, list]:
+        """:meth:`process` for one sample (6,) with a shared low-pass, on (3, 1) lanes:
+        ``lp`` (3,) packed, ``det`` (3,) (packed if ``det_full``), ``diff`` (3,) packed and
+        the slope as a list."""
+        st, s = self.state, self.settings
+        packed = (raw[:3] + 1j * raw[3:])[:, None]
+        det = st.det.process(packed if s.det_full else raw[:3, None])[:, 0]
+        det_slope = (st.det_delay.step(det.real if s.det_full else det) * s.rate_scale).tolist()
+        lp = st.lp.process(packed, in_place=True)[:, 0]
+        diff = st.delay.step(lp) * s.diff_scale  # paper eq. (8)
+        return lp, det, diff, det_slope
+
+    def restart(self, x0: np.ndarray) -> None:
+        """Every filter as if ``x0`` had been the input forever (after a gap)."""
+        st = self.state
+        packed = x0[:3] + 1j * x0[3:]
+        st.lp.restart(packed)
+        st.det.restart(packed if self.settings.det_full else x0[:3])
+        st.det_delay.restart(x0[:3])
+        st.delay.restart(packed)
+        if st.diff_lp is not None:
+            st.diff_lp.restart(np.zeros(3, complex))
+
+    def _segment(self, raw: np.ndarray) -> Filtered:
+        """The filters over a stretch without a gap."""
+        st, s = self.state, self.settings
+        packed = pack_pairs(raw)  # force + 1j·moment
+        det = st.det.process(packed if s.det_full else raw[:3])
+        det_slope = st.det_delay.difference(det.real if s.det_full else det)
+        det_slope *= s.rate_scale
+        if st.diff_lp is None:
+            lp = st.lp.process(packed, in_place=True)
+            diff = st.delay.difference(lp)  # paper eq. (8)
+            diff *= s.diff_scale
+        else:
+            if st.diff_lp.zi is None:
+                st.diff_lp.restart(np.zeros(3, complex))
+            raw_diff = st.delay.difference(packed)
+            raw_diff *= s.diff_scale
+            diff = st.diff_lp.process(raw_diff, in_place=True)
+            lp = st.lp.process(packed, in_place=True)
+        return lp, det, diff, det_slope

@@ -1,0 +1,125 @@
+"""The estimator's settings: everything fixed for one desk, derived once from its profile.
+
+The user's :class:`EstimationSettings` (thresholds, cut-offs, durations) become what the
+stages compute with: the wrench map, the channels' ratings, the surfaces prepared for
+intersection, the filters' second-order sections and noise gains, window lengths in samples.
+Frozen, apart from every stage's state (STYLE.md 7, 13).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from hapticdesk.estimator.filters import butter_lowpass_sos, group_delay_s, noise_gain
+from hapticdesk.estimator.geometry import SurfaceFrame
+from hapticdesk.files.profile import DeskProfile, EstimationSettings
+
+WINDOW_S = 0.2  # tare and stillness are judged on windows of this length
+RATE_WINDOW_S = 0.05  # slope of the fast force for the touch/hold/release phase
+UNRATED_LIMIT = 1e12  # a channel without a rating counts as saturated beyond this
+
+
+@dataclass(frozen=True, eq=False)
+class EstimatorSettings:
+    """One desk's fixed quantities for every stage (see the module docstring)."""
+
+    user: EstimationSettings  # the profile's settings, with the chosen method
+    method: str
+    trace: bool  # keep every candidate (CandidateTrace): all three are computed
+    sample_rate_hz: float
+    n_sensors: int
+    wrench_map: np.ndarray  # (6, 6S): paper eqs. (1)–(4)
+    range_flat: np.ndarray  # (6S,) each channel's rating
+    inv_range2: np.ndarray  # (6S,) 1 / rating²
+    frames: list[SurfaceFrame]
+    normals: np.ndarray  # (n_surfaces, 3)
+    normals_list: list[list[float]]
+    lp_sos: np.ndarray  # the conventional low-pass
+    diff_sos: np.ndarray  # the differentiated wrench's low-pass
+    det_sos: np.ndarray  # the fast (detection) low-pass
+    n_diff: int  # samples of the pseudo-differentiation, paper eq. (8)
+    diff_scale: float  # 1 / (n·T_s)
+    shared_lp: bool  # both low-passes equal: the difference of the low-passed wrench suffices
+    gain_lp: float  # white-noise variance gains of the filters
+    gain_diff: float
+    gain_det: float
+    position_delay_s: float
+    n_rate: int  # samples of the fast force's slope
+    rate_scale: float
+    window: int  # samples per tare/stillness window
+    n_tare: int  # windows of a tare
+    n_settle: int  # windows a still load is held before it joins the zero
+    n_drift: int  # windows an idle desk rests before its drift is followed
+    det_full: bool  # the fast low-pass filters the whole wrench (`fused`, trace), not the force
+
+    @classmethod
+    def of(cls, profile: DeskProfile, user: EstimationSettings, trace: bool) -> EstimatorSettings:
+        """Derive the settings for ``profile`` and the (method-resolved) ``user`` settings."""
+        s = user
+        fs = profile.sample_rate_hz
+        limits = profile.saturation_limits()
+        if limits is None:
+            limits = np.full((len(profile.sensors), 6), np.inf)
+        # an unrated channel counts as rated at UNRATED_LIMIT, so that no finite reading
+        # can overflow the resultant wrench (and put infinity into the filters)
+        range_flat = np.where(np.isfinite(limits), limits, UNRATED_LIMIT).reshape(-1)
+        normals = (
+            np.array([surf.normal for surf in profile.surfaces])
+            if profile.surfaces
+            else np.zeros((0, 3))
+        )
+        lp_sos = butter_lowpass_sos(s.force_lowpass_hz, fs)
+        diff_sos = butter_lowpass_sos(s.diff_lowpass_hz, fs)
+        det_sos = butter_lowpass_sos(min(s.detect_lowpass_hz, 0.45 * fs), fs)
+        n_diff = max(1, round(s.diff_window_s * fs))
+        diff_scale = 1.0 / (n_diff / fs)
+        fir = np.zeros(n_diff + 1)
+        fir[0], fir[-1] = diff_scale, -diff_scale
+        long = int(8 * fs / min(s.force_lowpass_hz, s.diff_lowpass_hz)) + n_diff
+        n_rate = max(1, round(RATE_WINDOW_S * fs))
+        window = max(1, round(WINDOW_S * fs))
+
+        def windows(seconds: float) -> int:
+            return max(1, math.ceil(seconds / (window / fs) - 1e-9))
+
+        return cls(
+            user=s,
+            method=s.method,
+            trace=trace,
+            sample_rate_hz=fs,
+            n_sensors=len(profile.sensors),
+            wrench_map=np.ascontiguousarray(profile.wrench_map()),
+            range_flat=range_flat,
+            inv_range2=1.0 / range_flat**2,
+            frames=[SurfaceFrame.of(surf) for surf in profile.surfaces],
+            normals=normals,
+            normals_list=normals.tolist(),
+            lp_sos=lp_sos,
+            diff_sos=diff_sos,
+            det_sos=det_sos,
+            n_diff=n_diff,
+            diff_scale=diff_scale,
+            # a difference commutes with an LTI filter: when both low-passes are equal, the
+            # differentiated wrench is the difference of the low-passed one
+            shared_lp=bool(np.allclose(lp_sos, diff_sos)),
+            gain_lp=noise_gain(lp_sos, length=long),
+            gain_diff=noise_gain(diff_sos, fir, length=long),
+            gain_det=noise_gain(det_sos, length=long),
+            # how far the located points run behind a moving finger: the force low-pass's
+            # delay (the gesture engine carries a swipe's end on by it)
+            position_delay_s=group_delay_s(lp_sos, fs, long),
+            n_rate=n_rate,
+            rate_scale=fs / n_rate,
+            window=window,
+            n_tare=windows(s.tare_s),
+            n_settle=windows(s.settle_s),
+            n_drift=windows(s.drift_settle_s),
+            det_full=s.method == "fused" or trace,
+        )
+
+    def up(self) -> np.ndarray:
+        """The first surface's normal (the desk's up), or +z."""
+        return self.normals[0] if len(self.normals) else np.array([0.0, 0.0, 1.0])

@@ -1,0 +1,285 @@
+"""Stage 3, the zero: tare, drift and objects.
+
+An automatic tare over the first ``tare_s`` of a quiet desk (refused with a notice and
+retried while the desk is not quiet); the zero then follows sensor drift whenever the idle
+desk rests for ``drift_settle_s``, and a load held perfectly still for ``settle_s`` (an
+object put down) becomes part of it, with a notice. The desk is judged on windows of
+``WINDOW_S``; a zero decided at the end of a window applies from the next sample on, whatever
+the block boundaries, so streaming equals batch.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+
+import numpy as np
+
+from hapticdesk.estimator.contacts import FLAG_GAP
+from hapticdesk.estimator.notices import Notice, add_notice, log
+from hapticdesk.estimator.samples import BAD_SAMPLE
+from hapticdesk.estimator.settings import EstimatorSettings
+
+ZeroSegments = tuple[np.ndarray, np.ndarray]  # starts (n,), zeros (7, n): [F; M] and set time
+
+
+class ZeroState:
+    """The current zero, the unfinished window and the tare / stillness state machine."""
+
+    def __init__(self, window: int) -> None:
+        self.zero: np.ndarray | None = None  # (6,), None before the tare
+        self.zero_list: list[float] = []  # the same as plain floats
+        self.zero_t = 0.0  # when the zero was last set, for the drift since then
+        self.segment: ZeroSegments = (np.zeros(1, int), np.full((7, 1), np.nan))
+        self.noise: np.ndarray | None = None  # (6, 6) measured at the tare
+        self.win_lp = np.zeros((3, window))  # the current, unfinished window
+        self.win_raw = np.zeros((6, window))
+        self.win_bad = np.zeros(window, bool)
+        self.win_fill = 0
+        self.last_window_t = float("nan")
+        self.tare_raw: list[np.ndarray] = []
+        self.tare_means: list[list[float]] = []
+        self.windows_seen = 0
+        self.still_run = 0
+        self.still_lo: list[float] = [0.0, 0.0, 0.0]
+        self.still_hi: list[float] = [0.0, 0.0, 0.0]
+        self.still_means: list[list[float]] = []
+
+    def column(self) -> list[float]:
+        """The zero (6,) and the time it was set, as one column; NaN before the tare."""
+        if self.zero is None:
+            return [math.nan] * 7
+        return [*self.zero_list, self.zero_t]
+
+    def set_zero(self, zero: np.ndarray | list[float], t: float) -> None:
+        self.zero_list = [float(z) for z in zero]
+        self.zero = np.array(self.zero_list)
+        self.zero_t = t
+        self.segment = (np.zeros(1, int), np.array(self.column())[:, None])
+
+
+class ZeroStage:
+    """The zero for each sample, from the low-passed force and the raw wrench."""
+
+    def __init__(self, settings: EstimatorSettings, notices: list[Notice]) -> None:
+        self.settings = settings
+        self.notices = notices
+        self.state = ZeroState(settings.window)
+
+    def ends_window_next(self) -> bool:
+        """One more sample ends the current window (:meth:`process_one` cannot take it)."""
+        return self.state.win_fill + 1 >= self.settings.window
+
+    def process_one(self, t: float, lp_force: np.ndarray, raw: np.ndarray) -> None:
+        """:meth:`process` for one good sample that does not end a window: only remembered."""
+        st = self.state
+        m = st.win_fill
+        st.win_lp[:, m] = lp_force
+        st.win_raw[:, m] = raw
+        st.win_bad[m] = False
+        st.win_fill = m + 1
+        st.last_window_t = t
+
+    def process(
+        self, t: np.ndarray, lp_force: np.ndarray, raw: np.ndarray, flags: np.ndarray
+    ) -> ZeroSegments:
+        """The zero in force for each sample, as segments: ``starts`` (n,) sample indices
+        where a zero takes effect and ``zeros`` (7, n), [F; M] and the time it was set (NaN
+        before the tare)."""
+        st, w = self.state, self.settings.window
+        m, k = st.win_fill, len(t)
+        bad = (flags & (BAD_SAMPLE | FLAG_GAP)) != 0
+        if m + k < w:  # the block ends inside the current window: only remember it
+            st.win_lp[:, m : m + k] = lp_force
+            st.win_raw[:, m : m + k] = raw
+            st.win_bad[m : m + k] = bad
+            st.win_fill = m + k
+            st.last_window_t = float(t[-1])
+            return st.segment
+        if m:
+            all_lp = np.concatenate([st.win_lp[:, :m], lp_force], axis=1)
+            all_raw = np.concatenate([st.win_raw[:, :m], raw], axis=1)
+            all_bad = np.concatenate([st.win_bad[:m], bad])
+        else:  # windows start with the block: no copies
+            all_lp, all_raw, all_bad = lp_force, raw, bad
+        n_full = all_lp.shape[1] // w
+        starts, zeros = [0], [st.column()]
+        if n_full:
+            self._windows(t, all_lp, all_raw, all_bad, n_full, starts, zeros)
+            cut = n_full * w
+            rest = all_lp.shape[1] - cut
+            st.win_lp[:, :rest] = all_lp[:, cut:]
+            st.win_raw[:, :rest] = all_raw[:, cut:]
+            st.win_bad[:rest] = all_bad[cut:]
+            st.win_fill = rest
+        st.last_window_t = float(t[-1])
+        return np.array(starts), np.array(zeros).T
+
+    def _windows(
+        self,
+        t: np.ndarray,
+        all_lp: np.ndarray,
+        all_raw: np.ndarray,
+        all_bad: np.ndarray,
+        n_full: int,
+        starts: list[int],
+        zeros: list[list[float]],
+    ) -> None:
+        """Judge the ``n_full`` complete windows; append where a new zero takes effect."""
+        st, w = self.state, self.settings.window
+        m = st.win_fill
+        cut = n_full * w
+        lp_w = all_lp[:, :cut].reshape(3, n_full, w)
+        spread: list[float] = (lp_w.max(axis=2) - lp_w.min(axis=2)).max(axis=0).tolist()
+        means = all_raw[:, :cut].reshape(6, n_full, w).mean(axis=2)
+        # a window is unusable for the zero when more than a tenth of it was held over
+        bad_share = all_bad[:cut].reshape(n_full, w).mean(axis=1)
+        any_bad = (bad_share > 0.1).tolist()
+        ends = np.arange(1, n_full + 1) * w - 1 - m  # block index of each window's end
+        t_end = np.where(ends >= 0, t[np.maximum(ends, 0)], st.last_window_t).tolist()
+        mean_rows = means.T.tolist()
+        # Once tared, a window that is not still only ends a still run: the loop (over
+        # 0.2 s windows, not samples) visits the still ones and notes the breaks.
+        still_n = self.settings.user.still_n
+        still = [not b and sp < still_n for b, sp in zip(any_bad, spread, strict=True)]
+        previous = -1
+        for j in range(n_full):
+            if st.zero is not None and not still[j]:
+                continue
+            if st.zero is not None and j != previous + 1:
+                st.still_run = 0  # windows in between were not still
+            previous = j
+            before = st.zero
+            self._window_done(
+                spread[j], any_bad[j], mean_rows[j], all_raw[:, j * w : (j + 1) * w], t_end[j]
+            )
+            if st.zero is not before:
+                starts.append(int(ends[j]) + 1)
+                zeros.append(st.column())
+        if previous != n_full - 1:
+            st.still_run = 0  # the block ended on windows that were not still
+
+    def _window_done(
+        self, spread: float, bad: bool, mean: list[float], raw: np.ndarray, t_end: float
+    ) -> None:
+        """Advance the tare / stillness state machine by one window (plain floats: it is hot)."""
+        st, s = self.state, self.settings.user
+        st.windows_seen += 1
+        if st.zero is None:
+            self._tare_window(spread, bad, mean, raw, t_end)
+            return
+        if bad or spread >= s.still_n:  # (only before the tare: see _windows)
+            st.still_run = 0
+            return
+        z = st.zero_list
+        f = (mean[0] - z[0], mean[1] - z[1], mean[2] - z[2])
+        if st.still_run:
+            lo = [min(a, b) for a, b in zip(st.still_lo, f, strict=True)]
+            hi = [max(a, b) for a, b in zip(st.still_hi, f, strict=True)]
+            if max(b - a for a, b in zip(lo, hi, strict=True)) >= s.still_n:
+                st.still_run = 0  # the load moved: a new still run starts here
+        if st.still_run == 0:
+            lo, hi = list(f), list(f)
+            st.still_means = []
+        st.still_lo, st.still_hi = lo, hi
+        st.still_run += 1
+        st.still_means.append(mean)
+        load = math.sqrt(f[0] ** 2 + f[1] ** 2 + f[2] ** 2)
+        if load < s.drift_max_n and s.drift_settle_s > 0:
+            self._follow_drift(load, t_end)
+            return
+        if st.still_run % self.settings.n_settle:
+            return
+        st.set_zero(mean, t_end)
+        st.still_run = 0
+        self._absorbed(f, load, t_end)
+
+    def _follow_drift(self, load: float, t_end: float) -> None:
+        """An idle, still desk: what is left is sensor drift; follow it (often, so a drifting
+        zero never builds up between touches)."""
+        st, n_drift = self.state, self.settings.n_drift
+        if st.still_run >= n_drift:
+            recent = st.still_means[-n_drift:]
+            columns = zip(*recent, strict=True)
+            st.set_zero([math.fsum(c) / len(recent) for c in columns], t_end)
+            st.still_run = 0
+            log.debug("t=%.3f s: zero drift of %.3f N followed", t_end, load)
+
+    def _absorbed(self, f: tuple[float, float, float], load: float, t_end: float) -> None:
+        """Tell what became part of the zero: an object, or a small drift."""
+        s = self.settings.user
+        if load >= s.contact_force_n:
+            up = self.settings.up()
+            sign = "put on" if f[0] * up[0] + f[1] * up[1] + f[2] * up[2] >= 0 else "taken off"
+            add_notice(
+                self.notices,
+                t_end,
+                "absorbed",
+                f"a still load of {load:.1f} N (an object {sign} the desk?) held for "
+                f"{s.settle_s:g} s became part of the zero",
+            )
+        else:
+            add_notice(
+                self.notices,
+                t_end,
+                "drift",
+                f"a still load of {load:.2f} N became part of the zero",
+            )
+
+    def _tare_window(
+        self, spread: float, bad: bool, mean: list[float], raw: np.ndarray, t_end: float
+    ) -> None:
+        """Before the tare: collect quiet windows; tare over ``tare_s`` of them."""
+        st, s, n_tare = self.state, self.settings.user, self.settings.n_tare
+        if not bad and spread < s.tare_quiet_n:
+            st.tare_raw.append(raw)
+            st.tare_means.append(mean[:3])
+            if len(st.tare_raw) > n_tare:
+                st.tare_raw.pop(0)
+                st.tare_means.pop(0)
+            if np.ptp(np.array(st.tare_means), axis=0).max() >= s.tare_quiet_n:
+                # each window was quiet, but the load moved between them: start again here
+                st.tare_raw, st.tare_means = [raw], [mean[:3]]
+        else:
+            st.tare_raw, st.tare_means = [], []
+        if len(st.tare_raw) >= n_tare:
+            samples = np.concatenate(st.tare_raw, axis=1)
+            st.set_zero(samples.mean(axis=1), t_end)
+            st.noise = np.atleast_2d(np.cov(samples))
+            st.tare_raw, st.tare_means = [], []
+            add_notice(self.notices, t_end, "tare", f"tared over {s.tare_s:g} s of a quiet desk")
+        elif st.windows_seen % n_tare == 0:
+            add_notice(
+                self.notices,
+                t_end,
+                "tare_refused",
+                f"tare refused: the desk was not quiet in the {s.tare_s:g} s before "
+                f"t = {t_end:.2f} s (is someone touching or leaning on it?); retrying",
+                logging.WARNING,
+            )
+
+
+def subtract_zero(
+    t: np.ndarray, det: np.ndarray, lp: np.ndarray, segments: ZeroSegments, det_full: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The zero taken off the fast wrench (a new array) and the low-passed one (in place),
+    segment by segment (it is piecewise constant). Returns the tared fast wrench, the age of
+    the zero at each sample (s) and where a zero was known."""
+    starts, zeros = segments
+    k = len(t)
+    ends = [*starts[1:].tolist(), k]
+    tared_zero = ~np.isnan(zeros[0])
+    fast = det.copy()
+    packed_zeros = zeros[:3] + 1j * zeros[3:6]
+    fast_zeros = packed_zeros if det_full else zeros[:3]
+    tared = np.ones(k, bool)
+    age = np.empty(k)  # time since the zero in force was set
+    for a, b, j in zip(starts.tolist(), ends, range(len(ends)), strict=True):
+        if tared_zero[j]:
+            fast[:, a:b] -= fast_zeros[:, j : j + 1]
+            lp[:, a:b] -= packed_zeros[:, j : j + 1]
+            age[a:b] = t[a:b] - zeros[6, j]
+        else:
+            tared[a:b] = False
+            age[a:b] = 0.0
+    return fast, age, tared

@@ -77,37 +77,52 @@ def drawings(rng: np.random.Generator, per_shape: int, with_others: bool, style:
     return [items[i] for i in order]
 
 
-def trace_on_desk(items, seed: int) -> list[np.ndarray]:
-    """Simulate the strokes one after the other, estimate, capture: one path per stroke."""
+def simulate_strokes(items, seed: int):
+    """Simulate the strokes (label, path, speed[, times]) one after the other on the paper's
+    desk and estimate: (desk, recording, contacts)."""
     from hapticdesk.estimator import estimate
     from hapticdesk.files.profile import load_profile
-    from hapticdesk.gestures.strokes.capture import StrokeCapture
     from hapticdesk.sim import Idle, Scene, Stroke, simulate
 
     desk = load_profile("kitamura2017")
     rng = np.random.default_rng(seed)
     actions: list = []
-    for i, (_, path, speed) in enumerate(items):
+    for i, (_, path, speed, *timed) in enumerate(items):
         if i and i % 20 == 0:
             actions.append(Idle(duration_s=6.0))  # people pause; the zero follows the drift
         centre = rng.uniform([-0.15, -0.08], [0.15, 0.08])
-        actions.append(Stroke(path=tuple(map(tuple, path + centre)), speed=speed, wait_s=0.8))
+        times = tuple(timed[0]) if timed and timed[0] is not None else None
+        actions.append(
+            Stroke(path=tuple(map(tuple, path + centre)), speed=speed, wait_s=0.8, times=times)
+        )
     rec = simulate(desk, Scene(actions=actions, seed=seed))
+    return desk, rec, estimate(desk, rec)
+
+
+def capture_strokes(desk, rec, contacts, count: int) -> list[np.ndarray | None]:
+    """The captured path of each of ``count`` simulated strokes (None: not captured)."""
+    from hapticdesk.gestures.strokes.capture import StrokeCapture
+
     capture = StrokeCapture(desk, min_size=0.02)
-    strokes = capture.feed(estimate(desk, rec)) + capture.flush(float(rec.t[-1]))
+    strokes = capture.feed(contacts) + capture.flush(float(rec.t[-1]))
     # each captured stroke belongs to the drawn stroke whose true contact holds its middle;
     # a drawn stroke the desk did not capture counts as rejected (None)
     touching = np.nan_to_num(rec.extra["true_fn"]) > 0
     edges = np.diff(touching.astype(np.int8), prepend=0, append=0)
     starts = np.flatnonzero(edges == 1)
-    if len(starts) != len(items):
-        raise SystemExit(f"the simulator drew {len(starts)} strokes for {len(items)} asked")
-    paths: list[np.ndarray | None] = [None] * len(items)
+    if len(starts) != count:
+        raise SystemExit(f"the simulator drew {len(starts)} strokes for {count} asked")
+    paths: list[np.ndarray | None] = [None] * count
     for s in strokes:
         i = int(np.searchsorted(rec.t[starts], float(np.median(s.t)))) - 1
-        if 0 <= i < len(items) and paths[i] is None:
+        if 0 <= i < count and paths[i] is None:
             paths[i] = s.points
     return paths
+
+
+def trace_on_desk(items, seed: int) -> list[np.ndarray | None]:
+    """Simulate the strokes one after the other, estimate, capture: one path per stroke."""
+    return capture_strokes(*simulate_strokes(items, seed), len(items))
 
 
 def trace_synthetic(items, seed: int) -> list[np.ndarray]:
@@ -231,8 +246,8 @@ def run_real(folder: str, live: bool, plot: str | None) -> None:
 
     def judge(name, templates, te, known, baseline_t, baseline_labels, subject_of):
         top1 = protractor_top1(baseline_t, baseline_labels, base[te])
-        for i, b in zip(te, top1, strict=True):
-            m = templates.classify(paths[i], 0.0, MAX_ROTATION)
+        matches = templates.classify_many([paths[i] for i in te], 0.0, MAX_ROTATION)
+        for i, b, m in zip(te, top1, matches, strict=True):
             rows.append(
                 (
                     name,
@@ -335,6 +350,91 @@ def run_real(folder: str, live: bool, plot: str | None) -> None:
         _plot_threshold(rows, plot)
 
 
+HUMAN_SIZE_M = (0.07, 0.10)  # a logged stroke is scaled so its larger side is this long
+
+
+def human_speed_items(folder: str, test_reps: int, seed: int):
+    """The $1 logs as desk strokes at their real timing: (enrolment items, test items), each
+    (label, path in metres centred on 0, None, times) with the label "subject/speed/shape/rep";
+    repetitions 1-3 of each person, speed and shape are enrolled (`strokes record`), the next
+    ``test_reps`` are tested."""
+    from hapticdesk.gestures.strokes.dollar_logs import read_logs
+
+    rng = np.random.default_rng(seed)
+    enrol, test = [], []
+    for s in read_logs(folder):
+        if s.repetition > 3 + test_reps:
+            continue
+        p = s.points - (s.points.min(axis=0) + s.points.max(axis=0)) / 2
+        p = p * (rng.uniform(*HUMAN_SIZE_M) / max(float(np.ptp(p, axis=0).max()), 1e-9))
+        item = (f"{s.subject}/{s.speed}/{s.shape}/{s.repetition}", p, None, s.t)
+        (enrol if s.repetition <= 3 else test).append(item)
+    return enrol, test
+
+
+def _path_speed(path: np.ndarray, t: np.ndarray) -> float:
+    return float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum() / max(t[-1], 1e-9))
+
+
+def run_human_speed(folder: str, test_reps: int, seed: int) -> None:
+    """Real strokes at their real speed on the simulated desk: built-in, 1 and 3 own
+    templates captured on the desk the same way, per speed."""
+    started = time.perf_counter()
+    enrol, test = human_speed_items(folder, test_reps, seed)
+    if not test:
+        raise SystemExit(f"no $1 logs (*.xml) under {folder}")
+    paths: list[np.ndarray | None] = []
+    items = enrol + test
+    chunk = 200  # strokes a simulated session: bounds the memory of one recording
+    for lo in range(0, len(items), chunk):
+        paths += trace_on_desk(items[lo : lo + chunk], seed + lo)
+    captured = {lab: p for (lab, *_), p in zip(items, paths, strict=True)}
+    builtin = template_set()
+    own: dict[tuple[str, str, int], TemplateSet] = {}
+    for lab, *_ in enrol:
+        subject, speed, shape, rep = lab.split("/")
+        for count in (1, 3):
+            if int(rep) <= count and captured[lab] is not None:
+                own.setdefault((subject, speed, count), TemplateSet()).add(shape, captured[lab])
+    rows: dict[tuple[str, str], list[str]] = {}
+    speeds: dict[str, list[float]] = {}
+    for lab, path, _, t in test:
+        subject, speed, shape, _ = lab.split("/")
+        speeds.setdefault(speed, []).append(_path_speed(path, t))
+        got = captured[lab]
+        for name, templates in (
+            ("built-in", builtin),
+            ("1 own template a shape", own.get((subject, speed, 1))),
+            ("3 own templates a shape", own.get((subject, speed, 3))),
+        ):
+            verdict = "rejected"
+            if got is not None and templates is not None:
+                found = templates.classify(got, MIN_SCORE, MAX_ROTATION).shape
+                verdict = "rejected" if found is None else "right" if found == shape else "wrong"
+            rows.setdefault((name, speed), []).append(verdict)
+            rows.setdefault((name, "all"), []).append(verdict)
+    print(
+        f"Real strokes at their real speed on the simulated kitamura2017 desk: the $1 logs "
+        f"({len(test)} test strokes, {len(enrol)} enrolment strokes captured the same way), "
+        f"scaled to {HUMAN_SIZE_M[0] * 100:g}–{HUMAN_SIZE_M[1] * 100:g} cm, traced with their "
+        f"logged times; min_score {MIN_SCORE}, max_rotation_deg {MAX_ROTATION:g} "
+        f"(`python scripts/stroke_accuracy.py --human-speed {folder} --reps {test_reps}`, "
+        f"{time.perf_counter() - started:.0f} s)\n"
+    )
+    print("| templates | speed (median, 10–90 %) | right | rejected | wrong |")
+    print("|---|---|---:|---:|---:|")
+    for (name, speed), verdicts in rows.items():
+        v = speeds.get(speed, sum(speeds.values(), []))
+        lo, mid, hi = np.percentile(v, [10, 50, 90])
+        n = len(verdicts)
+        print(
+            f"| {name} | {speed} ({mid:.2f}, {lo:.2f}–{hi:.2f} m/s) | "
+            f"{100 * verdicts.count('right') / n:.1f} % | "
+            f"{100 * verdicts.count('rejected') / n:.1f} % | "
+            f"{100 * verdicts.count('wrong') / n:.1f} % |"
+        )
+
+
 def _builtin_paths() -> list[tuple[str, np.ndarray]]:
     """The shipped templates as drawn: (shape, points)."""
     import json
@@ -391,7 +491,14 @@ def main() -> None:
     parser.add_argument("--dollar", metavar="DIR", help="real people: the $1 XML logs under DIR")
     parser.add_argument("--live", action="store_true", help="with --dollar: replay as live")
     parser.add_argument("--plot", metavar="PNG", help="with --dollar: right vs min_score")
+    parser.add_argument(
+        "--human-speed", metavar="DIR", help="$1 logs under DIR at real speed, on the desk"
+    )
+    parser.add_argument("--reps", type=int, default=3, help="with --human-speed: test strokes")
     args = parser.parse_args()
+    if args.human_speed:
+        run_human_speed(args.human_speed, args.reps, args.seed)
+        return
     if args.dollar:
         run_real(args.dollar, args.live, args.plot)
         return

@@ -60,6 +60,7 @@ from hapticdesk.gestures.regions import (
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 TOP_KEYS = frozenset(
     {"desk", "units", "regions", "bindings", "settings", "templates", "description"}
+    | {"builtin_templates"}
     | {"mqtt", "desk_name"}  # kept raw for the MQTT action plugin
 )
 REGION_KINDS = ("rect", "circle", "polygon")
@@ -136,6 +137,8 @@ class Layout:
     templates: dict[str, list[np.ndarray]]
     raw: MarkedDict
     warnings: list[str] = field(default_factory=list)
+    #: whether strokes are matched against the shipped templates too (`builtin_templates:`)
+    builtin_templates: bool = True
 
     @classmethod
     def from_yaml(cls, path: str | Path, **kwargs: Any) -> Layout:
@@ -223,9 +226,10 @@ class _LayoutReader:
         regions = self._regions(desk)
         settings = self._settings()
         templates = self._templates()
+        builtin = self._builtin_templates(bool(templates))
         bindings, explicit = self._bindings(regions)
         region_options = self._resolve(bindings, explicit, settings)
-        shapes = builtin_shape_names() | set(templates)
+        shapes = (builtin_shape_names() if builtin else set()) | set(templates)
         for b in bindings:
             self._check_binding(b, shapes)
         self._check_overlaps(bindings, regions)
@@ -241,6 +245,7 @@ class _LayoutReader:
             templates=templates,
             raw=doc,
             warnings=self.warnings,
+            builtin_templates=builtin,
         )
 
     def _desk(self) -> DeskProfile:
@@ -459,6 +464,16 @@ class _LayoutReader:
                 )
             out[shape] = self._template_items(raw[shape], raw.where(shape), shape, base)
         return out
+
+    def _builtin_templates(self, has_user_templates: bool) -> bool:
+        """`builtin_templates: false` leaves only the layout's own templates."""
+        value = self.doc.get("builtin_templates", True)
+        where = self.doc.where("builtin_templates")
+        if not isinstance(value, bool):
+            raise ConfigError(where, f"`builtin_templates` is true or false, found {value!r}")
+        if not value and not has_user_templates:
+            raise ConfigError(where, "`builtin_templates: false` needs shapes under `templates:`")
+        return value
 
     def _template_items(
         self, value: Any, where: Position, shape: str, base: Path

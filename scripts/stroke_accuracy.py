@@ -423,7 +423,9 @@ def run_human_speed(folder: str, test_reps: int, seed: int) -> None:
     )
     print("| templates | speed (median, 10–90 %) | right | rejected | wrong |")
     print("|---|---|---:|---:|---:|")
-    for (name, speed), verdicts in rows.items():
+    order = {speed: k for k, speed in enumerate((*SPEEDS, "all"))}
+    for name, speed in sorted(rows, key=lambda key: (key[0] != "built-in", key[0], order[key[1]])):
+        verdicts = rows[(name, speed)]
         v = speeds.get(speed, sum(speeds.values(), []))
         lo, mid, hi = np.percentile(v, [10, 50, 90])
         n = len(verdicts)

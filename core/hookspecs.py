@@ -1,9 +1,9 @@
 """The hooks a hapticdesk plugin can implement.
 
 A plugin is a module (or any object) with functions marked ``@hookimpl``. Built-in plugins
-(``hapticdesk.plugins.*``) and third-party ones (the ``hapticdesk`` entry-point group) use the
-same hooks. A hookimpl may take fewer arguments than its spec, so specs can grow without
-breaking plugins::
+(:data:`~hapticdesk.registry.DEFAULT_PLUGINS`) and third-party ones (the ``hapticdesk``
+entry-point group) use the same hooks. A hookimpl may take fewer arguments than its spec, so
+specs can grow without breaking plugins::
 
     from hapticdesk.hookspecs import hookimpl
 
@@ -93,4 +93,48 @@ def shutdown(desk: Any, layout: Any, report: Any) -> None:
     the :class:`~hapticdesk.files.profile.DeskProfile`, ``layout`` the loaded layout, ``report``
     the :class:`~hapticdesk.runtime.service.RunReport` (samples, gestures, action counts, commands
     not delivered). An exception here is logged with the plugin's name.
+    """
+
+
+@hookspec
+def register_layout_sections(register: Any) -> None:
+    """Register top-level layout sections a plugin owns (e.g. the MQTT plugin's ``mqtt:``).
+
+    Called once while the registry is built, with ``register`` the callback to call as
+    ``register(name, validate, description="")``. The layout accepts a top-level key only when
+    it is the core's own or a plugin claimed it, and hands a claimed section, as written, to
+    ``validate(value, position, layout_path)`` while it loads (so ``hapticdesk check`` and
+    ``run`` refuse the same sections): ``value`` is the section (a
+    :class:`~hapticdesk.files.yamlfile.MarkedDict` for a mapping, with positions),
+    ``position`` where it stands, ``layout_path`` the layout file (paths in the section are
+    relative to its folder). Raise :class:`~hapticdesk.files.yamlfile.ConfigError` naming
+    ``file:line:column``. ``validate`` may be a lazy ``"module:attr"`` string.
+    """
+
+
+@hookspec
+def register_commands(register: Any) -> None:
+    """Register ``hapticdesk`` sub-commands (e.g. ``demo``, which needs the MQTT plugin).
+
+    Called once while the registry is built, with ``register`` the callback to call as
+    ``register(name, module, description="")``, where ``module`` is a module (or its dotted
+    name, imported only when the command runs) with ``configure(parser)`` and
+    ``run(args) -> int``, like the core's own commands. A name the core already uses is an
+    error.
+    """
+
+
+@hookspec
+def event_sink(desk: Any, layout: Any, context: Any) -> Any:
+    """A run is being built: return a callable to receive every gesture event, or None.
+
+    Called once per ``hapticdesk run`` or ``demo`` after the layout is loaded and the actions
+    are built, before anything senses. ``desk`` is the
+    :class:`~hapticdesk.files.profile.DeskProfile`, ``layout`` the loaded layout, ``context``
+    the run's :class:`~hapticdesk.runtime.dispatcher.ActionContext` (its ``desk_name``,
+    shared resources and command-line ``overrides``). The returned callable takes one
+    :class:`~hapticdesk.gestures.event.GestureEvent` and runs in its own dispatcher lane
+    (off the sensing thread, with ``timeout_s`` and ``close()`` as for actions); the MQTT
+    plugin publishes the desk's own topics from here. A
+    :class:`~hapticdesk.files.yamlfile.ConfigError` raised here stops the run before it starts.
     """

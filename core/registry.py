@@ -1,4 +1,5 @@
-"""The plugin registry: which sources, actions and recognizers exist, and which plugin gave each.
+"""The plugin registry: which sources, actions, recognizers, layout sections and commands exist,
+and which plugin gave each.
 
 Built-in plugins (:data:`DEFAULT_PLUGINS`) and third-party ones (entry-point group
 ``hapticdesk``) go through the same hooks (:mod:`hapticdesk.hookspecs`). Each entry point is
@@ -18,6 +19,7 @@ import logging
 import os
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from types import ModuleType
 from typing import Any
 
 import pluggy
@@ -30,9 +32,12 @@ log = logging.getLogger(__name__)
 ENTRY_POINT_GROUP = "hapticdesk"
 #: set to 1 to load no third-party plugins (tests; like PYTEST_DISABLE_PLUGIN_AUTOLOAD)
 DISABLE_AUTOLOAD_ENV = "HAPTICDESK_DISABLE_PLUGIN_AUTOLOAD"
+#: comma-separated plugin names never to load, e.g. a built-in a third-party plugin replaces
+BLOCK_ENV = "HAPTICDESK_BLOCK_PLUGINS"
 
 #: built-in plugins, registered exactly like third-party ones
 DEFAULT_PLUGINS: tuple[str, ...] = (
+    "hapticdesk.plugins.recognizers",
     "hapticdesk.plugins.sim",
     "hapticdesk.plugins.replay",
     "hapticdesk.plugins.can",
@@ -42,7 +47,7 @@ DEFAULT_PLUGINS: tuple[str, ...] = (
     "hapticdesk.plugins.mqtt",
 )
 
-KINDS = ("sources", "actions", "recognizers")
+KINDS = ("sources", "actions", "recognizers", "layout_sections", "commands")
 
 
 class PluginError(ConfigError):
@@ -124,9 +129,32 @@ class RecognizerType(Registered):
     """A gesture recognizer the gesture engine can build."""
 
 
+@dataclass(frozen=True)
+class SectionType(Registered):
+    """A top-level layout section a plugin owns: ``factory`` is its validator."""
+
+    def check(self, value: Any, position: Position | str, layout_path: Any) -> None:
+        """Run the plugin's validation of the section; a crash is reported as the plugin's."""
+        validator = self.load()
+        try:
+            validator(value, position, layout_path)
+        except ConfigError:
+            raise
+        except Exception as err:  # a bug in the plugin, not the user's layout
+            raise PluginError(
+                f"{position}: plugin `{self.plugin}` crashed validating section `{self.name}`: "
+                f"{type(err).__name__}: {err}"
+            ) from err
+
+
+@dataclass(frozen=True)
+class CommandType(Registered):
+    """A ``hapticdesk`` sub-command: ``factory`` is a module with ``configure`` and ``run``."""
+
+
 @dataclass
 class PluginInfo:
-    """What ``hapticdesk plugins`` shows for one plugin."""
+    """What the ``plugins`` command shows for one plugin."""
 
     name: str
     version: str
@@ -148,6 +176,8 @@ _RECORD_TYPES: dict[str, type[Registered]] = {
     "sources": SourceType,
     "actions": ActionType,
     "recognizers": RecognizerType,
+    "layout_sections": SectionType,
+    "commands": CommandType,
 }
 
 
@@ -164,8 +194,14 @@ class Registry:
         self.sources: dict[str, SourceType] = {}
         self.actions: dict[str, ActionType] = {}
         self.recognizers: dict[str, RecognizerType] = {}
+        self.layout_sections: dict[str, SectionType] = {}
+        self.commands: dict[str, CommandType] = {}
 
     # --- loading ------------------------------------------------------------------------------
+
+    def block(self, name: str) -> None:
+        """Never load the plugin called ``name`` (e.g. a built-in a third party replaces)."""
+        self.manager.set_blocked(name)
 
     def add_plugin(
         self, plugin: object, name: str, *, version: str = __version__, origin: str = "built-in"
@@ -175,6 +211,8 @@ class Registry:
         Returns False (after a warning, or raises under ``strict``) when pluggy rejects it,
         e.g. for a hookimpl whose name or arguments match no hookspec.
         """
+        if self.manager.is_blocked(name):
+            return False
         if name in self.plugins:
             self._fail(f"two plugins are called `{name}` (the second: {origin})", "it is skipped")
             return False
@@ -200,6 +238,8 @@ class Registry:
     def load_default_plugins(self) -> None:
         """Import and register every module in :data:`DEFAULT_PLUGINS`."""
         for dotted in DEFAULT_PLUGINS:
+            if self.manager.is_blocked(dotted):
+                continue
             try:
                 module = importlib.import_module(dotted)
             except Exception as err:  # a broken install; say which module
@@ -254,8 +294,9 @@ class Registry:
                     continue
                 for record in found:
                     if record.name in table:
+                        what = kind[:-1].replace("_", " ")
                         self.errors.append(
-                            f"{kind[:-1]} `{record.name}` is registered by both plugin "
+                            f"{what} `{record.name}` is registered by both plugin "
                             f"`{table[record.name].plugin}` and plugin `{record.plugin}`; "
                             "uninstall or disable one of them"
                         )
@@ -267,7 +308,7 @@ class Registry:
     def _registrar(kind: str, plugin: str, found: list[Registered]) -> Any:
         """The ``register`` callback one plugin's registration hook receives."""
         record_type = _RECORD_TYPES[kind]
-        what = kind[:-1]
+        what = kind[:-1].replace("_", " ")
 
         def register(name: str, factory: Any, description: str = "", **extra: Any) -> None:
             if not isinstance(name, str) or not name.isidentifier():
@@ -275,7 +316,8 @@ class Registry:
                     f"plugin `{plugin}` registered {what} name {name!r}; "
                     "names must be identifiers (letters, digits, _)"
                 )
-            if factory is None or not (callable(factory) or isinstance(factory, str)):
+            loadable = callable(factory) or isinstance(factory, str | ModuleType)
+            if factory is None or not loadable:
                 raise PluginError(
                     f"plugin `{plugin}` registered {what} `{name}` with factory {factory!r}; "
                     "expected a callable or a 'module:attr' string"
@@ -319,9 +361,35 @@ class Registry:
         own, _ = split_isolation(options, position)
         self.action(name, position).check(own, position)
 
-    def recognizer_types(self) -> dict[str, Any]:
-        """Recognizer factories by name, imported now (only call when building an engine)."""
-        return {name: rec.load() for name, rec in self.recognizers.items()}
+    def recognizer_types(self) -> dict[str, RecognizerType]:
+        """Recognizers by gesture name, not imported: the gesture engine and the layout load
+        only the ones a layout uses (:meth:`Registered.load`)."""
+        return dict(self.recognizers)
+
+    def validate_section(self, name: str, value: Any, position: Position, layout_path: Any) -> None:
+        """Hand a layout's top-level section to the plugin that claimed it (ConfigError if bad)."""
+        self.layout_sections[name].check(value, position, layout_path)
+
+    def event_sinks(self, **kwargs: Any) -> list[tuple[str, Any]]:
+        """(plugin name, callable) for every plugin whose ``event_sink`` hook returns one.
+
+        A :class:`ConfigError` from a plugin stops the run (its section or flag is wrong);
+        any other failure is reported naming the plugin, as a ConfigError too, since the run
+        would silently lack what the plugin promised (the desk's MQTT topics).
+        """
+        sinks: list[tuple[str, Any]] = []
+        for impl in sorted(self.manager.hook.event_sink.get_hookimpls(), key=self._plugin_order):
+            try:
+                sink = self._call_impl(impl, **kwargs)
+            except ConfigError:
+                raise
+            except Exception as err:
+                raise PluginError(
+                    f"plugin `{impl.plugin_name}` failed in event_sink: {type(err).__name__}: {err}"
+                ) from err
+            if sink is not None:
+                sinks.append((impl.plugin_name, sink))
+        return sinks
 
     def notify(self, hook_name: str, **kwargs: Any) -> None:
         """Call an observer hook on every plugin, each in its own ``try``."""
@@ -367,6 +435,7 @@ def load_registry(
     plugins: Iterable[tuple[str, object]] = (),
     defaults: bool = True,
     conflicts_fatal: bool = True,
+    blocked: Iterable[str] = (),
 ) -> Registry:
     """Build the registry: built-ins, then entry points, then ``plugins`` (name, object) pairs.
 
@@ -375,11 +444,19 @@ def load_registry(
     the variable for the command line) so whatever is installed on the machine cannot change
     their outcome, and add their own plugins through ``plugins``. A name registered by two
     plugins raises :class:`PluginError` unless ``conflicts_fatal`` is False (``hapticdesk
-    plugins`` lists it as an error instead).
+    plugins`` lists it as an error instead). ``blocked``: plugin names never to load (a
+    built-in from :data:`DEFAULT_PLUGINS` that a third-party plugin replaces; two plugins may
+    not register the same name), added to those named in the environment variable
+    ``HAPTICDESK_BLOCK_PLUGINS`` (comma-separated), which is how a person installing such a
+    replacement turns the built-in off for every command.
     """
     if entry_points is None:
         entry_points = not os.environ.get(DISABLE_AUTOLOAD_ENV)
     registry = Registry(strict=strict)
+    from_env = os.environ.get(BLOCK_ENV, "").split(",")
+    for name in [*blocked, *from_env]:
+        if name.strip():
+            registry.block(name.strip())
     if defaults:
         registry.load_default_plugins()
     if entry_points:

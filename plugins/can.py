@@ -8,11 +8,13 @@ when a run uses it, never for a simulated or replayed desk.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from hapticdesk.files.profile import DeskProfile
 from hapticdesk.hookspecs import hookimpl
-from hapticdesk.runtime.source import Source
+
+if TYPE_CHECKING:  # the hooks are loaded for every command, even `--help`: no numpy here
+    from hapticdesk.files.profile import DeskProfile
+    from hapticdesk.runtime.source import Source
 
 
 def open_can(argument: str, profile: DeskProfile, **options: Any) -> Source:

@@ -70,7 +70,7 @@ class ExecAction:
 
     def __init__(self, options: Any, context: ActionContext) -> None:
         self.options = parse_options(options, where(options, "`exec`"))
-        self.desk = context.desk
+        self.desk = context.desk_name
         self.cwd: Path | None = context.resolve_path(self.options.cwd) if self.options.cwd else None
         # the dispatcher's watchdog only steps in when the program's own timeout failed
         self.timeout_s = self.options.timeout_s + 2.0

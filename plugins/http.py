@@ -188,7 +188,7 @@ class HttpAction:
             for name, h in o.secret_headers.items()
         }
         self.options = HttpOptions(o.url, o.method, o.json, o.body, o.headers, secrets, o.timeout_s)
-        self.desk = context.desk
+        self.desk = context.desk_name
         self.timeout_s = self.options.timeout_s + 2.0
 
     def __call__(self, event: GestureEvent) -> None:

@@ -45,7 +45,7 @@ class LogAction:
 
     def __init__(self, options: Any, context: ActionContext) -> None:
         self.options = parse_options(options, where(options, "`log`"))
-        self.desk = context.desk
+        self.desk = context.desk_name
 
     def __call__(self, event: GestureEvent) -> None:
         if self.options.message is None:

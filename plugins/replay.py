@@ -11,54 +11,22 @@ are read by :mod:`hapticdesk.canbus.logs`, imported only for them.
 
 from __future__ import annotations
 
-import threading
-import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
-from hapticdesk.files.profile import DeskProfile
-from hapticdesk.files.recording import RECORDING_SUFFIXES, Recording, read_recording
 from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.hookspecs import hookimpl
+from hapticdesk.runtime.pacing import PacedSource, Pacer
 from hapticdesk.runtime.source import Source, WrenchBlock
 
+if TYPE_CHECKING:  # the hooks are loaded for every command, even `--help`: no numpy here
+    from hapticdesk.files.profile import DeskProfile
+    from hapticdesk.files.recording import Recording
+
+__all__ = ["BLOCK_SIZE", "PacedSource", "Pacer", "RecordingSource", "open_replay"]
+
 BLOCK_SIZE = 12
-
-
-class Pacer:
-    """Holds blocks back until their sample time has come: wall = start + (t - t0) / speed.
-
-    ``speed`` 0 never waits. :meth:`wall_time` maps a sample time to the wall clock
-    (``time.perf_counter``), which is how the latency benchmark knows when a tap really ended.
-    """
-
-    def __init__(self, speed: float, stop: threading.Event) -> None:
-        if speed < 0:
-            raise ConfigError(
-                "--speed", f"--speed must be 0 (as fast as possible) or more, found {speed:g}"
-            )
-        self.speed = speed
-        self._stop = stop
-        self.t0: float | None = None
-        self.started_at: float | None = None
-
-    def wait_for(self, t: float) -> bool:
-        """Wait until sample time ``t`` has come; False when stopped meanwhile."""
-        if self.t0 is None:
-            self.t0, self.started_at = t, time.perf_counter()
-        if self.speed == 0:
-            return not self._stop.is_set()
-        delay = self.wall_time(t) - time.perf_counter()
-        if delay > 0:
-            return not self._stop.wait(delay)
-        return not self._stop.is_set()
-
-    def wall_time(self, t: float) -> float:
-        assert self.t0 is not None and self.started_at is not None, "not started"
-        return self.started_at + (t - self.t0) / (self.speed or float("inf"))
 
 
 class RecordingSource(Source):
@@ -73,6 +41,8 @@ class RecordingSource(Source):
         self.block_size = block_size
 
     def blocks(self) -> Iterator[WrenchBlock]:
+        import numpy as np
+
         rec = self.recording
         for start in range(0, len(rec), self.block_size):
             end = min(start + self.block_size, len(rec))
@@ -80,32 +50,12 @@ class RecordingSource(Source):
             yield WrenchBlock(rec.t[start:end], rec.wrench[start:end], truth)
 
 
-class PacedSource(Source):
-    """A finite source (recording, simulation, CAN log) with its blocks held back until their
-    last sample's time has come, as a live source would deliver them."""
-
-    def __init__(self, inner: Source, speed: float) -> None:
-        self.inner = inner
-        self.sensor_names = list(inner.sensor_names)
-        self.sample_rate_hz = inner.sample_rate_hz
-        self._stop = threading.Event()
-        self.pacer = Pacer(speed, self._stop)
-
-    def blocks(self) -> Iterator[WrenchBlock]:
-        for block in self.inner.blocks():
-            if len(block.t) and not self.pacer.wait_for(float(block.t[-1])):
-                return
-            yield block
-
-    def close(self) -> None:
-        self._stop.set()
-        self.inner.close()
-
-
 def open_replay(
     argument: str, profile: DeskProfile, *, speed: float = 1.0, **options: Any
 ) -> Source:
     """``replay:FILE``: a CSV/NPZ recording, or a CAN log by any other suffix."""
+    from hapticdesk.files.recording import RECORDING_SUFFIXES, read_recording
+
     if not argument:
         raise ConfigError("--source", "replay needs a file: replay:FILE.csv, .npz or a CAN log")
     path = Path(argument).expanduser()

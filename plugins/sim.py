@@ -9,13 +9,14 @@ readings; blocks are paced by sample time like a replay (``--speed 0``: as fast 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.hookspecs import hookimpl
-from hapticdesk.plugins.replay import PacedSource
-from hapticdesk.runtime.source import Source
+
+if TYPE_CHECKING:  # the hooks are loaded for every command, even `--help`: no numpy here
+    from hapticdesk.files.profile import DeskProfile
+    from hapticdesk.runtime.source import Source
 
 
 def open_sim(
@@ -31,6 +32,7 @@ def open_sim(
         raise ConfigError("--source", "sim needs a scene file: sim:SCENE.yaml")
     if not Path(argument).expanduser().is_file():
         raise ConfigError("--source", f"sim: no such scene file {argument}")
+    from hapticdesk.runtime.pacing import PacedSource
     from hapticdesk.sim import SimSource, load_scene
 
     scene = load_scene(Path(argument).expanduser())

@@ -13,9 +13,10 @@ strings are kept as written. jinja2 is imported only when a layout has a templat
 
 from __future__ import annotations
 
+import functools
 import math
 import re
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from functools import cache
 from typing import Any
@@ -43,12 +44,40 @@ EVENT_FIELDS = (
 #: extras), ``action`` its Zigbee2MQTT-style action string, ``desk`` the desk's name
 VARIABLES = (*EVENT_FIELDS, "action", "desk", "event")
 
+#: the longest text a template may render, or build on its way (a payload is a few hundred)
+MAX_RENDERED_CHARS = 65_536
+#: the largest exponent of ``**`` (10 ** 1000 is already far beyond any payload)
+MAX_EXPONENT = 1000
+#: the variables of the sample event a template is rendered with once when it is checked
+SAMPLE_VARIABLES: dict[str, Any] = {
+    "t": 0.0,
+    "gesture": "tap",
+    "region": "region",
+    "x": 0.0,
+    "y": 0.0,
+    "shape": "circle",
+    "score": 1.0,
+    "direction": "up",
+    "value": 0.5,
+    "level": "light",
+    "phase": "begin",
+    "hold_s": 1.0,
+    "force_n": 5.0,
+    "action": "tap",
+    "desk": "desk",
+}
+SAMPLE_VARIABLES["event"] = dict(SAMPLE_VARIABLES)
+
 _INT = re.compile(r"[+-]?\d+")
 _FLOAT = re.compile(r"[+-]?(\d+\.\d*|\.\d+|\d+)([eE][+-]?\d+)?|[+-]?(nan|inf|infinity)", re.I)
 
 
 class TemplateError(ValueError):
     """A template failed while rendering for one event (reported by the dispatcher)."""
+
+
+class TemplateLimitError(TemplateError):
+    """A template would render (or build on its way) more than the limits allow."""
 
 
 def is_template(text: str) -> bool:
@@ -60,7 +89,63 @@ def _environment() -> Any:
     from jinja2 import StrictUndefined
     from jinja2.sandbox import ImmutableSandboxedEnvironment
 
-    return ImmutableSandboxedEnvironment(undefined=StrictUndefined, autoescape=False)
+    def limit(size: int, what: str) -> None:
+        if size > MAX_RENDERED_CHARS:
+            raise TemplateLimitError(
+                f"{what} would make {size} characters; the limit is {MAX_RENDERED_CHARS}"
+            )
+
+    class BoundedEnvironment(ImmutableSandboxedEnvironment):
+        # intercepted operators are also never folded into constants when compiling, so
+        # `{{ "a" * 10**10 }}` cannot allocate at compile time either
+        intercepted_binops = frozenset({"*", "**"})
+
+        def call_binop(self, context: Any, operator: str, left: Any, right: Any) -> Any:
+            if operator == "*":
+                for seq, n in ((left, right), (right, left)):
+                    if isinstance(seq, str | list | tuple) and isinstance(n, int):
+                        limit(len(seq) * n, "repeating")
+            if operator == "**" and isinstance(right, int | float) and abs(right) > MAX_EXPONENT:
+                raise TemplateLimitError(f"an exponent over {MAX_EXPONENT} ({right})")
+            return super().call_binop(context, operator, left, right)
+
+    env = BoundedEnvironment(undefined=StrictUndefined, autoescape=False)
+    del env.globals["lipsum"]  # random text of any length: no use in a payload
+    for name, size in _FILTER_SIZES.items():
+        env.filters[name] = _bounded_filter(name, env.filters[name], size, limit)
+    return env
+
+
+def _width(value: Any) -> int:
+    return len(value) if isinstance(value, str) else int(value)
+
+
+def _format_widths(text: Any) -> int:
+    """The sum of the field widths in a %-format string (``%99999s`` pads to 99999)."""
+    return sum(int(w) for w in re.findall(r"%[-+ #0]*(\d+)", str(text)))
+
+
+# filter -> an upper bound of its result's length from its arguments, computed before any
+# text is made (the arguments are those Jinja passes: an environment or eval context first
+# for `wordwrap` and `replace`)
+_FILTER_SIZES: dict[str, Callable[..., int]] = {
+    "center": lambda s, width=80: len(str(s)) + _width(width),
+    "indent": lambda s, width=4, *_: len(str(s)) * (1 + _width(width)),
+    "wordwrap": lambda _env, s, width=79, *_, **__: 2 * len(str(s)) + _width(width),
+    "format": lambda s, *args, **kw: len(str(s)) + len(str(args)) + _format_widths(s),
+    "replace": lambda _ctx, s, old, new, *_: len(str(s)) * max(1, len(str(new))) + len(str(new)),
+}
+
+
+def _bounded_filter(name: str, original: Any, size: Callable[..., int], limit: Any) -> Any:
+    """``original``, refusing arguments whose result could exceed the limit."""
+
+    @functools.wraps(original)  # keeps Jinja's marker of what to pass first
+    def bounded(*args: Any, **kwargs: Any) -> Any:
+        limit(size(*args, **kwargs), f"the `{name}` filter")
+        return original(*args, **kwargs)
+
+    return bounded
 
 
 def event_variables(event: GestureEvent, desk: str) -> dict[str, Any]:
@@ -84,9 +169,10 @@ class Template:
         if self.compiled is None:
             return self.text
         try:
-            return str(self.compiled.render(variables))
+            text = _render_bounded(self.compiled, variables)
         except Exception as err:  # any template runtime error: name the template
             raise TemplateError(f"template {self.text!r} ({self.where}) failed: {err}") from err
+        return text
 
     def render_value(self, variables: Mapping[str, Any]) -> Any:
         """Rendered text, as a number when the template rendered one."""
@@ -107,6 +193,18 @@ class Template:
         return text
 
 
+def _render_bounded(compiled: Any, variables: Mapping[str, Any]) -> str:
+    """The rendered text, stopped as soon as it grows past :data:`MAX_RENDERED_CHARS`."""
+    parts: list[str] = []
+    size = 0
+    for part in compiled.generate(variables):
+        size += len(part)
+        if size > MAX_RENDERED_CHARS:
+            raise TemplateLimitError(f"the text rendered exceeds {MAX_RENDERED_CHARS} characters")
+        parts.append(part)
+    return "".join(parts)
+
+
 def compile_template(text: str, where: Position | str, what: str = "template") -> Template:
     """Compile ``text``; a syntax error or unknown variable is a ConfigError at ``where``."""
     if not is_template(text):
@@ -125,7 +223,22 @@ def compile_template(text: str, where: Position | str, what: str = "template") -
             f"{what} uses unknown variable(s) {', '.join(unknown)}; available: "
             f"{', '.join(VARIABLES)} (plugin fields as event.<name>)",
         )
+    _check_limits(compiled, where, what)
     return Template(text, compiled, str(where))
+
+
+def _check_limits(compiled: Any, where: Position | str, what: str) -> None:
+    """Render once with a sample event: breaking a limit then is an error in the layout.
+
+    Other failures are not reported here: they may depend on the event (``value`` is None
+    for a tap), and the dispatcher reports them when they happen.
+    """
+    try:
+        _render_bounded(compiled, SAMPLE_VARIABLES)
+    except (TemplateLimitError, MemoryError) as err:
+        raise ConfigError(where, f"{what} is too costly to render for an event: {err}") from None
+    except Exception:
+        return  # may depend on the event: the dispatcher reports it when it happens
 
 
 @dataclass(frozen=True)

@@ -30,8 +30,8 @@ import numpy as np
 
 from hapticdesk.files.profile import load_profile
 from hapticdesk.files.recording import write_recording
-from hapticdesk.plugins.replay import PacedSource
 from hapticdesk.registry import load_registry
+from hapticdesk.runtime.pacing import PacedSource
 from hapticdesk.runtime.service import Runtime, build_scene
 
 TARGET_P95_MS = 40.0
@@ -139,7 +139,13 @@ def main() -> int:
             print("the subscriber did not start", file=sys.stderr)
             return 2
         registry = load_registry(entry_points=False)
-        scene = build_scene(layout, f"replay:{rec_file}", registry, speed=args.speed, mqtt_url=url)
+        scene = build_scene(
+            layout,
+            f"replay:{rec_file}",
+            registry,
+            speed=args.speed,
+            overrides={"mqtt": {"broker": url}},
+        )
         source = scene.source
         assert isinstance(source, PacedSource)
         report = Runtime(scene).run(handle_signals=False)

@@ -14,10 +14,12 @@ from hapticdesk.files.yamlfile import load_marked_yaml
 @pytest.fixture(autouse=True)
 def _no_installed_plugins(monkeypatch: pytest.MonkeyPatch) -> None:
     """Tests never auto-load installed entry points (STYLE.md 10); the test that checks
-    entry-point loading turns this off itself. Subprocesses inherit it."""
-    from hapticdesk.registry import DISABLE_AUTOLOAD_ENV
+    entry-point loading turns this off itself. Subprocesses inherit it. Nor does a block list
+    in the environment take built-ins away."""
+    from hapticdesk.registry import BLOCK_ENV, DISABLE_AUTOLOAD_ENV
 
     monkeypatch.setenv(DISABLE_AUTOLOAD_ENV, "1")
+    monkeypatch.delenv(BLOCK_ENV, raising=False)
 
 
 @pytest.fixture(scope="session")

@@ -1,7 +1,8 @@
 """``hapticdesk check LAYOUT [--desk D] [--png FILE]``: validate a layout and explain it.
 
-Actions are checked against the installed plugins (unknown names and bad options are errors
-with file:line:column). Prints the verdict and a summary of regions, bindings, settings and
+Actions, gestures and the sections plugins claim (``mqtt:``) are checked by the installed
+plugins, exactly as ``run`` loads the layout (unknown names and bad options are errors with
+file:line:column). Prints the verdict and a summary of regions, bindings, settings and
 templates; ``--png`` draws the layout on the desk's outline (matplotlib, imported only then).
 """
 
@@ -11,9 +12,8 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from hapticdesk.files.profile import load_profile
 from hapticdesk.files.yamlfile import ConfigError
-from hapticdesk.gestures.layout import Binding, Layout, load_layout
+from hapticdesk.gestures.layout import Binding, Layout
 from hapticdesk.gestures.options import GESTURE_OPTIONS, describe_value
 
 
@@ -25,19 +25,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from hapticdesk.registry import load_registry
+    from hapticdesk.runtime.service import load_scene_layout
 
     registry = load_registry()
-    profile = load_profile(args.desk) if args.desk else None
-    layout = load_layout(
-        args.layout,
-        profile=profile,
-        action_names=registry.action_names,
-        validate_action=registry.validate_action,
-        recognizer_types=registry.recognizer_types(),
-    )
+    # the same loading as `run`: actions, recognizers and plugins' sections all checked
+    layout, _ = load_scene_layout(args.layout, registry, args.desk)
+    # (a plugin's problem was logged once by the registry as it loaded; not repeated here)
     print(explain(layout))
-    for warning in registry.warnings:
-        print(f"plugin warning: {warning}")
     if args.png:
         try:
             draw_layout(layout, Path(args.png))
@@ -115,6 +109,8 @@ def _binding_text(b: Binding, layout: Layout) -> str:
     if b.gesture == "long_press":
         hold = b.options["hold_s"]
         filters = [f"on release after {hold:g} s" if b.options["release"] else f"at {hold:g} s"]
+        if b.options["repeat"]:
+            filters.append(f"then every {b.options['interval_s']:g} s while held")
     return " ".join([b.gesture, where] + ([f"({'; '.join(filters)})"] if filters else []))
 
 

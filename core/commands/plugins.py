@@ -1,4 +1,4 @@
-"""``hapticdesk plugins``: what is installed, with versions, and what each plugin provides."""
+"""The ``plugins`` command: what is installed, with versions, and what each plugin provides."""
 
 from __future__ import annotations
 
@@ -34,13 +34,11 @@ def run(args: argparse.Namespace) -> int:
         for kind in KINDS:
             for name in info.provides[kind]:
                 record = getattr(registry, kind)[name]
-                print(f"  {kind[:-1]:<10} {name:<12} {record.description}")
+                what = "section" if kind == "layout_sections" else kind[:-1]
+                print(f"  {what:<10} {name:<12} {record.description}")
         others = [h for h in info.hooks if not h.startswith("register_")]
         if others:
             print(f"  hooks      {', '.join(others)}")
-    from hapticdesk.gestures.engine import BUILTIN_RECOGNIZERS
-
-    print(f"built-in gestures: {', '.join(BUILTIN_RECOGNIZERS)}")
     if os.environ.get(DISABLE_AUTOLOAD_ENV):
         print(f"third-party plugins are not loaded: {DISABLE_AUTOLOAD_ENV} is set")
     for warning in registry.warnings:

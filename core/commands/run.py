@@ -93,7 +93,8 @@ def run(args: argparse.Namespace) -> int:
         registry,
         desk=args.desk,
         speed=args.speed,
-        mqtt_url=args.mqtt,
+        # the MQTT plugin's section, overridden (the flag predates plugin sections)
+        overrides={"mqtt": {"broker": args.mqtt}} if args.mqtt else None,
         action_timeout_s=args.action_timeout,
     )
     show_status = args.status or sys.stderr.isatty()

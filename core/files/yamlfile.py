@@ -7,11 +7,18 @@ loads YAML into ordinary dicts and lists that also carry the position of each ke
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import yaml
+from yaml.composer import Composer
+from yaml.constructor import SafeConstructor
+from yaml.parser import Parser
+from yaml.reader import Reader
+from yaml.resolver import Resolver
+from yaml.scanner import Scanner
 
 # YAML 1.1 reads these bare words as booleans; as keys they are almost always a mistake.
 _YAML11_BOOL_WORDS = {"on", "off", "yes", "no", "y", "n", "true", "false"}
@@ -66,19 +73,120 @@ class MarkedList(list[Any]):
         return self.item_positions[index]
 
 
-def _pos(file: str, node: yaml.Node) -> Position:
-    return Position(file, node.start_mark.line + 1, node.start_mark.column + 1)
+#: the largest file read; hand-written profiles, layouts and scenes are a few kilobytes
+MAX_BYTES = 1_000_000
+#: the most values (scalars, lists, mappings) a document may hold, an alias counted each time
+#: it is used: a few aliases can otherwise stand for billions of values ("billion laughs")
+MAX_VALUES = 50_000
+#: the deepest nesting of lists and mappings (the loaders recurse once per level)
+MAX_DEPTH = 64
+#: the longest number, in characters: a longer one is a mistake, and a huge one is slow to read
+MAX_NUMBER_CHARS = 32
+# tags PyYAML would build into objects the validators do not expect (bytes, sets, pairs)
+_UNSUPPORTED_TAGS = {
+    f"tag:yaml.org,2002:{name}": name for name in ("binary", "set", "omap", "pairs")
+}
+_NUMBER_TAGS = {"tag:yaml.org,2002:int", "tag:yaml.org,2002:float"}
+_TIMESTAMP_TAG = "tag:yaml.org,2002:timestamp"
 
 
-def _construct(node: yaml.Node, file: str, loader: yaml.SafeLoader) -> Any:
+def _pos(file: str, node: yaml.Node | yaml.Event) -> Position:
+    mark = node.start_mark
+    return Position(file, mark.line + 1, mark.column + 1) if mark else Position(file, 1, 1)
+
+
+class _BoundedComposer(Composer):
+    """PyYAML's composer, refusing documents too deep or too large once aliases expand.
+
+    The node graph PyYAML composes shares an anchored node among its aliases; the marked
+    values built from it (and every validator after) do not, so the expanded size is what
+    counts. It is tallied as the nodes are composed: a node adds one, an alias adds the
+    expanded size of its anchor. An alias inside its own anchor would expand forever.
+    """
+
+    peek_event: Callable[[], yaml.Event]  # from the parser it is mixed with
+
+    def __init__(self, file: str) -> None:
+        super().__init__()
+        self.file = file
+        self.expanded = 0
+        self.depth = 0
+        self.anchor_sizes: dict[str, int] = {}
+        self.open_anchors: set[str] = set()
+
+    def compose_node(self, parent: yaml.Node | None, index: Any) -> yaml.Node | None:
+        event = self.peek_event()
+        if isinstance(event, yaml.AliasEvent):
+            if event.anchor in self.open_anchors:
+                raise ConfigError(
+                    _pos(self.file, event),
+                    f"alias *{event.anchor} refers to the value that holds it, which would "
+                    "never end; an alias may only repeat a value defined before it",
+                )
+            self._count(self.anchor_sizes.get(event.anchor or "", 1), event)
+            return super().compose_node(parent, index)
+        self.depth += 1
+        if self.depth > MAX_DEPTH:
+            raise ConfigError(
+                _pos(self.file, event),
+                f"lists and mappings nest more than {MAX_DEPTH} deep here; is a bracket left open?",
+            )
+        before = self.expanded
+        self._count(1, event)
+        anchor = getattr(event, "anchor", None)
+        if anchor is not None:
+            self.open_anchors.add(anchor)
+        node = super().compose_node(parent, index)
+        if anchor is not None:
+            self.open_anchors.discard(anchor)
+            self.anchor_sizes[anchor] = self.expanded - before
+        self.depth -= 1
+        return node
+
+    def _count(self, values: int, event: yaml.Event) -> None:
+        self.expanded += values
+        if self.expanded > MAX_VALUES:
+            what = "with its aliases expanded " if isinstance(event, yaml.AliasEvent) else ""
+            raise ConfigError(
+                _pos(self.file, event),
+                f"the file holds more than {MAX_VALUES} values {what}by here; "
+                "a profile, layout or scene needs far fewer",
+            )
+
+
+if yaml.__with_libyaml__:  # libyaml's parser, PyYAML's (bounded) composer: 3x faster
+    from yaml._yaml import CParser
+
+    class _Loader(_BoundedComposer, CParser, SafeConstructor, Resolver):
+        def __init__(self, text: str, file: str) -> None:
+            CParser.__init__(self, text)
+            _BoundedComposer.__init__(self, file)
+            SafeConstructor.__init__(self)
+            Resolver.__init__(self)
+
+else:  # pragma: no cover - PyYAML built without libyaml
+
+    class _Loader(Reader, Scanner, Parser, _BoundedComposer, SafeConstructor, Resolver):  # type: ignore[no-redef]
+        def __init__(self, text: str, file: str) -> None:
+            Reader.__init__(self, text)
+            Scanner.__init__(self)
+            Parser.__init__(self)
+            _BoundedComposer.__init__(self, file)
+            SafeConstructor.__init__(self)
+            Resolver.__init__(self)
+
+
+def _construct(node: yaml.Node, file: str, loader: _Loader) -> Any:
     if isinstance(node, yaml.MappingNode):
+        if node.tag in _UNSUPPORTED_TAGS:
+            raise _unsupported(node, file)
         loader.flatten_mapping(node)
         out = MarkedDict()
         out.position = _pos(file, node)
         out.key_positions = {}
         out.value_positions = {}
         for key_node, value_node in node.value:
-            key = loader.construct_object(key_node, deep=True)
+            key = _construct(key_node, file, loader)
             if not isinstance(key, str):
                 raw = key_node.value if isinstance(key_node, yaml.ScalarNode) else key
                 hint = ""
@@ -92,25 +200,50 @@ def _construct(node: yaml.Node, file: str, loader: yaml.SafeLoader) -> Any:
             out.value_positions[key] = _pos(file, value_node)
         return out
     if isinstance(node, yaml.SequenceNode):
+        if node.tag in _UNSUPPORTED_TAGS:
+            raise _unsupported(node, file)
         seq = MarkedList(_construct(item, file, loader) for item in node.value)
         seq.position = _pos(file, node)
         seq.item_positions = [_pos(file, item) for item in node.value]
         return seq
+    if node.tag in _UNSUPPORTED_TAGS:
+        raise _unsupported(node, file)
+    if node.tag == _TIMESTAMP_TAG:
+        return str(node.value)  # a date as written: nothing here reads dates
+    if node.tag in _NUMBER_TAGS and len(node.value) > MAX_NUMBER_CHARS:
+        raise ConfigError(
+            _pos(file, node),
+            f"a number of {len(node.value)} characters; numbers here have at most "
+            f"{MAX_NUMBER_CHARS}",
+        )
     return loader.construct_object(node, deep=True)
 
 
-def load_marked_yaml(path: str | Path, text: str | None = None) -> Any:
+def _unsupported(node: yaml.Node, file: str) -> ConfigError:
+    name = _UNSUPPORTED_TAGS[node.tag]
+    return ConfigError(
+        _pos(file, node),
+        f"a YAML !!{name} is not read here; write text, numbers, lists and mappings",
+    )
+
+
+def load_marked_yaml(path: str | Path, text: str | None = None, max_bytes: int = MAX_BYTES) -> Any:
     """Load one YAML document from ``path`` (or from ``text``, naming it ``path``).
 
-    Raises :class:`ConfigError` with the position for syntax errors too.
+    Raises :class:`ConfigError` with the position for every problem: a file over
+    ``max_bytes``, text that is not UTF-8, invalid YAML, nesting deeper than
+    :data:`MAX_DEPTH`, more than :data:`MAX_VALUES` values once aliases are expanded.
     """
     file = str(path)
-    if text is None:
-        try:
-            text = Path(path).read_text(encoding="utf-8")
-        except OSError as err:
-            raise ConfigError(file, f"cannot read the file: {err.strerror or err}") from None
-    loader = yaml.SafeLoader(text)
+    data = _read_bytes(Path(path), max_bytes) if text is None else _encode(text, file)
+    if len(data) > max_bytes:
+        raise ConfigError(
+            Position(file, 1, 1),
+            f"the file is larger than {max_bytes / 1e6:g} MB, the limit for a profile, layout "
+            "or scene (they are a few kB)",
+        )
+    text = _decode(data, file)
+    loader = _Loader(text, file)
     try:
         node = loader.get_single_node()
         if node is None:
@@ -120,8 +253,68 @@ def load_marked_yaml(path: str | Path, text: str | None = None) -> Any:
         mark = err.problem_mark or err.context_mark
         where = Position(file, mark.line + 1, mark.column + 1) if mark else file
         raise ConfigError(where, f"not valid YAML: {err.problem or err}") from None
+    except yaml.reader.ReaderError as err:
+        # libyaml counts the offset in bytes of the UTF-8 text, PyYAML's reader in characters
+        offset = err.position if yaml.__with_libyaml__ else len(text[: err.position].encode())
+        raise ConfigError(
+            _byte_position(data, offset, file),
+            f"not valid YAML: character {err.character!r} is not allowed ({err.reason})",
+        ) from None
+    except yaml.YAMLError as err:  # no position known
+        raise ConfigError(Position(file, 1, 1), f"not valid YAML: {err}") from None
     finally:
         loader.dispose()
+
+
+def _read_bytes(path: Path, max_bytes: int) -> bytes:
+    """At most ``max_bytes + 1`` bytes: enough to tell that a file is too large."""
+    try:
+        with path.open("rb") as f:
+            return f.read(max_bytes + 1)
+    except OSError as err:
+        raise ConfigError(str(path), f"cannot read the file: {err.strerror or err}") from None
+
+
+def _encode(text: str, file: str) -> bytes:
+    try:
+        return text.encode("utf-8")
+    except UnicodeEncodeError as err:
+        raise ConfigError(
+            _byte_position(text[: err.start].encode("utf-8", "replace"), None, file),
+            "the text holds a lone surrogate character, which UTF-8 cannot hold",
+        ) from None
+
+
+def _decode(data: bytes, file: str) -> str:
+    """Strict UTF-8 (a UTF-8 byte-order mark is allowed); otherwise say where and why."""
+    for bom, name in (
+        (b"\xff\xfe", "UTF-16"),
+        (b"\xfe\xff", "UTF-16"),
+        (b"\x00\x00\xfe\xff", "UTF-32"),
+    ):
+        if data.startswith(bom):
+            raise ConfigError(Position(file, 1, 1), f"the file is {name} text; save it as UTF-8")
+    nul = data.find(b"\x00")
+    if nul >= 0:
+        raise ConfigError(
+            _byte_position(data, nul, file),
+            "a NUL byte: this is a binary file (or UTF-16 text), not YAML saved as UTF-8",
+        )
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as err:
+        raise ConfigError(
+            _byte_position(data, err.start, file),
+            f"not UTF-8 text: byte 0x{data[err.start]:02x} ({err.reason}); save the file as UTF-8",
+        ) from None
+
+
+def _byte_position(data: bytes, offset: int | None, file: str) -> Position:
+    """Line and column (in characters) of byte ``offset`` of ``data`` (its end when None)."""
+    offset = len(data) if offset is None else offset
+    line_start = data.rfind(b"\n", 0, offset) + 1
+    column = len(data[line_start:offset].decode("utf-8", "replace")) + 1
+    return Position(file, data.count(b"\n", 0, offset) + 1, column)
 
 
 # --- small validation helpers shared by profiles, layouts and scenes -------------------------

@@ -1,47 +1,51 @@
 """The gesture engine: contact blocks in, gesture events out, on sample time.
 
 It builds only the recognizers the layout binds (a taps-only layout never imports the stroke
-recognizer): built-ins come from a table of ``"module:Class"`` strings imported on first use
-(python-can's ``BACKENDS`` habit, STYLE.md 4), plugin recognizers from ``recognizer_types``.
+recognizer). Which class recognizes a gesture comes from the plugin registry, built-ins (a
+plugin in :data:`~hapticdesk.registry.DEFAULT_PLUGINS`) and third-party ones alike, as lazy
+``"module:Class"`` references imported on first use (python-can's ``BACKENDS`` habit,
+STYLE.md 4, 15).
 Output does not depend on how the contact stream is cut into blocks: state is carried
 across blocks and timers fire at the first sample time at or after their deadline.
 """
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
-from hapticdesk.estimator.contacts import ContactBlock, ContactEvent
+from hapticdesk.estimator.contacts import FLAG_GAP, ContactBlock, ContactEvent
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.layout import Layout
 from hapticdesk.gestures.recognizer import Recognizer
 from hapticdesk.gestures.touch import TouchTracker
 
-#: built-in gesture -> "module:Class"; one class may serve several gestures
-BUILTIN_RECOGNIZERS: dict[str, str] = {
-    "tap": "hapticdesk.gestures.recognizers.taps:TapRecognizer",
-    "double_tap": "hapticdesk.gestures.recognizers.taps:TapRecognizer",
-    "long_press": "hapticdesk.gestures.recognizers.long_press:LongPressRecognizer",
-    "press": "hapticdesk.gestures.recognizers.pressure:PressRecognizer",
-    "force": "hapticdesk.gestures.recognizers.pressure:ForceRecognizer",
-    "swipe": "hapticdesk.gestures.recognizers.swipe:SwipeRecognizer",
-    "slide": "hapticdesk.gestures.recognizers.slide:SlideRecognizer",
-    "stroke": "hapticdesk.gestures.recognizers.stroke:StrokeRecognizer",
-}
+
+def _default_recognizers() -> Mapping[str, Any]:
+    """The built-in recognizers, from the registry like any plugin's (no entry points)."""
+    from hapticdesk.registry import load_registry
+
+    return load_registry(entry_points=False).recognizer_types()
 
 
-def _import(target: str) -> type:
-    module, _, name = target.partition(":")
-    cls: type = getattr(importlib.import_module(module), name)
+def _load(entry: Any) -> type:
+    """A recognizer class from a registry record, a ``"module:Class"`` string or a class."""
+    from hapticdesk.registry import resolve
+
+    load = getattr(entry, "load", None)
+    cls: type = load() if callable(load) else resolve(entry)
     return cls
 
 
 class GestureEngine:
     """Runs the layout's recognizers over contact blocks.
 
+    ``recognizer_types`` maps gesture names to recognizers: registry records
+    (:meth:`Registry.recognizer_types`), classes or ``"module:Class"`` strings; only the
+    bound ones are imported. A gesture it lacks comes from the built-ins of the registry
+    (without entry points).
     ``recognizers`` maps each bound gesture name to its recognizer (gestures served by one
     class share the instance). ``position_delay_s``: how far the contacts' positions run
     behind the finger, :attr:`ContactEstimator.position_delay_s` for the estimator's output
@@ -51,19 +55,18 @@ class GestureEngine:
     def __init__(
         self,
         layout: Layout,
-        recognizer_types: Mapping[str, type] | None = None,
+        recognizer_types: Mapping[str, Any] | None = None,
         position_delay_s: float = 0.0,
     ) -> None:
         self.layout = layout
-        plugins = dict(recognizer_types or {})
+        known = dict(recognizer_types or {})
+        if any(g not in known for g in layout.gestures):
+            known = {**_default_recognizers(), **known}
         classes: dict[str, type] = {}
         for gesture in layout.gestures:
-            if gesture in BUILTIN_RECOGNIZERS:
-                classes[gesture] = _import(BUILTIN_RECOGNIZERS[gesture])
-            elif gesture in plugins:
-                classes[gesture] = plugins[gesture]
-            else:
+            if gesture not in known:
                 raise ValueError(f"no recognizer for gesture {gesture!r}; is its plugin installed?")
+            classes[gesture] = _load(known[gesture])
         instances: dict[type, Recognizer] = {}
         self.recognizers: dict[str, Recognizer] = {}
         for gesture, cls in classes.items():
@@ -75,17 +78,44 @@ class GestureEngine:
         self._tracker = TouchTracker(layout.desk, position_delay_s)
 
     def feed(self, block: ContactBlock) -> list[GestureEvent]:
-        """Recognise gestures in the next block (any length, including 0)."""
+        """Recognise gestures in the next block (any length, including 0).
+
+        A sample flagged FLAG_GAP (time jumped, the estimator restarted its filters) while a
+        touch is open cancels that touch: nobody saw it end, so no release is made up.
+        """
         if len(block) == 0:
             return []
-        return self._run(self._tracker.events(block), block.t)
+        gaps = np.flatnonzero(block.flags & FLAG_GAP)
+        if len(gaps) == 0:
+            return self._run(self._tracker.events(block), block.t)
+        out: list[GestureEvent] = []
+        start = 0
+        for k in gaps.tolist():
+            if k > start:
+                part = block.take(slice(start, k))
+                out += self._run(self._tracker.events(part), part.t)
+            out += self.cancel(float(block.t[k]))
+            start = k
+        part = block.take(slice(start, len(block)))
+        return out + self._run(self._tracker.events(part), part.t)
+
+    def cancel(self, t: float) -> list[GestureEvent]:
+        """The contact stream broke off at sample time ``t`` (a gap, a stop, the end of a
+        recording): the open touch, if any, is cancelled, never released. Continuous
+        gestures end with phase ``cancel``; a tap is not fired. Timers are left running."""
+        touch = self._tracker.abort()
+        if touch is None:
+            return []
+        out: list[GestureEvent] = []
+        for recognizer in self._active:
+            out += recognizer.cancel(t, touch)
+        return out
 
     def flush(self, t_end: float) -> list[GestureEvent]:
-        """The source ended at sample time ``t_end``: end the touch and decide what is pending."""
-        out: list[GestureEvent] = []
-        up = self._tracker.end(t_end)
-        if up is not None:
-            out += self._on_contact(up)
+        """The source ended at sample time ``t_end``: cancel an open touch (its release was
+        not seen) and decide what is pending (a tap released before, waiting for its
+        double)."""
+        out = self.cancel(t_end)
         for recognizer in self._active:
             out += recognizer.flush(t_end)
         return out

@@ -7,6 +7,7 @@ take arrays, so a whole trace is judged at once.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,6 +55,22 @@ class Region:
             return np.asarray((xa >= x0) & (xa <= x1) & (ya >= y0) & (ya <= y1))
         return points_in_polygon(xa, ya, self.outline)
 
+    def distance(self, x: float, y: float) -> float:
+        """How far the point (x, y) lies outside the region, metres (0 inside or on it)."""
+        if self.kind == "circle":
+            assert self.center is not None
+            return max(0.0, math.hypot(x - self.center[0], y - self.center[1]) - self.radius)
+        if self.kind == "rect":
+            x0, y0, x1, y1 = self.bounds
+            return math.hypot(max(x0 - x, 0.0, x - x1), max(y0 - y, 0.0, y - y1))
+        if bool(points_in_polygon(np.asarray(x), np.asarray(y), self.outline)):
+            return 0.0
+        a, b = self.outline, np.roll(self.outline, -1, axis=0)
+        e = b - a
+        length2 = np.maximum((e * e).sum(1), 1e-18)  # a repeated vertex: an edge of length 0
+        s = np.clip(((x - a[:, 0]) * e[:, 0] + (y - a[:, 1]) * e[:, 1]) / length2, 0, 1)
+        return float(np.hypot(a[:, 0] + s * e[:, 0] - x, a[:, 1] + s * e[:, 1] - y).min())
+
     def value_along(self, x: np.ndarray | float, y: np.ndarray | float) -> np.ndarray:
         """Slider value 0..1: the projection of (x, y) on the axis, clipped to its ends."""
         if self.axis is None:
@@ -70,6 +87,34 @@ def polygon_area(points: np.ndarray) -> float:
     """Signed area (shoelace formula); positive when counter-clockwise."""
     x, y = points[:, 0], points[:, 1]
     return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+
+def polygon_self_crossing(points: np.ndarray) -> tuple[int, int] | None:
+    """The first pair of edges (i, j), i < j, that properly cross, or None for a simple outline.
+
+    Edge i runs from point i to point i + 1 (the last back to the first). Neighbouring edges
+    share a point and are not compared. All pairs at once: O(n²) memory, so callers bound n.
+    """
+    a = np.asarray(points, dtype=float)
+    b = np.roll(a, -1, axis=0)
+
+    def side(p: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
+        # sign of the cross product (q - p) × (r - p) for every edge p->q against points r
+        d = q - p
+        return np.sign(
+            d[:, None, 0] * (r[None, :, 1] - p[:, None, 1])
+            - d[:, None, 1] * (r[None, :, 0] - p[:, None, 0])
+        )
+
+    apart = side(a, b, a) * side(a, b, b) < 0  # [i, j]: edge j's ends on both sides of edge i
+    crosses = apart & apart.T
+    n = len(a)
+    i, j = np.triu_indices(n, k=2)
+    hits = crosses[i, j] & ~((i == 0) & (j == n - 1))
+    if not hits.any():
+        return None
+    k = int(np.argmax(hits))
+    return int(i[k]), int(j[k])
 
 
 def points_in_polygon(

@@ -45,26 +45,29 @@ class Action(Protocol):
 class ActionContext:
     """What an action factory gets besides its options: the desk, the layout, shared resources.
 
-    ``settings`` is the layout's top-level mapping (e.g. its ``mqtt:`` section);
-    ``mqtt_url`` the ``--mqtt`` override. :meth:`shared` lets all actions of a run share one
+    ``desk_name`` is the desk's name in what actions send (``{desk}`` in templates); the
+    :class:`~hapticdesk.files.profile.DeskProfile` is ``profile``. ``settings`` is the
+    layout's top-level mapping (a plugin reads its own section there); ``overrides`` holds
+    command-line values over a section, by section name (``run --mqtt URL`` gives
+    ``{"mqtt": {"broker": URL}}``). :meth:`shared` lets all actions of a run share one
     resource (one MQTT connection); resources are closed at the end, newest first, each with
     ``close(timeout)``: how long it may still take to deliver what it holds.
     """
 
     def __init__(
         self,
-        desk: str,
+        desk_name: str,
         *,
         layout_path: Path | None = None,
         settings: Mapping[str, Any] | None = None,
-        mqtt_url: str | None = None,
+        overrides: Mapping[str, Mapping[str, Any]] | None = None,
         profile: Any = None,
         layout: Any = None,
     ) -> None:
-        self.desk = desk
+        self.desk_name = desk_name
         self.layout_path = layout_path
         self.settings: Mapping[str, Any] = settings if settings is not None else {}
-        self.mqtt_url = mqtt_url
+        self.overrides: Mapping[str, Mapping[str, Any]] = dict(overrides or {})
         self.profile = profile
         self.layout = layout
         self._resources: dict[str, Any] = {}
@@ -86,9 +89,10 @@ class ActionContext:
                 self._resources[key] = create()
             return self._resources[key]
 
-    def peek(self, key: str) -> Any:
-        """The shared resource ``key`` if it was created, else None."""
-        return self._resources.get(key)
+    @property
+    def desk(self) -> str:
+        """The former name of :attr:`desk_name` (kept for plugins written against it)."""
+        return self.desk_name
 
     def close_resources(self, timeout_s: float = 5.0) -> list[str]:
         """Close every shared resource (newest first) within ``timeout_s`` in total; returns
@@ -346,7 +350,7 @@ class Dispatcher:
 
     def __init__(self, *, watchdog_interval_s: float = 0.05) -> None:
         self.routes: list[Route] = []
-        self.sinks: list[Lane] = []  # lanes that see every event (the desk's MQTT topics)
+        self.sinks: list[Lane] = []  # lanes that see every event (plugins' event sinks)
         self.events = 0
         self.match_errors = 0
         self._closed = threading.Event()

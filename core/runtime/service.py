@@ -6,8 +6,10 @@ it draws the status line and turns SIGINT/SIGTERM into a clean stop. At the end 
 engine is flushed (a pending tap is decided), queued commands get a bounded time to go out,
 and what did not is reported.
 
-:func:`build_scene` turns a layout, a desk and a source spec into the parts, importing only
-what the layout uses (no paho without MQTT, no python-can without a CAN source).
+:func:`build_scene` turns a layout, a desk and a source spec into an :class:`Assembly`,
+importing only what the layout uses (no paho without MQTT, no python-can without a CAN
+source). Everything plugin-specific (the desk's MQTT topics, a layout's ``mqtt:`` section)
+comes through the registry's hooks; this module names no plugin.
 """
 
 from __future__ import annotations
@@ -16,12 +18,11 @@ import collections
 import contextlib
 import json
 import logging
-import re
 import signal
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import FrameType
@@ -43,8 +44,13 @@ STATUS_INTERVAL_S = 0.1
 
 
 @dataclass
-class Scene:
-    """Everything a run is made of, built and checked, nothing started but the actions."""
+class Assembly:
+    """Everything a run is made of, built and checked, nothing started but the actions.
+
+    Called an assembly (not a scene) because a *scene* is the simulator's script of what a
+    person does on the desk (:mod:`hapticdesk.sim.scene`); this is the desk profile, the
+    layout and the parts built from them for one run.
+    """
 
     profile: DeskProfile
     layout: Any  # hapticdesk.gestures.layout.Layout
@@ -66,10 +72,15 @@ def _release(source: Source, dispatcher: Dispatcher, context: ActionContext) -> 
     context.close_resources(0.0)
 
 
+#: the former name of :class:`Assembly`
+Scene = Assembly
+
+
 def load_scene_layout(
     layout_path: str | Path, registry: Registry, desk: str | None = None
 ) -> tuple[Any, DeskProfile]:
-    """The layout, validated against the installed actions and recognizers, and its desk."""
+    """The layout, validated against the installed actions, recognizers and the sections
+    plugins claim (``hapticdesk check`` and ``run`` both load through here), and its desk."""
     from hapticdesk.gestures.layout import load_layout
 
     profile = load_profile(desk) if desk is not None else None
@@ -79,9 +90,9 @@ def load_scene_layout(
         action_names=registry.action_names,
         validate_action=registry.validate_action,
         recognizer_types=registry.recognizer_types(),
+        validate_section=registry.validate_section,
+        section_names=list(registry.layout_sections),
     )
-    for warning in getattr(layout, "warnings", []):
-        log.warning("%s", warning)
     return layout, layout.desk
 
 
@@ -92,24 +103,29 @@ def build_scene(
     *,
     desk: str | None = None,
     speed: float = 1.0,
-    mqtt_url: str | None = None,
+    overrides: Mapping[str, Mapping[str, Any]] | None = None,
     action_timeout_s: float | None = None,
-) -> Scene:
-    """Load the layout and desk, open the source, build every action (ConfigError if wrong)."""
+) -> Assembly:
+    """Load the layout and desk, open the source, build every action and every plugin's event
+    sink (ConfigError if wrong). ``overrides``: command-line values over a plugin's layout
+    section, by section name (``run --mqtt URL`` gives ``{"mqtt": {"broker": URL}}``)."""
     layout, profile = load_scene_layout(layout_path, registry, desk)
-    name = _desk_name(layout, profile)
+    for warning in layout.warnings:
+        log.warning("%s", warning)
     source = open_source(source_spec, profile, registry, speed=speed)
     context = ActionContext(
-        name,
+        layout.desk_name,
         layout_path=Path(layout_path),
         settings=layout.raw,
-        mqtt_url=mqtt_url,
+        overrides=overrides,
         profile=profile,
         layout=layout,
     )
     dispatcher = Dispatcher()
     try:
         _add_actions(dispatcher, layout, registry, context, action_timeout_s)
+        for plugin, sink in registry.event_sinks(desk=profile, layout=layout, context=context):
+            dispatcher.add_sink(Lane(f"every event → {plugin}", sink, timeout_s=action_timeout_s))
         from hapticdesk.estimator import ContactEstimator
         from hapticdesk.gestures.engine import GestureEngine
 
@@ -122,25 +138,7 @@ def build_scene(
     except BaseException:
         _release(source, dispatcher, context)
         raise
-    return Scene(profile, layout, registry, source, estimator, engine, dispatcher, context)
-
-
-_DESK_NAME = re.compile(r"[A-Za-z0-9_-]+")
-
-
-def _desk_name(layout: Any, profile: DeskProfile) -> str:
-    """The layout's ``desk_name:`` (it goes into MQTT topics), else the profile's name."""
-    raw = layout.raw
-    if "desk_name" in raw:
-        name = raw["desk_name"]
-        if not isinstance(name, str) or not _DESK_NAME.fullmatch(name):
-            raise ConfigError(
-                raw.where("desk_name"),
-                f"`desk_name` must be letters, digits, _ and - (it goes into MQTT topics), "
-                f"found {name!r}",
-            )
-        return name
-    return re.sub(r"[^A-Za-z0-9_-]", "_", profile.name)
+    return Assembly(profile, layout, registry, source, estimator, engine, dispatcher, context)
 
 
 def _add_actions(
@@ -167,7 +165,7 @@ def _add_actions(
                         lane,
                         registry.actions[use.name].factory,
                         options,
-                        desk=context.desk,
+                        desk=context.desk_name,
                         layout_path=context.layout_path,
                         settings=context.settings,
                         isolation=isolation,
@@ -182,10 +180,6 @@ def _add_actions(
                 ) from err
             route.lanes.append(Lane(lane, action, timeout_s=timeout_s))
         dispatcher.add_route(route)
-    from hapticdesk.plugins.mqtt import DeskPublisher, uses_mqtt
-
-    if uses_mqtt(layout.raw, layout.bindings, context.mqtt_url):
-        dispatcher.add_sink(Lane("desk topics → mqtt", DeskPublisher(context)))
 
 
 # --- the run ----------------------------------------------------------------------------------
@@ -249,11 +243,11 @@ class RunReport:
 
 
 class Runtime:
-    """Runs a :class:`Scene` until its source ends or :meth:`stop` is called."""
+    """Runs an :class:`Assembly` until its source ends or :meth:`stop` is called."""
 
     def __init__(
         self,
-        scene: Scene,
+        scene: Assembly,
         *,
         events_path: str | Path | None = None,
         status: IO[str] | None = None,

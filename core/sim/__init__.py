@@ -23,9 +23,11 @@ from hapticdesk.sim.actions import (
     Press,
     PutObject,
     Ramp,
+    Step,
     Stroke,
     Swipe,
     Tap,
+    TouchStep,
 )
 from hapticdesk.sim.desk import DeskModel, DeskParameters
 from hapticdesk.sim.human import HumanModel
@@ -56,9 +58,11 @@ __all__ = [
     "SimEffects",
     "SimSource",
     "SimulationRun",
+    "Step",
     "Stroke",
     "Swipe",
     "Tap",
+    "TouchStep",
     "load_scene",
     "shape_path",
     "simulate",

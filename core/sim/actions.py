@@ -1,4 +1,9 @@
-"""What happens in a scene: finger actions, objects put down and lifted, idle time.
+"""What happens in a scene: its steps — finger actions, objects put down and lifted, idle time.
+
+A scene's timeline items are *steps* (:class:`Step`), so that *action* means one thing in
+hapticdesk: what a layout binding runs (:class:`hapticdesk.runtime.dispatcher.Action`).
+``Action`` and ``TouchAction`` remain as the former names of :class:`Step` and
+:class:`TouchStep`.
 
 Positions are in metres on a surface, in the surface's (u, v) coordinates (the desk's x, y for
 the horizontal top board). Parameters left ``None`` are drawn from the
@@ -56,7 +61,7 @@ def _check(
 
 
 @dataclass(frozen=True, kw_only=True)
-class Action:
+class Step:
     """Common timing of every action (see the module docstring)."""
 
     start_s: float | None = None
@@ -69,14 +74,14 @@ class Action:
 
 
 @dataclass(frozen=True, kw_only=True)
-class TouchAction(Action):
+class TouchStep(Step):
     """A finger on a surface (``None``: the scene's surface, else the desk's first)."""
 
     surface: str | None = None
 
 
 @dataclass(frozen=True)
-class Press(TouchAction):
+class Press(TouchStep):
     """Press and hold: force rises (≈45 N/s at touch), holds at 15–25 N, releases faster."""
 
     point: Point
@@ -97,7 +102,7 @@ class LongPress(Press):
 
 
 @dataclass(frozen=True)
-class Tap(TouchAction):
+class Tap(TouchStep):
     """A light, short tap: 2–5 N for 80–160 ms."""
 
     point: Point
@@ -111,7 +116,7 @@ class Tap(TouchAction):
 
 
 @dataclass(frozen=True)
-class Ramp(TouchAction):
+class Ramp(TouchStep):
     """Touch at ``from_n``, raise the force steadily to ``to_n`` over ``duration_s``, release."""
 
     point: Point
@@ -126,7 +131,7 @@ class Ramp(TouchAction):
 
 
 @dataclass(frozen=True)
-class Swipe(TouchAction):
+class Swipe(TouchStep):
     """A quick light slide from one point to another, lifting off while still moving."""
 
     from_point: Point
@@ -144,7 +149,7 @@ class Swipe(TouchAction):
 
 
 @dataclass(frozen=True)
-class PathTouch(TouchAction):
+class PathTouch(TouchStep):
     """A finger that moves along ``path`` while it touches (the base of Drag and Stroke)."""
 
     path: tuple[Point, ...]
@@ -192,7 +197,7 @@ class Stroke(PathTouch):
 
 
 @dataclass(frozen=True)
-class PutObject(Action):
+class PutObject(Step):
     """Put an object down: its weight comes on over ``duration_s``."""
 
     name: str
@@ -208,7 +213,7 @@ class PutObject(Action):
 
 
 @dataclass(frozen=True)
-class LiftObject(Action):
+class LiftObject(Step):
     """Lift an object put down earlier (or on the desk from the start)."""
 
     name: str
@@ -220,7 +225,7 @@ class LiftObject(Action):
 
 
 @dataclass(frozen=True)
-class Idle(Action):
+class Idle(Step):
     """Nothing happens for ``duration_s``."""
 
     duration_s: float
@@ -247,3 +252,8 @@ class DeskObject:
 
 
 TOUCH_ACTIONS = (Press, Tap, Ramp, Swipe, Drag, Stroke)  # LongPress is a Press
+
+
+#: the former names (scripts written against them keep working)
+Action = Step
+TouchAction = TouchStep

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.optimize
 
-from hapticdesk.sim.actions import Drag, LongPress, Press, Ramp, Stroke, Swipe, Tap, TouchAction
+from hapticdesk.sim.actions import Drag, LongPress, Press, Ramp, Stroke, Swipe, Tap, TouchStep
 
 Range = tuple[float, float]
 
@@ -114,7 +114,7 @@ class Touch:
 
 
 def touch_track(
-    action: TouchAction,
+    action: TouchStep,
     t0: float,
     fs: float,
     rng: np.random.Generator,

@@ -52,7 +52,6 @@ from hapticdesk.files.yamlfile import (
     vector,
 )
 from hapticdesk.sim.actions import (
-    Action,
     DeskObject,
     Drag,
     Idle,
@@ -61,6 +60,7 @@ from hapticdesk.sim.actions import (
     Press,
     PutObject,
     Ramp,
+    Step,
     Stroke,
     Swipe,
     Tap,
@@ -76,7 +76,7 @@ UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 class Scene:
     """A timeline of actions plus the conditions of the run (see the module docstring)."""
 
-    actions: list[Action]
+    actions: list[Step]
     quiet_s: float = 2.0
     tail_s: float = 1.0
     duration_s: float | None = None
@@ -206,7 +206,7 @@ def scene_from_mapping(doc: MarkedDict, path: Path) -> Scene:
     timeline = _list(doc, "timeline", what)
     if not timeline:
         raise ConfigError(doc.where("timeline"), "`timeline` must list at least one action")
-    actions: list[Action] = []
+    actions: list[Step] = []
     for i, item in enumerate(timeline):
         actions.extend(_timeline_item(item, timeline.where(i), i, unit, path))
     return Scene(
@@ -225,7 +225,7 @@ def scene_from_mapping(doc: MarkedDict, path: Path) -> Scene:
     )
 
 
-def _timeline_item(item: Any, where: Position, index: int, unit: float, path: Path) -> list[Action]:
+def _timeline_item(item: Any, where: Position, index: int, unit: float, path: Path) -> list[Step]:
     what = f"timeline item {index + 1}"
     m = require_mapping(item, where, what)
     if len(m) != 1:
@@ -272,7 +272,7 @@ def _timeline_item(item: Any, where: Position, index: int, unit: float, path: Pa
 
 def _build(
     kind: str, p: MarkedDict, what: str, unit: float, path: Path, timing: dict[str, Any]
-) -> list[Action]:
+) -> list[Step]:
     def opt(key: str, *, positive: bool = True) -> float | None:
         if key not in p:
             return None
@@ -363,7 +363,7 @@ def _strokes(
     path: Path,
     timing: dict[str, Any],
     speed: float | None,
-) -> list[Action]:
+) -> list[Step]:
     # in file order, so a second source is reported where it stands
     sources = sorted(
         (k for k in ("path", "shape", "text", "file") if k in p),
@@ -459,7 +459,7 @@ def _strokes(
         paths = [pts]
     pen_up = number(p, "pen_up_s", what, default=0.45, minimum=0.0)
     label = timing["label"] or (str(p["text"]) if source == "text" else str(p.get("shape", "")))
-    out: list[Action] = []
+    out: list[Step] = []
     for i, pts in enumerate(paths):
         t = dict(timing)
         if i > 0:

@@ -15,17 +15,17 @@ import numpy as np
 from hapticdesk.files.profile import DeskProfile, Surface
 from hapticdesk.files.yamlfile import ConfigError, Position
 from hapticdesk.sim.actions import (
-    Action,
     Drag,
     Idle,
     LiftObject,
     Press,
     PutObject,
     Ramp,
+    Step,
     Stroke,
     Swipe,
     Tap,
-    TouchAction,
+    TouchStep,
 )
 from hapticdesk.sim.desk import STANDARD_GRAVITY, point_load
 from hapticdesk.sim.human import Touch, touch_track
@@ -188,7 +188,7 @@ class Timeline:
 
     def _place(
         self,
-        action: Action,
+        action: Step,
         index: int,
         start: float,
         rng: np.random.Generator,
@@ -196,7 +196,7 @@ class Timeline:
         placed: dict[str, ObjectLoad],
     ) -> float:
         kind = _kind(action)
-        if isinstance(action, TouchAction):
+        if isinstance(action, TouchStep):
             surf = self._surface(action.surface, action.where, surfaces, f"a {kind}")
             self._check_inside(surf, _touch_points(action), action.where, kind)
             touch, duration = touch_track(
@@ -283,14 +283,14 @@ class Timeline:
         return loads, truth
 
 
-def _kind(action: Action) -> str:
+def _kind(action: Step) -> str:
     """The scene-file name of an action (``long_press``, ``put`` …)."""
     names = {"LongPress": "long_press", "PutObject": "put", "LiftObject": "lift"}
     name = type(action).__name__
     return names.get(name, name.lower())
 
 
-def _touch_points(action: TouchAction) -> np.ndarray:
+def _touch_points(action: TouchStep) -> np.ndarray:
     if isinstance(action, Swipe):
         return np.array([action.from_point, action.to_point])
     if isinstance(action, Drag | Stroke):

@@ -17,15 +17,19 @@
         region: lamp
         do: {mqtt: {topic: zigbee2mqtt/desk_lamp/set, payload: {state: TOGGLE}}}
 
-When a run uses MQTT (an ``mqtt`` action, an ``mqtt:`` section or ``--mqtt``), every gesture
-is also published to ``<base_topic>/<desk>/action`` as a Zigbee2MQTT-style string
-(``lamp_tap``) and in full to ``<base_topic>/<desk>/event`` (JSON), with the retained
-availability ``<base_topic>/<desk>/availability`` (``online``; ``offline`` as last will).
+The plugin claims the layout's ``mqtt:`` section (``register_layout_sections``: checked
+while the layout loads, so ``hapticdesk check`` refuses what ``run`` would) and provides
+``hapticdesk demo`` (``register_commands``). When a run uses MQTT (an ``mqtt`` action, an
+``mqtt:`` section or ``--mqtt``), its ``event_sink`` publishes every gesture to
+``<base_topic>/<desk>/action`` as a Zigbee2MQTT-style string (``lamp_tap``) and in full to
+``<base_topic>/<desk>/event`` (JSON), with the retained availability
+``<base_topic>/<desk>/availability`` (``online``; ``offline`` as last will).
 paho is imported only when the connection is opened.
 """
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 from hapticdesk.files.yamlfile import ConfigError, Position
@@ -52,9 +56,18 @@ from hapticdesk.runtime.dispatcher import ActionContext
 LINK = "mqtt"  # the ActionContext.shared key of the run's connection
 
 
-def uses_mqtt(raw: Any, bindings: Any, mqtt_url: str | None) -> bool:
+SECTION = "mqtt"  # the layout's top-level section this plugin claims
+
+
+def broker_override(context: ActionContext) -> str | None:
+    """``--mqtt URL``: the broker the command line puts over the layout's."""
+    url = context.overrides.get(SECTION, {}).get("broker")
+    return None if url is None else str(url)
+
+
+def uses_mqtt(raw: Any, bindings: Any, broker_url: str | None) -> bool:
     """Whether a run needs a broker: an ``mqtt`` action, an ``mqtt:`` section or ``--mqtt``."""
-    if mqtt_url is not None or (raw is not None and "mqtt" in raw):
+    if broker_url is not None or (raw is not None and SECTION in raw):
         return True
     return any(use.name == "mqtt" for b in bindings for use in b.actions)
 
@@ -63,12 +76,18 @@ def settings_for(context: ActionContext) -> MqttSettings:
     """The run's MQTT settings from the layout's ``mqtt:`` and ``--mqtt``."""
     raw = context.settings
     return settings_from_layout(
-        raw.get("mqtt"),
-        desk=context.desk,
-        url_override=context.mqtt_url,
+        raw.get(SECTION),
+        desk=context.desk_name,
+        url_override=broker_override(context),
         relative_to=context.layout_path.parent if context.layout_path else None,
-        where=raw.where("mqtt") if hasattr(raw, "where") and "mqtt" in raw else "the layout",
+        where=raw.where(SECTION) if hasattr(raw, "where") and SECTION in raw else "the layout",
     )
+
+
+def validate_section(value: Any, position: Position, layout_path: Path) -> None:
+    """The layout's ``mqtt:`` section, checked as a run would read it (ConfigError if wrong)."""
+    # the client id's default holds the desk name; any valid one checks the same
+    settings_from_layout(value, desk="desk", relative_to=Path(layout_path).parent, where=position)
 
 
 def desk_topic(settings: MqttSettings, desk: str, leaf: str) -> str:
@@ -82,7 +101,7 @@ def link_for(context: ActionContext) -> MqttLink:
 
 def open_link(context: ActionContext) -> MqttLink:
     settings = settings_for(context)
-    availability = desk_topic(settings, context.desk, "availability")
+    availability = desk_topic(settings, context.desk_name, "availability")
     birth = [Message(availability, b"online", 1, True, command=False)]
     birth_again_on = None
     if settings.discovery:
@@ -90,9 +109,9 @@ def open_link(context: ActionContext) -> MqttLink:
         model = f"hapticdesk on {getattr(context.profile, 'name', 'a desk')}"
         for trigger in device_triggers(
             bindings,
-            desk=context.desk,
+            desk=context.desk_name,
             model=model,
-            action_topic=desk_topic(settings, context.desk, "action"),
+            action_topic=desk_topic(settings, context.desk_name, "action"),
             prefix=settings.discovery_prefix,
             qos=min(settings.qos, 1),
         ):
@@ -151,7 +170,7 @@ class MqttAction:
         self.topic, self.payload, self.qos, self.retain = parse_options(
             options, where(options, "`mqtt`")
         )
-        self.desk = context.desk
+        self.desk = context.desk_name
         self.link = link_for(context)
 
     def __call__(self, event: GestureEvent) -> None:
@@ -172,13 +191,35 @@ class DeskPublisher:
 
     def __init__(self, context: ActionContext) -> None:
         self.link = link_for(context)
-        self.action_topic = desk_topic(self.link.settings, context.desk, "action")
-        self.event_topic = desk_topic(self.link.settings, context.desk, "event")
+        self.action_topic = desk_topic(self.link.settings, context.desk_name, "action")
+        self.event_topic = desk_topic(self.link.settings, context.desk_name, "event")
 
     def __call__(self, event: GestureEvent) -> None:
         action = event.action_name
         self.link.publish(self.action_topic, action, retain=False)
         self.link.publish(self.event_topic, {**event.to_dict(), "action": action}, retain=False)
+
+
+@hookimpl
+def event_sink(layout: Any, context: ActionContext) -> DeskPublisher | None:
+    """The desk's own topics, when the run uses MQTT at all."""
+    if uses_mqtt(layout.raw, layout.bindings, broker_override(context)):
+        return DeskPublisher(context)
+    return None
+
+
+@hookimpl
+def register_layout_sections(register: Any) -> None:
+    register(SECTION, validate_section, "the MQTT broker, credentials, TLS, QoS and topics")
+
+
+@hookimpl
+def register_commands(register: Any) -> None:
+    register(
+        "demo",
+        "hapticdesk.plugins.mqtt.demo",
+        "the whole path on a simulated desk and a local broker",
+    )
 
 
 @hookimpl

@@ -9,10 +9,11 @@ import textwrap
 import numpy as np
 import pytest
 
-from hapticdesk.gestures.engine import BUILTIN_RECOGNIZERS, GestureEngine
+from hapticdesk.gestures.engine import GestureEngine
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.recognizer import Recognizer
 from hapticdesk.gestures.strokes.shapes import hand_drawn
+from hapticdesk.plugins.recognizers import RECOGNIZERS
 
 EVERYTHING = """
 units: cm
@@ -101,7 +102,7 @@ def test_builds_only_the_recognizers_the_layout_binds(make_layout):
     engine = GestureEngine(layout)
     assert set(engine.recognizers) == {"tap"}
     everything = GestureEngine(make_layout(EVERYTHING))
-    assert set(everything.recognizers) == set(BUILTIN_RECOGNIZERS)
+    assert set(everything.recognizers) == set(RECOGNIZERS)
     assert everything.recognizers["tap"] is everything.recognizers["double_tap"]
 
 

@@ -12,6 +12,8 @@ from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.layout import load_layout
 from hapticdesk.gestures.regions import regions_overlap
+from hapticdesk.registry import load_registry
+from hapticdesk.runtime.service import load_scene_layout
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "layouts"
 ACTIONS = {"mqtt", "log", "exec", "http"}
@@ -19,7 +21,8 @@ ACTIONS = {"mqtt", "log", "exec", "http"}
 
 @pytest.mark.parametrize("name", ["buttons.yaml", "living-room.yaml", "demo.yaml"])
 def test_shipped_examples_load(name):
-    layout = load_layout(EXAMPLES / name, action_names=ACTIONS)
+    # as `check` and `run` load them: the plugins' actions and sections (living-room's `mqtt:`)
+    layout, _ = load_scene_layout(EXAMPLES / name, load_registry(entry_points=False))
     assert layout.bindings and layout.warnings == []
     assert layout.desk.name == "kitamura2017"
 
@@ -325,9 +328,9 @@ def test_units_settings_and_bindings_resolve_at_three_levels(make_layout):
     assert layout.regions["fan"].radius == pytest.approx(0.05)
     b = layout.bindings
     # binding level, for every binding of the same region; layout level; built-in
-    assert b[0].options == {"max_duration_s": 0.3, "max_move": 0.01}
+    assert b[0].options == {"max_duration_s": 0.3, "max_move": 0.01, "snap": 0.012}
     assert b[1].options == b[0].options
-    assert b[2].options == {"max_duration_s": 0.5, "max_move": 0.01}
+    assert b[2].options == {"max_duration_s": 0.5, "max_move": 0.01, "snap": 0.012}
     assert b[3].options["min_distance"] == pytest.approx(0.08)
     assert b[3].options["directions"] == 8 and b[3].options["direction"] == ("up_left",)
     assert b[3].options["max_duration_s"] == 0.8
@@ -368,15 +371,33 @@ def test_do_accepts_a_mapping_a_list_or_a_name_and_validates_each_action(make_la
     assert "exec needs `argv`" in message
 
 
-def test_mqtt_and_desk_name_are_kept_raw_for_the_mqtt_plugin(make_layout):
-    layout = make_layout(
+def test_a_section_a_plugin_claims_is_kept_raw_and_handed_to_its_validator(make_layout):
+    text = (
         GOOD_REGION
         + "desk_name: study\nmqtt: {url: 'mqtt://127.0.0.1:1883', anything: [1, 2]}\n"
         + "bindings:\n  - {gesture: tap, region: lamp, do: log}\n"
     )
-    assert layout.raw["desk_name"] == "study"
+    seen = []
+    layout = make_layout(
+        text,
+        section_names=["mqtt"],
+        validate_section=lambda *args: seen.append(args),
+    )
+    assert layout.desk_name == "study"
     assert layout.raw["mqtt"] == {"url": "mqtt://127.0.0.1:1883", "anything": [1, 2]}
-    assert layout.raw["mqtt"].where("url").line == 5
+    [(name, value, position, path)] = seen
+    assert (name, value, position.line, path) == ("mqtt", layout.raw["mqtt"], 5, layout.path)
+    with pytest.raises(ConfigError, match=r":5:1: unknown key `mqtt` in the layout"):
+        make_layout(text)  # no plugin claimed it
+
+
+def test_the_desk_name_defaults_to_the_profile_name_and_is_checked(make_layout):
+    layout = make_layout(GOOD_REGION + "bindings:\n  - {gesture: tap, region: lamp, do: log}\n")
+    assert layout.desk_name == layout.desk.name == "kitamura2017"
+    with pytest.raises(ConfigError, match=r":\d+:\d+: `desk_name` must be letters"):
+        make_layout(
+            GOOD_REGION + "desk_name: a/b\nbindings: [{gesture: tap, region: lamp, do: log}]\n"
+        )
 
 
 def test_desk_from_the_layout_relative_path_or_override(write_layout, tmp_path, paper_desk):

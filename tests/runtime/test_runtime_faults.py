@@ -14,6 +14,7 @@ import pytest
 
 from hapticdesk.files.recording import write_recording
 from hapticdesk.files.yamlfile import ConfigError, load_marked_yaml
+from hapticdesk.plugins.mqtt import link_for
 from hapticdesk.plugins.mqtt.link import Message, MqttLink, MqttSettings, settings_from_layout
 from hapticdesk.registry import load_registry
 from hapticdesk.runtime.service import Runtime, build_scene
@@ -40,13 +41,13 @@ def test_a_broker_back_after_an_outage_is_used_within_a_second(
         f"replay:{recording}",
         load_registry(entry_points=False),
         speed=1.0,
-        mqtt_url=broker.url,
+        overrides={"mqtt": {"broker": broker.url}},
     )
     runtime = Runtime(scene)
     done: list[object] = []
     runner = threading.Thread(target=lambda: done.append(runtime.run(handle_signals=False)))
     runner.start()
-    link = scene.context.peek("mqtt")
+    link = link_for(scene.context)  # the run's one connection, which the actions use
     try:
         assert isinstance(link, MqttLink)
         started = time.monotonic()

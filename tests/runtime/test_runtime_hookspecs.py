@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import inspect
-from types import SimpleNamespace
+from types import ModuleType, SimpleNamespace
 
 import pytest
 
@@ -21,6 +21,7 @@ from .taps import Tap, tap_recording
 
 LAYOUT = """\
 desk: kitamura2017
+spy_section: {loud: true}
 bindings:
   - gesture: knock
     do: {spy: {}}
@@ -50,6 +51,8 @@ class Knock(Recognizer):
 def test_every_hookspec_is_exercised_by_a_run(tmp_path, paper_desk):
     called: dict[str, dict] = {}
     knocks: list[GestureEvent] = []
+    everything: list[GestureEvent] = []
+    sections: list = []
     recording = tap_recording(paper_desk, [Tap(1.5, 0.1, 0.0), Tap(2.5, -0.1, 0.05)], 3.2)
 
     def register_sources(register):
@@ -64,6 +67,20 @@ def test_every_hookspec_is_exercised_by_a_run(tmp_path, paper_desk):
         called["register_recognizers"] = {}
         register("knock", Knock, "a touch-down")
 
+    def register_layout_sections(register):
+        called["register_layout_sections"] = {}
+        register("spy_section", lambda value, position, path: sections.append((value, path)))
+
+    def register_commands(register):
+        called["register_commands"] = {}
+        command = ModuleType("spy_command")  # a module with configure(parser) and run(args)
+        command.configure, command.run = print, lambda args: 0  # type: ignore[attr-defined]
+        register("spy", command, "a command")
+
+    def event_sink(desk, layout, context):
+        called["event_sink"] = {"desk_name": context.desk_name}
+        return everything.append
+
     def startup(desk, layout):
         called["startup"] = {"desk": desk, "layout": layout}
 
@@ -77,6 +94,9 @@ def test_every_hookspec_is_exercised_by_a_run(tmp_path, paper_desk):
                 register_sources,
                 register_actions,
                 register_recognizers,
+                register_layout_sections,
+                register_commands,
+                event_sink,
                 startup,
                 shutdown,
             )
@@ -94,3 +114,7 @@ def test_every_hookspec_is_exercised_by_a_run(tmp_path, paper_desk):
     assert isinstance(called["shutdown"]["report"], RunReport)
     assert [round(e.x, 2) for e in knocks] == [0.1, -0.1]
     assert report.gestures == {"knock": 2}
+    assert everything == knocks  # the event sink saw every event
+    assert called["event_sink"]["desk_name"] == paper_desk.name
+    assert sections == [({"loud": True}, layout_path)]
+    assert registry.commands["spy"].load().run(None) == 0

@@ -58,7 +58,9 @@ TOGGLE = {
 
 def run_layout(layout: Path, recording: Path, url: str, *, plugins=(), **kw):
     registry = load_registry(entry_points=False, plugins=plugins)
-    scene = build_scene(layout, f"replay:{recording}", registry, speed=0, mqtt_url=url, **kw)
+    scene = build_scene(
+        layout, f"replay:{recording}", registry, speed=0, overrides={"mqtt": {"broker": url}}, **kw
+    )
     events = layout.parent / "events.jsonl"
     report = Runtime(scene, events_path=events).run(handle_signals=False)
     return report, [json.loads(line) for line in events.read_text().splitlines()]

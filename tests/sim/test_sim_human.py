@@ -6,14 +6,14 @@ import numpy as np
 import pytest
 
 from hapticdesk.sim import Drag, HumanModel, LongPress, Press, Ramp, Stroke, Swipe, Tap, shape_path
-from hapticdesk.sim.actions import TouchAction
+from hapticdesk.sim.actions import TouchStep
 from hapticdesk.sim.human import Touch, touch_track
 
 FS = 1200.0
 STILL = HumanModel(tremor=0.0, wander=0.0, roll_m=0.0, aim_sd_m=0.0, tangential=0.0)
 
 
-def track(action: TouchAction, seed: int = 0, human: HumanModel | None = None) -> Touch:
+def track(action: TouchStep, seed: int = 0, human: HumanModel | None = None) -> Touch:
     rng = np.random.default_rng(seed)
     touch, duration = touch_track(action, 1.0, FS, rng, human or HumanModel())
     assert len(touch.fn) == pytest.approx(duration * FS, abs=2)

@@ -4,6 +4,9 @@ The paper's desk (simulated) plays examples/scenes/demo.yaml: tap the lamp butto
 dimmer, draw a circle, tap again. examples/layouts/demo.yaml turns the gestures into
 Zigbee2MQTT commands; they travel through a broker (an embedded one on loopback unless
 ``--mqtt URL`` names yours) to a subscriber that plays the desk lamp and prints its state.
+
+The MQTT plugin provides this command (``register_commands``): it needs the plugin's broker
+and connection, and the core names no plugin.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from typing import Any
 
 import hapticdesk
 from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.plugins.mqtt.link import parse_broker_url
 from hapticdesk.registry import load_registry
 from hapticdesk.runtime.service import Runtime, build_scene
 
@@ -54,8 +58,6 @@ class Lamp:
 
     def __init__(self, url: str, out: Any) -> None:
         import paho.mqtt.client as mqtt
-
-        from hapticdesk.plugins.mqtt.link import parse_broker_url
 
         tls, self.host, self.port, username = parse_broker_url(url, "--mqtt")
         self.out = out
@@ -167,7 +169,13 @@ def run(args: argparse.Namespace) -> int:
     try:
         lamp = Lamp(url, out).start()
         registry = load_registry()
-        scene = build_scene(layout, f"sim:{scene_file}", registry, speed=args.speed, mqtt_url=url)
+        scene = build_scene(
+            layout,
+            f"sim:{scene_file}",
+            registry,
+            speed=args.speed,
+            overrides={"mqtt": {"broker": url}},
+        )
         print(
             f"simulated desk `{scene.profile.name}` playing {scene_file.name} with layout "
             f"{layout.name}; the lamp listens on {LAMP_TOPIC}",

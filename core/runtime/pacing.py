@@ -1,0 +1,70 @@
+"""Pacing: a finite source (recording, simulation, CAN log) delivered on its own sample clock.
+
+Blocks are held back until their last sample's time has come on the wall clock (scaled by
+``speed``), as a live source would deliver them. Every finite source plugin (``replay``,
+``sim``) uses this, so it lives in the runtime rather than in one of them.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Iterator
+
+from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.runtime.source import Source, WrenchBlock
+
+
+class Pacer:
+    """Holds blocks back until their sample time has come: wall = start + (t - t0) / speed.
+
+    ``speed`` 0 never waits. :meth:`wall_time` maps a sample time to the wall clock
+    (``time.perf_counter``), which is how the latency benchmark knows when a tap really ended.
+    """
+
+    def __init__(self, speed: float, stop: threading.Event) -> None:
+        if speed < 0:
+            raise ConfigError(
+                "--speed", f"--speed must be 0 (as fast as possible) or more, found {speed:g}"
+            )
+        self.speed = speed
+        self._stop = stop
+        self.t0: float | None = None
+        self.started_at: float | None = None
+
+    def wait_for(self, t: float) -> bool:
+        """Wait until sample time ``t`` has come; False when stopped meanwhile."""
+        if self.t0 is None:
+            self.t0, self.started_at = t, time.perf_counter()
+        if self.speed == 0:
+            return not self._stop.is_set()
+        delay = self.wall_time(t) - time.perf_counter()
+        if delay > 0:
+            return not self._stop.wait(delay)
+        return not self._stop.is_set()
+
+    def wall_time(self, t: float) -> float:
+        assert self.t0 is not None and self.started_at is not None, "not started"
+        return self.started_at + (t - self.t0) / (self.speed or float("inf"))
+
+
+class PacedSource(Source):
+    """A finite source (recording, simulation, CAN log) with its blocks held back until their
+    last sample's time has come, as a live source would deliver them."""
+
+    def __init__(self, inner: Source, speed: float) -> None:
+        self.inner = inner
+        self.sensor_names = list(inner.sensor_names)
+        self.sample_rate_hz = inner.sample_rate_hz
+        self._stop = threading.Event()
+        self.pacer = Pacer(speed, self._stop)
+
+    def blocks(self) -> Iterator[WrenchBlock]:
+        for block in self.inner.blocks():
+            if len(block.t) and not self.pacer.wait_for(float(block.t[-1])):
+                return
+            yield block
+
+    def close(self) -> None:
+        self._stop.set()
+        self.inner.close()

@@ -1,0 +1,181 @@
+"""Hostile and broken files: `hapticdesk check` ends at once with file:line:column, never a
+traceback, however the file was made (issue 11: alias bombs, huge numbers, wrong encodings,
+deep nesting, unhashable values, huge files, self-crossing polygons, costly templates)."""
+
+from __future__ import annotations
+
+import re
+import time
+from pathlib import Path
+
+import pytest
+
+from hapticdesk.cli import main
+from hapticdesk.files.profile import load_profile
+from hapticdesk.files.yamlfile import ConfigError, load_marked_yaml
+from hapticdesk.hookspecs import hookimpl
+from hapticdesk.sim.scene import load_scene
+
+PROFILES = Path(__file__).resolve().parents[2] / "profiles"
+
+TAP = "bindings:\n  - {gesture: tap, region: a, do: log}\n"
+REGION_A = "regions: {a: {rect: [0, 0, 0.1, 0.1]}}\n"
+
+
+def billion_laughs(levels: int = 9) -> str:
+    """Ten aliases per level: 10**levels values once expanded, a few hundred bytes written."""
+    lines = ["lol0: &lol0 [lol]"]
+    for i in range(1, levels + 1):
+        lines.append(f"lol{i}: &lol{i} [{', '.join([f'*lol{i - 1}'] * 10)}]")
+    return "\n".join(lines) + "\n"
+
+
+# name -> (file content, (line, column) of the error, words the message must hold)
+HOSTILE: dict[str, tuple[bytes, tuple[int, int], str]] = {
+    "alias bomb": (
+        ("desk: kitamura2017\n" + billion_laughs() + TAP).encode(),
+        (7, 21),
+        "more than 50000 values with its aliases expanded",
+    ),
+    "recursive alias": (
+        b"desk: kitamura2017\nbindings: &b [*b]\n",
+        (2, 15),
+        "alias *b refers to the value that holds it",
+    ),
+    "400-digit integer": (
+        (
+            "desk: kitamura2017\nregions: {a: {rect: [0, 0, 0.1, " + "9" * 400 + "]}}\n" + TAP
+        ).encode(),
+        (2, 33),
+        "a number of 400 characters; numbers here have at most 32",
+    ),
+    "Latin-1": (
+        "desk: kitamura2017\n# the café light\n".encode("latin-1") + TAP.encode(),
+        (2, 10),
+        "not UTF-8 text: byte 0xe9",
+    ),
+    "UTF-16": (("desk: kitamura2017\n" + TAP).encode("utf-16"), (1, 1), "UTF-16"),
+    "binary": (bytes(range(256)) * 4, (1, 1), "a NUL byte: this is a binary file"),
+    "control character": (b"desk: kitamura2017\nbindings: \x07\n", (2, 11), "not allowed"),
+    "20 000 open brackets": (
+        b"desk: kitamura2017\nbindings: " + b"[" * 20_000 + b"\n",
+        (2, 74),
+        "nest more than 64 deep",
+    ),
+    "a region given as a list": (
+        ("desk: kitamura2017\n" + REGION_A + TAP.replace("region: a", "region: [a]")).encode(),
+        (4, 28),
+        "`region` of binding 1 (`tap`) is one region's name (one of: a), found ['a']",
+    ),
+    "a list as a key": (b"desk: kitamura2017\n? [a]\n: 1\n", (2, 3), "keys must be text"),
+    "a set": (b"desk: kitamura2017\nbindings: !!set {a}\n", (2, 11), "!!set is not read"),
+    "a self-crossing polygon": (
+        b"desk: kitamura2017\nregions:\n"
+        b"  bow: {polygon: [[0, 0], [0.1, 0.1], [0.1, 0], [0, 0.1]]}\n"
+        + TAP.replace("region: a", "region: bow").encode(),
+        (3, 19),
+        "`polygon` of region `bow` crosses itself: the edge from point 1 crosses the edge "
+        "from point 3",
+    ),
+    "a payload template that fails on every event": (
+        (
+            "desk: kitamura2017\n" + REGION_A + "bindings:\n  - {gesture: tap, region: a, do: "
+            "{mqtt: {topic: t, payload: {v: '{{ \"a\" * 10**10 }}'}}}}\n"
+        ).encode(),
+        (4, 66),
+        "too costly to render for an event: repeating would make 10000000000 characters",
+    ),
+    "a file of 50 MB": (
+        b"k: 1\n" * 10_000_000,
+        (1, 1),
+        "larger than 1 MB",
+    ),
+    "a file of many small keys under the size limit": (
+        ("desk: kitamura2017\n" + "".join(f"k{i}: {i}\n" for i in range(120_000)))[
+            : 1_000_000
+            - 10  # just under the 1 MB limit
+        ].encode(),
+        (25_000, 9),
+        "more than 50000 values by here",
+    ),
+}
+
+
+@pytest.fixture(autouse=True)
+def _no_installed_plugins(monkeypatch):
+    monkeypatch.setenv("HAPTICDESK_DISABLE_PLUGIN_AUTOLOAD", "1")
+
+
+@pytest.mark.parametrize("name", list(HOSTILE))
+def test_check_ends_at_once_with_the_place_and_no_traceback(name, tmp_path, capsys):
+    content, (line, column), words = HOSTILE[name]
+    layout = tmp_path / "hostile.yaml"
+    layout.write_bytes(content)
+    main(["check", str(tmp_path / "missing.yaml")])  # import and load the plugins first
+    capsys.readouterr()
+    started = time.process_time()  # CPU time: other work on the machine does not count
+    assert main(["check", str(layout)]) == 2
+    elapsed = time.process_time() - started
+    err = capsys.readouterr().err
+    assert err.startswith(f"hapticdesk check: error: {layout}:{line}:{column}: "), err[:300]
+    assert words in err
+    assert "Traceback" not in err and err.count("\n") == 1
+    assert elapsed < 1.0, f"{name}: {elapsed:.2f} s"
+
+
+def test_a_bad_profile_and_a_bad_scene_are_refused_the_same_way(tmp_path):
+    profile = tmp_path / "bomb.yaml"
+    profile.write_text((PROFILES / "kitamura2017.yaml").read_text() + billion_laughs())
+    with pytest.raises(ConfigError, match=r"bomb\.yaml:\d+:\d+: the file holds more than"):
+        load_profile(profile)
+    scene = tmp_path / "scene.yaml"
+    scene.write_bytes(b"desk: kitamura2017\ntimeline: " + b"{a: " * 5_000 + b"\n")
+    with pytest.raises(ConfigError, match=r"scene\.yaml:2:\d+: lists and mappings nest more"):
+        load_scene(scene)
+
+
+def test_unicode_is_read_and_positions_count_characters(tmp_path):
+    """The strict decoding still reads UTF-8 (with or without a byte-order mark), and a
+    column after a non-ASCII character counts characters, not bytes."""
+    path = tmp_path / "u.yaml"
+    path.write_bytes("\ufeffname: Café\nlamp: ☀\n".encode())
+    assert load_marked_yaml(path) == {"name": "Café", "lamp": "☀"}
+    path.write_bytes("a: ☀☀\nb: ok\x07\n".encode())
+    with pytest.raises(ConfigError, match=r"u\.yaml:2:6: not valid YAML: character"):
+        load_marked_yaml(path)
+
+
+def test_aliases_within_the_limit_still_work(tmp_path):
+    path = tmp_path / "a.yaml"
+    path.write_text(billion_laughs(3) + "base: &b {x: 1}\nmerged: {<<: *b, y: 2}\n")
+    doc = load_marked_yaml(path)
+    assert len(doc["lol3"]) == 10 and doc["lol3"][9][9] == [["lol"]] * 10
+    assert doc["merged"] == {"x": 1, "y": 2}
+    assert doc["lol3"][0] is not doc["lol3"][1]  # expanded, so validators may annotate freely
+
+
+def test_a_warning_is_printed_once(tmp_path, capsys, caplog, monkeypatch):
+    """A failing plugin's warning was logged by the registry and printed again by check."""
+    import hapticdesk.registry as registry_module
+
+    class Broken:
+        @hookimpl
+        def register_actions(self, register):
+            raise RuntimeError("no actions today")
+
+    real = registry_module.load_registry
+    monkeypatch.setattr(
+        registry_module,
+        "load_registry",
+        lambda **kw: real(**kw, plugins=[("broken", Broken())]),
+    )
+    layout = tmp_path / "wide.yaml"  # a region reaching beyond the desk: a layout warning
+    layout.write_text(
+        "desk: kitamura2017\nregions: {a: {rect: [0.3, 0.1, 0.5, 0.2]}}\n"
+        "bindings:\n  - {gesture: tap, region: a, do: log}\n"
+    )
+    assert main(["check", str(layout)]) == 0
+    captured = capsys.readouterr()
+    shown = captured.out + captured.err + "\n".join(r.getMessage() for r in caplog.records)
+    assert len(re.findall("no actions today", shown)) == 1
+    assert len(re.findall("reaches beyond surface `top`", shown)) == 1

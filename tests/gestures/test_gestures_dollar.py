@@ -88,6 +88,12 @@ def test_a_file_that_is_not_a_log_is_named(tmp_path):
     bad.write_text('<Gesture Name="circle01"><Point X="1" Y="a" T="0"/></Gesture>')
     with pytest.raises(ConfigError, match=r"numeric X, Y and T"):
         read_logged_stroke(bad)
+    bad.write_text(
+        '<Gesture Name="v01" Subject="x">'
+        '<Point X="1" Y="2" T="0"/><Point X="2" Y="2" T="9"/></Gesture>'
+    )
+    with pytest.raises(ConfigError, match=r"Subject is a number, found 'x'"):
+        read_logged_stroke(bad)
     bad.write_text("<Gesture")
     with pytest.raises(ConfigError, match=r"not a readable \$1 gesture log"):
         read_logged_stroke(bad)

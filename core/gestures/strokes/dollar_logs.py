@@ -77,9 +77,12 @@ def read_logged_stroke(path: str | Path) -> LoggedStroke:
     if len(xyt) < 2 or not np.all(np.isfinite(xyt)):
         raise ConfigError(str(path), f"a stroke needs 2 or more finite points, found {len(xyt)}")
     points = np.column_stack([xyt[:, 0], -xyt[:, 1]]) * METRES_PER_PIXEL  # y down -> y away
+    subject = root.get("Subject", "0")
+    if not subject.isdigit():
+        raise ConfigError(str(path), f"Subject is a number, found {subject!r}")
     return LoggedStroke(
         shape=SHAPE_NAMES[base],
-        subject=f"s{int(root.get('Subject', '0')):02d}",
+        subject=f"s{int(subject):02d}",
         speed=root.get("Speed", "unknown"),
         repetition=int(name[len(base) :] or 0),
         t=(xyt[:, 2] - xyt[0, 2]) / 1000.0,

@@ -118,6 +118,17 @@ class Layout:
         return re.sub(r"[^A-Za-z0-9_-]", "_", self.desk.name)
 
     @property
+    def named_layouts(self) -> dict[str, Path]:
+        """``layouts:``: name -> layout file a running desk can switch to (checked on load)."""
+        value = self.raw.get("layouts")
+        if not isinstance(value, dict):
+            return {}
+        return {
+            str(name): (self.path.parent / Path(str(file)).expanduser())
+            for name, file in value.items()
+        }
+
+    @property
     def gestures(self) -> list[str]:
         """Bound gesture names in the order they first appear."""
         return list(dict.fromkeys(b.gesture for b in self.bindings))

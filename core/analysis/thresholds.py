@@ -164,6 +164,7 @@ def derive_thresholds(
         base,
         detect_lowpass_hz=base.force_lowpass_hz,
         release_hysteresis_n=min(GATE_HYSTERESIS_N, base.release_hysteresis_n),
+        release_slope_n_s=0.0,  # gated on the low-passed force itself, not a prediction
     )
     estimator = ContactEstimator(profile, method="switched", settings=settings, trace=True)
     block = estimator.push(recording.t, recording.wrench)

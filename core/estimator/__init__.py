@@ -37,7 +37,7 @@ import numpy as np
 
 from hapticdesk.estimator.candidates import Candidates, CandidateStage, Covariances, unpacked_at
 from hapticdesk.estimator.contacts import FLAG_NOT_TARED, UNCERTAINTY_CAP_M, ContactBlock
-from hapticdesk.estimator.detector import TouchDetector
+from hapticdesk.estimator.detector import TouchDetector, phase_of, phases_of, slope_along
 from hapticdesk.estimator.filter_bank import FilterBank
 from hapticdesk.estimator.methods import emit_one, select, select_one
 from hapticdesk.estimator.notices import Notice
@@ -184,47 +184,47 @@ class ContactEstimator:
         flags, raw = self.samples.process(t, wrench)
         block.flags[:] = flags
         started = self.samples.state.last_good is not None
-        lp, det, diff, det_slope = self.filters.process(t, raw, flags, started)
+        lp, det, diff, det_slope, release = self.filters.process(t, raw, flags, started)
         segments = self.zeroing.process(t, lp.real, raw, flags)
         noise = self.zeroing.state.noise
         if self.candidates.covs is None and noise is not None:
             self.candidates.covs = Covariances.of(self.stage_settings, noise)
-        self._contacts(block, t, flags, lp, det, diff, det_slope, segments)
+        self._contacts(block, t, flags, lp, det, diff, det_slope, release, segments)
 
     def _push_one(self, t: float, wrench: np.ndarray) -> ContactBlock | None:
         """One sample on the common path through each stage's single-sample twin, with plain
         floats where numpy's per-call cost would dominate. None where the sample needs the
         general path: before the tare, in trace mode, with a separate low-pass for the
-        differentiated force, for a bad sample or a gap, and where a zero window ends."""
+        differentiated force, and for a bad sample or a gap."""
         s = self.stage_settings
         zero = self.zeroing
-        if self.trace or zero.state.zero is None or not s.shared_lp or zero.ends_window_next():
+        if self.trace or zero.state.zero is None or not s.shared_lp:
             return None
-        raw = self.samples.process_one(t, wrench)
-        if raw is None:
+        raw_a = self.samples.process_one(t, wrench)
+        if raw_a is None:
             return None
-        lp, det, diff, det_slope = self.filters.process_one(raw)
-        zero.process_one(t, lp.real, raw)
-        z = zero.state.zero_list
-        det_l = det.tolist()
+        raw = raw_a.tolist()
+        lp, det, diff, det_slope, release = self.filters.process_one(raw)
+        # the zero before this sample: one set where it ends a window applies from the next on
+        z, zero_t = zero.state.zero_list, zero.state.zero_t
+        zero.process_one(t, [v.real for v in lp], raw)
         if s.det_full:
-            fast = [det_l[i].real - z[i] for i in range(3)] + [
-                det_l[i].imag - z[i + 3] for i in range(3)
+            fast = [det[i].real - z[i] for i in range(3)] + [
+                det[i].imag - z[i + 3] for i in range(3)
             ]
         else:
-            fast = [det_l[i] - z[i] for i in range(3)]
-        in_contact, mag = self.detector.process_one(fast)
+            fast = [det[i] - z[i] for i in range(3)]
+        in_contact, mag, slope = self.detector.process_one(fast, det_slope, release)
         block = _single_block(t, in_contact, mag)
         if in_contact:
-            lp_l = lp.tolist()
-            wrench6 = [lp_l[i].real - z[i] for i in range(3)] + [
-                lp_l[i].imag - z[i + 3] for i in range(3)
+            wrench6 = [lp[i].real - z[i] for i in range(3)] + [
+                lp[i].imag - z[i + 3] for i in range(3)
             ]
-            d6 = [d.real for d in diff.tolist()] + [d.imag for d in diff.tolist()]
+            d6 = [d.real for d in diff] + [d.imag for d in diff]
             inv = 1.0 / mag if mag > 0 else 1.0
-            block.phase[0] = self.detector.phase_one(fast, det_slope, inv)
+            block.phase[0] = phase_of(slope, s)
             cf, cd, cq, f_mag, motion = self.candidates.process_one(
-                wrench6, d6, fast, inv, t - zero.state.zero_t
+                wrench6, d6, fast, inv, t - zero_t
             )
             chosen, source = select_one(cf, cd, cq, f_mag, motion, s)
             if chosen is not None:
@@ -240,6 +240,7 @@ class ContactEstimator:
         det: np.ndarray,
         diff: np.ndarray,
         det_slope: np.ndarray,
+        release: np.ndarray,
         segments: ZeroSegments,
     ) -> None:
         """Contact, phase and position of each sample, from the filtered wrenches."""
@@ -258,7 +259,10 @@ class ContactEstimator:
             block.force_n[:] = f_det_mag
         else:
             np.copyto(block.force_n, f_det_mag, where=tared)
-        block.in_contact[:] = self.detector.process(f_det, f_det_mag, None if all_tared else tared)
+        slope = slope_along(f_det, det_slope, f_det_mag)
+        block.in_contact[:] = self.detector.process(
+            f_det, f_det_mag, slope_along(f_det, release, f_det_mag), None if all_tared else tared
+        )
         # candidates only for good samples in contact (a bad one keeps the contact state but
         # has no position of its own); they are the costly part
         idx = np.flatnonzero(block.in_contact & ((flags & BAD_SAMPLE) == 0))
@@ -268,7 +272,7 @@ class ContactEstimator:
         f_det_mag_at = f_det_mag[idx]
         inv_mag = 1.0 / np.where(f_det_mag_at > 0, f_det_mag_at, 1.0)
         # the phase from the fast path's slope, which does not wait for the 166 ms window
-        block.phase[idx] = self.detector.phases(f_det_at, np.take(det_slope, idx, axis=1), inv_mag)
+        block.phase[idx] = phases_of(slope[idx], s)
         cands = self.candidates.process(
             unpacked_at(lp, idx),
             np.take(diff, idx, axis=1),
@@ -304,21 +308,30 @@ def _trace(t: np.ndarray, cands: Candidates, s: EstimatorSettings) -> CandidateT
 
 
 def _single_block(t: float, in_contact: bool, force_n: float) -> ContactBlock:
-    """A one-sample block, not yet located."""
-    return ContactBlock(
-        t=np.array([t]),
-        in_contact=np.array([in_contact]),
-        located=np.zeros(1, bool),
-        surface=np.full(1, -1, np.int16),
-        x=np.zeros(1),
-        y=np.zeros(1),
-        z=np.zeros(1),
-        force_n=np.array([force_n]),
-        source=np.zeros(1, np.int8),
-        phase=np.zeros(1, np.int8),
-        sigma_m=np.full(1, UNCERTAINTY_CAP_M),
-        flags=np.zeros(1, np.uint8),
-    )
+    """A one-sample block, not yet located: copies of a blank one (a copy of a one-element
+    array costs a fraction of making one with ``np.full``)."""
+    block = ContactBlock(*(a.copy() for a in _BLANK_ONE))
+    block.t[0] = t
+    block.in_contact[0] = in_contact
+    block.force_n[0] = force_n
+    return block
+
+
+#: the fields of a blank one-sample ContactBlock, in order
+_BLANK_ONE = (
+    np.zeros(1),  # t
+    np.zeros(1, bool),  # in_contact
+    np.zeros(1, bool),  # located
+    np.full(1, -1, np.int16),  # surface
+    np.zeros(1),  # x
+    np.zeros(1),  # y
+    np.zeros(1),  # z
+    np.zeros(1),  # force_n
+    np.zeros(1, np.int8),  # source
+    np.zeros(1, np.int8),  # phase
+    np.full(1, UNCERTAINTY_CAP_M),  # sigma_m
+    np.zeros(1, np.uint8),  # flags
+)
 
 
 def estimate(profile: DeskProfile, recording: Recording, method: str | None = None) -> ContactBlock:

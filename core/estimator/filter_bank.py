@@ -2,14 +2,16 @@
 
 The conventional second-order low-pass; the pseudo-differentiated wrench (paper eq. 8: an
 n-sample difference, then the low-pass); and a fast (30 Hz) low-pass for touch-down and
-release detection, with its slope over a short window (the touch phase). Wrenches are
-filtered packed, force + 1j·moment (:func:`filters.pack_pairs`): three complex lanes cost
-about what three real ones do.
+release detection, with its slope over a short window (the touch phase) and over a shorter
+one (the release prediction, :mod:`.detector`), both from one history of the fast force.
+Wrenches are filtered packed, force + 1j·moment (:func:`filters.pack_pairs`): three complex
+lanes cost about what three real ones do.
 """
 
 from __future__ import annotations
 
 import logging
+from typing import Any
 
 import numpy as np
 
@@ -18,7 +20,7 @@ from hapticdesk.estimator.filters import DelayLine, SosFilter, pack_pairs
 from hapticdesk.estimator.notices import Notice, add_notice
 from hapticdesk.estimator.settings import EstimatorSettings
 
-Filtered = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+Filtered = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 
 class FilterState:
@@ -43,13 +45,15 @@ class FilterBank:
         self.state = FilterState(settings)
 
     def process(self, t: np.ndarray, raw: np.ndarray, flags: np.ndarray, started: bool) -> Filtered:
-        """``lp``, ``det``, ``diff``, ``det_slope`` for the wrench ``raw`` (6, k): wrenches
-        packed (3, k) complex, force + 1j·moment (``det`` real (3, k) unless ``det_full``).
-        ``started``: a good sample has been seen (before it, nothing is filtered)."""
+        """``lp``, ``det``, ``diff``, ``det_slope``, ``release_slope`` for the wrench ``raw``
+        (6, k): wrenches packed (3, k) complex, force + 1j·moment (``det`` real (3, k) unless
+        ``det_full``); the slopes (3, k) of the fast force over ``n_rate`` and
+        ``n_release`` samples. ``started``: a good sample has been seen (before it, nothing
+        is filtered)."""
         if not started:
             z = np.zeros((3, raw.shape[1]), complex)
             det = z.copy() if self.settings.det_full else np.zeros((3, raw.shape[1]))
-            return z, det, z.copy(), np.zeros((3, raw.shape[1]))
+            return z, det, z.copy(), np.zeros((3, raw.shape[1])), np.zeros((3, raw.shape[1]))
         gaps = flags & FLAG_GAP
         if not gaps.any():
             return self._segment(raw)
@@ -69,20 +73,33 @@ class FilterBank:
                     logging.WARNING,
                 )
             parts.append(self._segment(raw[:, a:b]))
-        lp, det, diff, slope = (np.concatenate(p, axis=1) for p in zip(*parts, strict=True))
-        return lp, det, diff, slope
+        lp, det, diff, slope, release = (
+            np.concatenate(p, axis=1) for p in zip(*parts, strict=True)
+        )
+        return lp, det, diff, slope, release
 
-    def process_one(self, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, list]:
-        """:meth:`process` for one sample (6,) with a shared low-pass, on (3, 1) lanes:
-        ``lp`` (3,) packed, ``det`` (3,) (packed if ``det_full``), ``diff`` (3,) packed and
-        the slope as a list."""
+    def process_one(
+        self, raw: list[float]
+    ) -> tuple[list[complex], list[Any], list[complex], list[float], list[float]]:
+        """:meth:`process` for one sample (6,) with a shared low-pass, on plain numbers (the
+        filters' :meth:`~SosFilter.step`): ``lp`` (3,) packed, ``det`` (3,) (packed if
+        ``det_full``), ``diff`` (3,) packed and both slopes."""
         st, s = self.state, self.settings
-        packed = (raw[:3] + 1j * raw[3:])[:, None]
-        det = st.det.process(packed if s.det_full else raw[:3, None])[:, 0]
-        det_slope = (st.det_delay.step(det.real if s.det_full else det) * s.rate_scale).tolist()
-        lp = st.lp.process(packed, in_place=True)[:, 0]
-        diff = st.delay.step(lp) * s.diff_scale  # paper eq. (8)
-        return lp, det, diff, det_slope
+        packed = [raw[0] + 1j * raw[3], raw[1] + 1j * raw[4], raw[2] + 1j * raw[5]]
+        det = st.det.step(packed if s.det_full else raw[:3])
+        det_f = [d.real for d in det] if s.det_full else det
+        slope, release = st.det_delay.step_one(det_f, s.n_release)
+        rate, rel = s.rate_scale, s.release_scale
+        lp = st.lp.step(packed)
+        diff, _ = st.delay.step_one(lp)  # paper eq. (8)
+        scale = s.diff_scale
+        return (
+            lp,
+            det,
+            [d * scale for d in diff],
+            [v * rate for v in slope],
+            [v * rel for v in release],
+        )
 
     def restart(self, x0: np.ndarray) -> None:
         """Every filter as if ``x0`` had been the input forever (after a gap)."""
@@ -100,7 +117,12 @@ class FilterBank:
         st, s = self.state, self.settings
         packed = pack_pairs(raw)  # force + 1j·moment
         det = st.det.process(packed if s.det_full else raw[:3])
-        det_slope = st.det_delay.difference(det.real if s.det_full else det)
+        det_f = det.real if s.det_full else det
+        if st.det_delay.ring is None:
+            st.det_delay.restart(det_f[:, 0])
+        release = st.det_delay.recent_difference(det_f, s.n_release)  # before the history moves
+        release *= s.release_scale
+        det_slope = st.det_delay.difference(det_f)
         det_slope *= s.rate_scale
         if st.diff_lp is None:
             lp = st.lp.process(packed, in_place=True)
@@ -113,4 +135,4 @@ class FilterBank:
             raw_diff *= s.diff_scale
             diff = st.diff_lp.process(raw_diff, in_place=True)
             lp = st.lp.process(packed, in_place=True)
-        return lp, det, diff, det_slope
+        return lp, det, diff, det_slope, release

@@ -7,6 +7,8 @@ created from the first block (ezmsg-sigproc's habit, STYLE.md 7). Arrays are cha
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from scipy import signal
 
@@ -61,17 +63,51 @@ class SosFilter:
         self.channels = channels
         self._zi_unit = signal.sosfilt_zi(self.sos)  # (n_sections, 2) for a unit step
         self.zi: np.ndarray | None = None  # (C, n_sections, 2)
+        # single samples (:meth:`step`) run on plain numbers, where numpy's per-call cost
+        # would dominate: the state then lives here, per channel [z0, z1] of each section,
+        # until a block needs it back in ``zi`` (:meth:`_to_array`)
+        self._coefs = [(b0, b1, b2, a1, a2) for b0, b1, b2, _, a1, a2 in self.sos.tolist()]
+        self._state: list[list[Any]] | None = None
 
     def restart(self, x0: np.ndarray) -> None:
         """Set the state as if ``x0`` (C,) had been the input forever."""
         x0 = np.asarray(x0)
         x0 = x0.astype(complex if np.iscomplexobj(x0) else float, copy=False)
         self.zi = np.ascontiguousarray(x0[:, None, None] * self._zi_unit)
+        self._state = None
 
     def shift(self, delta: np.ndarray) -> None:
         """Move the state as if ``delta`` had been subtracted from all past input."""
+        self._to_array()
         if self.zi is not None:
             self.zi -= np.asarray(delta)[:, None, None] * self._zi_unit
+
+    def step(self, x: list[Any]) -> list[Any]:
+        """:meth:`process` for one sample of the C channels as plain numbers (float or
+        complex), once the state is set: the same recursion as scipy's ``sosfilt``, so the
+        same output to rounding."""
+        state = self._state
+        if state is None:
+            assert self.zi is not None
+            state = self._state = self.zi.reshape(self.channels, -1).tolist()
+            self.zi = None  # (the state is in _state until _to_array)
+        out = []
+        for lane, value in zip(state, x, strict=True):
+            j = 0
+            for b0, b1, b2, a1, a2 in self._coefs:
+                y = b0 * value + lane[j]
+                lane[j] = b1 * value - a1 * y + lane[j + 1]
+                lane[j + 1] = b2 * value - a2 * y
+                value = y
+                j += 2
+            out.append(value)
+        return out
+
+    def _to_array(self) -> None:
+        """The state of :meth:`step` back into ``zi`` for a block."""
+        if self._state is not None:
+            self.zi = np.array(self._state).reshape(self.channels, -1, 2)
+            self._state = None
 
     def process(self, x: np.ndarray, in_place: bool = False) -> np.ndarray:
         """Filter ``x`` (C, k), real or complex (lanes packed in pairs: one recursion filters
@@ -81,6 +117,7 @@ class SosFilter:
         y = x if in_place else np.array(x, dtype=dtype, order="C", copy=True)
         if y.shape[1] == 0:
             return y
+        self._to_array()
         if self.zi is None:
             self.restart(y[:, 0])
         assert self.zi is not None
@@ -121,6 +158,9 @@ class DelayLine:
         self.channels = channels
         self.ring: np.ndarray | None = None  # (C, n); ring[:, pos] is the oldest sample
         self.pos = 0
+        # single samples (:meth:`step_one`) keep the history as plain numbers, one list of the
+        # C channels per slot, until a block needs it back in ``ring`` (:meth:`_to_array`)
+        self._slots: list[list[Any]] | None = None
 
     def restart(self, x0: np.ndarray) -> None:
         """Fill the history with ``x0`` so the first differences are zero."""
@@ -128,6 +168,28 @@ class DelayLine:
         x0 = x0.astype(complex if np.iscomplexobj(x0) else float, copy=False)
         self.ring = np.repeat(x0[:, None], self.n, axis=1)
         self.pos = 0
+        self._slots = None
+
+    def step_one(self, x: list[Any], m: int = 0) -> tuple[list[Any], list[Any]]:
+        """:meth:`step` for one sample as plain numbers, once started: x − x[−n], and also
+        x − x[−m] (1 ≤ m ≤ n; ``m`` 0: not wanted, an empty list)."""
+        slots = self._slots
+        if slots is None:
+            assert self.ring is not None
+            slots = self._slots = self.ring.T.tolist()
+        pos, n = self.pos, self.n
+        old = slots[pos]
+        out = [a - b for a, b in zip(x, old, strict=True)]
+        recent = [a - b for a, b in zip(x, slots[(pos + n - m) % n], strict=True)] if m else []
+        slots[pos] = x
+        self.pos = pos + 1 if pos + 1 < n else 0
+        return out, recent
+
+    def _to_array(self) -> None:
+        """The history of :meth:`step_one` back into ``ring`` for a block."""
+        if self._slots is not None:
+            self.ring = np.array(self._slots).T.copy()
+            self._slots = None
 
     def difference(self, x: np.ndarray) -> np.ndarray:
         """x[i] − x[i − n] for each column of ``x`` (C, k); updates the history. Saves the
@@ -135,6 +197,7 @@ class DelayLine:
         k = x.shape[1]
         if k <= self.n:
             return x - self.delayed(x)
+        self._to_array()
         if self.ring is None:
             self.restart(x[:, 0])
         assert self.ring is not None
@@ -152,6 +215,7 @@ class DelayLine:
 
     def step(self, x: np.ndarray) -> np.ndarray:
         """:meth:`difference` for one sample ``x`` (C,): x − x[−n]; updates the history."""
+        self._to_array()
         if self.ring is None:
             self.restart(x)
         assert self.ring is not None
@@ -161,11 +225,26 @@ class DelayLine:
         self.pos = pos + 1 if pos + 1 < self.n else 0
         return out
 
+    def recent_difference(self, x: np.ndarray, m: int) -> np.ndarray:
+        """x[i] − x[i − m] for each column of ``x`` (C, k), m ≤ n, from the same history as
+        :meth:`difference` (call it first: this one does not update the history)."""
+        self._to_array()
+        assert self.ring is not None and 1 <= m <= self.n
+        k, pos = x.shape[1], self.pos
+        last = np.concatenate([self.ring[:, pos:], self.ring[:, :pos]], axis=1)[:, self.n - m :]
+        if k <= m:
+            return x - np.concatenate([last, x], axis=1)[:, :k]
+        out = np.empty_like(x)
+        np.subtract(x[:, :m], last, out=out[:, :m])
+        np.subtract(x[:, m:], x[:, : k - m], out=out[:, m:])
+        return out
+
     def delayed(self, x: np.ndarray) -> np.ndarray:
         """x[i − n] for each column of ``x`` (C, k); updates the history."""
         k = x.shape[1]
         if k == 0:
             return x.copy()
+        self._to_array()
         if self.ring is None:
             self.restart(x[:, 0])
         assert self.ring is not None

@@ -19,6 +19,10 @@ from hapticdesk.files.profile import DeskProfile, EstimationSettings
 
 WINDOW_S = 0.2  # tare and stillness are judged on windows of this length
 RATE_WINDOW_S = 0.05  # slope of the fast force for the touch/hold/release phase
+# slope of the fast force for the release prediction: shorter, so a tap's quick fall is not
+# averaged with its hold (its noise, ≈ 3 N/s here, is still far below the
+# 10 N/s of release_slope_n_s)
+RELEASE_WINDOW_S = 0.02
 UNRATED_LIMIT = 1e12  # a channel without a rating counts as saturated beyond this
 
 
@@ -47,8 +51,11 @@ class EstimatorSettings:
     gain_diff: float
     gain_det: float
     position_delay_s: float
+    det_delay_s: float  # how far the fast low-pass runs behind a ramp (the release prediction)
     n_rate: int  # samples of the fast force's slope
     rate_scale: float
+    n_release: int  # samples of its slope for the release prediction (≤ n_rate)
+    release_scale: float
     window: int  # samples per tare/stillness window
     n_tare: int  # windows of a tare
     n_settle: int  # windows a still load is held before it joins the zero
@@ -80,6 +87,7 @@ class EstimatorSettings:
         fir[0], fir[-1] = diff_scale, -diff_scale
         long = int(8 * fs / min(s.force_lowpass_hz, s.diff_lowpass_hz)) + n_diff
         n_rate = max(1, round(RATE_WINDOW_S * fs))
+        n_release = min(n_rate, max(1, round(RELEASE_WINDOW_S * fs)))
         window = max(1, round(WINDOW_S * fs))
 
         def windows(seconds: float) -> int:
@@ -111,8 +119,11 @@ class EstimatorSettings:
             # how far the located points run behind a moving finger: the force low-pass's
             # delay (the gesture engine carries a swipe's end on by it)
             position_delay_s=group_delay_s(lp_sos, fs, long),
+            det_delay_s=group_delay_s(det_sos, fs, long),
             n_rate=n_rate,
             rate_scale=fs / n_rate,
+            n_release=n_release,
+            release_scale=fs / n_release,
             window=window,
             n_tare=windows(s.tare_s),
             n_settle=windows(s.settle_s),

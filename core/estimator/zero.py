@@ -66,18 +66,20 @@ class ZeroStage:
         self.notices = notices
         self.state = ZeroState(settings.window)
 
-    def ends_window_next(self) -> bool:
-        """One more sample ends the current window (:meth:`process_one` cannot take it)."""
-        return self.state.win_fill + 1 >= self.settings.window
-
-    def process_one(self, t: float, lp_force: np.ndarray, raw: np.ndarray) -> None:
-        """:meth:`process` for one good sample that does not end a window: only remembered."""
-        st = self.state
+    def process_one(self, t: float, lp_force: list[float], raw: list[float]) -> None:
+        """:meth:`process` for one good sample once tared: remembered, and where it ends a
+        window, the window judged by the same code as a block's (so a zero it sets takes
+        effect from the next sample on, as in a block) — one window's work, not a block's."""
+        st, w = self.state, self.settings.window
         m = st.win_fill
         st.win_lp[:, m] = lp_force
         st.win_raw[:, m] = raw
         st.win_bad[m] = False
-        st.win_fill = m + 1
+        if m + 1 < w:
+            st.win_fill = m + 1
+        else:  # (_windows reads the fill before this sample: m, the block's first index)
+            self._windows(np.array([t]), st.win_lp, st.win_raw, st.win_bad, 1, [0], [])
+            st.win_fill = 0
         st.last_window_t = t
 
     def process(

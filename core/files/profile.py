@@ -113,6 +113,9 @@ class EstimationSettings:
     tare_quiet_n: float = 1.0  # the tare window's low-passed |F| may vary this much at most
     contact_force_n: float = 2.0  # contact only while |F| >= this (paper §3.3 step 4)
     release_hysteresis_n: float = 0.5  # contact ends below contact_force_n - this
+    # ... or, for a fall of the fast force steeper than this (N/s), where it is predicted to
+    # cross contact_force_n (the fast low-pass's delay ahead); 0: the hysteresis alone
+    release_slope_n_s: float = 10.0
     diff_window_s: float = 0.166  # n·T_s of the pseudo-differentiation, paper eq. (8)
     diff_lowpass_hz: float = 4.77  # below the desk's 5.9 Hz natural frequency
     force_lowpass_hz: float = 4.77  # the conventional second-order low-pass
@@ -415,6 +418,7 @@ def _estimation(item: Any, where: Any) -> EstimationSettings:
                 "min_normal_cos",
                 "contact_speed_m_s",
                 "release_hysteresis_n",
+                "release_slope_n_s",
                 "drift_settle_s",
                 "drift_force_n_per_min",
                 "drift_moment_nm_per_min",

@@ -37,6 +37,7 @@ from hapticdesk.registry import Registry
 from hapticdesk.runtime.control import ControlCommand, ControlError, ControlQueue
 from hapticdesk.runtime.dispatcher import ActionContext, Dispatcher, DispatchReport, Lane, Route
 from hapticdesk.runtime.isolation import ProcessAction, split_isolation
+from hapticdesk.runtime.observe import ContactObservers
 from hapticdesk.runtime.source import Source
 from hapticdesk.runtime.source_spec import open_source
 
@@ -68,6 +69,8 @@ class Assembly:
     action_timeout_s: float | None = None
     #: commands for the running desk (re-tare, pause, reload …), applied between blocks
     control: ControlQueue = field(default_factory=ControlQueue)
+    #: plugins' contact sinks (``contact_sink`` hook), called once per block
+    observers: ContactObservers = field(default_factory=lambda: ContactObservers([]))
 
     def close(self) -> None:
         """Release what was built without running."""
@@ -135,6 +138,9 @@ def build_scene(
             dispatcher.add_route(route)
         for plugin, sink in registry.event_sinks(desk=profile, layout=layout, context=context):
             dispatcher.add_sink(Lane(f"every event → {plugin}", sink, timeout_s=action_timeout_s))
+        observers = ContactObservers(
+            registry.contact_sinks(desk=profile, layout=layout, context=context)
+        )
         from hapticdesk.estimator import ContactEstimator
         from hapticdesk.gestures.engine import GestureEngine
 
@@ -159,6 +165,7 @@ def build_scene(
         layout_path=Path(layout_path),
         desk_override=desk,
         action_timeout_s=action_timeout_s,
+        observers=observers,
     )
 
 
@@ -498,6 +505,8 @@ class Runtime:
             contacts = scene.estimator.push(block.t, block.wrench)  # it logs its own notices
             self._emit(scene.engine.feed(contacts))
             self._update_live(contacts)
+            if scene.observers:
+                scene.observers(contacts, scene.estimator.zero)
             self.report.samples += len(block.t)
             t_last = self._t_last = float(block.t[-1])
         self.apply_control()

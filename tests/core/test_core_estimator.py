@@ -99,6 +99,22 @@ def test_single_sample_pushes_equal_batch(noisy_presses, method):
 
 
 @pytest.mark.parametrize("method", METHODS)
+def test_single_sample_pushes_take_no_slow_path_once_tared(noisy_presses, method, monkeypatch):
+    # issue 15 item 7: a zero window's end (every 240th sample) took the general block path
+    desk = load_profile("kitamura2017")
+    t, w = noisy_presses
+    est = ContactEstimator(desk, method=method)
+    est.push(t[:3100], w[:3100])  # tared, and after the NaN burst (bad samples go the long way)
+    assert est.tared
+    general = []
+    real_push = est._push
+    monkeypatch.setattr(est, "_push", lambda *a: general.append(1) or real_push(*a))
+    for i in range(3100, 3100 + 3 * est.stage_settings.window):
+        est.push(t[i : i + 1], w[i : i + 1])
+    assert general == []
+
+
+@pytest.mark.parametrize("method", METHODS)
 def test_a_stuck_input_streamed_in_1_and_7_sample_pushes_equals_batch(noisy_presses, method):
     # stuck for 0.7 s after the first press, live again 0.4 s before the light second one
     desk = load_profile("kitamura2017")

@@ -10,7 +10,7 @@ import pytest
 
 from hapticdesk.estimator.candidates import CandidateStage, Covariances, unpacked_at
 from hapticdesk.estimator.contacts import FLAG_GAP, FLAG_STUCK, FLAG_TIME_BACK, ContactBlock
-from hapticdesk.estimator.detector import TouchDetector
+from hapticdesk.estimator.detector import TouchDetector, slope_along
 from hapticdesk.estimator.filter_bank import FilterBank
 from hapticdesk.estimator.methods import emit_one, select, select_one
 from hapticdesk.estimator.notices import Notice
@@ -83,7 +83,7 @@ def upstream(desk, bad_input):
     t, w = bad_input
     samples = SampleStage(s, [])
     flags, raw = samples.process(t, w)
-    lp, det, diff, slope = FilterBank(s, []).process(t, raw, flags, True)
+    lp, det, diff, slope, release = FilterBank(s, []).process(t, raw, flags, True)
     zero = ZeroStage(s, [])
     segments = zero.process(t, lp.real, raw, flags)
     assert zero.state.noise is not None
@@ -96,6 +96,7 @@ def upstream(desk, bad_input):
         "det": det,
         "diff": diff,
         "slope": slope,
+        "release": release,
         "fast": fast,
         "age": age,
         "tared": tared,
@@ -174,7 +175,7 @@ def test_the_filter_bank_is_chunk_invariant(desk, upstream, split):
     notices: list[Notice] = []
     bank = FilterBank(s, notices)
     got = _in_blocks(len(t), split, lambda b: list(bank.process(t[b], raw[:, b], flags[b], True)))
-    names = ("lp", "det", "diff", "slope")
+    names = ("lp", "det", "diff", "slope", "release")
     _assert_same(got, [upstream[n] for n in names])
     assert [n.kind for n in notices] == ["gap"]
 
@@ -189,6 +190,7 @@ def test_the_filter_bank_one_sample_twin_equals_its_block_path(desk, upstream):
     for j in range(3):
         np.testing.assert_allclose(np.array([g[j] for g in got]).T, want[j][:, 1:], atol=1e-12)
     np.testing.assert_allclose(np.array([g[3] for g in got]).T, want[3][:, 1:], atol=1e-9)
+    np.testing.assert_allclose(np.array([g[4] for g in got]).T, want[4][:, 1:], atol=1e-9)
 
 
 def _zero_per_sample(segments, k: int) -> np.ndarray:
@@ -221,16 +223,38 @@ def test_the_zero_stage_is_chunk_invariant(desk, upstream, split):
     assert "tare" in [n.kind for n in notices]
 
 
+def test_the_zero_stage_one_sample_twin_judges_window_ends_as_its_block_path(desk, upstream):
+    # after the tare, every sample goes through process_one, window ends included (no slow
+    # path every 0.2 s): the zero it keeps equals the block path's, sample for sample
+    s = _settings(desk)
+    t, raw, lp = upstream["t"][:6000], upstream["raw"][:, :6000], upstream["lp"].real[:, :6000]
+    flags = np.zeros(len(t), np.uint8)
+    want = _zero_per_sample(ZeroStage(s, []).process(t, lp, raw, flags), len(t))
+    single = ZeroStage(s, [])
+    start = 3000  # well after the tare
+    assert not np.isnan(want[0, start])
+    single.process(t[:start], lp[:, :start], raw[:, :start], flags[:start])
+    got = np.empty((7, len(t) - start))
+    for i in range(start, len(t)):
+        got[:, i - start] = single.state.column()  # the zero this sample is tared with
+        single.process_one(float(t[i]), lp[:, i], raw[:, i])
+    np.testing.assert_allclose(got, want[:, start:], atol=1e-12)
+    assert len(np.unique(want[6, start:])) > 1  # the zero changed in between (drift followed)
+
+
 @pytest.mark.parametrize("split", SPLITS)
 def test_the_touch_detector_is_chunk_invariant(desk, upstream, split):
     s = _settings(desk)
     f_det = upstream["fast"].real
     mag = np.sqrt(np.einsum("ik,ik->k", f_det, f_det))
     tared = upstream["tared"]
-    want = TouchDetector(s).process(f_det, mag, tared)
+    falling = slope_along(f_det, upstream["release"], mag)
+    want = TouchDetector(s).process(f_det, mag, falling, tared)
     assert 0.2 < want.mean() < 0.8  # both states, several switches
     detector = TouchDetector(s)
-    got = _in_blocks(len(mag), split, lambda b: [detector.process(f_det[:, b], mag[b], tared[b])])
+    got = _in_blocks(
+        len(mag), split, lambda b: [detector.process(f_det[:, b], mag[b], falling[b], tared[b])]
+    )
     _assert_same(got, [want])
 
 
@@ -239,19 +263,16 @@ def test_the_touch_detector_one_sample_twin_equals_its_block_path(desk, upstream
     at = np.flatnonzero(upstream["tared"])
     f_det = upstream["fast"].real[:, at]
     mag = np.sqrt(np.einsum("ik,ik->k", f_det, f_det))
-    want = TouchDetector(s).process(f_det, mag, None)
+    slope, release = upstream["slope"][:, at], upstream["release"][:, at]
+    want = TouchDetector(s).process(f_det, mag, slope_along(f_det, release, mag), None)
     single = TouchDetector(s)
-    got = [single.process_one(f_det[:, i].tolist()) for i in range(len(at))]
+    got = [
+        single.process_one(f_det[:, i].tolist(), slope[:, i].tolist(), release[:, i].tolist())
+        for i in range(len(at))
+    ]
     np.testing.assert_array_equal([g[0] for g in got], want)
     np.testing.assert_allclose([g[1] for g in got], mag, rtol=1e-12)
-    slope = upstream["slope"][:, at]
-    inv = 1.0 / np.where(mag > 0, mag, 1.0)
-    phases = TouchDetector(s).phases(f_det, slope, inv)
-    one = [
-        single.phase_one(f_det[:, i].tolist(), slope[:, i].tolist(), inv[i])
-        for i in range(0, len(at), 7)
-    ]
-    np.testing.assert_array_equal(one, phases[::7])
+    np.testing.assert_allclose([g[2] for g in got], slope_along(f_det, slope, mag), atol=1e-9)
 
 
 def _located(desk, upstream, method: str, idx: np.ndarray) -> ContactBlock:

@@ -77,37 +77,52 @@ def drawings(rng: np.random.Generator, per_shape: int, with_others: bool, style:
     return [items[i] for i in order]
 
 
-def trace_on_desk(items, seed: int) -> list[np.ndarray]:
-    """Simulate the strokes one after the other, estimate, capture: one path per stroke."""
+def simulate_strokes(items, seed: int):
+    """Simulate the strokes (label, path, speed[, times]) one after the other on the paper's
+    desk and estimate: (desk, recording, contacts)."""
     from hapticdesk.estimator import estimate
     from hapticdesk.files.profile import load_profile
-    from hapticdesk.gestures.strokes.capture import StrokeCapture
     from hapticdesk.sim import Idle, Scene, Stroke, simulate
 
     desk = load_profile("kitamura2017")
     rng = np.random.default_rng(seed)
     actions: list = []
-    for i, (_, path, speed) in enumerate(items):
+    for i, (_, path, speed, *timed) in enumerate(items):
         if i and i % 20 == 0:
             actions.append(Idle(duration_s=6.0))  # people pause; the zero follows the drift
         centre = rng.uniform([-0.15, -0.08], [0.15, 0.08])
-        actions.append(Stroke(path=tuple(map(tuple, path + centre)), speed=speed, wait_s=0.8))
+        times = tuple(timed[0]) if timed and timed[0] is not None else None
+        actions.append(
+            Stroke(path=tuple(map(tuple, path + centre)), speed=speed, wait_s=0.8, times=times)
+        )
     rec = simulate(desk, Scene(actions=actions, seed=seed))
+    return desk, rec, estimate(desk, rec)
+
+
+def capture_strokes(desk, rec, contacts, count: int) -> list[np.ndarray | None]:
+    """The captured path of each of ``count`` simulated strokes (None: not captured)."""
+    from hapticdesk.gestures.strokes.capture import StrokeCapture
+
     capture = StrokeCapture(desk, min_size=0.02)
-    strokes = capture.feed(estimate(desk, rec)) + capture.flush(float(rec.t[-1]))
+    strokes = capture.feed(contacts) + capture.flush(float(rec.t[-1]))
     # each captured stroke belongs to the drawn stroke whose true contact holds its middle;
     # a drawn stroke the desk did not capture counts as rejected (None)
     touching = np.nan_to_num(rec.extra["true_fn"]) > 0
     edges = np.diff(touching.astype(np.int8), prepend=0, append=0)
     starts = np.flatnonzero(edges == 1)
-    if len(starts) != len(items):
-        raise SystemExit(f"the simulator drew {len(starts)} strokes for {len(items)} asked")
-    paths: list[np.ndarray | None] = [None] * len(items)
+    if len(starts) != count:
+        raise SystemExit(f"the simulator drew {len(starts)} strokes for {count} asked")
+    paths: list[np.ndarray | None] = [None] * count
     for s in strokes:
         i = int(np.searchsorted(rec.t[starts], float(np.median(s.t)))) - 1
-        if 0 <= i < len(items) and paths[i] is None:
+        if 0 <= i < count and paths[i] is None:
             paths[i] = s.points
     return paths
+
+
+def trace_on_desk(items, seed: int) -> list[np.ndarray | None]:
+    """Simulate the strokes one after the other, estimate, capture: one path per stroke."""
+    return capture_strokes(*simulate_strokes(items, seed), len(items))
 
 
 def trace_synthetic(items, seed: int) -> list[np.ndarray]:
@@ -152,13 +167,343 @@ def score(templates: TemplateSet, labels: list[str], paths: list[np.ndarray]) ->
     }
 
 
+# --- real people: the $1 logs -----------------------------------------------------------------
+
+SPEEDS = ("slow", "medium", "fast")
+BASELINE_POINTS = 16  # a plain Protractor (Li 2010): n = 16, uniform scale, ±30° rotation
+
+
+def protractor_vectors(paths: list[np.ndarray]) -> np.ndarray:
+    """Plain Protractor vectors (k, 2n): resampled, centred, of unit length."""
+    out = []
+    for p in paths:
+        q = resample(p, BASELINE_POINTS)
+        q = (q - q.mean(axis=0)).ravel()
+        out.append(q / max(float(np.linalg.norm(q)), 1e-12))
+    return np.asarray(out)
+
+
+def protractor_top1(templates: np.ndarray, tlabels: list[str], strokes: np.ndarray) -> list[str]:
+    """The baseline's nearest template's shape for each stroke (no rejection)."""
+    t = templates.reshape(len(templates), -1, 2)
+    g = strokes.reshape(len(strokes), -1, 2)
+    a = np.einsum("mnd,knd->km", t, g)
+    b = np.einsum("mn,kn->km", t[:, :, 1], g[:, :, 0]) - np.einsum(
+        "mn,kn->km", t[:, :, 0], g[:, :, 1]
+    )
+    limit = math.radians(MAX_ROTATION)
+    theta = np.clip(np.arctan2(b, a), -limit, limit)
+    best = np.argmax(a * np.cos(theta) + b * np.sin(theta), axis=1)
+    return [tlabels[i] for i in best]
+
+
+def real_splits(strokes, kind: str):
+    """(name, test indices, template indices) of one protocol over the logs.
+
+    ``ud1``/``ud3``: 1 or 3 templates a shape from the same person at the same speed (the $1
+    paper's protocol), every other repetition tested, templates rotated over the 10
+    repetitions; ``wi1``/``wi3``: templates from each other person, same speed."""
+    index: dict[tuple[str, str], list[int]] = {}
+    for i, s in enumerate(strokes):
+        index.setdefault((s.subject, s.speed), []).append(i)
+    subjects = sorted({s.subject for s in strokes})
+    count = int(kind[-1])
+    for (subject, speed), members in sorted(index.items()):
+        for r in range(10) if kind.startswith("ud") else (0, 5):
+            reps = {(r + j) % 10 + 1 for j in range(count)}
+            if kind.startswith("ud"):
+                tm = [i for i in members if strokes[i].repetition in reps]
+                te = [i for i in members if strokes[i].repetition not in reps]
+                yield subject, speed, te, tm
+            else:
+                for other in subjects:
+                    if other != subject and (other, speed) in index:
+                        tm = [i for i in index[(other, speed)] if strokes[i].repetition in reps]
+                        yield subject, speed, members, tm
+
+
+def run_real(folder: str, live: bool, plot: str | None) -> None:
+    from hapticdesk.gestures.recognizers.stroke import (
+        DEFAULT_NATURAL_FREQUENCY_HZ,
+        SWAY_CYCLES,
+        stroke_path,
+    )
+    from hapticdesk.gestures.strokes.dollar_logs import read_logs
+    from hapticdesk.gestures.strokes.unistroke import builtin_templates
+
+    started = time.perf_counter()
+    strokes = list(read_logs(folder))
+    if not strokes:
+        raise SystemExit(f"no $1 logs (*.xml) under {folder}")
+    paths = [s.points for s in strokes]
+    if live:  # as the live recognizer sees them: trimmed, resampled, smoothed in time
+        sigma = SWAY_CYCLES / DEFAULT_NATURAL_FREQUENCY_HZ
+        paths = [stroke_path(s.t, s.points, sigma)[1] for s in strokes]
+    truth = [s.shape for s in strokes]
+    base = protractor_vectors(paths)
+    # verdicts: (protocol, subject, speed, truth, best shape, score, baseline shape, known)
+    rows: list[tuple[str, str, str, str, str | None, float, str, bool]] = []
+
+    def judge(name, templates, te, known, baseline_t, baseline_labels, subject_of):
+        top1 = protractor_top1(baseline_t, baseline_labels, base[te])
+        matches = templates.classify_many([paths[i] for i in te], 0.0, MAX_ROTATION)
+        for i, b, m in zip(te, top1, matches, strict=True):
+            rows.append(
+                (
+                    name,
+                    subject_of(i),
+                    strokes[i].speed,
+                    truth[i],
+                    m.best_shape,
+                    m.score,
+                    b,
+                    truth[i] in known,
+                )
+            )
+
+    halves = [
+        set(sorted(set(truth))[k::2]) for k in (0, 1)
+    ]  # open set: templates for every other shape by name
+    for kind, label in (
+        ("ud1", "same person, 1 template"),
+        ("ud3", "same person, 3 templates"),
+        ("wi1", "another person, 1 template"),
+        ("wi3", "another person, 3 templates"),
+    ):
+        for _, _, te, tm in real_splits(strokes, kind):
+            templates = TemplateSet()
+            for i in tm:
+                templates.add(truth[i], paths[i])
+            labels = [truth[i] for i in tm]
+            judge(label, templates, te, set(labels), base[tm], labels, lambda i: strokes[i].subject)
+            if kind == "ud3":
+                for half in halves:
+                    sub = TemplateSet()
+                    keep = [i for i in tm if truth[i] in half]
+                    for i in keep:
+                        sub.add(truth[i], paths[i])
+                    judge(
+                        "open set: same person, 3 templates, half the shapes",
+                        sub,
+                        te,
+                        half,
+                        base[keep],
+                        [truth[i] for i in keep],
+                        lambda i: strokes[i].subject,
+                    )
+    builtin_docs = builtin_templates(expand=False)
+    for name, templates in (
+        ("built-in", builtin_templates()),
+        ("built-in, not expanded", builtin_docs),
+    ):
+        bt = [p for p in _builtin_paths()]
+        judge(
+            name,
+            templates,
+            list(range(len(strokes))),
+            set(truth),
+            protractor_vectors([p for _, p in bt]),
+            [n for n, _ in bt],
+            lambda i: strokes[i].subject,
+        )
+    print(
+        f"Stroke accuracy on real people: the $1 logs ({len(strokes)} strokes, "
+        f"{len({s.subject for s in strokes})} people, 16 shapes × 3 speeds × 10), "
+        f"{'replayed through the live smoothing' if live else 'as logged'}; "
+        f"min_score {MIN_SCORE}, max_rotation_deg {MAX_ROTATION:g} "
+        f"(`python scripts/stroke_accuracy.py --dollar {folder}{' --live' if live else ''}`, "
+        f"{time.perf_counter() - started:.0f} s)\n"
+    )
+    print("| templates | speed | right | rejected | wrong | Protractor top-1 | right per person |")
+    print("|---|---|---:|---:|---:|---:|---|")
+    order = list(dict.fromkeys(r[0] for r in rows))
+    for name in order:
+        mine = [r for r in rows if r[0] == name]
+        for speed in (*SPEEDS, "all"):
+            sel = [r for r in mine if speed in ("all", r[2]) and r[7]]
+            if not sel:
+                continue
+            acc = [r for r in sel if r[5] >= MIN_SCORE]
+            right = sum(r[4] == r[3] for r in acc)
+            people = sorted({r[1] for r in sel})
+            per = [
+                100 * np.mean([r[5] >= MIN_SCORE and r[4] == r[3] for r in sel if r[1] == p])
+                for p in people
+            ]
+            base_right = np.mean([r[6] == r[3] for r in sel])
+            print(
+                f"| {name} | {speed} | {100 * right / len(sel):.1f} % | "
+                f"{100 * (len(sel) - len(acc)) / len(sel):.1f} % | "
+                f"{100 * (len(acc) - right) / len(sel):.1f} % | {100 * base_right:.1f} % | "
+                f"{min(per):.0f}–{max(per):.0f} % |"
+            )
+        unknown = [r for r in mine if not r[7]]
+        if unknown:
+            for speed in (*SPEEDS, "all"):
+                sel = [r for r in unknown if speed in ("all", r[2])]
+                taken = np.mean([r[5] >= MIN_SCORE for r in sel])
+                print(
+                    f"| {name}: strokes of the other half accepted | {speed} | "
+                    f"{100 * taken:.1f} % | | | | |"
+                )
+    if plot:
+        _plot_threshold(rows, plot)
+
+
+HUMAN_SIZE_M = (0.07, 0.10)  # a logged stroke is scaled so its larger side is this long
+
+
+def human_speed_items(folder: str, test_reps: int, seed: int):
+    """The $1 logs as desk strokes at their real timing: (enrolment items, test items), each
+    (label, path in metres centred on 0, None, times) with the label "subject/speed/shape/rep";
+    repetitions 1-3 of each person, speed and shape are enrolled (`strokes record`), the next
+    ``test_reps`` are tested."""
+    from hapticdesk.gestures.strokes.dollar_logs import read_logs
+
+    rng = np.random.default_rng(seed)
+    enrol, test = [], []
+    for s in read_logs(folder):
+        if s.repetition > 3 + test_reps:
+            continue
+        p = s.points - (s.points.min(axis=0) + s.points.max(axis=0)) / 2
+        p = p * (rng.uniform(*HUMAN_SIZE_M) / max(float(np.ptp(p, axis=0).max()), 1e-9))
+        item = (f"{s.subject}/{s.speed}/{s.shape}/{s.repetition}", p, None, s.t)
+        (enrol if s.repetition <= 3 else test).append(item)
+    return enrol, test
+
+
+def _path_speed(path: np.ndarray, t: np.ndarray) -> float:
+    return float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum() / max(t[-1], 1e-9))
+
+
+def run_human_speed(folder: str, test_reps: int, seed: int) -> None:
+    """Real strokes at their real speed on the simulated desk: built-in, 1 and 3 own
+    templates captured on the desk the same way, per speed."""
+    started = time.perf_counter()
+    enrol, test = human_speed_items(folder, test_reps, seed)
+    if not test:
+        raise SystemExit(f"no $1 logs (*.xml) under {folder}")
+    paths: list[np.ndarray | None] = []
+    items = enrol + test
+    chunk = 200  # strokes a simulated session: bounds the memory of one recording
+    for lo in range(0, len(items), chunk):
+        paths += trace_on_desk(items[lo : lo + chunk], seed + lo)
+    captured = {lab: p for (lab, *_), p in zip(items, paths, strict=True)}
+    builtin = template_set()
+    own: dict[tuple[str, str, int], TemplateSet] = {}
+    for lab, *_ in enrol:
+        subject, speed, shape, rep = lab.split("/")
+        for count in (1, 3):
+            if int(rep) <= count and captured[lab] is not None:
+                own.setdefault((subject, speed, count), TemplateSet()).add(shape, captured[lab])
+    rows: dict[tuple[str, str], list[str]] = {}
+    speeds: dict[str, list[float]] = {}
+    for lab, path, _, t in test:
+        subject, speed, shape, _ = lab.split("/")
+        speeds.setdefault(speed, []).append(_path_speed(path, t))
+        got = captured[lab]
+        for name, templates in (
+            ("built-in", builtin),
+            ("1 own template a shape", own.get((subject, speed, 1))),
+            ("3 own templates a shape", own.get((subject, speed, 3))),
+        ):
+            verdict = "rejected"
+            if got is not None and templates is not None:
+                found = templates.classify(got, MIN_SCORE, MAX_ROTATION).shape
+                verdict = "rejected" if found is None else "right" if found == shape else "wrong"
+            rows.setdefault((name, speed), []).append(verdict)
+            rows.setdefault((name, "all"), []).append(verdict)
+    print(
+        f"Real strokes at their real speed on the simulated kitamura2017 desk: the $1 logs "
+        f"({len(test)} test strokes, {len(enrol)} enrolment strokes captured the same way), "
+        f"scaled to {HUMAN_SIZE_M[0] * 100:g}–{HUMAN_SIZE_M[1] * 100:g} cm, traced with their "
+        f"logged times; min_score {MIN_SCORE}, max_rotation_deg {MAX_ROTATION:g} "
+        f"(`python scripts/stroke_accuracy.py --human-speed {folder} --reps {test_reps}`, "
+        f"{time.perf_counter() - started:.0f} s)\n"
+    )
+    print("| templates | speed (median, 10–90 %) | right | rejected | wrong |")
+    print("|---|---|---:|---:|---:|")
+    order = {speed: k for k, speed in enumerate((*SPEEDS, "all"))}
+    for name, speed in sorted(rows, key=lambda key: (key[0] != "built-in", key[0], order[key[1]])):
+        verdicts = rows[(name, speed)]
+        v = speeds.get(speed, sum(speeds.values(), []))
+        lo, mid, hi = np.percentile(v, [10, 50, 90])
+        n = len(verdicts)
+        print(
+            f"| {name} | {speed} ({mid:.2f}, {lo:.2f}–{hi:.2f} m/s) | "
+            f"{100 * verdicts.count('right') / n:.1f} % | "
+            f"{100 * verdicts.count('rejected') / n:.1f} % | "
+            f"{100 * verdicts.count('wrong') / n:.1f} % |"
+        )
+
+
+def _builtin_paths() -> list[tuple[str, np.ndarray]]:
+    """The shipped templates as drawn: (shape, points)."""
+    import json
+    from importlib import resources
+
+    root = resources.files("hapticdesk.gestures.strokes").joinpath("templates")
+    out = []
+    for entry in sorted(root.iterdir(), key=lambda p: p.name):
+        if entry.name.endswith(".json"):
+            doc = json.loads(entry.read_text(encoding="utf-8"))
+            out += [(doc["shape"], np.asarray(s)) for s in doc["strokes"]]
+    return out
+
+
+def _plot_threshold(rows, path: str) -> None:
+    """Right (accepted and correct) and unknown shapes accepted as min_score moves."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    taus = np.linspace(0.6, 1.0, 81)
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    for name in dict.fromkeys(r[0] for r in rows):
+        known = np.array([(r[5], r[4] == r[3]) for r in rows if r[0] == name and r[7]])
+        right = [100 * np.mean((known[:, 0] >= t) & (known[:, 1] > 0)) for t in taus]
+        ax.plot(taus, right, label=f"right: {name}")
+        unknown = np.array([r[5] for r in rows if r[0] == name and not r[7]])
+        if len(unknown):
+            ax.plot(
+                taus,
+                [100 * np.mean(unknown >= t) for t in taus],
+                "k--",
+                label="unknown shapes accepted (open set)",
+            )
+    ax.axvline(MIN_SCORE, color="grey", lw=0.8)
+    ax.set_xlabel("min_score (acceptance threshold)")
+    ax.set_ylabel("% of strokes")
+    ax.set_ylim(0, 100)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="lower left")
+    ax.set_title("Real strokes ($1 logs): right vs unknown accepted")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    print(f"\nwrote {path}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--per-shape", type=int, default=20, help="test strokes per shape")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--synthetic", action="store_true", help="noisy paths, no simulator")
     parser.add_argument("--quick", action="store_true", help="skip the user-template rows")
+    parser.add_argument("--dollar", metavar="DIR", help="real people: the $1 XML logs under DIR")
+    parser.add_argument("--live", action="store_true", help="with --dollar: replay as live")
+    parser.add_argument("--plot", metavar="PNG", help="with --dollar: right vs min_score")
+    parser.add_argument(
+        "--human-speed", metavar="DIR", help="$1 logs under DIR at real speed, on the desk"
+    )
+    parser.add_argument("--reps", type=int, default=3, help="with --human-speed: test strokes")
     args = parser.parse_args()
+    if args.human_speed:
+        run_human_speed(args.human_speed, args.reps, args.seed)
+        return
+    if args.dollar:
+        run_real(args.dollar, args.live, args.plot)
+        return
     trace = trace_synthetic if args.synthetic else trace_on_desk
     rng = np.random.default_rng(args.seed)
     started = time.perf_counter()

@@ -163,7 +163,7 @@ def record(args: argparse.Namespace) -> int:
     folder = into / args.name
     options = layout.options_for("stroke", None)
     capture = StrokeCapture(layout.desk, min_size=options["min_size"])
-    templates = template_set(layout.templates)
+    templates = template_set(layout.templates, builtin=layout.builtin_templates)
     estimator = ContactEstimator(layout.desk)
     saved: list[Path] = []
     source = open_source(args.source, layout.desk, registry, speed=args.speed)

@@ -105,6 +105,8 @@ class Layout:
     templates: dict[str, list[np.ndarray]]
     raw: MarkedDict
     warnings: list[str] = field(default_factory=list)
+    #: whether strokes are matched against the shipped templates too (`builtin_templates:`)
+    builtin_templates: bool = True
 
     @property
     def desk_name(self) -> str:

@@ -59,6 +59,7 @@ LAYOUT_KEYS = frozenset(
         "description",
         "layouts",
     }
+    | {"builtin_templates"}
 )
 #: a desk name goes into topics, URLs and file names: no spaces, slashes or wildcards
 DESK_NAME = re.compile(r"[A-Za-z0-9_-]+")
@@ -131,9 +132,10 @@ class LayoutReader:
             if "templates" in doc
             else {}
         )
+        builtin = self._builtin_templates(bool(templates))
         bindings, explicit = self._bindings(regions)
         region_options = self._resolve(bindings, explicit, settings)
-        shapes = builtin_shape_names() | set(templates)
+        shapes = (builtin_shape_names() if builtin else set()) | set(templates)
         for b in bindings:
             self._check_binding(b, shapes)
         self._check_overlaps(bindings, regions)
@@ -149,7 +151,18 @@ class LayoutReader:
             templates=templates,
             raw=doc,
             warnings=self.warnings,
+            builtin_templates=builtin,
         )
+
+    def _builtin_templates(self, has_user_templates: bool) -> bool:
+        """`builtin_templates: false` leaves only the layout's own templates."""
+        value = self.doc.get("builtin_templates", True)
+        where = self.doc.where("builtin_templates")
+        if not isinstance(value, bool):
+            raise ConfigError(where, f"`builtin_templates` is true or false, found {value!r}")
+        if not value and not has_user_templates:
+            raise ConfigError(where, "`builtin_templates: false` needs shapes under `templates:`")
+        return value
 
     def _named_layouts(self) -> None:
         """``layouts: {evening: evening.yaml}``: the layouts a running desk can switch to

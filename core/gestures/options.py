@@ -176,7 +176,7 @@ GESTURE_OPTIONS: dict[str, dict[str, OptionSpec]] = {
         "max_duration_s": _s(15.0, "longest stroke, touch to release", 120.0),
         "min_score": OptionSpec(
             "fraction",
-            0.85,
+            0.9,
             "recognize",
             "similarity (0..1) a stroke needs to be recognised; below it the shape is null",
             0.0,

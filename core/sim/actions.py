@@ -169,7 +169,31 @@ class Drag(PathTouch):
 
 @dataclass(frozen=True)
 class Stroke(PathTouch):
-    """Trace ``path`` like a pen stroke, at ≈3.4 cm/s (the paper's 3.37 ± 0.64 cm/s)."""
+    """Trace ``path`` like a pen stroke, at ≈3.4 cm/s (the paper's 3.37 ± 0.64 cm/s).
+
+    ``times`` (seconds, one a point of ``path``, from 0, never decreasing): the finger is at
+    each point at its time, as a logged stroke of a real person was drawn (the $1 logs);
+    ``speed`` is then not used."""
+
+    times: tuple[float, ...] | None = None
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.times is None:
+            return
+        t = np.asarray(self.times, dtype=float)
+        if (
+            t.shape != (len(self.path),)
+            or not np.isfinite(t).all()
+            or t[0] != 0.0
+            or np.any(np.diff(t) < 0)
+            or t[-1] <= 0.0
+        ):
+            raise ValueError(
+                f"Stroke.times must be one finite time a point ({len(self.path)}), from 0 and "
+                f"never decreasing, ending after 0; found {t.shape[0] if t.ndim else t} values"
+            )
+        object.__setattr__(self, "times", tuple(float(x) for x in t))
 
 
 @dataclass(frozen=True)

@@ -303,10 +303,16 @@ class _Moving:
             path = np.array(action.path)
         path = path + human.aim_sd_m * rng.standard_normal(2)
         steps = np.linalg.norm(np.diff(path, axis=0), axis=1)
-        self.path = path[np.concatenate([[True], steps > 0])]
+        moved = np.concatenate([[True], steps > 0])
+        self.path = path[moved]
         self.arc = np.concatenate([[0.0], np.cumsum(steps[steps > 0])])
         self.length = float(self.arc[-1])
         self.move_s = self.length / speed
+        # a stroke with logged times: where the finger is when, point by point
+        times = getattr(action, "times", None)
+        self.timed = None if times is None else np.asarray(times)[moved]
+        if self.timed is not None:
+            self.move_s = float(self.timed[-1])
         self.friction = human.friction
         rise = _rate(rng, human, None)
         release = _release_rate(rng, human, rise, None)
@@ -327,15 +333,20 @@ class _Moving:
             touch_s = _touch_time(level, rise)
             release_s = _touch_time(level, release)
             self.move_from = touch_s + self.SETTLE_S
-            corners = np.flatnonzero(_turning_angles(self.path) > math.radians(CORNER_DEG)) + 1
-            self.knots = self.arc[np.concatenate([[0], corners, [len(self.path) - 1]])]
-            self.knot_times = self.knots / speed
+            if self.timed is not None:  # every logged point is a knot, reached at its time
+                self.knots, self.knot_times = self.arc, self.timed
+            else:
+                corners = np.flatnonzero(_turning_angles(self.path) > math.radians(CORNER_DEG))
+                self.knots = self.arc[np.concatenate([[0], corners + 1, [len(self.path) - 1]])]
+                self.knot_times = self.knots / speed
             plateau = self.SETTLE_S + self.move_s + self.SETTLE_S
         self.seg = _Segments(touch_s, level, plateau, level, release_s)
         self.duration = self.seg.duration
 
     def _arc_at(self, t: np.ndarray) -> np.ndarray:
         """Arc length travelled ``t`` seconds after the movement began."""
+        if self.timed is not None:  # logged samples are dense: straight between them
+            return np.interp(t, self.knot_times, self.knots)
         piece = np.clip(
             np.searchsorted(self.knot_times, t, side="right") - 1, 0, len(self.knots) - 2
         )

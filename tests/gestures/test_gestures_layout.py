@@ -515,3 +515,38 @@ def test_binding_matches_by_gesture_region_and_filters(make_layout):
     assert not b[2].matches(GestureEvent(1.0, "tap", "fan", 0, 0))
     assert b[3].matches(GestureEvent(1.0, "slide", "dimmer", 0, 0, value=1.0, phase="end"))
     assert not b[3].matches(GestureEvent(1.0, "slide", "dimmer", 0, 0, value=1.0, phase="update"))
+
+
+def test_builtin_templates_can_be_switched_off(write_layout):
+    def layout(text: str) -> Path:
+        return write_layout("desk: kitamura2017\n" + text)
+
+    own = "templates: {ell: [[[0, 1], [0, 0], [1, 0]]]}\n"
+    off = load_layout(
+        layout(
+            own
+            + "builtin_templates: false\nbindings:\n  - {gesture: stroke, shape: ell, do: log}\n"
+        )
+    )
+    assert off.builtin_templates is False
+    from hapticdesk.gestures.recognizers.stroke import StrokeRecognizer
+
+    recognizer = StrokeRecognizer(off, off.bindings)
+    assert recognizer.templates.shapes == ["ell"]
+    bind = "bindings:\n  - {gesture: stroke, do: log}\n"
+    assert load_layout(layout(own + bind)).builtin_templates is True
+    cases = {
+        own
+        + "builtin_templates: false\nbindings:\n  - {gesture: stroke, shape: circle, do: log}\n": (
+            r"circle"
+        ),
+        "builtin_templates: false\nbindings:\n  - {gesture: stroke, do: log}\n": (
+            r":2:20: `builtin_templates: false` needs shapes under `templates:`"
+        ),
+        own
+        + "builtin_templates: nope\n"
+        + bind: r":3:20: `builtin_templates` is true or false, found 'nope'",
+    }
+    for text, message in cases.items():
+        with pytest.raises(ConfigError, match=message):
+            load_layout(layout(text))

@@ -288,7 +288,7 @@ def test_stroke_shape_recognised_from_a_traced_path(make_layout, timeline, shape
     tl = timeline(6.0).touch(1.0, 3.0, path, sigma_m=0.0005)
     events = run(layout, tl.block())
     assert [(e.gesture, e.region, e.shape) for e in events] == [("stroke", None, shape)]
-    assert events[0].score >= 0.85
+    assert events[0].score >= 0.9
     assert layout.bindings[1].matches(events[0]) == (shape in ("v", "check"))
 
 
@@ -298,7 +298,7 @@ def test_scribble_is_reported_unrecognised_and_fires_nothing(make_layout, timeli
     scribble = np.cumsum(rng.normal(size=(40, 2)), axis=0) * 0.01 + [0.15, 0.0]
     tl = timeline(6.0).touch(1.0, 3.0, scribble, sigma_m=0.0005)
     events = run(layout, tl.block())
-    assert len(events) == 1 and events[0].shape is None and events[0].score < 0.85
+    assert len(events) == 1 and events[0].shape is None and events[0].score < 0.9
     assert "nearest" in events[0].extra
     assert not any(b.matches(events[0]) for b in layout.bindings)
 

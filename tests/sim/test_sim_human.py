@@ -170,3 +170,19 @@ def test_human_model_refuses_nonsense() -> None:
         HumanModel(peak_n=(25.0, 15.0))
     with pytest.raises(ValueError, match="friction"):
         HumanModel(friction=-0.1)
+
+
+def test_stroke_with_logged_times_follows_them() -> None:
+    # 1 cm in 1 s, then 5 cm in 0.1 s: a real stroke's timing, not the mean tracing speed
+    path = [(0.0, 0.0), (0.01, 0.0), (0.06, 0.0)]
+    touch = track(Stroke(path, times=(0.0, 1.0, 1.1)), 0, STILL)
+    np.testing.assert_allclose(touch.uv[-1], path[-1], atol=1e-12)
+    moving = np.flatnonzero(np.linalg.norm(np.diff(touch.uv, axis=0), axis=1) > 0)
+    assert (moving[-1] - moving[0] + 1) / FS == pytest.approx(1.1, abs=2 / FS)
+    at = moving[0] + int(1.05 * FS)  # halfway through the quick part
+    assert touch.uv[at, 0] == pytest.approx(0.035, abs=0.001)
+    slow = speeds(touch)[moving[0] + 10 : moving[0] + int(0.9 * FS)]
+    assert slow == pytest.approx(0.01, rel=0.02)
+    for bad in [(0.0, 1.0), (0.0, 1.0, 0.5), (0.1, 1.0, 2.0), (0.0, float("nan"), 1.0)]:
+        with pytest.raises(ValueError, match="Stroke.times"):
+            Stroke(path, times=bad)

@@ -12,7 +12,12 @@ import numpy as np
 
 from hapticdesk.estimator.contacts import ContactBlock, ContactEvent
 from hapticdesk.files.profile import DeskProfile
-from hapticdesk.gestures.recognizers.stroke import extent, smoothing_s, stroke_path
+from hapticdesk.gestures.recognizers.stroke import (
+    calm_smoothing_s,
+    extent,
+    smoothing_s,
+    stroke_path,
+)
 from hapticdesk.gestures.touch import Touch, TouchTracker
 
 _KEEP_EVERY = 4  # of the smoothed path's 5 ms steps
@@ -40,6 +45,7 @@ class StrokeCapture:
         self.small = 0  # touches too small to be strokes (taps, presses)
         self._tracker = TouchTracker(desk)
         self._smoothing_s = smoothing_s(desk)
+        self._calm_smoothing_s = calm_smoothing_s(desk)
 
     def feed(self, block: ContactBlock) -> list[CapturedStroke]:
         out: list[CapturedStroke] = []
@@ -65,9 +71,11 @@ class StrokeCapture:
     def _stroke(self, touch: Touch) -> CapturedStroke | None:
         if touch.samples < 2:
             return None
-        t, points = stroke_path(touch.times(), touch.points(), self._smoothing_s)
+        t, points = stroke_path(
+            touch.times(), touch.points(), self._smoothing_s, self._calm_smoothing_s
+        )
         if extent(points) < self.min_size:
             return None
-        # every 20 ms is plenty after smoothing over 80 ms, and keeps template files small
+        # every 20 ms is plenty after smoothing over 80 ms or more, and keeps template files small
         keep = np.unique(np.append(np.arange(0, len(t), _KEEP_EVERY), len(t) - 1))
         return CapturedStroke(t[keep], points[keep], touch.surface)

@@ -109,7 +109,9 @@ SHAPES: dict[str, Shape] = {
         Shape("left_bracket", (_poly((0.5, 1), (0, 1), (0, 0), (0.5, 0)),), False, True),
         Shape("right_bracket", (_poly((0, 1), (0.5, 1), (0.5, 0), (0, 0)),), False, True),
         Shape("v", (_poly((0, 1), (0.5, 0), (1, 1)),), False, True),
-        Shape("delete", (_poly((0, 1), (1, 0), (0, 0), (1, 1)),), False, True),
+        # not reversible: drawn backwards it follows a triangle started at a corner, and the
+        # reversed template took triangles for delete marks (unistroke.builtin_templates)
+        Shape("delete", (_poly((0, 1), (1, 0), (0, 0), (1, 1)),), False, False),
         Shape(
             "left_brace",
             (

@@ -75,13 +75,19 @@ def register_recognizers(register: Any) -> None:
 
 
 @hookspec
-def startup(desk: Any, layout: Any) -> None:
+def startup(desk: Any, layout: Any, runtime: Any) -> None:
     """A run is about to start sensing.
 
     Called once per ``hapticdesk run`` or ``demo`` after the source, the estimator, the gesture
     engine and the actions are built, before the first block is read. ``desk`` is the
-    :class:`~hapticdesk.files.profile.DeskProfile`, ``layout`` the loaded layout. An exception here
-    is logged with the plugin's name (and is fatal under ``--strict``).
+    :class:`~hapticdesk.files.profile.DeskProfile`, ``layout`` the loaded layout, ``runtime``
+    the :class:`~hapticdesk.runtime.service.Runtime` for a plugin that watches the run from
+    its own thread (the browser UI): ``runtime.live.sample`` is the latest contact sample
+    (written once per block by the sensing thread, O(1)), ``runtime.scene.estimator.notices``
+    what the estimator did on its own, ``runtime.scene.dispatcher.lanes`` the actions' counts,
+    and ``runtime.reload_layout(path)`` swaps in a saved layout without a new tare. Never
+    block or do work on the sensing thread. An exception here is logged with the plugin's
+    name (and is fatal under ``--strict``).
     """
 
 

@@ -45,6 +45,7 @@ DEFAULT_PLUGINS: tuple[str, ...] = (
     "hapticdesk.plugins.exec",
     "hapticdesk.plugins.http",
     "hapticdesk.plugins.mqtt",
+    "hapticdesk.plugins.ui",
 )
 
 KINDS = ("sources", "actions", "recognizers", "layout_sections", "commands")

@@ -89,6 +89,11 @@ class ActionContext:
                 self._resources[key] = create()
             return self._resources[key]
 
+    def resource(self, key: str) -> Any:
+        """The run's resource called ``key`` if one was created, else None."""
+        with self._lock:
+            return self._resources.get(key)
+
     @property
     def desk(self) -> str:
         """The former name of :attr:`desk_name` (kept for plugins written against it)."""
@@ -351,6 +356,7 @@ class Dispatcher:
     def __init__(self, *, watchdog_interval_s: float = 0.05) -> None:
         self.routes: list[Route] = []
         self.sinks: list[Lane] = []  # lanes that see every event (plugins' event sinks)
+        self._retired: list[Route] = []  # routes of a layout replaced while running
         self.events = 0
         self.match_errors = 0
         self._closed = threading.Event()
@@ -360,10 +366,20 @@ class Dispatcher:
 
     @property
     def lanes(self) -> list[Lane]:
-        return [lane for route in self.routes for lane in route.lanes] + self.sinks
+        routes = self._retired + self.routes
+        return [lane for route in routes for lane in route.lanes] + self.sinks
 
     def add_route(self, route: Route) -> None:
         self.routes.append(route)
+
+    def replace_routes(self, routes: list[Route]) -> list[Route]:
+        """Use ``routes`` from now on (a reloaded layout); returns the old ones.
+
+        One assignment, so :meth:`submit` on the sensing thread sees either list whole. The
+        old lanes finish what they hold and are closed, counted and reported with the rest."""
+        old, self.routes = self.routes, list(routes)
+        self._retired.extend(old)
+        return old
 
     def add_sink(self, lane: Lane) -> None:
         self.sinks.append(lane)

@@ -60,6 +60,8 @@ class Assembly:
     engine: Any  # hapticdesk.gestures.GestureEngine
     dispatcher: Dispatcher
     context: ActionContext
+    action_timeout_s: float | None = None
+    actions: bool = True  # False: gestures are recognised, the layout's actions not run
 
     def close(self) -> None:
         """Release what was built without running."""
@@ -77,13 +79,18 @@ Scene = Assembly
 
 
 def load_scene_layout(
-    layout_path: str | Path, registry: Registry, desk: str | None = None
+    layout_path: str | Path,
+    registry: Registry,
+    desk: str | DeskProfile | None = None,
+    *,
+    text: str | None = None,
 ) -> tuple[Any, DeskProfile]:
     """The layout, validated against the installed actions, recognizers and the sections
-    plugins claim (``hapticdesk check`` and ``run`` both load through here), and its desk."""
+    plugins claim (``hapticdesk check`` and ``run`` both load through here), and its desk.
+    ``text``: the layout's YAML when it is not the file's (an edit checked before saving)."""
     from hapticdesk.gestures.layout import load_layout
 
-    profile = load_profile(desk) if desk is not None else None
+    profile = load_profile(desk) if isinstance(desk, str) else desk
     layout = load_layout(
         layout_path,
         profile=profile,
@@ -92,6 +99,7 @@ def load_scene_layout(
         recognizer_types=registry.recognizer_types(),
         validate_section=registry.validate_section,
         section_names=list(registry.layout_sections),
+        text=text,
     )
     return layout, layout.desk
 
@@ -105,10 +113,13 @@ def build_scene(
     speed: float = 1.0,
     overrides: Mapping[str, Mapping[str, Any]] | None = None,
     action_timeout_s: float | None = None,
+    actions: bool = True,
 ) -> Assembly:
     """Load the layout and desk, open the source, build every action and every plugin's event
     sink (ConfigError if wrong). ``overrides``: command-line values over a plugin's layout
-    section, by section name (``run --mqtt URL`` gives ``{"mqtt": {"broker": URL}}``)."""
+    section, by section name (``run --mqtt URL`` gives ``{"mqtt": {"broker": URL}}``).
+    ``actions=False`` recognises gestures without running the layout's actions or plugins'
+    event sinks (a preview: nothing leaves the machine; the caller may add its own sink)."""
     layout, profile = load_scene_layout(layout_path, registry, desk)
     for warning in layout.warnings:
         log.warning("%s", warning)
@@ -123,9 +134,13 @@ def build_scene(
     )
     dispatcher = Dispatcher()
     try:
-        _add_actions(dispatcher, layout, registry, context, action_timeout_s)
-        for plugin, sink in registry.event_sinks(desk=profile, layout=layout, context=context):
-            dispatcher.add_sink(Lane(f"every event → {plugin}", sink, timeout_s=action_timeout_s))
+        if actions:  # a preview (actions=False) sends nothing: no actions, no plugins' sinks
+            for route in build_routes(layout, registry, context, action_timeout_s):
+                dispatcher.add_route(route)
+            sinks = registry.event_sinks(desk=profile, layout=layout, context=context)
+            for plugin, sink in sinks:
+                lane = Lane(f"every event → {plugin}", sink, timeout_s=action_timeout_s)
+                dispatcher.add_sink(lane)
         from hapticdesk.estimator import ContactEstimator
         from hapticdesk.gestures.engine import GestureEngine
 
@@ -138,16 +153,25 @@ def build_scene(
     except BaseException:
         _release(source, dispatcher, context)
         raise
-    return Assembly(profile, layout, registry, source, estimator, engine, dispatcher, context)
+    return Assembly(
+        profile,
+        layout,
+        registry,
+        source,
+        estimator,
+        engine,
+        dispatcher,
+        context,
+        action_timeout_s=action_timeout_s,
+        actions=actions,
+    )
 
 
-def _add_actions(
-    dispatcher: Dispatcher,
-    layout: Any,
-    registry: Registry,
-    context: ActionContext,
-    timeout_s: float | None,
-) -> None:
+def build_routes(
+    layout: Any, registry: Registry, context: ActionContext, timeout_s: float | None
+) -> list[Route]:
+    """One route per binding of ``layout``, its actions built (ConfigError if one cannot be)."""
+    routes: list[Route] = []
     for binding in layout.bindings:
         where = f" in {binding.region}" if binding.region else ""
         label = f"binding {binding.index + 1} ({binding.gesture}{where})"
@@ -179,7 +203,8 @@ def _add_actions(
                     f"not be set up: {type(err).__name__}: {err}",
                 ) from err
             route.lanes.append(Lane(lane, action, timeout_s=timeout_s))
-        dispatcher.add_route(route)
+        routes.append(route)
+    return routes
 
 
 # --- the run ----------------------------------------------------------------------------------
@@ -197,6 +222,11 @@ class LiveStatus:
     last_gesture: str = ""
     gestures: int = 0
     tared: bool = False
+    #: the block's last sample, replaced whole (one assignment, so a reader on another thread
+    #: never sees half of one): (t, x or None, y or None, force_n, phase, surface index or -1)
+    sample: tuple[float, float | None, float | None, float, int, int] | None = None
+    #: how many blocks have been sensed; a reader sees whether ``sample`` is new
+    blocks: int = 0
 
     def line(self) -> str:
         where = f"x {self.x:+.3f} y {self.y:+.3f} m" if self.in_contact else "—"
@@ -262,6 +292,9 @@ class Runtime:
         self._stop = threading.Event()
         self._force = False
         self._events_out: IO[str] | None = None
+        # a new layout waiting for the sensing thread to swap it in between two blocks
+        self._pending_layout: tuple[Any, Any, list[Route]] | None = None
+        self._swap_lock = threading.Lock()
 
     def stop(self, reason: str = "request", *, force: bool = False) -> None:
         """Ask the run to end; ``force`` skips waiting for queued commands."""
@@ -277,7 +310,7 @@ class Runtime:
         started = time.monotonic()
         try:
             self._events_out = self._open_events()
-            scene.registry.notify("startup", desk=scene.profile, layout=scene.layout)
+            scene.registry.notify("startup", desk=scene.profile, layout=scene.layout, runtime=self)
         except BaseException:  # an unwritable events file, or --strict and a plugin failed
             if self._events_out is not None:
                 self._events_out.close()
@@ -305,6 +338,46 @@ class Runtime:
         )
         return self.report
 
+    def reload_layout(self, layout_path: str | Path | None = None) -> Any:
+        """Load the layout again (or another one) and use it from the next block on.
+
+        The estimator is kept, so there is no new tare; the gesture engine and the actions of
+        the bindings are built anew (ConfigError, and nothing changes, when the layout is
+        wrong); the old engine is flushed on the sensing thread, the old actions finish what
+        they hold and close with the run. Returns the new layout.
+        """
+        from hapticdesk.gestures.engine import GestureEngine
+
+        scene = self.scene
+        path = Path(layout_path) if layout_path is not None else scene.layout.path
+        layout, _ = load_scene_layout(path, scene.registry, scene.profile)
+        routes = (
+            build_routes(layout, scene.registry, scene.context, scene.action_timeout_s)
+            if scene.actions
+            else []
+        )
+        engine = GestureEngine(
+            layout,
+            recognizer_types=scene.registry.recognizer_types(),
+            position_delay_s=scene.estimator.position_delay_s,
+        )
+        with self._swap_lock:
+            self._pending_layout = (layout, engine, routes)
+        return layout
+
+    def _swap_layout(self, t_now: float | None) -> None:
+        with self._swap_lock:
+            pending, self._pending_layout = self._pending_layout, None
+        if pending is None:
+            return
+        layout, engine, routes = pending
+        if t_now is not None:
+            self._emit(self.scene.engine.flush(t_now))  # a pending tap is decided on the old
+        self.scene.engine, self.scene.layout = engine, layout
+        self.scene.context.layout, self.scene.context.settings = layout, layout.raw
+        self.scene.dispatcher.replace_routes(routes)
+        log.info("layout reloaded: %s", layout.path)
+
     # --- the sensing thread -------------------------------------------------------------------
 
     def _sense_guarded(self) -> None:
@@ -324,6 +397,8 @@ class Runtime:
                 break
             if len(block.t) == 0:
                 continue
+            if self._pending_layout is not None:
+                self._swap_layout(t_last)
             if t_first is None:
                 t_first = float(block.t[0])
             contacts = scene.estimator.push(block.t, block.wrench)  # it logs its own notices
@@ -353,6 +428,16 @@ class Runtime:
         if contacts.located[-1]:
             live.x, live.y = float(contacts.x[-1]), float(contacts.y[-1])
         live.tared = not bool(contacts.flags[-1] & FLAG_NOT_TARED)
+        located = bool(contacts.located[-1])
+        live.sample = (
+            live.t,
+            float(contacts.x[-1]) if located else None,
+            float(contacts.y[-1]) if located else None,
+            live.force_n,
+            int(contacts.phase[-1]),
+            int(contacts.surface[-1]),
+        )
+        live.blocks += 1
 
     # --- the watcher --------------------------------------------------------------------------
 

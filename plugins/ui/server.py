@@ -96,7 +96,9 @@ class UiServer:
         self._thread: threading.Thread | None = None
         self._feed: threading.Thread | None = None
         self._stop = threading.Event()
-        self._lock = threading.Lock()
+        #: contact frames published by the feed, and replaced before a browser took them
+        self.contacts_published = 0
+        self.contacts_dropped = 0
 
     # --- life ---------------------------------------------------------------------------------
 
@@ -155,10 +157,13 @@ class UiServer:
         loop.call_soon_threadsafe(self._fan_out, message["type"] == "contact", text)
 
     def _fan_out(self, is_contact: bool, text: str) -> None:
+        if is_contact:
+            self.contacts_published += 1
         for client in self._clients:
             if is_contact:
                 if client.contact is not None:
                     client.dropped_contacts += 1
+                    self.contacts_dropped += 1
                 client.contact = text
             else:
                 client.queue.append(text)
@@ -191,7 +196,10 @@ class UiServer:
         lane_counts: dict[int, tuple[int, int, int, int]] = {}
         runtime_seen = None
         period = 1.0 / CONTACT_RATE_HZ
-        while not self._stop.wait(period):
+        tick = time.monotonic()
+        # on a fixed beat (not a sleep after the work), so a busy machine does not slow it more
+        while not self._stop.wait(max(0.0, tick + period - time.monotonic())):
+            tick = max(tick + period, time.monotonic() - period)
             runtime = self.runtime
             if runtime is None or not self._clients:
                 continue

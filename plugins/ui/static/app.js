@@ -108,7 +108,10 @@ function regionAt(x, y, surface) {
 
 // --- live view -------------------------------------------------------------------------------
 
+const stats = (window.hapticdeskStats = { contacts: 0 });  // read by scripts/ui_cost.py
+
 function onContact(m) {
+  stats.contacts += 1;
   if (lastT !== null && m.t < lastT) { trail.length = 0; forces.length = 0; }  // a new run
   lastT = m.t;
   $("tare").textContent = m.tared ? "" : "taring: keep the desk still";

@@ -294,6 +294,10 @@ class Runtime:
         self._events_out: IO[str] | None = None
         # a new layout waiting for the sensing thread to swap it in between two blocks
         self._pending_layout: tuple[Any, Any, list[Route]] | None = None
+        #: callables given every block's ``(t, wrench)`` on the sensing thread, after the
+        #: estimator (a set-up check recording raw samples); each must be O(1): keep a
+        #: reference, never copy or wait. Replaced whole (a tuple), never changed in place.
+        self.block_taps: tuple[Any, ...] = ()
         self._swap_lock = threading.Lock()
 
     def stop(self, reason: str = "request", *, force: bool = False) -> None:
@@ -404,6 +408,8 @@ class Runtime:
             contacts = scene.estimator.push(block.t, block.wrench)  # it logs its own notices
             self._emit(scene.engine.feed(contacts))
             self._update_live(contacts)
+            for tap in self.block_taps:
+                tap(block.t, block.wrench)
             self.report.samples += len(block.t)
             t_last = float(block.t[-1])
         if t_first is not None and t_last is not None:

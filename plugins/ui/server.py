@@ -90,6 +90,7 @@ class UiServer:
         self.desk = desk  # a DeskProfile overriding the layout's desk:, or None
         self.read_only = read_only  # the shipped demo layout: shown, never written
         self.runtime: Any = None
+        self.setup: Any = None  # the set-up check session recording, or None
         self._clients: set[_Client] = set()
         self._loop: asyncio.AbstractEventLoop | None = None
         self._server: Any = None
@@ -362,6 +363,40 @@ class UiServer:
                 return JSONResponse({"ok": False, "errors": [error_of(err)]}, status_code=422)
             return JSONResponse(result)
 
+        async def setup_start(request: Request) -> Response:
+            if not allowed(request):
+                return refused()
+            from hapticdesk.plugins.ui.setup_api import SetupSession
+
+            payload = await request.json()
+            points = payload.get("points")
+            runtime = self.runtime
+            problem = None
+            if runtime is None:
+                problem = "the set-up check needs a running desk (`hapticdesk ui` or `run --ui`)"
+            elif not isinstance(points, list) or len(points) < len(runtime.scene.profile.sensors):
+                problem = "mark at least as many points as the desk has sensors"
+            if problem:
+                error = {"line": 0, "column": 0, "message": problem}
+                return JSONResponse({"ok": False, "errors": [error]}, status_code=422)
+            if self.setup is not None:
+                await asyncio.to_thread(self.setup.finish_quietly)
+            self.setup = SetupSession(runtime, points)
+            return JSONResponse({"ok": True})
+
+        async def setup_finish(request: Request) -> Response:
+            if not allowed(request):
+                return refused()
+            session, self.setup = self.setup, None
+            if session is None:
+                error = {"line": 0, "column": 0, "message": "no set-up check was started"}
+                return JSONResponse({"ok": False, "errors": [error]}, status_code=422)
+            try:
+                result = await asyncio.to_thread(session.finish)
+            except ConfigError as err:
+                return JSONResponse({"ok": False, "errors": [error_of(err)]}, status_code=422)
+            return JSONResponse(result)
+
         async def ws(socket: WebSocket) -> None:
             if not allowed(socket):
                 await socket.close(code=4401)
@@ -409,6 +444,8 @@ class UiServer:
             Route("/api/edit", edit, methods=["POST"]),
             Route("/api/schema", schema, methods=["GET"]),
             Route("/api/strokes", strokes, methods=["POST"]),
+            Route("/api/setup/start", setup_start, methods=["POST"]),
+            Route("/api/setup/finish", setup_finish, methods=["POST"]),
             WebSocketRoute("/ws", ws),
             Mount("/static", StaticFiles(directory=STATIC), name="static"),
         ]

@@ -6,6 +6,7 @@ save that the running service then uses, a stroke template recorded in the page.
 
 from __future__ import annotations
 
+import json
 import re
 import subprocess
 import sys
@@ -158,3 +159,19 @@ def test_a_stroke_template_recorded_in_the_page_is_recognised(
         "document.getElementById('stroke-result').textContent.startsWith('recognised: my_w')",
         timeout=10000,
     )
+
+
+def test_the_set_up_panel_marks_points_and_reports_a_session(page: Any, ui_service: Any) -> None:
+    page.click("#tab-setup")
+    points = json.loads(page.input_value("#setup-points"))
+    assert len(points) == 6
+    assert page.locator("#marks .mark-label").count() == 6
+    page.click("#setup-start")
+    page.wait_for_function(
+        "/^(keep the desk quiet|press point)/.test(document.getElementById('setup-status')"
+        ".textContent)"
+    )
+    page.wait_for_timeout(2500)  # the simulated desk taps, it does not press the marks
+    page.click("#setup-finish")
+    page.wait_for_function("document.getElementById('setup-error').textContent.length > 0")
+    assert re.search(r"expected 6 presses .* found \d", page.text_content("#setup-error") or "")

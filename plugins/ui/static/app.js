@@ -147,6 +147,7 @@ function onContact(m) {
   $("rf").textContent = m.force_n.toFixed(1);
   $("rphase").textContent = m.phase || "—";
   if (recordingFromDesk) recordDeskSample(m, touching, located);
+  setupContact(m);
   drawForce(m.t);
 }
 
@@ -535,6 +536,96 @@ $("stroke-keep").addEventListener("click", async () => {
 $("stroke-discard").addEventListener("click", () => {
   lastStroke = null; $("drawing").replaceChildren();
   $("stroke-result").textContent = ""; $("stroke-scores").replaceChildren();
+});
+
+// --- set-up check ----------------------------------------------------------------------------
+
+let setupPresses = null;  // presses counted since Start (a release ends one)
+let setupTouching = false;
+
+function defaultPoints() {
+  const xs = desk.outline.map((p) => p[0]), ys = desk.outline.map((p) => p[1]);
+  const cx = (Math.min(...xs) + Math.max(...xs)) / 2, cy = (Math.min(...ys) + Math.max(...ys)) / 2;
+  const hx = (Math.max(...xs) - Math.min(...xs)) / 3, hy = (Math.max(...ys) - Math.min(...ys)) / 3;
+  const r = (v) => Math.round(v * 1000) / 1000;
+  return [[cx - hx, cy - hy], [cx + hx, cy - hy], [cx + hx, cy + hy], [cx - hx, cy + hy],
+    [cx, cy], [cx + hx / 2, cy - hy / 3]].map(([x, y]) => [r(x), r(y)]);
+}
+
+function setupPoints() {
+  try { return JSON.parse($("setup-points").value); } catch { return null; }
+}
+
+function drawMarks(points, measured = null) {
+  const g = $("marks");
+  g.replaceChildren();
+  if (!points) return;
+  points.forEach(([x, y], k) => {
+    el("line", { class: "mark", x1: X(x) - 12, y1: Y(y), x2: X(x) + 12, y2: Y(y) }, g);
+    el("line", { class: "mark", x1: X(x), y1: Y(y) - 12, x2: X(x), y2: Y(y) + 12 }, g);
+    el("text", { class: "mark-label", x: X(x) + 10, y: Y(y) - 10 }, g).textContent = String(k + 1);
+    if (measured && measured[k]) {
+      el("circle", { class: "measured", cx: X(measured[k][0]), cy: Y(measured[k][1]), r: 8 }, g);
+    }
+  });
+}
+
+$("setup-points").addEventListener("input", () => drawMarks(setupPoints()));
+
+for (const button of document.querySelectorAll(".tab")) {
+  button.addEventListener("click", () => {
+    if (button.dataset.tab === "setup" && desk && !$("setup-points").value) {
+      $("setup-points").value = JSON.stringify(defaultPoints());
+    }
+    drawMarks(button.dataset.tab === "setup" ? setupPoints() : null);
+  });
+}
+
+function setupContact(m) {
+  if (setupPresses === null) return;
+  const touching = m.phase === "touch" || m.phase === "hold";
+  const released = setupTouching && !touching;
+  setupTouching = touching;
+  if (!released) return;
+  setupPresses += 1;
+  const n = (setupPoints() || []).length;
+  $("setup-status").textContent = setupPresses < n
+    ? `press point ${setupPresses + 1} of ${n}` : "all points pressed: Finish";
+}
+
+$("setup-start").addEventListener("click", async () => {
+  $("setup-error").textContent = "";
+  const points = setupPoints();
+  if (!points) { $("setup-error").textContent = "the points are not valid JSON"; return; }
+  const r = await api("api/setup/start", { method: "POST", headers: { "Content-Type": "application/json" },
+    body: JSON.stringify({ points }) });
+  const result = await r.json();
+  if (!result.ok) { $("setup-error").textContent = result.errors.map((e) => e.message).join("\n"); return; }
+  setupPresses = 0; setupTouching = false;
+  $("setup-status").textContent = "keep the desk quiet for 2 s, then press point 1";
+});
+
+$("setup-finish").addEventListener("click", async () => {
+  setupPresses = null;
+  $("setup-status").textContent = "checking…";
+  const r = await api("api/setup/finish", { method: "POST" });
+  const result = await r.json();
+  if (!result.ok) {
+    $("setup-status").textContent = "";
+    $("setup-error").textContent = result.errors.map((e) => e.message).join("\n"); return;
+  }
+  $("setup-status").textContent = `checked ${result.captured_s} s`;
+  $("setup-findings").replaceChildren(...(result.findings.length ? result.findings : [{ message: "nothing wrong found" }])
+    .map((f) => { const li = document.createElement("li"); li.textContent = f.message; return li; }));
+  $("setup-residuals").replaceChildren(...result.residual_m.map((d) => {
+    const li = document.createElement("li");
+    li.textContent = d === null ? "not located" : `placed ${(d * 1000).toFixed(1)} mm from the mark`;
+    return li;
+  }));
+  $("setup-desk").textContent = `noise of Fz: ${result.noise_fz_n ?? "— (" + result.noise_reason + ")"} N; ` +
+    `natural frequency: ${result.natural_frequency_hz ?? "— (" + result.frequency_reason + ")"} Hz`;
+  $("setup-snippet").textContent = result.profile_snippet || "";
+  drawMarks(result.points, result.measured.map((p, k) => (result.placed[k] ? p : null)));
 });
 
 connect();

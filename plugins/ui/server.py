@@ -170,8 +170,14 @@ class UiServer:
                 client.queue.append(text)
             client.wake.set()
 
-    def broadcast_desk(self) -> None:
+    def broadcast_desk(self, layout: Any = None) -> None:
+        """Send the desk message again: of ``layout`` (one just saved, which the sensing
+        thread swaps in at its next block), else of what is running or saved."""
         try:
+            if layout is not None:
+                profile = self.runtime.scene.profile if self.runtime else layout.desk
+                self.publish(desk_message(profile, layout, live=self.runtime is not None))
+                return
             self.publish(self._desk_message())
         except ConfigError as err:
             self.publish({"type": "notice", "kind": "layout", "message": str(err)})
@@ -321,16 +327,17 @@ class UiServer:
                 return JSONResponse({"ok": False, "errors": errors}, status_code=422)
             await asyncio.to_thread(save_layout_text, self.layout_path, text)
             reloaded = False
+            new_layout = None
             runtime = self.runtime
             if runtime is not None:
                 try:
-                    await asyncio.to_thread(runtime.reload_layout, self.layout_path)
+                    new_layout = await asyncio.to_thread(runtime.reload_layout, self.layout_path)
                     reloaded = True
                 except ConfigError as err:  # e.g. an action that cannot be set up now
                     return JSONResponse(
                         {"ok": False, "errors": [error_of(err)], "saved": True}, status_code=422
                     )
-            self.broadcast_desk()
+            self.broadcast_desk(new_layout)
             return JSONResponse({"ok": True, "errors": [], "reloaded": reloaded})
 
         async def edit(request: Request) -> Response:

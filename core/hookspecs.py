@@ -47,7 +47,7 @@ def register_actions(register: Any) -> None:
     """Register actions, the keys under a binding's ``do:`` in a layout.
 
     Called once while the registry is built, with ``register`` the callback to call as
-    ``register(name, factory, description="", validate=None)`` for each action:
+    ``register(name, factory, description="", validate=None, options=None)`` for each action:
 
     - ``factory(options, context) -> action``: ``options`` the action's mapping from the
       layout, ``context`` an :class:`~hapticdesk.runtime.dispatcher.ActionContext`. The action is a
@@ -57,6 +57,10 @@ def register_actions(register: Any) -> None:
     - ``validate(options, position)``: raise :class:`~hapticdesk.files.yamlfile.ConfigError` naming
       ``file:line:column`` when the options are wrong, so ``hapticdesk check`` and ``run`` stop
       before anything starts. ``position`` is where the action stands in the layout.
+
+    - ``options``: a form's schema of the options, ``{name: {"kind": "text" | "number" |
+      "integer" | "bool" | "mapping", "help": str, "required": bool, "choices": [...]}}``
+      (the browser UI's designer builds its forms from it; ``validate`` still decides).
 
     ``factory`` and ``validate`` may be lazy ``"module:attr"`` strings.
     """

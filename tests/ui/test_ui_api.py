@@ -103,7 +103,12 @@ def test_the_page_may_not_add_exec(client: TestClient, layout: Path) -> None:
     assert "exec" in response.json()["errors"][0]["message"]
     assert response.json()["errors"][0]["line"] == text.count("\n")
     assert layout.read_text() == before
-    assert "exec" not in client.get("/api/schema").json()["actions"]
+    schema = client.get("/api/schema").json()
+    assert "exec" not in schema["actions"]
+    # the forms come from what the plugins registered: the mqtt action's options, the tap's
+    assert schema["actions"]["mqtt"]["options"]["topic"]["required"] is True
+    assert schema["actions"]["mqtt"]["options"]["qos"]["choices"] == [0, 1, 2]
+    assert "max_duration_s" in schema["gestures"]["tap"]
 
 
 def test_edits_keep_comments_and_order() -> None:

@@ -89,7 +89,7 @@ def startup(desk: Any, layout: Any, runtime: Any) -> None:
     its own thread (the browser UI): ``runtime.live.sample`` is the latest contact sample
     (written once per block by the sensing thread, O(1)), ``runtime.scene.estimator.notices``
     what the estimator did on its own, ``runtime.scene.dispatcher.lanes`` the actions' counts,
-    and ``runtime.reload_layout(path)`` swaps in a saved layout without a new tare. Never
+    and ``runtime.reload()`` swaps in the saved layout without a new tare. Never
     block or do work on the sensing thread. An exception here is logged with the plugin's
     name (and is fatal under ``--strict``).
     """
@@ -147,4 +147,21 @@ def event_sink(desk: Any, layout: Any, context: Any) -> Any:
     (off the sensing thread, with ``timeout_s`` and ``close()`` as for actions); the MQTT
     plugin publishes the desk's own topics from here. A
     :class:`~hapticdesk.files.yamlfile.ConfigError` raised here stops the run before it starts.
+    """
+
+
+@hookspec
+def control_channel(control: Any, desk: Any, layout: Any, context: Any) -> None:
+    """A run is about to start sensing: here is how to tell it things.
+
+    Called once per ``hapticdesk run`` or ``demo``, just before ``startup``. ``control`` is
+    the run's :class:`~hapticdesk.runtime.control.ControlQueue`: a plugin that listens on a
+    network (the MQTT plugin's ``<prefix>/set``) keeps it and calls
+    ``control.request(name, argument=None)`` from any thread for ``tare``, ``pause``,
+    ``resume``, ``reload`` or ``layout NAME`` (:data:`~hapticdesk.runtime.control.COMMANDS`);
+    :func:`~hapticdesk.runtime.control.parse_command` reads them from JSON. A request never
+    blocks; it returns a :class:`concurrent.futures.Future` holding what was done or why not,
+    applied by the sensing thread between two blocks. ``desk``, ``layout`` and ``context`` are
+    as for ``event_sink``. An exception here is logged with the plugin's name (and is fatal
+    under ``--strict``).
     """

@@ -109,6 +109,8 @@ def _binding_text(b: Binding, layout: Layout) -> str:
     if b.gesture == "long_press":
         hold = b.options["hold_s"]
         filters = [f"on release after {hold:g} s" if b.options["release"] else f"at {hold:g} s"]
+        if b.options["repeat"]:
+            filters.append(f"then every {b.options['interval_s']:g} s while held")
     return " ".join([b.gesture, where] + ([f"({'; '.join(filters)})"] if filters else []))
 
 

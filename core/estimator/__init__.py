@@ -5,10 +5,11 @@ and batch give the same output for any split of the input. Each stage is a modul
 settings (:mod:`.settings`, derived once from the profile) apart from its state; a stage's
 single-sample twin sits beside its block path and shares its formulas:
 
-1. :mod:`.samples` — bad samples (NaN/inf, a saturated channel, time not increasing) are
-   flagged and replaced by the last good sample, so no filter state is poisoned; a gap in
-   time restarts the filters. The 6·S channels become the resultant wrench [F_o; M_o] about
-   P_o by one linear map (paper eqs. 1–4; :meth:`DeskProfile.wrench_map`).
+1. :mod:`.samples` — bad samples (NaN/inf, a saturated channel, time not increasing, a
+   stuck input that repeats its last sample) are flagged and replaced by the last good
+   sample, so no filter state is poisoned; a gap in time restarts the filters. The 6·S
+   channels become the resultant wrench [F_o; M_o] about P_o by one linear map (paper
+   eqs. 1–4; :meth:`DeskProfile.wrench_map`).
 2. :mod:`.filter_bank` — filters on that wrench: the conventional second-order low-pass;
    the pseudo-differentiated wrench (paper eq. 8: an n-sample difference, then the
    low-pass); and a fast (30 Hz) low-pass for touch-down/release detection that does not
@@ -125,11 +126,20 @@ class ContactEstimator:
     def reset(self) -> None:
         """Forget everything: filters, zero and contact state (a new run)."""
         s = self.stage_settings
-        self.samples = SampleStage(s)
+        self.samples = SampleStage(s, self.notices)
         self.filters = FilterBank(s, self.notices)
         self.zeroing = ZeroStage(s, self.notices)
         self.detector = TouchDetector(s)
         self.candidates = CandidateStage(s)
+
+    def retare(self) -> None:
+        """Forget the zero and take it again over the next ``tare_s`` of a still desk (as at
+        the start); the filters keep their state, so no transient follows. Contacts are
+        reported again once the new zero is set."""
+        s = self.stage_settings
+        self.zeroing = ZeroStage(s, self.notices)
+        self.detector = TouchDetector(s)
+        self.candidates = CandidateStage(s)  # its covariances come from the new tare's noise
 
     @property
     def tared(self) -> bool:

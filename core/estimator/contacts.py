@@ -24,12 +24,14 @@ FLAG_SATURATED = 2  # a channel at or beyond the sensor's rated range
 FLAG_TIME_BACK = 4  # time did not increase
 FLAG_GAP = 8  # the time jumped by more than max_gap_s before this sample; filters restarted
 FLAG_NOT_TARED = 16  # no zero yet (tare pending or refused)
+FLAG_STUCK = 32  # every channel bit-identical to the sample before, for a run: a stuck driver
 FLAG_NAMES = {
     FLAG_NAN: "nan",
     FLAG_SATURATED: "saturated",
     FLAG_TIME_BACK: "time_back",
     FLAG_GAP: "gap",
     FLAG_NOT_TARED: "not_tared",
+    FLAG_STUCK: "stuck",
 }
 UNCERTAINTY_CAP_M = 10.0  # stands for "unknown" so the arrays stay finite
 

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from hapticdesk.estimator.contacts import ContactBlock, ContactEvent
+from hapticdesk.estimator.contacts import FLAG_GAP, ContactBlock, ContactEvent
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.layout import Layout
 from hapticdesk.gestures.recognizer import Recognizer
@@ -78,17 +78,44 @@ class GestureEngine:
         self._tracker = TouchTracker(layout.desk, position_delay_s)
 
     def feed(self, block: ContactBlock) -> list[GestureEvent]:
-        """Recognise gestures in the next block (any length, including 0)."""
+        """Recognise gestures in the next block (any length, including 0).
+
+        A sample flagged FLAG_GAP (time jumped, the estimator restarted its filters) while a
+        touch is open cancels that touch: nobody saw it end, so no release is made up.
+        """
         if len(block) == 0:
             return []
-        return self._run(self._tracker.events(block), block.t)
+        gaps = np.flatnonzero(block.flags & FLAG_GAP)
+        if len(gaps) == 0:
+            return self._run(self._tracker.events(block), block.t)
+        out: list[GestureEvent] = []
+        start = 0
+        for k in gaps.tolist():
+            if k > start:
+                part = block.take(slice(start, k))
+                out += self._run(self._tracker.events(part), part.t)
+            out += self.cancel(float(block.t[k]))
+            start = k
+        part = block.take(slice(start, len(block)))
+        return out + self._run(self._tracker.events(part), part.t)
+
+    def cancel(self, t: float) -> list[GestureEvent]:
+        """The contact stream broke off at sample time ``t`` (a gap, a stop, the end of a
+        recording): the open touch, if any, is cancelled, never released. Continuous
+        gestures end with phase ``cancel``; a tap is not fired. Timers are left running."""
+        touch = self._tracker.abort()
+        if touch is None:
+            return []
+        out: list[GestureEvent] = []
+        for recognizer in self._active:
+            out += recognizer.cancel(t, touch)
+        return out
 
     def flush(self, t_end: float) -> list[GestureEvent]:
-        """The source ended at sample time ``t_end``: end the touch and decide what is pending."""
-        out: list[GestureEvent] = []
-        up = self._tracker.end(t_end)
-        if up is not None:
-            out += self._on_contact(up)
+        """The source ended at sample time ``t_end``: cancel an open touch (its release was
+        not seen) and decide what is pending (a tap released before, waiting for its
+        double)."""
+        out = self.cancel(t_end)
         for recognizer in self._active:
             out += recognizer.flush(t_end)
         return out

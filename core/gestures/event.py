@@ -15,7 +15,9 @@ class GestureEvent:
     slide, stroke, …); ``region`` the layout region it happened in (None for anywhere).
     Optional fields carry what the gesture has: ``shape``/``score`` (stroke), ``direction``
     (swipe), ``value`` (slide, force, 0..1), ``level`` (press), ``phase`` (begin, update, end
-    for continuous gestures). ``extra`` holds anything a plugin recognizer adds.
+    for continuous gestures; cancel when a touch broke off without a release: a gap, a stop,
+    the end of a recording; repeat for a long press held on). ``extra`` holds anything a
+    plugin recognizer adds.
     """
 
     t: float

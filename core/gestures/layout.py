@@ -78,7 +78,9 @@ class Binding:
             hold = event.hold_s or 0.0
             if o.get("release"):
                 return event.phase == "end" and hold >= o["hold_s"] - 1e-9
-            return event.phase != "end" and abs(hold - o["hold_s"]) < 1e-9
+            # the tier itself (no phase), its repeats when asked for; never end or cancel
+            phases = (None, "repeat") if o.get("repeat") else (None,)
+            return event.phase in phases and abs(hold - o["hold_s"]) < 1e-9
         for key in ("shape", "direction", "level", "phase"):
             wanted = o.get(key)
             if wanted is not None and getattr(event, key) not in wanted:
@@ -112,6 +114,17 @@ class Layout:
         if isinstance(name, str):
             return name
         return re.sub(r"[^A-Za-z0-9_-]", "_", self.desk.name)
+
+    @property
+    def named_layouts(self) -> dict[str, Path]:
+        """``layouts:``: name -> layout file a running desk can switch to (checked on load)."""
+        value = self.raw.get("layouts")
+        if not isinstance(value, dict):
+            return {}
+        return {
+            str(name): (self.path.parent / Path(str(file)).expanduser())
+            for name, file in value.items()
+        }
 
     @property
     def gestures(self) -> list[str]:

@@ -48,7 +48,17 @@ from hapticdesk.gestures.regions import Region, regions_overlap
 
 #: the layout's own top-level keys
 LAYOUT_KEYS = frozenset(
-    {"desk", "desk_name", "units", "regions", "bindings", "settings", "templates", "description"}
+    {
+        "desk",
+        "desk_name",
+        "units",
+        "regions",
+        "bindings",
+        "settings",
+        "templates",
+        "description",
+        "layouts",
+    }
 )
 #: a desk name goes into topics, URLs and file names: no spaces, slashes or wildcards
 DESK_NAME = re.compile(r"[A-Za-z0-9_-]+")
@@ -102,6 +112,7 @@ class LayoutReader:
         doc = self.doc
         check_keys(doc, allowed_top_keys(self.sections), "the layout", required={"bindings"})
         self._desk_name()
+        self._named_layouts()
         desk = self._desk()
         self.units = choice(doc, "units", tuple(UNITS), "the layout", default="m")
         self.scale = UNITS[self.units]
@@ -139,6 +150,33 @@ class LayoutReader:
             raw=doc,
             warnings=self.warnings,
         )
+
+    def _named_layouts(self) -> None:
+        """``layouts: {evening: evening.yaml}``: the layouts a running desk can switch to
+        (``{"layout": "evening"}`` on its control channel); files relative to this one."""
+        if "layouts" not in self.doc:
+            return
+        m = require_mapping(self.doc["layouts"], self.doc.where("layouts"), "`layouts`")
+        for name, value in m.items():
+            if not isinstance(name, str) or not DESK_NAME.fullmatch(name):
+                raise ConfigError(
+                    m.where(name, of_key=True),
+                    f"a name in `layouts` must be letters, digits, _ and -, found {name!r}",
+                )
+            if name == "default":
+                raise ConfigError(
+                    m.where(name, of_key=True),
+                    "`default` is the layout the run started with; choose another name",
+                )
+            if not isinstance(value, str) or not value:
+                raise ConfigError(
+                    m.where(name), f"`layouts.{name}` must be a layout file path, found {value!r}"
+                )
+            path = Path(value).expanduser()
+            if not path.is_absolute():
+                path = self.path.parent / path
+            if not path.is_file():
+                raise ConfigError(m.where(name), f"`layouts.{name}`: no such file {path}")
 
     def _desk_name(self) -> None:
         if "desk_name" not in self.doc:

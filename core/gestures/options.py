@@ -25,7 +25,7 @@ Kind = Literal[
 ]
 Role = Literal["recognize", "match"]
 
-PHASES = ("begin", "update", "end")
+PHASES = ("begin", "update", "end", "cancel")
 DIRECTIONS_4 = ("right", "up", "left", "down")
 DIRECTIONS_8 = (
     "right",
@@ -62,12 +62,27 @@ def _m(default: float, help: str) -> OptionSpec:
 
 def _phase_filter() -> OptionSpec:
     return OptionSpec(
-        "names", None, "match", "which phases to react to (begin, update, end); all by default"
+        "names",
+        None,
+        "match",
+        "which phases to react to (begin, update, end, cancel); all by default",
+    )
+
+
+def _leave() -> OptionSpec:
+    return OptionSpec(
+        "choice",
+        "clip",
+        "recognize",
+        "a finger that leaves the region: clip (the gesture goes on, a slider's value held at"
+        " 0 or 1) or cancel (it ends there with phase cancel)",
+        choices=("clip", "cancel"),
     )
 
 
 _TAP_DURATION = "longest touch that still counts as a tap"
 _TAP_MOVE = "how far the finger may move during the touch"
+_TAP_SNAP = "a tap outside every bound region goes to the nearest one this close"
 
 #: gesture name -> option name -> spec. Built-in gestures only; plugin recognizers may carry
 #: their own table as a class attribute ``option_specs``.
@@ -75,12 +90,14 @@ GESTURE_OPTIONS: dict[str, dict[str, OptionSpec]] = {
     "tap": {
         "max_duration_s": _s(0.5, _TAP_DURATION, 5.0),
         "max_move": _m(0.015, _TAP_MOVE),
+        "snap": _m(0.012, _TAP_SNAP),
     },
     "double_tap": {
         "interval_s": _s(0.3, "longest pause between the first release and the second touch", 2.0),
         "max_distance": _m(0.03, "how far apart the two taps may be"),
         "max_duration_s": _s(0.5, _TAP_DURATION, 5.0),
         "max_move": _m(0.015, _TAP_MOVE),
+        "snap": _m(0.012, _TAP_SNAP),
     },
     "long_press": {
         "max_move": _m(0.015, "how far the finger may move before the hold is cancelled"),
@@ -90,6 +107,13 @@ GESTURE_OPTIONS: dict[str, dict[str, OptionSpec]] = {
         "release": OptionSpec(
             "bool", False, "match", "fire on the release after the tier instead of at it"
         ),
+        "repeat": OptionSpec(
+            "bool",
+            False,
+            "match",
+            "after the tier, fire again every `interval_s` while the finger stays (hold to dim)",
+        ),
+        "interval_s": _s(0.25, "time between two repeats of a held long press", 10.0),
     },
     "press": {
         "levels": OptionSpec(
@@ -114,6 +138,7 @@ GESTURE_OPTIONS: dict[str, dict[str, OptionSpec]] = {
         "step": OptionSpec(
             "fraction", 0.01, "recognize", "smallest change worth an update", 0.0, 1.0
         ),
+        "leave": _leave(),
         "phase": _phase_filter(),
     },
     "swipe": {
@@ -143,6 +168,7 @@ GESTURE_OPTIONS: dict[str, dict[str, OptionSpec]] = {
         "step": OptionSpec(
             "fraction", 0.01, "recognize", "smallest change worth an update", 0.0, 1.0
         ),
+        "leave": _leave(),
         "phase": _phase_filter(),
     },
     "stroke": {

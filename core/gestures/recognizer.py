@@ -19,6 +19,11 @@ from hapticdesk.gestures.layout import Binding, Layout
 from hapticdesk.gestures.options import OptionSpec
 from hapticdesk.gestures.touch import Touch
 
+#: how far outside its region a finger must be before a `leave: cancel` gesture ends: about
+#: twice a touch's position noise (≈ 4.5 mm 1-σ for a light touch on the paper's desk), so
+#: a finger on the region's edge does not cancel it
+LEAVE_MARGIN_M = 0.01
+
 
 class Recognizer:
     """Base class: override what the gesture needs."""
@@ -44,6 +49,12 @@ class Recognizer:
         """Called at the first sample time ``t`` >= the deadline; must clear or move it."""
         return []
 
+    def cancel(self, t: float, touch: Touch) -> list[GestureEvent]:
+        """``touch`` broke off at ``t`` without a release (a gap, a stop, the end of the
+        recording): forget it. Continuous gestures return their ``cancel`` phase; nothing
+        that fires on a release may fire here."""
+        return []
+
     def flush(self, t: float) -> list[GestureEvent]:
         """The source ended at ``t``: decide whatever is pending now."""
         return self.on_deadline(t) if self.next_deadline() is not None else []
@@ -62,13 +73,26 @@ class BoundRegions:
     def __bool__(self) -> bool:
         return bool(self.regions) or self.anywhere
 
-    def find(self, x: float, y: float, surface: int) -> tuple[bool, str | None]:
-        """(found, region name): the bound region holding the point, else (True, None) when
-        the gesture is bound anywhere, else (False, None)."""
-        for region in self.regions:
-            if region.surface_index == surface and bool(region.contains(x, y)):
+    def find(self, x: float, y: float, surface: int, snap: bool = False) -> tuple[bool, str | None]:
+        """(found, region name): the bound region holding the point, else (with ``snap``) the
+        nearest one when the point is within that region's ``snap`` option of it, else
+        (True, None) when the gesture is bound anywhere, else (False, None)."""
+        on_surface = [r for r in self.regions if r.surface_index == surface]
+        for region in on_surface:
+            if bool(region.contains(x, y)):
                 return True, region.name
+        if snap and on_surface:
+            distance, nearest = min((r.distance(x, y), r.name) for r in on_surface)
+            if distance <= self.options(nearest).get("snap", 0.0):
+                return True, nearest
         return self.anywhere, None
+
+    def left(self, region: str | None, x: float, y: float) -> bool:
+        """Whether a finger at (x, y) has left ``region`` where the gesture's ``leave`` option
+        says ``cancel``: farther outside it than :data:`LEAVE_MARGIN_M`."""
+        if region is None or self.options(region).get("leave") != "cancel":
+            return False
+        return self.layout.regions[region].distance(x, y) > LEAVE_MARGIN_M
 
     def options(self, region: str | None) -> dict[str, Any]:
         """Resolved recognizer settings of the gesture in ``region``."""

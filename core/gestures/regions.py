@@ -7,6 +7,7 @@ take arrays, so a whole trace is judged at once.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,6 +54,22 @@ class Region:
             x0, y0, x1, y1 = self.bounds
             return np.asarray((xa >= x0) & (xa <= x1) & (ya >= y0) & (ya <= y1))
         return points_in_polygon(xa, ya, self.outline)
+
+    def distance(self, x: float, y: float) -> float:
+        """How far the point (x, y) lies outside the region, metres (0 inside or on it)."""
+        if self.kind == "circle":
+            assert self.center is not None
+            return max(0.0, math.hypot(x - self.center[0], y - self.center[1]) - self.radius)
+        if self.kind == "rect":
+            x0, y0, x1, y1 = self.bounds
+            return math.hypot(max(x0 - x, 0.0, x - x1), max(y0 - y, 0.0, y - y1))
+        if bool(points_in_polygon(np.asarray(x), np.asarray(y), self.outline)):
+            return 0.0
+        a, b = self.outline, np.roll(self.outline, -1, axis=0)
+        e = b - a
+        length2 = np.maximum((e * e).sum(1), 1e-18)  # a repeated vertex: an edge of length 0
+        s = np.clip(((x - a[:, 0]) * e[:, 0] + (y - a[:, 1]) * e[:, 1]) / length2, 0, 1)
+        return float(np.hypot(a[:, 0] + s * e[:, 0] - x, a[:, 1] + s * e[:, 1] - y).min())
 
     def value_along(self, x: np.ndarray | float, y: np.ndarray | float) -> np.ndarray:
         """Slider value 0..1: the projection of (x, y) on the axis, clipped to its ends."""

@@ -41,8 +41,11 @@ GATE_RESET_S = 0.08
 class Touch:
     """What is known about the current touch. The engine updates it; recognizers read it."""
 
-    def __init__(self, t_down: float, delay_s: float = 0.0) -> None:
+    def __init__(self, t_down: float, delay_s: float = 0.0, pressed_n: float = 0.0) -> None:
         self.t_down = t_down
+        #: samples below this force are the touch's tail (the finger landing or lifting
+        #: off): where the touch is and whether it moved is judged without them
+        self.pressed_n = pressed_n
         #: how far the positions run behind the finger: the estimator's low-pass delay (a
         #: moving finger is seen where it was this long ago); 0 for contacts that do not lag
         self.delay_s = delay_s
@@ -58,6 +61,8 @@ class Touch:
         self._sx: list[float] = []  # smoothed track
         self._sy: list[float] = []
         self._sum_w = self._sum_wx = self._sum_wy = 0.0
+        self._pressed: list[bool] = []
+        self._pressed_w = self._pressed_wx = self._pressed_wy = 0.0
         self._ema_w = self._ema_wx = self._ema_wy = 0.0
         self._outliers_since: float | None = None  # start of the current run of outliers
         self.outliers = 0  # samples left out by the gate
@@ -84,6 +89,12 @@ class Touch:
         self._sum_w += w
         self._sum_wx += w * event.x
         self._sum_wy += w * event.y
+        pressed = event.force_n >= self.pressed_n
+        self._pressed.append(pressed)
+        if pressed:
+            self._pressed_w += w
+            self._pressed_wx += w * event.x
+            self._pressed_wy += w * event.y
         if self._t:
             decay = math.exp(-(event.t - self._t[-1]) / TRACK_TIME_CONSTANT_S)
             self._ema_w *= decay
@@ -130,14 +141,15 @@ class Touch:
         return (self.t_up if self.t_up is not None else self.t_last) - self.t_down
 
     def best(self) -> tuple[float, float, float]:
-        """(x, y, σ): the precision-weighted mean of every located sample so far."""
+        """(x, y, σ): the precision-weighted mean of the located samples pressed at least
+        ``pressed_n`` so far (of every located sample while there is none)."""
         if not self._t:
             raise ValueError("the touch has no located sample")
-        return (
-            self._sum_wx / self._sum_w,
-            self._sum_wy / self._sum_w,
-            1.0 / math.sqrt(self._sum_w),
-        )
+        if self._pressed_w > 0:
+            w, wx, wy = self._pressed_w, self._pressed_wx, self._pressed_wy
+        else:
+            w, wx, wy = self._sum_w, self._sum_wx, self._sum_wy
+        return wx / w, wy / w, 1.0 / math.sqrt(w)
 
     def current(self) -> tuple[float, float]:
         """The latest point of the smoothed track."""
@@ -161,12 +173,16 @@ class Touch:
         """How far the touch went from (x, y) beyond its own uncertainty, metres.
 
         The largest distance of a sample from (x, y) less twice that sample's σ: a noisy
-        sample at touch-down does not count as movement, a real slide does.
+        sample at touch-down does not count as movement, a real slide does. Only pressed
+        samples count when there are any: the lift-off tail below the contact force is where
+        the differentiated candidate's still-finger assumption breaks (13 cm jumps seen).
         """
         if not self._t:
             return 0.0
-        d = np.hypot(np.asarray(self._x) - x, np.asarray(self._y) - y) - 2 * np.asarray(self._sigma)
-        return max(0.0, float(d.max()))
+        pressed = np.asarray(self._pressed)
+        keep = pressed if pressed.any() else np.ones(len(pressed), bool)
+        d = np.hypot(np.asarray(self._x)[keep] - x, np.asarray(self._y)[keep] - y)
+        return max(0.0, float((d - 2 * np.asarray(self._sigma)[keep]).max()))
 
     def position_at(self, t: float, t0: float, t1: float) -> tuple[float, float] | None:
         """Position at time ``t`` from a precision-weighted straight-line fit over the located
@@ -200,6 +216,7 @@ class TouchTracker:
     def __init__(self, desk: DeskProfile, position_delay_s: float = 0.0) -> None:
         self.touch: Touch | None = None
         self.position_delay_s = position_delay_s  # see Touch.delay_s
+        self.pressed_n = desk.estimation.contact_force_n  # see Touch.pressed_n
         self._in_contact = False
         self._local_surfaces = [(i, s) for i, s in enumerate(desk.surfaces) if not s.is_desk_xy]
 
@@ -226,7 +243,7 @@ class TouchTracker:
         """Update the touch with ``event``; returns it (None for a stray event without down).
         After an ``up`` the returned touch is complete and no touch is current."""
         if event.kind == "down":
-            self.touch = Touch(event.t, self.position_delay_s)
+            self.touch = Touch(event.t, self.position_delay_s, self.pressed_n)
         touch = self.touch
         if touch is not None:
             touch.add(event)
@@ -235,8 +252,17 @@ class TouchTracker:
         return touch
 
     def end(self, t_end: float) -> ContactEvent | None:
-        """The ``up`` that ends a touch still going when the source stops at ``t_end``."""
+        """An ``up`` for a touch still going when the source stops at ``t_end``: for stroke
+        capture, which keeps what was drawn. The gesture engine does not use it: a release
+        that was not seen fires nothing (:meth:`abort`)."""
         self._in_contact = False
         if self.touch is None:
             return None
         return ContactEvent(t_end, "up", 0.0, 0.0, -1, 0.0, UNCERTAINTY_CAP_M, "release", False)
+
+    def abort(self) -> Touch | None:
+        """The stream broke off: forget the contact state; returns the touch that was open
+        (without an ``up``: its release was not seen), or None."""
+        self._in_contact = False
+        touch, self.touch = self.touch, None
+        return touch

@@ -356,9 +356,10 @@ class Dispatcher:
     def __init__(self, *, watchdog_interval_s: float = 0.05) -> None:
         self.routes: list[Route] = []
         self.sinks: list[Lane] = []  # lanes that see every event (plugins' event sinks)
-        self._retired: list[Route] = []  # routes of a layout replaced while running
         self.events = 0
         self.match_errors = 0
+        self.retired: list[Lane] = []  # lanes of routes a reload replaced (still reported)
+        self._retiring: list[threading.Thread] = []
         self._closed = threading.Event()
         self._interval = watchdog_interval_s
         self._watchdog = threading.Thread(target=self._watch, name="action watchdog", daemon=True)
@@ -366,20 +367,28 @@ class Dispatcher:
 
     @property
     def lanes(self) -> list[Lane]:
-        routes = self._retired + self.routes
-        return [lane for route in routes for lane in route.lanes] + self.sinks
+        """The lanes taking events: every route's, then the sinks."""
+        return [lane for route in self.routes for lane in route.lanes] + self.sinks
+
+    def replace_routes(self, routes: list[Route], drain_s: float) -> None:
+        """Use ``routes`` from now on (a layout reload), on the thread that calls
+        :meth:`submit`. The old routes' lanes finish what they hold within ``drain_s`` on a
+        thread of their own (this never blocks) and still count in :meth:`close`'s report."""
+        old = [lane for route in self.routes for lane in route.lanes]
+        self.routes = list(routes)
+        self.retired.extend(old)
+        deadline = time.monotonic() + drain_s
+
+        def retire() -> None:
+            for lane in old:
+                lane.close(deadline)
+
+        thread = threading.Thread(target=retire, name="retire old actions", daemon=True)
+        thread.start()
+        self._retiring.append(thread)
 
     def add_route(self, route: Route) -> None:
         self.routes.append(route)
-
-    def replace_routes(self, routes: list[Route]) -> list[Route]:
-        """Use ``routes`` from now on (a reloaded layout); returns the old ones.
-
-        One assignment, so :meth:`submit` on the sensing thread sees either list whole. The
-        old lanes finish what they hold and are closed, counted and reported with the rest."""
-        old, self.routes = self.routes, list(routes)
-        self._retired.extend(old)
-        return old
 
     def add_sink(self, lane: Lane) -> None:
         self.sinks.append(lane)
@@ -405,16 +414,19 @@ class Dispatcher:
         deadline = time.monotonic() + timeout_s
         for lane in self.lanes:
             lane.close(deadline)
+        for thread in self._retiring:
+            thread.join(max(0.0, deadline - time.monotonic()))
         self._closed.set()
         self._watchdog.join(1.0)
         report = DispatchReport(events=self.events)
-        for lane in self.lanes:
-            report.lanes[lane.label] = lane.stats
+        for lane in self.retired + self.lanes:
+            # a lane a reload replaced and its successor share a label: their counts add up
+            report.lanes.setdefault(lane.label, LaneStats()).add(lane.stats)
             report.totals.add(lane.stats)
         return report
 
     def _watch(self) -> None:
         while not self._closed.wait(self._interval):
             now = time.monotonic()
-            for lane in self.lanes:
+            for lane in self.retired + self.lanes:
                 lane.check_timeout(now)

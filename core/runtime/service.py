@@ -23,6 +23,7 @@ import sys
 import threading
 import time
 from collections.abc import Iterator, Mapping
+from concurrent.futures import Future
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import FrameType
@@ -33,6 +34,7 @@ from hapticdesk.files.profile import DeskProfile, load_profile
 from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.registry import Registry
+from hapticdesk.runtime.control import ControlCommand, ControlError, ControlQueue
 from hapticdesk.runtime.dispatcher import ActionContext, Dispatcher, DispatchReport, Lane, Route
 from hapticdesk.runtime.isolation import ProcessAction, split_isolation
 from hapticdesk.runtime.source import Source
@@ -60,7 +62,12 @@ class Assembly:
     engine: Any  # hapticdesk.gestures.GestureEngine
     dispatcher: Dispatcher
     context: ActionContext
+    #: the layout file the run started with (``default`` among its named layouts)
+    layout_path: Path | None = None
+    desk_override: str | None = None  # ``--desk``: a reloaded layout is read with it too
     action_timeout_s: float | None = None
+    #: commands for the running desk (re-tare, pause, reload …), applied between blocks
+    control: ControlQueue = field(default_factory=ControlQueue)
     actions: bool = True  # False: gestures are recognised, the layout's actions not run
 
     def close(self) -> None:
@@ -162,6 +169,8 @@ def build_scene(
         engine,
         dispatcher,
         context,
+        layout_path=Path(layout_path),
+        desk_override=desk,
         action_timeout_s=action_timeout_s,
         actions=actions,
     )
@@ -170,12 +179,31 @@ def build_scene(
 def build_routes(
     layout: Any, registry: Registry, context: ActionContext, timeout_s: float | None
 ) -> list[Route]:
-    """One route per binding of ``layout``, its actions built (ConfigError if one cannot be)."""
+    """A route (with its actions' lanes, started) for each binding of ``layout``; when one
+    action cannot be built, the lanes built so far are closed and the ConfigError raised."""
     routes: list[Route] = []
+    try:
+        _add_routes(routes, layout, registry, context, timeout_s)
+    except BaseException:
+        for route in routes:
+            for lane in route.lanes:
+                lane.close(0.0)
+        raise
+    return routes
+
+
+def _add_routes(
+    routes: list[Route],
+    layout: Any,
+    registry: Registry,
+    context: ActionContext,
+    timeout_s: float | None,
+) -> None:
     for binding in layout.bindings:
         where = f" in {binding.region}" if binding.region else ""
         label = f"binding {binding.index + 1} ({binding.gesture}{where})"
         route = Route(label, binding.matches)
+        routes.append(route)
         names = [use.name for use in binding.actions]
         for k, use in enumerate(binding.actions):
             lane = f"{label} → {use.name}" + (f" #{k + 1}" if names.count(use.name) > 1 else "")
@@ -203,8 +231,6 @@ def build_routes(
                     f"not be set up: {type(err).__name__}: {err}",
                 ) from err
             route.lanes.append(Lane(lane, action, timeout_s=timeout_s))
-        routes.append(route)
-    return routes
 
 
 # --- the run ----------------------------------------------------------------------------------
@@ -222,6 +248,7 @@ class LiveStatus:
     last_gesture: str = ""
     gestures: int = 0
     tared: bool = False
+    paused: bool = False
     #: the block's last sample, replaced whole (one assignment, so a reader on another thread
     #: never sees half of one): (t, x or None, y or None, force_n, phase, surface index or -1)
     sample: tuple[float, float | None, float | None, float, int, int] | None = None
@@ -231,6 +258,7 @@ class LiveStatus:
     def line(self) -> str:
         where = f"x {self.x:+.3f} y {self.y:+.3f} m" if self.in_contact else "—"
         tare = "" if self.tared else " (taring: keep the desk still)"
+        tare += " (paused: gestures not sent)" if self.paused else ""
         last = self.last_gesture or "none yet"
         return (
             f"t {self.t:7.2f} s  {'●' if self.in_contact else '○'} {where}  "
@@ -292,13 +320,134 @@ class Runtime:
         self._stop = threading.Event()
         self._force = False
         self._events_out: IO[str] | None = None
-        # a new layout waiting for the sensing thread to swap it in between two blocks
-        self._pending_layout: tuple[Any, Any, list[Route]] | None = None
         #: callables given every block's ``(t, wrench)`` on the sensing thread, after the
         #: estimator (a set-up check recording raw samples); each must be O(1): keep a
         #: reference, never copy or wait. Replaced whole (a tuple), never changed in place.
         self.block_taps: tuple[Any, ...] = ()
-        self._swap_lock = threading.Lock()
+        #: gestures are recognised but not sent while paused (``pause`` / ``resume``)
+        self.paused = False
+        self._t_last: float | None = None  # the last sample time sensed (to flush an engine)
+        self.layout_path = scene.layout_path or scene.layout.path
+        #: the layouts ``layout NAME`` switches among (from the layout the run started with)
+        self.named_layouts: dict[str, Path] = {
+            "default": Path(self.layout_path),
+            **getattr(scene.layout, "named_layouts", {}),
+        }
+
+    # --- control: what the desk can be told while it runs ------------------------------------
+
+    def request(self, name: str | ControlCommand, argument: str | None = None) -> Future[str]:
+        """Queue a command (``tare``, ``pause``, ``resume``, ``reload``, ``layout NAME``; see
+        :mod:`hapticdesk.runtime.control`) from any thread; never blocks. The sensing thread
+        applies it before the next block; the future then holds a line saying what was done,
+        or the error (a layout that does not load leaves the running one in place)."""
+        return self.scene.control.request(name, argument)
+
+    def reload(self, timeout_s: float = 10.0) -> str:
+        """Read the layout file again and use it, keeping the zero and the connections
+        (for the browser UI after it saved the layout). Waits up to ``timeout_s`` for the
+        sensing thread; raises ConfigError when the layout does not load (the old one stays)
+        and TimeoutError when the run is not sensing."""
+        return self.request("reload").result(timeout_s)
+
+    def switch_layout(self, name: str, timeout_s: float = 10.0) -> str:
+        """Switch to the named layout (``layouts:`` of the first layout, or ``default``)."""
+        return self.request("layout", name).result(timeout_s)
+
+    def apply_control(self) -> None:
+        """Apply every queued command (on the sensing thread, between blocks)."""
+        for cmd, future in self.scene.control.take():
+            try:
+                line = self._apply(cmd)
+            except (ControlError, ConfigError) as err:
+                log.warning("control: `%s` refused: %s", cmd, err)
+                future.set_exception(err)
+            except Exception as err:  # a bug: the run goes on with what it had
+                log.exception("control: `%s` failed", cmd)
+                future.set_exception(err)
+            else:
+                log.warning("control: %s", line)
+                future.set_result(line)
+
+    def _apply(self, cmd: ControlCommand) -> str:
+        scene = self.scene
+        if cmd.name == "tare":
+            scene.estimator.retare()
+            self.live.tared = False
+            return f"re-taring: keep the desk still for {scene.profile.estimation.tare_s:g} s"
+        if cmd.name == "pause":
+            self.paused = self.live.paused = True
+            return "paused: gestures are recognised but not sent (sensing and the zero go on)"
+        if cmd.name == "resume":
+            self.paused = self.live.paused = False
+            return "resumed: gestures are sent again"
+        if cmd.name == "reload":
+            return self._use_layout(Path(scene.context.layout_path or self.layout_path))
+        # layout NAME
+        assert cmd.argument is not None
+        path = self.named_layouts.get(cmd.argument)
+        if path is None:
+            raise ControlError(
+                f"no layout named {cmd.argument!r}; known: {', '.join(sorted(self.named_layouts))}"
+                " (name them under `layouts:` in the layout the run started with)"
+            )
+        return self._use_layout(path, cmd.argument)
+
+    def _use_layout(self, path: Path, name: str | None = None) -> str:
+        """Load ``path`` and swap it in: new engine and actions; the same estimator, zero,
+        source, event sinks and shared connections."""
+        from hapticdesk.gestures.engine import GestureEngine
+
+        scene, context = self.scene, self.scene.context
+        layout, profile = load_scene_layout(path, scene.registry, scene.desk_override)
+        if _desk_key(profile) != _desk_key(scene.profile):
+            raise ConfigError(
+                str(path),
+                f"the layout is for desk `{profile.name}` but this run senses desk "
+                f"`{scene.profile.name}`; a new desk needs a restart",
+            )
+        if layout.desk_name != context.desk_name:
+            raise ConfigError(
+                str(path),
+                f"the layout names the desk `{layout.desk_name}` but this run is "
+                f"`{context.desk_name}` (its topics and identity); a new name needs a restart",
+            )
+        for warning in layout.warnings:
+            log.warning("%s", warning)
+        before = (context.layout, context.settings, context.layout_path)
+        context.layout, context.settings, context.layout_path = layout, layout.raw, Path(path)
+        try:
+            routes = (
+                build_routes(layout, scene.registry, context, scene.action_timeout_s)
+                if scene.actions
+                else []
+            )
+            engine = GestureEngine(
+                layout,
+                recognizer_types=scene.registry.recognizer_types(),
+                position_delay_s=scene.estimator.position_delay_s,
+            )
+        except BaseException:
+            context.layout, context.settings, context.layout_path = before
+            raise
+        if self._t_last is not None:  # what the old layout was deciding (a tap) is decided
+            self._emit(scene.engine.flush(self._t_last))
+        scene.dispatcher.replace_routes(routes, self.drain_timeout_s)
+        scene.engine, scene.layout = engine, layout
+        what = f"layout `{name}` ({path})" if name else f"reloaded {path}"
+        line = f"{what}: {len(layout.bindings)} bindings; the zero and connections are kept"
+        # shared connections were opened from the first layout's sections and are kept
+        changed = [
+            f"`{section}:`"
+            for section in scene.registry.layout_sections
+            if before[1].get(section) != layout.raw.get(section)
+        ]
+        if changed:
+            line += (
+                f" ({', '.join(changed)} changed: its connection settings take effect at the "
+                "next start)"
+            )
+        return line
 
     def stop(self, reason: str = "request", *, force: bool = False) -> None:
         """Ask the run to end; ``force`` skips waiting for queued commands."""
@@ -314,6 +463,13 @@ class Runtime:
         started = time.monotonic()
         try:
             self._events_out = self._open_events()
+            scene.registry.notify(
+                "control_channel",
+                control=scene.control,
+                desk=scene.profile,
+                layout=scene.layout,
+                context=scene.context,
+            )
             scene.registry.notify("startup", desk=scene.profile, layout=scene.layout, runtime=self)
         except BaseException:  # an unwritable events file, or --strict and a plugin failed
             if self._events_out is not None:
@@ -336,51 +492,13 @@ class Runtime:
             remaining = 0.0 if self._force else max(0.0, deadline - time.monotonic())
             self.report.notes.extend(scene.context.close_resources(remaining))
         scene.source.close()
+        for cmd, future in scene.control.take():  # asked for after the last block
+            future.set_exception(ControlError(f"`{cmd}`: the run has ended"))
         self.report.wall_s = time.monotonic() - started
         scene.registry.notify(
             "shutdown", desk=scene.profile, layout=scene.layout, report=self.report
         )
         return self.report
-
-    def reload_layout(self, layout_path: str | Path | None = None) -> Any:
-        """Load the layout again (or another one) and use it from the next block on.
-
-        The estimator is kept, so there is no new tare; the gesture engine and the actions of
-        the bindings are built anew (ConfigError, and nothing changes, when the layout is
-        wrong); the old engine is flushed on the sensing thread, the old actions finish what
-        they hold and close with the run. Returns the new layout.
-        """
-        from hapticdesk.gestures.engine import GestureEngine
-
-        scene = self.scene
-        path = Path(layout_path) if layout_path is not None else scene.layout.path
-        layout, _ = load_scene_layout(path, scene.registry, scene.profile)
-        routes = (
-            build_routes(layout, scene.registry, scene.context, scene.action_timeout_s)
-            if scene.actions
-            else []
-        )
-        engine = GestureEngine(
-            layout,
-            recognizer_types=scene.registry.recognizer_types(),
-            position_delay_s=scene.estimator.position_delay_s,
-        )
-        with self._swap_lock:
-            self._pending_layout = (layout, engine, routes)
-        return layout
-
-    def _swap_layout(self, t_now: float | None) -> None:
-        with self._swap_lock:
-            pending, self._pending_layout = self._pending_layout, None
-        if pending is None:
-            return
-        layout, engine, routes = pending
-        if t_now is not None:
-            self._emit(self.scene.engine.flush(t_now))  # a pending tap is decided on the old
-        self.scene.engine, self.scene.layout = engine, layout
-        self.scene.context.layout, self.scene.context.settings = layout, layout.raw
-        self.scene.dispatcher.replace_routes(routes)
-        log.info("layout reloaded: %s", layout.path)
 
     # --- the sensing thread -------------------------------------------------------------------
 
@@ -399,10 +517,9 @@ class Runtime:
         for block in scene.source.blocks():
             if self._stop.is_set():
                 break
+            self.apply_control()  # between blocks: a command never sees half a block
             if len(block.t) == 0:
                 continue
-            if self._pending_layout is not None:
-                self._swap_layout(t_last)
             if t_first is None:
                 t_first = float(block.t[0])
             contacts = scene.estimator.push(block.t, block.wrench)  # it logs its own notices
@@ -411,12 +528,15 @@ class Runtime:
             for tap in self.block_taps:
                 tap(block.t, block.wrench)
             self.report.samples += len(block.t)
-            t_last = float(block.t[-1])
+            t_last = self._t_last = float(block.t[-1])
+        self.apply_control()
         if t_first is not None and t_last is not None:
             self._emit(scene.engine.flush(t_last))
             self.report.sample_time_s = t_last - t_first
 
     def _emit(self, events: list[GestureEvent]) -> None:
+        if self.paused:  # recognised (the engine's state stays right) but not sent
+            return
         for event in events:
             if self._events_out is not None:
                 self._events_out.write(event.to_json() + "\n")
@@ -485,12 +605,24 @@ class Runtime:
                 )
                 self.stop(name)
 
+        def on_hangup(signum: int, frame: FrameType | None) -> None:
+            # only queued: the sensing thread reloads between two blocks
+            print("\nSIGHUP: reloading the layout", file=sys.stderr)
+            self.request("reload")
+
         previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+        if hasattr(signal, "SIGHUP"):  # not on Windows
+            previous[signal.SIGHUP] = signal.signal(signal.SIGHUP, on_hangup)
         try:
             yield
         finally:
             for s, handler in previous.items():
                 signal.signal(s, handler)
+
+
+def _desk_key(profile: DeskProfile) -> tuple[Any, ...]:
+    """What makes two profiles the same desk for a running estimator."""
+    return (profile.name, profile.sample_rate_hz, tuple(s.name for s in profile.sensors))
 
 
 def report_json(report: RunReport) -> str:

@@ -5,12 +5,15 @@
       username: desk
       password_env: DESK_MQTT_PASSWORD      # or password_file: secrets/mqtt.txt
       tls: {ca: ca.crt, cert: desk.crt, key: desk.key}
-      client_id: hapticdesk-<desk>
+      client_id: hapticdesk-<desk>            # the desk prefix with - for /
       keepalive: 60
       qos: 2                                # 2: a TOGGLE is delivered exactly once
       retain: false
       discovery: false                      # Home Assistant device triggers
-      base_topic: hapticdesk
+      base_topic: hapticdesk                # topics under <base_topic>/<desk>
+      prefix: hapticdesk/site1/floor2/study # or the desk's whole prefix (not with base_topic)
+      protocol: auto                        # MQTT 5 where the broker speaks it, else 3.1.1
+      expiry_s: 60                          # MQTT 5: a command undelivered this long is dropped
     desk_name: study                        # in topics; default: the profile's name
     bindings:
       - gesture: tap
@@ -23,12 +26,15 @@ while the layout loads, so ``hapticdesk check`` refuses what ``run`` would) and 
 ``mqtt:`` section or ``--mqtt``), its ``event_sink`` publishes every gesture to
 ``<base_topic>/<desk>/action`` as a Zigbee2MQTT-style string (``lamp_tap``) and in full to
 ``<base_topic>/<desk>/event`` (JSON), with the retained availability
-``<base_topic>/<desk>/availability`` (``online``; ``offline`` as last will).
+``<base_topic>/<desk>/availability`` (``online``; ``offline`` as last will); a desk whose
+availability is already ``online`` (another process of the same name) is refused at start.
+Its ``control_channel`` listens on ``<prefix>/set`` (:mod:`.control`).
 paho is imported only when the connection is opened.
 """
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
@@ -91,7 +97,8 @@ def validate_section(value: Any, position: Position, layout_path: Path) -> None:
 
 
 def desk_topic(settings: MqttSettings, desk: str, leaf: str) -> str:
-    return f"{settings.base_topic}/{desk}/{leaf}"
+    """One of the desk's own topics: ``<prefix>/<leaf>`` (see ``prefix`` and ``base_topic``)."""
+    return f"{settings.desk_prefix(desk)}/{leaf}"
 
 
 def link_for(context: ActionContext) -> MqttLink:
@@ -102,9 +109,12 @@ def link_for(context: ActionContext) -> MqttLink:
 def open_link(context: ActionContext) -> MqttLink:
     settings = settings_for(context)
     availability = desk_topic(settings, context.desk_name, "availability")
+    refuse_a_second_desk(settings, context.desk_name, availability)
     birth = [Message(availability, b"online", 1, True, command=False)]
     birth_again_on = None
     if settings.discovery:
+        from hapticdesk.plugins.mqtt.control import control_entities
+
         bindings = getattr(context.layout, "bindings", [])
         model = f"hapticdesk on {getattr(context.profile, 'name', 'a desk')}"
         for trigger in device_triggers(
@@ -116,6 +126,16 @@ def open_link(context: ActionContext) -> MqttLink:
             qos=min(settings.qos, 1),
         ):
             birth.append(Message(trigger.topic, trigger.payload, 1, True, command=False))
+        named = getattr(context.layout, "named_layouts", {})
+        for entity in control_entities(
+            desk=context.desk_name,
+            set_topic=desk_topic(settings, context.desk_name, "set"),
+            availability_topic=availability,
+            layouts=["default", *named] if named else [],
+            device=_device(context.desk_name, model),
+            prefix=settings.discovery_prefix,
+        ):
+            birth.append(Message(entity.topic, entity.payload, 1, True, command=False))
         # Home Assistant forgets non-retained state when it restarts; it says so here
         birth_again_on = (f"{settings.discovery_prefix}/status", b"online")
     return MqttLink(
@@ -124,6 +144,37 @@ def open_link(context: ActionContext) -> MqttLink:
         birth=birth,
         birth_again_on=birth_again_on,
     ).start()
+
+
+def _device(desk: str, model: str) -> dict[str, Any]:
+    """The desk as a Home Assistant device (the same identifier as its device triggers)."""
+    from hapticdesk import __version__
+
+    return {
+        "identifiers": [f"hapticdesk_{re.sub(r'[^A-Za-z0-9_-]', '_', desk)}"],
+        "name": desk,
+        "model": model,
+        "manufacturer": "hapticdesk",
+        "sw_version": __version__,
+    }
+
+
+def refuse_a_second_desk(settings: MqttSettings, desk: str, availability: str) -> None:
+    """ConfigError when another desk of this name is online on this broker: two processes
+    with one client id knock each other off the broker, and one identity in Home Assistant
+    would merge both desks."""
+    from hapticdesk.plugins.mqtt.link import retained_payload
+
+    if retained_payload(settings, availability) != b"online":
+        return
+    raise ConfigError(
+        "mqtt",
+        f"another desk named `{desk}` is online at {settings.url} ({availability} is "
+        "`online`); give this desk its own name (`desk_name:` in its layout) or its own topic "
+        "(`prefix:` in the layout's `mqtt:`). If no such desk runs, the last one was cut off "
+        f"without its last will; clear it with: mosquitto_pub -h {settings.host} -p "
+        f"{settings.port} -r -n -t {availability}",
+    )
 
 
 # --- the action -------------------------------------------------------------------------------
@@ -206,6 +257,18 @@ def event_sink(layout: Any, context: ActionContext) -> DeskPublisher | None:
     if uses_mqtt(layout.raw, layout.bindings, broker_override(context)):
         return DeskPublisher(context)
     return None
+
+
+@hookimpl
+def control_channel(control: Any, layout: Any, context: ActionContext) -> None:
+    """``<prefix>/set``: commands for the running desk (see :mod:`.control`)."""
+    if not uses_mqtt(layout.raw, layout.bindings, broker_override(context)):
+        return
+    from hapticdesk.plugins.mqtt.control import SetTopic
+
+    link = link_for(context)
+    topic = desk_topic(link.settings, context.desk_name, "set")
+    link.subscribe(topic, SetTopic(control, link.announce, topic))
 
 
 @hookimpl

@@ -53,12 +53,18 @@ def binding_actions(binding: Any) -> list[tuple[str, str, str]]:
     trigger_type = TRIGGER_TYPES.get(binding.gesture)
     if binding.gesture == "long_press" and options.get("release"):
         phase, trigger_type = "end", "button_long_release"
+    phases = [(phase, trigger_type)]
+    if binding.gesture == "long_press" and options.get("repeat"):
+        # hold to dim: the repeats are their own trigger (Home Assistant has no type for it)
+        phases.append(("repeat", "button_long_press_repeat"))
     out = []
-    for detail in details:
-        event = GestureEvent(0.0, binding.gesture, binding.region, 0.0, 0.0, phase=phase, **detail)
-        action = event.action_name
-        kind = trigger_type or "_".join([binding.gesture, *detail.values()])
-        out.append((action, kind, binding.region or "desk"))
+    for phase, trigger_type in phases:
+        for detail in details:
+            event = GestureEvent(
+                0.0, binding.gesture, binding.region, 0.0, 0.0, phase=phase, **detail
+            )
+            kind = trigger_type or "_".join([binding.gesture, *detail.values()])
+            out.append((event.action_name, kind, binding.region or "desk"))
     return out
 
 

@@ -38,7 +38,7 @@ import threading
 import time
 import urllib.parse
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -74,8 +74,15 @@ _MQTT_KEYS = {
     "discovery",
     "discovery_prefix",
     "base_topic",
+    "prefix",
     "queue_size",
+    "protocol",
+    "expiry_s",
 }
+#: ``protocol:`` values: MQTT 5 where the broker speaks it (else 3.1.1), or one of them
+PROTOCOLS = ("auto", "5", "3.1.1")
+DEFAULT_EXPIRY_S = 60
+SESSION_NEVER_EXPIRES = 0xFFFFFFFF  # MQTT 5: keep the session as 3.1.1's clean_session=False
 
 
 # --- settings ---------------------------------------------------------------------------------
@@ -100,7 +107,18 @@ class MqttSettings:
     discovery: bool = False
     discovery_prefix: str = "homeassistant"
     base_topic: str = "hapticdesk"
+    #: the desk's whole topic prefix when given (``hapticdesk/site1/floor2/study``); else
+    #: ``<base_topic>/<desk>``
+    prefix: str | None = None
     queue_size: int = DEFAULT_QUEUE_SIZE
+    protocol: str = "auto"
+    #: MQTT 5: a command the broker could not deliver within this many seconds is dropped
+    #: (a TOGGLE must not switch a lamp an hour late); 0 keeps it until delivered
+    expiry_s: int = DEFAULT_EXPIRY_S
+
+    def desk_prefix(self, desk: str) -> str:
+        """The topic prefix of this desk's own topics (``action``, ``event``, ``set`` …)."""
+        return self.prefix if self.prefix is not None else f"{self.base_topic}/{desk}"
 
     @property
     def url(self) -> str:
@@ -174,15 +192,26 @@ def settings_from_layout(
                 t.where(), "`tls` needs both `cert` and `key` for a client certificate"
             )
         tls = True
-    client_id = str(m.get("client_id", f"hapticdesk-{desk}"))
-    if not client_id or len(client_id) > 128:
-        raise ConfigError(m.where("client_id"), "`client_id` must be 1 to 128 characters")
-    for key_name in ("base_topic", "discovery_prefix"):
+    if "prefix" in m and "base_topic" in m:
+        raise ConfigError(
+            m.where("prefix", of_key=True),
+            "give `prefix` (the desk's whole topic prefix) or `base_topic` (the desk's name is "
+            "appended), not both",
+        )
+    for key_name in ("base_topic", "discovery_prefix", "prefix"):
         value = m.get(key_name, "x")
         if not isinstance(value, str) or not value or any(c in value for c in "+#"):
             raise ConfigError(
                 m.where(key_name), f"`{key_name}` must be a topic without + or #, found {value!r}"
             )
+    # one client id per desk prefix (hapticdesk-site1-floor2-study): two desks of one name on
+    # different floors must not push each other off the broker
+    own_prefix = (
+        str(m["prefix"]) if "prefix" in m else f"{m.get('base_topic', 'hapticdesk')}/{desk}"
+    )
+    client_id = str(m.get("client_id", own_prefix.strip("/").replace("/", "-")))
+    if not client_id or len(client_id) > 128:
+        raise ConfigError(m.where("client_id"), "`client_id` must be 1 to 128 characters")
     for key_name in ("retain", "discovery"):
         if key_name in m and not isinstance(m[key_name], bool):
             raise ConfigError(m.where(key_name), f"`{key_name}` of `mqtt` must be true or false")
@@ -202,8 +231,24 @@ def settings_from_layout(
         discovery=bool(m.get("discovery", False)),
         discovery_prefix=str(m.get("discovery_prefix", "homeassistant")).strip("/"),
         base_topic=str(m.get("base_topic", "hapticdesk")).strip("/"),
+        prefix=str(m["prefix"]).strip("/") if "prefix" in m else None,
         queue_size=int(number(m, "queue_size", "`mqtt`", default=DEFAULT_QUEUE_SIZE, minimum=1)),
+        protocol=_protocol(m),
+        expiry_s=int(
+            number(m, "expiry_s", "`mqtt`", default=DEFAULT_EXPIRY_S, minimum=0, maximum=2**32 - 1)
+        ),
     )
+
+
+def _protocol(m: MarkedDict) -> str:
+    value = m.get("protocol", "auto")
+    text = str(value) if isinstance(value, str | int) and not isinstance(value, bool) else None
+    if text not in PROTOCOLS:
+        raise ConfigError(
+            m.where("protocol"),
+            f'`protocol` of `mqtt` must be auto, 5 or "3.1.1" (quoted), found {value!r}',
+        )
+    return text
 
 
 def _where_text(m: MarkedDict) -> str:
@@ -317,6 +362,7 @@ class MqttLink:
         self._will = will
         self._birth = list(birth)
         self._birth_again_on = birth_again_on
+        self._subscriptions: dict[str, tuple[int, Callable[[bytes], None]]] = {}
         self._cond = threading.Condition()
         self._queue: deque[Message] = deque()
         self._control: deque[Message] = deque()
@@ -328,14 +374,9 @@ class MqttLink:
         self._ever_connected = threading.Event()
         self._outage_logged = False
         self.refused: str | None = None  # why the broker refused the login, if it did
-        self._client = self._new_client(clean_session=False)
-        self._client.on_connect = self._on_connect
-        self._client.on_disconnect = self._on_disconnect
-        self._client.on_publish = self._on_publish
-        self._client.on_message = self._on_message
-        self._client.on_connect_fail = self._on_connect_fail
-        self._client.reconnect_delay_set(RECONNECT_MIN_S, RECONNECT_MAX_S)
-        self._client.max_inflight_messages_set(0)  # our WINDOW limits commands; control adds a few
+        #: paho's protocol constant in use: MQTT 5 until the broker turns it down (``auto``)
+        self.protocol = mqtt.MQTTv311 if settings.protocol == "3.1.1" else mqtt.MQTTv5
+        self._client = self._persistent_client()
         self._sender = threading.Thread(target=self._run, name="mqtt sender", daemon=True)
 
     # --- public ------------------------------------------------------------------------------
@@ -373,6 +414,28 @@ class MqttLink:
             self._queue.append(message)
             self.stats.queued += 1
             self._cond.notify_all()
+
+    def announce(self, topic: str, payload: Any, *, retain: bool = False) -> None:
+        """Queue a message that is not a command (the answers on ``set/result``): not counted
+        in what was delivered, sent while connected, each one (not coalesced by topic: two
+        answers in a row are both news), at most :data:`CONTROL_LIMIT` waiting."""
+        message = Message(topic, encode_payload(payload), 1, retain, command=False)
+        with self._cond:
+            if self._closing:
+                return
+            self._control.append(message)
+            while len(self._control) > CONTROL_LIMIT:
+                self._control.popleft()
+            self._cond.notify_all()
+
+    def subscribe(self, topic: str, on_message: Callable[[bytes], None], *, qos: int = 0) -> None:
+        """Call ``on_message(payload)`` (on paho's thread: it must not block) for every
+        message on ``topic``, subscribed again on every connect. QoS 0 by default: a command
+        sent while the desk was away is not kept by the broker to arrive late."""
+        with self._cond:
+            self._subscriptions[topic] = (qos, on_message)
+        if self._connected:
+            self._client.subscribe(topic, qos=qos)
 
     def wait_connected(self, timeout: float) -> bool:
         """True once the first connection is up (for the demo and tests)."""
@@ -452,6 +515,10 @@ class MqttLink:
         if self._birth_again_on is not None:
             client.subscribe(self._birth_again_on[0], qos=1)
         with self._cond:
+            subscriptions = list(self._subscriptions.items())
+        for topic, (qos, _) in subscriptions:
+            client.subscribe(topic, qos=qos)
+        with self._cond:
             self._connected = True
             self._resuming = bool(self._inflight)
             self._announce(self._birth)
@@ -498,6 +565,13 @@ class MqttLink:
             self._acknowledged(message)
 
     def _on_message(self, client: Any, userdata: Any, message: Any) -> None:
+        handler = self._subscriptions.get(message.topic)
+        if handler is not None:
+            try:
+                handler[1](message.payload)
+            except Exception:  # a subscriber's bug must not take paho's thread down
+                log.exception("MQTT: handling a message on %s failed", message.topic)
+            return
         if self._birth_again_on and message.payload == self._birth_again_on[1]:
             with self._cond:
                 self._announce(self._birth)
@@ -533,10 +607,32 @@ class MqttLink:
 
     # --- the sender thread --------------------------------------------------------------------
 
+    def _persistent_client(self) -> Any:
+        client = self._new_client(clean_session=False)
+        client.on_connect = self._on_connect
+        client.on_disconnect = self._on_disconnect
+        client.on_publish = self._on_publish
+        client.on_message = self._on_message
+        client.on_connect_fail = self._on_connect_fail
+        client.reconnect_delay_set(RECONNECT_MIN_S, RECONNECT_MAX_S)
+        client.max_inflight_messages_set(0)  # our WINDOW limits commands; control adds a few
+        return client
+
     def _run(self) -> None:
         if not self._clean_start():
             return
-        self._client.connect_async(self.settings.host, self.settings.port, self.settings.keepalive)
+        s = self.settings
+        if self.protocol == self._mqtt.MQTTv5:
+            from paho.mqtt.packettypes import PacketTypes
+            from paho.mqtt.properties import Properties
+
+            session = Properties(PacketTypes.CONNECT)
+            session.SessionExpiryInterval = SESSION_NEVER_EXPIRES
+            self._client.connect_async(
+                s.host, s.port, s.keepalive, clean_start=False, properties=session
+            )
+        else:
+            self._client.connect_async(s.host, s.port, s.keepalive)
         self._client.loop_start()
         while True:
             with self._cond:
@@ -559,7 +655,13 @@ class MqttLink:
 
     def _send(self, message: Message) -> None:
         try:
-            info = self._client.publish(message.topic, message.payload, message.qos, message.retain)
+            info = self._client.publish(
+                message.topic,
+                message.payload,
+                message.qos,
+                message.retain,
+                properties=self._expiry if message.command else None,
+            )
         except ValueError as err:  # e.g. a topic with a wildcard: this message can never go
             log.error("MQTT: cannot publish to %r: %s; the message is dropped", message.topic, err)
             return
@@ -618,8 +720,43 @@ class MqttLink:
                     return False
             delay = min(delay * 2, RECONNECT_MAX_S)
 
+    @property
+    def _expiry(self) -> Any:
+        """MQTT 5 publish properties of a command: its expiry (None on 3.1.1 or without)."""
+        if self.protocol != self._mqtt.MQTTv5 or not self.settings.expiry_s:
+            return None
+        from paho.mqtt.packettypes import PacketTypes
+        from paho.mqtt.properties import Properties
+
+        properties = Properties(PacketTypes.PUBLISH)
+        properties.MessageExpiryInterval = self.settings.expiry_s
+        return properties
+
     def _try_clean_connect(self) -> str | _Refused | None:
-        client = self._new_client(clean_session=True, with_will=False)
+        """A clean connection, in MQTT 5 first under ``protocol: auto``: a broker that turns
+        MQTT 5 down (CONNACK 1, unacceptable protocol version) is asked again in 3.1.1, which
+        is then used."""
+        mqtt = self._mqtt
+        first = self._try_clean_connect_in(self.protocol)
+        if (
+            self.settings.protocol == "auto"
+            and self.protocol == mqtt.MQTTv5
+            and isinstance(first, str)
+            and "Unsupported protocol version" in first  # paho's reading of a 3.1.1 refusal
+        ):
+            if self._try_clean_connect_in(mqtt.MQTTv311) is None:
+                log.warning(
+                    "MQTT: %s does not speak MQTT 5 (%s); using 3.1.1 (no message expiry)",
+                    self.settings.url,
+                    first,
+                )
+                self.protocol = mqtt.MQTTv311
+                self._client = self._persistent_client()
+                return None
+        return first
+
+    def _try_clean_connect_in(self, protocol: int) -> str | _Refused | None:
+        client = self._new_client(clean_session=True, with_will=False, protocol=protocol)
         answered = threading.Event()
         outcome: list[Any] = []
 
@@ -634,8 +771,12 @@ class MqttLink:
 
         client.on_connect = on_connect
         client.on_disconnect = on_disconnect
+        s = self.settings
         try:
-            client.connect(self.settings.host, self.settings.port, self.settings.keepalive)
+            if protocol == self._mqtt.MQTTv5:
+                client.connect(s.host, s.port, s.keepalive, clean_start=True)
+            else:
+                client.connect(s.host, s.port, s.keepalive)
         except (OSError, ssl.SSLError, ValueError) as err:
             return f"{type(err).__name__}: {err}"
         client.loop_start()
@@ -653,14 +794,18 @@ class MqttLink:
             client.disconnect()
             client.loop_stop()
 
-    def _new_client(self, *, clean_session: bool, with_will: bool = True) -> Any:
+    def _new_client(
+        self, *, clean_session: bool, with_will: bool = True, protocol: int | None = None
+    ) -> Any:
+        """A paho client; in MQTT 5 the session's start is given to ``connect`` instead."""
         mqtt = self._mqtt
         s = self.settings
+        protocol = self.protocol if protocol is None else protocol
         client = mqtt.Client(
             mqtt.CallbackAPIVersion.VERSION2,
             client_id=s.client_id,
-            clean_session=clean_session,
-            protocol=mqtt.MQTTv311,
+            clean_session=None if protocol == mqtt.MQTTv5 else clean_session,
+            protocol=protocol,
         )
         if s.username is not None:
             client.username_pw_set(s.username, s.password)
@@ -675,6 +820,61 @@ class MqttLink:
             w = self._will
             client.will_set(w.topic, w.payload, qos=w.qos, retain=w.retain)
         return client
+
+
+def retained_payload(settings: MqttSettings, topic: str, timeout_s: float = 3.0) -> bytes | None:
+    """The retained message on ``topic`` (None when there is none, or the broker cannot be
+    asked within ``timeout_s``). Asked under a client id of its own: connecting with the
+    desk's would push a running desk of the same name off the broker."""
+    import paho.mqtt.client as mqtt
+
+    client = mqtt.Client(
+        mqtt.CallbackAPIVersion.VERSION2,
+        client_id=f"{settings.client_id[:100]}-probe-{os.getpid()}",
+        clean_session=True,
+        protocol=mqtt.MQTTv311,
+    )
+    if settings.username is not None:
+        client.username_pw_set(settings.username, settings.password)
+    if settings.tls:
+        client.tls_set(
+            ca_certs=str(settings.ca) if settings.ca else None,
+            certfile=str(settings.cert) if settings.cert else None,
+            keyfile=str(settings.key) if settings.key else None,
+            cert_reqs=ssl.CERT_REQUIRED,
+        )
+    subscribed, answered = threading.Event(), threading.Event()
+    found: list[bytes] = []
+
+    def on_connect(c: Any, u: Any, flags: Any, reason: Any, props: Any) -> None:
+        if reason.is_failure:
+            answered.set()
+        else:
+            c.subscribe(topic, qos=1)
+
+    def on_subscribe(c: Any, u: Any, mid: Any, reasons: Any, props: Any) -> None:
+        subscribed.set()
+
+    def on_message(c: Any, u: Any, message: Any) -> None:
+        if message.retain:
+            found.append(bytes(message.payload))
+            answered.set()
+
+    client.on_connect, client.on_subscribe, client.on_message = on_connect, on_subscribe, on_message
+    deadline = time.monotonic() + timeout_s
+    try:
+        client.connect(settings.host, settings.port, settings.keepalive)
+    except (OSError, ssl.SSLError, ValueError):
+        return None
+    client.loop_start()
+    try:
+        if subscribed.wait(timeout_s):
+            # the broker sends a retained message right after the SUBACK
+            answered.wait(min(0.5, max(0.0, deadline - time.monotonic())))
+        return found[0] if found else None
+    finally:
+        client.disconnect()
+        client.loop_stop()
 
 
 @dataclass(frozen=True)

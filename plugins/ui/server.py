@@ -330,13 +330,16 @@ class UiServer:
             new_layout = None
             runtime = self.runtime
             if runtime is not None:
-                try:
-                    new_layout = await asyncio.to_thread(runtime.reload_layout, self.layout_path)
+                try:  # the sensing thread swaps it in between two blocks, then answers
+                    await asyncio.to_thread(runtime.reload, 10.0)
                     reloaded = True
+                    new_layout = runtime.scene.layout
                 except ConfigError as err:  # e.g. an action that cannot be set up now
                     return JSONResponse(
                         {"ok": False, "errors": [error_of(err)], "saved": True}, status_code=422
                     )
+                except TimeoutError:  # the run is not sensing (its source ended)
+                    reloaded = False
             self.broadcast_desk(new_layout)
             return JSONResponse({"ok": True, "errors": [], "reloaded": reloaded})
 

@@ -15,13 +15,18 @@ import pytest
 from hapticdesk.files.profile import DeskProfile
 
 GRAVITY_N = 134.4  # 13.7 kg desk
+DITHER_N = 1e-9
 
 
 def readings_for(profile: DeskProfile, force: np.ndarray, moment: np.ndarray) -> np.ndarray:
     """Sensor readings (k, S, 6) whose resultant about P_o is (force, moment), each (k, 3)."""
     wrench = np.hstack([np.atleast_2d(force), np.atleast_2d(moment)])  # (k, 6)
     pinv = np.linalg.pinv(profile.wrench_map())  # (6S, 6)
-    return (wrench @ pinv.T).reshape(len(wrench), len(profile.sensors), 6)
+    readings = (wrench @ pinv.T).reshape(len(wrench), len(profile.sensors), 6)
+    # a dither of a nanonewton, as a real sensor's noise: an exact reading of a steady load
+    # repeats bit for bit, and where the input varied at first (someone leaning) the
+    # estimator would take the repeats for a stuck driver
+    return readings + np.random.default_rng(1).uniform(-DITHER_N, DITHER_N, readings.shape)
 
 
 def push_at(point: np.ndarray, external_force: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -1,6 +1,8 @@
 """The contact estimator: exactness, chunk invariance, tare, objects, bad samples, extremes."""
 
+import re
 from dataclasses import fields, replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -10,14 +12,17 @@ from hypothesis import strategies as st
 from hapticdesk.estimator import ContactEstimator
 from hapticdesk.estimator.contacts import (
     FLAG_GAP,
+    FLAG_NAMES,
     FLAG_NAN,
     FLAG_SATURATED,
+    FLAG_STUCK,
     FLAG_TIME_BACK,
     ContactBlock,
     contact_events,
 )
 from hapticdesk.files.profile import METHODS, load_profile
 
+README = Path(__file__).resolve().parents[2] / "README.md"
 POINTS = [(0.2, 0.1, 0.733), (-0.3, -0.2, 0.733), (0.0, 0.0, 0.733)]
 
 
@@ -91,6 +96,41 @@ def test_single_sample_pushes_equal_batch(noisy_presses, method):
             np.testing.assert_allclose(b, a, rtol=1e-9, atol=1e-9, err_msg=f.name)
         else:
             np.testing.assert_array_equal(b, a, err_msg=f.name)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_a_stuck_input_streamed_in_1_and_7_sample_pushes_equals_batch(noisy_presses, method):
+    # stuck for 0.7 s after the first press, live again 0.4 s before the light second one
+    desk = load_profile("kitamura2017")
+    t, w = noisy_presses
+    w = w.copy()
+    w[4090:4920] = w[4089]  # (across the range check's pieces of 4096 in a batch)
+    est = ContactEstimator(desk, method=method)
+    batch = est.push(t, w)
+    stuck = (batch.flags & FLAG_STUCK) != 0
+    assert stuck.sum() == 830 - 4 and not batch.located[stuck].any() and all_finite(batch)
+    # the press after it found as without the stuck spell (to a sample: the filters
+    # restarted when the input came back) and located as well (the zero is older)
+    clean = ContactEstimator(desk, method=method).push(t, noisy_presses[1])
+    assert np.count_nonzero(batch.in_contact != clean.in_contact) <= 2
+
+    def error_m(block: ContactBlock) -> float:
+        after = block.located & (t > 4.5)
+        assert after.sum() > 100
+        return float(np.hypot(np.median(block.x[after]) - 0.1, np.median(block.y[after]) + 0.15))
+
+    assert abs(error_m(batch) - error_m(clean)) < 3e-3
+    assert [n.kind for n in est.notices] == ["tare", "stuck", "gap", "live"]
+    for size in (1, 7):
+        streamed = ContactEstimator(desk, method=method)
+        block = split_push(streamed, t, w, range(size, len(t), size))
+        assert streamed.notices == est.notices
+        for f in fields(ContactBlock):
+            a, b = getattr(batch, f.name), getattr(block, f.name)
+            if a.dtype.kind == "f":
+                np.testing.assert_allclose(b, a, rtol=1e-9, atol=1e-9, err_msg=f.name)
+            else:
+                np.testing.assert_array_equal(b, a, err_msg=f.name)
 
 
 def lean_then_press(desk, lean_until: float):
@@ -340,3 +380,11 @@ def test_noise_free_single_sample_pushes_equal_batch(paper_desk, press_recording
     assert batch.located.sum() > 100
     np.testing.assert_allclose(single.sigma_m, batch.sigma_m, rtol=1e-6, atol=1e-12)
     np.testing.assert_allclose(single.x, batch.x, rtol=0, atol=1e-9)
+
+
+def test_the_flags_are_the_documented_ones():
+    # a contract: flags may grow, never change (README: "bits that only grow")
+    text = " ".join(README.read_text(encoding="utf-8").split())
+    listed = text.split("bits that only grow:")[1].split("(")[0]
+    documented = {int(bit): name for name, bit in re.findall(r"`(\w+)` (\d+)", listed)}
+    assert documented == FLAG_NAMES

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from hapticdesk.estimator.candidates import CandidateStage, Covariances, unpacked_at
-from hapticdesk.estimator.contacts import FLAG_GAP, FLAG_TIME_BACK, ContactBlock
+from hapticdesk.estimator.contacts import FLAG_GAP, FLAG_STUCK, FLAG_TIME_BACK, ContactBlock
 from hapticdesk.estimator.detector import TouchDetector
 from hapticdesk.estimator.filter_bank import FilterBank
 from hapticdesk.estimator.methods import emit_one, select, select_one
@@ -18,6 +18,7 @@ from hapticdesk.estimator.samples import BAD_SAMPLE, SampleStage
 from hapticdesk.estimator.settings import EstimatorSettings
 from hapticdesk.estimator.zero import ZeroStage, subtract_zero
 from hapticdesk.files.profile import METHODS, load_profile
+from hapticdesk.sim import Press, Scene, SimEffects, simulate
 
 SPLITS = ("one", "ones", "sevens", "random")
 
@@ -56,9 +57,14 @@ def desk():
 
 @pytest.fixture(scope="module")
 def bad_input(noisy_presses):
-    """The noisy presses with a time step back and a gap added to their NaN burst."""
+    """The noisy presses with a time step back, a gap and a stuck input (50 repeats of a
+    sample, then 10 of another 0.3 s later: one spell; 10 more just after it ended: another)
+    added to their NaN burst."""
     t, w = noisy_presses
-    t = t.copy()
+    t, w = t.copy(), w.copy()
+    w[7000:7050] = w[6999]
+    w[7400:7410] = w[7399]
+    w[8660:8670] = w[8659]
     t[5000] = t[4999] - 0.001  # time goes back once
     t[6000:] += 0.2  # a gap longer than max_gap_s
     return t, w
@@ -75,7 +81,7 @@ def upstream(desk, bad_input):
     """Every stage's input, from one pass of the stages before it."""
     s = _settings(desk)
     t, w = bad_input
-    samples = SampleStage(s)
+    samples = SampleStage(s, [])
     flags, raw = samples.process(t, w)
     lp, det, diff, slope = FilterBank(s, []).process(t, raw, flags, True)
     zero = ZeroStage(s, [])
@@ -101,27 +107,63 @@ def upstream(desk, bad_input):
 def test_the_sample_stage_is_chunk_invariant(desk, bad_input, split):
     t, w = bad_input
     s = _settings(desk)
-    whole = SampleStage(s)
+    told: list[Notice] = []
+    whole = SampleStage(s, told)
     want = list(whole.process(t, w))
     assert (want[0] & FLAG_TIME_BACK).any() and (want[0] & FLAG_GAP).any()
+    # the first STUCK_RUN − 1 repeats pass as samples, the rest are a stuck input
+    np.testing.assert_array_equal(
+        np.flatnonzero(want[0] & FLAG_STUCK),
+        [*range(7004, 7050), *range(7404, 7410), *range(8664, 8670)],
+    )
     assert (want[0] & BAD_SAMPLE).sum() > 10 and np.isfinite(want[1]).all()
-    stage = SampleStage(s)
+    # a notice when a spell sticks, one when it has been live for a second (1200 samples)
+    assert [(n.kind, n.t) for n in told] == [
+        ("stuck", t[7004]),
+        ("live", t[7410 + 1199]),
+        ("stuck", t[8664]),
+    ]
+    assert f"to {t[7409]:.3f} s" in told[1].message
+    notices: list[Notice] = []
+    stage = SampleStage(s, notices)
     _assert_same(_in_blocks(len(t), split, lambda b: list(stage.process(t[b], w[b]))), want)
     assert stage.state.last_t == whole.state.last_t
+    assert notices == told
+
+
+def test_a_noise_free_input_is_not_taken_for_a_stuck_one(desk):
+    # a noise-free sensor (the simulator's ideal mode) repeats a steady load bit for bit:
+    # three exact repeats in the input's first 0.2 s turn the stuck check off
+    rec = simulate(desk, Scene([Press((0.1, 0.1))]), seed=1, effects=SimEffects.ideal())
+    notices: list[Notice] = []
+    stage = SampleStage(_settings(desk), notices)
+    flags, _ = stage.process(rec.t, rec.wrench)
+    assert stage.state.stuck_check is False and not flags.any() and not notices
+    # while the same input, noisy at first, is checked
+    noisy = rec.wrench.copy()
+    noisy[:300] += np.random.default_rng(0).normal(0, 0.1, noisy[:300].shape)
+    flags, _ = SampleStage(_settings(desk), notices).process(rec.t, noisy)
+    assert (flags & FLAG_STUCK).any() and notices[0].kind == "stuck"
 
 
 def test_the_sample_stage_one_sample_twin_equals_its_block_path(desk, noisy_presses):
     t, w = noisy_presses
     s = _settings(desk)
-    block, single = SampleStage(s), SampleStage(s)
+    block, single = SampleStage(s, []), SampleStage(s, [])
     _, want = block.process(t, w)
-    single.process(t[:1], w[:1])
-    got = [single.process_one(float(t[i]), w[i : i + 1]) for i in range(1, 2000)]
+    # the twin takes nothing during the input's noise check (the block path decides it)
+    assert single.process_one(float(t[0]), w[:1]) is None
+    single.process(t[:1000], w[:1000])
+    assert single.state.stuck_check
+    got = [single.process_one(float(t[i]), w[i : i + 1]) for i in range(1000, 3000)]
     # (a matrix-vector product may round in another order than the matrix one)
-    np.testing.assert_allclose(np.array(got).T, want[:, 1:2000], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(np.array(got).T, want[:, 1000:3000], rtol=1e-12, atol=1e-12)
     # a NaN sample is not the twin's: it leaves the state alone
     last_t = single.state.last_t
     assert single.process_one(last_t + 0.001, np.full((1, 4, 6), np.nan)) is None
+    assert single.state.last_t == last_t
+    # nor a repeat of the sample before (the block path counts the repeats)
+    assert single.process_one(last_t + 0.0005, w[2999:3000]) is None
     assert single.state.last_t == last_t
 
 

@@ -56,3 +56,17 @@ def test_check_with_another_desk(tmp_path, capsys):
     assert "must be one of top, found str 'shelf'" in capsys.readouterr().err
     assert main(["check", str(layout), "--desk", "kitamura2017-shelf"]) == 0
     assert "s  rect x 0..0.1, y 0.3..0.35 m on shelf  [tap]" in capsys.readouterr().out
+
+
+def test_check_says_a_long_press_repeats(tmp_path, capsys):
+    layout = tmp_path / "dim.yaml"
+    layout.write_text(
+        "desk: kitamura2017\nregions: {lamp: {rect: [0, 0, 0.1, 0.1]}}\nbindings:\n"
+        "  - {gesture: long_press, region: lamp, hold_s: 0.6, repeat: true, interval_s: 0.3,\n"
+        "     do: {log: {}}}\n"
+        "  - {gesture: long_press, region: lamp, hold_s: 0.6, do: {log: {}}}\n"
+    )
+    assert main(["check", str(layout)]) == 0
+    out = capsys.readouterr().out
+    assert " 1. long_press in lamp (at 0.6 s; then every 0.3 s while held) → log" in out
+    assert " 2. long_press in lamp (at 0.6 s) → log" in out

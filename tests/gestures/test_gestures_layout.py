@@ -328,9 +328,9 @@ def test_units_settings_and_bindings_resolve_at_three_levels(make_layout):
     assert layout.regions["fan"].radius == pytest.approx(0.05)
     b = layout.bindings
     # binding level, for every binding of the same region; layout level; built-in
-    assert b[0].options == {"max_duration_s": 0.3, "max_move": 0.01}
+    assert b[0].options == {"max_duration_s": 0.3, "max_move": 0.01, "snap": 0.012}
     assert b[1].options == b[0].options
-    assert b[2].options == {"max_duration_s": 0.5, "max_move": 0.01}
+    assert b[2].options == {"max_duration_s": 0.5, "max_move": 0.01, "snap": 0.012}
     assert b[3].options["min_distance"] == pytest.approx(0.08)
     assert b[3].options["directions"] == 8 and b[3].options["direction"] == ("up_left",)
     assert b[3].options["max_duration_s"] == 0.8

@@ -81,6 +81,9 @@ def test_every_hookspec_is_exercised_by_a_run(tmp_path, paper_desk):
         called["event_sink"] = {"desk_name": context.desk_name}
         return everything.append
 
+    def control_channel(control):  # fewer arguments than the spec: allowed
+        called["control_channel"] = {"control": control}
+
     def startup(desk, layout):
         called["startup"] = {"desk": desk, "layout": layout}
 
@@ -97,6 +100,7 @@ def test_every_hookspec_is_exercised_by_a_run(tmp_path, paper_desk):
                 register_layout_sections,
                 register_commands,
                 event_sink,
+                control_channel,
                 startup,
                 shutdown,
             )
@@ -109,6 +113,7 @@ def test_every_hookspec_is_exercised_by_a_run(tmp_path, paper_desk):
     report = Runtime(scene).run(handle_signals=False)
 
     assert sorted(called) == hookspec_names()
+    assert called["control_channel"]["control"] is scene.control
     assert called["startup"]["desk"].name == paper_desk.name
     assert called["startup"]["layout"].path == layout_path
     assert isinstance(called["shutdown"]["report"], RunReport)

@@ -260,7 +260,8 @@ def test_home_assistant_discovery_and_availability(broker, subscribe, tmp_path, 
     configs = {m[1]: (m[0], json.loads(m[2])) for m in retained.wait_for(5)}
     retained.stop()
     node = "homeassistant/device_automation/study"
-    assert set(configs) == {
+    # (the desk's control buttons are tested with the `set` topic)
+    assert {topic for topic in configs if "/device_automation/" in topic} == {
         f"{node}/lamp_tap/config",
         f"{node}/lamp_double_tap/config",
         f"{node}/lamp_long_press/config",

@@ -6,14 +6,18 @@ from __future__ import annotations
 
 import tracemalloc
 from dataclasses import fields, replace
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from hapticdesk.bench.accuracy import measure_accuracy
 from hapticdesk.estimator import ContactEstimator, estimate
-from hapticdesk.estimator.contacts import FLAG_NAN, FLAG_SATURATED, ContactBlock
+from hapticdesk.estimator.contacts import FLAG_NAN, FLAG_SATURATED, FLAG_STUCK, ContactBlock
+from hapticdesk.estimator.samples import STUCK_RUN
 from hapticdesk.files.profile import METHODS, DeskProfile
+from hapticdesk.gestures.engine import GestureEngine
+from hapticdesk.gestures.layout import load_layout
 from hapticdesk.sim import (
     DeskParameters,
     HumanModel,
@@ -22,6 +26,7 @@ from hapticdesk.sim import (
     Scene,
     SimEffects,
     Swipe,
+    Tap,
     simulate,
 )
 
@@ -159,6 +164,106 @@ def test_nan_bursts(paper_desk):
         "20 NaN bursts",
         f"{nan.sum()} samples flagged and skipped; 0.3 s after each "
         f"burst the estimate is within {diff.max() * 1e3:.2f} mm of the clean run's",
+    )
+
+
+BUTTONS = Path(__file__).resolve().parents[2] / "examples" / "layouts" / "buttons.yaml"
+
+
+def taps_on_buttons(desk: DeskProfile, contacts: ContactBlock) -> list[tuple[str, str | None]]:
+    """The gestures recognised on the example buttons layout (b1..b9, 5 cm, 8 cm apart)."""
+    engine = GestureEngine(
+        load_layout(BUTTONS), position_delay_s=ContactEstimator(desk).position_delay_s
+    )
+    events = engine.feed(contacts) + engine.flush(float(contacts.t[-1]))
+    return [(e.gesture, e.region) for e in events]
+
+
+def stuck_between(rec, first: int, last: int):
+    """The recording with samples ``first`` to ``last`` − 1 repeating sample ``first`` − 1:
+    a driver stuck on its last sample (the times go on)."""
+    wrench = rec.wrench.copy()
+    wrench[first:last] = wrench[first - 1]
+    return replace(rec, wrench=wrench)
+
+
+def test_a_stuck_input_loses_no_tap_after_it(paper_desk):
+    # The defect (issue 11 item 6): a driver stuck for 3 s on an idle desk, live again
+    # 0.15 s before a light tap. The stuck samples looked like a perfectly still desk, so
+    # the zero followed them as drift and took on that one sample's noise (about 0.1 N);
+    # the 5 N tap after it was then located 3.5 cm off, outside its 5 cm button: lost.
+    fs = paper_desk.sample_rate_hz
+    points = [(-0.08, 0.08), (0.0, 0.0), (0.08, -0.08)]  # b1, b5, b9
+    scene = Scene(
+        actions=[
+            Tap(point=points[0], peak_n=5.0),
+            Idle(duration_s=4.0),
+            Tap(point=points[1], peak_n=5.0),
+            Idle(duration_s=1.0),
+            Tap(point=points[2], peak_n=5.0),
+        ]
+    )
+    rec = simulate(paper_desk, scene, seed=2)
+    want = [("tap", "b1"), ("tap", "b5"), ("tap", "b9")]
+    assert taps_on_buttons(paper_desk, estimate(paper_desk, rec)) == want
+    touching = rec.extra["true_fn"] > 0
+    second = np.flatnonzero(touching[1:] & ~touching[:-1])[1] + 1
+    last = second - int(0.15 * fs)
+    first = last - int(3.0 * fs)
+    stuck_rec = stuck_between(rec, first, last)
+    est = ContactEstimator(paper_desk)
+    before = est.push(stuck_rec.t[:first], stuck_rec.wrench[:first])
+    zero = est.zero
+    during = est.push(stuck_rec.t[first:last], stuck_rec.wrench[first:last])
+    assert est.zero is not None and zero is not None
+    np.testing.assert_array_equal(est.zero, zero)  # the zero did not follow a frozen input
+    after = est.push(stuck_rec.t[last:], stuck_rec.wrench[last:])
+    block = ContactBlock.concat([before, during, after])
+    assert finite(block)
+    stuck = np.flatnonzero(block.flags & FLAG_STUCK)
+    np.testing.assert_array_equal(stuck, np.arange(first + STUCK_RUN - 1, last))
+    assert not block.in_contact[first:last].any()
+    assert taps_on_buttons(paper_desk, block) == want
+    kinds = [(n.kind, n.t) for n in est.notices if n.kind in ("stuck", "live")]
+    assert kinds == [("stuck", rec.t[stuck[0]]), ("live", rec.t[last + int(fs) - 1])]
+    report(
+        "a driver stuck for 3 s, live again 0.15 s before a tap",
+        f"{len(stuck)} samples flagged stuck, the zero kept; all three taps on their buttons",
+    )
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_a_press_frozen_by_a_stuck_input(paper_desk, method):
+    # a driver stuck for 3 s from the middle of a press: what it sends is flagged and gives
+    # no position (the old code reported the frozen point for 3 s), and the press after it
+    # is found where and when it is
+    actions = [Press(point=(0.1, -0.1)), Press(point=(-0.2, 0.15)), Idle(duration_s=3.0)]
+    scene = Scene(actions=[*actions, Press(point=(0.2, 0.1))], human=EXACT)
+    rec = simulate(paper_desk, scene, seed=1)
+    fs = paper_desk.sample_rate_hz
+    clean = estimate(paper_desk, rec, method)
+    downs = np.flatnonzero(np.diff(clean.in_contact.astype(int)) == 1) + 1
+    assert len(downs) == 3
+    first, last = int(downs[1] + 0.3 * fs), int(downs[1] + 3.3 * fs)  # in the second press
+    assert last < downs[2] - 0.2 * fs
+    block = estimate(paper_desk, stuck_between(rec, first, last), method)
+    assert finite(block)
+    stuck = (block.flags & FLAG_STUCK) != 0
+    np.testing.assert_array_equal(np.flatnonzero(stuck), np.arange(first + STUCK_RUN - 1, last))
+    assert not block.located[stuck].any()
+    # the third press: touched down within two samples of the clean run (the filters
+    # restarted when the input came back), located as there
+    third = slice(int(downs[2] - 0.1 * fs), len(rec))
+    down = np.flatnonzero(np.diff(block.in_contact[third].astype(int)) == 1)[0] + third.start + 1
+    assert abs(down - downs[2]) <= 2
+    both = block.located & clean.located
+    both[: third.start] = False
+    gap = np.hypot(block.x - clean.x, block.y - clean.y)[both]
+    assert both.sum() > 500 and gap.max() < 1e-3
+    report(
+        f"a press frozen by a stuck input for 3 s ({method})",
+        f"{stuck.sum()} samples flagged stuck, none located; the next press within "
+        f"{gap.max() * 1e6:.1f} µm of the clean run",
     )
 
 

@@ -2,6 +2,11 @@
 fires when the finger has stayed still for 0.8 s, one with ``hold_s: 1.5`` at 1.5 s, and so
 on. After a tier was reached, the release gives an event with phase ``end`` (Zigbee2MQTT's
 ``hold`` then ``release``); bindings with ``release: true`` react to that one.
+
+A binding with ``repeat: true`` keeps firing while the finger stays (hold to dim, like a
+keyboard's auto-repeat): events with phase ``repeat`` every ``interval_s`` after its tier.
+A held press that ends without a release being seen (a gap, a stop, the end of a recording)
+or that moves away after a tier ends with phase ``cancel`` instead of ``end``.
 """
 
 from __future__ import annotations
@@ -23,10 +28,15 @@ class LongPressRecognizer(Recognizer):
     def __init__(self, layout: Layout, bindings: Sequence[Binding]) -> None:
         super().__init__(layout, bindings)
         self.bound = BoundRegions(layout, "long_press")
-        self.tiers: dict[str | None, list[float]] = {}
+        tiers: dict[str | None, set[float]] = {}
+        repeating: dict[str | None, set[float]] = {}
         for b in self.bindings:
-            self.tiers.setdefault(b.region, []).append(b.options["hold_s"])
-        self.tiers = {r: sorted(set(ts)) for r, ts in self.tiers.items()}
+            tiers.setdefault(b.region, set()).add(b.options["hold_s"])
+            if b.options["repeat"]:
+                repeating.setdefault(b.region, set()).add(b.options["hold_s"])
+        self.tiers = {r: sorted(ts) for r, ts in tiers.items()}
+        #: region -> the tiers a `repeat: true` binding listens to
+        self.repeating = {r: sorted(ts) for r, ts in repeating.items()}
         self.first_tier = min(t for ts in self.tiers.values() for t in ts) if self.tiers else 0.0
         self._reset()
 
@@ -36,6 +46,7 @@ class LongPressRecognizer(Recognizer):
         self._cancelled = False
         self._next = 0  # index of the next tier to reach
         self._reached: float | None = None  # the highest tier fired
+        self._repeats: dict[float, float] = {}  # repeating tier -> sample time of its next repeat
         self._x = self._y = 0.0
 
     def on_contact(self, event: ContactEvent, touch: Touch) -> list[GestureEvent]:
@@ -44,8 +55,9 @@ class LongPressRecognizer(Recognizer):
             return []
         if event.kind == "up":
             reached, region, x, y = self._reached, self._region, self._x, self._y
+            cancelled = self._cancelled
             self._reset()
-            if reached is None:
+            if reached is None or cancelled:
                 return []
             return [
                 GestureEvent(
@@ -66,18 +78,50 @@ class LongPressRecognizer(Recognizer):
                 return []
         tiers = self.tiers[self._region]
         out: list[GestureEvent] = []
+        due = self._next < len(tiers) and event.t >= touch.t_down + tiers[self._next]
+        if (due or self._repeat_due(event.t)) and self._moved_off(touch):
+            return self._cancel(event.t)
         while self._next < len(tiers) and event.t >= touch.t_down + tiers[self._next]:
-            x, y, _ = touch.best()
-            if touch.moved(x, y) > self.bound.options(self._region)["max_move"]:
-                self._cancelled = True
-                break
-            self._x, self._y = x, y
-            self._reached = tiers[self._next]
-            out.append(
-                GestureEvent(
-                    event.t, "long_press", self._region, x, y, hold_s=tiers[self._next],
-                    force_n=touch.force_n,
-                )
-            )  # fmt: skip
+            tier = tiers[self._next]
+            self._x, self._y, _ = touch.best()
+            self._reached = tier
+            out.append(self._event(event.t, tier, None, touch.force_n))
+            if tier in self.repeating.get(self._region, ()):
+                self._repeats[tier] = event.t + self.bound.options(self._region)["interval_s"]
             self._next += 1
+        interval = self.bound.options(self._region)["interval_s"]
+        for tier, t_next in self._repeats.items():
+            if event.t >= t_next:
+                out.append(self._event(event.t, tier, "repeat", touch.force_n))
+                # on sample time: the next repeat is due one interval after this one was due
+                self._repeats[tier] = max(t_next + interval, event.t)
         return out
+
+    def cancel(self, t: float, touch: Touch) -> list[GestureEvent]:
+        return self._cancel(t) if self._reached is not None and not self._cancelled else []
+
+    def _repeat_due(self, t: float) -> bool:
+        return any(t >= t_next for t_next in self._repeats.values())
+
+    def _moved_off(self, touch: Touch) -> bool:
+        """The finger left the spot (checked when something is about to fire, not at every
+        sample: ``moved`` looks at the whole touch)."""
+        x, y, _ = touch.best()
+        return touch.moved(x, y) > self.bound.options(self._region)["max_move"]
+
+    def _cancel(self, t: float) -> list[GestureEvent]:
+        """Stop the press here; after a tier, say so with phase ``cancel``."""
+        reached = self._reached
+        self._cancelled = True
+        self._repeats.clear()
+        if reached is None:
+            return []
+        return [self._event(t, reached, "cancel", None)]
+
+    def _event(
+        self, t: float, hold_s: float, phase: str | None, force_n: float | None
+    ) -> GestureEvent:
+        return GestureEvent(
+            t, "long_press", self._region, self._x, self._y, phase=phase, hold_s=hold_s,
+            force_n=force_n,
+        )  # fmt: skip

@@ -3,7 +3,10 @@
 ``press`` fires when the force rises past a level (light, firm, hard, …) and re-arms that
 level once the force has dropped ``hysteresis_n`` below it, so a trembling finger at the
 threshold does not fire twice. ``force`` maps the force between ``min_n`` and ``max_n`` to
-0..1 with begin/update/end, updates rate-limited by ``interval_s`` and ``step``.
+0..1 with begin/update/end, updates rate-limited by ``interval_s`` and ``step``; a touch
+that broke off without a release ends with ``cancel`` (value 0: the force is not known), and
+so does one that leaves its region when the binding says ``leave: cancel`` (the value it had
+last on the region).
 """
 
 from __future__ import annotations
@@ -66,6 +69,10 @@ class PressRecognizer(Recognizer):
                 self._armed[name] = True
         return out
 
+    def cancel(self, t: float, touch: Touch) -> list[GestureEvent]:
+        self._reset()
+        return []
+
 
 class ForceRecognizer(Recognizer):
     """``force``: value 0..1 from the force while the finger stays on the region."""
@@ -111,12 +118,24 @@ class ForceRecognizer(Recognizer):
             value = self._value(event.force_n)
             self._last_t, self._last_value = event.t, value
             return [self._event(event.t, self._region, x, y, value, "begin", event.force_n)]
+        if self.bound.left(self._region, *touch.current()):
+            region, value = self._region, self._last_value
+            self._state = "ignored"  # until the next touch: no update, no end
+            return [self._event(event.t, region, x, y, value, "cancel", event.force_n)]
         value = self._value(event.force_n)
         o = self.bound.options(self._region)
         if event.t - self._last_t >= o["interval_s"] and abs(value - self._last_value) >= o["step"]:
             self._last_t, self._last_value = event.t, value
             return [self._event(event.t, self._region, x, y, value, "update", event.force_n)]
         return []
+
+    def cancel(self, t: float, touch: Touch) -> list[GestureEvent]:
+        active, region = self._state == "active", self._region
+        self._reset()
+        if not active:
+            return []
+        x, y, _ = touch.best()
+        return [self._event(t, region, x, y, 0.0, "cancel", touch.force_n)]
 
     @staticmethod
     def _event(

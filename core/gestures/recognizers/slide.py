@@ -1,7 +1,10 @@
 """Sliders: a touch that starts on a region with an ``axis`` gives its position along the
 axis as a value 0..1, with begin (at the first located sample, so touching a dimmer sets it),
-update (rate-limited by ``interval_s`` and ``step``) and end (at the release). The finger may
-leave the region while sliding; the value then stays clipped to 0 or 1.
+update (rate-limited by ``interval_s`` and ``step``) and end (at the release), or cancel
+when the touch broke off without a release (a gap, a stop, the end of a recording). The finger
+may leave the region while sliding; the value then stays clipped to 0 or 1 (``leave: clip``,
+the default), or the slide ends there with phase cancel and the value it had last on the
+region (``leave: cancel``; nothing more for that touch, no end at the release).
 """
 
 from __future__ import annotations
@@ -53,6 +56,10 @@ class SlideRecognizer(Recognizer):
                 return []
             self._state = "active"
         assert self._region is not None
+        if self.bound.left(self._region, x, y):
+            region, value, (x0, y0) = self._region, self._value, self._xy
+            self._state = "ignored"  # until the next touch: no update, no end
+            return [self._event(event.t, region, x0, y0, value, "cancel")]
         value = float(self.layout.regions[self._region].value_along(x, y))
         self._value, self._xy = value, (x, y)
         o = self.bound.options(self._region)
@@ -63,6 +70,13 @@ class SlideRecognizer(Recognizer):
             phase = "begin" if begin else "update"
             return [self._event(event.t, self._region, x, y, value, phase)]
         return []
+
+    def cancel(self, t: float, touch: Touch) -> list[GestureEvent]:
+        active, region, value, (x, y) = (
+            self._state == "active", self._region, self._value, self._xy
+        )  # fmt: skip
+        self._reset()
+        return [self._event(t, region, x, y, value, "cancel")] if active else []
 
     @staticmethod
     def _event(

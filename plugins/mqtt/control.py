@@ -1,0 +1,126 @@
+"""The desk's ``<prefix>/set`` topic, and its controls as Home Assistant entities.
+
+``<prefix>/set`` takes JSON commands (:mod:`hapticdesk.runtime.control`)::
+
+    mosquitto_pub -t hapticdesk/study/set -m '{"command": "tare"}'
+    mosquitto_pub -t hapticdesk/study/set -m '{"layout": "evening"}'
+
+Each is handed to the run's control queue (the ``control_channel`` hook) and applied by the
+sensing thread between two blocks. What was done, or why not, is published (not retained) to
+``<prefix>/set/result`` as ``{"command": ..., "ok": bool, "message": ...}``, so a script or
+Home Assistant can see a refused layout name.
+
+With ``discovery: true`` the controls appear in Home Assistant beside the gestures: a
+*button* per command (Re-tare, Pause, Resume, Reload layout) and, when the layout names
+``layouts:``, a *select* of them; both publish to ``<prefix>/set``.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import re
+from collections.abc import Callable
+from concurrent.futures import Future
+from dataclasses import dataclass
+from typing import Any
+
+from hapticdesk.runtime.control import ControlError, ControlQueue, parse_command
+
+log = logging.getLogger(__name__)
+
+#: Home Assistant buttons: command -> (object id, name, icon)
+BUTTONS = {
+    "tare": ("tare", "Re-tare", "mdi:scale-balance"),
+    "pause": ("pause", "Pause gestures", "mdi:pause"),
+    "resume": ("resume", "Resume gestures", "mdi:play"),
+    "reload": ("reload", "Reload layout", "mdi:reload"),
+}
+_OBJECT_ID = re.compile(r"[^A-Za-z0-9_-]")
+
+
+class SetTopic:
+    """Turns messages on ``<prefix>/set`` into control requests; answers on ``…/set/result``.
+
+    ``publish(topic, payload)`` sends the answer (the run's MQTT link)."""
+
+    def __init__(self, control: ControlQueue, publish: Callable[[str, Any], None], topic: str):
+        self.control = control
+        self.publish = publish
+        self.topic = topic
+        self.result_topic = f"{topic}/result"
+
+    def __call__(self, payload: bytes) -> None:
+        """One message (on paho's thread: only parses and queues, never waits)."""
+        try:
+            command = parse_command(payload)
+        except ControlError as err:
+            log.warning("MQTT: %s: %s", self.topic, err)
+            self._answer(None, False, str(err))
+            return
+        future = self.control.request(command)
+        future.add_done_callback(lambda f: self._done(str(command), f))
+
+    def _done(self, command: str, future: Future[str]) -> None:
+        error = future.exception()
+        self._answer(command, error is None, str(error) if error else future.result())
+
+    def _answer(self, command: str | None, ok: bool, message: str) -> None:
+        self.publish(self.result_topic, {"command": command, "ok": ok, "message": message})
+
+
+@dataclass(frozen=True)
+class ControlEntity:
+    """One Home Assistant discovery config for a control (button or select)."""
+
+    topic: str
+    config: dict[str, Any]
+
+    @property
+    def payload(self) -> bytes:
+        return json.dumps(self.config, sort_keys=True).encode("utf-8")
+
+
+def control_entities(
+    *,
+    desk: str,
+    set_topic: str,
+    availability_topic: str,
+    layouts: list[str],
+    device: dict[str, Any],
+    prefix: str = "homeassistant",
+) -> list[ControlEntity]:
+    """Discovery configs of the desk's controls: a button per command, a select of layouts."""
+    node = _OBJECT_ID.sub("_", desk)
+    common = {"command_topic": set_topic, "availability_topic": availability_topic}
+    out = []
+    for command, (object_id, name, icon) in BUTTONS.items():
+        out.append(
+            ControlEntity(
+                f"{prefix}/button/{node}/{object_id}/config",
+                {
+                    **common,
+                    "name": name,
+                    "icon": icon,
+                    "unique_id": f"hapticdesk_{node}_{object_id}",
+                    "payload_press": json.dumps({"command": command}),
+                    "device": device,
+                },
+            )
+        )
+    if len(layouts) > 1:
+        out.append(
+            ControlEntity(
+                f"{prefix}/select/{node}/layout/config",
+                {
+                    **common,
+                    "name": "Layout",
+                    "icon": "mdi:view-dashboard-edit",
+                    "unique_id": f"hapticdesk_{node}_layout",
+                    "options": layouts,
+                    "command_template": '{"command": "layout", "layout": "{{ value }}"}',
+                    "device": device,
+                },
+            )
+        )
+    return out

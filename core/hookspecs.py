@@ -165,3 +165,17 @@ def control_channel(control: Any, desk: Any, layout: Any, context: Any) -> None:
     as for ``event_sink``. An exception here is logged with the plugin's name (and is fatal
     under ``--strict``).
     """
+
+
+@hookspec
+def contact_sink(desk: Any, layout: Any, context: Any) -> Any:
+    """A run is being built: return a callable to observe the contact state, or None.
+
+    Called once per ``hapticdesk run`` or ``demo`` next to :func:`event_sink`, with the same
+    ``desk``, ``layout`` and ``context``. The callable is
+    called on the *sensing thread* once per block the source delivers (tens of times a
+    second), with one :class:`~hapticdesk.runtime.observe.ContactSummary` (the block's last
+    sample and the estimator's zero). It must return at once: keep the latest value, throttle,
+    and hand slow work (publishing) to a queue, as the MQTT plugin's sensors do. A sink that
+    raises is logged and dropped for the rest of the run; sensing goes on.
+    """

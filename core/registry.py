@@ -382,15 +382,25 @@ class Registry:
         any other failure is reported naming the plugin, as a ConfigError too, since the run
         would silently lack what the plugin promised (the desk's MQTT topics).
         """
+        return self._sinks("event_sink", **kwargs)
+
+    def contact_sinks(self, **kwargs: Any) -> list[tuple[str, Any]]:
+        """(plugin name, callable) for every plugin whose ``contact_sink`` hook returns one
+        (errors as for :meth:`event_sinks`)."""
+        return self._sinks("contact_sink", **kwargs)
+
+    def _sinks(self, hook_name: str, **kwargs: Any) -> list[tuple[str, Any]]:
         sinks: list[tuple[str, Any]] = []
-        for impl in sorted(self.manager.hook.event_sink.get_hookimpls(), key=self._plugin_order):
+        hook = getattr(self.manager.hook, hook_name)
+        for impl in sorted(hook.get_hookimpls(), key=self._plugin_order):
             try:
                 sink = self._call_impl(impl, **kwargs)
             except ConfigError:
                 raise
             except Exception as err:
+                why = f"{type(err).__name__}: {err}"
                 raise PluginError(
-                    f"plugin `{impl.plugin_name}` failed in event_sink: {type(err).__name__}: {err}"
+                    f"plugin `{impl.plugin_name}` failed in {hook_name}: {why}"
                 ) from err
             if sink is not None:
                 sinks.append((impl.plugin_name, sink))

@@ -37,6 +37,7 @@ from hapticdesk.registry import Registry
 from hapticdesk.runtime.control import ControlCommand, ControlError, ControlQueue
 from hapticdesk.runtime.dispatcher import ActionContext, Dispatcher, DispatchReport, Lane, Route
 from hapticdesk.runtime.isolation import ProcessAction, split_isolation
+from hapticdesk.runtime.observe import ContactObservers
 from hapticdesk.runtime.source import Source
 from hapticdesk.runtime.source_spec import open_source
 
@@ -69,6 +70,8 @@ class Assembly:
     #: commands for the running desk (re-tare, pause, reload …), applied between blocks
     control: ControlQueue = field(default_factory=ControlQueue)
     actions: bool = True  # False: gestures are recognised, the layout's actions not run
+    #: plugins' contact sinks (``contact_sink`` hook), called once per block
+    observers: ContactObservers = field(default_factory=lambda: ContactObservers([]))
 
     def close(self) -> None:
         """Release what was built without running."""
@@ -141,6 +144,7 @@ def build_scene(
     )
     dispatcher = Dispatcher()
     try:
+        observers = ContactObservers([])
         if actions:  # a preview (actions=False) sends nothing: no actions, no plugins' sinks
             for route in build_routes(layout, registry, context, action_timeout_s):
                 dispatcher.add_route(route)
@@ -148,6 +152,9 @@ def build_scene(
             for plugin, sink in sinks:
                 lane = Lane(f"every event → {plugin}", sink, timeout_s=action_timeout_s)
                 dispatcher.add_sink(lane)
+            observers = ContactObservers(
+                registry.contact_sinks(desk=profile, layout=layout, context=context)
+            )
         from hapticdesk.estimator import ContactEstimator
         from hapticdesk.gestures.engine import GestureEngine
 
@@ -173,6 +180,7 @@ def build_scene(
         desk_override=desk,
         action_timeout_s=action_timeout_s,
         actions=actions,
+        observers=observers,
     )
 
 
@@ -525,6 +533,8 @@ class Runtime:
             contacts = scene.estimator.push(block.t, block.wrench)  # it logs its own notices
             self._emit(scene.engine.feed(contacts))
             self._update_live(contacts)
+            if scene.observers:
+                scene.observers(contacts, scene.estimator.zero)
             for tap in self.block_taps:
                 tap(block.t, block.wrench)
             self.report.samples += len(block.t)

@@ -9,11 +9,13 @@
       keepalive: 60
       qos: 2                                # 2: a TOGGLE is delivered exactly once
       retain: false
-      discovery: false                      # Home Assistant device triggers
+      discovery: false                      # Home Assistant: triggers, event, sensors
       base_topic: hapticdesk                # topics under <base_topic>/<desk>
       prefix: hapticdesk/site1/floor2/study # or the desk's whole prefix (not with base_topic)
       protocol: auto                        # MQTT 5 where the broker speaks it, else 3.1.1
       expiry_s: 60                          # MQTT 5: a command undelivered this long is dropped
+      action_style: hapticdesk              # or zigbee2mqtt: lamp_single, brightness_move_up
+      zigbee2mqtt_slide: step               # or move (brightness_move_*/brightness_stop)
     desk_name: study                        # in topics; default: the profile's name
     bindings:
       - gesture: tap
@@ -24,17 +26,19 @@ The plugin claims the layout's ``mqtt:`` section (``register_layout_sections``: 
 while the layout loads, so ``hapticdesk check`` refuses what ``run`` would) and provides
 ``hapticdesk demo`` (``register_commands``). When a run uses MQTT (an ``mqtt`` action, an
 ``mqtt:`` section or ``--mqtt``), its ``event_sink`` publishes every gesture to
-``<base_topic>/<desk>/action`` as a Zigbee2MQTT-style string (``lamp_tap``) and in full to
-``<base_topic>/<desk>/event`` (JSON), with the retained availability
-``<base_topic>/<desk>/availability`` (``online``; ``offline`` as last will); a desk whose
-availability is already ``online`` (another process of the same name) is refused at start.
-Its ``control_channel`` listens on ``<prefix>/set`` (:mod:`.control`).
+``<prefix>/action`` (by default ``hapticdesk/<desk>``) as a Zigbee2MQTT-style string
+(``lamp_tap``) and in full to ``<prefix>/event`` (JSON), with the retained availability
+``<prefix>/availability`` (``online``; ``offline`` as last will), and the desk's state JSON
+(with ``action``) on ``<prefix>`` itself; a desk whose availability is already ``online``
+(another process of the same name) is refused at start. ``discovery: true`` announces the desk
+to Home Assistant (:mod:`.homeassistant`); ``action_style: zigbee2mqtt`` sends the actions
+Zigbee2MQTT's remotes send (:mod:`.z2m`). Its ``control_channel`` listens on ``<prefix>/set``
+(:mod:`.control`).
 paho is imported only when the connection is opened.
 """
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 from typing import Any
 
@@ -42,7 +46,6 @@ from hapticdesk.files.yamlfile import ConfigError, Position
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.plugins.action_options import options_mapping, text, where
-from hapticdesk.plugins.mqtt.discovery import device_triggers
 from hapticdesk.plugins.mqtt.link import (
     Message,
     MqttLink,
@@ -50,6 +53,7 @@ from hapticdesk.plugins.mqtt.link import (
     qos_of,
     settings_from_layout,
 )
+from hapticdesk.plugins.mqtt.z2m import Zigbee2MqttActions, style_from_section
 from hapticdesk.plugins.templating import (
     Template,
     TemplatedValue,
@@ -94,11 +98,50 @@ def validate_section(value: Any, position: Position, layout_path: Path) -> None:
     """The layout's ``mqtt:`` section, checked as a run would read it (ConfigError if wrong)."""
     # the client id's default holds the desk name; any valid one checks the same
     settings_from_layout(value, desk="desk", relative_to=Path(layout_path).parent, where=position)
+    style_from_section(value)
 
 
 def desk_topic(settings: MqttSettings, desk: str, leaf: str) -> str:
     """One of the desk's own topics: ``<prefix>/<leaf>`` (see ``prefix`` and ``base_topic``)."""
     return f"{settings.desk_prefix(desk)}/{leaf}"
+
+
+def discovery_for(context: ActionContext, settings: MqttSettings) -> list[Any]:
+    """The run's Home Assistant discovery configs: the gestures, sensors and connectivity
+    (:mod:`.homeassistant`) and the desk's controls (:mod:`.control`); each has ``topic``
+    and ``payload``. The stale-config sweep keeps exactly these."""
+    from hapticdesk.plugins.mqtt.control import control_entities
+    from hapticdesk.plugins.mqtt.homeassistant import (
+        ORIGIN,
+        DeskTopics,
+        device_info,
+        discovery_configs,
+    )
+
+    desk = context.desk_name
+    model = f"hapticdesk on {getattr(context.profile, 'name', 'a desk')}"
+    topics = DeskTopics(settings.desk_prefix(desk))
+    configs: list[Any] = discovery_configs(
+        getattr(context.layout, "bindings", []),
+        desk=desk,
+        model=model,
+        topics=topics,
+        prefix=settings.discovery_prefix,
+        qos=min(settings.qos, 1),
+        regions=list(getattr(context.layout, "regions", {}) or {}),
+    )
+    named = getattr(context.layout, "named_layouts", {})
+    controls = control_entities(
+        desk=desk,
+        set_topic=desk_topic(settings, desk, "set"),
+        availability_topic=topics.availability,
+        layouts=["default", *named] if named else [],
+        device=device_info(desk, model),
+        prefix=settings.discovery_prefix,
+    )
+    for control in controls:
+        control.config["origin"] = ORIGIN
+    return configs + controls
 
 
 def link_for(context: ActionContext) -> MqttLink:
@@ -113,29 +156,8 @@ def open_link(context: ActionContext) -> MqttLink:
     birth = [Message(availability, b"online", 1, True, command=False)]
     birth_again_on = None
     if settings.discovery:
-        from hapticdesk.plugins.mqtt.control import control_entities
-
-        bindings = getattr(context.layout, "bindings", [])
-        model = f"hapticdesk on {getattr(context.profile, 'name', 'a desk')}"
-        for trigger in device_triggers(
-            bindings,
-            desk=context.desk_name,
-            model=model,
-            action_topic=desk_topic(settings, context.desk_name, "action"),
-            prefix=settings.discovery_prefix,
-            qos=min(settings.qos, 1),
-        ):
-            birth.append(Message(trigger.topic, trigger.payload, 1, True, command=False))
-        named = getattr(context.layout, "named_layouts", {})
-        for entity in control_entities(
-            desk=context.desk_name,
-            set_topic=desk_topic(settings, context.desk_name, "set"),
-            availability_topic=availability,
-            layouts=["default", *named] if named else [],
-            device=_device(context.desk_name, model),
-            prefix=settings.discovery_prefix,
-        ):
-            birth.append(Message(entity.topic, entity.payload, 1, True, command=False))
+        for config in discovery_for(context, settings):
+            birth.append(Message(config.topic, config.payload, 1, True, command=False))
         # Home Assistant forgets non-retained state when it restarts; it says so here
         birth_again_on = (f"{settings.discovery_prefix}/status", b"online")
     return MqttLink(
@@ -144,19 +166,6 @@ def open_link(context: ActionContext) -> MqttLink:
         birth=birth,
         birth_again_on=birth_again_on,
     ).start()
-
-
-def _device(desk: str, model: str) -> dict[str, Any]:
-    """The desk as a Home Assistant device (the same identifier as its device triggers)."""
-    from hapticdesk import __version__
-
-    return {
-        "identifiers": [f"hapticdesk_{re.sub(r'[^A-Za-z0-9_-]', '_', desk)}"],
-        "name": desk,
-        "model": model,
-        "manufacturer": "hapticdesk",
-        "sw_version": __version__,
-    }
 
 
 def refuse_a_second_desk(settings: MqttSettings, desk: str, availability: str) -> None:
@@ -236,19 +245,44 @@ class MqttAction:
 
 
 class DeskPublisher:
-    """Publishes every gesture to the desk's ``action`` and ``event`` topics (a dispatcher sink)."""
+    """Publishes every gesture to the desk's ``action``, ``event`` and state topics (a
+    dispatcher sink), and clears stale Home Assistant configs once at the start."""
 
     timeout_s = 2.0
 
     def __init__(self, context: ActionContext) -> None:
         self.link = link_for(context)
-        self.action_topic = desk_topic(self.link.settings, context.desk_name, "action")
-        self.event_topic = desk_topic(self.link.settings, context.desk_name, "event")
+        settings = self.link.settings
+        self.state_topic = settings.desk_prefix(context.desk_name)
+        self.action_topic = desk_topic(settings, context.desk_name, "action")
+        self.event_topic = desk_topic(settings, context.desk_name, "event")
+        raw = context.settings.get(SECTION) if context.settings is not None else None
+        style, slide = style_from_section(raw)
+        self.z2m = Zigbee2MqttActions(slide) if style == "zigbee2mqtt" else None
+        self.state = desk_state(context)
+        self.sweep = None
+        if settings.discovery:
+            from hapticdesk.plugins.mqtt.discovery import object_id
+            from hapticdesk.plugins.mqtt.stale import start_sweep
+
+            wanted = [c.topic for c in discovery_for(context, settings)]
+            node = object_id(context.desk_name)
+            self.sweep = start_sweep(settings, settings.discovery_prefix, node, wanted)
 
     def __call__(self, event: GestureEvent) -> None:
         action = event.action_name
-        self.link.publish(self.action_topic, action, retain=False)
+        if self.z2m is None:
+            payloads = [{**event.to_dict(), "action": action}]
+        else:
+            payloads = self.z2m(event)
+        for payload in payloads:
+            self.link.publish(self.action_topic, payload["action"], retain=False)
+            self.link.publish(self.state_topic, {**self.state.snapshot(), **payload}, retain=False)
         self.link.publish(self.event_topic, {**event.to_dict(), "action": action}, retain=False)
+
+    def close(self) -> None:
+        if self.sweep is not None:
+            self.sweep.join(10.0)
 
 
 @hookimpl
@@ -257,6 +291,30 @@ def event_sink(layout: Any, context: ActionContext) -> DeskPublisher | None:
     if uses_mqtt(layout.raw, layout.bindings, broker_override(context)):
         return DeskPublisher(context)
     return None
+
+
+def desk_state(context: ActionContext) -> Any:
+    """The run's latest sensor values (shared by the sensor and gesture publishers)."""
+    from hapticdesk.plugins.mqtt.sensors import DeskState
+
+    return context.shared("mqtt-desk-state", DeskState)
+
+
+@hookimpl
+def contact_sink(layout: Any, context: ActionContext) -> Any:
+    """With ``discovery: true``: force, touch position, resting load and occupancy on the
+    desk's state topic, throttled (:mod:`.sensors`), for Home Assistant's sensors."""
+    if not uses_mqtt(layout.raw, layout.bindings, broker_override(context)):
+        return None
+    link = link_for(context)
+    if not link.settings.discovery:
+        return None
+    from hapticdesk.plugins.mqtt.sensors import SensorPublisher
+
+    topic = link.settings.desk_prefix(context.desk_name)
+    return SensorPublisher(
+        desk_state(context), lambda payload: link.publish(topic, payload, qos=0, retain=False)
+    )
 
 
 @hookimpl

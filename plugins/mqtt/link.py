@@ -78,6 +78,9 @@ _MQTT_KEYS = {
     "queue_size",
     "protocol",
     "expiry_s",
+    # read by the plugin's __init__ (plugins/mqtt/z2m.py: style_from_section)
+    "action_style",
+    "zigbee2mqtt_slide",
 }
 #: ``protocol:`` values: MQTT 5 where the broker speaks it (else 3.1.1), or one of them
 PROTOCOLS = ("auto", "5", "3.1.1")

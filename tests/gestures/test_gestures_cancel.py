@@ -194,7 +194,12 @@ def test_home_assistant_is_told_of_the_repeats_of_a_long_press(make_layout):
     from hapticdesk.plugins.mqtt.discovery import device_triggers
 
     triggers = device_triggers(
-        make_layout(REPEAT).bindings, desk="study", model="m", action_topic="a"
+        make_layout(REPEAT).bindings,
+        device={"identifiers": ["d"]},
+        origin={"name": "hapticdesk"},
+        action_topic="a",
+        event_topic="e",
+        node="study",
     )
     announced = {t.config["payload"]: t.config["type"] for t in triggers}
     assert announced == {

@@ -52,6 +52,7 @@ def test_every_hookspec_is_exercised_by_a_run(tmp_path, paper_desk):
     called: dict[str, dict] = {}
     knocks: list[GestureEvent] = []
     everything: list[GestureEvent] = []
+    summaries: list = []
     sections: list = []
     recording = tap_recording(paper_desk, [Tap(1.5, 0.1, 0.0), Tap(2.5, -0.1, 0.05)], 3.2)
 
@@ -84,6 +85,10 @@ def test_every_hookspec_is_exercised_by_a_run(tmp_path, paper_desk):
     def control_channel(control):  # fewer arguments than the spec: allowed
         called["control_channel"] = {"control": control}
 
+    def contact_sink(desk, layout, context):
+        called["contact_sink"] = {"desk": desk}
+        return summaries.append
+
     def startup(desk, layout):
         called["startup"] = {"desk": desk, "layout": layout}
 
@@ -101,6 +106,7 @@ def test_every_hookspec_is_exercised_by_a_run(tmp_path, paper_desk):
                 register_commands,
                 event_sink,
                 control_channel,
+                contact_sink,
                 startup,
                 shutdown,
             )
@@ -121,5 +127,9 @@ def test_every_hookspec_is_exercised_by_a_run(tmp_path, paper_desk):
     assert report.gestures == {"knock": 2}
     assert everything == knocks  # the event sink saw every event
     assert called["event_sink"]["desk_name"] == paper_desk.name
+    # the contact sink saw every block: times rising, forces finite, the knocks' force
+    times = [s.t for s in summaries]
+    assert len(times) > 10 and times == sorted(times)
+    assert max(s.force_n for s in summaries) > 1.0
     assert sections == [({"loud": True}, layout_path)]
     assert registry.commands["spy"].load().run(None) == 0

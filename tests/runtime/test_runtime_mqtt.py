@@ -76,8 +76,8 @@ def test_every_command_arrives_once_in_order(broker, subscribe, tmp_path, paper_
     payloads = [json.loads(m[2]) for m in messages]
     assert [p["state"] for p in payloads] == ["TOGGLE"] * 12
     assert [p["t"] for p in payloads] == pytest.approx([e["t"] for e in events], abs=1e-6)
-    # 12 commands, and each gesture twice on the desk's own topics (action, event)
-    assert report.notes == [f"MQTT {broker.url}: 36 of 36 messages delivered"]
+    # 12 commands, and each gesture three times on the desk's own topics (action, state, event)
+    assert report.notes == [f"MQTT {broker.url}: 48 of 48 messages delivered"]
 
 
 def test_a_broker_restart_mid_stream_loses_nothing_and_doubles_nothing(broker, tmp_path):
@@ -256,7 +256,8 @@ def test_home_assistant_discovery_and_availability(broker, subscribe, tmp_path, 
     report, events = run_layout(layout, taps_file(tmp_path, paper_desk, 1), broker.url)
     assert report.error is None
     # a new subscriber gets what the broker retained
-    retained = Subscriber(broker, "homeassistant/#")
+    # (the event entity, sensors and connectivity: tests/runtime/test_mqtt_homeassistant.py)
+    retained = Subscriber(broker, "homeassistant/device_automation/#")
     configs = {m[1]: (m[0], json.loads(m[2])) for m in retained.wait_for(5)}
     retained.stop()
     node = "homeassistant/device_automation/study"

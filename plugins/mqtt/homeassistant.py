@@ -1,0 +1,240 @@
+"""The desk as a Home Assistant device: every discovery config it publishes.
+
+Per-component discovery (``<prefix>/<component>/<node>/<object>/config``, retained), each
+config with ``origin`` (this software) and ``device`` (the desk):
+
+- ``device_automation``: one trigger per bound gesture (:mod:`.discovery`);
+- ``event`` ``gesture``: every gesture, with ``event_types`` the layout's action strings and
+  the gesture's fields (value, level, hold_s, x, y, …) as the event's attributes, so a slide's
+  value reaches Home Assistant (its ``value_template`` adds ``event_type`` to the event JSON);
+- ``sensor`` ``force``/``x``/``y``/``resting_load`` and ``binary_sensor`` ``occupancy``, read
+  from the desk's state JSON on ``<base>/<desk>`` (``state_class: measurement``);
+- ``binary_sensor`` ``connectivity`` on the retained availability topic (online/offline, the
+  last will), so Home Assistant sees the desk go offline. The entities above also take that
+  topic as their ``availability_topic``; device triggers have no availability in Home
+  Assistant's schema.
+
+Stale configs (a binding removed since the last run) are cleared by :mod:`.stale`.
+Keys follow Home Assistant's MQTT integration docs (event, sensor, binary_sensor, device
+trigger, "MQTT Discovery"); tests/runtime/test_mqtt_homeassistant.py checks every payload
+against a table of the documented keys.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+from typing import Any
+
+from hapticdesk import __version__
+from hapticdesk.gestures.event import GestureEvent
+from hapticdesk.plugins.mqtt.discovery import (
+    DeviceTrigger,
+    details_of,
+    device_triggers,
+    object_id,
+)
+
+ORIGIN = {"name": "hapticdesk", "sw_version": __version__}
+
+#: the desk's state JSON (on ``<base>/<desk>``) keys the sensors read
+SENSORS: list[tuple[str, str, dict[str, Any]]] = [
+    # (component, object id, config without the common keys)
+    (
+        "sensor",
+        "force",
+        {
+            "name": "Force",
+            "unit_of_measurement": "N",
+            "state_class": "measurement",
+            "suggested_display_precision": 1,
+            "value_template": "{{ value_json.force_n }}",
+        },
+    ),
+    (
+        "sensor",
+        "x",
+        {
+            "name": "Touch x",
+            "device_class": "distance",
+            "unit_of_measurement": "m",
+            "state_class": "measurement",
+            "suggested_display_precision": 3,
+            "value_template": "{{ value_json.x }}",
+        },
+    ),
+    (
+        "sensor",
+        "y",
+        {
+            "name": "Touch y",
+            "device_class": "distance",
+            "unit_of_measurement": "m",
+            "state_class": "measurement",
+            "suggested_display_precision": 3,
+            "value_template": "{{ value_json.y }}",
+        },
+    ),
+    (
+        "sensor",
+        "resting_load",
+        {
+            "name": "Resting load",
+            "unit_of_measurement": "N",
+            "state_class": "measurement",
+            "suggested_display_precision": 1,
+            "value_template": "{{ value_json.resting_load_n }}",
+        },
+    ),
+    (
+        "binary_sensor",
+        "occupancy",
+        {
+            "name": "Desk in use",
+            "device_class": "occupancy",
+            "payload_on": "ON",
+            "payload_off": "OFF",
+            "value_template": "{{ 'ON' if value_json.occupancy else 'OFF' }}",
+        },
+    ),
+]
+
+
+@dataclass(frozen=True)
+class DeskTopics:
+    """The desk's own topics (DESIGN.md, "The desk as an MQTT device")."""
+
+    prefix: str  # <base>/<desk>: the state JSON
+
+    @property
+    def action(self) -> str:
+        return f"{self.prefix}/action"
+
+    @property
+    def event(self) -> str:
+        return f"{self.prefix}/event"
+
+    @property
+    def availability(self) -> str:
+        return f"{self.prefix}/availability"
+
+
+def device_info(desk: str, model: str) -> dict[str, Any]:
+    """The ``device`` every config of this desk carries (one device in Home Assistant)."""
+    return {
+        "identifiers": [f"hapticdesk_{object_id(desk)}"],
+        "name": desk,
+        "model": model,
+        "manufacturer": "hapticdesk",
+        "sw_version": __version__,
+    }
+
+
+#: phases a recognizer emits whatever a binding filters (DeskPublisher sends every event)
+PHASES = {
+    "long_press": (None, "repeat", "end", "cancel"),
+    "slide": (None, "begin", "end", "cancel"),
+    "force": (None, "begin", "end", "cancel"),
+}
+
+
+def event_types(bindings: Iterable[Any], regions: Iterable[str] = ()) -> list[str]:
+    """Every action string the desk can publish for the layout's bindings (the event
+    entity's ``event_types``; Home Assistant drops an event whose type is not listed).
+
+    A binding without a region hears its gesture in every region (and outside them, ``desk``);
+    a recognizer emits all its phases, and details (shape, direction, level) or none."""
+    regions = [*regions, None]
+    types: set[str] = set()
+    for b in bindings:
+        details = [{}, *details_of(b)]
+        for region in [b.region] if b.region is not None else regions:
+            for phase in PHASES.get(b.gesture, (None,)):
+                for detail in details:
+                    event = GestureEvent(0.0, b.gesture, region, 0.0, 0.0, phase=phase, **detail)
+                    types.add(event.action_name)
+    return sorted(types)
+
+
+def discovery_configs(
+    bindings: Iterable[Any],
+    *,
+    desk: str,
+    model: str,
+    topics: DeskTopics,
+    prefix: str = "homeassistant",
+    qos: int = 1,
+    sensors: bool = True,
+    regions: Iterable[str] = (),
+) -> list[DeviceTrigger]:
+    """Every discovery config of the desk (device triggers, event entity, sensors,
+    connectivity), as (topic, config) pairs."""
+    bindings = list(bindings)
+    node = object_id(desk)
+    device = device_info(desk, model)
+    out = device_triggers(
+        bindings,
+        device=device,
+        origin=ORIGIN,
+        action_topic=topics.action,
+        event_topic=topics.event,
+        node=node,
+        prefix=prefix,
+        qos=qos,
+    )
+
+    def entity(component: str, name: str, config: dict[str, Any]) -> DeviceTrigger:
+        common = {
+            "unique_id": f"hapticdesk_{node}_{name}",
+            "device": device,
+            "origin": ORIGIN,
+            "qos": qos,
+        }
+        return DeviceTrigger(f"{prefix}/{component}/{node}/{name}/config", {**common, **config})
+
+    types = event_types(bindings, regions)
+    if types:
+        out.append(
+            entity(
+                "event",
+                "gesture",
+                {
+                    "name": "Gesture",
+                    "state_topic": topics.event,
+                    "event_types": types,
+                    # the event JSON carries `action`; Home Assistant wants `event_type`
+                    "value_template": "{{ dict(value_json, event_type=value_json.action)"
+                    " | tojson }}",
+                    "availability_topic": topics.availability,
+                },
+            )
+        )
+    if sensors:
+        for component, name, config in SENSORS:
+            out.append(
+                entity(
+                    component,
+                    name,
+                    {
+                        **config,
+                        "state_topic": topics.prefix,
+                        "availability_topic": topics.availability,
+                    },
+                )
+            )
+    out.append(
+        entity(
+            "binary_sensor",
+            "connectivity",
+            {
+                # no availability of its own: offline must show as "disconnected", not unknown
+                "name": "Connected",
+                "state_topic": topics.availability,
+                "payload_on": "online",
+                "payload_off": "offline",
+                "device_class": "connectivity",
+                "entity_category": "diagnostic",
+            },
+        )
+    )
+    return out

@@ -47,7 +47,7 @@ def register_actions(register: Any) -> None:
     """Register actions, the keys under a binding's ``do:`` in a layout.
 
     Called once while the registry is built, with ``register`` the callback to call as
-    ``register(name, factory, description="", validate=None)`` for each action:
+    ``register(name, factory, description="", validate=None, options=None)`` for each action:
 
     - ``factory(options, context) -> action``: ``options`` the action's mapping from the
       layout, ``context`` an :class:`~hapticdesk.runtime.dispatcher.ActionContext`. The action is a
@@ -57,6 +57,10 @@ def register_actions(register: Any) -> None:
     - ``validate(options, position)``: raise :class:`~hapticdesk.files.yamlfile.ConfigError` naming
       ``file:line:column`` when the options are wrong, so ``hapticdesk check`` and ``run`` stop
       before anything starts. ``position`` is where the action stands in the layout.
+
+    - ``options``: a form's schema of the options, ``{name: {"kind": "text" | "number" |
+      "integer" | "bool" | "mapping", "help": str, "required": bool, "choices": [...]}}``
+      (the browser UI's designer builds its forms from it; ``validate`` still decides).
 
     ``factory`` and ``validate`` may be lazy ``"module:attr"`` strings.
     """
@@ -75,13 +79,19 @@ def register_recognizers(register: Any) -> None:
 
 
 @hookspec
-def startup(desk: Any, layout: Any) -> None:
+def startup(desk: Any, layout: Any, runtime: Any) -> None:
     """A run is about to start sensing.
 
     Called once per ``hapticdesk run`` or ``demo`` after the source, the estimator, the gesture
     engine and the actions are built, before the first block is read. ``desk`` is the
-    :class:`~hapticdesk.files.profile.DeskProfile`, ``layout`` the loaded layout. An exception here
-    is logged with the plugin's name (and is fatal under ``--strict``).
+    :class:`~hapticdesk.files.profile.DeskProfile`, ``layout`` the loaded layout, ``runtime``
+    the :class:`~hapticdesk.runtime.service.Runtime` for a plugin that watches the run from
+    its own thread (the browser UI): ``runtime.live.sample`` is the latest contact sample
+    (written once per block by the sensing thread, O(1)), ``runtime.scene.estimator.notices``
+    what the estimator did on its own, ``runtime.scene.dispatcher.lanes`` the actions' counts,
+    and ``runtime.reload()`` swaps in the saved layout without a new tare. Never
+    block or do work on the sensing thread. An exception here is logged with the plugin's
+    name (and is fatal under ``--strict``).
     """
 
 

@@ -45,6 +45,7 @@ DEFAULT_PLUGINS: tuple[str, ...] = (
     "hapticdesk.plugins.exec",
     "hapticdesk.plugins.http",
     "hapticdesk.plugins.mqtt",
+    "hapticdesk.plugins.ui",
 )
 
 KINDS = ("sources", "actions", "recognizers", "layout_sections", "commands")
@@ -101,6 +102,10 @@ class ActionType(Registered):
     """An action: ``factory(options, context) -> callable(event)``; ``validate(options, pos)``."""
 
     validate: Any = None  # callable, "module:attr" or None
+    #: the options a form may offer: name -> {"kind": text|number|integer|bool|mapping,
+    #: "help": str, "required": bool, "choices": [...]} (the browser UI builds its forms
+    #: from it); None when the plugin gave none. ``validate`` stays the judge.
+    options: Any = None
 
     def check(self, options: Any, position: Position | str) -> None:
         """Run the plugin's validation; a crash in it is reported as the plugin's fault."""

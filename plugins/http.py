@@ -263,5 +263,14 @@ def call(
 @hookimpl
 def register_actions(register: Any) -> None:
     register(
-        "http", HttpAction, "call a webhook (standard library, no extra package)", validate=validate
+        "http",
+        HttpAction,
+        "call a webhook (standard library, no extra package)",
+        validate=validate,
+        options={
+            "url": {"kind": "text", "required": True, "help": "http(s)://host/path, no password"},
+            "method": {"kind": "text", "choices": list(METHODS), "help": "POST by default"},
+            "json": {"kind": "mapping", "help": "a JSON body (templated)"},
+            "timeout_s": {"kind": "number", "help": "seconds for the whole call"},
+        },
     )

@@ -58,4 +58,16 @@ class LogAction:
 
 @hookimpl
 def register_actions(register: Any) -> None:
-    register("log", LogAction, "print a line for each gesture", validate=validate)
+    register(
+        "log",
+        LogAction,
+        "print a line for each gesture",
+        validate=validate,
+        options={
+            "message": {
+                "kind": "text",
+                "help": "the line to print, a template ({{ gesture }}, {{ region }}, ...); "
+                "the event as JSON when not given",
+            }
+        },
+    )

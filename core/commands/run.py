@@ -82,6 +82,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
         metavar="S",
         help="at the end, wait up to S seconds for queued commands (default 5)",
     )
+    parser.add_argument(
+        "--ui",
+        metavar="[HOST:]PORT",
+        help="serve the browser view and layout designer (127.0.0.1 unless a HOST is given; "
+        "another host needs a token, see `hapticdesk ui --help`); needs the `ui` extra",
+    )
     parser.add_argument("--json", action="store_true", help="print the run's report as JSON")
 
 
@@ -93,8 +99,7 @@ def run(args: argparse.Namespace) -> int:
         registry,
         desk=args.desk,
         speed=args.speed,
-        # the MQTT plugin's section, overridden (the flag predates plugin sections)
-        overrides={"mqtt": {"broker": args.mqtt}} if args.mqtt else None,
+        overrides=overrides(args),
         action_timeout_s=args.action_timeout,
     )
     show_status = args.status or sys.stderr.isatty()
@@ -116,6 +121,17 @@ def run(args: argparse.Namespace) -> int:
         print(f"error: not everything was delivered: {'; '.join(problems)}", file=sys.stderr)
         return UNDELIVERED_EXIT
     return 0
+
+
+def overrides(args: argparse.Namespace) -> dict[str, dict[str, str]]:
+    """Command-line values over plugins' layout sections, by section name: ``--mqtt`` for
+    the MQTT plugin's ``mqtt:`` (the flag predates plugin sections), ``--ui`` for the UI's."""
+    out: dict[str, dict[str, str]] = {}
+    if args.mqtt:
+        out["mqtt"] = {"broker": args.mqtt}
+    if getattr(args, "ui", None):
+        out["ui"] = {"listen": args.ui}
+    return out
 
 
 def undelivered(report: RunReport, failures: list[str]) -> list[str]:

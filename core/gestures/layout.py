@@ -162,8 +162,12 @@ def load_layout(
     recognizer_types: Mapping[str, Any] | None = None,
     validate_section: ValidateSection | None = None,
     section_names: Collection[str] = (),
+    text: str | None = None,
 ) -> Layout:
     """Load and validate a layout; raises :class:`ConfigError` on any problem.
+
+    ``text``: the layout's YAML when it is not (yet) in the file, e.g. an edit being checked
+    before it is saved; errors and relative paths still name ``path``.
 
     ``profile`` overrides the layout's ``desk:``. ``action_names``: the known actions (an
     unknown one is an error); ``validate_action(name, options, position)`` is called for
@@ -176,7 +180,7 @@ def load_layout(
     from hapticdesk.gestures.layout_reader import LayoutReader  # the reader imports this model
 
     path = Path(path)
-    doc = require_mapping(load_marked_yaml(path), str(path), "a layout")
+    doc = require_mapping(load_marked_yaml(path, text), str(path), "a layout")
     reader = LayoutReader(
         doc, path, profile, action_names, validate_action, recognizer_types, section_names
     )

@@ -89,6 +89,11 @@ class ActionContext:
                 self._resources[key] = create()
             return self._resources[key]
 
+    def resource(self, key: str) -> Any:
+        """The run's resource called ``key`` if one was created, else None."""
+        with self._lock:
+            return self._resources.get(key)
+
     @property
     def desk(self) -> str:
         """The former name of :attr:`desk_name` (kept for plugins written against it)."""

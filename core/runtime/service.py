@@ -69,6 +69,7 @@ class Assembly:
     action_timeout_s: float | None = None
     #: commands for the running desk (re-tare, pause, reload …), applied between blocks
     control: ControlQueue = field(default_factory=ControlQueue)
+    actions: bool = True  # False: gestures are recognised, the layout's actions not run
     #: plugins' contact sinks (``contact_sink`` hook), called once per block
     observers: ContactObservers = field(default_factory=lambda: ContactObservers([]))
 
@@ -88,13 +89,18 @@ Scene = Assembly
 
 
 def load_scene_layout(
-    layout_path: str | Path, registry: Registry, desk: str | None = None
+    layout_path: str | Path,
+    registry: Registry,
+    desk: str | DeskProfile | None = None,
+    *,
+    text: str | None = None,
 ) -> tuple[Any, DeskProfile]:
     """The layout, validated against the installed actions, recognizers and the sections
-    plugins claim (``hapticdesk check`` and ``run`` both load through here), and its desk."""
+    plugins claim (``hapticdesk check`` and ``run`` both load through here), and its desk.
+    ``text``: the layout's YAML when it is not the file's (an edit checked before saving)."""
     from hapticdesk.gestures.layout import load_layout
 
-    profile = load_profile(desk) if desk is not None else None
+    profile = load_profile(desk) if isinstance(desk, str) else desk
     layout = load_layout(
         layout_path,
         profile=profile,
@@ -103,6 +109,7 @@ def load_scene_layout(
         recognizer_types=registry.recognizer_types(),
         validate_section=registry.validate_section,
         section_names=list(registry.layout_sections),
+        text=text,
     )
     return layout, layout.desk
 
@@ -116,10 +123,13 @@ def build_scene(
     speed: float = 1.0,
     overrides: Mapping[str, Mapping[str, Any]] | None = None,
     action_timeout_s: float | None = None,
+    actions: bool = True,
 ) -> Assembly:
     """Load the layout and desk, open the source, build every action and every plugin's event
     sink (ConfigError if wrong). ``overrides``: command-line values over a plugin's layout
-    section, by section name (``run --mqtt URL`` gives ``{"mqtt": {"broker": URL}}``)."""
+    section, by section name (``run --mqtt URL`` gives ``{"mqtt": {"broker": URL}}``).
+    ``actions=False`` recognises gestures without running the layout's actions or plugins'
+    event sinks (a preview: nothing leaves the machine; the caller may add its own sink)."""
     layout, profile = load_scene_layout(layout_path, registry, desk)
     for warning in layout.warnings:
         log.warning("%s", warning)
@@ -134,13 +144,17 @@ def build_scene(
     )
     dispatcher = Dispatcher()
     try:
-        for route in build_routes(layout, registry, context, action_timeout_s):
-            dispatcher.add_route(route)
-        for plugin, sink in registry.event_sinks(desk=profile, layout=layout, context=context):
-            dispatcher.add_sink(Lane(f"every event → {plugin}", sink, timeout_s=action_timeout_s))
-        observers = ContactObservers(
-            registry.contact_sinks(desk=profile, layout=layout, context=context)
-        )
+        observers = ContactObservers([])
+        if actions:  # a preview (actions=False) sends nothing: no actions, no plugins' sinks
+            for route in build_routes(layout, registry, context, action_timeout_s):
+                dispatcher.add_route(route)
+            sinks = registry.event_sinks(desk=profile, layout=layout, context=context)
+            for plugin, sink in sinks:
+                lane = Lane(f"every event → {plugin}", sink, timeout_s=action_timeout_s)
+                dispatcher.add_sink(lane)
+            observers = ContactObservers(
+                registry.contact_sinks(desk=profile, layout=layout, context=context)
+            )
         from hapticdesk.estimator import ContactEstimator
         from hapticdesk.gestures.engine import GestureEngine
 
@@ -165,6 +179,7 @@ def build_scene(
         layout_path=Path(layout_path),
         desk_override=desk,
         action_timeout_s=action_timeout_s,
+        actions=actions,
         observers=observers,
     )
 
@@ -242,6 +257,11 @@ class LiveStatus:
     gestures: int = 0
     tared: bool = False
     paused: bool = False
+    #: the block's last sample, replaced whole (one assignment, so a reader on another thread
+    #: never sees half of one): (t, x or None, y or None, force_n, phase, surface index or -1)
+    sample: tuple[float, float | None, float | None, float, int, int] | None = None
+    #: how many blocks have been sensed; a reader sees whether ``sample`` is new
+    blocks: int = 0
 
     def line(self) -> str:
         where = f"x {self.x:+.3f} y {self.y:+.3f} m" if self.in_contact else "—"
@@ -308,6 +328,10 @@ class Runtime:
         self._stop = threading.Event()
         self._force = False
         self._events_out: IO[str] | None = None
+        #: callables given every block's ``(t, wrench)`` on the sensing thread, after the
+        #: estimator (a set-up check recording raw samples); each must be O(1): keep a
+        #: reference, never copy or wait. Replaced whole (a tuple), never changed in place.
+        self.block_taps: tuple[Any, ...] = ()
         #: gestures are recognised but not sent while paused (``pause`` / ``resume``)
         self.paused = False
         self._t_last: float | None = None  # the last sample time sensed (to flush an engine)
@@ -401,7 +425,11 @@ class Runtime:
         before = (context.layout, context.settings, context.layout_path)
         context.layout, context.settings, context.layout_path = layout, layout.raw, Path(path)
         try:
-            routes = build_routes(layout, scene.registry, context, scene.action_timeout_s)
+            routes = (
+                build_routes(layout, scene.registry, context, scene.action_timeout_s)
+                if scene.actions
+                else []
+            )
             engine = GestureEngine(
                 layout,
                 recognizer_types=scene.registry.recognizer_types(),
@@ -450,7 +478,7 @@ class Runtime:
                 layout=scene.layout,
                 context=scene.context,
             )
-            scene.registry.notify("startup", desk=scene.profile, layout=scene.layout)
+            scene.registry.notify("startup", desk=scene.profile, layout=scene.layout, runtime=self)
         except BaseException:  # an unwritable events file, or --strict and a plugin failed
             if self._events_out is not None:
                 self._events_out.close()
@@ -510,6 +538,8 @@ class Runtime:
             self._update_live(contacts)
             if scene.observers:
                 scene.observers(contacts, scene.estimator.zero)
+            for tap in self.block_taps:
+                tap(block.t, block.wrench)
             self.report.samples += len(block.t)
             t_last = self._t_last = float(block.t[-1])
         self.apply_control()
@@ -537,6 +567,16 @@ class Runtime:
         if contacts.located[-1]:
             live.x, live.y = float(contacts.x[-1]), float(contacts.y[-1])
         live.tared = not bool(contacts.flags[-1] & FLAG_NOT_TARED)
+        located = bool(contacts.located[-1])
+        live.sample = (
+            live.t,
+            float(contacts.x[-1]) if located else None,
+            float(contacts.y[-1]) if located else None,
+            live.force_n,
+            int(contacts.phase[-1]),
+            int(contacts.surface[-1]),
+        )
+        live.blocks += 1
 
     # --- the watcher --------------------------------------------------------------------------
 

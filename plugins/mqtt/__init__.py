@@ -350,4 +350,10 @@ def register_actions(register: Any) -> None:
         MqttAction,
         "publish to an MQTT broker (templated topic and payload, QoS 0/1/2, TLS)",
         validate=validate,
+        options={
+            "topic": {"kind": "text", "required": True, "help": "e.g. zigbee2mqtt/lamp/set"},
+            "payload": {"kind": "mapping", "help": 'JSON, e.g. {"state": "TOGGLE"}'},
+            "qos": {"kind": "integer", "choices": [0, 1, 2], "help": "the layout's by default"},
+            "retain": {"kind": "bool", "choices": [True, False], "help": "keep on the broker"},
+        },
     )

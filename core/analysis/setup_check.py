@@ -1,0 +1,258 @@
+"""The set-up check of a new desk: presses at known points → what is wrong in its profile.
+
+The procedure: a quiet desk for the tare, then firm presses (or a known weight) at a few
+marked points, one after another, in order. For each press the held wrench of every sensor
+(tared, averaged over the hold) is turned into the desk frame with the profile's rotation and
+sign, and the balance of the paper's eqs. (1)-(4) is written per sensor:
+
+    Σ_i F_i = -F_e,    Σ_i (r_i × F_i + M_i) = -(P × F_e)
+
+A sensor whose vertical force opposes the others' is read with the wrong sign (``reports``
+or upside down). With vertical presses the moment balance is linear in the sensors' (x, y)
+positions; the imbalance the presses leave is the lever-arm error. On a rigid desk the legs'
+forces depend on the point pressed through three numbers only, so not every position can be
+solved for: the check finds the one sensor whose move explains the imbalance (> 90 %) and
+proposes its position, or says no single sensor does. A
+sensor whose vertical load appears in the desk's horizontal plane is tilted or turned wrong
+in ``rotation_rpy_deg``. Rotation about the vertical (yaw) does not show under vertical
+presses and is not checked.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.yamlfile import ConfigError
+
+#: a sensor placed further than this from where the presses put it is reported
+POSITION_TOLERANCE_M = 0.01
+#: a vertical load showing this much (as an angle) in the horizontal plane is reported
+TILT_TOLERANCE_DEG = 3.0
+#: a press is the part of a force bump above this share of its peak
+HOLD_SHARE = 0.7
+
+
+@dataclass
+class SetupFinding:
+    """One thing wrong with a sensor, and the fix proposed."""
+
+    sensor: str
+    kind: str  # sign, position, tilt
+    message: str
+
+
+@dataclass
+class SetupReport:
+    """What the presses showed: where the estimator put them, findings, the corrected profile."""
+
+    points: np.ndarray  # (K, 2) the known points
+    measured: np.ndarray  # (K, 2) where the estimator placed them (NaN-free: 0 when unplaced)
+    placed: np.ndarray  # (K,) bool: the estimator located the press
+    residual_m: np.ndarray  # (K,) distance measured - known (inf when not placed)
+    fitted_positions: np.ndarray | None  # (S, 2) sensor (x, y) from the presses
+    findings: list[SetupFinding] = field(default_factory=list)
+    corrected: DeskProfile | None = None
+
+    def profile_snippet(self) -> str:
+        """The corrected sensors as YAML lines to paste into the profile."""
+        if self.corrected is None:
+            return ""
+        lines = ["sensors:"]
+        for s in self.corrected.sensors:
+            x, y, z = (round(float(v), 4) for v in s.position)
+            lines.append(f"  - {{name: {s.name}, position: [{x}, {y}, {z}], reports: {s.reports}}}")
+        return "\n".join(lines)
+
+
+def press_windows(force: np.ndarray, t: np.ndarray, count: int, min_n: float) -> list[slice]:
+    """The ``count`` holds: runs where the force is above HOLD_SHARE of their bump's peak.
+
+    The force is smoothed over 50 ms and bumps closer than 0.2 s are one press (the desk's
+    sway and the noise make a press cross the threshold more than once)."""
+    rate = 1.0 / float(np.median(np.diff(t)))
+    width = max(1, int(0.05 * rate))
+    smooth = np.convolve(force, np.ones(width) / width, mode="same")
+    above = np.concatenate([[False], smooth > min_n, [False]])
+    edges = np.flatnonzero(np.diff(above.astype(np.int8)))
+    runs = [[int(a), int(b)] for a, b in zip(edges[::2], edges[1::2], strict=True)]
+    bumps: list[list[int]] = []
+    for a, b in runs:
+        if bumps and a - bumps[-1][1] < 0.2 * rate:
+            bumps[-1][1] = b
+        else:
+            bumps.append([a, b])
+    bumps = [ab for ab in bumps if ab[1] - ab[0] > 0.05 * rate]
+    if len(bumps) != count:
+        raise ConfigError(
+            None,
+            f"expected {count} presses (one per marked point), found {len(bumps)} times the "
+            f"force went over {min_n:g} N",
+        )
+    out = []
+    for a, b in bumps:
+        peak = smooth[a:b].max()
+        inside = np.flatnonzero(smooth[a:b] >= HOLD_SHARE * peak) + a
+        out.append(slice(int(inside[0]), int(inside[-1]) + 1))
+    return out
+
+
+def check_setup(
+    profile: DeskProfile,
+    t: np.ndarray,
+    wrench: np.ndarray,
+    points: np.ndarray,
+    *,
+    tare_s: float = 1.0,
+    min_force_n: float = 3.0,
+) -> SetupReport:
+    """Check ``profile`` against presses at ``points`` (K, 2) in order, recorded as ``t``
+    (n,), ``wrench`` (n, S, 6) sensor frames, the first ``tare_s`` a quiet desk."""
+    points = np.asarray(points, dtype=float).reshape(-1, 2)
+    sensors = profile.sensors
+    quiet = t < t[0] + tare_s
+    if quiet.sum() < 10:
+        raise ConfigError(None, f"the recording needs {tare_s:g} s of a quiet desk first")
+    tared = wrench - wrench[quiet].mean(axis=0)
+    # desk frame: R_i · (sign_i · reading), forces and moments alike (DESIGN.md, conventions)
+    rot = np.stack([s.rotation for s in sensors])  # (S, 3, 3)
+    sign = np.array([s.sign for s in sensors])[None, :, None]
+    f_desk = np.einsum("sij,nsj->nsi", rot, tared[:, :, :3]) * sign
+    m_desk = np.einsum("sij,nsj->nsi", rot, tared[:, :, 3:]) * sign
+    magnitude = np.abs(f_desk[:, :, 2]).sum(axis=1)  # sign-blind: a flipped sensor still counts
+    windows = press_windows(magnitude, t, len(points), min_force_n)
+    fz = np.array([f_desk[w, :, 2].mean(axis=0) for w in windows])  # (K, S)
+    fxy = np.array([f_desk[w, :, :2].mean(axis=0) for w in windows])  # (K, S, 2)
+
+    findings: list[SetupFinding] = []
+    flips = np.ones(len(sensors))
+    share = fz / np.abs(fz).sum(axis=1, keepdims=True)
+    for i, s in enumerate(sensors):
+        if np.median(share[:, i]) < -0.02:
+            flips[i] = -1.0
+            other = "load" if s.reports == "reaction" else "reaction"
+            findings.append(
+                SetupFinding(
+                    s.name,
+                    "sign",
+                    f"{s.name} reads pressing down as pulling up: `reports: {other}` (or it is "
+                    "mounted upside down: roll 180 in rotation_rpy_deg)",
+                )
+            )
+    fz, fxy = fz * flips, fxy * flips[None, :, None]
+    load = fz.sum(axis=1)  # W_k, the press's force (vertical)
+    # tilt: the vertical load of a sensor seen partly in the horizontal plane
+    for i, s in enumerate(sensors):
+        vertical = np.abs(fz[:, i]).sum()
+        if vertical <= 0:
+            continue
+        horizontal = np.linalg.norm(fxy[:, i, :].sum(axis=0) * np.sign(fz[:, i]).mean())
+        angle = float(np.degrees(np.arctan2(horizontal, vertical)))
+        if angle > TILT_TOLERANCE_DEG:
+            findings.append(
+                SetupFinding(
+                    s.name,
+                    "tilt",
+                    f"{s.name} sees {angle:.1f}° of its vertical load as horizontal: check "
+                    "roll and pitch in its rotation_rpy_deg",
+                )
+            )
+    # positions: Σ_i x_i fz_ik = x_k W_k + Σ_i My_ik and Σ_i y_i fz_ik = y_k W_k - Σ_i Mx_ik.
+    # On a rigid desk the legs' vertical forces are an affine function of the point pressed,
+    # so with four legs the columns of fz are dependent and positions cannot all be solved
+    # for. What can: which one sensor, moved, explains the imbalance the presses leave.
+    corrected_sensors = [
+        replace(s, reports=("load" if s.reports == "reaction" else "reaction")) if f < 0 else s
+        for s, f in zip(sensors, flips, strict=True)
+    ]
+    # the finger's force is not quite vertical: its horizontal part acts at the board's height
+    f3 = np.concatenate([fxy, fz[:, :, None]], axis=2)  # (K, S, 3), sign-corrected
+    m3 = np.array([m_desk[w].mean(axis=0) for w in windows]) * flips[None, :, None]
+    height = float(profile.surfaces[0].origin[2])
+    p3 = np.column_stack([points, np.full(len(points), height)])
+    rhs = np.cross(p3, f3.sum(axis=1)) - m3.sum(axis=1)  # Σ r_i × F_i must equal this
+    z = np.array([s.position[2] for s in sensors])
+    target = np.stack(
+        [
+            -rhs[:, 1] + (z * f3[:, :, 0]).sum(axis=1),  # Σ x_i fz_i
+            rhs[:, 0] + (z * f3[:, :, 1]).sum(axis=1),  # Σ y_i fz_i
+        ],
+        axis=1,
+    )  # (K, 2)
+    positions = np.array([s.position[:2] for s in sensors])
+    residual = target - fz @ positions  # (K, 2): moment imbalance, N·m
+    lever = np.sqrt(np.mean(np.sum((residual / load[:, None]) ** 2, axis=1)))  # metres
+    fitted = positions.copy()
+    if lever > POSITION_TOLERANCE_M / 2:
+        best, best_left, best_shift = -1, np.inf, np.zeros(2)
+        for i in range(len(sensors)):
+            column = fz[:, i]
+            shift = column @ residual / max(float(column @ column), 1e-12)  # (2,)
+            left = float(np.sum((residual - np.outer(column, shift)) ** 2))
+            if left < best_left:
+                best, best_left, best_shift = i, left, shift
+        explained = 1.0 - best_left / float(np.sum(residual**2))
+        s = sensors[best]
+        off = float(np.hypot(*best_shift))
+        if explained > 0.9 and off > POSITION_TOLERANCE_M:
+            fitted[best] += best_shift
+            findings.append(
+                SetupFinding(
+                    s.name,
+                    "position",
+                    f"{s.name} is at ({fitted[best, 0]:.3f}, {fitted[best, 1]:.3f}) m by the "
+                    f"presses, {off * 100:.1f} cm from the profile's "
+                    f"({s.position[0]:.3f}, {s.position[1]:.3f})",
+                )
+            )
+            position = np.array([fitted[best, 0], fitted[best, 1], s.position[2]])
+            corrected_sensors[best] = replace(corrected_sensors[best], position=position)
+        else:
+            findings.append(
+                SetupFinding(
+                    "",
+                    "position",
+                    f"the presses leave a {lever * 100:.1f} cm lever-arm imbalance no single "
+                    "sensor's position explains: measure the sensors' positions again",
+                )
+            )
+    measured, placed = _placed(profile, t, wrench, windows)
+    residual = np.where(placed, np.hypot(*(measured - points).T), np.inf)
+    corrected = replace(profile, sensors=tuple(corrected_sensors)) if findings else None
+    return SetupReport(points, measured, placed, residual, fitted, findings, corrected)
+
+
+def _placed(
+    profile: DeskProfile, t: np.ndarray, wrench: np.ndarray, windows: list[slice]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Where the estimator puts each press (median over its hold of the located samples)."""
+    from hapticdesk.estimator import ContactEstimator
+
+    contacts = ContactEstimator(profile).push(t, wrench)
+    measured = np.zeros((len(windows), 2))
+    placed = np.zeros(len(windows), dtype=bool)
+    for k, w in enumerate(windows):
+        ok = contacts.located[w]
+        if ok.any():
+            measured[k] = np.median(contacts.x[w][ok]), np.median(contacts.y[w][ok])
+            placed[k] = True
+    return measured, placed
+
+
+def report_dict(report: SetupReport) -> dict[str, Any]:
+    """The report as JSON-ready data (the page's set-up panel)."""
+    return {
+        "points": report.points.tolist(),
+        "measured": report.measured.tolist(),
+        "placed": report.placed.tolist(),
+        "residual_m": [
+            None if not np.isfinite(r) else round(float(r), 5) for r in report.residual_m
+        ],
+        "findings": [
+            {"sensor": f.sensor, "kind": f.kind, "message": f.message} for f in report.findings
+        ],
+        "profile_snippet": report.profile_snippet(),
+    }

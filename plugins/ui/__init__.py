@@ -1,0 +1,71 @@
+"""The desk in the browser: a live view, a layout designer, stroke recording.
+
+    hapticdesk ui --layout my-layout.yaml                 # the simulator's demo scene, no actions
+    hapticdesk run --layout L --source can:socketcan:can0 --ui 8765
+
+The page (``static/``, hand-written, nothing fetched at run time) is served by Starlette and
+uvicorn in a thread of their own (the ``ui`` extra: ``pip install 'hapticdesk[ui]'``). This
+module only registers hooks and imports nothing heavy (``hapticdesk --help`` loads it):
+
+- ``register_commands``: ``hapticdesk ui``;
+- ``event_sink``: with ``run --ui [HOST:]PORT`` (the ``ui`` override), starts the server and
+  hands it every gesture event, on a dispatcher lane;
+- ``startup``: gives the server the run (the latest contact sample, notices, action counts,
+  and the reload that a saved layout triggers).
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+from hapticdesk.hookspecs import hookimpl
+
+SECTION = "ui"  # the override key `run --ui` sets
+SHARED = "ui server"  # the ActionContext.shared key of a run's server
+TOKEN_ENV = "HAPTICDESK_UI_TOKEN"
+
+
+@hookimpl
+def register_commands(register: Any) -> None:
+    register(
+        "ui",
+        "hapticdesk.plugins.ui.command",
+        "the desk in the browser: live view, layout designer, strokes",
+    )
+
+
+@hookimpl
+def event_sink(desk: Any, layout: Any, context: Any) -> Any:
+    wanted = context.overrides.get(SECTION)
+    if not wanted:
+        return None
+
+    def open_server() -> Any:
+        from hapticdesk.plugins.ui.server import UiServer, parse_listen
+
+        host, port = parse_listen(str(wanted["listen"]))
+        server = UiServer(
+            layout.path,
+            None,  # the registry arrives with the run, in startup
+            host=host,
+            port=port,
+            token=wanted.get("token") or os.environ.get(TOKEN_ENV),
+            desk=desk,
+        )
+        server.start()
+        import sys
+
+        print(f"hapticdesk ui: {server.url}", file=sys.stderr, flush=True)
+        return server
+
+    server = context.shared(SHARED, open_server)  # closed with the run's shared resources
+    return server.on_gesture
+
+
+@hookimpl
+def startup(runtime: Any) -> None:
+    server = runtime.scene.context.resource(SHARED) if runtime is not None else None
+    if server is not None:
+        server.registry = runtime.scene.registry
+        server.attach(runtime)

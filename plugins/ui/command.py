@@ -1,0 +1,91 @@
+"""``hapticdesk ui``: the browser view of a desk, with the layout designer.
+
+    hapticdesk ui [--layout L] [--desk D] [--source SPEC] [--speed X] [--host H] [--port P]
+
+Like ``run`` without actions (``--actions`` runs them): the layout's gestures are recognised
+and shown, nothing is sent. ``--source`` defaults to the simulator playing the demo scene.
+The page stays up after a finite source ends, until Ctrl-C. Without ``--layout`` the demo
+layout is shown and cannot be saved. Listening anywhere but loopback needs a token
+(``--token`` or ``HAPTICDESK_UI_TOKEN``; the URL printed carries it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import sys
+import threading
+from pathlib import Path
+
+from hapticdesk.files.yamlfile import ConfigError
+
+TOKEN_ENV = "HAPTICDESK_UI_TOKEN"
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--layout", help="the layout YAML to show and edit (saved in place)")
+    parser.add_argument("--desk", help="desk profile name or path (overrides the layout's desk:)")
+    parser.add_argument(
+        "--source", help="sim:SCENE.yaml, replay:FILE, can:IF:CHANNEL (default: the demo scene)"
+    )
+    parser.add_argument("--speed", type=float, default=1.0, help="1 real time (default)")
+    parser.add_argument("--host", default="127.0.0.1", help="where to listen (127.0.0.1)")
+    parser.add_argument("--port", type=int, default=8765, help="port (8765; 0: any free one)")
+    parser.add_argument("--token", help=f"required from the page (default ${TOKEN_ENV})")
+    parser.add_argument(
+        "--actions", action="store_true", help="run the layout's actions too (off by default)"
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        import starlette  # noqa: F401
+        import uvicorn  # noqa: F401
+    except ImportError:
+        raise ConfigError(
+            None, "the browser UI needs the `ui` extra: pip install 'hapticdesk[ui]'"
+        ) from None
+    from hapticdesk.files.profile import load_profile
+    from hapticdesk.plugins.mqtt.demo import examples_dir
+    from hapticdesk.plugins.ui.server import UiServer
+    from hapticdesk.registry import load_registry
+    from hapticdesk.runtime.dispatcher import Lane
+    from hapticdesk.runtime.service import Runtime, build_scene
+
+    examples = examples_dir()
+    layout = Path(args.layout) if args.layout else examples / "layouts" / "demo.yaml"
+    source = args.source or f"sim:{examples / 'scenes' / 'demo.yaml'}"
+    registry = load_registry()
+    token = args.token or os.environ.get(TOKEN_ENV)
+    server = UiServer(
+        layout,
+        registry,
+        host=args.host,
+        port=args.port,
+        token=token,
+        desk=load_profile(args.desk) if args.desk else None,
+        read_only=args.layout is None,
+    )
+    scene = build_scene(
+        layout, source, registry, desk=args.desk, speed=args.speed, actions=args.actions
+    )
+    scene.dispatcher.add_sink(Lane("every event → ui", server.on_gesture))
+    server.start()
+    print(f"hapticdesk ui: {server.url}", file=sys.stderr, flush=True)
+    runtime = Runtime(scene, drain_timeout_s=1.0)
+    server.attach(runtime)
+    report = runtime.run()
+    server.detach(runtime)  # a save now only writes the file; the view shows the saved layout
+    server.broadcast_desk()
+    for line in report.summary():
+        print(line, file=sys.stderr)
+    if runtime.report.stopped_by is None:  # the source ended: the page stays for the designer
+        print("the source ended; the page stays up (Ctrl-C to stop)", file=sys.stderr, flush=True)
+        stop = threading.Event()
+        for s in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(s, lambda *_: stop.set())
+        while not stop.wait(0.5):
+            pass
+    server.close()
+    return 1 if report.error else 0

@@ -1,0 +1,493 @@
+"""The browser UI's server: the page, the layout API and a WebSocket hub, in its own thread.
+
+Uvicorn runs in a thread with its own event loop, so nothing here runs on the sensing
+thread. The run reaches the page through three doors, none of which can slow sensing:
+
+- the latest contact sample, which the sensing thread already copies once per block into
+  ``runtime.live.sample`` (O(1)); a *feed* thread here reads it 50 times a second;
+- gesture events through the plugin's event sink (a dispatcher lane, off the sensing thread);
+- the estimator's notices and the actions' counts, read by the same feed thread.
+
+Each browser has a slot for the latest contact frame (a new one replaces an unsent one, so a
+slow browser drops frames) and a bounded queue for the rest (gestures, notices, actions).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import collections
+import hmac
+import json
+import logging
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.plugins.ui.layout_edit import check_layout_text, desk_message
+from hapticdesk.plugins.ui.layout_edit import error_dict as error_of
+
+log = logging.getLogger(__name__)
+
+STATIC = Path(__file__).parent / "static"
+#: contact frames per second sent to each browser (the page draws at most at this rate)
+CONTACT_RATE_HZ = 50.0
+#: gestures, notices and action counts a browser may fall behind by before the oldest go
+CLIENT_QUEUE = 500
+LOOPBACK = {"127.0.0.1", "localhost", "::1"}
+PHASES = ("", "touch", "hold", "release")
+
+
+def parse_listen(text: str) -> tuple[str, int]:
+    """``[HOST:]PORT`` → (host, port); host 127.0.0.1 when not given."""
+    host, _, port = text.rpartition(":")
+    try:
+        number = int(port)
+    except ValueError:
+        raise ConfigError("--ui", f"expected [HOST:]PORT, found {text!r}") from None
+    if not 0 <= number <= 65535:
+        raise ConfigError("--ui", f"expected a port 0..65535, found {number}")
+    return (host.strip("[]") or "127.0.0.1"), number
+
+
+class _Client:
+    """One browser: its latest contact frame and a bounded queue of everything else."""
+
+    def __init__(self) -> None:
+        self.contact: str | None = None
+        self.queue: collections.deque[str] = collections.deque(maxlen=CLIENT_QUEUE)
+        self.wake = asyncio.Event()
+        self.sent_contacts = 0
+        self.dropped_contacts = 0
+
+
+class UiServer:
+    """The page and its API for one layout file, and the live view of whichever run is
+    attached (:meth:`attach`). ``token``: required from every request when not None."""
+
+    def __init__(
+        self,
+        layout_path: Path,
+        registry: Any,
+        *,
+        host: str = "127.0.0.1",
+        port: int = 8765,
+        token: str | None = None,
+        desk: Any = None,
+        read_only: bool = False,
+    ) -> None:
+        if host not in LOOPBACK and not token:
+            raise ConfigError(
+                "--ui",
+                f"listening on {host} lets other machines in: give a token "
+                "(--token or HAPTICDESK_UI_TOKEN)",
+            )
+        self.layout_path = Path(layout_path)
+        self._registry = registry
+        self.host, self.port = host, port
+        self.token = token
+        self.desk = desk  # a DeskProfile overriding the layout's desk:, or None
+        self.read_only = read_only  # the shipped demo layout: shown, never written
+        self.runtime: Any = None
+        self.setup: Any = None  # the set-up check session recording, or None
+        self._clients: set[_Client] = set()
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._server: Any = None
+        self._thread: threading.Thread | None = None
+        self._feed: threading.Thread | None = None
+        self._stop = threading.Event()
+        #: contact frames published by the feed, and replaced before a browser took them
+        self.contacts_published = 0
+        self.contacts_dropped = 0
+
+    # --- life ---------------------------------------------------------------------------------
+
+    def start(self, timeout_s: float = 10.0) -> None:
+        """Start serving in a thread; returns once the port is bound (ConfigError if not)."""
+        import uvicorn
+
+        config = uvicorn.Config(
+            self.app(), host=self.host, port=self.port, log_level="warning", lifespan="on"
+        )
+        self._server = uvicorn.Server(config)
+        self._server.install_signal_handlers = lambda: None  # the run owns the signals
+        self._thread = threading.Thread(target=self._server.run, name="ui server", daemon=True)
+        self._thread.start()
+        deadline = time.monotonic() + timeout_s
+        while not self._server.started:
+            if not self._thread.is_alive() or time.monotonic() > deadline:
+                raise ConfigError("--ui", f"cannot listen on {self.host}:{self.port}")
+            time.sleep(0.02)
+        sockets = [s for srv in self._server.servers for s in srv.sockets]
+        if sockets:
+            self.port = sockets[0].getsockname()[1]  # port 0: the one the system chose
+        self._feed = threading.Thread(target=self._feed_loop, name="ui feed", daemon=True)
+        self._feed.start()
+
+    @property
+    def url(self) -> str:
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        return f"http://{host}:{self.port}/" + (f"?token={self.token}" if self.token else "")
+
+    def close(self, timeout_s: float = 2.0) -> None:
+        """Stop serving (idempotent)."""
+        self._stop.set()
+        if self._server is not None:
+            self._server.should_exit = True
+        if self._thread is not None:
+            self._thread.join(timeout_s)
+
+    def attach(self, runtime: Any) -> None:
+        """Show ``runtime``'s desk live; browsers get the desk message again."""
+        self.runtime = runtime
+        self.broadcast_desk()
+
+    def detach(self, runtime: Any) -> None:
+        if self.runtime is runtime:
+            self.runtime = None
+
+    # --- what goes to browsers ----------------------------------------------------------------
+
+    def publish(self, message: dict[str, Any]) -> None:
+        """Send ``message`` to every browser; any thread. Contacts replace unsent contacts."""
+        loop = self._loop
+        if loop is None or not self._clients:
+            return
+        text = json.dumps(message, allow_nan=False)
+        loop.call_soon_threadsafe(self._fan_out, message["type"] == "contact", text)
+
+    def _fan_out(self, is_contact: bool, text: str) -> None:
+        if is_contact:
+            self.contacts_published += 1
+        for client in self._clients:
+            if is_contact:
+                if client.contact is not None:
+                    client.dropped_contacts += 1
+                    self.contacts_dropped += 1
+                client.contact = text
+            else:
+                client.queue.append(text)
+            client.wake.set()
+
+    def broadcast_desk(self, layout: Any = None) -> None:
+        """Send the desk message again: of ``layout`` (one just saved, which the sensing
+        thread swaps in at its next block), else of what is running or saved."""
+        try:
+            if layout is not None:
+                profile = self.runtime.scene.profile if self.runtime else layout.desk
+                self.publish(desk_message(profile, layout, live=self.runtime is not None))
+                return
+            self.publish(self._desk_message())
+        except ConfigError as err:
+            self.publish({"type": "notice", "kind": "layout", "message": str(err)})
+
+    def _desk_message(self) -> dict[str, Any]:
+        runtime = self.runtime
+        if runtime is not None:
+            return desk_message(runtime.scene.profile, runtime.scene.layout, live=True)
+        from hapticdesk.runtime.service import load_scene_layout
+
+        layout, profile = load_scene_layout(self.layout_path, self.registry, self.desk)
+        return desk_message(profile, layout, live=False)
+
+    def on_gesture(self, event: Any) -> None:
+        """The event sink: one gesture event, on a dispatcher lane's thread."""
+        self.publish({"type": "gesture", **event.to_dict(), "action": event.action_name})
+
+    def _feed_loop(self) -> None:
+        """Read the run's latest sample, notices and action counts, CONTACT_RATE_HZ times a
+        second, and publish what changed; nothing is read while no browser is connected."""
+        seen_blocks = -1
+        seen_notices = 0
+        lane_counts: dict[int, tuple[int, int, int, int]] = {}
+        runtime_seen = None
+        period = 1.0 / CONTACT_RATE_HZ
+        tick = time.monotonic()
+        # on a fixed beat (not a sleep after the work), so a busy machine does not slow it more
+        while not self._stop.wait(max(0.0, tick + period - time.monotonic())):
+            tick = max(tick + period, time.monotonic() - period)
+            runtime = self.runtime
+            if runtime is None or not self._clients:
+                continue
+            if runtime is not runtime_seen:
+                runtime_seen, seen_blocks, lane_counts = runtime, -1, {}
+                seen_notices = len(runtime.scene.estimator.notices)
+            live = runtime.live
+            blocks, sample = live.blocks, live.sample
+            if sample is not None and blocks != seen_blocks:
+                seen_blocks = blocks
+                t, x, y, force, phase, surface = sample
+                profile = runtime.scene.profile
+                self.publish(
+                    {
+                        "type": "contact",
+                        "t": round(t, 4),
+                        "x": None if x is None else round(x, 5),
+                        "y": None if y is None else round(y, 5),
+                        "force_n": round(force, 3),
+                        "phase": PHASES[phase] if 0 <= phase < len(PHASES) else "",
+                        "surface": profile.surfaces[surface].name if surface >= 0 else None,
+                        "tared": live.tared,
+                    }
+                )
+            notices = runtime.scene.estimator.notices
+            for notice in notices[seen_notices:]:
+                self.publish(
+                    {
+                        "type": "notice",
+                        "t": notice.t,
+                        "kind": notice.kind,
+                        "message": notice.message,
+                    }
+                )
+            seen_notices = len(notices)
+            for lane in (ln for route in runtime.scene.dispatcher.routes for ln in route.lanes):
+                s = lane.stats
+                counts = (s.ok, s.failed, s.timed_out, s.dropped)
+                if lane_counts.get(id(lane), (0, 0, 0, 0)) != counts:
+                    lane_counts[id(lane)] = counts
+                    self.publish(
+                        {
+                            "type": "action",
+                            "label": lane.label,
+                            "ok": s.ok,
+                            "failed": s.failed,
+                            "timed_out": s.timed_out,
+                            "dropped": s.dropped,
+                        }
+                    )
+
+    # --- the web app --------------------------------------------------------------------------
+
+    def app(self) -> Any:
+        """The Starlette application (routes of the contract in README, "Browser UI")."""
+        import contextlib
+
+        from starlette.applications import Starlette
+        from starlette.requests import Request
+        from starlette.responses import FileResponse, JSONResponse, PlainTextResponse, Response
+        from starlette.routing import Mount, Route, WebSocketRoute
+        from starlette.staticfiles import StaticFiles
+        from starlette.websockets import WebSocket, WebSocketDisconnect
+
+        from hapticdesk.plugins.ui import strokes_api
+        from hapticdesk.plugins.ui.layout_edit import apply_edit, exec_added, save_layout_text
+
+        def allowed(request: Request | WebSocket) -> bool:
+            if self.token is None:
+                return True
+            given = request.query_params.get("token") or ""
+            auth = request.headers.get("authorization", "")
+            if auth.lower().startswith("bearer "):
+                given = auth[7:]
+            return hmac.compare_digest(given.encode(), self.token.encode())
+
+        def refused() -> Response:
+            return PlainTextResponse("a token is needed (?token=...)", status_code=401)
+
+        async def page(request: Request) -> Response:
+            if not allowed(request):
+                return refused()
+            return FileResponse(STATIC / "index.html", media_type="text/html")
+
+        async def get_layout(request: Request) -> Response:
+            if not allowed(request):
+                return refused()
+            text = self.layout_path.read_text(encoding="utf-8")
+            return PlainTextResponse(text, media_type="application/yaml")
+
+        async def body_text(request: Request) -> str:
+            data = await request.body()
+            if len(data) > 1_000_000:
+                raise ConfigError(None, "the layout is larger than 1 MB")
+            return data.decode("utf-8", errors="replace")
+
+        async def check(request: Request) -> Response:
+            if not allowed(request):
+                return refused()
+            text = await body_text(request)
+            errors, regions = await asyncio.to_thread(self._describe, text)
+            return JSONResponse({"ok": not errors, "errors": errors, "regions": regions})
+
+        async def put_layout(request: Request) -> Response:
+            if not allowed(request):
+                return refused()
+            if self.read_only:
+                message = "no layout file was given (start with --layout FILE to save)"
+                return JSONResponse(
+                    {"ok": False, "errors": [{"line": 0, "column": 0, "message": message}]},
+                    status_code=403,
+                )
+            text = await body_text(request)
+            errors = await asyncio.to_thread(self._check, text)
+            if not errors:
+                errors = exec_added(self.layout_path, text, self.registry, self.desk)
+            if errors:
+                return JSONResponse({"ok": False, "errors": errors}, status_code=422)
+            await asyncio.to_thread(save_layout_text, self.layout_path, text)
+            reloaded = False
+            new_layout = None
+            runtime = self.runtime
+            if runtime is not None:
+                try:  # the sensing thread swaps it in between two blocks, then answers
+                    await asyncio.to_thread(runtime.reload, 10.0)
+                    reloaded = True
+                    new_layout = runtime.scene.layout
+                except ConfigError as err:  # e.g. an action that cannot be set up now
+                    return JSONResponse(
+                        {"ok": False, "errors": [error_of(err)], "saved": True}, status_code=422
+                    )
+                except TimeoutError:  # the run is not sensing (its source ended)
+                    reloaded = False
+            self.broadcast_desk(new_layout)
+            return JSONResponse({"ok": True, "errors": [], "reloaded": reloaded})
+
+        async def edit(request: Request) -> Response:
+            if not allowed(request):
+                return refused()
+            payload = await request.json()
+            try:
+                text = apply_edit(payload.get("text", ""), payload)
+            except ConfigError as err:
+                return JSONResponse({"ok": False, "errors": [error_of(err)]}, status_code=422)
+            return JSONResponse({"ok": True, "text": text})
+
+        async def schema(request: Request) -> Response:
+            if not allowed(request):
+                return refused()
+            from hapticdesk.plugins.ui.layout_edit import schemas
+
+            return JSONResponse(schemas(self.registry))
+
+        async def strokes(request: Request) -> Response:
+            if not allowed(request):
+                return refused()
+            payload = await request.json()
+            layout_text = self.layout_path.read_text(encoding="utf-8")
+            try:
+                result = await asyncio.to_thread(
+                    strokes_api.score, payload, self.layout_path, layout_text, self
+                )
+            except ConfigError as err:
+                return JSONResponse({"ok": False, "errors": [error_of(err)]}, status_code=422)
+            return JSONResponse(result)
+
+        async def setup_start(request: Request) -> Response:
+            if not allowed(request):
+                return refused()
+            from hapticdesk.plugins.ui.setup_api import SetupSession
+
+            payload = await request.json()
+            points = payload.get("points")
+            runtime = self.runtime
+            problem = None
+            if runtime is None:
+                problem = "the set-up check needs a running desk (`hapticdesk ui` or `run --ui`)"
+            elif not isinstance(points, list) or len(points) < len(runtime.scene.profile.sensors):
+                problem = "mark at least as many points as the desk has sensors"
+            if problem:
+                error = {"line": 0, "column": 0, "message": problem}
+                return JSONResponse({"ok": False, "errors": [error]}, status_code=422)
+            if self.setup is not None:
+                await asyncio.to_thread(self.setup.finish_quietly)
+            self.setup = SetupSession(runtime, points)
+            return JSONResponse({"ok": True})
+
+        async def setup_finish(request: Request) -> Response:
+            if not allowed(request):
+                return refused()
+            session, self.setup = self.setup, None
+            if session is None:
+                error = {"line": 0, "column": 0, "message": "no set-up check was started"}
+                return JSONResponse({"ok": False, "errors": [error]}, status_code=422)
+            try:
+                result = await asyncio.to_thread(session.finish)
+            except ConfigError as err:
+                return JSONResponse({"ok": False, "errors": [error_of(err)]}, status_code=422)
+            return JSONResponse(result)
+
+        async def ws(socket: WebSocket) -> None:
+            if not allowed(socket):
+                await socket.close(code=4401)
+                return
+            await socket.accept()
+            client = _Client()
+            try:
+                first = await asyncio.to_thread(self._desk_message)
+            except ConfigError as err:
+                first = {"type": "notice", "kind": "layout", "message": str(err)}
+            await socket.send_text(json.dumps(first, allow_nan=False))
+            runtime = self.runtime
+            if runtime is not None:  # what the estimator said before this page connected
+                for notice in list(runtime.scene.estimator.notices)[-20:]:
+                    message = {"type": "notice", "t": notice.t, "kind": notice.kind}
+                    message["message"] = notice.message
+                    await socket.send_text(json.dumps(message, allow_nan=False))
+            self._clients.add(client)
+            try:
+                while True:
+                    await client.wake.wait()
+                    client.wake.clear()
+                    while client.queue:
+                        await socket.send_text(client.queue.popleft())
+                    contact, client.contact = client.contact, None
+                    if contact is not None:
+                        await socket.send_text(contact)
+                        client.sent_contacts += 1
+            except (WebSocketDisconnect, RuntimeError, OSError):
+                pass
+            finally:
+                self._clients.discard(client)
+
+        @contextlib.asynccontextmanager
+        async def lifespan(app: Any) -> Any:
+            self._loop = asyncio.get_running_loop()
+            yield
+            self._loop = None
+
+        routes = [
+            Route("/", page),
+            Route("/api/layout", get_layout, methods=["GET"]),
+            Route("/api/layout", put_layout, methods=["PUT"]),
+            Route("/api/check", check, methods=["POST"]),
+            Route("/api/edit", edit, methods=["POST"]),
+            Route("/api/schema", schema, methods=["GET"]),
+            Route("/api/strokes", strokes, methods=["POST"]),
+            Route("/api/setup/start", setup_start, methods=["POST"]),
+            Route("/api/setup/finish", setup_finish, methods=["POST"]),
+            WebSocketRoute("/ws", ws),
+            Mount("/static", StaticFiles(directory=STATIC), name="static"),
+        ]
+        return Starlette(routes=routes, lifespan=lifespan)
+
+    @property
+    def registry(self) -> Any:
+        if self._registry is None:
+            from hapticdesk.registry import load_registry
+
+            self._registry = load_registry()
+        return self._registry
+
+    @registry.setter
+    def registry(self, value: Any) -> None:
+        self._registry = value
+
+    def _describe(self, text: str) -> tuple[list[dict[str, Any]], list[dict[str, Any]] | None]:
+        """The errors of ``text``, and its regions (to draw the edit) when it is valid."""
+        from hapticdesk.runtime.service import load_scene_layout
+
+        try:
+            layout, profile = load_scene_layout(
+                self.layout_path, self.registry, self.desk, text=text
+            )
+        except ConfigError as err:
+            return [error_of(err)], None
+        return [], desk_message(profile, layout, live=False)["regions"]
+
+    def _check(self, text: str) -> list[dict[str, Any]]:
+        return check_layout_text(self.layout_path, text, self.registry, self.desk)
+
+    @property
+    def clients(self) -> int:
+        return len(self._clients)

@@ -1,0 +1,68 @@
+"""The page's set-up check: record the raw samples of a guided session, then check them.
+
+The page asks for a quiet desk (the tare) and then presses at marked points, in order; the
+samples come from the running service through ``Runtime.block_taps`` (a reference per block
+kept in a bounded deque on the sensing thread, nothing copied there).
+"""
+
+from __future__ import annotations
+
+import collections
+from typing import Any
+
+from hapticdesk.files.yamlfile import ConfigError
+
+#: the longest session kept (seconds of samples); older blocks are dropped
+MAX_SESSION_S = 180.0
+
+
+class SetupSession:
+    """One guided session: marked points, and the blocks sensed since it started."""
+
+    def __init__(self, runtime: Any, points: list[list[float]]) -> None:
+        self.runtime = runtime
+        self.points = points
+        rate = runtime.scene.profile.sample_rate_hz
+        self.blocks: collections.deque[tuple[Any, Any]] = collections.deque(
+            maxlen=max(100, int(MAX_SESSION_S * rate / 8))
+        )
+        runtime.block_taps = (*runtime.block_taps, self._take)
+
+    def _take(self, t: Any, wrench: Any) -> None:  # on the sensing thread: O(1)
+        self.blocks.append((t, wrench))
+
+    def finish_quietly(self) -> None:
+        """Stop recording without checking (a new session replaces this one)."""
+        runtime = self.runtime
+        runtime.block_taps = tuple(tap for tap in runtime.block_taps if tap != self._take)
+
+    def finish(self) -> dict[str, Any]:
+        """Stop recording and check: findings, residuals, the corrected profile, and what
+        ``characterize`` says of the desk's noise and natural frequency."""
+        import numpy as np
+
+        from hapticdesk.analysis.characterize import characterize
+        from hapticdesk.analysis.setup_check import check_setup, report_dict
+        from hapticdesk.files.recording import Recording
+
+        self.finish_quietly()
+        runtime = self.runtime
+        blocks = list(self.blocks)
+        if not blocks:
+            raise ConfigError(None, "nothing was sensed since the set-up check started")
+        t = np.concatenate([b[0] for b in blocks])
+        wrench = np.concatenate([b[1] for b in blocks])
+        profile = runtime.scene.profile
+        report = check_setup(profile, t, wrench, np.asarray(self.points, dtype=float))
+        out = report_dict(report)
+        desk = characterize(profile, Recording(t, wrench, list(profile.sensor_names)))
+        noise = [n for n in desk.total_noise if n.channel == "total_fz"]
+        out["captured_s"] = round(float(t[-1] - t[0]), 2)
+        out["noise_fz_n"] = round(noise[0].sigma, 4) if noise else None
+        out["noise_reason"] = desk.noise_reason
+        out["natural_frequency_hz"] = (
+            None if desk.lowest_mode_hz is None else round(desk.lowest_mode_hz, 2)
+        )
+        out["frequency_reason"] = desk.modes_reason
+        out["ok"] = True
+        return out

@@ -1,0 +1,145 @@
+"""The browser UI under test: `hapticdesk ui` started for real, driven by a real Chromium.
+
+The browser is Debian's /usr/bin/chromium through Playwright (no `playwright install`, nothing
+downloaded). Without it the page tests skip and say why, unless HAPTICDESK_REQUIRE_BROWSER is
+set (CI sets it): then they fail.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+CHROMIUM = Path("/usr/bin/chromium")
+REQUIRE_ENV = "HAPTICDESK_REQUIRE_BROWSER"
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+DOCS = Path(__file__).resolve().parents[2] / "docs"
+
+# Taps alternate between button b5 (0, 0) and (20, -10) cm, where no region is yet (the
+# designer test draws one there), one a second, for longer than the page tests take.
+SCENE = """
+name: ui-taps
+desk: kitamura2017
+units: cm
+quiet_s: 2.0
+human: {tap_peak_n: [4, 6]}
+timeline:
+""" + "".join(
+    "  - tap: {point: [0, 0], wait_s: 0.5}\n  - tap: {point: [20, -10], wait_s: 0.5}\n"
+    for _ in range(60)
+)
+
+
+def _missing(reason: str) -> None:
+    if os.environ.get(REQUIRE_ENV):
+        pytest.fail(f"{reason}, and {REQUIRE_ENV} is set")
+    pytest.skip(f"{reason} (apt-get install chromium; pip install playwright)")
+
+
+@pytest.fixture(scope="session")
+def browser() -> Iterator[Any]:
+    """A headless Chromium (the system's binary) through Playwright."""
+    if not CHROMIUM.exists():
+        _missing(f"no browser at {CHROMIUM}")
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        _missing("the python package playwright is not installed")
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+        yield b
+        b.close()
+
+
+class UiProcess:
+    """A `hapticdesk ui` child process and the URL it serves."""
+
+    def __init__(self, layout: Path, scene: Path, *extra: str) -> None:
+        self.layout = layout
+        self.lines: list[str] = []
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "hapticdesk", "ui", "--layout", str(layout)]
+            + ["--source", f"sim:{scene}", "--port", "0", *extra],
+            stderr=subprocess.PIPE,
+            stdout=subprocess.DEVNULL,
+            text=True,
+        )
+        found = threading.Event()
+        self.url = ""
+
+        def read() -> None:
+            assert self.proc.stderr is not None
+            for line in self.proc.stderr:
+                self.lines.append(line)
+                m = re.search(r"hapticdesk ui: (http://\S+)", line)
+                if m:
+                    self.url = m.group(1)
+                    found.set()
+
+        threading.Thread(target=read, daemon=True).start()
+        if not found.wait(30):
+            self.stop()
+            raise AssertionError("hapticdesk ui did not start:\n" + "".join(self.lines))
+
+    def stop(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+            try:
+                self.proc.wait(10)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(5)
+
+
+@pytest.fixture(scope="module")
+def ui_service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[UiProcess]:
+    """`hapticdesk ui` on a copy of examples/layouts/buttons.yaml, a simulated desk tapping."""
+    folder = tmp_path_factory.mktemp("ui")
+    layout = folder / "buttons.yaml"
+    shutil.copy(EXAMPLES / "layouts" / "buttons.yaml", layout)
+    scene = folder / "taps.yaml"
+    scene.write_text(SCENE, encoding="utf-8")
+    service = UiProcess(layout, scene)
+    service.started = time.monotonic()  # type: ignore[attr-defined]
+    yield service
+    service.stop()
+
+
+def desk_to_screen(page: Any, x: float, y: float) -> tuple[float, float]:
+    """Where desk point (x, y) metres is on the screen, from the SVG's own transform."""
+    return page.evaluate(
+        """([x, y]) => {
+            const svg = document.getElementById('desk');
+            const p = svg.createSVGPoint(); p.x = x * 1000; p.y = -y * 1000;
+            const q = p.matrixTransform(svg.getScreenCTM());
+            return [q.x, q.y];
+        }""",
+        [x, y],
+    )
+
+
+@pytest.fixture
+def to_screen() -> Any:
+    """desk_to_screen(page, x, y), for tests that draw on the desk."""
+    return desk_to_screen

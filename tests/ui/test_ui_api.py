@@ -1,0 +1,163 @@
+"""The UI's HTTP contract (README, "Browser UI") in process, without a browser."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("starlette")
+pytest.importorskip("httpx")
+
+from starlette.testclient import TestClient  # noqa: E402
+
+from hapticdesk.files.yamlfile import ConfigError  # noqa: E402
+from hapticdesk.plugins.ui.layout_edit import apply_edit  # noqa: E402
+from hapticdesk.plugins.ui.server import STATIC, UiServer, parse_listen  # noqa: E402
+from hapticdesk.registry import load_registry  # noqa: E402
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+
+
+@pytest.fixture
+def layout(tmp_path: Path) -> Path:
+    path = tmp_path / "buttons.yaml"
+    shutil.copy(EXAMPLES / "layouts" / "buttons.yaml", path)
+    return path
+
+
+@pytest.fixture
+def client(layout: Path) -> TestClient:
+    server = UiServer(layout, load_registry(entry_points=False))
+    return TestClient(server.app())
+
+
+def test_get_layout_and_page(client: TestClient, layout: Path) -> None:
+    assert client.get("/api/layout").text == layout.read_text()
+    page = client.get("/")
+    assert page.status_code == 200 and "static/app.js" in page.text
+    assert client.get("/static/app.js").status_code == 200
+
+
+def test_check_reports_what_hapticdesk_check_reports(client: TestClient, layout: Path) -> None:
+    broken = layout.read_text().replace("b7: {rect: [-10.5, -10.5, -5.5, -5.5]}", "b7: {rect: 3}")
+    bad = layout.parent / "bad.yaml"
+    bad.write_text(broken)
+    cli = subprocess.run(
+        [sys.executable, "-m", "hapticdesk", "check", str(bad)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert cli.returncode != 0
+    line, column = map(int, re.search(r"bad\.yaml:(\d+):(\d+):", cli.stderr).groups())
+    result = client.post("/api/check", content=broken).json()
+    assert result["ok"] is False
+    [error] = result["errors"]
+    assert (error["line"], error["column"]) == (line, column)
+    assert error["message"] in cli.stderr
+    good = client.post("/api/check", content=layout.read_text()).json()
+    assert good["ok"] is True and good["errors"] == []
+
+
+def test_put_refuses_a_broken_layout_and_writes_nothing(client: TestClient, layout: Path) -> None:
+    before = layout.read_text()
+    response = client.put("/api/layout", content=before.replace("units: cm", "units: inch"))
+    assert response.status_code == 422
+    body = response.json()
+    units_line = before.splitlines().index("units: cm") + 1
+    assert body["ok"] is False and body["errors"][0]["line"] == units_line
+    assert "inch" in body["errors"][0]["message"]
+    assert layout.read_text() == before
+
+
+def test_put_saves_keeping_comments(client: TestClient, layout: Path) -> None:
+    text = apply_edit(
+        layout.read_text(),
+        {
+            "op": "set_region",
+            "name": "pad",
+            "shape": "circle",
+            "center": [0.2, -0.1],
+            "radius": 0.03,
+        },
+    )
+    response = client.put("/api/layout", content=text)
+    assert response.json() == {"ok": True, "errors": [], "reloaded": False}
+    saved = layout.read_text()
+    assert saved == text
+    assert saved.startswith("# A 3 × 3 grid")
+    assert "  pad: {circle: {center: [20.0, -10.0], radius: 3.0}}\n" in saved
+    assert "  - {gesture: tap, region: b1, do: {log: {}}}\n" in saved  # the dashes kept
+
+
+def test_the_page_may_not_add_exec(client: TestClient, layout: Path) -> None:
+    before = layout.read_text()
+    text = before + "  - {gesture: tap, region: b1, do: {exec: {argv: [touch, /tmp/pwned]}}}\n"
+    response = client.put("/api/layout", content=text)
+    assert response.status_code == 422
+    assert "exec" in response.json()["errors"][0]["message"]
+    assert response.json()["errors"][0]["line"] == text.count("\n")
+    assert layout.read_text() == before
+    schema = client.get("/api/schema").json()
+    assert "exec" not in schema["actions"]
+    # the forms come from what the plugins registered: the mqtt action's options, the tap's
+    assert schema["actions"]["mqtt"]["options"]["topic"]["required"] is True
+    assert schema["actions"]["mqtt"]["options"]["qos"]["choices"] == [0, 1, 2]
+    assert "max_duration_s" in schema["gestures"]["tap"]
+
+
+def test_edits_keep_comments_and_order() -> None:
+    text = (
+        "# mine\ndesk: kitamura2017\nunits: mm  # small\nregions:\n"
+        "  a: {rect: [0, 0, 10, 10], axis: x}  # keep\nbindings: []\n"
+    )
+    out = apply_edit(
+        text, {"op": "set_region", "name": "a", "shape": "rect", "rect": [0.01, 0.0, 0.03, 0.02]}
+    )
+    assert out.startswith("# mine\ndesk: kitamura2017\nunits: mm  # small\n")
+    # the comment stays on its line (ruamel puts one space before it where there were two)
+    assert re.search(r"\n  a: \{rect: \[10.0, 0.0, 30.0, 20.0\], axis: x\} +# keep\n", out)
+    out = apply_edit(out, {"op": "rename_region", "name": "a", "new_name": "b"})
+    assert "  b: {rect:" in out and "  a:" not in out
+    with pytest.raises(ConfigError, match="region name"):
+        apply_edit(
+            text, {"op": "set_region", "name": "two words", "shape": "rect", "rect": [0, 0, 1, 1]}
+        )
+
+
+def test_other_hosts_need_a_token(layout: Path) -> None:
+    registry = load_registry(entry_points=False)
+    with pytest.raises(ConfigError, match="token"):
+        UiServer(layout, registry, host="0.0.0.0")
+    client = TestClient(UiServer(layout, registry, host="0.0.0.0", token="s3cret").app())
+    assert client.get("/").status_code == 401
+    assert client.get("/api/layout").status_code == 401
+    assert client.put("/api/layout", content="x").status_code == 401
+    assert client.get("/?token=wrong").status_code == 401
+    assert client.get("/?token=s3cret").status_code == 200
+    assert client.get("/api/layout", headers={"Authorization": "Bearer s3cret"}).status_code == 200
+    with pytest.raises(Exception):  # noqa: B017 - the socket is closed before it is accepted
+        with client.websocket_connect("/ws") as ws:
+            ws.receive_text()
+    with client.websocket_connect("/ws?token=s3cret") as ws:
+        assert '"type": "desk"' in ws.receive_text()
+
+
+def test_listen_address() -> None:
+    assert parse_listen("8765") == ("127.0.0.1", 8765)
+    assert parse_listen("0.0.0.0:9000") == ("0.0.0.0", 9000)
+    assert parse_listen("[::1]:9000") == ("::1", 9000)
+    with pytest.raises(ConfigError, match="PORT"):
+        parse_listen("localhost:http")
+
+
+def test_the_page_fetches_nothing_from_elsewhere() -> None:
+    for path in STATIC.iterdir():
+        text = path.read_text()
+        urls = re.findall(r"(?:https?:)?//[A-Za-z0-9.-]+\.[a-z]{2,}", text)
+        assert urls in ([], ["http://www.w3.org"]), (path.name, urls)

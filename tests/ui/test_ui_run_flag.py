@@ -1,0 +1,96 @@
+"""`hapticdesk run ... --ui [HOST:]PORT` adds the page to a running service; a save is used."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+httpx = pytest.importorskip("httpx")
+websockets_sync = pytest.importorskip("websockets.sync.client")
+pytest.importorskip("uvicorn")
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_run_with_ui_serves_the_page_and_reloads_a_saved_layout(tmp_path: Path) -> None:
+    layout = tmp_path / "buttons.yaml"
+    shutil.copy(ROOT / "examples" / "layouts" / "buttons.yaml", layout)
+    scene = tmp_path / "taps.yaml"
+    scene.write_text(
+        "name: t\ndesk: kitamura2017\nunits: cm\nquiet_s: 2.0\ntimeline:\n"
+        + "  - tap: {point: [0, 0], wait_s: 0.5}\n" * 30
+    )
+    out = (tmp_path / "stdout.txt").open("w")  # the `log` actions print each tap here
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hapticdesk", "run", "--layout", str(layout)]
+        + ["--source", f"sim:{scene}", "--ui", "127.0.0.1:0", "--drain", "1"],
+        stderr=subprocess.PIPE,
+        stdout=out,
+        text=True,
+    )
+    lines: list[str] = []
+    found = threading.Event()
+    url: list[str] = []
+
+    def read() -> None:
+        assert proc.stderr is not None
+        for line in proc.stderr:
+            lines.append(line)
+            m = re.search(r"hapticdesk ui: (http://\S+)", line)
+            if m:
+                url.append(m.group(1))
+                found.set()
+
+    threading.Thread(target=read, daemon=True).start()
+    try:
+        assert found.wait(30), "".join(lines)
+        base = url[0]
+        assert "127.0.0.1" in base
+        assert httpx.get(base + "api/layout").text == layout.read_text()
+        ws_url = base.replace("http://", "ws://") + "ws"
+
+        def wait_for(ws: object, kind: str, region: str | None = None) -> dict:
+            deadline = time.monotonic() + 15
+            while time.monotonic() < deadline:
+                m = json.loads(ws.recv(timeout=15))  # type: ignore[attr-defined]
+                if m["type"] == kind and (region is None or m.get("region") == region):
+                    return m
+            raise AssertionError(f"no {kind} {region or ''} within 15 s")
+
+        with websockets_sync.connect(ws_url) as ws:
+            desk = json.loads(ws.recv(timeout=10))
+            assert desk["type"] == "desk" and desk["live"] is True
+            assert {r["name"] for r in desk["regions"]} == {f"b{i}" for i in range(1, 10)}
+            contact = wait_for(ws, "contact")
+            assert set(contact) >= {"t", "x", "y", "force_n", "phase", "surface"}
+            assert wait_for(ws, "gesture", "b5")["gesture"] == "tap"
+            text = layout.read_text().replace(
+                "b5: {rect: [-2.5, -2.5, 2.5, 2.5]}", "centre: {rect: [-3, -3, 3, 3]}"
+            )
+            text = text.replace("region: b5,", "region: centre,")
+            saved = httpx.put(base + "api/layout", content=text, timeout=30).json()
+            assert saved == {"ok": True, "errors": [], "reloaded": True}
+            assert "centre" in {r["name"] for r in wait_for(ws, "desk")["regions"]}
+            assert wait_for(ws, "gesture", "centre")["gesture"] == "tap"
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(5)
+    out.close()
+    taps = [json.loads(line.split("] ", 1)[1]) for line in (tmp_path / "stdout.txt").open()]
+    regions = [t["region"] for t in taps]
+    # the service kept running and its log actions moved from b5 to the saved `centre`
+    assert "b5" in regions and "centre" in regions, regions
+    assert regions.index("centre") > max(i for i, r in enumerate(regions) if r == "b5")

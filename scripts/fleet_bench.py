@@ -34,6 +34,7 @@ import heapq
 import json
 import multiprocessing as mp
 import os
+import queue
 import random
 import resource
 import shutil
@@ -337,6 +338,7 @@ class Row:
     scheduler_late_ms: float  # how late the worst tap left its scheduler (desk side overload)
     consumers_used: int  # consumers that received at least one event
     unacked: int  # messages (events and actions) the desks' links never saw acknowledged
+    consumers_cpu_pct: float  # the consumers (all in this process), % of one core
 
 
 def run_once(
@@ -382,9 +384,11 @@ def run_once(
         if not all(ready.get(timeout=120) for _ in groups):
             raise RuntimeError("not every desk connected within 60 s")
         cpu0 = [b.cpu_s() for b in brokers]
+        here0 = resource.getrusage(resource.RUSAGE_SELF)  # this process: the consumers
         go.set()
         outs = [results.get(timeout=duration + 180) for _ in groups]
         cpu1 = [b.cpu_s() for b in brokers]
+        here1 = resource.getrusage(resource.RUSAGE_SELF)
         sent = {d: c for out in outs for d, c in out["sent"].items()}
         total = sum(sent.values())
         # wait for the last events to arrive (bounded: stop when nothing new comes for a while)
@@ -429,6 +433,9 @@ def run_once(
         scheduler_late_ms=1000.0 * max(out["late_s"] for out in outs),
         consumers_used=sum(1 for c in consumer_group.per_consumer if c),
         unacked=2 * total - sum(out["acked"] for out in outs),
+        consumers_cpu_pct=100.0
+        * ((here1.ru_utime + here1.ru_stime) - (here0.ru_utime + here0.ru_stime))
+        / window,
     )
 
 
@@ -471,15 +478,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     for qos in args.qos:
         for setup in args.setups:
             for n in args.desks:
-                row = run_once(
-                    setup,
-                    n,
-                    qos,
-                    duration=args.duration,
-                    interval=(args.interval[0], args.interval[1]),
-                    consumers=args.consumers,
-                    workers=args.workers,
-                )
+                try:
+                    row = run_once(
+                        setup,
+                        n,
+                        qos,
+                        duration=args.duration,
+                        interval=(args.interval[0], args.interval[1]),
+                        consumers=args.consumers,
+                        workers=args.workers,
+                    )
+                except (RuntimeError, OSError, queue.Empty) as err:  # more desks than fit here
+                    print(f"fleet_bench: {setup}, QoS {qos}, N = {n}: {err}", file=sys.stderr)
+                    return 2
                 rows.append(row)
                 if not args.json:
                     print(format_table([row]).splitlines()[-1], flush=True)

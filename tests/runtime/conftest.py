@@ -16,7 +16,7 @@ import socket
 import subprocess
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -63,7 +63,9 @@ class Mosquitto:
         users: dict[str, str] | None = None,
         tls: Tls | None = None,
         require_client_cert: bool = False,
+        extra: Sequence[str] = (),
     ) -> None:
+        """``extra``: more lines for mosquitto.conf (e.g. ``max_inflight_messages 1000``)."""
         self.folder = folder
         self.port = free_port()
         self.users = users
@@ -79,6 +81,7 @@ class Mosquitto:
             # as root mosquitto would switch to the `mosquitto` user, who cannot read tmp_path
             f"user {getpass.getuser()}",
             "log_type all",
+            *extra,
         ]
         if users:
             pwfile = folder / "passwords"

@@ -80,26 +80,37 @@ def test_every_command_arrives_once_in_order(broker, subscribe, tmp_path, paper_
     assert report.notes == [f"MQTT {broker.url}: 48 of 48 messages delivered"]
 
 
-def test_a_broker_restart_mid_stream_loses_nothing_and_doubles_nothing(broker, tmp_path):
-    sub = Subscriber(broker, "cmd/#", client_id="restart-sub")  # a persistent session
-    wait_subscribed(broker, "cmd/#")
-    link = MqttLink(
-        MqttSettings(host="127.0.0.1", port=broker.port, client_id="restart-desk")
-    ).start()
-    assert link.wait_connected(10)
-    n = 600
-    for i in range(n):
-        link.publish("cmd/toggle", {"i": i})
-        if i == 200:
-            broker.stop()
-        if i == 400:
-            broker.start()
-        if i % 25 == 0:
-            time.sleep(0.01)
-    assert link.flush(30)
-    got = [json.loads(m[2])["i"] for m in sub.wait_for(n, 20)]
-    report = link.close()
-    sub.stop()
+def test_a_broker_restart_mid_stream_loses_nothing_and_doubles_nothing(
+    mosquitto_available, tmp_path
+):
+    # mosquitto restores at most max_inflight_messages (default 20) open QoS 2 exchanges per
+    # client and sends the rest again as new messages: a subscriber that fell behind on a loaded
+    # machine then got one twice (test_runtime_broker_restart_qos2.py shows it). Exactly once
+    # across a restart needs a broker that restores them all; this one does.
+    broker = Mosquitto(tmp_path, extra=["max_inflight_messages 1000"])
+    broker.start()
+    try:
+        sub = Subscriber(broker, "cmd/#", client_id="restart-sub")  # a persistent session
+        wait_subscribed(broker, "cmd/#")
+        link = MqttLink(
+            MqttSettings(host="127.0.0.1", port=broker.port, client_id="restart-desk")
+        ).start()
+        assert link.wait_connected(10)
+        n = 600
+        for i in range(n):
+            link.publish("cmd/toggle", {"i": i})
+            if i == 200:
+                broker.stop()
+            if i == 400:
+                broker.start()
+            if i % 25 == 0:
+                time.sleep(0.01)
+        assert link.flush(30)
+        got = [json.loads(m[2])["i"] for m in sub.wait_for(n, 20)]
+        report = link.close()
+        sub.stop()
+    finally:
+        broker.stop()
     assert got == list(range(n))  # every one, once, in order
     assert f"{n} of {n} messages delivered" in report
 

@@ -24,6 +24,7 @@ split of the frames and ``flush`` at the end; the result does not depend on the 
 
 from __future__ import annotations
 
+import collections
 import logging
 from dataclasses import dataclass, field
 
@@ -48,6 +49,10 @@ REORDER_DEPTH = 3  # with counters, a sample is given up once a frame this many 
 JUMP_PERIODS = 1.5  # sample times further apart than this count as lost samples
 LATE = np.iinfo(np.int64).min  # the key of a frame that came too late for its sample
 MAX_SAMPLE_FRAMES = 4  # by time, a sample of more than 4 × its frame kinds is given up
+
+
+#: notices a source or assembler keeps (the oldest go first)
+NOTICES_KEPT = 1000
 
 
 @dataclass(frozen=True)
@@ -214,7 +219,8 @@ class FrameAssembler:
         self.silent_sensor = silent_sensor
         self.where = where
         self.stats = CanStats()
-        self.notices: list[CanNotice] = []
+        # the most recent ones: a bus that keeps failing must not grow this for the whole run
+        self.notices: collections.deque[CanNotice] = collections.deque(maxlen=NOTICES_KEPT)
         names = decoding.sensor_names
         self.stats.incomplete = {n: 0 for n in names}
         self.stats.invalid = {n: 0 for n in names}

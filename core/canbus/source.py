@@ -23,7 +23,13 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 from hapticdesk.canbus import ati_netcanoem as ati
-from hapticdesk.canbus.assembler import AssembledBlock, CanNotice, CanStats, FrameAssembler
+from hapticdesk.canbus.assembler import (
+    NOTICES_KEPT,
+    AssembledBlock,
+    CanNotice,
+    CanStats,
+    FrameAssembler,
+)
 from hapticdesk.canbus.config import CanConfig, can_config
 from hapticdesk.canbus.decoding import build_decoding
 from hapticdesk.canbus.frames import FrameArray
@@ -82,7 +88,8 @@ class CanSource(Source):
         self.bus_kwargs.update(bus_options or {})
         self.frame_sink = frame_sink
         self._bus_factory = bus_factory
-        self.notices: list[CanNotice] = []
+        # the most recent ones: a bus that keeps failing must not grow this for the whole run
+        self.notices: collections.deque[CanNotice] = collections.deque(maxlen=NOTICES_KEPT)
         self.reconnects = 0
         self._lock = threading.Lock()  # guards self._bus between the poller and the reader
         self._closed = threading.Event()

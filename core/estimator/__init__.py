@@ -40,7 +40,7 @@ from hapticdesk.estimator.contacts import FLAG_NOT_TARED, UNCERTAINTY_CAP_M, Con
 from hapticdesk.estimator.detector import TouchDetector, phase_of, phases_of, slope_along
 from hapticdesk.estimator.filter_bank import FilterBank
 from hapticdesk.estimator.methods import emit_one, select, select_one
-from hapticdesk.estimator.notices import Notice
+from hapticdesk.estimator.notices import Notice, NoticeList
 from hapticdesk.estimator.samples import BAD_SAMPLE, SampleStage
 from hapticdesk.estimator.settings import EstimatorSettings
 from hapticdesk.estimator.zero import ZeroSegments, ZeroStage, subtract_zero
@@ -120,7 +120,7 @@ class ContactEstimator:
         #: how far the located points run behind a moving finger: the force low-pass's
         #: delay (the gesture engine carries a swipe's end on by it)
         self.position_delay_s = self.stage_settings.position_delay_s
-        self.notices: list[Notice] = []
+        self.notices = NoticeList()  # bounded: see NoticeList
         self.reset()
 
     def reset(self) -> None:
@@ -169,14 +169,15 @@ class ContactEstimator:
             if one is not None:
                 return one
         block = ContactBlock.blank(t)
-        noticed = len(self.notices)
+        noticed = self.notices.total
         # a long block goes through in pieces: the same output (streaming equals batch), but
         # each piece's arrays stay in the CPU caches between the stages
         for a in range(0, k, BATCH_CHUNK):
             piece = slice(a, a + BATCH_CHUNK)
             self._push(t[piece], wrench[piece], block.take(piece) if k > BATCH_CHUNK else block)
-        if len(self.notices) - noticed > 1:  # in time order, however the stages found them
-            self.notices[noticed:] = sorted(self.notices[noticed:], key=lambda n: n.t)
+        if self.notices.total - noticed > 1:  # in time order, however the stages found them
+            new = self.notices.since(noticed)
+            self.notices[len(self.notices) - len(new) :] = sorted(new, key=lambda n: n.t)
         return block
 
     def _push(self, t: np.ndarray, wrench: np.ndarray, block: ContactBlock) -> None:

@@ -212,7 +212,7 @@ class UiServer:
                 continue
             if runtime is not runtime_seen:
                 runtime_seen, seen_blocks, lane_counts = runtime, -1, {}
-                seen_notices = len(runtime.scene.estimator.notices)
+                seen_notices = runtime.scene.estimator.notices.total
             live = runtime.live
             blocks, sample = live.blocks, live.sample
             if sample is not None and blocks != seen_blocks:
@@ -232,7 +232,7 @@ class UiServer:
                     }
                 )
             notices = runtime.scene.estimator.notices
-            for notice in notices[seen_notices:]:
+            for notice in notices.since(seen_notices):
                 self.publish(
                     {
                         "type": "notice",
@@ -241,7 +241,7 @@ class UiServer:
                         "message": notice.message,
                     }
                 )
-            seen_notices = len(notices)
+            seen_notices = notices.total
             for lane in (ln for route in runtime.scene.dispatcher.routes for ln in route.lanes):
                 s = lane.stats
                 counts = (s.ok, s.failed, s.timed_out, s.dropped)

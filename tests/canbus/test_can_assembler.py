@@ -257,3 +257,20 @@ def test_a_database_status_signal_voids_the_sample(can_desk, dbc_frames, run_ass
     assert not voided[:, [0, 2, 3]].any()
     assert asm.stats.invalid == {"fl": 0, "fr": 3, "bl": 0, "br": 0}
     assert asm.stats.status["fr"] == {"FR_FORCE.Status non-zero": 3, "FR_MOMENT.Status non-zero": 3}
+
+
+def test_the_notices_of_a_flapping_sensor_are_bounded(
+    can_desk, dbc_frames, run_assembler, monkeypatch
+):
+    """Issue 11 item 16: a sensor that keeps dropping out must not grow the notices for the
+    whole run; the latest are kept."""
+    import hapticdesk.canbus.assembler as assembler
+
+    monkeypatch.setattr(assembler, "NOTICES_KEPT", 3)
+    t, wrench, frames = dbc_frames(3600)
+    sample = np.arange(len(frames)) // 8
+    # br silent for 0.5 s of every second: a silent and a back notice each second
+    silent = np.isin(frames.ident, [0x140, 0x141]) & ((sample // 600) % 2 == 1)
+    got_t, got, asm = run_assembler(can_desk, can_config(can_desk), frames.take(~silent), chunks=10)
+    assert [n.kind for n in asm.notices] == ["silent", "back", "silent"]  # of 5
+    assert asm.notices[-1].t > 2.5  # the latest, not the first ones

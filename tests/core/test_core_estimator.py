@@ -404,3 +404,28 @@ def test_the_flags_are_the_documented_ones():
     listed = text.split("bits that only grow:")[1].split("(")[0]
     documented = {int(bit): name for name, bit in re.findall(r"`(\w+)` (\d+)", listed)}
     assert documented == FLAG_NAMES
+
+
+def test_the_notices_are_bounded_and_a_reader_keeps_its_place(paper_desk):
+    """Issue 11 item 16: a day of gaps must not grow the notices for the whole run."""
+    from hapticdesk.estimator.notices import NOTICES_KEPT
+
+    rate = paper_desk.sample_rate_hz
+    rng = np.random.default_rng(0)
+    est = ContactEstimator(paper_desk)
+    n_gaps, per_piece = NOTICES_KEPT + 500, 6
+    seen = 0
+    read: list[str] = []
+    for i in range(n_gaps):
+        # a few samples, then a 1 s gap before the next piece: one "gap" notice each time
+        t = i * 2.0 + np.arange(per_piece) / rate
+        w = rng.normal(0.0, 0.01, (per_piece, len(paper_desk.sensors), 6))
+        est.push(t, w)
+        if i % 97 == 0:  # a reader such as the browser's feed, polling now and then
+            read += [n.kind for n in est.notices.since(seen)]
+            seen = est.notices.total
+    read += [n.kind for n in est.notices.since(seen)]
+    assert len(est.notices) == NOTICES_KEPT
+    assert est.notices.total == len(read) >= n_gaps - 1  # every one read once, none twice
+    assert est.notices.dropped == est.notices.total - NOTICES_KEPT
+    assert est.notices[-1].t > est.notices[0].t

@@ -106,6 +106,17 @@ def desk_topic(settings: MqttSettings, desk: str, leaf: str) -> str:
     return f"{settings.desk_prefix(desk)}/{leaf}"
 
 
+def ha_node(settings: MqttSettings, desk: str) -> str:
+    """The desk's node id in Home Assistant (discovery topics, device identifier).
+
+    From the desk's name under the default ``<base_topic>/<desk>`` topics, as always; from the
+    whole ``prefix`` when one is set, so two desks of one name on two floors
+    (``hapticdesk/site1/floor2/study``, ``…/floor3/study``) are two devices, not one."""
+    from hapticdesk.plugins.mqtt.discovery import object_id
+
+    return object_id(settings.prefix if settings.prefix is not None else desk)
+
+
 def discovery_for(context: ActionContext, settings: MqttSettings) -> list[Any]:
     """The run's Home Assistant discovery configs: the gestures, sensors and connectivity
     (:mod:`.homeassistant`) and the desk's controls (:mod:`.control`); each has ``topic``
@@ -119,6 +130,7 @@ def discovery_for(context: ActionContext, settings: MqttSettings) -> list[Any]:
     )
 
     desk = context.desk_name
+    node = ha_node(settings, desk)
     model = f"hapticdesk on {getattr(context.profile, 'name', 'a desk')}"
     topics = DeskTopics(settings.desk_prefix(desk))
     configs: list[Any] = discovery_configs(
@@ -129,6 +141,7 @@ def discovery_for(context: ActionContext, settings: MqttSettings) -> list[Any]:
         prefix=settings.discovery_prefix,
         qos=min(settings.qos, 1),
         regions=list(getattr(context.layout, "regions", {}) or {}),
+        node=node,
     )
     named = getattr(context.layout, "named_layouts", {})
     controls = control_entities(
@@ -136,8 +149,9 @@ def discovery_for(context: ActionContext, settings: MqttSettings) -> list[Any]:
         set_topic=desk_topic(settings, desk, "set"),
         availability_topic=topics.availability,
         layouts=["default", *named] if named else [],
-        device=device_info(desk, model),
+        device=device_info(desk, model, node),
         prefix=settings.discovery_prefix,
+        node=node,
     )
     for control in controls:
         control.config["origin"] = ORIGIN
@@ -262,11 +276,10 @@ class DeskPublisher:
         self.state = desk_state(context)
         self.sweep = None
         if settings.discovery:
-            from hapticdesk.plugins.mqtt.discovery import object_id
             from hapticdesk.plugins.mqtt.stale import start_sweep
 
             wanted = [c.topic for c in discovery_for(context, settings)]
-            node = object_id(context.desk_name)
+            node = ha_node(settings, context.desk_name)
             self.sweep = start_sweep(settings, settings.discovery_prefix, node, wanted)
 
     def __call__(self, event: GestureEvent) -> None:

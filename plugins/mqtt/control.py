@@ -89,9 +89,11 @@ def control_entities(
     layouts: list[str],
     device: dict[str, Any],
     prefix: str = "homeassistant",
+    node: str | None = None,
 ) -> list[ControlEntity]:
-    """Discovery configs of the desk's controls: a button per command, a select of layouts."""
-    node = _OBJECT_ID.sub("_", desk)
+    """Discovery configs of the desk's controls: a button per command, a select of layouts
+    (``node``: as for the desk's other configs; default from its name)."""
+    node = node or _OBJECT_ID.sub("_", desk)
     common = {"command_topic": set_topic, "availability_topic": availability_topic}
     out = []
     for command, (object_id, name, icon) in BUTTONS.items():

@@ -119,10 +119,11 @@ class DeskTopics:
         return f"{self.prefix}/availability"
 
 
-def device_info(desk: str, model: str) -> dict[str, Any]:
-    """The ``device`` every config of this desk carries (one device in Home Assistant)."""
+def device_info(desk: str, model: str, node: str | None = None) -> dict[str, Any]:
+    """The ``device`` every config of this desk carries (one device in Home Assistant);
+    ``node`` (default: from the desk's name) makes its identifier."""
     return {
-        "identifiers": [f"hapticdesk_{object_id(desk)}"],
+        "identifiers": [f"hapticdesk_{node or object_id(desk)}"],
         "name": desk,
         "model": model,
         "manufacturer": "hapticdesk",
@@ -166,12 +167,14 @@ def discovery_configs(
     qos: int = 1,
     sensors: bool = True,
     regions: Iterable[str] = (),
+    node: str | None = None,
 ) -> list[DeviceTrigger]:
     """Every discovery config of the desk (device triggers, event entity, sensors,
-    connectivity), as (topic, config) pairs."""
+    connectivity), as (topic, config) pairs. ``node``: the desk's node id in the topics and
+    identifiers (default: from its name; see ``plugins/mqtt/__init__.py`` ``ha_node``)."""
     bindings = list(bindings)
-    node = object_id(desk)
-    device = device_info(desk, model)
+    node = node or object_id(desk)
+    device = device_info(desk, model, node)
     out = device_triggers(
         bindings,
         device=device,

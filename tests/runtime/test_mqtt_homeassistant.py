@@ -329,3 +329,30 @@ def test_a_bad_style_names_its_place(tmp_path, section, message):
     )
     with pytest.raises(ConfigError, match=rf"layout.yaml:5:\d+: {message}"):
         load_scene_layout(path, load_registry(entry_points=False), None)
+
+
+def test_two_desks_of_one_name_on_two_floors_are_two_devices():
+    """Issue 14 item 4: with a topic prefix per floor, desks called `study` on two floors get
+    their own discovery topics and device identifiers; the default topics keep the old ones."""
+    from hapticdesk.plugins.mqtt import discovery_for
+    from hapticdesk.plugins.mqtt.link import MqttSettings
+
+    binding = SimpleNamespace(
+        gesture="tap", region="lamp", index=0, options={}, actions=[], filters={}
+    )
+    layout = SimpleNamespace(bindings=[binding], regions={"lamp": None}, named_layouts={})
+    context = SimpleNamespace(desk_name="study", profile=SimpleNamespace(name="kitamura2017"))
+    context.layout = layout
+
+    def devices(settings: MqttSettings) -> tuple[set[str], set[str]]:
+        configs = discovery_for(context, settings)
+        nodes = {c.topic.split("/")[2] for c in configs}
+        ids = {i for c in configs for i in json.loads(c.payload)["device"]["identifiers"]}
+        return nodes, ids
+
+    floor2 = devices(MqttSettings(prefix="hapticdesk/site1/floor2/study"))
+    floor3 = devices(MqttSettings(prefix="hapticdesk/site1/floor3/study"))
+    default = devices(MqttSettings())
+    assert len(floor2[0]) == len(floor2[1]) == 1  # one device per desk, one node
+    assert floor2[0].isdisjoint(floor3[0]) and floor2[1].isdisjoint(floor3[1])
+    assert default == ({"study"}, {"hapticdesk_study"})  # unchanged for the default topics

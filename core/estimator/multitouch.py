@@ -118,12 +118,12 @@ def second_touches(
     for j in np.flatnonzero(first_hit < k):  # per flagged contact (few), not per sample
         a, b = first_hit[j], ends[j]
         multi[a:b] = True
-        # the second finger: the whole change of wrench over its landing, from just before
-        # it to the force's peak within LANDING_S
-        # (exact while the first finger holds; while it is still pressing in, its own change
-        # mixes in: two vertical forces' wrenches fix only the line through both fingers)
-        peak = a + int(np.argmax(block.force_n[a : min(b, a + landing_n)]))
-        change = smooth[peak] - smooth[a - n]
+        # the second finger: the steepest change of wrench over its landing (within
+        # LANDING_S of its start). Exact only while the first finger holds perfectly still:
+        # its own change mixes in (two vertical forces' wrenches fix just the line through
+        # both fingers), and pulls the point towards it.
+        span = d_wrench[a - n : min(b, a + landing_n) - n]
+        change = span[int(np.argmax(np.linalg.norm(span[:, :3], axis=1)))]
         point, _ = locate_change(change[None, :], origin, normal)
         out[:, a:b] = point[0][:, None]
     return SecondTouches(multi, *out)

@@ -25,6 +25,7 @@ FLAG_TIME_BACK = 4  # time did not increase
 FLAG_GAP = 8  # the time jumped by more than max_gap_s before this sample; filters restarted
 FLAG_NOT_TARED = 16  # no zero yet (tare pending or refused)
 FLAG_STUCK = 32  # every channel bit-identical to the sample before, for a run: a stuck driver
+FLAG_MULTI = 64  # a second finger on the desk (set by hapticdesk.estimator.multitouch)
 FLAG_NAMES = {
     FLAG_NAN: "nan",
     FLAG_SATURATED: "saturated",
@@ -32,6 +33,7 @@ FLAG_NAMES = {
     FLAG_GAP: "gap",
     FLAG_NOT_TARED: "not_tared",
     FLAG_STUCK: "stuck",
+    FLAG_MULTI: "multi",
 }
 UNCERTAINTY_CAP_M = 10.0  # stands for "unknown" so the arrays stay finite
 

@@ -60,6 +60,7 @@ class EstimatorSettings:
     n_tare: int  # windows of a tare
     n_settle: int  # windows a still load is held before it joins the zero
     n_drift: int  # windows an idle desk rests before its drift is followed
+    n_object: int  # windows a load as still as the idle desk is held before it joins the zero
     det_full: bool  # the fast low-pass filters the whole wrench (`fused`, trace), not the force
 
     @classmethod
@@ -128,6 +129,7 @@ class EstimatorSettings:
             n_tare=windows(s.tare_s),
             n_settle=windows(s.settle_s),
             n_drift=windows(s.drift_settle_s),
+            n_object=windows(s.object_settle_s) if s.object_settle_s > 0 else 0,
             det_full=s.method == "fused" or trace,
         )
 

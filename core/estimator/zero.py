@@ -3,7 +3,10 @@
 An automatic tare over the first ``tare_s`` of a quiet desk (refused with a notice and
 retried while the desk is not quiet); the zero then follows sensor drift whenever the idle
 desk rests for ``drift_settle_s``, and a load held perfectly still for ``settle_s`` (an
-object put down) becomes part of it, with a notice. The desk is judged on windows of
+object put down) becomes part of it, with a notice. A load as still as the idle desk was at
+the tare (no finger holds that still: fingers tremble and wander) joins it already after
+``object_settle_s``; when the load later steps back to the zero from before an object
+joined it (the object lifted), that zero is restored at once. The desk is judged on windows of
 ``WINDOW_S``; a zero decided at the end of a window applies from the next sample on, whatever
 the block boundaries, so streaming equals batch.
 """
@@ -19,6 +22,17 @@ from hapticdesk.estimator.contacts import FLAG_GAP
 from hapticdesk.estimator.notices import Notice, add_notice, log
 from hapticdesk.estimator.samples import BAD_SAMPLE
 from hapticdesk.estimator.settings import EstimatorSettings
+
+# a load still within this many times the idle desk's own unsteadiness (the median spread of
+# the low-passed force in a tare window: the filters settle in the first) is an object, not a
+# finger
+OBJECT_STILL_FACTOR = 2.0
+# below this spread at the tare the readings are synthetic (no real sensor is that quiet):
+# there is no yardstick for stillness, and objects wait for ``settle_s``
+OBJECT_NOISE_FLOOR_N = 1e-4
+# a lift restores the zero from before the object when the load is back within this share
+# of the object's weight (or ``still_n``, whichever is larger) of that zero
+LIFT_TOLERANCE = 0.2
 
 ZeroSegments = tuple[np.ndarray, np.ndarray]  # starts (n,), zeros (7, n): [F; M] and set time
 
@@ -44,6 +58,13 @@ class ZeroState:
         self.still_lo: list[float] = [0.0, 0.0, 0.0]
         self.still_hi: list[float] = [0.0, 0.0, 0.0]
         self.still_means: list[list[float]] = []
+        self.tare_spreads: list[float] = []
+        self.quiet_spread = 0.0  # the median window spread at the tare (the idle desk)
+        self.object_run = 0  # windows the load has been as still as the idle desk
+        self.object_lo: list[float] = [0.0, 0.0, 0.0]
+        self.object_hi: list[float] = [0.0, 0.0, 0.0]
+        # objects absorbed into the zero, last on top: (the zero before it, its weight |F|)
+        self.objects: list[tuple[list[float], float]] = []
 
     def column(self) -> list[float]:
         """The zero (6,) and the time it was set, as one column; NaN before the tare."""
@@ -149,7 +170,7 @@ class ZeroStage:
             if st.zero is not None and not still[j]:
                 continue
             if st.zero is not None and j != previous + 1:
-                st.still_run = 0  # windows in between were not still
+                st.still_run = st.object_run = 0  # windows in between were not still
             previous = j
             before = st.zero
             self._window_done(
@@ -159,7 +180,7 @@ class ZeroStage:
                 starts.append(int(ends[j]) + 1)
                 zeros.append(st.column())
         if previous != n_full - 1:
-            st.still_run = 0  # the block ended on windows that were not still
+            st.still_run = st.object_run = 0  # the block ended on windows that were not still
 
     def _window_done(
         self, spread: float, bad: bool, mean: list[float], raw: np.ndarray, t_end: float
@@ -171,7 +192,9 @@ class ZeroStage:
             self._tare_window(spread, bad, mean, raw, t_end)
             return
         if bad or spread >= s.still_n:  # (only before the tare: see _windows)
-            st.still_run = 0
+            st.still_run = st.object_run = 0
+            return
+        if st.objects and self._lifted(mean, t_end):
             return
         z = st.zero_list
         f = (mean[0] - z[0], mean[1] - z[1], mean[2] - z[2])
@@ -188,13 +211,61 @@ class ZeroStage:
         st.still_means.append(mean)
         load = math.sqrt(f[0] ** 2 + f[1] ** 2 + f[2] ** 2)
         if load < s.drift_max_n and s.drift_settle_s > 0:
+            st.object_run = 0
             self._follow_drift(load, t_end)
             return
-        if st.still_run % self.settings.n_settle:
+        fast = self._object_still(spread, f, load)
+        if not fast and st.still_run % self.settings.n_settle:
             return
+        st.objects.append((st.zero_list, load))
         st.set_zero(mean, t_end)
         st.still_run = 0
-        self._absorbed(f, load, t_end)
+        n_object = self.settings.n_object
+        held_s = s.object_settle_s if n_object and st.object_run >= n_object else s.settle_s
+        st.object_run = 0
+        self._absorbed(f, load, held_s, t_end)
+
+    def _object_still(self, spread: float, f: tuple[float, float, float], load: float) -> bool:
+        """One more window of a load as still as the idle desk: is it held long enough to be
+        an object? (A finger's tremor and slow wander move it more.)"""
+        st, n_object = self.state, self.settings.n_object
+        limit = OBJECT_STILL_FACTOR * st.quiet_spread
+        # (a load lighter than drift_max_n is drift, also when drift is not followed)
+        light = load < self.settings.user.drift_max_n
+        if not n_object or light or st.quiet_spread < OBJECT_NOISE_FLOOR_N or spread >= limit:
+            st.object_run = 0
+            return False
+        if st.object_run:
+            lo = [min(a, b) for a, b in zip(st.object_lo, f, strict=True)]
+            hi = [max(a, b) for a, b in zip(st.object_hi, f, strict=True)]
+            if max(b - a for a, b in zip(lo, hi, strict=True)) >= limit:
+                st.object_run = 0  # the load wandered: a finger, or still settling
+        if st.object_run == 0:
+            lo, hi = list(f), list(f)
+        st.object_lo, st.object_hi = lo, hi
+        st.object_run += 1
+        return st.object_run >= n_object
+
+    def _lifted(self, mean: list[float], t_end: float) -> bool:
+        """A still window back at the zero from before the last absorbed object: it was lifted;
+        restore that zero at once (it does not wait for ``settle_s``)."""
+        st, s = self.state, self.settings.user
+        before, weight = st.objects[-1]
+        off = math.sqrt(sum((mean[i] - before[i]) ** 2 for i in range(3)))
+        if off >= max(s.still_n, LIFT_TOLERANCE * weight):
+            return False
+        st.objects.pop()
+        st.set_zero(before, t_end)
+        st.still_run = 0
+        st.object_run = 0
+        add_notice(
+            self.notices,
+            t_end,
+            "lifted",
+            f"the {weight:.1f} N load absorbed earlier was lifted: the zero from before it "
+            "is restored",
+        )
+        return True
 
     def _follow_drift(self, load: float, t_end: float) -> None:
         """An idle, still desk: what is left is sensor drift; follow it (often, so a drifting
@@ -207,7 +278,9 @@ class ZeroStage:
             st.still_run = 0
             log.debug("t=%.3f s: zero drift of %.3f N followed", t_end, load)
 
-    def _absorbed(self, f: tuple[float, float, float], load: float, t_end: float) -> None:
+    def _absorbed(
+        self, f: tuple[float, float, float], load: float, held_s: float, t_end: float
+    ) -> None:
         """Tell what became part of the zero: an object, or a small drift."""
         s = self.settings.user
         if load >= s.contact_force_n:
@@ -218,7 +291,7 @@ class ZeroStage:
                 t_end,
                 "absorbed",
                 f"a still load of {load:.1f} N (an object {sign} the desk?) held for "
-                f"{s.settle_s:g} s became part of the zero",
+                f"{held_s:g} s became part of the zero",
             )
         else:
             add_notice(
@@ -236,19 +309,22 @@ class ZeroStage:
         if not bad and spread < s.tare_quiet_n:
             st.tare_raw.append(raw)
             st.tare_means.append(mean[:3])
+            st.tare_spreads.append(spread)
             if len(st.tare_raw) > n_tare:
                 st.tare_raw.pop(0)
                 st.tare_means.pop(0)
+                st.tare_spreads.pop(0)
             if np.ptp(np.array(st.tare_means), axis=0).max() >= s.tare_quiet_n:
                 # each window was quiet, but the load moved between them: start again here
-                st.tare_raw, st.tare_means = [raw], [mean[:3]]
+                st.tare_raw, st.tare_means, st.tare_spreads = [raw], [mean[:3]], [spread]
         else:
-            st.tare_raw, st.tare_means = [], []
+            st.tare_raw, st.tare_means, st.tare_spreads = [], [], []
         if len(st.tare_raw) >= n_tare:
             samples = np.concatenate(st.tare_raw, axis=1)
             st.set_zero(samples.mean(axis=1), t_end)
             st.noise = np.atleast_2d(np.cov(samples))
-            st.tare_raw, st.tare_means = [], []
+            st.quiet_spread = float(np.median(st.tare_spreads))
+            st.tare_raw, st.tare_means, st.tare_spreads = [], [], []
             add_notice(self.notices, t_end, "tare", f"tared over {s.tare_s:g} s of a quiet desk")
         elif st.windows_seen % n_tare == 0:
             add_notice(

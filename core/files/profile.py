@@ -127,6 +127,7 @@ class EstimationSettings:
     max_sigma_m: float = 0.008  # `diff` and `fused` report a point only when its 1-σ is below
     contact_speed_m_s: float = 0.005  # expected finger drift, the model error of eq. (11)
     settle_s: float = 5.0  # a still load held this long becomes part of the zero
+    object_settle_s: float = 0.6  # ... this long when it is as still as the idle desk (0: never)
     drift_settle_s: float = 0.4  # a desk idle and still this long is re-zeroed (0: never)
     drift_max_n: float = 1.0  # ... when what is left on it is less than this (0 s: never)
     drift_force_n_per_min: float = 0.05  # expected σ of a force channel's drift rate
@@ -420,6 +421,7 @@ def _estimation(item: Any, where: Any) -> EstimationSettings:
                 "release_hysteresis_n",
                 "release_slope_n_s",
                 "drift_settle_s",
+                "object_settle_s",
                 "drift_force_n_per_min",
                 "drift_moment_nm_per_min",
             )

@@ -51,6 +51,13 @@ def press_profile(
     return np.where(t < t_fall, up, down)
 
 
+def trembling(t: np.ndarray, magnitude: np.ndarray) -> np.ndarray:
+    """A real finger's force: never as still as an object (or the idle desk), it wanders
+    (≈3 % at 0.8 Hz) and trembles (≈1.5 % at 10 Hz), as the simulator's HumanModel does; the
+    zero absorbs a load as still as the idle desk within ``object_settle_s``."""
+    return magnitude * (1 + 0.03 * np.sin(2 * np.pi * 0.8 * t) + 0.015 * np.sin(2 * np.pi * 10 * t))
+
+
 @pytest.fixture
 def press_recording() -> Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Make (t, wrench, force) of presses at given points on a desk, with optional noise."""
@@ -73,6 +80,8 @@ def press_recording() -> Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]
         magnitude = np.zeros(n)
         for i, p in enumerate(points):
             mag = press_profile(t, lead + i * duration + 0.2)
+            if noise:  # with the sensor's noise, the finger's own unsteadiness too
+                mag = trembling(t, mag)
             fo, mo = push_at(np.array(p), np.outer(mag, [0.0, 0.0, -1.0]))
             f_o += fo
             m_o += mo
@@ -94,7 +103,7 @@ def noisy_presses() -> tuple[np.ndarray, np.ndarray]:
     desk = load_profile("kitamura2017")
     fs = desk.sample_rate_hz
     t = np.arange(int(7.5 * fs)) / fs
-    mag = press_profile(t, 1.7) + press_profile(t, 4.5, peak=6.0)
+    mag = trembling(t, press_profile(t, 1.7) + press_profile(t, 4.5, peak=6.0))
     f_o, m_o = push_at(np.array([0.1, -0.15, 0.733]), np.outer(mag, [0.05, 0.0, -1.0]))
     f_o[:, 2] += GRAVITY_N
     w = readings_for(desk, f_o, m_o) + np.random.default_rng(7).normal(0, 0.07, (len(t), 4, 6))

@@ -1,0 +1,82 @@
+"""Objects on the simulated desk: a cup put down joins the zero within a second, a lift
+restores the zero at once, and presses right after land where they land without the cup."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hapticdesk.estimator import ContactEstimator
+from hapticdesk.files.profile import load_profile
+from hapticdesk.sim import Scene, simulate
+from hapticdesk.sim.actions import Idle, LiftObject, Press, PutObject
+
+CUP = (-0.2, 0.1)
+BUTTON = (0.1, -0.1)
+PUT_S, LIFT_S = 3.0, 8.0  # the cup goes down (over 0.3 s) and comes up at these times
+PRESS_AFTER_PUT_S = PUT_S + 1.5
+PRESS_AFTER_LIFT_S = LIFT_S + 5.0
+
+
+def cup_scene(with_cup: bool, seed: int) -> Scene:
+    """Two 15 N presses on the same button, 1.5 s after the cup is put down and 5 s after it
+    is lifted; without the cup the same presses (the same human draws) on an empty desk."""
+    cup = [PutObject(name="cup", mass_kg=0.3, point=CUP, start_s=PUT_S)] if with_cup else []
+    lift = [LiftObject(name="cup", start_s=LIFT_S)] if with_cup else [Idle(duration_s=0.0)]
+    steps = [
+        *cup,
+        Press(point=BUTTON, peak_n=15.0, hold_s=1.0, start_s=PRESS_AFTER_PUT_S),
+        *lift,
+        Press(point=BUTTON, peak_n=15.0, hold_s=1.0, start_s=PRESS_AFTER_LIFT_S),
+    ]
+    return Scene(steps, tail_s=1.0, seed=seed)
+
+
+def press_errors(rec, block, starts: tuple[float, ...]) -> list[float]:
+    """The median location error (m) of each press (the 3 s after each start)."""
+    t, truth = rec.t, rec.extra
+    err = np.hypot(block.x - truth["true_x"], block.y - truth["true_y"])
+    errors = []
+    for start in starts:
+        near = block.located & (t > start) & (t < start + 3.0) & (truth["true_fn"] > 0)
+        assert near.sum() > 300
+        errors.append(float(np.median(err[near])))
+    return errors
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_cup_is_absorbed_within_a_second_and_a_lift_restores_the_zero(seed):
+    desk = load_profile("kitamura2017")
+    rec = simulate(desk, cup_scene(True, seed))
+    empty = simulate(desk, cup_scene(False, seed))
+    est = ContactEstimator(desk)
+    block = est.push(rec.t, rec.wrench)
+    plain = ContactEstimator(desk).push(empty.t, empty.wrench)
+    t = rec.t
+    kinds = [n.kind for n in est.notices]
+    assert kinds == ["tare", "absorbed", "lifted"], est.notices
+    # the cup is no touch beyond 1 s after it came down (it takes 0.3 s to put down)
+    assert not block.in_contact[(t > PUT_S + 0.3 + 1.0) & (t < PRESS_AFTER_PUT_S)].any()
+    assert not block.in_contact[(t > LIFT_S) & (t < PRESS_AFTER_LIFT_S)].any()
+    starts = (PRESS_AFTER_PUT_S, PRESS_AFTER_LIFT_S)
+    with_cup, without = press_errors(rec, block, starts), press_errors(empty, plain, starts)
+    absorbed, lifted = est.notices[1].t - (PUT_S + 0.3), est.notices[2].t - (LIFT_S + 0.3)
+    print(
+        f"[objects] seed {seed}: absorbed {absorbed:.2f} s after the cup came down, zero "
+        f"restored {lifted:.2f} s after it came up; press errors (mm) with the cup "
+        f"{np.round(np.array(with_cup) * 1e3, 2)}, without {np.round(np.array(without) * 1e3, 2)}"
+    )
+    assert max(abs(a - b) for a, b in zip(with_cup, without, strict=True)) < 2e-3
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_light_finger_held_still_stays_a_touch(seed):
+    # a 4 N press held 3 s: a finger wanders and trembles; it is not taken for an object
+    desk = load_profile("kitamura2017")
+    scene = Scene([Press(point=BUTTON, peak_n=4.0, hold_s=3.0, start_s=3.0)], seed=seed)
+    rec = simulate(desk, scene)
+    est = ContactEstimator(desk)
+    block = est.push(rec.t, rec.wrench)
+    assert [n.kind for n in est.notices] == ["tare"]
+    touching = rec.extra["true_fn"] > 3.0
+    assert block.in_contact[touching].mean() > 0.99

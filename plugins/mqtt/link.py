@@ -130,6 +130,20 @@ class MqttSettings:
         return f"{'mqtts' if self.tls else 'mqtt'}://{user}{self.host}:{self.port}"
 
 
+def apply_login(client: Any, settings: MqttSettings) -> None:
+    """The layout's user name, password and TLS files on a paho client (every connection the
+    plugin opens: the desk's, the duplicate-desk probe, the stale-config sweep)."""
+    if settings.username is not None:
+        client.username_pw_set(settings.username, settings.password)
+    if settings.tls:
+        client.tls_set(
+            ca_certs=str(settings.ca) if settings.ca else None,
+            certfile=str(settings.cert) if settings.cert else None,
+            keyfile=str(settings.key) if settings.key else None,
+            cert_reqs=ssl.CERT_REQUIRED,
+        )
+
+
 def parse_broker_url(url: str, where: Position | str) -> tuple[bool, str, int, str | None]:
     """``mqtt://[user@]host[:port]`` or ``mqtts://…`` -> (tls, host, port, username)."""
     parts = urllib.parse.urlsplit(url if "://" in url else f"mqtt://{url}")
@@ -810,15 +824,7 @@ class MqttLink:
             clean_session=None if protocol == mqtt.MQTTv5 else clean_session,
             protocol=protocol,
         )
-        if s.username is not None:
-            client.username_pw_set(s.username, s.password)
-        if s.tls:
-            client.tls_set(
-                ca_certs=str(s.ca) if s.ca else None,
-                certfile=str(s.cert) if s.cert else None,
-                keyfile=str(s.key) if s.key else None,
-                cert_reqs=ssl.CERT_REQUIRED,
-            )
+        apply_login(client, s)
         if with_will and self._will is not None:
             w = self._will
             client.will_set(w.topic, w.payload, qos=w.qos, retain=w.retain)
@@ -837,15 +843,7 @@ def retained_payload(settings: MqttSettings, topic: str, timeout_s: float = 3.0)
         clean_session=True,
         protocol=mqtt.MQTTv311,
     )
-    if settings.username is not None:
-        client.username_pw_set(settings.username, settings.password)
-    if settings.tls:
-        client.tls_set(
-            ca_certs=str(settings.ca) if settings.ca else None,
-            certfile=str(settings.cert) if settings.cert else None,
-            keyfile=str(settings.key) if settings.key else None,
-            cert_reqs=ssl.CERT_REQUIRED,
-        )
+    apply_login(client, settings)
     subscribed, answered = threading.Event(), threading.Event()
     found: list[bytes] = []
 

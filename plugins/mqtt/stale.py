@@ -18,7 +18,7 @@ import uuid
 from collections.abc import Sequence
 from typing import Any
 
-from hapticdesk.plugins.mqtt.link import MqttSettings
+from hapticdesk.plugins.mqtt.link import MqttSettings, apply_login
 
 log = logging.getLogger(__name__)
 
@@ -43,15 +43,7 @@ def sweep_stale(settings: MqttSettings, prefix: str, node: str, wanted: Sequence
         clean_session=True,
         protocol=mqtt.MQTTv311,
     )
-    if settings.username is not None:
-        client.username_pw_set(settings.username, settings.password)
-    if settings.tls:
-        client.tls_set(
-            ca_certs=str(settings.ca) if settings.ca else None,
-            certfile=str(settings.cert) if settings.cert else None,
-            keyfile=str(settings.key) if settings.key else None,
-            cert_reqs=ssl.CERT_REQUIRED,
-        )
+    apply_login(client, settings)
 
     def on_connect(c: Any, u: Any, flags: Any, reason: Any, props: Any) -> None:
         if not reason.is_failure:

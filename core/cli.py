@@ -104,6 +104,10 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+#: core commands that never touch an array: nothing to load numpy and scipy for
+NO_ARRAYS = frozenset({"plugins"})
+
+
 def load_blas_with_one_thread() -> None:
     """Load numpy and scipy (each with its own BLAS) with one thread, unless the user's
     environment says otherwise.
@@ -124,7 +128,7 @@ def load_blas_with_one_thread() -> None:
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     command = next((a for a in argv if not a.startswith("-")), None)
-    if command in COMMANDS:
+    if command in COMMANDS and command not in NO_ARRAYS:
         load_blas_with_one_thread()
     parser = build_parser(only=command)
     args = parser.parse_args(argv)

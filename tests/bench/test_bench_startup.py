@@ -60,3 +60,12 @@ def test_a_command_s_help_still_shows_its_own_options():
     assert probe["code"] == 0
     assert "--method" in probe["help"]
     assert "switched" in probe["help"]
+
+
+def test_listing_the_plugins_loads_no_array_library():
+    """`hapticdesk plugins` only reads the registry: numpy and scipy (and their BLAS) are not
+    loaded for it, as they are for the commands that compute."""
+    probe = _probe(["plugins"])
+    assert probe["code"] == 0
+    assert probe["heavy"] == []
+    assert "hapticdesk.plugins.mqtt" in probe["help"]

@@ -17,7 +17,7 @@ import importlib
 import importlib.metadata
 import logging
 import os
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from types import ModuleType
 from typing import Any
@@ -97,6 +97,21 @@ class SourceType(Registered):
         return self.load()(argument, profile, **options)
 
 
+def _judged_by_plugin(
+    validate: Callable[[], Any], position: Position | str, plugin: str, what: str
+) -> None:
+    """Run a plugin's validation: its ConfigError is the user's, any other exception a bug in
+    the plugin, reported as the plugin's fault at the place being checked."""
+    try:
+        validate()
+    except ConfigError:
+        raise
+    except Exception as err:  # a bug in the plugin, not the user's layout
+        raise PluginError(
+            f"{position}: plugin `{plugin}` crashed validating {what}: {type(err).__name__}: {err}"
+        ) from err
+
+
 @dataclass(frozen=True)
 class ActionType(Registered):
     """An action: ``factory(options, context) -> callable(event)``; ``validate(options, pos)``."""
@@ -118,15 +133,9 @@ class ActionType(Registered):
                 f"the validator of action `{self.name}` from plugin `{self.plugin}` cannot be "
                 f"loaded: {type(err).__name__}: {err}"
             ) from err
-        try:
-            validator(options, position)
-        except ConfigError:
-            raise
-        except Exception as err:  # a bug in the plugin, not the user's layout
-            raise PluginError(
-                f"{position}: plugin `{self.plugin}` crashed validating action `{self.name}`: "
-                f"{type(err).__name__}: {err}"
-            ) from err
+        _judged_by_plugin(
+            lambda: validator(options, position), position, self.plugin, f"action `{self.name}`"
+        )
 
 
 @dataclass(frozen=True)
@@ -141,15 +150,12 @@ class SectionType(Registered):
     def check(self, value: Any, position: Position | str, layout_path: Any) -> None:
         """Run the plugin's validation of the section; a crash is reported as the plugin's."""
         validator = self.load()
-        try:
-            validator(value, position, layout_path)
-        except ConfigError:
-            raise
-        except Exception as err:  # a bug in the plugin, not the user's layout
-            raise PluginError(
-                f"{position}: plugin `{self.plugin}` crashed validating section `{self.name}`: "
-                f"{type(err).__name__}: {err}"
-            ) from err
+        _judged_by_plugin(
+            lambda: validator(value, position, layout_path),
+            position,
+            self.plugin,
+            f"section `{self.name}`",
+        )
 
 
 @dataclass(frozen=True)

@@ -152,9 +152,8 @@ def discovery_for(context: ActionContext, settings: MqttSettings) -> list[Any]:
         device=device_info(desk, model, node),
         prefix=settings.discovery_prefix,
         node=node,
+        origin=ORIGIN,
     )
-    for control in controls:
-        control.config["origin"] = ORIGIN
     return configs + controls
 
 

@@ -90,11 +90,14 @@ def control_entities(
     device: dict[str, Any],
     prefix: str = "homeassistant",
     node: str | None = None,
+    origin: dict[str, Any] | None = None,
 ) -> list[ControlEntity]:
     """Discovery configs of the desk's controls: a button per command, a select of layouts
     (``node``: as for the desk's other configs; default from its name)."""
     node = node or _OBJECT_ID.sub("_", desk)
-    common = {"command_topic": set_topic, "availability_topic": availability_topic}
+    common: dict[str, Any] = {"command_topic": set_topic, "availability_topic": availability_topic}
+    if origin is not None:  # Home Assistant's `origin`: this software, on every config
+        common["origin"] = origin
     out = []
     for command, (object_id, name, icon) in BUTTONS.items():
         out.append(

@@ -9,7 +9,8 @@ single-sample twin sits beside its block path and shares its formulas:
    stuck input that repeats its last sample) are flagged and replaced by the last good
    sample, so no filter state is poisoned; a gap in time restarts the filters. The 6·S
    channels become the resultant wrench [F_o; M_o] about P_o by one linear map (paper
-   eqs. 1–4; :meth:`DeskProfile.wrench_map`).
+   eqs. 1–4; :meth:`DeskProfile.wrench_map`). With an accelerometer on the desk
+   (:mod:`.inertia`), the desk's own inertial force and moment are removed from it.
 2. :mod:`.filter_bank` — filters on that wrench: the conventional second-order low-pass;
    the pseudo-differentiated wrench (paper eq. 8: an n-sample difference, then the
    low-pass); and a fast (30 Hz) low-pass for touch-down/release detection that does not
@@ -39,6 +40,7 @@ from hapticdesk.estimator.candidates import Candidates, CandidateStage, Covarian
 from hapticdesk.estimator.contacts import FLAG_NOT_TARED, UNCERTAINTY_CAP_M, ContactBlock
 from hapticdesk.estimator.detector import TouchDetector, phase_of, phases_of, slope_along
 from hapticdesk.estimator.filter_bank import FilterBank
+from hapticdesk.estimator.inertia import InertiaSettings, InertiaStage, accelerometer_readings
 from hapticdesk.estimator.methods import emit_one, select, select_one
 from hapticdesk.estimator.notices import Notice, NoticeList
 from hapticdesk.estimator.samples import BAD_SAMPLE, SampleStage
@@ -119,6 +121,8 @@ class ContactEstimator:
         self.settings = settings
         self.method = settings.method
         self.stage_settings = EstimatorSettings.of(profile, settings, trace)
+        #: the vibration compensation's settings; None for a desk without an accelerometer
+        self.inertia_settings = InertiaSettings.of(profile)
         self.sample_rate_hz = profile.sample_rate_hz
         #: how far the located points run behind a moving finger: the force low-pass's
         #: delay (the gesture engine carries a swipe's end on by it)
@@ -130,6 +134,9 @@ class ContactEstimator:
         """Forget everything: filters, zero and contact state (a new run)."""
         s = self.stage_settings
         self.samples = SampleStage(s, self.notices)
+        self.inertia = (
+            None if self.inertia_settings is None else InertiaStage(self.inertia_settings)
+        )
         self.filters = FilterBank(s, self.notices)
         self.zeroing = ZeroStage(s, self.notices)
         self.detector = TouchDetector(s)
@@ -154,8 +161,14 @@ class ContactEstimator:
         zero = self.zeroing.state.zero
         return None if zero is None else zero.copy()
 
-    def push(self, t: np.ndarray, wrench: np.ndarray) -> ContactBlock:
-        """Estimate contacts for k more samples. See the class docstring."""
+    def push(
+        self, t: np.ndarray, wrench: np.ndarray, accel: np.ndarray | None = None
+    ) -> ContactBlock:
+        """Estimate contacts for k more samples. See the class docstring.
+
+        ``accel`` (k, A): the desk's accelerometer readings (its profile's columns, m/s²),
+        used only when the profile has an accelerometer; without them such a desk's samples
+        are estimated uncompensated and flagged ``FLAG_NO_ACCEL``."""
         t = np.asarray(t, dtype=float).reshape(-1)
         wrench = np.asarray(wrench, dtype=float)
         n_sensors = len(self.profile.sensors)
@@ -165,10 +178,14 @@ class ContactEstimator:
                 f"{self.profile.name!r}, found {wrench.shape}"
             )
         k = len(t)
+        if self.inertia is not None:
+            accel = self.inertia.check(accel, k)
+        else:
+            accel = None  # a desk without an accelerometer: nothing changes
         if k == 0:
             return ContactBlock.empty()
         if k == 1:
-            one = self._push_one(float(t[0]), wrench)
+            one = self._push_one(float(t[0]), wrench, accel)
             if one is not None:
                 return one
         block = ContactBlock.blank(t)
@@ -177,15 +194,24 @@ class ContactEstimator:
         # each piece's arrays stay in the CPU caches between the stages
         for a in range(0, k, BATCH_CHUNK):
             piece = slice(a, a + BATCH_CHUNK)
-            self._push(t[piece], wrench[piece], block.take(piece) if k > BATCH_CHUNK else block)
+            self._push(
+                t[piece],
+                wrench[piece],
+                None if accel is None else accel[piece],
+                block.take(piece) if k > BATCH_CHUNK else block,
+            )
         if self.notices.total - noticed > 1:  # in time order, however the stages found them
             new = self.notices.since(noticed)
             self.notices[len(self.notices) - len(new) :] = sorted(new, key=lambda n: n.t)
         return block
 
-    def _push(self, t: np.ndarray, wrench: np.ndarray, block: ContactBlock) -> None:
+    def _push(
+        self, t: np.ndarray, wrench: np.ndarray, accel: np.ndarray | None, block: ContactBlock
+    ) -> None:
         """The stages for one block, written into ``block`` (blank, see ContactBlock.blank)."""
         flags, raw = self.samples.process(t, wrench)
+        if self.inertia is not None:
+            flags |= self.inertia.process(raw, accel)
         block.flags[:] = flags
         started = self.samples.state.last_good is not None
         lp, det, diff, det_slope, release = self.filters.process(t, raw, flags, started)
@@ -195,18 +221,26 @@ class ContactEstimator:
             self.candidates.covs = Covariances.of(self.stage_settings, noise)
         self._contacts(block, t, flags, lp, det, diff, det_slope, release, segments)
 
-    def _push_one(self, t: float, wrench: np.ndarray) -> ContactBlock | None:
+    def _push_one(
+        self, t: float, wrench: np.ndarray, accel: np.ndarray | None
+    ) -> ContactBlock | None:
         """One sample on the common path through each stage's single-sample twin, with plain
         floats where numpy's per-call cost would dominate. None where the sample needs the
         general path: before the tare, in trace mode, with a separate low-pass for the
-        differentiated force, and for a bad sample or a gap."""
+        differentiated force, and for a bad sample, a gap or an unusable accelerometer
+        reading."""
         s = self.stage_settings
         zero = self.zeroing
         if self.trace or zero.state.zero is None or not s.shared_lp:
             return None
+        if self.inertia is not None and (accel is None or not self.inertia.usable(accel[0])):
+            return None  # checked before any stage's state moves on
         raw_a = self.samples.process_one(t, wrench)
         if raw_a is None:
             return None
+        if self.inertia is not None:
+            raw_a = self.inertia.process_one(raw_a, accel)
+            assert raw_a is not None  # (usable, checked above)
         raw = raw_a.tolist()
         lp, det, diff, det_slope, release = self.filters.process_one(raw)
         # the zero before this sample: one set where it ends a window applies from the next on
@@ -345,4 +379,5 @@ def estimate(profile: DeskProfile, recording: Recording, method: str | None = No
             f"the recording's sensors {recording.sensor_names} are not the desk's "
             f"{profile.sensor_names}"
         )
-    return ContactEstimator(profile, method=method).push(recording.t, recording.wrench)
+    accel = accelerometer_readings(profile, recording.extra)
+    return ContactEstimator(profile, method=method).push(recording.t, recording.wrench, accel)

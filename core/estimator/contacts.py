@@ -26,6 +26,9 @@ FLAG_GAP = 8  # the time jumped by more than max_gap_s before this sample; filte
 FLAG_NOT_TARED = 16  # no zero yet (tare pending or refused)
 FLAG_STUCK = 32  # every channel bit-identical to the sample before, for a run: a stuck driver
 FLAG_MULTI = 64  # a second finger on the desk (set by hapticdesk.estimator.multitouch)
+# the desk has an accelerometer but this sample's reading is missing or saturated: its
+# inertial force is not removed (hapticdesk.estimator.inertia)
+FLAG_NO_ACCEL = 128
 FLAG_NAMES = {
     FLAG_NAN: "nan",
     FLAG_SATURATED: "saturated",
@@ -34,6 +37,7 @@ FLAG_NAMES = {
     FLAG_NOT_TARED: "not_tared",
     FLAG_STUCK: "stuck",
     FLAG_MULTI: "multi",
+    FLAG_NO_ACCEL: "no_accel",
 }
 UNCERTAINTY_CAP_M = 10.0  # stands for "unknown" so the arrays stay finite
 

@@ -31,6 +31,9 @@ from hapticdesk.files.yamlfile import (
 METHODS = ("force", "diff", "switched", "fused")
 LOWPASS_PER_NATURAL_FREQUENCY = 4.77 / 5.9  # the paper's cut-off for its desk's lowest mode
 AXES = ("fx", "fy", "fz", "mx", "my", "mz")
+ACCEL_AXES = ("x", "y", "z")
+DEFAULT_TOP_HEIGHT_M = 0.7  # a desk's top above its sensors when the profile has no surface
+COM_HEIGHT_FRACTION = 0.85  # the default centre of mass: a heavy top on light legs
 
 
 def rotation_matrix(roll_deg: float, pitch_deg: float, yaw_deg: float) -> np.ndarray:
@@ -69,6 +72,31 @@ class SensorSpec:
     def channel_names(self) -> list[str]:
         """Recording column names of this sensor's six channels."""
         return [f"{self.name}_{axis}" for axis in AXES]
+
+
+@dataclass(frozen=True)
+class AccelerometerSpec:
+    """An accelerometer fixed to the desk top (optional; issue 15 item 6).
+
+    It is sampled with the sensors (one reading per sample, the same clock and rate) and
+    reports the specific force (acceleration minus gravity, so +g upwards at rest) along
+    ``axes`` of its own frame, in m/s²; recordings carry it as the columns
+    :meth:`column_names` (``acc_x, acc_y, acc_z``).
+    """
+
+    position: np.ndarray  # (3,) desk frame, metres
+    rotation: np.ndarray  # (3, 3) accelerometer frame -> desk frame
+    axes: tuple[str, ...] = ACCEL_AXES  # which of its axes it measures, in column order
+    noise_m_s2: float = 0.0  # σ of each axis's white noise (used by the simulator)
+    range_m_s2: float = math.inf  # |reading| >= this is saturated
+
+    def column_names(self) -> list[str]:
+        """Recording columns of the accelerometer, in order."""
+        return [f"acc_{axis}" for axis in self.axes]
+
+    def axis_matrix(self) -> np.ndarray:
+        """(3, A): the measured axes as unit vectors in the desk frame."""
+        return self.rotation[:, [ACCEL_AXES.index(a) for a in self.axes]]
 
 
 @dataclass(frozen=True)
@@ -151,6 +179,9 @@ class DeskProfile:
     path: Path | None = None
     mass_kg: float | None = None  # optional, used by the simulator
     natural_frequency_hz: float | None = None  # optional, used by the simulator
+    # optional: the desk's centre of mass (desk frame, m); see :meth:`center_of_mass`
+    center_of_mass_m: np.ndarray | None = None
+    accelerometer: AccelerometerSpec | None = None  # optional, see AccelerometerSpec
 
     @property
     def sensor_names(self) -> list[str]:
@@ -167,6 +198,29 @@ class DeskProfile:
         raise KeyError(
             f"desk {self.name!r} has no surface {name!r}; it has "
             f"{', '.join(s.name for s in self.surfaces) or 'none'}"
+        )
+
+    def top_height_m(self) -> float:
+        """Height of the first surface above the sensors (0.7 m when there is none)."""
+        positions = np.array([s.position for s in self.sensors], dtype=float)
+        if self.surfaces:
+            h = float(self.surfaces[0].origin[2] - positions[:, 2].mean())
+            if h > 0.05:
+                return h
+        return DEFAULT_TOP_HEIGHT_M
+
+    def center_of_mass(self) -> np.ndarray:
+        """The desk's centre of mass (3,), desk frame: ``desk.center_of_mass_m`` when the
+        profile gives it, else above the sensors' centroid at 85 % of the top's height (a
+        heavy top on light legs; the simulator's default too)."""
+        if self.center_of_mass_m is not None:
+            return np.array(self.center_of_mass_m, dtype=float)
+        positions = np.array([s.position for s in self.sensors], dtype=float)
+        return np.array(
+            [
+                *positions[:, :2].mean(axis=0),
+                positions[:, 2].mean() + COM_HEIGHT_FRACTION * self.top_height_m(),
+            ]
         )
 
     def wrench_map(self) -> np.ndarray:
@@ -202,10 +256,20 @@ class DeskProfile:
 
 # --- loading ---------------------------------------------------------------------------------
 
-_TOP_KEYS = {"name", "sample_rate_hz", "sensors", "surfaces", "estimation", "can", "desk"}
+_TOP_KEYS = {
+    "name",
+    "sample_rate_hz",
+    "sensors",
+    "surfaces",
+    "estimation",
+    "can",
+    "desk",
+    "accelerometer",
+}
 _SENSOR_KEYS = {"name", "position", "rotation_rpy_deg", "reports", "range"}
 _SURFACE_KEYS = {"name", "origin", "normal", "polygon", "u_axis"}
-_DESK_KEYS = {"mass_kg", "natural_frequency_hz", "note"}
+_DESK_KEYS = {"mass_kg", "natural_frequency_hz", "center_of_mass_m", "note"}
+_ACCEL_KEYS = {"position", "rotation_rpy_deg", "axes", "noise_m_s2", "range_m_s2"}
 
 
 def builtin_profile_path(name: str) -> Path | None:
@@ -281,12 +345,30 @@ def profile_from_mapping(doc: MarkedDict, path: Path) -> DeskProfile:
     can = doc.get("can")
     if can is not None:
         can = require_mapping(can, doc.where("can"), "`can`")
-    mass = natural = None
+    mass = natural = com = None
     if "desk" in doc:
         desk = require_mapping(doc["desk"], doc.where("desk"), "`desk`")
         check_keys(desk, _DESK_KEYS, "`desk`")
         mass = number(desk, "mass_kg", "`desk`", default=0.0, minimum=0.0) or None
         natural = number(desk, "natural_frequency_hz", "`desk`", default=0.0, minimum=0.0) or None
+        if "center_of_mass_m" in desk:
+            com = np.array(
+                vector(
+                    desk["center_of_mass_m"],
+                    desk.where("center_of_mass_m"),
+                    "`center_of_mass_m` of `desk`",
+                    3,
+                )
+            )
+    accelerometer = None
+    if "accelerometer" in doc:
+        accelerometer = _accelerometer(doc["accelerometer"], doc.where("accelerometer"))
+        if mass is None:
+            raise ConfigError(
+                doc.where("accelerometer", of_key=True),
+                "an `accelerometer` needs the desk's mass: give `desk: {mass_kg: ...}` "
+                "(the inertial force it removes is mass × acceleration)",
+            )
     given = doc["estimation"] if isinstance(doc.get("estimation"), MarkedDict) else {}
     if natural is not None:
         # the filters must stay below the desk's lowest mode, as the paper's 4.77 Hz stays
@@ -305,7 +387,39 @@ def profile_from_mapping(doc: MarkedDict, path: Path) -> DeskProfile:
         path=path,
         mass_kg=mass,
         natural_frequency_hz=natural,
+        center_of_mass_m=com,
+        accelerometer=accelerometer,
     )
+
+
+def _accelerometer(item: Any, where: Any) -> AccelerometerSpec:
+    what = "`accelerometer`"
+    m = require_mapping(item, where, what)
+    check_keys(m, _ACCEL_KEYS, what, required={"position"})
+    position = np.array(vector(m["position"], m.where("position"), f"`position` of {what}", 3))
+    rpy = vector(
+        m.get("rotation_rpy_deg", [0, 0, 0]),
+        m.where("rotation_rpy_deg"),
+        f"`rotation_rpy_deg` of {what}",
+        3,
+    )
+    axes: tuple[str, ...] = ACCEL_AXES
+    if "axes" in m:
+        raw = m["axes"]
+        if (
+            not isinstance(raw, list)
+            or not raw
+            or any(a not in ACCEL_AXES for a in raw)
+            or len(set(raw)) != len(raw)
+        ):
+            raise ConfigError(
+                m.where("axes"),
+                f"`axes` of {what} must list some of x, y, z once each, found {raw!r}",
+            )
+        axes = tuple(a for a in ACCEL_AXES if a in raw)  # columns in x, y, z order
+    noise = number(m, "noise_m_s2", what, default=0.0, minimum=0.0)
+    limit = number(m, "range_m_s2", what, default=math.inf, minimum=0.0, exclusive_minimum=True)
+    return AccelerometerSpec(position, rotation_matrix(*rpy), axes, noise, limit)
 
 
 def _sensor(item: Any, where: Any, index: int) -> SensorSpec:

@@ -71,7 +71,8 @@ class DeskParameters:
       else the paper's 5.9 Hz).
     - ``vertical_frequency_hz``: the desk bouncing on its legs' (and sensors') axial stiffness.
     - ``sway_damping``, ``vertical_damping``: damping ratios of the two families of modes.
-    - ``center_of_mass``: desk frame, metres (default: above the sensors' centroid at 85 % of
+    - ``center_of_mass``: desk frame, metres (default: the profile's
+      :meth:`~DeskProfile.center_of_mass`, given or above the sensors' centroid at 85 % of
       the top board's height, a heavy top on light legs).
     - ``inertia_kg_m2``: principal moments about the centre of mass along the desk axes
       (default: a solid box as wide and deep as the top board and as tall as the desk).
@@ -106,7 +107,7 @@ class DeskModel:
         sensors = profile.sensors
         n = len(sensors)
         positions = np.array([s.position for s in sensors], dtype=float)
-        height = _top_height(profile, positions)
+        height = profile.top_height_m()
         self.mass_kg = float(params.mass_kg or profile.mass_kg or DEFAULT_MASS_KG)
         self.sway_frequency_hz = float(
             params.sway_frequency_hz or profile.natural_frequency_hz or DEFAULT_SWAY_HZ
@@ -126,7 +127,7 @@ class DeskModel:
         com = (
             np.array(params.center_of_mass, dtype=float)
             if params.center_of_mass is not None
-            else np.array([*positions[:, :2].mean(axis=0), positions[:, 2].mean() + 0.85 * height])
+            else profile.center_of_mass()
         )
         self.center_of_mass = com
         if params.inertia_kg_m2 is not None:
@@ -242,6 +243,12 @@ class DeskModel:
         flat = np.atleast_2d(q) @ self.read_q.T + np.atleast_2d(qdot) @ self.read_v.T
         return flat.reshape(len(flat), self.n_sensors, 6)
 
+    def accelerations(self, loads: np.ndarray, motion: np.ndarray) -> np.ndarray:
+        """``q̈`` (k, 6) from the equation of motion, ``M q̈ = u - K q - C q̇``, for loads
+        (k, 6) and motions ``[q, q̇]`` (k, 12)."""
+        rhs = loads - motion[:, :6] @ self.stiffness.T - motion[:, 6:] @ self.damping.T
+        return np.linalg.solve(self.mass_matrix, rhs.T).T
+
     def discretize(self, dt: float) -> DiscreteDesk:
         """The exact zero-order-hold discrete model for sample time ``dt``."""
         return DiscreteDesk(self, dt)
@@ -309,6 +316,21 @@ class DiscreteDesk:
     def motion(self, loads: np.ndarray, state: np.ndarray) -> np.ndarray:
         """The desk's motion ``[q, q̇]`` (k, 12) at each sample (for tests and accelerometers)."""
         x, _ = self._states(np.asarray(loads, dtype=float), state)
+        return self._physical(x)
+
+    def run_moving(
+        self, loads: np.ndarray, state: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`run` that also gives the motion ``[q, q̇]`` (k, 12) of each sample (for an
+        accelerometer on the desk), from one pass over the modes."""
+        loads = np.asarray(loads, dtype=float)
+        k = len(loads)
+        x, state = self._states(loads, state)
+        flat = (x @ self._c_modal.T).real if self._modal else (x @ self.cy.T).real
+        return flat.reshape(k, self.model.n_sensors, 6), self._physical(x), state
+
+    def _physical(self, x: np.ndarray) -> np.ndarray:
+        """Internal states (k, 12) -> ``[q, q̇]`` in metres, radians and their rates."""
         if self._modal:
             x = (x @ self._from_modal.T).real
         return np.asarray(x.real) * self._scale
@@ -341,15 +363,6 @@ def _check_positive(**values: float) -> None:
     for name, value in values.items():
         if not (value > 0 and math.isfinite(value)):
             raise ValueError(f"{name} must be a positive number, found {value}")
-
-
-def _top_height(profile: DeskProfile, positions: np.ndarray) -> float:
-    """Height of the first surface above the sensors (0.7 m when the profile has none)."""
-    if profile.surfaces:
-        h = float(profile.surfaces[0].origin[2] - positions[:, 2].mean())
-        if h > 0.05:
-            return h
-    return 0.7
 
 
 def _footprint(profile: DeskProfile, positions: np.ndarray) -> tuple[float, float]:

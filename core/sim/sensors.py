@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hapticdesk.files.profile import DeskProfile
+from hapticdesk.sim.desk import STANDARD_GRAVITY, skew
 
 PAPER_RATING = np.array([150.0, 150.0, 300.0, 4.0, 4.0, 4.0])  # Table 2
 
@@ -121,4 +122,44 @@ class SensorModel:
             out = np.where(has_step, np.round(out / step) * step, out)
         if saturation:  # after rounding, so a saturated reading sits exactly at the limit
             np.clip(out, -self.limits, self.limits, out=out)
+        return out
+
+
+class AccelerometerModel:
+    """An accelerometer fixed to the desk top (profile ``accelerometer``): the specific force
+    at its mount, in its own frame, plus white noise, clipped at its range.
+
+    For the small motions of :class:`~hapticdesk.sim.desk.DeskModel` (``q = [d; θ]`` about
+    the desk origin) the mount at ``p`` accelerates by ``a_p = d̈ + θ̈ × p`` and the
+    accelerometer, turned by ``θ``, reads ``Rᵀ (a_p - g + θ × g)`` with g = (0, 0, -9.81)
+    m/s² in the desk frame: +g upwards at rest, and the tilt's share of gravity as a real one
+    does.
+    """
+
+    def __init__(self, profile: DeskProfile) -> None:
+        spec = profile.accelerometer
+        if spec is None:
+            raise ValueError(f"desk {profile.name!r} has no accelerometer")
+        self.spec = spec
+        self._axes = spec.axis_matrix()  # (3, A) desk frame
+        self._lever = skew(spec.position)
+
+    def readings(
+        self,
+        qdd: np.ndarray,
+        q: np.ndarray,
+        *,
+        noise_rng: np.random.Generator | None,
+        saturation: bool,
+    ) -> np.ndarray:
+        """Readings (k, A) for desk accelerations ``q̈`` and positions ``q`` (k, 6) each."""
+        gravity = np.array([0.0, 0.0, -STANDARD_GRAVITY])
+        accel = qdd[:, :3] - qdd[:, 3:] @ self._lever.T  # d̈ + θ̈ × p = d̈ - [p]× θ̈
+        specific = accel - gravity + np.cross(q[:, 3:], gravity)
+        out = specific @ self._axes
+        if noise_rng is not None and self.spec.noise_m_s2 > 0:
+            out += noise_rng.standard_normal(out.shape) * self.spec.noise_m_s2
+        if saturation:
+            limit = self.spec.range_m_s2
+            np.clip(out, -limit, limit, out=out)
         return out

@@ -18,8 +18,9 @@ from hapticdesk.files.recording import Recording
 from hapticdesk.runtime.source import Source, WrenchBlock
 from hapticdesk.sim.desk import DeskModel, DeskParameters
 from hapticdesk.sim.scene import Scene
-from hapticdesk.sim.sensors import SensorModel, SensorParameters
+from hapticdesk.sim.sensors import AccelerometerModel, SensorModel, SensorParameters
 from hapticdesk.sim.timeline import (
+    STREAM_ACCEL,
     STREAM_DRIFT,
     STREAM_NOISE,
     TRUTH_COLUMNS,
@@ -90,21 +91,35 @@ class SimulationRun:
             self.sensor_model.draw_drift(stream(self.seed, STREAM_DRIFT)) if effects.drift else None
         )
         self._discrete = self.model.discretize(1.0 / self.fs) if effects.dynamics else None
+        spec = profile.accelerometer
+        self.accelerometer = AccelerometerModel(profile) if spec is not None else None
+        #: the per-sample columns of :meth:`chunks`' third item: the ground truth, then the
+        #: accelerometer's readings when the desk has one (recordings' extra columns)
+        self.columns: tuple[str, ...] = TRUTH_COLUMNS + tuple(
+            spec.column_names() if spec is not None else ()
+        )
 
     def chunks(self) -> Iterator[tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]]:
-        """Yield ``(t, wrench, truth)`` chunk by chunk, from the start."""
+        """Yield ``(t, wrench, columns)`` chunk by chunk, from the start: ``columns`` maps
+        each of :attr:`columns` to its values."""
         state = None
         for c, k0 in enumerate(range(0, self.n_samples, CHUNK)):
             k1 = min(k0 + CHUNK, self.n_samples)
             loads, truth = self.timeline.render(k0, k1)
             loads += self._base
             t = np.arange(k0, k1) / self.fs
+            motion = None
             if self._discrete is not None:
                 if state is None:
                     state = self._discrete.initial_state(loads[0])
-                true, state = self._discrete.run(loads, state)
+                if self.accelerometer is not None:
+                    true, motion, state = self._discrete.run_moving(loads, state)
+                else:
+                    true, state = self._discrete.run(loads, state)
             else:
                 true = self.model.static_readings(loads)
+            if self.accelerometer is not None:
+                truth.update(self._accelerometer(loads, motion, c))
             wrench = self.sensor_model.apply(
                 true,
                 t,
@@ -114,6 +129,24 @@ class SimulationRun:
                 saturation=self.effects.saturation,
             )
             yield t, wrench, truth
+
+    def _accelerometer(
+        self, loads: np.ndarray, motion: np.ndarray | None, chunk: int
+    ) -> dict[str, np.ndarray]:
+        """The accelerometer's columns for one chunk (a desk without dynamics stands still)."""
+        assert self.accelerometer is not None
+        if motion is None:
+            qdd = q = np.zeros((len(loads), 6))
+        else:
+            qdd, q = self.model.accelerations(loads, motion), motion[:, :6]
+        readings = self.accelerometer.readings(
+            qdd,
+            q,
+            noise_rng=stream(self.seed, STREAM_ACCEL, chunk) if self.effects.noise else None,
+            saturation=self.effects.saturation,
+        )
+        names = self.accelerometer.spec.column_names()
+        return {name: readings[:, i] for i, name in enumerate(names)}
 
 
 def simulate(
@@ -133,7 +166,9 @@ def simulate(
     ``extra`` holds the truth per sample: ``true_x, true_y, true_z`` (the contact point, the
     centre of pressure when several fingers touch; NaN when nobody touches), ``true_fn`` (the
     normal force, 0 when not touching), ``true_fx, true_fy, true_fz`` (the force the fingers
-    apply, desk frame), ``true_surface`` and ``true_action`` (indices, -1 when not touching).
+    apply, desk frame), ``true_surface`` and ``true_action`` (indices, -1 when not touching);
+    then, for a desk with an accelerometer, its readings ``acc_x, acc_y, acc_z`` (m/s², the
+    axes the profile lists).
     """
     run = SimulationRun(
         profile, scene, seed, noise=noise, effects=effects, desk=desk, sensors=sensors
@@ -141,7 +176,7 @@ def simulate(
     parts = list(run.chunks())
     t = np.concatenate([p[0] for p in parts])
     wrench = np.concatenate([p[1] for p in parts])
-    extra = {c: np.concatenate([p[2][c] for p in parts]) for c in TRUTH_COLUMNS}
+    extra = {c: np.concatenate([p[2][c] for p in parts]) for c in run.columns}
     return Recording(t, wrench, profile.sensor_names, extra)
 
 
@@ -198,7 +233,7 @@ class SimSource(Source):
                 continue
             t_all = np.concatenate(pending_t)
             w_all = np.concatenate(pending_w)
-            tr_all = {c: np.concatenate([p[c] for p in pending_truth]) for c in TRUTH_COLUMNS}
+            tr_all = {c: np.concatenate([p[c] for p in pending_truth]) for c in self.run.columns}
             full = (len(t_all) // self.block_size) * self.block_size
             for a in range(0, full, self.block_size):
                 if self._closed:
@@ -213,7 +248,7 @@ class SimSource(Source):
             yield WrenchBlock(
                 t_all,
                 np.concatenate(pending_w),
-                {c: np.concatenate([p[c] for p in pending_truth]) for c in TRUTH_COLUMNS},
+                {c: np.concatenate([p[c] for p in pending_truth]) for c in self.run.columns},
             )
 
     def close(self) -> None:

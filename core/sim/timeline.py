@@ -34,6 +34,7 @@ from hapticdesk.sim.scene import Scene
 STREAM_HUMAN = 1  # SeedSequence spawn keys: one stream per purpose, independent of each other
 STREAM_NOISE = 2
 STREAM_DRIFT = 3
+STREAM_ACCEL = 4  # the accelerometer's noise
 
 TRUTH_COLUMNS = (
     "true_x",

@@ -1,0 +1,145 @@
+"""Stage 1b, vibration compensation: the desk's inertial wrench, measured by an accelerometer on
+the desk top, removed from the resultant wrench before anything is filtered or located.
+
+The sensors under the legs carry the load on the desk *and* what it takes to accelerate the
+desk: for the rigid desk of mass m with its centre of mass at c, moving by small motions
+``q = [d; θ]`` about P_o, the resultant the wrench map recovers is (Newton–Euler; the same
+equation the simulator integrates, :mod:`hapticdesk.sim.desk`)
+
+    [F_o; M_o] = M q̈ - u,     M q̈ = [m a_c; m c × a_c + I θ̈]
+
+where u is the load about P_o (paper eqs. 1–4 hold for a desk at rest, q̈ = 0). A swaying
+desk therefore reads as a wobbling extra force — the 5.9 Hz ring a dragging finger leaves in
+the located path. One accelerometer on the top measures a, the acceleration of the desk
+taken as translating (θ̈ is not observable from one three-axis accelerometer; the paper's
+desk sways in translation, and its 10 Hz yaw mode is left, see README Known limits), so
+
+    [F_o; M_o] ← [F_o; M_o] - G (f - f_rest),   G = [m I₃; m [c]×] · R_a
+
+with ``f`` the reading (specific force, m/s²; the axes the profile lists), ``R_a`` those axes
+in the desk frame and ``f_rest = R_aᵀ (0, 0, g)`` the reading of a desk at rest (gravity), so
+a still desk is left untouched and the correction is linear: it commutes with the filters,
+needs no state, and gives the same output for any split of the input.
+
+A reading that is missing (NaN, no accelerometer data given at all) or at its range is not
+used: that sample is left uncompensated and flagged ``FLAG_NO_ACCEL``, never NaN. The
+desk's mass and centre of mass come from the profile (``desk.mass_kg``,
+``desk.center_of_mass_m`` or its default, :meth:`DeskProfile.center_of_mass`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hapticdesk.estimator.contacts import FLAG_NO_ACCEL
+from hapticdesk.files.profile import DeskProfile
+
+STANDARD_GRAVITY = 9.80665  # m/s², the rest reading of an upward axis
+
+
+@dataclass(frozen=True, eq=False)
+class InertiaSettings:
+    """One desk's fixed quantities for the compensation (see the module docstring)."""
+
+    gain: np.ndarray  # (6, A): the inertial wrench [m a; m c × a] per unit of reading
+    rest: np.ndarray  # (A,): the reading of a desk at rest (gravity along each axis)
+    limit: float  # |reading| at or beyond this is saturated
+    n_axes: int
+    columns: tuple[str, ...]  # the recording columns the readings come from
+
+    @classmethod
+    def of(cls, profile: DeskProfile) -> InertiaSettings | None:
+        """The settings for ``profile``, or None when it has no accelerometer."""
+        spec = profile.accelerometer
+        if spec is None:
+            return None
+        if profile.mass_kg is None:  # (the profile loader refuses this; a hand-made profile)
+            raise ValueError(f"desk {profile.name!r} has an accelerometer but no mass_kg")
+        axes = spec.axis_matrix()  # (3, A)
+        c = profile.center_of_mass()
+        lever = np.array([[0.0, -c[2], c[1]], [c[2], 0.0, -c[0]], [-c[1], c[0], 0.0]])
+        gain = profile.mass_kg * np.vstack([np.eye(3), lever]) @ axes  # (6, A)
+        rest = axes.T @ np.array([0.0, 0.0, STANDARD_GRAVITY])
+        return cls(
+            gain=np.ascontiguousarray(gain),
+            rest=rest,
+            limit=float(spec.range_m_s2),
+            n_axes=axes.shape[1],
+            columns=tuple(spec.column_names()),
+        )
+
+
+class InertiaStage:
+    """Removes the inertial wrench from the resultant wrench, block or single sample.
+
+    Stateless: each sample's correction depends on its own reading only.
+    """
+
+    def __init__(self, settings: InertiaSettings) -> None:
+        self.settings = settings
+
+    def check(self, accel: np.ndarray | None, k: int) -> np.ndarray | None:
+        """``accel`` as (k, A) floats, or None; a clear error for a wrong shape."""
+        if accel is None:
+            return None
+        accel = np.asarray(accel, dtype=float)
+        s = self.settings
+        if accel.shape != (k, s.n_axes):
+            raise ValueError(
+                f"accel must have shape (k, A) = ({k}, {s.n_axes}) for the accelerometer's "
+                f"columns {', '.join(s.columns)}, found {accel.shape}"
+            )
+        return accel
+
+    def usable(self, accel: np.ndarray) -> np.ndarray:
+        """Which readings (..., A) can be used: every axis finite and inside the range."""
+        with np.errstate(invalid="ignore"):  # NaN compares False: not usable
+            return np.asarray((np.abs(accel) < self.settings.limit).all(axis=-1))
+
+    def process(self, raw: np.ndarray, accel: np.ndarray | None) -> np.ndarray:
+        """Subtract the inertial wrench from ``raw`` (6, k) in place where the reading in
+        ``accel`` (k, A) is usable; returns the flags (k,) uint8, ``FLAG_NO_ACCEL`` where it
+        is not (every sample when ``accel`` is None)."""
+        k = raw.shape[1]
+        flags = np.zeros(k, np.uint8)
+        if accel is None:
+            flags[:] = FLAG_NO_ACCEL
+            return flags
+        s = self.settings
+        usable = self.usable(accel)
+        relative = accel - s.rest
+        if usable.all():
+            raw -= s.gain @ relative.T
+            return flags
+        flags[~usable] = FLAG_NO_ACCEL
+        relative[~usable] = 0.0  # no compensation there (and no NaN into the wrench)
+        raw -= s.gain @ relative.T
+        return flags
+
+    def process_one(self, raw: np.ndarray, accel: np.ndarray | None) -> np.ndarray | None:
+        """:meth:`process` for one sample: ``raw`` (6,) less the inertial wrench (a new
+        array), or None where the reading is not usable (the block path flags it)."""
+        if accel is None:
+            return None
+        s = self.settings
+        row = np.asarray(accel, dtype=float).reshape(-1)
+        if row.shape != (s.n_axes,) or not bool(self.usable(row)):
+            return None
+        return raw - s.gain @ (row - s.rest)
+
+
+def accelerometer_readings(
+    profile: DeskProfile, columns: dict[str, np.ndarray]
+) -> np.ndarray | None:
+    """The accelerometer's readings (k, A) from a recording's extra columns, or None when the
+    desk has no accelerometer or the recording lacks its columns (then every sample is
+    estimated uncompensated, flagged)."""
+    spec = profile.accelerometer
+    if spec is None:
+        return None
+    names = spec.column_names()
+    if not all(name in columns for name in names):
+        return None
+    return np.column_stack([np.asarray(columns[name], dtype=float) for name in names])

@@ -1,0 +1,126 @@
+"""Vibration compensation measured on the simulator (issue 15 item 6): the same runs of a desk
+with an accelerometer estimated with and without its readings.
+
+- dragged strokes (``examples/scenes/slider.yaml``'s drags, ``kita.yaml``'s strokes): the
+  located points' error against the true contact point, p50/p95 over every located sample in
+  true contact; and against the true point ``position_delay_s`` earlier (the low-pass's lag
+  taken out, so what is left is the path's shape: the sway's ripple and noise);
+- the sway ring after a swipe lifts off (``swipes.yaml``): the peak of the desk's inertial
+  force left in the resultant wrench (low-passed at the detection's 30 Hz) from 50 ms to 1 s
+  after each release, and the phantom touch-downs there (a contact starting while nobody
+  touches).
+
+    python scripts/vibration_eval.py --seeds 3
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+import scipy.signal
+
+from hapticdesk.estimator import ContactEstimator
+from hapticdesk.estimator.filters import butter_lowpass_sos
+from hapticdesk.estimator.inertia import InertiaSettings, InertiaStage, accelerometer_readings
+from hapticdesk.files.profile import DeskProfile, load_profile
+from hapticdesk.files.recording import Recording
+from hapticdesk.sim import simulate
+from hapticdesk.sim.scene import load_scene
+
+SCENES = Path(__file__).resolve().parent.parent / "examples" / "scenes"
+RING_FROM_S, RING_TO_S = 0.05, 1.0  # the window after a release where the ring is judged
+
+
+def drag_errors(profile: DeskProfile, rec: Recording, compensate: bool) -> tuple[np.ndarray, ...]:
+    """Errors (m) of the located samples in true contact: against the truth, and against the
+    truth one low-pass delay earlier."""
+    est = ContactEstimator(profile)
+    accel = accelerometer_readings(profile, rec.extra) if compensate else None
+    block = est.push(rec.t, rec.wrench, accel)
+    tx, ty = rec.extra["true_x"], rec.extra["true_y"]
+    touching = rec.extra["true_fn"] > 0
+    ok = block.located & touching
+    err = np.hypot(block.x[ok] - tx[ok], block.y[ok] - ty[ok])
+    lag = round(est.position_delay_s * profile.sample_rate_hz)
+    idx = np.flatnonzero(ok)
+    idx = idx[(idx >= lag) & touching[np.maximum(idx - lag, 0)]]
+    shape = np.hypot(block.x[idx] - tx[idx - lag], block.y[idx] - ty[idx - lag])
+    return err, shape
+
+
+def ring(profile: DeskProfile, rec: Recording, compensate: bool) -> tuple[list[float], int]:
+    """Peak inertial force (N) left after each release, and phantom touch-downs."""
+    inertia = InertiaSettings.of(profile)
+    assert inertia is not None
+    raw = profile.wrench_map() @ rec.wrench.reshape(len(rec.t), -1).T  # (6, k)
+    if compensate:
+        InertiaStage(inertia).process(raw, accelerometer_readings(profile, rec.extra))
+    # raw = M q̈ - u: add the finger's force back, take the desk's weight off (the still start)
+    force = raw[:3] + np.vstack([rec.extra[c] for c in ("true_fx", "true_fy", "true_fz")])
+    force -= np.median(force[:, : int(profile.sample_rate_hz)], axis=1, keepdims=True)
+    sos = butter_lowpass_sos(30.0, profile.sample_rate_hz)
+    left = np.linalg.norm(scipy.signal.sosfilt(sos, force, axis=1), axis=0)
+    block = ContactEstimator(profile).push(
+        rec.t, rec.wrench, accelerometer_readings(profile, rec.extra) if compensate else None
+    )
+    touching = rec.extra["true_fn"] > 0
+    starts = np.flatnonzero(block.in_contact[1:] & ~block.in_contact[:-1]) + 1
+    releases = np.flatnonzero(touching[:-1] & ~touching[1:]) + 1
+    fs = profile.sample_rate_hz
+    peaks, phantoms = [], 0
+    for r in releases:
+        a, b = r + round(RING_FROM_S * fs), r + round(RING_TO_S * fs)
+        if b > len(rec.t) or touching[r:b].any():
+            continue
+        peaks.append(float(left[a:b].max()))
+        phantoms += int(np.count_nonzero((starts >= r) & (starts < b)))
+    return peaks, phantoms
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--desk", default="kitamura2017-accel")
+    parser.add_argument("--seeds", type=int, default=3)
+    args = parser.parse_args()
+    started = time.perf_counter()
+    profile = load_profile(args.desk)
+    print(f"desk {profile.name}, seeds 1..{args.seeds}")
+    for scene_name in ("slider", "kita"):
+        scene = load_scene(SCENES / f"{scene_name}.yaml")
+        found: dict[bool, list[list[np.ndarray]]] = {True: [[], []], False: [[], []]}
+        for seed in range(1, args.seeds + 1):
+            rec = simulate(profile, scene, seed)
+            for comp in (False, True):
+                err, shape = drag_errors(profile, rec, comp)
+                found[comp][0].append(err)
+                found[comp][1].append(shape)
+        for comp in (False, True):
+            err, shape = (np.concatenate(x) * 1000 for x in found[comp])
+            print(
+                f"  {scene_name:7s} {'with   ' if comp else 'without'} accelerometer: "
+                f"error p50 {np.percentile(err, 50):.2f} p95 {np.percentile(err, 95):.2f} mm; "
+                f"lag taken out p50 {np.percentile(shape, 50):.2f} "
+                f"p95 {np.percentile(shape, 95):.2f} mm ({len(err)} samples)"
+            )
+    scene = load_scene(SCENES / "swipes.yaml")
+    rings: dict[bool, tuple[list[float], int]] = {True: ([], 0), False: ([], 0)}
+    for seed in range(1, args.seeds + 1):
+        rec = simulate(profile, scene, seed)
+        for comp in (False, True):
+            peaks, phantoms = ring(profile, rec, comp)
+            rings[comp] = (rings[comp][0] + peaks, rings[comp][1] + phantoms)
+    for comp in (False, True):
+        peaks, phantoms = np.array(rings[comp][0]), rings[comp][1]
+        print(
+            f"  ring after a swipe {'with   ' if comp else 'without'} accelerometer: peak "
+            f"force left median {np.median(peaks):.3f} N, max {peaks.max():.3f} N over "
+            f"{len(peaks)} releases; phantom touch-downs {phantoms}"
+        )
+    print(f"({time.perf_counter() - started:.0f} s)")
+
+
+if __name__ == "__main__":
+    main()

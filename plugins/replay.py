@@ -55,7 +55,7 @@ class RecordingSource(Source):
     def blocks(self) -> Iterator[WrenchBlock]:
         import numpy as np
 
-        from hapticdesk.files.recording import Recording
+        from hapticdesk.files.recording import Recording, accel_table
 
         rec_or_blocks = self.recording
         if isinstance(rec_or_blocks, Recording):
@@ -70,7 +70,8 @@ class RecordingSource(Source):
                         return
                     end = min(start + self.block_size, len(rec))
                     truth = {k: np.asarray(v[start:end]) for k, v in rec.extra.items()} or None
-                    yield WrenchBlock(rec.t[start:end], rec.wrench[start:end], truth)
+                    accel = accel_table(truth) if truth else None
+                    yield WrenchBlock(rec.t[start:end], rec.wrench[start:end], truth, accel)
         finally:
             close = getattr(parts, "close", None)  # a generator of file blocks
             if close is not None:

@@ -14,6 +14,7 @@ import numpy as np
 
 from hapticdesk.estimator import ContactEstimator
 from hapticdesk.estimator.contacts import FLAG_NAMES, PHASE_NAMES, SOURCE_NAMES, ContactBlock
+from hapticdesk.estimator.inertia import accelerometer_readings
 from hapticdesk.files.profile import METHODS, DeskProfile, load_profile
 from hapticdesk.files.readers import read_any_recording
 
@@ -76,7 +77,8 @@ def run(args: argparse.Namespace) -> int:
     recording = read_any_recording(args.recording, profile)
     estimator = ContactEstimator(profile, method=args.method)
     start = time.perf_counter()
-    block = estimator.push(recording.t, recording.wrench)  # estimation alone is timed
+    accel = accelerometer_readings(profile, recording.extra)  # (None: no accelerometer)
+    block = estimator.push(recording.t, recording.wrench, accel)  # estimation alone is timed
     seconds = time.perf_counter() - start
     if args.output == "-":
         write_contacts_csv(sys.stdout, block, profile)

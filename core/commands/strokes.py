@@ -177,7 +177,7 @@ def record(args: argparse.Namespace) -> int:
             if len(block.t) == 0:
                 continue
             t_last = float(block.t[-1])
-            for stroke in capture.feed(estimator.push(block.t, block.wrench)):
+            for stroke in capture.feed(estimator.push(block.t, block.wrench, block.accel)):
                 saved.append(_save(stroke, folder, args.name, templates, options))
             if args.count and len(saved) >= args.count:
                 break

@@ -67,6 +67,18 @@ class Recording:
         return np.hstack(parts)
 
 
+ACCEL_COLUMNS = ("acc_x", "acc_y", "acc_z")  # an accelerometer's readings, when recorded
+
+
+def accel_table(extra: dict[str, np.ndarray]) -> np.ndarray | None:
+    """The accelerometer columns among ``extra`` as (k, A) in x, y, z order, or None when
+    there are none (the estimator checks them against the desk's profile)."""
+    names = [c for c in ACCEL_COLUMNS if c in extra]
+    if not names:
+        return None
+    return np.column_stack([np.asarray(extra[c], dtype=float) for c in names])
+
+
 def needed_columns(sensor_names: list[str]) -> list[str]:
     """The columns a recording for ``sensor_names`` must have, in order."""
     return ["t"] + [f"{s}_{a}" for s in sensor_names for a in AXES]

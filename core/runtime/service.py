@@ -533,7 +533,8 @@ class Runtime:
                 continue
             if t_first is None:
                 t_first = float(block.t[0])
-            contacts = scene.estimator.push(block.t, block.wrench)  # it logs its own notices
+            # (it logs its own notices)
+            contacts = scene.estimator.push(block.t, block.wrench, block.accel)
             self._emit(scene.engine.feed(contacts))
             self._update_live(contacts)
             if scene.observers:

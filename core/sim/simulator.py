@@ -14,7 +14,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from hapticdesk.files.profile import DeskProfile
-from hapticdesk.files.recording import Recording
+from hapticdesk.files.recording import Recording, accel_table
 from hapticdesk.runtime.source import Source, WrenchBlock
 from hapticdesk.sim.desk import DeskModel, DeskParameters
 from hapticdesk.sim.scene import Scene
@@ -239,16 +239,18 @@ class SimSource(Source):
                 if self._closed:
                     return
                 b = a + self.block_size
-                yield WrenchBlock(t_all[a:b], w_all[a:b], {c: v[a:b] for c, v in tr_all.items()})
+                columns = {c: v[a:b] for c, v in tr_all.items()}
+                yield WrenchBlock(t_all[a:b], w_all[a:b], columns, accel_table(columns))
             pending_t, pending_w = [t_all[full:]], [w_all[full:]]
             pending_truth = [{c: v[full:] for c, v in tr_all.items()}]
             size = len(t_all) - full
         if size and not self._closed:
-            t_all = np.concatenate(pending_t)
+            columns = {c: np.concatenate([p[c] for p in pending_truth]) for c in self.run.columns}
             yield WrenchBlock(
-                t_all,
+                np.concatenate(pending_t),
                 np.concatenate(pending_w),
-                {c: np.concatenate([p[c] for p in pending_truth]) for c in self.run.columns},
+                columns,
+                accel_table(columns),
             )
 
     def close(self) -> None:

@@ -268,3 +268,34 @@ def test_the_accelerometer_entry_is_read(tmp_path):
     # a horizontal reading of 1 m/s² along the accelerometer's x (the desk's y) is 10 N on y
     # and the moment of that force at the centre of mass
     np.testing.assert_allclose(settings.gain @ [1.0, 0.0], [0, 10, 0, -10 * 0.5, 0, 0], atol=1e-12)
+
+
+def test_sources_carry_the_readings_to_the_estimator(accel_desk, tmp_path):
+    """The simulator's source and a replayed recording give the blocks their readings
+    (``WrenchBlock.accel``), so `hapticdesk run` compensates as `estimate` does."""
+    from hapticdesk.plugins.replay import open_replay
+    from hapticdesk.sim import SimSource
+
+    scene = load_scene(SCENES / "swipes.yaml")
+    rec = simulate(accel_desk, scene, 2)
+    k = 6_000
+    expected = accelerometer_readings(accel_desk, rec.extra)[:k]
+    got = []
+    for block in SimSource(accel_desk, scene, 2, block_size=50).blocks():
+        got.append(block.accel)
+        if sum(len(a) for a in got) >= k:
+            break
+    np.testing.assert_array_equal(np.concatenate(got)[:k], expected)
+    short = type(rec)(
+        rec.t[:k], rec.wrench[:k], rec.sensor_names, {c: v[:k] for c, v in rec.extra.items()}
+    )
+    path = tmp_path / "swipes.npz"
+    write_recording(path, short)
+    source = open_replay(str(path), accel_desk, speed=0)
+    est = ContactEstimator(accel_desk)
+    blocks = [est.push(b.t, b.wrench, b.accel) for b in source.blocks()]
+    source.close()
+    streamed = type(blocks[0]).concat(blocks)
+    batch = estimate(accel_desk, short)
+    assert not (streamed.flags & FLAG_NO_ACCEL).any()
+    np.testing.assert_allclose(streamed.x, batch.x, atol=1e-9)

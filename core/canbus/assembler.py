@@ -150,12 +150,15 @@ def canopen_function(ident: int) -> str:
 
 @dataclass
 class AssembledBlock:
-    """Samples given out by one push: ``t`` (k,), ``wrench`` (k, S, 6), new notices."""
+    """Samples given out by one push: ``t`` (k,), ``wrench`` (k, S, 6), new notices, and the
+    accelerometer's readings ``accel`` (k, A) when the desk has one on the bus (NaN where its
+    frame is missing or its status voids it)."""
 
     t: np.ndarray
     wrench: np.ndarray
     notices: list[CanNotice]
     stop: SensorSilentError | None = None
+    accel: np.ndarray | None = None
 
 
 @dataclass
@@ -256,6 +259,7 @@ class FrameAssembler:
         self._silent = np.zeros(len(names), dtype=bool)
         self._late_frames = np.zeros(len(names), dtype=np.int64)  # since the sensor last fit
         self._stopped: SensorSilentError | None = None
+        self._accel_axes = decoding.accel_axes  # the last group is the accelerometer's
 
     # --- public -------------------------------------------------------------------------
 
@@ -577,7 +581,10 @@ class FrameAssembler:
         for notice in notices:
             log.warning("%s", notice.message)
         self.notices.extend(notices)
-        return AssembledBlock(t, wrench, notices, self._stopped)
+        if self._accel_axes is None:
+            return AssembledBlock(t, wrench, notices, self._stopped)
+        accel = wrench[:, -1, self._accel_axes]
+        return AssembledBlock(t, wrench[:, :-1], notices, self._stopped, accel)
 
     # --- counting -----------------------------------------------------------------------
 

@@ -7,6 +7,10 @@ Validated here with ``file:line:column`` positions (the profile keeps the sectio
   to the profile): ``fl: {fx: FL_FORCE.Fx, …, counter: [FL_FORCE.Seq, FL_MOMENT.Seq]}``;
 - the ATI NETCANOEM protocol: ``ft: {ati_netcanoem: {base: 0x20}}``.
 
+A desk with an ``accelerometer`` reads it from database signals too:
+``accelerometer: {x: ACCEL.Ax, y: ACCEL.Ay, z: ACCEL.Az, counter: ACCEL.Seq}``; it is
+assembled with the sensors as one more group of channels (:data:`ACCEL_GROUP`).
+
 See docs/can.md for every key.
 """
 
@@ -37,6 +41,9 @@ from hapticdesk.files.yamlfile import (
 )
 
 ASSEMBLE_MODES = ("counter", "time")
+#: the accelerometer's name among the groups of channels the frames are assembled into (its
+#: x, y, z decode into the group's first three channels)
+ACCEL_GROUP = "accelerometer"
 SILENT_POLICIES = ("continue", "stop")
 _CAN_KEYS = {
     "interface",
@@ -50,6 +57,7 @@ _CAN_KEYS = {
     "silent_sensor",
     "reconnect_timeout_s",
     "sensors",
+    "accelerometer",
 }
 _SIGNAL_SENSOR_KEYS = set(AXES) | {"counter", "status"}
 _ATI_KEYS = {"base", "calibration", "slot"}
@@ -103,6 +111,16 @@ class CanConfig:
     silent_sensor: str = "continue"
     reconnect_timeout_s: float = 10.0
     where: Position | str = ""
+    #: the desk's accelerometer from database signals (axes fx, fy, fz stand for its x, y, z)
+    accelerometer: SignalSensor | None = None
+
+    def groups(self) -> list[tuple[str, SignalSensor | AtiSensor]]:
+        """The groups of channels assembled into samples: the sensors in the profile's
+        order, then the accelerometer when there is one."""
+        out = list(self.sensors.items())
+        if self.accelerometer is not None:
+            out.append((ACCEL_GROUP, self.accelerometer))
+        return out
 
     @property
     def ati_sensors(self) -> dict[str, AtiSensor]:
@@ -163,8 +181,12 @@ def parse_can_section(section: MarkedDict, profile: DeskProfile) -> CanConfig:
         else:
             sensors[name] = _signal_sensor(item, name, database, section)
     _check_distinct_ids(sensors, database, sensors_raw)
+    accelerometer = None
+    if "accelerometer" in section:
+        accelerometer = _accelerometer(section, profile, database)
 
-    all_counted = all(isinstance(s, SignalSensor) and s.counters for s in sensors.values())
+    counted = list(sensors.values()) + ([accelerometer] if accelerometer else [])
+    all_counted = all(isinstance(s, SignalSensor) and s.counters for s in counted)
     assemble = choice(
         section, "assemble", ASSEMBLE_MODES, "`can`", default="counter" if all_counted else "time"
     )
@@ -180,7 +202,7 @@ def parse_can_section(section: MarkedDict, profile: DeskProfile) -> CanConfig:
                 )
                 + " have none (use `assemble: time`)",
             )
-        moduli = {_counter_modulus(database, c) for s in sensors.values() for c in s.counters}  # type: ignore[union-attr]
+        moduli = {_counter_modulus(database, c) for s in counted for c in s.counters}  # type: ignore[union-attr]
         if len(moduli) > 1:
             raise ConfigError(
                 section.where("sensors"),
@@ -210,6 +232,7 @@ def parse_can_section(section: MarkedDict, profile: DeskProfile) -> CanConfig:
             section, "reconnect_timeout_s", "`can`", default=10.0, minimum=0.0
         ),
         where=section.where(),
+        accelerometer=accelerometer,
     )
 
 
@@ -355,6 +378,37 @@ def _signal_sensor(item: MarkedDict, name: str, database: Any, section: MarkedDi
                 ref.where, f"status {ref} of {what} is not in one of its axes' messages"
             )
     return SignalSensor(axes=axes, counters=counters, status=status)
+
+
+def _accelerometer(section: MarkedDict, profile: DeskProfile, database: Any) -> SignalSensor:
+    """``can.accelerometer``: the profile's accelerometer axes as database signals."""
+    where = section.where("accelerometer")
+    spec = profile.accelerometer
+    if spec is None:
+        raise ConfigError(
+            section.where("accelerometer", of_key=True),
+            f"`can.accelerometer` decodes an accelerometer, but desk `{profile.name}` has "
+            "none: add `accelerometer:` to the profile (where it is mounted, its axes)",
+        )
+    item = require_mapping(section["accelerometer"], where, "`can.accelerometer`")
+    check_keys(item, {"x", "y", "z", "counter", "status"}, "`can.accelerometer`")
+    given = [a for a in ("x", "y", "z") if a in item]
+    if given != list(spec.axes):
+        raise ConfigError(
+            item.where(),
+            f"`can.accelerometer` must give a signal for each of the accelerometer's axes "
+            f"({', '.join(spec.axes)}), found {', '.join(given) or 'none'}",
+        )
+    # the same rules as a sensor's signals, its x, y, z in a sensor's fx, fy, fz
+    renamed = MarkedDict({("f" + k if k in ("x", "y", "z") else k): v for k, v in item.items()})
+    renamed.position = item.position
+    renamed.key_positions = {
+        ("f" + k if k in ("x", "y", "z") else k): p for k, p in item.key_positions.items()
+    }
+    renamed.value_positions = {
+        ("f" + k if k in ("x", "y", "z") else k): p for k, p in item.value_positions.items()
+    }
+    return _signal_sensor(renamed, ACCEL_GROUP, database, section)
 
 
 def _counter_modulus(database: Any, ref: SignalRef) -> int:

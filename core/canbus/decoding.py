@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hapticdesk.canbus import ati_netcanoem as ati
-from hapticdesk.canbus.config import AtiSensor, CanConfig, SignalSensor
+from hapticdesk.canbus.config import ACCEL_GROUP, AtiSensor, CanConfig, SignalSensor
 from hapticdesk.canbus.dbc_signals import SignalLayout, frame_words
 from hapticdesk.canbus.frames import ERROR, EXTENDED, REMOTE, FrameArray
 from hapticdesk.files.profile import AXES, DeskProfile
@@ -114,7 +114,8 @@ class DeskDecoding:
     """Everything needed to turn a desk's frames into samples."""
 
     kinds: list[FrameKind]
-    readings: list[SensorReading]  # in the profile's sensor order
+    # in the profile's sensor order, then the accelerometer's (config.ACCEL_GROUP) if any
+    readings: list[SensorReading]
     n_fields: int
     request_sensor: dict[int, int]  # ATI sample-request identifier -> sensor index
     protocol_ids: frozenset[int]
@@ -140,6 +141,15 @@ class DeskDecoding:
     @property
     def sensor_names(self) -> list[str]:
         return [r.name for r in self.readings]
+
+    @property
+    def accel_axes(self) -> list[int] | None:
+        """The accelerometer group's channels that hold its axes (x, y, z order), or None
+        when the desk has no accelerometer on the bus (its group is the last reading)."""
+        last = self.readings[-1] if self.readings else None
+        if not isinstance(last, SignalReading) or last.name != ACCEL_GROUP:
+            return None
+        return sorted(last.axis_columns)
 
     def classify(self, frames: FrameArray) -> np.ndarray:
         """Code per frame: a kind index (>= 0) or FOREIGN, WRONG_LENGTH, PROTOCOL, REQUEST, …"""
@@ -181,8 +191,7 @@ def build_decoding(
     message_fields: dict[str, list[tuple[int, SignalLayout]]] = {}
     message_sensors: dict[str, list[int]] = {}
     message_counter: dict[str, SignalLayout] = {}
-    for index, name in enumerate(profile.sensor_names):
-        sensor = config.sensors[name]
+    for index, (name, sensor) in enumerate(config.groups()):  # sensors, then accelerometer
         if isinstance(sensor, AtiSensor):
             cal = sensor.calibration or calibrations.get(name)
             if cal is None:

@@ -48,9 +48,14 @@ class FrameEncoder:
         self.config = config
         self.sensor_names = profile.sensor_names
         self.calibrations: dict[str, ati.AtiCalibration] = {}
+        # the accelerometer (when on the bus) is the group after the sensors: its x, y, z
+        # are the group's channels 0, 1, 2
+        spec = profile.accelerometer if config.accelerometer is not None else None
+        self.accel_channels = (
+            None if spec is None else [("x", "y", "z").index(a) for a in spec.axes]
+        )
         messages: dict[str, _Message] = {}
-        for s, name in enumerate(self.sensor_names):
-            sensor = config.sensors[name]
+        for s, (name, sensor) in enumerate(config.groups()):
             if isinstance(sensor, AtiSensor):
                 cal = sensor.calibration or (calibrations or {}).get(name)
                 self.calibrations[name] = cal or ati.example_calibration(s)
@@ -84,16 +89,25 @@ class FrameEncoder:
         first_index: int = 0,
         status: np.ndarray | None = None,
         polls: bool = False,
+        accel: np.ndarray | None = None,
     ) -> FrameArray:
         """Frames of samples ``first_index …`` in sample order.
 
         ``status`` (k, S) integers go into status signals or ATI status words. A sample with
         a NaN channel sends no frame carrying it (as a lost frame). ``polls`` adds the host's
         ATI poll requests (marked as sent) before each sample's replies, as a capture has them.
+        ``accel`` (k, A): the accelerometer's readings, for a desk with one on the bus (none
+        given: its frames are not sent, as a silent board).
         """
         t = np.asarray(t, dtype=float)
         k = len(t)
         status = np.zeros((k, len(self.sensor_names)), dtype=np.int64) if status is None else status
+        if self.accel_channels is not None:  # one more group: the accelerometer's
+            group = np.full((k, 1, 6), np.nan if accel is None else 0.0)
+            if accel is not None:
+                group[:, 0, self.accel_channels] = accel
+            wrench = np.concatenate([wrench, group], axis=1)
+            status = np.concatenate([status, np.zeros((k, 1), np.int64)], axis=1)
         per_sample: list[FrameArray] = []  # each (k,) frames of one kind, interleaved below
         for msg in self.messages:
             little = np.zeros(k, dtype=np.uint64)
@@ -226,11 +240,13 @@ class CanEmulator:
         speed: float = 1.0,
         loop: bool = False,
         status: np.ndarray | None = None,
+        accel: np.ndarray | None = None,
     ) -> None:
         self.encoder = encoder
         self.t = np.asarray(t, dtype=float)
         self.wrench = wrench
         self.status = status
+        self.accel = accel  # (k, A) the accelerometer's readings, if the desk sends them
         self.bus = bus
         self.speed = speed
         self.loop = loop
@@ -287,6 +303,7 @@ class CanEmulator:
                 self.wrench[index:stop],
                 first_index=self.stats.samples,
                 status=status,
+                accel=None if self.accel is None else self.accel[index:stop],
             )
             for msg in frames.to_messages(t0=clock + offset):
                 try:
@@ -369,7 +386,7 @@ def encoder_for(
             n: AtiSensor(base=ati.DEFAULT_BASE + i) for i, n in enumerate(profile.sensor_names)
         }
         config = (
-            replace(config, sensors=sensors, assemble="time")
+            replace(config, sensors=sensors, assemble="time", accelerometer=None)
             if config
             else CanConfig(sensors=sensors, where=where)
         )

@@ -330,14 +330,20 @@ def _blocks(path: str | Path, assembler: FrameAssembler) -> Iterator[AssembledBl
 def decode_can_log(path: str | Path, profile: DeskProfile) -> CanLogDecoding:
     """Decode a whole log into a Recording, with the statistics of what was in it."""
     assembler = _assembler(path, profile)
-    ts, ws = [], []
+    ts, ws, accs = [], [], []
     for block in _blocks(path, assembler):
         ts.append(block.t)
         ws.append(block.wrench)
+        if block.accel is not None:
+            accs.append(block.accel)
     t = np.concatenate(ts)
     if not len(t):
         raise _nothing_decoded(Path(path), profile.name, assembler.stats)
-    recording = Recording(t, np.concatenate(ws), profile.sensor_names)
+    extra = {}
+    if accs and profile.accelerometer is not None:  # the columns a recording would have
+        accel = np.concatenate(accs)
+        extra = {c: accel[:, i] for i, c in enumerate(profile.accelerometer.column_names())}
+    recording = Recording(t, np.concatenate(ws), profile.sensor_names, extra)
     return CanLogDecoding(recording, assembler.stats, list(assembler.notices))
 
 
@@ -385,7 +391,7 @@ class CanLogSource(Source):
             if self._closed:
                 return
             if len(block.t):
-                yield WrenchBlock(block.t, block.wrench)
+                yield WrenchBlock(block.t, block.wrench, accel=block.accel)
         if not self.stats.samples:
             raise _nothing_decoded(self.path, self.profile_name, self.stats)
 

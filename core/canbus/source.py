@@ -372,7 +372,7 @@ class CanSource(Source):
     def _give(self, block: AssembledBlock) -> Iterator[WrenchBlock]:
         self.notices.extend(block.notices)
         if len(block.t):
-            yield WrenchBlock(block.t, block.wrench)
+            yield WrenchBlock(block.t, block.wrench, accel=block.accel)
         if block.stop is not None:
             raise block.stop
 

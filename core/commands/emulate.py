@@ -92,7 +92,12 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(
             "--bus", f"cannot open CAN interface {interface!r} channel {channel!r}: {err}"
         ) from None
-    emulator = CanEmulator(encoder, rec.t, rec.wrench, bus, speed=args.speed, loop=args.loop)
+    from hapticdesk.estimator.inertia import accelerometer_readings
+
+    accel = accelerometer_readings(profile, rec.extra)  # None: the desk has no accelerometer
+    emulator = CanEmulator(
+        encoder, rec.t, rec.wrench, bus, speed=args.speed, loop=args.loop, accel=accel
+    )
     start = time.perf_counter()
     try:
         emulator.run()

@@ -221,11 +221,13 @@ def _record_file(
     from hapticdesk.canbus.config import can_config
     from hapticdesk.canbus.emulator import FrameEncoder
     from hapticdesk.canbus.logs import write_frames
+    from hapticdesk.estimator.inertia import accelerometer_readings
 
     encoder = FrameEncoder(can_config(profile), profile)
     t0 = time.time()
     start = encoder.calibration_frames(t0 - 0.01)
-    body = encoder.encode(rec.t + t0, rec.wrench, polls=True)
+    accel = accelerometer_readings(profile, rec.extra)
+    body = encoder.encode(rec.t + t0, rec.wrench, polls=True, accel=accel)
     n = _write_frames(output, [start, body], write_frames)
     summary = _summary(rec.t, problems)
     summary["frames"] = n

@@ -1,0 +1,122 @@
+"""The accelerometer board over CAN (issue 15 item 6): its ACCEL frames in a real log format
+written and read by python-can, decoded with the legs' sensors by the shared counter, and the
+estimator compensating from the decoded readings as from the simulator's."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hapticdesk.canbus.config import can_config
+from hapticdesk.canbus.emulator import FrameEncoder
+from hapticdesk.canbus.logs import open_can_log, read_can_log, write_frames
+from hapticdesk.estimator import ContactEstimator, estimate
+from hapticdesk.estimator.contacts import FLAG_NO_ACCEL
+from hapticdesk.estimator.inertia import accelerometer_readings
+from hapticdesk.files.profile import load_profile
+from hapticdesk.files.recording import Recording
+from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.sim import simulate
+from hapticdesk.sim.scene import load_scene
+
+SCENES = Path(__file__).resolve().parents[2] / "examples" / "scenes"
+
+
+@pytest.fixture(scope="module")
+def accel_desk():
+    return load_profile("kitamura2017-accel")
+
+
+@pytest.fixture(scope="module")
+def swipes(accel_desk) -> Recording:
+    rec = simulate(accel_desk, load_scene(SCENES / "swipes.yaml"), 3)
+    k = 8_000  # the tare and the first two swipes
+    return Recording(
+        rec.t[:k], rec.wrench[:k], rec.sensor_names, {c: v[:k] for c, v in rec.extra.items()}
+    )
+
+
+@pytest.mark.parametrize("suffix", [".asc", ".blf"])
+def test_an_accelerometer_desk_round_trips_through_a_can_log(tmp_path, accel_desk, swipes, suffix):
+    config = can_config(accel_desk)
+    accel = accelerometer_readings(accel_desk, swipes.extra)
+    frames = FrameEncoder(config, accel_desk).encode(swipes.t, swipes.wrench, accel=accel)
+    assert len(frames) == 9 * len(swipes.t)  # eight frames of the legs, one ACCEL a sample
+    path = tmp_path / f"desk{suffix}"
+    write_frames(path, [frames])
+    rec = read_can_log(path, accel_desk)
+    assert len(rec.t) == len(swipes.t)
+    decoded = accelerometer_readings(accel_desk, rec.extra)
+    assert decoded is not None
+    np.testing.assert_allclose(decoded, accel, atol=0.0005 + 1e-9)  # the DBC's 1 mm/s² step
+    # compensated from the log's readings as from the simulator's exact ones (on the log's
+    # wrench): the same contacts, the same places within the DBC's 1 mm/s² step (14 mN)
+    from_log = estimate(accel_desk, rec)
+    exact = ContactEstimator(accel_desk).push(rec.t, rec.wrench, accel)
+    assert not (from_log.flags & FLAG_NO_ACCEL).any()
+    np.testing.assert_array_equal(from_log.in_contact, exact.in_contact)
+    both = from_log.located & exact.located
+    assert both.sum() > 300
+    assert np.abs(from_log.x[both] - exact.x[both]).max() < 2e-4
+    # the streaming source gives the readings to the blocks too
+    source = open_can_log(path, accel_desk)
+    streamed = np.concatenate([b.accel for b in source.blocks()])
+    source.close()
+    np.testing.assert_array_equal(streamed, decoded)
+
+
+def test_lost_accel_frames_leave_those_samples_uncompensated_and_flagged(
+    tmp_path, accel_desk, swipes
+):
+    config = can_config(accel_desk)
+    accel = accelerometer_readings(accel_desk, swipes.extra).copy()
+    lost = np.zeros(len(accel), bool)
+    lost[[2_000, 5_000, 5_001]] = True
+    accel[lost] = np.nan  # the encoder sends no ACCEL frame for these samples
+    frames = FrameEncoder(config, accel_desk).encode(swipes.t, swipes.wrench, accel=accel)
+    path = tmp_path / "lossy.asc"
+    write_frames(path, [frames])
+    rec = read_can_log(path, accel_desk)
+    assert len(rec.t) == len(swipes.t)  # the legs' samples all there
+    block = ContactEstimator(accel_desk).push(
+        rec.t, rec.wrench, accelerometer_readings(accel_desk, rec.extra)
+    )
+    np.testing.assert_array_equal((block.flags & FLAG_NO_ACCEL) != 0, lost)
+    assert np.isfinite(block.x).all() and np.isfinite(block.force_n).all()
+
+
+def test_can_accelerometer_needs_one_on_the_desk_and_its_axes(profile_text):
+    base = """name: d
+sample_rate_hz: 1200
+desk: {{mass_kg: 13.7}}
+{accel}sensors:
+  - {{name: fl, position: [-0.34, -0.22, 0.0]}}
+  - {{name: fr, position: [0.34, -0.22, 0.0]}}
+  - {{name: bl, position: [-0.34, 0.22, 0.0]}}
+can:
+  database: kitamura2017.dbc
+  sensors:
+    fl: {{fx: FL_FORCE.Fx, fy: FL_FORCE.Fy, fz: FL_FORCE.Fz}}
+    fr: {{fx: FR_FORCE.Fx, fy: FR_FORCE.Fy, fz: FR_FORCE.Fz}}
+    bl: {{fx: BL_FORCE.Fx, fy: BL_FORCE.Fy, fz: BL_FORCE.Fz}}
+  accelerometer: {{{signals}}}
+"""
+    none = profile_text(base.format(accel="", signals="x: ACCEL.Ax"))
+    with pytest.raises(ConfigError, match=r"desk.yaml:14:\d+: .*has none"):
+        can_config(none)
+    fewer = profile_text(
+        base.format(
+            accel="accelerometer: {position: [0, 0, 0.7]}\n", signals="x: ACCEL.Ax, y: ACCEL.Ay"
+        )
+    )
+    with pytest.raises(ConfigError, match=r"each of the accelerometer's axes \(x, y, z\)"):
+        can_config(fewer)
+    wrong = profile_text(
+        base.format(
+            accel="accelerometer: {position: [0, 0, 0.7], axes: [x]}\n", signals="x: ACCEL.Ux"
+        )
+    )
+    with pytest.raises(ConfigError, match=r"desk.yaml:15:\d+: .*no signal `Ux`"):
+        can_config(wrong)

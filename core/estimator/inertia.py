@@ -34,9 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hapticdesk.estimator.contacts import FLAG_NO_ACCEL
-from hapticdesk.files.profile import DeskProfile
-
-STANDARD_GRAVITY = 9.80665  # m/s², the rest reading of an upward axis
+from hapticdesk.files.profile import STANDARD_GRAVITY, DeskProfile
 
 
 @dataclass(frozen=True, eq=False)

@@ -32,6 +32,7 @@ METHODS = ("force", "diff", "switched", "fused")
 LOWPASS_PER_NATURAL_FREQUENCY = 4.77 / 5.9  # the paper's cut-off for its desk's lowest mode
 AXES = ("fx", "fy", "fz", "mx", "my", "mz")
 ACCEL_AXES = ("x", "y", "z")
+STANDARD_GRAVITY = 9.80665  # m/s²: the desk's weight (simulator), an accelerometer's rest reading
 DEFAULT_TOP_HEIGHT_M = 0.7  # a desk's top above its sensors when the profile has no surface
 COM_HEIGHT_FRACTION = 0.85  # the default centre of mass: a heavy top on light legs
 

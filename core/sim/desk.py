@@ -43,9 +43,8 @@ import scipy.linalg
 import scipy.optimize
 import scipy.signal
 
-from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile import STANDARD_GRAVITY, DeskProfile
 
-STANDARD_GRAVITY = 9.80665  # m/s²
 DEFAULT_MASS_KG = 13.7  # the paper's desk (Table 1)
 DEFAULT_SWAY_HZ = 5.9  # the paper's desk (§3.2)
 

@@ -1,10 +1,11 @@
 """Vibration compensation measured on the simulator (issue 15 item 6): the same runs of a desk
 with an accelerometer estimated with and without its readings.
 
-- dragged strokes (``examples/scenes/slider.yaml``'s drags, ``kita.yaml``'s strokes): the
-  located points' error against the true contact point, p50/p95 over every located sample in
-  true contact; and against the true point ``position_delay_s`` earlier (the low-pass's lag
-  taken out, so what is left is the path's shape: the sway's ripple and noise);
+- dragged strokes (``examples/scenes/slider.yaml``'s drags, ``kita.yaml``'s traced 北,
+  ``shapes.yaml``'s gesture strokes at 12 cm/s): the located points' error against the true
+  contact point, p50/p95 over every located sample in true contact; and against the true
+  point ``position_delay_s`` earlier (the low-pass's lag taken out, so what is left is the
+  path's shape: the sway's ripple and noise);
 - the sway ring after a swipe lifts off (``swipes.yaml``): the peak of the desk's inertial
   force left in the resultant wrench (low-passed at the detection's 30 Hz) from 50 ms to 1 s
   after each release, and the phantom touch-downs there (a contact starting while nobody
@@ -88,7 +89,7 @@ def main() -> None:
     started = time.perf_counter()
     profile = load_profile(args.desk)
     print(f"desk {profile.name}, seeds 1..{args.seeds}")
-    for scene_name in ("slider", "kita"):
+    for scene_name in ("slider", "kita", "shapes"):
         scene = load_scene(SCENES / f"{scene_name}.yaml")
         found: dict[bool, list[list[np.ndarray]]] = {True: [[], []], False: [[], []]}
         for seed in range(1, args.seeds + 1):

@@ -26,6 +26,7 @@ import argparse
 import math
 import time
 from collections import Counter
+from functools import partial
 
 import numpy as np
 
@@ -77,14 +78,15 @@ def drawings(rng: np.random.Generator, per_shape: int, with_others: bool, style:
     return [items[i] for i in order]
 
 
-def simulate_strokes(items, seed: int):
+def simulate_strokes(items, seed: int, desk_name: str = "kitamura2017"):
     """Simulate the strokes (label, path, speed[, times]) one after the other on the paper's
-    desk and estimate: (desk, recording, contacts)."""
+    desk (or ``desk_name``: kitamura2017-accel compensates its sway) and estimate: (desk,
+    recording, contacts)."""
     from hapticdesk.estimator import estimate
     from hapticdesk.files.profile import load_profile
     from hapticdesk.sim import Idle, Scene, Stroke, simulate
 
-    desk = load_profile("kitamura2017")
+    desk = load_profile(desk_name)
     rng = np.random.default_rng(seed)
     actions: list = []
     for i, (_, path, speed, *timed) in enumerate(items):
@@ -120,9 +122,9 @@ def capture_strokes(desk, rec, contacts, count: int) -> list[np.ndarray | None]:
     return paths
 
 
-def trace_on_desk(items, seed: int) -> list[np.ndarray | None]:
+def trace_on_desk(items, seed: int, desk_name: str = "kitamura2017") -> list[np.ndarray | None]:
     """Simulate the strokes one after the other, estimate, capture: one path per stroke."""
-    return capture_strokes(*simulate_strokes(items, seed), len(items))
+    return capture_strokes(*simulate_strokes(items, seed, desk_name), len(items))
 
 
 def trace_synthetic(items, seed: int) -> list[np.ndarray]:
@@ -376,7 +378,9 @@ def _path_speed(path: np.ndarray, t: np.ndarray) -> float:
     return float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum() / max(t[-1], 1e-9))
 
 
-def run_human_speed(folder: str, test_reps: int, seed: int) -> None:
+def run_human_speed(
+    folder: str, test_reps: int, seed: int, desk_name: str = "kitamura2017"
+) -> None:
     """Real strokes at their real speed on the simulated desk: built-in, 1 and 3 own
     templates captured on the desk the same way, per speed."""
     started = time.perf_counter()
@@ -387,7 +391,7 @@ def run_human_speed(folder: str, test_reps: int, seed: int) -> None:
     items = enrol + test
     chunk = 200  # strokes a simulated session: bounds the memory of one recording
     for lo in range(0, len(items), chunk):
-        paths += trace_on_desk(items[lo : lo + chunk], seed + lo)
+        paths += trace_on_desk(items[lo : lo + chunk], seed + lo, desk_name)
     captured = {lab: p for (lab, *_), p in zip(items, paths, strict=True)}
     builtin = template_set()
     own: dict[tuple[str, str, int], TemplateSet] = {}
@@ -414,11 +418,12 @@ def run_human_speed(folder: str, test_reps: int, seed: int) -> None:
             rows.setdefault((name, speed), []).append(verdict)
             rows.setdefault((name, "all"), []).append(verdict)
     print(
-        f"Real strokes at their real speed on the simulated kitamura2017 desk: the $1 logs "
+        f"Real strokes at their real speed on the simulated {desk_name} desk: the $1 logs "
         f"({len(test)} test strokes, {len(enrol)} enrolment strokes captured the same way), "
         f"scaled to {HUMAN_SIZE_M[0] * 100:g}–{HUMAN_SIZE_M[1] * 100:g} cm, traced with their "
         f"logged times; min_score {MIN_SCORE}, max_rotation_deg {MAX_ROTATION:g} "
-        f"(`python scripts/stroke_accuracy.py --human-speed {folder} --reps {test_reps}`, "
+        f"(`python scripts/stroke_accuracy.py --human-speed {folder} --reps {test_reps}"
+        f"{f' --desk {desk_name}' if desk_name != 'kitamura2017' else ''}`, "
         f"{time.perf_counter() - started:.0f} s)\n"
     )
     print("| templates | speed (median, 10–90 %) | right | rejected | wrong |")
@@ -488,6 +493,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--per-shape", type=int, default=20, help="test strokes per shape")
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--desk", default="kitamura2017", help="the simulated desk's profile")
     parser.add_argument("--synthetic", action="store_true", help="noisy paths, no simulator")
     parser.add_argument("--quick", action="store_true", help="skip the user-template rows")
     parser.add_argument("--dollar", metavar="DIR", help="real people: the $1 XML logs under DIR")
@@ -499,12 +505,12 @@ def main() -> None:
     parser.add_argument("--reps", type=int, default=3, help="with --human-speed: test strokes")
     args = parser.parse_args()
     if args.human_speed:
-        run_human_speed(args.human_speed, args.reps, args.seed)
+        run_human_speed(args.human_speed, args.reps, args.seed, args.desk)
         return
     if args.dollar:
         run_real(args.dollar, args.live, args.plot)
         return
-    trace = trace_synthetic if args.synthetic else trace_on_desk
+    trace = trace_synthetic if args.synthetic else partial(trace_on_desk, desk_name=args.desk)
     rng = np.random.default_rng(args.seed)
     started = time.perf_counter()
 
@@ -533,12 +539,14 @@ def main() -> None:
                 name = ("built-in + " if builtin else "") + f"{count} user template(s) per shape"
                 templates = template_set(user, builtin=builtin)
                 rows.append(("one person", name, score(templates, own_labels, own_paths)))
-    how = "synthetic noisy paths" if args.synthetic else "traced on the simulated kitamura2017 desk"
+    how = "synthetic noisy paths" if args.synthetic else f"traced on the simulated {args.desk} desk"
     print(
         f"Stroke accuracy, {args.per_shape} strokes per shape × {len(SHAPES)} shapes, {how}; "
         f"min_score {MIN_SCORE}, max_rotation_deg {MAX_ROTATION:g} "
         f"(`python scripts/stroke_accuracy.py --per-shape {args.per_shape} --seed {args.seed}"
-        f"{' --synthetic' if args.synthetic else ''}`, {time.perf_counter() - started:.0f} s)\n"
+        f"{' --synthetic' if args.synthetic else ''}"
+        f"{f' --desk {args.desk}' if args.desk != 'kitamura2017' else ''}"
+        f"`, {time.perf_counter() - started:.0f} s)\n"
     )
     print(
         "| strokes by | templates | right | rejected | wrong | non-shapes taken for a shape "

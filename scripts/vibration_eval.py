@@ -11,7 +11,7 @@ with an accelerometer estimated with and without its readings.
   after each release, and the phantom touch-downs there (a contact starting while nobody
   touches).
 
-    python scripts/vibration_eval.py --seeds 3
+    python scripts/vibration_eval.py --seeds 5      # the figures in README and docs/stability.md
 """
 
 from __future__ import annotations

@@ -100,20 +100,16 @@ class InertiaStage:
         """Subtract the inertial wrench from ``raw`` (6, k) in place where the reading in
         ``accel`` (k, A) is usable; returns the flags (k,) uint8, ``FLAG_NO_ACCEL`` where it
         is not (every sample when ``accel`` is None)."""
-        k = raw.shape[1]
-        flags = np.zeros(k, np.uint8)
+        flags = np.zeros(raw.shape[1], np.uint8)
         if accel is None:
             flags[:] = FLAG_NO_ACCEL
             return flags
-        s = self.settings
         usable = self.usable(accel)
-        relative = accel - s.rest
-        if usable.all():
-            raw -= s.gain @ relative.T
-            return flags
-        flags[~usable] = FLAG_NO_ACCEL
-        relative[~usable] = 0.0  # no compensation there (and no NaN into the wrench)
-        raw -= s.gain @ relative.T
+        if not usable.all():
+            flags[~usable] = FLAG_NO_ACCEL
+            # the rest reading there: no compensation (and no NaN into the wrench)
+            accel = np.where(usable[:, None], accel, self.settings.rest)
+        raw -= inertial_wrench(self.settings, accel).T
         return flags
 
     def process_one(self, raw: np.ndarray, accel: np.ndarray | None) -> np.ndarray | None:
@@ -121,11 +117,16 @@ class InertiaStage:
         array), or None where the reading is not usable (the block path flags it)."""
         if accel is None:
             return None
-        s = self.settings
         row = np.asarray(accel, dtype=float).reshape(-1)
-        if row.shape != (s.n_axes,) or not bool(self.usable(row)):
+        if row.shape != (self.settings.n_axes,) or not bool(self.usable(row)):
             return None
-        return raw - s.gain @ (row - s.rest)
+        return raw - inertial_wrench(self.settings, row)
+
+
+def inertial_wrench(settings: InertiaSettings, accel: np.ndarray) -> np.ndarray:
+    """The desk's inertial wrench ``[m a; m c × a]`` (..., 6) about P_o for readings
+    (..., A): the one definition both paths use (see the module docstring)."""
+    return (accel - settings.rest) @ settings.gain.T
 
 
 def accelerometer_readings(

@@ -1,8 +1,9 @@
 """Recordings: sample times and every sensor's six channels, as CSV or NPZ (DESIGN.md).
 
 Header ``t`` then ``<sensor>_fx … <sensor>_mz`` for each sensor of the profile. Other columns
-are kept as ``extra`` (the simulator's ground truth ``true_x, true_y, true_fn``) and otherwise
-ignored (text ones too). A missing column is an error that names it.
+are kept as ``extra`` (the simulator's ground truth ``true_x, true_y, true_fn``, a desk
+accelerometer's ``acc_x, acc_y, acc_z``) and otherwise ignored (text ones too, except the
+accelerometer's, whose bad cells are errors). A missing column is an error that names it.
 
 Files are read in blocks (:class:`RecordingBlocks`) so that a replay's memory does not grow
 with the file: CSV through numpy's C parser a block of lines at a time, NPZ each column's
@@ -27,6 +28,7 @@ from hapticdesk.files.profile import AXES
 from hapticdesk.files.yamlfile import ConfigError
 
 RECORDING_SUFFIXES = (".csv", ".npz")
+ACCEL_COLUMNS = ("acc_x", "acc_y", "acc_z")  # an accelerometer's readings, when recorded
 BLOCK_ROWS = 16_384  # samples per block read: ~14 s at 1.2 kHz; ~25 MB to parse a CSV block
 # an empty cell (between commas, or at either end of a line that has commas) reads as NaN
 _EMPTY_CELL = re.compile(r"(?m)(?:^|(?<=,))[ \t]*(?=,)|(?<=,)[ \t]*$")
@@ -65,9 +67,6 @@ class Recording:
         parts = [self.t[:, None], self.wrench.reshape(len(self.t), -1)]
         parts += [np.asarray(v, dtype=float)[:, None] for v in self.extra.values()]
         return np.hstack(parts)
-
-
-ACCEL_COLUMNS = ("acc_x", "acc_y", "acc_z")  # an accelerometer's readings, when recorded
 
 
 def accel_table(extra: dict[str, np.ndarray]) -> np.ndarray | None:
@@ -268,7 +267,10 @@ class _CsvReader:
         if bad_value:
             row, col = int(bad_value.group(2)), usecols[int(bad_value.group(3)) - 1]
             extra = [e for e in self.extra if e[1] == col]
-            if extra:  # other columns are ignored (DESIGN.md): a text column is not an error
+            # other columns are ignored (DESIGN.md): a text column is not an error; but an
+            # accelerometer's columns are readings, whose silent loss would turn its
+            # compensation off
+            if extra and extra[0][0] not in ACCEL_COLUMNS:
                 self.extra.remove(extra[0])
                 return
             raise ConfigError(

@@ -299,3 +299,24 @@ def test_sources_carry_the_readings_to_the_estimator(accel_desk, tmp_path):
     batch = estimate(accel_desk, short)
     assert not (streamed.flags & FLAG_NO_ACCEL).any()
     np.testing.assert_allclose(streamed.x, batch.x, atol=1e-9)
+
+
+def test_a_bad_accelerometer_cell_is_named_not_dropped(accel_desk, kita, tmp_path):
+    """Other text columns are ignored, but losing the accelerometer's would silently turn
+    its compensation off: a bad cell is an error with file:line:column."""
+    k = 50
+    short = type(kita)(
+        kita.t[:k], kita.wrench[:k], kita.sensor_names, {c: v[:k] for c, v in kita.extra.items()}
+    )
+    path = tmp_path / "bad.csv"
+    write_recording(path, short)
+    lines = path.read_text().splitlines()
+    header = lines[0].split(",")
+    cells = lines[11].split(",")
+    cells[header.index("acc_y")] = "oops"
+    lines[11] = ",".join(cells)
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(ConfigError) as info:
+        read_recording(path, accel_desk.sensor_names)
+    assert str(info.value).startswith(f"{path}:12:{header.index('acc_y') + 1}:")
+    assert "acc_y" in str(info.value)

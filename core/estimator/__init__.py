@@ -49,12 +49,12 @@ from hapticdesk.files.recording import Recording
 
 __all__ = ["BAD_SAMPLE", "CandidateTrace", "ContactEstimator", "Notice", "estimate"]
 
-# samples per piece of a long push: small enough that a piece's working arrays stay in the
-# CPU caches between the stages, and (3 channels × 4096 × 8 bytes = 96 kB) below glibc's
-# 128 kB threshold for giving each array fresh pages from the kernel: at 16384 the stages'
-# temporaries cost a page fault per 4 kB, and `switched` ran 1.5x slower than before the
-# stages were split (one minute of the paper scene: 27 ms against 40-51 ms; 34 ms at 4096)
-BATCH_CHUNK = 4096
+# samples per piece of a long push: pieces keep the stages' working arrays small (cache, and
+# no memory for a whole recording's temporaries) while the per-piece Python overhead stays
+# small. Measured with scripts/bench_estimator.py on a quiet machine, one minute of the paper
+# scene, `fused`: 28-34 ms at 4096, 23-25 at 8192, 22-23 at 16384, 22-25 at 32768 (the
+# 4096 of an earlier measurement under load was chosen for glibc's mmap threshold)
+BATCH_CHUNK = 16384
 
 
 @dataclass(frozen=True)

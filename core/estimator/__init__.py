@@ -51,10 +51,12 @@ __all__ = ["BAD_SAMPLE", "CandidateTrace", "ContactEstimator", "Notice", "estima
 
 # samples per piece of a long push: pieces keep the stages' working arrays small (cache, and
 # no memory for a whole recording's temporaries) while the per-piece Python overhead stays
-# small. Measured with scripts/bench_estimator.py on a quiet machine, one minute of the paper
-# scene, `fused`: 28-34 ms at 4096, 23-25 at 8192, 22-23 at 16384, 22-25 at 32768 (the
-# 4096 of an earlier measurement under load was chosen for glibc's mmap threshold)
-BATCH_CHUNK = 16384
+# small. Measured on a quiet machine, `force` over 432,000 samples: 4096: 147 ms; 8192:
+# 112 ms; 16384: 192 ms, because there glibc returns the freed temporaries to the kernel
+# after each piece and takes them back with a page fault per 4 kB (47,000 faults against
+# 4,100); one minute of the paper scene (scripts/bench_estimator.py, `fused`): 28-34 ms at
+# 4096, 23-25 ms at 8192 and 16384
+BATCH_CHUNK = 8192
 
 
 @dataclass(frozen=True)

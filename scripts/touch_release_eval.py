@@ -110,13 +110,18 @@ def presses_and_taps(
     return Scene(actions=actions, quiet_s=2.0, name=name, surface=surface)
 
 
-def sideways_pushes() -> Scene:
-    """A hand pushing the desk where no surface is declared: along x on its side, along −y on
-    its back and along +y on the top board's front edge, above the panel; 5, 15 and 30 N,
+PUSHED_FACES = {"side": (0.0, 0.0), "back": (0.0, 0.0)}
+EDGE_FACES = {"lip": (0.1, 0.0)}
+
+
+def sideways_pushes(faces: dict[str, tuple[float, float]] = PUSHED_FACES) -> Scene:
+    """A hand pushing the desk where no surface is declared: along x on its side and along −y
+    on its back (or, with :data:`EDGE_FACES`, along +y on the top board's front edge 17 mm
+    above the panel: a press beside the panel's outline, along its normal); 5, 15 and 30 N,
     slow (rising at 20 N/s, held 1 s) and quick (300 N/s, held 0.1 s), 2.5 s apart so the
     sway of one push rings into the quiet after it."""
     actions: list[Action] = []
-    for face, point in (("side", (0.0, 0.0)), ("back", (0.0, 0.0)), ("lip", (0.1, 0.0))):
+    for face, point in faces.items():
         for peak in (5.0, 15.0, 30.0):
             for rate, hold in ((20.0, 1.0), (300.0, 0.1)):
                 actions.append(
@@ -127,13 +132,15 @@ def sideways_pushes() -> Scene:
     return Scene(actions=actions, quiet_s=2.0, tail_s=3.0, name="pushes")
 
 
-def phantom_touches(seeds: range) -> dict[str, Any]:
-    """Contacts reported while only a hand pushes the desk sideways (every one a phantom), per
-    method, over :func:`sideways_pushes` on the panel desk and on the paper desk (the same
-    pushes with the top board alone declared)."""
+def phantom_touches(
+    seeds: range, faces: dict[str, tuple[float, float]] = PUSHED_FACES
+) -> dict[str, Any]:
+    """Contacts reported while only a hand pushes the desk (every one a phantom), per method,
+    over :func:`sideways_pushes` on the panel desk and on the paper desk (the same pushes with
+    the top board alone declared)."""
     pushed, panel = panel_desk(with_push_faces=True), panel_desk()
     top_only = _top_only(panel)
-    recordings = [simulate(pushed, sideways_pushes(), seed=seed) for seed in seeds]
+    recordings = [simulate(pushed, sideways_pushes(faces), seed=seed) for seed in seeds]
     out: dict[str, Any] = {}
     for method in METHODS:
         row: dict[str, Any] = {}
@@ -147,7 +154,7 @@ def phantom_touches(seeds: range) -> dict[str, Any]:
             row[f"{name}_phantom_touches"] = contacts
             row[f"{name}_located_samples"] = located
         out[method] = row
-    out["pushes"] = {"count": len(sideways_pushes().actions) * len(recordings)}
+    out["pushes"] = {"count": len(sideways_pushes(faces).actions) * len(recordings)}
     return out
 
 
@@ -275,6 +282,7 @@ def main() -> None:
             panel, [simulate(panel, scene, seed=s) for s in seeds]
         )
     results["sideways pushes (every contact a phantom)"] = phantom_touches(seeds)
+    results["pushes on the front edge above the panel"] = phantom_touches(seeds, EDGE_FACES)
     if args.json:
         print(json.dumps(results, indent=1))
         return

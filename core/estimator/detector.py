@@ -18,8 +18,9 @@ paper's desk, rung for seconds by a push), and the ring is a force along the pan
 like a finger's: after a 30 N push on the desk's side it made ten touch-downs of 2–9 N. A
 finger cannot pull, and each swing of the ring towards the panel follows one away from it at
 least as large, so the force along an upright surface's normal counts less the largest pull
-along it lately (:func:`ring_guard`, remembered for ``RING_MEMORY_S``); a horizontal board
-is not guarded (its vertical modes are far above the sample rate).
+along it lately (:func:`ring_guard`, remembered for ``RING_MEMORY_S``) when a touch-down is
+judged (a ring under a finger already in contact does not end its press); a horizontal
+board is not guarded (its vertical modes are far above the sample rate).
 """
 
 from __future__ import annotations
@@ -57,24 +58,28 @@ def ring_guard(pull: np.ndarray, start: np.ndarray, decay: float) -> np.ndarray:
 
 
 def contact_decision(
-    pressing: Any, mag: Any, slope: Any, settings: EstimatorSettings
+    pressing: Any, mag: Any, slope: Any, settings: EstimatorSettings, holding: Any = None
 ) -> tuple[Any, Any]:
     """(above, below): where contact starts and where it ends, from whether the fast force
     presses into a surface, its magnitude and its slope along itself (N/s); for arrays
     (bool, float) or plain values; ``&``, ``|`` and ``~`` keep to the arrays' elementwise
     meaning. A steep fall predicted through ``contact_force_n`` ends the contact (and does not
-    start one: no touch right after such a release)."""
+    start one: no touch right after such a release). ``holding`` (default ``pressing``):
+    whether it presses enough to stay in contact — without the ring guard, which judges a
+    touch-down only (a ring under a finger must not end its press)."""
     s = settings.user
     threshold, steep = s.contact_force_n, s.release_slope_n_s
+    if holding is None:
+        holding = pressing
     if isinstance(pressing, bool):
         through = 0 < steep < -slope and mag + slope * settings.det_delay_s < threshold
         above = pressing and mag >= threshold and not through
-        below = not pressing or mag < threshold - s.release_hysteresis_n or through
+        below = not holding or mag < threshold - s.release_hysteresis_n or through
         return above, below
     through = (steep > 0) & (slope < -steep) & (mag + slope * settings.det_delay_s < threshold)
     return (
         pressing & (mag >= threshold) & ~through,
-        ~pressing | (mag < threshold - s.release_hysteresis_n) | through,
+        ~holding | (mag < threshold - s.release_hysteresis_n) | through,
     )
 
 
@@ -135,22 +140,25 @@ class TouchDetector:
         zero is known (None: everywhere)."""
         s = self.settings
         normals = s.normals
+        holding = None
         if len(self.upright):
             along = normals @ f_det
+            least = s.user.min_normal_cos * f_det_mag
+            holding = along.max(axis=0) >= least
             pull = np.maximum(-along[self.upright], 0.0)
             if tared is not None:
                 pull *= tared  # (no zero: no force known)
             guard = ring_guard(pull, self.ring, self.ring_decay)
             self.ring = guard[:, -1].copy()
             along[self.upright] -= guard
-            pressing = along.max(axis=0) >= s.user.min_normal_cos * f_det_mag
+            pressing = along.max(axis=0) >= least
         elif len(normals) == 1:
             pressing = normals[0] @ f_det >= s.user.min_normal_cos * f_det_mag
         elif len(normals):
             pressing = (normals @ f_det).max(axis=0) >= s.user.min_normal_cos * f_det_mag
         else:
             pressing = np.zeros(len(f_det_mag), bool)
-        above, below = contact_decision(pressing, f_det_mag, slope, s)
+        above, below = contact_decision(pressing, f_det_mag, slope, s, holding)
         if tared is not None:
             above &= tared
             below |= ~tared
@@ -172,19 +180,22 @@ class TouchDetector:
         rx, ry, rz = release
         falling = (fx * rx + fy * ry + fz * rz) * inv
         normals = s.normals_list
+        holding = None
         if len(self.upright):
             alongs = [n[0] * fx + n[1] * fy + n[2] * fz for n in normals]
+            least = s.user.min_normal_cos * mag
+            holding = max(alongs) >= least
             ring = self.ring
             for j, i in enumerate(self.upright.tolist()):
                 ring[j] = max(-alongs[i], 0.0, ring[j] * self.ring_decay)
                 alongs[i] -= ring[j]
-            pressing = max(alongs) >= s.user.min_normal_cos * mag
+            pressing = max(alongs) >= least
         elif normals:
             along = max(n[0] * fx + n[1] * fy + n[2] * fz for n in normals)
             pressing = along >= s.user.min_normal_cos * mag
         else:
             pressing = False
-        above, below = contact_decision(pressing, mag, falling, s)
+        above, below = contact_decision(pressing, mag, falling, s, holding)
         self.in_contact = above or (self.in_contact and not below)
         return self.in_contact, mag, slope
 

@@ -125,7 +125,10 @@ class TouchDetector:
         self.in_contact = False
         normals = settings.normals
         self.upright = np.flatnonzero(np.abs(normals[:, 2]) < UPRIGHT_MAX_NZ)
-        self.ring = np.zeros(len(self.upright))  # the ring guard (N) per upright surface
+        self.guarded = bool(len(self.upright))  # (a plain bool for the single-sample path)
+        # the ring guard (N) per upright surface; plain floats for the single-sample path
+        self.ring: list[float] = [0.0] * len(self.upright)
+        self.upright_list: list[int] = self.upright.tolist()
         self.ring_decay = math.exp(-1.0 / (RING_MEMORY_S * settings.sample_rate_hz))
 
     def process(
@@ -141,15 +144,15 @@ class TouchDetector:
         s = self.settings
         normals = s.normals
         holding = None
-        if len(self.upright):
+        if self.guarded:
             along = normals @ f_det
             least = s.user.min_normal_cos * f_det_mag
             holding = along.max(axis=0) >= least
             pull = np.maximum(-along[self.upright], 0.0)
             if tared is not None:
                 pull *= tared  # (no zero: no force known)
-            guard = ring_guard(pull, self.ring, self.ring_decay)
-            self.ring = guard[:, -1].copy()
+            guard = ring_guard(pull, np.array(self.ring), self.ring_decay)
+            self.ring = guard[:, -1].tolist()
             along[self.upright] -= guard
             pressing = along.max(axis=0) >= least
         elif len(normals) == 1:
@@ -181,14 +184,16 @@ class TouchDetector:
         falling = (fx * rx + fy * ry + fz * rz) * inv
         normals = s.normals_list
         holding = None
-        if len(self.upright):
+        if self.guarded:
             alongs = [n[0] * fx + n[1] * fy + n[2] * fz for n in normals]
             least = s.user.min_normal_cos * mag
             holding = max(alongs) >= least
-            ring = self.ring
-            for j, i in enumerate(self.upright.tolist()):
-                ring[j] = max(-alongs[i], 0.0, ring[j] * self.ring_decay)
-                alongs[i] -= ring[j]
+            ring, decay = self.ring, self.ring_decay
+            for j, i in enumerate(self.upright_list):
+                held = ring[j] * decay
+                pull = -alongs[i]
+                ring[j] = held = pull if pull > held else held  # (held ≥ 0)
+                alongs[i] -= held
             pressing = max(alongs) >= least
         elif normals:
             along = max(n[0] * fx + n[1] * fy + n[2] * fz for n in normals)

@@ -75,7 +75,7 @@ def test_sample_by_sample_the_guard_holds_the_same(pushes) -> None:
         one.push(t[k : k + 1], w[k : k + 1]).in_contact[0] for k in range(part.start, part.stop)
     ]
     assert np.array_equal(np.array(singles), block.in_contact[part])
-    assert whole.detector.ring.max() > 0.5  # the guard is up, decaying
+    assert max(whole.detector.ring) > 0.5  # the guard is up, decaying
     assert np.allclose(one.detector.ring, whole.detector.ring, rtol=1e-9)
 
 
@@ -83,7 +83,7 @@ def test_sample_by_sample_the_guard_holds_the_same(pushes) -> None:
 def test_presses_on_the_panel_touch_down_once_each(seed) -> None:
     """The guard does not hold back a press: every press and every tap of 3.5 N or more on
     the panel is one contact, and no contact is more (before the guard the ring after each
-    one made 12–24 more per 36). Light taps (2–3.1 N) within a second of another touch can
+    one made 82–96 more per 36). Light taps (2–3.1 N) within a second of another touch can
     be lost in the ring of its release: 4 of 72 here."""
     panel = evaluation.panel_desk()
     scene = evaluation.presses_and_taps(evaluation.PANEL_POINTS, "panel", surface="front")

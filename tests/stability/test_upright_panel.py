@@ -79,6 +79,23 @@ def test_sample_by_sample_the_guard_holds_the_same(pushes) -> None:
     assert np.allclose(one.detector.ring, whole.detector.ring, rtol=1e-9)
 
 
+def test_the_guard_is_the_same_for_any_split_into_blocks(pushes) -> None:
+    """The ring guard is state carried from block to block: one pass equals any split."""
+    panel = evaluation.panel_desk()
+    n = int(40.0 * 1200)  # side and back pushes and their ring
+    t, w = pushes.t[:n], pushes.wrench[:n]
+    whole = ContactEstimator(panel)
+    expected = whole.push(t, w).in_contact
+    rng = np.random.default_rng(7)
+    cuts = np.sort(rng.choice(np.arange(1, n), size=40, replace=False))
+    split = ContactEstimator(panel)
+    parts = [
+        split.push(t[a:b], w[a:b]).in_contact for a, b in zip([0, *cuts], [*cuts, n], strict=True)
+    ]
+    assert np.array_equal(np.concatenate(parts), expected)
+    assert np.allclose(split.detector.ring, whole.detector.ring, rtol=1e-9, atol=1e-12)
+
+
 @pytest.mark.parametrize("seed", [0, 1])
 def test_presses_on_the_panel_touch_down_once_each(seed) -> None:
     """The guard does not hold back a press: every press and every tap of 3.5 N or more on

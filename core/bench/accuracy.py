@@ -9,8 +9,9 @@ method reports), so a method cannot look better by reporting less:
   the contact (its fast path, the same for every method; at most 0.5 s after the true fall)
   — what a user sees after lift-off counts too, judged against the last point touched; its
   *hold* part lies in between;
-- the error of a sample is the distance between the reported point and the true point, over
-  the samples a method locates; ``coverage`` says which share of the press it located;
+- the error of a sample is the distance between the reported point and the true point (in
+  3-D when the truth has ``true_z``, so a point on an upright panel is judged in its height
+  too), over the samples a method locates; ``coverage`` says which share of the press it located;
 - methods that locate different samples are compared twice more, at equal coverage: on the
   samples every compared method locates (``common``), and at fixed times after the true
   touch-down and before the true release (:data:`AT_MS`), where a point a method does not
@@ -152,8 +153,10 @@ def measure_accuracy(
     t = block.t
     true_fn = np.asarray(truth["true_fn"], dtype=float)
     presses = find_presses(true_fn, contact_force_n)
-    true_x, true_y, ends = truth_with_release(block, truth, presses)
+    true_x, true_y, true_z, ends = truth_with_release(block, truth, presses)
     err = np.hypot(block.x - np.nan_to_num(true_x), block.y - np.nan_to_num(true_y))
+    if true_z is not None:  # on one horizontal board z is the same for both: err unchanged
+        err = np.hypot(err, block.z - np.nan_to_num(true_z))
     parts: dict[str, list[np.ndarray]] = {"touch": [], "hold": [], "release": []}
     common_parts: dict[str, list[np.ndarray]] = {"touch": [], "hold": [], "release": []}
     counts = {"touch": [0, 0], "hold": [0, 0], "release": [0, 0]}  # located, total
@@ -240,12 +243,14 @@ def common_located(blocks: list[ContactBlock]) -> np.ndarray:
 
 def truth_with_release(
     block: ContactBlock, truth: dict[str, np.ndarray], presses: list[Press]
-) -> tuple[np.ndarray, np.ndarray, list[int]]:
-    """The true point per sample, held at the last point touched until the estimator ends the
-    contact (at most 0.5 s); and where each press's release ends."""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, list[int]]:
+    """The true point per sample (x, y, and z when the truth has it), held at the last point
+    touched until the estimator ends the contact (at most 0.5 s); and where each press's
+    release ends."""
     t = block.t
     true_x = np.asarray(truth["true_x"], dtype=float).copy()
     true_y = np.asarray(truth["true_y"], dtype=float).copy()
+    true_z = np.asarray(truth["true_z"], dtype=float).copy() if "true_z" in truth else None
     longest = int(0.5 / max(float(np.median(np.diff(t))), 1e-9)) if len(t) > 1 else 0
     ends = []
     for p in presses:
@@ -253,8 +258,10 @@ def truth_with_release(
         end = min(p.stop + (int(off[0]) if len(off) else 0), p.stop + longest)
         true_x[p.stop : end] = true_x[p.stop - 1]
         true_y[p.stop : end] = true_y[p.stop - 1]
+        if true_z is not None:
+            true_z[p.stop : end] = true_z[p.stop - 1]
         ends.append(end)
-    return true_x, true_y, ends
+    return true_x, true_y, true_z, ends
 
 
 def _crossing(t: np.ndarray, f: np.ndarray, index: int, level: float) -> float:

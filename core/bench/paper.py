@@ -50,7 +50,7 @@ def _candidate_errors(
     block = est.push(rec.t, rec.wrench)
     trace = CandidateTrace.concat(est.traces)
     presses = find_presses(rec.extra["true_fn"], settings.contact_force_n)
-    true_x, true_y, _ = truth_with_release(block, rec.extra, presses)
+    true_x, true_y, _, _ = truth_with_release(block, rec.extra, presses)
     index = np.searchsorted(rec.t, trace.t)
     centre = profile.surfaces[0].origin[:2]
     d_true = np.hypot(true_x[index] - centre[0], true_y[index] - centre[1])

@@ -51,12 +51,14 @@ from hapticdesk.files.recording import Recording
 
 __all__ = ["BAD_SAMPLE", "CandidateTrace", "ContactEstimator", "Notice", "estimate"]
 
-# samples per piece of a long push: small enough that a piece's working arrays stay in the
-# CPU caches between the stages, and (3 channels × 4096 × 8 bytes = 96 kB) below glibc's
-# 128 kB threshold for giving each array fresh pages from the kernel: at 16384 the stages'
-# temporaries cost a page fault per 4 kB, and `switched` ran 1.5x slower than before the
-# stages were split (one minute of the paper scene: 27 ms against 40-51 ms; 34 ms at 4096)
-BATCH_CHUNK = 4096
+# samples per piece of a long push: pieces keep the stages' working arrays small (cache, and
+# no memory for a whole recording's temporaries) while the per-piece Python overhead stays
+# small. Measured on a quiet machine, `force` over 432,000 samples: 4096: 147 ms; 8192:
+# 112 ms; 16384: 192 ms, because there glibc returns the freed temporaries to the kernel
+# after each piece and takes them back with a page fault per 4 kB (47,000 faults against
+# 4,100); one minute of the paper scene (scripts/bench_estimator.py, `fused`): 28-34 ms at
+# 4096, 23-25 ms at 8192 and 16384
+BATCH_CHUNK = 8192
 
 
 @dataclass(frozen=True)

@@ -90,10 +90,16 @@ class SampleStage:
         energy = np.empty(k)
         clean, near = self._in_range(flat, energy)
         if near is not None:  # (None: a noise-free input, see the module docstring)
-            stuck = self._stuck(t, flat, energy, near)
-            if stuck is not None:
-                flags[stuck] = FLAG_STUCK
-                clean = False
+            if len(near) == 0 and st.stuck_check and st.live >= self.live_n:
+                # the common case, live input and nothing that might repeat: what
+                # :meth:`_stuck` would do, without its calls (a short block's cost)
+                st.previous, st.previous_energy = flat[-1].copy(), float(energy[-1])
+                st.repeats = 0
+            else:
+                stuck = self._stuck(t, flat, energy, near)
+                if stuck is not None:
+                    flags[stuck] = FLAG_STUCK
+                    clean = False
         previous = st.last_t if st.last_t > -math.inf else t[0] - 1.0 / self.settings.sample_rate_hz
         steps = np.empty(k)  # time steps; NaN where a time is NaN
         steps[0] = t[0] - previous
@@ -161,9 +167,8 @@ class SampleStage:
                         step[0] = e[0] - st.previous_energy
                         np.subtract(e[1:], e[:-1], out=step[1:])
                     np.abs(step, out=step)
-                    near = np.flatnonzero(step <= SAME_ENERGY)  # (NaN: never)
-                    if len(near):
-                        found.append(near + a)
+                    if np.fmin.reduce(step) <= SAME_ENERGY:  # (fmin: a NaN is never near)
+                        found.append(np.flatnonzero(step <= SAME_ENERGY) + a)
         if not look:
             return clean, None
         return clean, np.concatenate(found) if found else np.zeros(0, np.intp)

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile import DeskProfile, load_profile
 from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.sim import (
     GLYPHS,
@@ -43,7 +43,8 @@ def test_every_example_is_shipped() -> None:
 def test_examples_load_and_start_quietly(path: Path, paper_desk: DeskProfile) -> None:
     scene = load_scene(path)
     assert scene.quiet_s >= 1.5
-    timeline = Timeline(paper_desk, scene, seed=0)
+    desk = load_profile(scene.desk) if scene.desk else paper_desk  # (panel.yaml: its panel)
+    timeline = Timeline(desk, scene, seed=0)
     first = min(s.start_s for s in timeline.spans)
     assert first >= 1.5
     assert timeline.duration_s > max(s.end_s for s in timeline.spans)

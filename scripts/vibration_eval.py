@@ -9,7 +9,11 @@ with an accelerometer estimated with and without its readings.
 - the sway ring after a swipe lifts off (``swipes.yaml``): the peak of the desk's inertial
   force left in the resultant wrench (low-passed at the detection's 30 Hz) from 50 ms to 1 s
   after each release, and the phantom touch-downs there (a contact starting while nobody
-  touches).
+  touches);
+- presses and taps at touch-down (``--panel``): the panel desk (``kitamura2017-panel``) with
+  the same accelerometer added, ``touch_release_eval.py``'s presses and taps on its top and
+  its upright front panel: the share of presses located and the error p50/p95 at +20 and
+  +50 ms after the true touch-down (``fused``; a press not located counts as a miss).
 
     python scripts/vibration_eval.py --seeds 5      # the figures in README and docs/stability.md
 """
@@ -17,6 +21,7 @@ with an accelerometer estimated with and without its readings.
 from __future__ import annotations
 
 import argparse
+import tempfile
 import time
 from pathlib import Path
 
@@ -81,12 +86,60 @@ def ring(profile: DeskProfile, rec: Recording, compensate: bool) -> tuple[list[f
     return peaks, phantoms
 
 
+def panel_touch_down(seeds: int) -> None:
+    """Touch-down on the panel desk with an accelerometer, with and without its readings."""
+    import touch_release_eval as tre  # beside this script
+
+    from hapticdesk.bench.accuracy import measure_accuracy
+
+    text = Path(str(load_profile("kitamura2017-panel").path)).read_text()
+    text = text.replace("name: kitamura2017-panel", "name: kitamura2017-panel-accel", 1)
+    text = text.replace(
+        "sensors:\n",
+        "accelerometer: {position: [0.0, 0.0, 0.71], noise_m_s2: 0.005, range_m_s2: 19.6}\n"
+        "sensors:\n",
+        1,
+    )
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "kitamura2017-panel-accel.yaml"
+        path.write_text(text)
+        desk = load_profile(path)
+    for surface, points in (("top", tre.PAPER_POINTS), ("front", tre.PANEL_POINTS)):
+        scene = tre.presses_and_taps(points, f"va-{surface}", surface=surface)
+        recs = [simulate(desk, scene, seed) for seed in range(seeds)]
+        for comp in (False, True):
+            at: dict[str, list[np.ndarray]] = {"touch+20": [], "touch+50": []}
+            for rec in recs:
+                accel = accelerometer_readings(desk, rec.extra) if comp else None
+                block = ContactEstimator(desk, method="fused").push(rec.t, rec.wrench, accel)
+                found = measure_accuracy(block, rec.extra).at_times
+                for key in at:
+                    at[key].append(found[key])
+            text = []
+            for key, parts in at.items():
+                err = np.concatenate(parts) * 1000
+                ok = np.isfinite(err)
+                p50 = f"{np.median(err[ok]):.1f}" if ok.any() else "-"
+                with np.errstate(invalid="ignore"):  # (a miss is infinite)
+                    p95 = tre.p95_mm(err / 1000)
+                text.append(f"{key} ms located {ok.mean():.0%} p50 {p50} p95 {p95} mm")
+            print(
+                f"  panel desk, {surface:5s} {'with   ' if comp else 'without'} accelerometer "
+                f"({sum(len(p) for p in at['touch+20'])} presses): " + "; ".join(text)
+            )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--desk", default="kitamura2017-accel")
     parser.add_argument("--seeds", type=int, default=3)
+    parser.add_argument("--panel", action="store_true", help="only touch-down on the panel desk")
     args = parser.parse_args()
     started = time.perf_counter()
+    if args.panel:
+        panel_touch_down(args.seeds)
+        print(f"({time.perf_counter() - started:.0f} s)")
+        return
     profile = load_profile(args.desk)
     print(f"desk {profile.name}, seeds 1..{args.seeds}")
     for scene_name in ("slider", "kita", "shapes"):

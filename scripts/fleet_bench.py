@@ -248,7 +248,8 @@ def run_desks(
     results: Any,
 ) -> None:
     """A worker: one MqttLink per desk, taps at random intervals for ``duration`` s, then flush."""
-    from hapticdesk.plugins.mqtt.link import MqttLink, MqttSettings
+    from hapticdesk.plugins.mqtt.link import MqttLink
+    from hapticdesk.plugins.mqtt.settings import MqttSettings
 
     links = {
         i: MqttLink(

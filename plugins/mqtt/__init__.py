@@ -46,13 +46,9 @@ from hapticdesk.files.yamlfile import ConfigError, Position
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.plugins.action_options import options_mapping, text, where
-from hapticdesk.plugins.mqtt.link import (
-    Message,
-    MqttLink,
-    MqttSettings,
-    qos_of,
-    settings_from_layout,
-)
+from hapticdesk.plugins.mqtt.link import MqttLink
+from hapticdesk.plugins.mqtt.message import Message
+from hapticdesk.plugins.mqtt.settings import MqttSettings, qos_of, settings_from_layout
 from hapticdesk.plugins.mqtt.z2m import Zigbee2MqttActions, style_from_section
 from hapticdesk.plugins.templating import (
     Template,
@@ -185,7 +181,7 @@ def refuse_a_second_desk(settings: MqttSettings, desk: str, availability: str) -
     """ConfigError when another desk of this name is online on this broker: two processes
     with one client id knock each other off the broker, and one identity in Home Assistant
     would merge both desks."""
-    from hapticdesk.plugins.mqtt.link import retained_payload
+    from hapticdesk.plugins.mqtt.oneshot import retained_payload
 
     if retained_payload(settings, availability) != b"online":
         return

@@ -22,7 +22,7 @@ from typing import Any
 
 import hapticdesk
 from hapticdesk.files.yamlfile import ConfigError
-from hapticdesk.plugins.mqtt.link import parse_broker_url
+from hapticdesk.plugins.mqtt.settings import parse_broker_url
 from hapticdesk.registry import load_registry
 from hapticdesk.runtime.service import Runtime, build_scene
 

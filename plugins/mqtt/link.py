@@ -1,4 +1,4 @@
-"""One MQTT connection per run: settings from the layout, and delivery that loses nothing.
+"""One MQTT connection per run, and delivery that loses nothing (its settings: :mod:`.settings`).
 
 Commands (a TOGGLE, a brightness) go through :meth:`MqttLink.publish`, which never blocks:
 the message joins a bounded queue and a sender thread hands it to paho when the broker is
@@ -30,323 +30,25 @@ Announcements (availability, discovery) are coalesced by topic and bounded, so a
 
 from __future__ import annotations
 
-import json
 import logging
-import os
-import ssl
 import threading
 import time
-import urllib.parse
 from collections import deque
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
-from pathlib import Path
+from dataclasses import dataclass
 from typing import Any
 
-from hapticdesk.files.yamlfile import (
-    ConfigError,
-    MarkedDict,
-    Position,
-    check_keys,
-    number,
-    require_mapping,
-)
+from hapticdesk.plugins.mqtt.message import Message, encode_payload
+from hapticdesk.plugins.mqtt.oneshot import Refused, clean_connect, login_refused
+from hapticdesk.plugins.mqtt.settings import MqttSettings, apply_login
 
 log = logging.getLogger(__name__)
 
-DEFAULT_QUEUE_SIZE = 1000
 WINDOW = 20  # commands in flight at once (paho's default maximum)
 # retry a lost broker quickly: the issue's 30 s back-off left a returned broker unused
 RECONNECT_MIN_S, RECONNECT_MAX_S = 0.1, 0.5
 CONTROL_LIMIT = 1000  # announcements waiting at most (they are coalesced by topic first)
-# CONNACK reason codes of a refused login: MQTT 3.1.1 return codes 4 and 5, MQTT 5 134 and 135
-LOGIN_REFUSED = {4, 5, 134, 135}
-_MQTT_KEYS = {
-    "broker",
-    "username",
-    "password_env",
-    "password_file",
-    "tls",
-    "client_id",
-    "keepalive",
-    "qos",
-    "retain",
-    "discovery",
-    "discovery_prefix",
-    "base_topic",
-    "prefix",
-    "queue_size",
-    "protocol",
-    "expiry_s",
-    # read by the plugin's __init__ (plugins/mqtt/z2m.py: style_from_section)
-    "action_style",
-    "zigbee2mqtt_slide",
-}
-#: ``protocol:`` values: MQTT 5 where the broker speaks it (else 3.1.1), or one of them
-PROTOCOLS = ("auto", "5", "3.1.1")
-DEFAULT_EXPIRY_S = 60
 SESSION_NEVER_EXPIRES = 0xFFFFFFFF  # MQTT 5: keep the session as 3.1.1's clean_session=False
-
-
-# --- settings ---------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class MqttSettings:
-    """The layout's ``mqtt:`` section, checked. ``password`` is never shown."""
-
-    host: str = "localhost"
-    port: int = 1883
-    tls: bool = False
-    username: str | None = None
-    password: str | None = field(default=None, repr=False)
-    ca: Path | None = None
-    cert: Path | None = None
-    key: Path | None = None
-    client_id: str = "hapticdesk"
-    keepalive: int = 60
-    qos: int = 2
-    retain: bool = False
-    discovery: bool = False
-    discovery_prefix: str = "homeassistant"
-    base_topic: str = "hapticdesk"
-    #: the desk's whole topic prefix when given (``hapticdesk/site1/floor2/study``); else
-    #: ``<base_topic>/<desk>``
-    prefix: str | None = None
-    queue_size: int = DEFAULT_QUEUE_SIZE
-    protocol: str = "auto"
-    #: MQTT 5: a command the broker could not deliver within this many seconds is dropped
-    #: (a TOGGLE must not switch a lamp an hour late); 0 keeps it until delivered
-    expiry_s: int = DEFAULT_EXPIRY_S
-
-    def desk_prefix(self, desk: str) -> str:
-        """The topic prefix of this desk's own topics (``action``, ``event``, ``set`` …)."""
-        return self.prefix if self.prefix is not None else f"{self.base_topic}/{desk}"
-
-    @property
-    def url(self) -> str:
-        """The broker as a URL, without any secret."""
-        user = f"{self.username}@" if self.username else ""
-        return f"{'mqtts' if self.tls else 'mqtt'}://{user}{self.host}:{self.port}"
-
-
-def apply_login(client: Any, settings: MqttSettings) -> None:
-    """The layout's user name, password and TLS files on a paho client (every connection the
-    plugin opens: the desk's, the duplicate-desk probe, the stale-config sweep)."""
-    if settings.username is not None:
-        client.username_pw_set(settings.username, settings.password)
-    if settings.tls:
-        client.tls_set(
-            ca_certs=str(settings.ca) if settings.ca else None,
-            certfile=str(settings.cert) if settings.cert else None,
-            keyfile=str(settings.key) if settings.key else None,
-            cert_reqs=ssl.CERT_REQUIRED,
-        )
-
-
-def parse_broker_url(url: str, where: Position | str) -> tuple[bool, str, int, str | None]:
-    """``mqtt://[user@]host[:port]`` or ``mqtts://…`` -> (tls, host, port, username)."""
-    parts = urllib.parse.urlsplit(url if "://" in url else f"mqtt://{url}")
-    if parts.scheme not in ("mqtt", "mqtts"):
-        raise ConfigError(
-            where, f"broker must be mqtt://host[:port] or mqtts://host[:port], found {url!r}"
-        )
-    if parts.password is not None:
-        raise ConfigError(
-            where,
-            "do not put a password in the broker URL (it would be logged and shown in `ps`); "
-            "use `password_env: VARIABLE` or `password_file: PATH` in the layout's `mqtt:`",
-        )
-    if not parts.hostname:
-        raise ConfigError(where, f"broker URL {url!r} has no host")
-    try:
-        port = parts.port
-    except ValueError:
-        raise ConfigError(where, f"broker URL {url!r} has an invalid port") from None
-    tls = parts.scheme == "mqtts"
-    return tls, parts.hostname, port or (8883 if tls else 1883), parts.username
-
-
-def settings_from_layout(
-    section: Any,
-    *,
-    desk: str,
-    url_override: str | None = None,
-    relative_to: Path | None = None,
-    where: Position | str = "the layout",
-) -> MqttSettings:
-    """Check the ``mqtt:`` section (may be None) and apply ``--mqtt URL``."""
-    if section is None:
-        section = MarkedDict()
-        section.position = where if isinstance(where, Position) else Position(str(where), 0, 0)
-        section.key_positions, section.value_positions = {}, {}
-    m = require_mapping(section, where, "`mqtt`")
-    check_keys(m, _MQTT_KEYS, "`mqtt`")
-    url = str(m.get("broker", "mqtt://localhost:1883"))
-    tls, host, port, username = parse_broker_url(url, m.where("broker"))
-    if url_override is not None:
-        layout_tls = tls or "tls" in m
-        tls, host, port, url_user = parse_broker_url(url_override, "--mqtt")
-        username = url_user or username
-        if layout_tls and not tls:  # never downgrade: the password would go in plaintext
-            raise ConfigError(
-                "--mqtt",
-                f"{url_override!r} is plain MQTT but the layout's `mqtt:` ({_where_text(m)}) "
-                "uses TLS; give an mqtts:// URL (the layout's `tls:` files are kept)",
-            )
-    if "username" in m:
-        if not isinstance(m["username"], str):
-            raise ConfigError(m.where("username"), "`username` of `mqtt` must be text")
-        username = m["username"]
-    password = _password(m, relative_to)
-    ca = cert = key = None
-    if "tls" in m:
-        t = require_mapping(m["tls"], m.where("tls"), "`tls` of `mqtt`")
-        check_keys(t, {"ca", "cert", "key"}, "`tls` of `mqtt`")
-        ca, cert, key = (_file(t, name, relative_to) for name in ("ca", "cert", "key"))
-        if (cert is None) != (key is None):
-            raise ConfigError(
-                t.where(), "`tls` needs both `cert` and `key` for a client certificate"
-            )
-        tls = True
-    if "prefix" in m and "base_topic" in m:
-        raise ConfigError(
-            m.where("prefix", of_key=True),
-            "give `prefix` (the desk's whole topic prefix) or `base_topic` (the desk's name is "
-            "appended), not both",
-        )
-    for key_name in ("base_topic", "discovery_prefix", "prefix"):
-        value = m.get(key_name, "x")
-        if not isinstance(value, str) or not value or any(c in value for c in "+#"):
-            raise ConfigError(
-                m.where(key_name), f"`{key_name}` must be a topic without + or #, found {value!r}"
-            )
-    # one client id per desk prefix (hapticdesk-site1-floor2-study): two desks of one name on
-    # different floors must not push each other off the broker
-    own_prefix = (
-        str(m["prefix"]) if "prefix" in m else f"{m.get('base_topic', 'hapticdesk')}/{desk}"
-    )
-    client_id = str(m.get("client_id", own_prefix.strip("/").replace("/", "-")))
-    if not client_id or len(client_id) > 128:
-        raise ConfigError(m.where("client_id"), "`client_id` must be 1 to 128 characters")
-    for key_name in ("retain", "discovery"):
-        if key_name in m and not isinstance(m[key_name], bool):
-            raise ConfigError(m.where(key_name), f"`{key_name}` of `mqtt` must be true or false")
-    return MqttSettings(
-        host=host,
-        port=port,
-        tls=tls,
-        username=username,
-        password=password,
-        ca=ca,
-        cert=cert,
-        key=key,
-        client_id=client_id,
-        keepalive=int(number(m, "keepalive", "`mqtt`", default=60, minimum=5, maximum=65535)),
-        qos=qos_of(m, "`mqtt`", 2),
-        retain=bool(m.get("retain", False)),
-        discovery=bool(m.get("discovery", False)),
-        discovery_prefix=str(m.get("discovery_prefix", "homeassistant")).strip("/"),
-        base_topic=str(m.get("base_topic", "hapticdesk")).strip("/"),
-        prefix=str(m["prefix"]).strip("/") if "prefix" in m else None,
-        queue_size=int(number(m, "queue_size", "`mqtt`", default=DEFAULT_QUEUE_SIZE, minimum=1)),
-        protocol=_protocol(m),
-        expiry_s=int(
-            number(m, "expiry_s", "`mqtt`", default=DEFAULT_EXPIRY_S, minimum=0, maximum=2**32 - 1)
-        ),
-    )
-
-
-def _protocol(m: MarkedDict) -> str:
-    value = m.get("protocol", "auto")
-    text = str(value) if isinstance(value, str | int) and not isinstance(value, bool) else None
-    if text not in PROTOCOLS:
-        raise ConfigError(
-            m.where("protocol"),
-            f'`protocol` of `mqtt` must be auto, 5 or "3.1.1" (quoted), found {value!r}',
-        )
-    return text
-
-
-def _where_text(m: MarkedDict) -> str:
-    position = getattr(m, "position", None)
-    return str(position) if position is not None else "the layout"
-
-
-def qos_of(m: MarkedDict, what: str, default: int) -> int:
-    """An MQTT QoS (0, 1 or 2) at ``qos``."""
-    if "qos" not in m:
-        return default
-    if m["qos"] not in (0, 1, 2) or isinstance(m["qos"], bool):
-        raise ConfigError(m.where("qos"), f"`qos` of {what} must be 0, 1 or 2, found {m['qos']!r}")
-    return int(m["qos"])
-
-
-def _password(m: MarkedDict, relative_to: Path | None) -> str | None:
-    if "password_env" in m and "password_file" in m:
-        raise ConfigError(
-            m.where("password_file", of_key=True),
-            "give `password_env` or `password_file`, not both",
-        )
-    if "password_env" in m:
-        var = m["password_env"]
-        if not isinstance(var, str) or not var:
-            raise ConfigError(
-                m.where("password_env"), "`password_env` must name an environment variable"
-            )
-        if var not in os.environ:
-            raise ConfigError(m.where("password_env"), f"the environment variable {var} is not set")
-        return os.environ[var]
-    if "password_file" in m:
-        path = _file(m, "password_file", relative_to)
-        assert path is not None
-        try:
-            return path.read_text(encoding="utf-8").rstrip("\r\n")
-        except OSError as err:
-            raise ConfigError(
-                m.where("password_file"), f"cannot read {path}: {err.strerror}"
-            ) from None
-    return None
-
-
-def _file(m: MarkedDict, key: str, relative_to: Path | None) -> Path | None:
-    if key not in m:
-        return None
-    if not isinstance(m[key], str) or not m[key]:
-        raise ConfigError(m.where(key), f"`{key}` must be a file path")
-    path = Path(m[key]).expanduser()
-    if not path.is_absolute() and relative_to is not None:
-        path = relative_to / path
-    if not path.is_file():
-        raise ConfigError(m.where(key), f"`{key}`: no such file {path}")
-    return path
-
-
-# --- the connection ---------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Message:
-    """One message to publish. ``command`` False marks availability and discovery messages."""
-
-    topic: str
-    payload: bytes
-    qos: int
-    retain: bool
-    command: bool = True
-
-
-def encode_payload(payload: Any) -> bytes:
-    """Text as UTF-8, mappings and lists as JSON (never NaN), numbers as their text."""
-    if isinstance(payload, bytes):
-        return payload
-    if isinstance(payload, str):
-        return payload.encode("utf-8")
-    if payload is None:
-        return b""
-    if isinstance(payload, bool | int | float):
-        return json.dumps(payload, allow_nan=False).encode("utf-8")
-    return json.dumps(payload, allow_nan=False, ensure_ascii=False).encode("utf-8")
 
 
 @dataclass
@@ -521,7 +223,7 @@ class MqttLink:
 
     def _on_connect(self, client: Any, userdata: Any, flags: Any, reason: Any, props: Any) -> None:
         if reason.is_failure:  # paho retries with back-off; say it once per outage
-            if _login_refused(reason):
+            if login_refused(reason):
                 self._refuse(str(reason))
                 client.disconnect()  # no retry: the same credentials will be refused again
                 return
@@ -715,7 +417,7 @@ class MqttLink:
             error = self._try_clean_connect()
             if error is None:
                 return True
-            if isinstance(error, _Refused):
+            if isinstance(error, Refused):
                 self._refuse(error.reason)
                 return False
             if not self._outage_logged:
@@ -749,7 +451,7 @@ class MqttLink:
         properties.MessageExpiryInterval = self.settings.expiry_s
         return properties
 
-    def _try_clean_connect(self) -> str | _Refused | None:
+    def _try_clean_connect(self) -> str | Refused | None:
         """A clean connection, in MQTT 5 first under ``protocol: auto``: a broker that turns
         MQTT 5 down (CONNACK 1, unacceptable protocol version) is asked again in 3.1.1, which
         is then used."""
@@ -772,44 +474,9 @@ class MqttLink:
                 return None
         return first
 
-    def _try_clean_connect_in(self, protocol: int) -> str | _Refused | None:
+    def _try_clean_connect_in(self, protocol: int) -> str | Refused | None:
         client = self._new_client(clean_session=True, with_will=False, protocol=protocol)
-        answered = threading.Event()
-        outcome: list[Any] = []
-
-        def on_connect(c: Any, u: Any, flags: Any, reason: Any, props: Any) -> None:
-            outcome.append(reason)
-            answered.set()
-
-        def on_disconnect(c: Any, u: Any, flags: Any, reason: Any, props: Any) -> None:
-            # e.g. TLS without the client certificate the broker requires
-            outcome.append(f"the broker closed the connection ({reason})")
-            answered.set()
-
-        client.on_connect = on_connect
-        client.on_disconnect = on_disconnect
-        s = self.settings
-        try:
-            if protocol == self._mqtt.MQTTv5:
-                client.connect(s.host, s.port, s.keepalive, clean_start=True)
-            else:
-                client.connect(s.host, s.port, s.keepalive)
-        except (OSError, ssl.SSLError, ValueError) as err:
-            return f"{type(err).__name__}: {err}"
-        client.loop_start()
-        try:
-            if not answered.wait(10.0):
-                return "no answer to CONNECT within 10 s"
-            if isinstance(outcome[0], str):
-                return outcome[0]
-            if outcome[0].is_failure:
-                if _login_refused(outcome[0]):
-                    return _Refused(str(outcome[0]))
-                return f"refused: {outcome[0]}"
-            return None
-        finally:
-            client.disconnect()
-            client.loop_stop()
+        return clean_connect(client, self.settings, protocol == self._mqtt.MQTTv5)
 
     def _new_client(
         self, *, clean_session: bool, with_will: bool = True, protocol: int | None = None
@@ -829,61 +496,3 @@ class MqttLink:
             w = self._will
             client.will_set(w.topic, w.payload, qos=w.qos, retain=w.retain)
         return client
-
-
-def retained_payload(settings: MqttSettings, topic: str, timeout_s: float = 3.0) -> bytes | None:
-    """The retained message on ``topic`` (None when there is none, or the broker cannot be
-    asked within ``timeout_s``). Asked under a client id of its own: connecting with the
-    desk's would push a running desk of the same name off the broker."""
-    import paho.mqtt.client as mqtt
-
-    client = mqtt.Client(
-        mqtt.CallbackAPIVersion.VERSION2,
-        client_id=f"{settings.client_id[:100]}-probe-{os.getpid()}",
-        clean_session=True,
-        protocol=mqtt.MQTTv311,
-    )
-    apply_login(client, settings)
-    subscribed, answered = threading.Event(), threading.Event()
-    found: list[bytes] = []
-
-    def on_connect(c: Any, u: Any, flags: Any, reason: Any, props: Any) -> None:
-        if reason.is_failure:
-            answered.set()
-        else:
-            c.subscribe(topic, qos=1)
-
-    def on_subscribe(c: Any, u: Any, mid: Any, reasons: Any, props: Any) -> None:
-        subscribed.set()
-
-    def on_message(c: Any, u: Any, message: Any) -> None:
-        if message.retain:
-            found.append(bytes(message.payload))
-            answered.set()
-
-    client.on_connect, client.on_subscribe, client.on_message = on_connect, on_subscribe, on_message
-    deadline = time.monotonic() + timeout_s
-    try:
-        client.connect(settings.host, settings.port, settings.keepalive)
-    except (OSError, ssl.SSLError, ValueError):
-        return None
-    client.loop_start()
-    try:
-        if subscribed.wait(timeout_s):
-            # the broker sends a retained message right after the SUBACK
-            answered.wait(min(0.5, max(0.0, deadline - time.monotonic())))
-        return found[0] if found else None
-    finally:
-        client.disconnect()
-        client.loop_stop()
-
-
-@dataclass(frozen=True)
-class _Refused:
-    """The broker refused the login (not worth retrying)."""
-
-    reason: str
-
-
-def _login_refused(reason: Any) -> bool:
-    return getattr(reason, "value", reason) in LOGIN_REFUSED

@@ -18,7 +18,7 @@ import uuid
 from collections.abc import Sequence
 from typing import Any
 
-from hapticdesk.plugins.mqtt.link import MqttSettings, apply_login
+from hapticdesk.plugins.mqtt.settings import MqttSettings, apply_login
 
 log = logging.getLogger(__name__)
 

@@ -300,7 +300,7 @@ def test_a_removed_binding_has_its_config_cleared(broker, tmp_path, paper_desk):
 
 
 def test_without_a_broker_the_sweep_gives_up_quietly(caplog):
-    from hapticdesk.plugins.mqtt.link import MqttSettings
+    from hapticdesk.plugins.mqtt.settings import MqttSettings
     from hapticdesk.plugins.mqtt.stale import sweep_stale
 
     from .conftest import free_port
@@ -335,7 +335,7 @@ def test_two_desks_of_one_name_on_two_floors_are_two_devices():
     """Issue 14 item 4: with a topic prefix per floor, desks called `study` on two floors get
     their own discovery topics and device identifiers; the default topics keep the old ones."""
     from hapticdesk.plugins.mqtt import discovery_for
-    from hapticdesk.plugins.mqtt.link import MqttSettings
+    from hapticdesk.plugins.mqtt.settings import MqttSettings
 
     binding = SimpleNamespace(
         gesture="tap", region="lamp", index=0, options={}, actions=[], filters={}

@@ -223,7 +223,7 @@ def test_bad_prefixes_are_refused_where_they_stand(broker, tmp_path, mqtt, messa
 
 def link_settings(broker: Mosquitto, client_id: str, **options):
     from hapticdesk.files.yamlfile import load_marked_yaml
-    from hapticdesk.plugins.mqtt.link import settings_from_layout
+    from hapticdesk.plugins.mqtt.settings import settings_from_layout
 
     section = {"broker": broker.url, "client_id": client_id, **options}
     return settings_from_layout(load_marked_yaml("l.yaml", json.dumps(section)), desk="d")

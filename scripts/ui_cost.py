@@ -71,8 +71,9 @@ def main() -> int:
 
     from hapticdesk.plugins.ui.server import UiServer
     from hapticdesk.registry import load_registry
+    from hapticdesk.runtime.assembly import build_scene
     from hapticdesk.runtime.dispatcher import Lane
-    from hapticdesk.runtime.service import Runtime, build_scene
+    from hapticdesk.runtime.service import Runtime
 
     total_s = 3 + 2 * args.rounds * args.phase_s + 5
     folder = Path(tempfile.mkdtemp(prefix="ui_cost"))

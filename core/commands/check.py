@@ -25,7 +25,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from hapticdesk.registry import load_registry
-    from hapticdesk.runtime.service import load_scene_layout
+    from hapticdesk.runtime.assembly import load_scene_layout
 
     registry = load_registry()
     # the same loading as `run`: actions, recognizers and plugins' sections all checked

@@ -19,7 +19,8 @@ import math
 import sys
 
 from hapticdesk.registry import load_registry
-from hapticdesk.runtime.service import RunReport, Runtime, build_scene, report_json
+from hapticdesk.runtime.assembly import build_scene
+from hapticdesk.runtime.service import RunReport, Runtime, report_json
 
 UNDELIVERED_EXIT = 3
 

@@ -24,7 +24,8 @@ import hapticdesk
 from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.plugins.mqtt.settings import parse_broker_url
 from hapticdesk.registry import load_registry
-from hapticdesk.runtime.service import Runtime, build_scene
+from hapticdesk.runtime.assembly import build_scene
+from hapticdesk.runtime.service import Runtime
 
 LAMP_TOPIC = "zigbee2mqtt/+/set"
 ACTION_TOPIC = "hapticdesk/+/action"  # the desk's own gesture stream

@@ -50,8 +50,9 @@ def run(args: argparse.Namespace) -> int:
     from hapticdesk.plugins.mqtt.demo import examples_dir
     from hapticdesk.plugins.ui.server import UiServer
     from hapticdesk.registry import load_registry
+    from hapticdesk.runtime.assembly import build_scene
     from hapticdesk.runtime.dispatcher import Lane
-    from hapticdesk.runtime.service import Runtime, build_scene
+    from hapticdesk.runtime.service import Runtime
 
     examples = examples_dir()
     layout = Path(args.layout) if args.layout else examples / "layouts" / "demo.yaml"

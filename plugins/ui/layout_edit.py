@@ -36,7 +36,7 @@ def check_layout_text(
 ) -> list[dict[str, Any]]:
     """The errors ``hapticdesk check`` would report for ``text`` saved as ``layout_path``
     (empty when it is valid). The loader stops at the first error, so there is one at most."""
-    from hapticdesk.runtime.service import load_scene_layout
+    from hapticdesk.runtime.assembly import load_scene_layout
 
     try:
         load_scene_layout(layout_path, registry, desk, text=text)
@@ -48,7 +48,7 @@ def check_layout_text(
 def exec_added(layout_path: Path, text: str, registry: Any, desk: Any = None) -> list[dict]:
     """Refuse a save that adds ``exec`` actions: a page may not make the desk run programs
     (README, "Browser UI": no exec runs from the page). Exec uses already in the file stay."""
-    from hapticdesk.runtime.service import load_scene_layout
+    from hapticdesk.runtime.assembly import load_scene_layout
 
     def exec_uses(source: str | None) -> list[Position]:
         layout, _ = load_scene_layout(layout_path, registry, desk, text=source)

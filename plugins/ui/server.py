@@ -186,7 +186,7 @@ class UiServer:
         runtime = self.runtime
         if runtime is not None:
             return desk_message(runtime.scene.profile, runtime.scene.layout, live=True)
-        from hapticdesk.runtime.service import load_scene_layout
+        from hapticdesk.runtime.assembly import load_scene_layout
 
         layout, profile = load_scene_layout(self.layout_path, self.registry, self.desk)
         return desk_message(profile, layout, live=False)
@@ -475,7 +475,7 @@ class UiServer:
 
     def _describe(self, text: str) -> tuple[list[dict[str, Any]], list[dict[str, Any]] | None]:
         """The errors of ``text``, and its regions (to draw the edit) when it is valid."""
-        from hapticdesk.runtime.service import load_scene_layout
+        from hapticdesk.runtime.assembly import load_scene_layout
 
         try:
             layout, profile = load_scene_layout(

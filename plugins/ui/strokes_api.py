@@ -18,7 +18,7 @@ def score(payload: dict[str, Any], layout_path: Path, layout_text: str, server: 
     import numpy as np
 
     from hapticdesk.gestures.strokes.unistroke import template_set
-    from hapticdesk.runtime.service import load_scene_layout
+    from hapticdesk.runtime.assembly import load_scene_layout
 
     points = payload.get("points")
     if not isinstance(points, list) or not 2 <= len(points) <= MAX_POINTS:

@@ -13,7 +13,7 @@ from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.layout import load_layout
 from hapticdesk.gestures.regions import regions_overlap
 from hapticdesk.registry import load_registry
-from hapticdesk.runtime.service import load_scene_layout
+from hapticdesk.runtime.assembly import load_scene_layout
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "layouts"
 ACTIONS = {"mqtt", "log", "exec", "http"}

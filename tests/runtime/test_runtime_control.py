@@ -22,8 +22,9 @@ from hapticdesk.files.recording import Recording, write_recording
 from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.registry import load_registry
+from hapticdesk.runtime.assembly import build_scene
 from hapticdesk.runtime.control import ControlError, command, parse_command
-from hapticdesk.runtime.service import Runtime, build_scene
+from hapticdesk.runtime.service import Runtime
 from hapticdesk.runtime.source import Source, WrenchBlock
 
 from .taps import Tap, tap_recording
@@ -195,7 +196,7 @@ def test_layout_switches_among_named_layouts_and_back(tmp_path, run_scripted):
 
 
 def test_a_named_layout_that_is_missing_is_refused_where_it_is_named(tmp_path):
-    from hapticdesk.runtime.service import load_scene_layout
+    from hapticdesk.runtime.assembly import load_scene_layout
 
     path = write_layout(tmp_path / "a.yaml", "lamp", "layouts: {evening: gone.yaml}")
     with pytest.raises(ConfigError, match=r"a\.yaml:3:20: `layouts.evening`: no such file"):

@@ -15,7 +15,8 @@ from hapticdesk.gestures.touch import Touch
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.plugins.replay import RecordingSource
 from hapticdesk.registry import hookspec_names, load_registry
-from hapticdesk.runtime.service import RunReport, Runtime, build_scene
+from hapticdesk.runtime.assembly import build_scene
+from hapticdesk.runtime.service import RunReport, Runtime
 
 from .taps import Tap, tap_recording
 

@@ -16,8 +16,9 @@ from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.registry import load_registry
+from hapticdesk.runtime.assembly import build_scene
 from hapticdesk.runtime.isolation import IsolationSettings, ProcessAction
-from hapticdesk.runtime.service import Runtime, build_scene
+from hapticdesk.runtime.service import Runtime
 
 from . import spin_plugin
 from .taps import Tap, tap_recording

@@ -21,7 +21,8 @@ from hapticdesk.plugins.mqtt.link import MqttLink
 from hapticdesk.plugins.mqtt.message import Message
 from hapticdesk.plugins.mqtt.settings import MqttSettings, settings_from_layout
 from hapticdesk.registry import load_registry
-from hapticdesk.runtime.service import Runtime, build_scene
+from hapticdesk.runtime.assembly import build_scene
+from hapticdesk.runtime.service import Runtime
 
 from .conftest import Mosquitto, Subscriber, make_tls, wait_subscribed
 from .taps import Tap, tap_recording

@@ -209,7 +209,7 @@ def test_bad_prefixes_are_refused_where_they_stand(broker, tmp_path, mqtt, messa
     from hapticdesk.cli import main
     from hapticdesk.files.yamlfile import ConfigError
     from hapticdesk.registry import load_registry
-    from hapticdesk.runtime.service import load_scene_layout
+    from hapticdesk.runtime.assembly import load_scene_layout
 
     layout = write_layout(tmp_path / "l.yaml", "lamp", broker, mqtt=mqtt)
     with pytest.raises(ConfigError, match=re.escape(message)) as err:

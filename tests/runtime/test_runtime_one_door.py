@@ -11,7 +11,7 @@ import pytest
 from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.registry import DEFAULT_PLUGINS, load_registry
-from hapticdesk.runtime.service import build_scene
+from hapticdesk.runtime.assembly import build_scene
 
 CORE = Path(__file__).resolve().parents[2] / "core"
 

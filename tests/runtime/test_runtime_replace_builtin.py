@@ -15,7 +15,8 @@ from hapticdesk.gestures.recognizer import Recognizer
 from hapticdesk.gestures.touch import Touch
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.registry import BLOCK_ENV, PluginError, load_registry
-from hapticdesk.runtime.service import Runtime, build_scene
+from hapticdesk.runtime.assembly import build_scene
+from hapticdesk.runtime.service import Runtime
 
 from .taps import Tap, tap_recording
 

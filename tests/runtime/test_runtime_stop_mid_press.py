@@ -16,7 +16,8 @@ import pytest
 
 from hapticdesk.files.recording import write_recording
 from hapticdesk.registry import load_registry
-from hapticdesk.runtime.service import Runtime, build_scene
+from hapticdesk.runtime.assembly import build_scene
+from hapticdesk.runtime.service import Runtime
 
 from .taps import Tap, tap_recording
 

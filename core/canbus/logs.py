@@ -22,11 +22,12 @@ from typing import Any
 
 import numpy as np
 
-from hapticdesk.canbus.assembler import AssembledBlock, CanNotice, CanStats, FrameAssembler
+from hapticdesk.canbus.assembler import AssembledBlock, FrameAssembler
 from hapticdesk.canbus.ati_netcanoem import AtiCalibration, CalibrationCollector, ati_frame_ids
 from hapticdesk.canbus.config import CanConfig, can_config
 from hapticdesk.canbus.decoding import build_decoding
 from hapticdesk.canbus.frames import FrameArray
+from hapticdesk.canbus.stats import CanNotice, CanStats
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.recording import Recording
 from hapticdesk.files.yamlfile import ConfigError

@@ -23,16 +23,11 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 from hapticdesk.canbus import ati_netcanoem as ati
-from hapticdesk.canbus.assembler import (
-    NOTICES_KEPT,
-    AssembledBlock,
-    CanNotice,
-    CanStats,
-    FrameAssembler,
-)
+from hapticdesk.canbus.assembler import NOTICES_KEPT, AssembledBlock, FrameAssembler
 from hapticdesk.canbus.config import CanConfig, can_config
 from hapticdesk.canbus.decoding import build_decoding
 from hapticdesk.canbus.frames import FrameArray
+from hapticdesk.canbus.stats import CanNotice, CanStats
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.runtime.source import Source, WrenchBlock

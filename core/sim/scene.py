@@ -32,7 +32,7 @@ Every action also takes ``start_s`` (absolute start), ``wait_s`` (pause before i
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -67,6 +67,16 @@ from hapticdesk.sim.actions import (
 )
 from hapticdesk.sim.human import HumanModel
 from hapticdesk.sim.paths import SHAPES, shape_path, text_paths
+from hapticdesk.sim.scene_fields import (
+    field_flag,
+    field_human,
+    field_integer,
+    field_list,
+    field_point,
+    field_surface,
+    field_text,
+    path_or_ends,
+)
 
 MIN_QUIET_S = 1.5  # the estimator tares over the first second; leave it a margin
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
@@ -160,9 +170,9 @@ def scene_from_mapping(doc: MarkedDict, path: Path) -> Scene:
     """Validate an already loaded scene mapping (``path`` resolves relative files)."""
     check_keys(doc, _TOP, "the scene", required={"timeline"})
     what = "the scene"
-    name = _text(doc, "name", what, default=path.stem)
-    desk = _text(doc, "desk", what, default="") or None
-    seed = _integer(doc, "seed", what, default=0, minimum=0)
+    name = field_text(doc, "name", what, default=path.stem)
+    desk = field_text(doc, "desk", what, default="") or None
+    seed = field_integer(doc, "seed", what, default=0, minimum=0)
     unit = UNITS[choice(doc, "units", tuple(UNITS), what, default="m")]
     quiet = number(doc, "quiet_s", what, default=2.0)
     if quiet < MIN_QUIET_S:
@@ -179,12 +189,12 @@ def scene_from_mapping(doc: MarkedDict, path: Path) -> Scene:
             raise ConfigError(
                 doc.where("duration_s"), f"`duration_s` must exceed quiet_s ({quiet:g})"
             )
-    surface = _text(doc, "surface", what, default="") or None
-    human = _human(doc["human"], doc.where("human")) if "human" in doc else HumanModel()
+    surface = field_text(doc, "surface", what, default="") or None
+    human = field_human(doc["human"], doc.where("human")) if "human" in doc else HumanModel()
 
     objects: list[DeskObject] = []
     if "objects" in doc:
-        raw = _list(doc, "objects", what)
+        raw = field_list(doc, "objects", what)
         for i, item in enumerate(raw):
             m = require_mapping(item, raw.where(i), f"object {i + 1}")
             check_keys(
@@ -195,15 +205,15 @@ def scene_from_mapping(doc: MarkedDict, path: Path) -> Scene:
             )
             objects.append(
                 DeskObject(
-                    _text(m, "name", f"object {i + 1}"),
+                    field_text(m, "name", f"object {i + 1}"),
                     number(m, "mass_kg", f"object {i + 1}", minimum=0.0, exclusive_minimum=True),
-                    _point(m, "point", f"object {i + 1}", unit),
-                    _text(m, "surface", f"object {i + 1}", default="") or None,
+                    field_point(m, "point", f"object {i + 1}", unit),
+                    field_text(m, "surface", f"object {i + 1}", default="") or None,
                     where=m.where(),
                 )
             )
 
-    timeline = _list(doc, "timeline", what)
+    timeline = field_list(doc, "timeline", what)
     if not timeline:
         raise ConfigError(doc.where("timeline"), "`timeline` must list at least one action")
     actions: list[Step] = []
@@ -253,10 +263,10 @@ def _timeline_item(item: Any, where: Position, index: int, unit: float, path: Pa
     timing: dict[str, Any] = {
         "start_s": number(p, "start_s", what, minimum=0.0) if "start_s" in p else None,
         "wait_s": number(p, "wait_s", what, minimum=0.0) if "wait_s" in p else None,
-        "label": _text(p, "label", what, default=""),
+        "label": field_text(p, "label", what, default=""),
         "where": p.where(),
     }
-    repeat = _integer(p, "repeat", what, default=1, minimum=1)
+    repeat = field_integer(p, "repeat", what, default=1, minimum=1)
     try:
         first = _build(kind, p, what, unit, path, timing)
     except ValueError as err:
@@ -286,22 +296,22 @@ def _build(
         cls = LongPress if kind == "long_press" else Press
         return [
             cls(
-                _point(p, "point", what, unit),
+                field_point(p, "point", what, unit),
                 peak_n=opt("peak_n"),
                 hold_s=opt("hold_s", positive=False),
                 rise_n_per_s=opt("rise_n_per_s"),
                 release_n_per_s=opt("release_n_per_s"),
-                surface=_surface(p, what),
+                surface=field_surface(p, what),
                 **timing,
             )
         ]
     if kind == "tap":
         return [
             Tap(
-                _point(p, "point", what, unit),
+                field_point(p, "point", what, unit),
                 peak_n=opt("peak_n"),
                 duration_s=opt("duration_s"),
-                surface=_surface(p, what),
+                surface=field_surface(p, what),
                 **timing,
             )
         ]
@@ -310,45 +320,54 @@ def _build(
         to_n = number(p, "to_n", what, default=25.0, minimum=0.0, exclusive_minimum=True)
         return [
             Ramp(
-                _point(p, "point", what, unit),
+                field_point(p, "point", what, unit),
                 from_n=from_n,
                 to_n=to_n,
                 duration_s=number(
                     p, "duration_s", what, default=3.0, minimum=0.0, exclusive_minimum=True
                 ),
-                surface=_surface(p, what),
+                surface=field_surface(p, what),
                 **timing,
             )
         ]
     if kind == "swipe":
-        a, b = _point(p, "from", what, unit), _point(p, "to", what, unit)
+        a, b = field_point(p, "from", what, unit), field_point(p, "to", what, unit)
         if a == b:
             raise ConfigError(p.where("to"), f"`to` of {what} must differ from `from`")
         return [
-            Swipe(a, b, force_n=opt("force_n"), speed=speed(), surface=_surface(p, what), **timing)
+            Swipe(
+                a,
+                b,
+                force_n=opt("force_n"),
+                speed=speed(),
+                surface=field_surface(p, what),
+                **timing,
+            )
         ]
     if kind == "drag":
-        pts = _path_or_ends(p, what, unit)
+        pts = path_or_ends(p, what, unit)
         return [
-            Drag(pts, force_n=opt("force_n"), speed=speed(), surface=_surface(p, what), **timing)
+            Drag(
+                pts, force_n=opt("force_n"), speed=speed(), surface=field_surface(p, what), **timing
+            )
         ]
     if kind == "stroke":
         return _strokes(p, what, unit, path, timing, speed())
     if kind == "put":
         return [
             PutObject(
-                name=_text(p, "object", what),
+                name=field_text(p, "object", what),
                 mass_kg=number(p, "mass_kg", what, minimum=0.0, exclusive_minimum=True),
-                point=_point(p, "point", what, unit),
+                point=field_point(p, "point", what, unit),
                 duration_s=number(p, "duration_s", what, default=0.3, minimum=0.0),
-                surface=_surface(p, what),
+                surface=field_surface(p, what),
                 **timing,
             )
         ]
     if kind == "lift":
         return [
             LiftObject(
-                name=_text(p, "object", what),
+                name=field_text(p, "object", what),
                 duration_s=number(p, "duration_s", what, default=0.3, minimum=0.0),
                 **timing,
             )
@@ -385,7 +404,7 @@ def _strokes(
         number(p, "size", what, minimum=0.0, exclusive_minimum=True) * unit if "size" in p else None
     )
     rotation = number(p, "rotation_deg", what, default=0.0)
-    clockwise = _flag(p, "clockwise", what)
+    clockwise = field_flag(p, "clockwise", what)
     if "clockwise" in p and source != "shape":
         raise ConfigError(
             p.where("clockwise", of_key=True), f"`clockwise` in {what} applies to `shape` only"
@@ -397,7 +416,7 @@ def _strokes(
     force = (
         number(p, "force_n", what, minimum=0.0, exclusive_minimum=True) if "force_n" in p else None
     )
-    surface = _surface(p, what)
+    surface = field_surface(p, what)
     c = (float(center[0]), float(center[1])) if center is not None else (0.0, 0.0)
 
     paths: list[np.ndarray]
@@ -470,96 +489,3 @@ def _strokes(
 
 
 # --- small readers ---------------------------------------------------------------------------
-
-
-def _human(value: Any, where: Position) -> HumanModel:
-    m = require_mapping(value, where, "`human`")
-    defaults = HumanModel()
-    allowed = {f.name for f in fields(HumanModel)}
-    check_keys(m, allowed, "`human`")
-    values: dict[str, Any] = {}
-    for key in m:
-        if isinstance(getattr(defaults, key), tuple):
-            raw = m[key]
-            if isinstance(raw, int | float) and not isinstance(raw, bool):
-                raw = [raw, raw]
-            lo, hi = vector(raw, m.where(key), f"`{key}` in `human` (a number or [low, high])", 2)
-            if lo < 0 or lo > hi:
-                raise ConfigError(
-                    m.where(key),
-                    f"`{key}` in `human` must be 0 <= low <= high, found [{lo:g}, {hi:g}]",
-                )
-            values[key] = (lo, hi)
-        else:
-            values[key] = number(m, key, "`human`", minimum=0.0)
-    return HumanModel(**values)
-
-
-def _list(m: MarkedDict, key: str, what: str) -> MarkedList:
-    value = m[key]
-    if not isinstance(value, MarkedList):
-        raise ConfigError(m.where(key), f"`{key}` in {what} must be a list")
-    return value
-
-
-def _text(m: MarkedDict, key: str, what: str, default: str | None = None) -> str:
-    if key not in m:
-        if default is None:
-            raise ConfigError(m.where(), f"{what} is missing `{key}` (a text)")
-        return default
-    value = m[key]
-    if isinstance(value, bool) or not isinstance(value, str | int | float) or str(value) == "":
-        raise ConfigError(m.where(key), f"`{key}` in {what} must be a text, found {value!r}")
-    return str(value)
-
-
-def _integer(m: MarkedDict, key: str, what: str, default: int, minimum: int) -> int:
-    if key not in m:
-        return default
-    value = m[key]
-    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-        raise ConfigError(
-            m.where(key), f"`{key}` in {what} must be a whole number >= {minimum}, found {value!r}"
-        )
-    return value
-
-
-def _flag(m: MarkedDict, key: str, what: str) -> bool:
-    value = m.get(key, False)
-    if not isinstance(value, bool):
-        raise ConfigError(m.where(key), f"`{key}` in {what} must be true or false, found {value!r}")
-    return value
-
-
-def _point(m: MarkedDict, key: str, what: str, unit: float) -> tuple[float, float]:
-    u, v = vector(m[key], m.where(key), f"`{key}` of {what} ([u, v])", 2)
-    return (u * unit, v * unit)
-
-
-def _surface(m: MarkedDict, what: str) -> str | None:
-    return _text(m, "surface", what, default="") or None
-
-
-def _path_or_ends(p: MarkedDict, what: str, unit: float) -> np.ndarray:
-    if "path" in p:
-        if "from" in p or "to" in p:
-            raise ConfigError(
-                p.where("path", of_key=True), f"{what}: give `path` or `from`/`to`, not both"
-            )
-        raw = p["path"]
-        if not isinstance(raw, MarkedList) or len(raw) < 2:
-            raise ConfigError(
-                p.where("path"), f"`path` of {what} must list two or more [u, v] points"
-            )
-        pts = np.array(
-            [vector(q, raw.where(i), f"point {i + 1} of `path`", 2) for i, q in enumerate(raw)]
-        )
-        if not np.any(np.linalg.norm(np.diff(pts, axis=0), axis=1) > 0):
-            raise ConfigError(p.where("path"), f"`path` of {what} needs two distinct points")
-        return pts * unit
-    if "from" not in p or "to" not in p:
-        raise ConfigError(p.where(), f"{what} needs `from` and `to` (or a `path`)")
-    a, b = _point(p, "from", what, unit), _point(p, "to", what, unit)
-    if a == b:
-        raise ConfigError(p.where("to"), f"`to` of {what} must differ from `from`")
-    return np.array([a, b])

@@ -1,0 +1,115 @@
+"""Reading a scene's fields with their place (file:line:column in every error): lists, texts,
+whole numbers, flags, points and paths in the scene's unit, the human model's overrides.
+Used by :mod:`.scene`."""
+
+from __future__ import annotations
+
+from dataclasses import fields
+from typing import Any
+
+import numpy as np
+
+from hapticdesk.files.yamlfile import (
+    ConfigError,
+    MarkedDict,
+    MarkedList,
+    Position,
+    check_keys,
+    number,
+    require_mapping,
+    vector,
+)
+from hapticdesk.sim.human import HumanModel
+
+
+def field_list(m: MarkedDict, key: str, what: str) -> MarkedList:
+    value = m[key]
+    if not isinstance(value, MarkedList):
+        raise ConfigError(m.where(key), f"`{key}` in {what} must be a list")
+    return value
+
+
+def field_text(m: MarkedDict, key: str, what: str, default: str | None = None) -> str:
+    if key not in m:
+        if default is None:
+            raise ConfigError(m.where(), f"{what} is missing `{key}` (a text)")
+        return default
+    value = m[key]
+    if isinstance(value, bool) or not isinstance(value, str | int | float) or str(value) == "":
+        raise ConfigError(m.where(key), f"`{key}` in {what} must be a text, found {value!r}")
+    return str(value)
+
+
+def field_integer(m: MarkedDict, key: str, what: str, default: int, minimum: int) -> int:
+    if key not in m:
+        return default
+    value = m[key]
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        raise ConfigError(
+            m.where(key), f"`{key}` in {what} must be a whole number >= {minimum}, found {value!r}"
+        )
+    return value
+
+
+def field_flag(m: MarkedDict, key: str, what: str) -> bool:
+    value = m.get(key, False)
+    if not isinstance(value, bool):
+        raise ConfigError(m.where(key), f"`{key}` in {what} must be true or false, found {value!r}")
+    return value
+
+
+def field_point(m: MarkedDict, key: str, what: str, unit: float) -> tuple[float, float]:
+    u, v = vector(m[key], m.where(key), f"`{key}` of {what} ([u, v])", 2)
+    return (u * unit, v * unit)
+
+
+def field_surface(m: MarkedDict, what: str) -> str | None:
+    return field_text(m, "surface", what, default="") or None
+
+
+def path_or_ends(p: MarkedDict, what: str, unit: float) -> np.ndarray:
+    if "path" in p:
+        if "from" in p or "to" in p:
+            raise ConfigError(
+                p.where("path", of_key=True), f"{what}: give `path` or `from`/`to`, not both"
+            )
+        raw = p["path"]
+        if not isinstance(raw, MarkedList) or len(raw) < 2:
+            raise ConfigError(
+                p.where("path"), f"`path` of {what} must list two or more [u, v] points"
+            )
+        pts = np.array(
+            [vector(q, raw.where(i), f"point {i + 1} of `path`", 2) for i, q in enumerate(raw)]
+        )
+        if not np.any(np.linalg.norm(np.diff(pts, axis=0), axis=1) > 0):
+            raise ConfigError(p.where("path"), f"`path` of {what} needs two distinct points")
+        return pts * unit
+    if "from" not in p or "to" not in p:
+        raise ConfigError(p.where(), f"{what} needs `from` and `to` (or a `path`)")
+    a, b = field_point(p, "from", what, unit), field_point(p, "to", what, unit)
+    if a == b:
+        raise ConfigError(p.where("to"), f"`to` of {what} must differ from `from`")
+    return np.array([a, b])
+
+
+def field_human(value: Any, where: Position) -> HumanModel:
+    m = require_mapping(value, where, "`human`")
+    defaults = HumanModel()
+    allowed = {f.name for f in fields(HumanModel)}
+    check_keys(m, allowed, "`human`")
+    values: dict[str, Any] = {}
+    for key in m:
+        if isinstance(getattr(defaults, key), tuple):
+            raw = m[key]
+            if isinstance(raw, int | float) and not isinstance(raw, bool):
+                raw = [raw, raw]
+            lo, hi = vector(raw, m.where(key), f"`{key}` in `human` (a number or [low, high])", 2)
+            if lo < 0 or lo > hi:
+                raise ConfigError(
+                    m.where(key),
+                    f"`{key}` in `human` must be 0 <= low <= high, found [{lo:g}, {hi:g}]",
+                )
+            values[key] = (lo, hi)
+        else:
+            values[key] = number(m, key, "`human`", minimum=0.0)
+    return HumanModel(**values)

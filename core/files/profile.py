@@ -9,7 +9,7 @@ which every consumer of sensor data uses.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -19,13 +19,8 @@ import numpy as np
 from hapticdesk.files.yamlfile import (
     ConfigError,
     MarkedDict,
-    MarkedList,
-    check_keys,
-    choice,
     load_marked_yaml,
-    number,
     require_mapping,
-    vector,
 )
 
 METHODS = ("force", "diff", "switched", "fused")
@@ -257,21 +252,6 @@ class DeskProfile:
 
 # --- loading ---------------------------------------------------------------------------------
 
-_TOP_KEYS = {
-    "name",
-    "sample_rate_hz",
-    "sensors",
-    "surfaces",
-    "estimation",
-    "can",
-    "desk",
-    "accelerometer",
-}
-_SENSOR_KEYS = {"name", "position", "rotation_rpy_deg", "reports", "range"}
-_SURFACE_KEYS = {"name", "origin", "normal", "polygon", "u_axis"}
-_DESK_KEYS = {"mass_kg", "natural_frequency_hz", "center_of_mass_m", "note"}
-_ACCEL_KEYS = {"position", "rotation_rpy_deg", "axes", "noise_m_s2", "range_m_s2"}
-
 
 def builtin_profile_path(name: str) -> Path | None:
     """The shipped profile called ``name``, if there is one."""
@@ -308,245 +288,8 @@ def load_profile(name_or_path: str | Path, relative_to: Path | None = None) -> D
 
 
 def profile_from_mapping(doc: MarkedDict, path: Path) -> DeskProfile:
-    """Validate an already loaded profile mapping."""
-    check_keys(doc, _TOP_KEYS, "the desk profile", required={"name", "sample_rate_hz", "sensors"})
-    name = doc["name"]
-    if not isinstance(name, str) or not name:
-        raise ConfigError(doc.where("name"), "`name` must be a non-empty text")
-    rate = number(doc, "sample_rate_hz", "the desk profile", minimum=0.0, exclusive_minimum=True)
+    """The profile in ``doc`` (a marked YAML mapping read from ``path``), checked: see
+    :mod:`hapticdesk.files.profile_reader`."""
+    from hapticdesk.files.profile_reader import read_profile  # (the reader imports this model)
 
-    sensors_raw = doc["sensors"]
-    if not isinstance(sensors_raw, MarkedList) or not sensors_raw:
-        raise ConfigError(doc.where("sensors"), "`sensors` must be a list of at least one sensor")
-    sensors = tuple(_sensor(item, sensors_raw.where(i), i) for i, item in enumerate(sensors_raw))
-    names = [s.name for s in sensors]
-    for i, n in enumerate(names):
-        if names.index(n) != i:
-            raise ConfigError(sensors_raw.where(i), f"sensor name `{n}` is used twice")
-
-    surfaces_raw = doc.get("surfaces", MarkedList())
-    if not isinstance(surfaces_raw, list):
-        raise ConfigError(doc.where("surfaces"), "`surfaces` must be a list")
-    surfaces = tuple(_surface(item, surfaces_raw.where(i)) for i, item in enumerate(surfaces_raw))  # type: ignore[attr-defined]
-    snames = [s.name for s in surfaces]
-    for i, n in enumerate(snames):
-        if snames.index(n) != i:
-            raise ConfigError(surfaces_raw.where(i), f"surface name `{n}` is used twice")  # type: ignore[attr-defined]
-    if surfaces and len(sensors) < 3:
-        raise ConfigError(
-            doc.where("sensors"),
-            f"a desk with surfaces needs 3 or more sensors to locate a touch, found {len(sensors)}",
-        )
-
-    estimation = (
-        _estimation(doc["estimation"], doc.where("estimation"))
-        if "estimation" in doc
-        else EstimationSettings()
-    )
-    can = doc.get("can")
-    if can is not None:
-        can = require_mapping(can, doc.where("can"), "`can`")
-    mass = natural = com = None
-    if "desk" in doc:
-        desk = require_mapping(doc["desk"], doc.where("desk"), "`desk`")
-        check_keys(desk, _DESK_KEYS, "`desk`")
-        mass = number(desk, "mass_kg", "`desk`", default=0.0, minimum=0.0) or None
-        natural = number(desk, "natural_frequency_hz", "`desk`", default=0.0, minimum=0.0) or None
-        if "center_of_mass_m" in desk:
-            com = np.array(
-                vector(
-                    desk["center_of_mass_m"],
-                    desk.where("center_of_mass_m"),
-                    "`center_of_mass_m` of `desk`",
-                    3,
-                )
-            )
-    accelerometer = None
-    if "accelerometer" in doc:
-        accelerometer = _accelerometer(doc["accelerometer"], doc.where("accelerometer"))
-        if mass is None:
-            raise ConfigError(
-                doc.where("accelerometer", of_key=True),
-                "an `accelerometer` needs the desk's mass: give `desk: {mass_kg: ...}` "
-                "(the inertial force it removes is mass × acceleration)",
-            )
-    given = doc["estimation"] if isinstance(doc.get("estimation"), MarkedDict) else {}
-    if natural is not None:
-        # the filters must stay below the desk's lowest mode, as the paper's 4.77 Hz stays
-        # below its 5.9 Hz (ratio 0.81); a value given in `estimation` wins
-        cutoff = round(LOWPASS_PER_NATURAL_FREQUENCY * natural, 2)
-        for key in ("force_lowpass_hz", "diff_lowpass_hz"):
-            if key not in given:
-                estimation = replace(estimation, **{key: cutoff})
-    return DeskProfile(
-        name=name,
-        sample_rate_hz=rate,
-        sensors=sensors,
-        surfaces=surfaces,
-        estimation=estimation,
-        can=can,
-        path=path,
-        mass_kg=mass,
-        natural_frequency_hz=natural,
-        center_of_mass_m=com,
-        accelerometer=accelerometer,
-    )
-
-
-def _accelerometer(item: Any, where: Any) -> AccelerometerSpec:
-    what = "`accelerometer`"
-    m = require_mapping(item, where, what)
-    check_keys(m, _ACCEL_KEYS, what, required={"position"})
-    position = np.array(vector(m["position"], m.where("position"), f"`position` of {what}", 3))
-    rpy = vector(
-        m.get("rotation_rpy_deg", [0, 0, 0]),
-        m.where("rotation_rpy_deg"),
-        f"`rotation_rpy_deg` of {what}",
-        3,
-    )
-    axes: tuple[str, ...] = ACCEL_AXES
-    if "axes" in m:
-        raw = m["axes"]
-        if (
-            not isinstance(raw, list)
-            or not raw
-            or any(a not in ACCEL_AXES for a in raw)
-            or len(set(raw)) != len(raw)
-        ):
-            raise ConfigError(
-                m.where("axes"),
-                f"`axes` of {what} must list some of x, y, z once each, found {raw!r}",
-            )
-        axes = tuple(a for a in ACCEL_AXES if a in raw)  # columns in x, y, z order
-    noise = number(m, "noise_m_s2", what, default=0.0, minimum=0.0)
-    limit = number(m, "range_m_s2", what, default=math.inf, minimum=0.0, exclusive_minimum=True)
-    return AccelerometerSpec(position, rotation_matrix(*rpy), axes, noise, limit)
-
-
-def _sensor(item: Any, where: Any, index: int) -> SensorSpec:
-    m = require_mapping(item, where, f"sensor {index + 1}")
-    check_keys(m, _SENSOR_KEYS, f"sensor {index + 1}", required={"name", "position"})
-    name = m["name"]
-    if not isinstance(name, str) or not name.replace("_", "").isalnum():
-        raise ConfigError(
-            m.where("name"), f"sensor `name` must be letters, digits and _, found {name!r}"
-        )
-    what = f"sensor `{name}`"
-    position = np.array(vector(m["position"], m.where("position"), f"`position` of {what}", 3))
-    rpy = vector(
-        m.get("rotation_rpy_deg", [0, 0, 0]),
-        m.where("rotation_rpy_deg"),
-        f"`rotation_rpy_deg` of {what}",
-        3,
-    )
-    reports = choice(m, "reports", ("reaction", "load"), what, default="reaction")
-    force_range = moment_range = None
-    if "range" in m:
-        rng = require_mapping(m["range"], m.where("range"), f"`range` of {what}")
-        check_keys(rng, {"force_n", "moment_nm"}, f"`range` of {what}")
-        if "force_n" in rng:
-            force_range = np.array(vector(rng["force_n"], rng.where("force_n"), "`force_n`", 3))
-        if "moment_nm" in rng:
-            moment_range = np.array(
-                vector(rng["moment_nm"], rng.where("moment_nm"), "`moment_nm`", 3)
-            )
-        for arr, key in ((force_range, "force_n"), (moment_range, "moment_nm")):
-            if arr is not None and np.any(arr <= 0):
-                raise ConfigError(rng.where(key), f"`{key}` of {what} must be positive ratings")
-    return SensorSpec(name, position, rotation_matrix(*rpy), reports, force_range, moment_range)
-
-
-def _unit(v: list[float], where: Any, what: str) -> np.ndarray:
-    arr = np.array(v)
-    norm = float(np.linalg.norm(arr))
-    if norm < 1e-12:
-        raise ConfigError(where, f"{what} must not be the zero vector")
-    return arr / norm
-
-
-def _surface(item: Any, where: Any) -> Surface:
-    m = require_mapping(item, where, "a surface")
-    check_keys(m, _SURFACE_KEYS, "a surface", required={"name", "origin", "normal", "polygon"})
-    name = m["name"]
-    if not isinstance(name, str) or not name:
-        raise ConfigError(m.where("name"), "surface `name` must be a non-empty text")
-    what = f"surface `{name}`"
-    origin = np.array(vector(m["origin"], m.where("origin"), f"`origin` of {what}", 3))
-    normal = _unit(
-        vector(m["normal"], m.where("normal"), f"`normal` of {what}", 3),
-        m.where("normal"),
-        f"`normal` of {what}",
-    )
-    offset = np.zeros(2)
-    if "u_axis" in m:
-        u_raw = _unit(
-            vector(m["u_axis"], m.where("u_axis"), f"`u_axis` of {what}", 3),
-            m.where("u_axis"),
-            f"`u_axis` of {what}",
-        )
-        u = u_raw - (u_raw @ normal) * normal  # keep it in the plane
-        if np.linalg.norm(u) < 1e-6:
-            raise ConfigError(
-                m.where("u_axis"), f"`u_axis` of {what} must not be parallel to its normal"
-            )
-        u = u / np.linalg.norm(u)
-        v = np.cross(normal, u)
-    else:
-        if abs(abs(normal[2]) - 1.0) > 1e-9:
-            raise ConfigError(
-                m.where("normal"),
-                f"{what} is not horizontal: give `u_axis` so its polygon has axes",
-            )
-        u, v = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
-        offset = origin[:2].copy()  # the polygon is in desk (x, y)
-    poly_raw = m["polygon"]
-    if not isinstance(poly_raw, list) or len(poly_raw) < 3:
-        raise ConfigError(
-            m.where("polygon"), f"`polygon` of {what} must list 3 or more [u, v] points"
-        )
-    pts = np.array(
-        [
-            vector(p, poly_raw.where(i), f"polygon point {i + 1} of {what}", 2)  # type: ignore[attr-defined]
-            for i, p in enumerate(poly_raw)
-        ]
-    )
-    area = 0.5 * float(
-        np.sum(pts[:, 0] * np.roll(pts[:, 1], -1) - np.roll(pts[:, 0], -1) * pts[:, 1])
-    )
-    if abs(area) < 1e-12:
-        raise ConfigError(m.where("polygon"), f"`polygon` of {what} has no area")
-    return Surface(name, origin, normal, u, v, pts, offset)
-
-
-def _estimation(item: Any, where: Any) -> EstimationSettings:
-    m = require_mapping(item, where, "`estimation`")
-    defaults = EstimationSettings()
-    allowed = set(EstimationSettings.__dataclass_fields__)
-    check_keys(m, allowed, "`estimation`")
-    values: dict[str, Any] = {}
-    for key in allowed:
-        if key == "method":
-            values[key] = choice(m, "method", METHODS, "`estimation`", default=defaults.method)
-        elif key in m:
-            strict = key not in (
-                "noise_force_n",
-                "noise_moment_nm",
-                "min_normal_cos",
-                "contact_speed_m_s",
-                "release_hysteresis_n",
-                "release_slope_n_s",
-                "drift_settle_s",
-                "object_settle_s",
-                "drift_force_n_per_min",
-                "drift_moment_nm_per_min",
-            )
-            values[key] = number(m, key, "`estimation`", minimum=0.0, exclusive_minimum=strict)
-    settings = EstimationSettings(**values)
-    if settings.min_normal_cos >= 1.0:
-        raise ConfigError(m.where("min_normal_cos"), "`min_normal_cos` must be below 1")
-    if settings.release_hysteresis_n >= settings.contact_force_n:
-        raise ConfigError(
-            m.where("release_hysteresis_n"),
-            "`release_hysteresis_n` must be smaller than `contact_force_n`",
-        )
-    return settings
+    return read_profile(doc, path)

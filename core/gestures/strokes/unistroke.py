@@ -137,6 +137,7 @@ class TemplateSet:
         self._vectors: list[np.ndarray] = []
         self._angles: list[np.ndarray] = []
         self._forms: list[tuple[float, float]] = []  # total turning, corner share
+        self._ideal: list[bool] = []  # drawn by program: its form is not compared
         self._drawn: list[bool] = []  # as drawn, not a start point or direction variant
         self._thresholds: dict[str, float] | None = None  # own agreement less the margin
 
@@ -148,16 +149,23 @@ class TemplateSet:
         return len(self._vectors)
 
     def add(
-        self, shape: str, points: np.ndarray, closed: bool = False, reversible: bool = False
+        self,
+        shape: str,
+        points: np.ndarray,
+        closed: bool = False,
+        reversible: bool = False,
+        ideal: bool = False,
     ) -> None:
-        """Add one template (any units; only its form counts)."""
+        """Add one template (any units; only its form counts). ``ideal``: drawn by program
+        (the built-in shapes), whose sharp corners and exact turns people do not draw, so a
+        stroke's turning and corners are not compared with it."""
         paths = _start_points(points, START_POINTS) if closed else [np.asarray(points, dtype=float)]
         if reversible:
             paths += [p[::-1] for p in paths]
         for k, p in enumerate(paths):
-            self._add_path(shape, p, drawn=k == 0)
+            self._add_path(shape, p, drawn=k == 0, ideal=ideal)
 
-    def _add_path(self, shape: str, points: np.ndarray, drawn: bool) -> None:
+    def _add_path(self, shape: str, points: np.ndarray, drawn: bool, ideal: bool) -> None:
         v = stroke_vector(points)
         if v is None:
             raise ValueError(f"a template of {shape!r} has no extent")
@@ -165,6 +173,7 @@ class TemplateSet:
         self._vectors.append(v)
         self._angles.append(direction_angles(points))
         self._forms.append(_form(points))
+        self._ideal.append(ideal)
         self._drawn.append(drawn)
         self._thresholds = None
 
@@ -245,9 +254,9 @@ class TemplateSet:
         own = self._form()
         turning = np.abs(np.log(form[:, None, 0] / own[None, :, 0]))
         corners = np.abs(form[:, None, 1] - own[None, :, 1])
-        form_cost = TURNING_WEIGHT * np.maximum(turning - TURNING_SLACK, 0.0) + (
-            CORNER_WEIGHT * np.maximum(corners - CORNER_SLACK, 0.0)
-        )  # (k, T)
+        form_cost = TURNING_WEIGHT * np.maximum(turning - TURNING_SLACK, 0.0)
+        form_cost += CORNER_WEIGHT * np.maximum(corners - CORNER_SLACK, 0.0)
+        form_cost[:, np.asarray(self._ideal, dtype=bool)] = 0.0  # (k, T)
         out = []
         for lo in range(0, len(g), step):
             a, b = _rotation_terms(t, g[lo : lo + step])  # Li 2010, eqs. 3-4
@@ -302,7 +311,7 @@ def builtin_templates(expand: bool = True) -> TemplateSet:
         doc = json.loads(entry.read_text(encoding="utf-8"))
         for stroke in doc["strokes"]:
             points = np.asarray(stroke, dtype=float)
-            base.add(doc["shape"], points)
+            base.add(doc["shape"], points, ideal=True)
             if not expand:
                 continue
             closed = bool(doc.get("closed", False))
@@ -314,7 +323,7 @@ def builtin_templates(expand: bool = True) -> TemplateSet:
     for (shape, points), match in zip(variants, matches, strict=True):
         like_another = max((v for k, v in match.scores.items() if k != shape), default=0.0)
         if like_another < MAX_VARIANT_LIKENESS:
-            base._add_path(shape, points, drawn=False)
+            base._add_path(shape, points, drawn=False, ideal=True)
     return base
 
 

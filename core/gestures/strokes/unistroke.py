@@ -21,17 +21,21 @@ like another shape (a reversed triangle is a delete mark).
 The score: the stroke's direction of motion at ``N_DIRECTIONS`` steps of equal arc length
 (which fixes a path up to position and size), turned by the clipped θ*, is aligned with
 each template's by dynamic time warping within ``BAND`` steps; the cost of a step is
-1 − cos of the angle between the two directions and the score is
-1 − (least total cost) / N_DIRECTIONS, clipped to 0..1 (the mean cosine of the angle between
-matched directions when the warping path is the diagonal). The nearest shape is the one
-of highest score, and a stroke whose nearest shape scores below ``min_score`` is rejected
-(shape None). Measured on real people (the $1 logs, scripts/stroke_accuracy.py --dollar):
-Protractor's cosine, alone or with a rigid direction term, scores a brace drawn by one person
-against that person's bracket higher than another person's bracket, so no threshold kept
-both writer-independent strokes (≤ 73 % right) and unknown shapes (≤ 5 % accepted); warping
-the directions absorbs how people differ in timing along a shape while a missing or extra
-corner still costs (see the README for the figures). Matching is a few array operations over
-all templates; the warping loops over the band's cells, not over templates or samples.
+1 − cos of the angle between the two directions, and the warped score
+1 − (least total cost) / N_DIRECTIONS (the mean cosine of the angle between matched
+directions when the warping path is the diagonal) is mixed with Protractor's cosine
+(``PROTRACTOR_WEIGHT``). Against a template drawn by a person, a difference in form costs
+too: in total turning (a brace turns about twice as much as a bracket) and in the share of
+the turning in the sharpest few turns (corners against curves: rectangle against circle).
+The score is clipped to 0..1. The nearest shape is the one of highest score; it is accepted
+when its score reaches ``min_score`` and, for a shape with two or more templates as drawn,
+the templates' own agreement less ``TIGHTNESS_MARGIN``: a shape its writer draws the same
+way each time asks more of a stroke than one drawn loosely. Measured on real people (the $1
+logs, scripts/stroke_accuracy.py --dollar; figures in the README): one global threshold on
+the warped score could not keep both writer-independent strokes at Protractor's top-1 and
+unknown shapes at ≤ 5 % accepted, nine of ten unknowns accepted being a brace taken for the
+same person's bracket or caret ↔ question mark. Matching is a few array operations over all
+templates; the warping loops over the band's cells, not over templates or samples.
 """
 
 from __future__ import annotations

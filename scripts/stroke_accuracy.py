@@ -347,9 +347,13 @@ def run_real(folder: str, live: bool, plot: str | None) -> None:
             for speed in (*SPEEDS, "all"):
                 sel = [r for r in unknown if speed in ("all", r[2])]
                 taken = np.mean([_accepted(r, MIN_SCORE) for r in sel])
+                per = [
+                    100 * np.mean([_accepted(r, MIN_SCORE) for r in sel if r[1] == p])
+                    for p in sorted({r[1] for r in sel})
+                ]
                 print(
                     f"| {name}: strokes of the other half accepted | {speed} | "
-                    f"{100 * taken:.1f} % | | | | |"
+                    f"{100 * taken:.1f} % | | | | {min(per):.1f}–{max(per):.1f} % |"
                 )
     if plot:
         _plot_threshold(rows, plot)

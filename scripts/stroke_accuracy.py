@@ -243,12 +243,14 @@ def run_real(folder: str, live: bool, plot: str | None) -> None:
         paths = [stroke_path(s.t, s.points, sigma)[1] for s in strokes]
     truth = [s.shape for s in strokes]
     base = protractor_vectors(paths)
-    # verdicts: (protocol, subject, speed, truth, best shape, score, baseline shape, known)
-    rows: list[tuple[str, str, str, str, str | None, float, str, bool]] = []
+    # verdicts: (protocol, subject, speed, truth, best shape, score, baseline shape, known,
+    # the score the best shape asks beyond min_score: its templates' own agreement less margin)
+    rows: list[tuple[str, str, str, str, str | None, float, str, bool, float]] = []
 
     def judge(name, templates, te, known, baseline_t, baseline_labels, subject_of):
         top1 = protractor_top1(baseline_t, baseline_labels, base[te])
         matches = templates.classify_many([paths[i] for i in te], 0.0, MAX_ROTATION)
+        own = templates.thresholds(math.radians(MAX_ROTATION))
         for i, b, m in zip(te, top1, matches, strict=True):
             rows.append(
                 (
@@ -260,6 +262,7 @@ def run_real(folder: str, live: bool, plot: str | None) -> None:
                     m.score,
                     b,
                     truth[i] in known,
+                    own.get(m.best_shape, 0.0) if m.best_shape else 0.0,
                 )
             )
 
@@ -325,11 +328,11 @@ def run_real(folder: str, live: bool, plot: str | None) -> None:
             sel = [r for r in mine if speed in ("all", r[2]) and r[7]]
             if not sel:
                 continue
-            acc = [r for r in sel if r[5] >= MIN_SCORE]
+            acc = [r for r in sel if _accepted(r, MIN_SCORE)]
             right = sum(r[4] == r[3] for r in acc)
             people = sorted({r[1] for r in sel})
             per = [
-                100 * np.mean([r[5] >= MIN_SCORE and r[4] == r[3] for r in sel if r[1] == p])
+                100 * np.mean([_accepted(r, MIN_SCORE) and r[4] == r[3] for r in sel if r[1] == p])
                 for p in people
             ]
             base_right = np.mean([r[6] == r[3] for r in sel])
@@ -343,10 +346,14 @@ def run_real(folder: str, live: bool, plot: str | None) -> None:
         if unknown:
             for speed in (*SPEEDS, "all"):
                 sel = [r for r in unknown if speed in ("all", r[2])]
-                taken = np.mean([r[5] >= MIN_SCORE for r in sel])
+                taken = np.mean([_accepted(r, MIN_SCORE) for r in sel])
+                per = [
+                    100 * np.mean([_accepted(r, MIN_SCORE) for r in sel if r[1] == p])
+                    for p in sorted({r[1] for r in sel})
+                ]
                 print(
                     f"| {name}: strokes of the other half accepted | {speed} | "
-                    f"{100 * taken:.1f} % | | | | |"
+                    f"{100 * taken:.1f} % | | | | {min(per):.1f}–{max(per):.1f} % |"
                 )
     if plot:
         _plot_threshold(rows, plot)
@@ -456,6 +463,12 @@ def _builtin_paths() -> list[tuple[str, np.ndarray]]:
     return out
 
 
+def _accepted(row, min_score: float) -> bool:
+    """A verdict row's best shape is taken at ``min_score``: its score reaches min_score
+    and what the shape's own templates ask (TemplateSet.thresholds)."""
+    return row[5] >= max(min_score, row[8])
+
+
 def _plot_threshold(rows, path: str) -> None:
     """Right (accepted and correct) and unknown shapes accepted as min_score moves."""
     import matplotlib
@@ -466,14 +479,16 @@ def _plot_threshold(rows, path: str) -> None:
     taus = np.linspace(0.6, 1.0, 81)
     fig, ax = plt.subplots(figsize=(7, 4.2))
     for name in dict.fromkeys(r[0] for r in rows):
-        known = np.array([(r[5], r[4] == r[3]) for r in rows if r[0] == name and r[7]])
-        right = [100 * np.mean((known[:, 0] >= t) & (known[:, 1] > 0)) for t in taus]
+        # (score, what the shape asks of its own, right shape) per known stroke
+        known = np.array([(r[5], r[8], r[4] == r[3]) for r in rows if r[0] == name and r[7]])
+        taken = known[:, None, 0] >= np.maximum(taus[None, :], known[:, None, 1])
+        right = 100 * np.mean(taken & (known[:, None, 2] > 0), axis=0)
         ax.plot(taus, right, label=f"right: {name}")
-        unknown = np.array([r[5] for r in rows if r[0] == name and not r[7]])
+        unknown = np.array([(r[5], r[8]) for r in rows if r[0] == name and not r[7]])
         if len(unknown):
             ax.plot(
                 taus,
-                [100 * np.mean(unknown >= t) for t in taus],
+                100 * np.mean(unknown[:, None, 0] >= np.maximum(taus, unknown[:, None, 1]), axis=0),
                 "k--",
                 label="unknown shapes accepted (open set)",
             )

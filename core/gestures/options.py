@@ -176,9 +176,10 @@ GESTURE_OPTIONS: dict[str, dict[str, OptionSpec]] = {
         "max_duration_s": _s(15.0, "longest stroke, touch to release", 120.0),
         "min_score": OptionSpec(
             "fraction",
-            0.9,
+            0.8,
             "recognize",
-            "similarity (0..1) a stroke needs to be recognised; below it the shape is null",
+            "similarity (0..1) a stroke needs to be recognised; below it the shape is null"
+            " (a shape with several recorded templates may ask more: their own agreement)",
             0.0,
             1.0,
         ),

@@ -80,6 +80,43 @@ def test_built_in_templates_and_unknown_shapes(medium):
     assert sum(v is not None for v in taken) <= 0.05 * len(unknown), taken
 
 
+@needs_logs
+@pytest.mark.parametrize("subject", ["s03", "s04"])
+def test_a_brace_is_not_taken_for_the_same_persons_bracket(subject):
+    # the confusion that dominated the open set: a person's brace scored above the old
+    # single threshold against that person's own brackets (14 of 20 for s03, 7 of 20 for s04)
+    assert DOLLAR is not None
+    strokes = list(read_logs(DOLLAR / subject / "slow"))
+    templates = TemplateSet()
+    for s in strokes:
+        if s.shape in {"left_bracket", "right_bracket"} and s.repetition <= 3:
+            templates.add(s.shape, s.points)
+    braces = [s.points for s in strokes if s.shape in {"left_brace", "right_brace"}]
+    taken = [m.shape for m in templates.classify_many(braces, MIN_SCORE)]
+    assert sum(v is not None for v in taken) <= 2, taken
+    # while the brackets not used as templates are still recognised
+    rest = [s for s in strokes if s.shape.endswith("bracket") and s.repetition > 3]
+    matches = templates.classify_many([s.points for s in rest], MIN_SCORE)
+    assert np.mean([m.shape == s.shape for m, s in zip(matches, rest, strict=True)]) >= 0.9
+
+
+def test_a_tight_shape_asks_more_than_min_score():
+    # three near-identical templates agree at about 1, so their shape asks about 1 - margin
+    templates = TemplateSet()
+    arc = np.linspace(0.0, np.pi, 40)
+    for k in range(3):
+        templates.add("arc", np.column_stack([np.cos(arc), np.sin(arc) * (1 + 0.01 * k)]))
+    templates.add("line", np.column_stack([np.linspace(0, 1, 10), np.zeros(10)]))
+    needed = templates.thresholds()
+    assert set(needed) == {"arc"}  # one template tells nothing of its shape's spread
+    assert needed["arc"] > 0.85
+    shorter = np.linspace(0.0, 0.6 * np.pi, 40)  # a 108° arc against 180° ones
+    match = templates.classify(np.column_stack([np.cos(shorter), np.sin(shorter)]), 0.8)
+    assert match.best_shape == "arc" and match.shape is None
+    assert 0.8 <= match.score < needed["arc"]  # enough for min_score, not for the arc
+    assert templates.classify(np.column_stack([np.cos(arc), np.sin(arc)]), 0.8).shape == "arc"
+
+
 def test_a_file_that_is_not_a_log_is_named(tmp_path):
     bad = tmp_path / "bad.xml"
     bad.write_text('<Gesture Name="spiral01"><Point X="1" Y="2" T="0"/></Gesture>')

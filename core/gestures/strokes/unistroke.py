@@ -21,17 +21,21 @@ like another shape (a reversed triangle is a delete mark).
 The score: the stroke's direction of motion at ``N_DIRECTIONS`` steps of equal arc length
 (which fixes a path up to position and size), turned by the clipped θ*, is aligned with
 each template's by dynamic time warping within ``BAND`` steps; the cost of a step is
-1 − cos of the angle between the two directions and the score is
-1 − (least total cost) / N_DIRECTIONS, clipped to 0..1 (the mean cosine of the angle between
-matched directions when the warping path is the diagonal). The nearest shape is the one
-of highest score, and a stroke whose nearest shape scores below ``min_score`` is rejected
-(shape None). Measured on real people (the $1 logs, scripts/stroke_accuracy.py --dollar):
-Protractor's cosine, alone or with a rigid direction term, scores a brace drawn by one person
-against that person's bracket higher than another person's bracket, so no threshold kept
-both writer-independent strokes (≤ 73 % right) and unknown shapes (≤ 5 % accepted); warping
-the directions absorbs how people differ in timing along a shape while a missing or extra
-corner still costs (see the README for the figures). Matching is a few array operations over
-all templates; the warping loops over the band's cells, not over templates or samples.
+1 − cos of the angle between the two directions, and the warped score
+1 − (least total cost) / N_DIRECTIONS (the mean cosine of the angle between matched
+directions when the warping path is the diagonal) is mixed with Protractor's cosine
+(``PROTRACTOR_WEIGHT``). Against a template drawn by a person, a difference in form costs
+too: in total turning (a brace turns about twice as much as a bracket) and in the share of
+the turning in the sharpest few turns (corners against curves: rectangle against circle).
+The score is clipped to 0..1. The nearest shape is the one of highest score; it is accepted
+when its score reaches ``min_score`` and, for a shape with two or more templates as drawn,
+the templates' own agreement less ``TIGHTNESS_MARGIN``: a shape its writer draws the same
+way each time asks more of a stroke than one drawn loosely. Measured on real people (the $1
+logs, scripts/stroke_accuracy.py --dollar; figures in the README): one global threshold on
+the warped score could not keep both writer-independent strokes at Protractor's top-1 and
+unknown shapes at ≤ 5 % accepted, nine of ten unknowns accepted being a brace taken for the
+same person's bracket or caret ↔ question mark. Matching is a few array operations over all
+templates; the warping loops over the band's cells, not over templates or samples.
 """
 
 from __future__ import annotations
@@ -52,6 +56,25 @@ N_DIRECTIONS = 32  # directions of motion compared by the elastic match
 BAND = 3  # the warping's band (Sakoe & Chiba's r), in steps: about a tenth of a stroke
 #: a start point or direction of a closed shape this like another shape is not added
 MAX_VARIANT_LIKENESS = 0.9
+#: share of Protractor's cosine (Li 2010, eq. 5, at the clipped rotation) in the score: the
+#: warped directions forgive timing, the cosine keeps where the path goes
+PROTRACTOR_WEIGHT = 0.15
+TURNING_STEPS = 12  # directions over which the total turning of a path is summed
+#: a stroke's total turning may differ from a template's by this much (log ratio, about
+#: ±22 %) at no cost; beyond it every unit of log ratio costs TURNING_WEIGHT of the score:
+#: a brace turns about twice as much as a bracket of the same person
+TURNING_SLACK = 0.2
+TURNING_WEIGHT = 0.3
+MIN_TURNING = math.pi / 2  # a quarter turn: less is an about straight path
+#: corners against curves: the share of a path's turning in its CORNER_TURNS sharpest turns
+#: (of N_DIRECTIONS) is about 1 for a rectangle or a bracket, well below for a circle or a
+#: brace; a difference beyond CORNER_SLACK costs CORNER_WEIGHT per unit
+CORNER_TURNS = 4
+CORNER_SLACK = 0.1
+CORNER_WEIGHT = 0.3
+#: a shape with two or more drawn templates needs a score of its templates' own agreement
+#: (mean best score of each against the others) less this margin, if above ``min_score``
+TIGHTNESS_MARGIN = 0.12
 _CELLS_PER_CHUNK = 1 << 22  # bounds the memory of a batch: strokes × templates × n²
 
 
@@ -69,6 +92,25 @@ def direction_angles(points: np.ndarray, n: int = N_DIRECTIONS) -> np.ndarray:
     """The direction of motion (radians) along ``n`` steps of equal arc length (n,)."""
     d = np.diff(resample(np.asarray(points, dtype=float), n + 1), axis=0)
     return np.arctan2(d[:, 1], d[:, 0])
+
+
+def total_turning(points: np.ndarray, n: int = TURNING_STEPS) -> float:
+    """Sum of the absolute turns (radians) between ``n`` directions of motion, at least
+    MIN_TURNING: below it a path is about straight and the ratio of two turnings is noise."""
+    turns = np.angle(np.exp(1j * np.diff(direction_angles(points, n))))
+    return max(float(np.abs(turns).sum()), MIN_TURNING)
+
+
+def corner_share(points: np.ndarray) -> float:
+    """Share of the turning (over N_DIRECTIONS directions) in the CORNER_TURNS sharpest turns,
+    of at least MIN_TURNING: near 0 for an about straight path."""
+    turns = np.abs(np.angle(np.exp(1j * np.diff(direction_angles(points)))))
+    top = float(np.sort(turns)[-CORNER_TURNS:].sum())
+    return top / max(float(turns.sum()), MIN_TURNING)
+
+
+def _form(points: np.ndarray) -> tuple[float, float]:
+    return total_turning(points), corner_share(points)
 
 
 def _start_points(points: np.ndarray, count: int) -> list[np.ndarray]:
@@ -98,6 +140,10 @@ class TemplateSet:
         self._names: list[str] = []
         self._vectors: list[np.ndarray] = []
         self._angles: list[np.ndarray] = []
+        self._forms: list[tuple[float, float]] = []  # total turning, corner share
+        self._ideal: list[bool] = []  # drawn by program: its form is not compared
+        self._drawn: list[bool] = []  # as drawn, not a start point or direction variant
+        self._thresholds: dict[str, float] | None = None  # own agreement less the margin
 
     @property
     def shapes(self) -> list[str]:
@@ -107,19 +153,33 @@ class TemplateSet:
         return len(self._vectors)
 
     def add(
-        self, shape: str, points: np.ndarray, closed: bool = False, reversible: bool = False
+        self,
+        shape: str,
+        points: np.ndarray,
+        closed: bool = False,
+        reversible: bool = False,
+        ideal: bool = False,
     ) -> None:
-        """Add one template (any units; only its form counts)."""
+        """Add one template (any units; only its form counts). ``ideal``: drawn by program
+        (the built-in shapes), whose sharp corners and exact turns people do not draw, so a
+        stroke's turning and corners are not compared with it."""
         paths = _start_points(points, START_POINTS) if closed else [np.asarray(points, dtype=float)]
         if reversible:
             paths += [p[::-1] for p in paths]
-        for p in paths:
-            v = stroke_vector(p)
-            if v is None:
-                raise ValueError(f"a template of {shape!r} has no extent")
-            self._names.append(shape)
-            self._vectors.append(v)
-            self._angles.append(direction_angles(p))
+        for k, p in enumerate(paths):
+            self._add_path(shape, p, drawn=k == 0, ideal=ideal)
+
+    def _add_path(self, shape: str, points: np.ndarray, drawn: bool, ideal: bool) -> None:
+        v = stroke_vector(points)
+        if v is None:
+            raise ValueError(f"a template of {shape!r} has no extent")
+        self._names.append(shape)
+        self._vectors.append(v)
+        self._angles.append(direction_angles(points))
+        self._forms.append(_form(points))
+        self._ideal.append(ideal)
+        self._drawn.append(drawn)
+        self._thresholds = None
 
     def add_all(self, templates: Mapping[str, Iterable[np.ndarray]]) -> None:
         """Add user templates: shape -> strokes, each used as drawn."""
@@ -144,29 +204,73 @@ class TemplateSet:
             return out
         g = np.asarray([vectors[i] for i in ok]).reshape(len(ok), -1, 2)
         angles = np.asarray([direction_angles(strokes[i]) for i in ok])
-        score = self._scores(g, angles, math.radians(max_rotation_deg))  # (k, T)
+        form = np.asarray([_form(strokes[i]) for i in ok])
+        limit = math.radians(max_rotation_deg)
+        score = self._scores(g, angles, form, limit)  # (k, T)
         names = np.asarray(self._names)
         shapes = self.shapes
         per_shape = np.column_stack([score[:, names == s].max(axis=1) for s in shapes])
+        own = self.thresholds(limit)
         for row, i in enumerate(ok):
             scores = {s: float(per_shape[row, c]) for c, s in enumerate(shapes)}
             best = shapes[int(np.argmax(per_shape[row]))]
-            out[i] = Match(best if scores[best] >= min_score else None, scores[best], best, scores)
+            needed = max(min_score, own.get(best, 0.0))
+            out[i] = Match(best if scores[best] >= needed else None, scores[best], best, scores)
         return out
 
-    def _scores(self, g: np.ndarray, angles: np.ndarray, limit: float) -> np.ndarray:
+    def thresholds(self, limit: float = math.radians(30.0)) -> dict[str, float]:
+        """Per shape with two or more drawn templates: the mean, over those templates, of the
+        best score against another of them, less ``TIGHTNESS_MARGIN``. A shape its writer
+        draws the same way each time asks more of a stroke than one drawn loosely, so a
+        near miss of a tight shape (one's brace taken for one's bracket) is rejected."""
+        if self._thresholds is None:
+            self._thresholds = {}
+            names = np.asarray(self._names)
+            drawn = np.flatnonzero(self._drawn)
+            g = np.asarray(self._vectors)[drawn].reshape(len(drawn), -1, 2)
+            scores = (
+                self._scores(g, np.asarray(self._angles)[drawn], self._form()[drawn], limit)
+                if len(drawn)
+                else np.zeros((0, len(names)))
+            )
+            for shape in self.shapes:
+                rows = np.flatnonzero(names[drawn] == shape)
+                if len(rows) < 2:
+                    continue
+                own = scores[np.ix_(rows, drawn[rows])]
+                np.fill_diagonal(own, -np.inf)
+                agreement = float(own.max(axis=1).mean())
+                self._thresholds[shape] = agreement - TIGHTNESS_MARGIN
+        return self._thresholds
+
+    def _form(self) -> np.ndarray:
+        return np.asarray(self._forms, dtype=float).reshape(-1, 2)
+
+    def _scores(
+        self, g: np.ndarray, angles: np.ndarray, form: np.ndarray, limit: float
+    ) -> np.ndarray:
         """Scores (k, T) of strokes (k, n, 2) with direction ``angles`` (k, N_DIRECTIONS)
-        against every template, in chunks that bound the memory."""
+        and ``form`` (k, 2: total turning, corner share) against every template, in chunks
+        that bound the memory."""
         t = np.asarray(self._vectors).reshape(len(self._vectors), -1, 2)
         ta = np.asarray(self._angles)
         step = max(1, _CELLS_PER_CHUNK // (len(t) * N_DIRECTIONS**2))
+        own = self._form()
+        turning = np.abs(np.log(form[:, None, 0] / own[None, :, 0]))
+        corners = np.abs(form[:, None, 1] - own[None, :, 1])
+        form_cost = TURNING_WEIGHT * np.maximum(turning - TURNING_SLACK, 0.0)
+        form_cost += CORNER_WEIGHT * np.maximum(corners - CORNER_SLACK, 0.0)
+        form_cost[:, np.asarray(self._ideal, dtype=bool)] = 0.0  # (k, T)
         out = []
         for lo in range(0, len(g), step):
             a, b = _rotation_terms(t, g[lo : lo + step])  # Li 2010, eqs. 3-4
             theta = np.clip(np.arctan2(b, a), -limit, limit)  # (k, T)
+            cosine = a * np.cos(theta) + b * np.sin(theta)  # Li 2010, eq. 5
             turned = angles[lo : lo + step, None, :, None] + theta[:, :, None, None]
             cost = 1.0 - np.cos(ta[None, :, None, :] - turned)  # (k, T, stroke i, template j)
-            out.append(np.clip(1.0 - _warped_cost(cost, BAND) / N_DIRECTIONS, 0.0, 1.0))
+            warped = 1.0 - _warped_cost(cost, BAND) / N_DIRECTIONS
+            mixed = (1.0 - PROTRACTOR_WEIGHT) * warped + PROTRACTOR_WEIGHT * cosine
+            out.append(np.clip(mixed - form_cost[lo : lo + step], 0.0, 1.0))
         return np.concatenate(out)
 
 
@@ -211,7 +315,7 @@ def builtin_templates(expand: bool = True) -> TemplateSet:
         doc = json.loads(entry.read_text(encoding="utf-8"))
         for stroke in doc["strokes"]:
             points = np.asarray(stroke, dtype=float)
-            base.add(doc["shape"], points)
+            base.add(doc["shape"], points, ideal=True)
             if not expand:
                 continue
             closed = bool(doc.get("closed", False))
@@ -223,7 +327,7 @@ def builtin_templates(expand: bool = True) -> TemplateSet:
     for (shape, points), match in zip(variants, matches, strict=True):
         like_another = max((v for k, v in match.scores.items() if k != shape), default=0.0)
         if like_another < MAX_VARIANT_LIKENESS:
-            base.add(shape, points)
+            base._add_path(shape, points, drawn=False, ideal=True)
     return base
 
 

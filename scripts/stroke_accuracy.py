@@ -78,15 +78,20 @@ def drawings(rng: np.random.Generator, per_shape: int, with_others: bool, style:
     return [items[i] for i in order]
 
 
-def simulate_strokes(items, seed: int, desk_name: str = "kitamura2017"):
+def simulate_strokes(items, seed: int, desk_name: str = "kitamura2017", sway: bool = False):
     """Simulate the strokes (label, path, speed[, times]) one after the other on the paper's
-    desk (or ``desk_name``: kitamura2017-accel compensates its sway) and estimate: (desk,
+    desk (or ``desk_name``: kitamura2017-accel compensates its sway with an accelerometer;
+    ``sway``: with the estimation setting ``sway_compensation`` on) and estimate: (desk,
     recording, contacts)."""
+    from dataclasses import replace
+
     from hapticdesk.estimator import estimate
     from hapticdesk.files.profile import load_profile
     from hapticdesk.sim import Idle, Scene, Stroke, simulate
 
     desk = load_profile(desk_name)
+    if sway:
+        desk = replace(desk, estimation=replace(desk.estimation, sway_compensation=True))
     rng = np.random.default_rng(seed)
     actions: list = []
     for i, (_, path, speed, *timed) in enumerate(items):
@@ -122,9 +127,11 @@ def capture_strokes(desk, rec, contacts, count: int) -> list[np.ndarray | None]:
     return paths
 
 
-def trace_on_desk(items, seed: int, desk_name: str = "kitamura2017") -> list[np.ndarray | None]:
+def trace_on_desk(
+    items, seed: int, desk_name: str = "kitamura2017", sway: bool = False
+) -> list[np.ndarray | None]:
     """Simulate the strokes one after the other, estimate, capture: one path per stroke."""
-    return capture_strokes(*simulate_strokes(items, seed, desk_name), len(items))
+    return capture_strokes(*simulate_strokes(items, seed, desk_name, sway), len(items))
 
 
 def trace_synthetic(items, seed: int) -> list[np.ndarray]:
@@ -386,7 +393,7 @@ def _path_speed(path: np.ndarray, t: np.ndarray) -> float:
 
 
 def run_human_speed(
-    folder: str, test_reps: int, seed: int, desk_name: str = "kitamura2017"
+    folder: str, test_reps: int, seed: int, desk_name: str = "kitamura2017", sway: bool = False
 ) -> None:
     """Real strokes at their real speed on the simulated desk: built-in, 1 and 3 own
     templates captured on the desk the same way, per speed."""
@@ -398,7 +405,7 @@ def run_human_speed(
     items = enrol + test
     chunk = 200  # strokes a simulated session: bounds the memory of one recording
     for lo in range(0, len(items), chunk):
-        paths += trace_on_desk(items[lo : lo + chunk], seed + lo, desk_name)
+        paths += trace_on_desk(items[lo : lo + chunk], seed + lo, desk_name, sway)
     captured = {lab: p for (lab, *_), p in zip(items, paths, strict=True)}
     builtin = template_set()
     own: dict[tuple[str, str, int], TemplateSet] = {}
@@ -425,12 +432,14 @@ def run_human_speed(
             rows.setdefault((name, speed), []).append(verdict)
             rows.setdefault((name, "all"), []).append(verdict)
     print(
-        f"Real strokes at their real speed on the simulated {desk_name} desk: the $1 logs "
+        f"Real strokes at their real speed on the simulated {desk_name} desk"
+        f"{' with sway_compensation' if sway else ''}: the $1 logs "
         f"({len(test)} test strokes, {len(enrol)} enrolment strokes captured the same way), "
         f"scaled to {HUMAN_SIZE_M[0] * 100:g}–{HUMAN_SIZE_M[1] * 100:g} cm, traced with their "
         f"logged times; min_score {MIN_SCORE}, max_rotation_deg {MAX_ROTATION:g} "
         f"(`python scripts/stroke_accuracy.py --human-speed {folder} --reps {test_reps}"
-        f"{f' --desk {desk_name}' if desk_name != 'kitamura2017' else ''}`, "
+        f"{f' --desk {desk_name}' if desk_name != 'kitamura2017' else ''}"
+        f"{' --sway-compensation' if sway else ''}`, "
         f"{time.perf_counter() - started:.0f} s)\n"
     )
     print("| templates | speed (median, 10–90 %) | right | rejected | wrong |")
@@ -509,6 +518,11 @@ def main() -> None:
     parser.add_argument("--per-shape", type=int, default=20, help="test strokes per shape")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--desk", default="kitamura2017", help="the simulated desk's profile")
+    parser.add_argument(
+        "--sway-compensation",
+        action="store_true",
+        help="the desk with estimation.sway_compensation on (the legs as the accelerometer)",
+    )
     parser.add_argument("--synthetic", action="store_true", help="noisy paths, no simulator")
     parser.add_argument("--quick", action="store_true", help="skip the user-template rows")
     parser.add_argument("--dollar", metavar="DIR", help="real people: the $1 XML logs under DIR")
@@ -520,12 +534,16 @@ def main() -> None:
     parser.add_argument("--reps", type=int, default=3, help="with --human-speed: test strokes")
     args = parser.parse_args()
     if args.human_speed:
-        run_human_speed(args.human_speed, args.reps, args.seed, args.desk)
+        run_human_speed(args.human_speed, args.reps, args.seed, args.desk, args.sway_compensation)
         return
     if args.dollar:
         run_real(args.dollar, args.live, args.plot)
         return
-    trace = trace_synthetic if args.synthetic else partial(trace_on_desk, desk_name=args.desk)
+    trace = (
+        trace_synthetic
+        if args.synthetic
+        else partial(trace_on_desk, desk_name=args.desk, sway=args.sway_compensation)
+    )
     rng = np.random.default_rng(args.seed)
     started = time.perf_counter()
 
@@ -554,13 +572,19 @@ def main() -> None:
                 name = ("built-in + " if builtin else "") + f"{count} user template(s) per shape"
                 templates = template_set(user, builtin=builtin)
                 rows.append(("one person", name, score(templates, own_labels, own_paths)))
-    how = "synthetic noisy paths" if args.synthetic else f"traced on the simulated {args.desk} desk"
+    how = (
+        "synthetic noisy paths"
+        if args.synthetic
+        else f"traced on the simulated {args.desk} desk"
+        + (" with sway_compensation" if args.sway_compensation else "")
+    )
     print(
         f"Stroke accuracy, {args.per_shape} strokes per shape × {len(SHAPES)} shapes, {how}; "
         f"min_score {MIN_SCORE}, max_rotation_deg {MAX_ROTATION:g} "
         f"(`python scripts/stroke_accuracy.py --per-shape {args.per_shape} --seed {args.seed}"
         f"{' --synthetic' if args.synthetic else ''}"
         f"{f' --desk {args.desk}' if args.desk != 'kitamura2017' else ''}"
+        f"{' --sway-compensation' if args.sway_compensation else ''}"
         f"`, {time.perf_counter() - started:.0f} s)\n"
     )
     print(

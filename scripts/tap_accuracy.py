@@ -296,6 +296,11 @@ def main() -> None:
         help="the estimator's `max_sigma_m` on every desk (default: the profile's, 8 mm)",
     )
     parser.add_argument(
+        "--sway-compensation",
+        action="store_true",
+        help="every desk with estimation.sway_compensation on (the legs as the accelerometer)",
+    )
+    parser.add_argument(
         "--desk",
         choices=("paper", "unseen", "unseen-six", "unseen-four", "unseen-switched", "all"),
         default="all",
@@ -307,6 +312,8 @@ def main() -> None:
         if args.max_sigma is not None:
             estimation = replace(desk.estimation, max_sigma_m=args.max_sigma / 1000)
             desk = replace(desk, estimation=estimation)
+        if args.sway_compensation:
+            desk = replace(desk, estimation=replace(desk.estimation, sway_compensation=True))
         started = time.monotonic()
         layout = buttons(desk, args.snap)
         tally = measure(desk, layout, args.taps, args.seed)

@@ -6,6 +6,8 @@ with an accelerometer estimated with and without its readings.
   contact point, p50/p95 over every located sample in true contact; and against the true
   point ``position_delay_s`` earlier (the low-pass's lag taken out, so what is left is the
   path's shape: the sway's ripple and noise);
+- the same drags with ``estimation.sway_compensation`` instead of the accelerometer (the legs'
+  force twice differentiated, :mod:`hapticdesk.estimator.sway`);
 - the sway ring after a swipe lifts off (``swipes.yaml``): the peak of the desk's inertial
   force left in the resultant wrench (low-passed at the detection's 30 Hz) from 50 ms to 1 s
   after each release, and the phantom touch-downs there (a contact starting while nobody
@@ -25,6 +27,7 @@ from __future__ import annotations
 import argparse
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -42,11 +45,16 @@ SCENES = Path(__file__).resolve().parent.parent / "examples" / "scenes"
 RING_FROM_S, RING_TO_S = 0.05, 1.0  # the window after a release where the ring is judged
 
 
-def drag_errors(profile: DeskProfile, rec: Recording, compensate: bool) -> tuple[np.ndarray, ...]:
+def drag_errors(
+    profile: DeskProfile, rec: Recording, compensate: bool | str
+) -> tuple[np.ndarray, ...]:
     """Errors (m) of the located samples in true contact: against the truth, and against the
-    truth one low-pass delay earlier."""
+    truth one low-pass delay earlier. ``compensate``: True with the accelerometer's readings,
+    ``"legs"`` with ``estimation.sway_compensation`` instead (no readings)."""
+    if compensate == "legs":
+        profile = replace(profile, estimation=replace(profile.estimation, sway_compensation=True))
     est = ContactEstimator(profile)
-    accel = accelerometer_readings(profile, rec.extra) if compensate else None
+    accel = accelerometer_readings(profile, rec.extra) if compensate is True else None
     block = est.push(rec.t, rec.wrench, accel)
     tx, ty = rec.extra["true_x"], rec.extra["true_y"]
     touching = rec.extra["true_fn"] > 0
@@ -186,17 +194,20 @@ def main() -> None:
     print(f"desk {profile.name}, seeds 1..{args.seeds}")
     for scene_name in ("slider", "kita", "shapes"):
         scene = load_scene(SCENES / f"{scene_name}.yaml")
-        found: dict[bool, list[list[np.ndarray]]] = {True: [[], []], False: [[], []]}
+        modes: tuple[bool | str, ...] = (False, True, "legs")
+        found: dict[bool | str, list[list[np.ndarray]]] = {m: [[], []] for m in modes}
         for seed in range(1, args.seeds + 1):
             rec = simulate(profile, scene, seed)
-            for comp in (False, True):
+            for comp in modes:
                 err, shape = drag_errors(profile, rec, comp)
                 found[comp][0].append(err)
                 found[comp][1].append(shape)
-        for comp in (False, True):
+        label = {False: "without compensation ", True: "with the accelerometer",
+                 "legs": "legs as accelerometer "}  # fmt: skip
+        for comp in modes:
             err, shape = (np.concatenate(x) * 1000 for x in found[comp])
             print(
-                f"  {scene_name:7s} {'with   ' if comp else 'without'} accelerometer: "
+                f"  {scene_name:7s} {label[comp]}: "
                 f"error p50 {np.percentile(err, 50):.2f} p95 {np.percentile(err, 95):.2f} mm; "
                 f"lag taken out p50 {np.percentile(shape, 50):.2f} "
                 f"p95 {np.percentile(shape, 95):.2f} mm ({len(err)} samples)"

@@ -19,6 +19,7 @@ from hapticdesk.estimator.contacts import FLAG_GAP
 from hapticdesk.estimator.filters import DelayLine, SosFilter, pack_pairs
 from hapticdesk.estimator.notices import Notice, add_notice
 from hapticdesk.estimator.settings import EstimatorSettings
+from hapticdesk.estimator.sway import SwayStage
 
 Filtered = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
@@ -34,6 +35,11 @@ class FilterState:
         # `fused`'s third candidate
         self.det = SosFilter(settings.det_sos, 3)
         self.det_delay = DelayLine(settings.n_rate, 3)
+        # stage 2b: the sway's inertial wrench, on the low-passed wrench (and on the separately
+        # low-passed differentiated one, which the correction commutes with)
+        sway = settings.sway
+        self.sway = None if sway is None else SwayStage(sway)
+        self.sway_diff = None if sway is None or settings.shared_lp else SwayStage(sway)
 
 
 class FilterBank:
@@ -91,6 +97,8 @@ class FilterBank:
         slope, release = st.det_delay.step_one(det_f, s.n_release)
         rate, rel = s.rate_scale, s.release_scale
         lp = st.lp.step(packed)
+        if st.sway is not None:
+            lp = st.sway.process_one(lp)
         diff, _ = st.delay.step_one(lp)  # paper eq. (8)
         scale = s.diff_scale
         return (
@@ -111,6 +119,10 @@ class FilterBank:
         st.delay.restart(packed)
         if st.diff_lp is not None:
             st.diff_lp.restart(np.zeros(3, complex))
+        if st.sway is not None:
+            st.sway.restart(packed)
+        if st.sway_diff is not None:
+            st.sway_diff.restart(np.zeros(3, complex))
 
     def _segment(self, raw: np.ndarray) -> Filtered:
         """The filters over a stretch without a gap."""
@@ -126,6 +138,8 @@ class FilterBank:
         det_slope *= s.rate_scale
         if st.diff_lp is None:
             lp = st.lp.process(packed, in_place=True)
+            if st.sway is not None:
+                st.sway.process(lp)
             diff = st.delay.difference(lp)  # paper eq. (8)
             diff *= s.diff_scale
         else:
@@ -135,4 +149,7 @@ class FilterBank:
             raw_diff *= s.diff_scale
             diff = st.diff_lp.process(raw_diff, in_place=True)
             lp = st.lp.process(packed, in_place=True)
+            if st.sway is not None and st.sway_diff is not None:
+                st.sway.process(lp)
+                st.sway_diff.process(diff)
         return lp, det, diff, det_slope, release

@@ -15,6 +15,7 @@ import numpy as np
 
 from hapticdesk.estimator.filters import butter_lowpass_sos, group_delay_s, noise_gain
 from hapticdesk.estimator.geometry import SurfaceFrame
+from hapticdesk.estimator.sway import SwaySettings
 from hapticdesk.files.profile import DeskProfile, EstimationSettings
 
 WINDOW_S = 0.2  # tare and stillness are judged on windows of this length
@@ -62,6 +63,7 @@ class EstimatorSettings:
     n_drift: int  # windows an idle desk rests before its drift is followed
     n_object: int  # windows a load as still as the idle desk is held before it joins the zero
     det_full: bool  # the fast low-pass filters the whole wrench (`fused`, trace), not the force
+    sway: SwaySettings | None  # the legs-as-accelerometer compensation, or None (off)
 
     @classmethod
     def of(cls, profile: DeskProfile, user: EstimationSettings, trace: bool) -> EstimatorSettings:
@@ -131,6 +133,7 @@ class EstimatorSettings:
             n_drift=windows(s.drift_settle_s),
             n_object=windows(s.object_settle_s) if s.object_settle_s > 0 else 0,
             det_full=s.method == "fused" or trace,
+            sway=SwaySettings.of(profile, s.sway_compensation),
         )
 
     def up(self) -> np.ndarray:

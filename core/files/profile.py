@@ -160,6 +160,9 @@ class EstimationSettings:
     max_gap_s: float = 0.05  # a gap in sample times longer than this restarts the filters
     noise_force_n: float = 0.0  # per-channel noise σ if known; 0 = measure during the tare
     noise_moment_nm: float = 0.0
+    # the legs as the accelerometer: the desk's inertial force from the measured force's
+    # curvature and `desk.natural_frequency_hz` (see hapticdesk.estimator.sway)
+    sway_compensation: bool = False
 
 
 @dataclass(frozen=True)

@@ -375,6 +375,18 @@ def number(
     return value
 
 
+def flag(mapping: MarkedDict, key: str, what: str, *, default: bool) -> bool:
+    """Read ``true`` or ``false`` at ``key``."""
+    if key not in mapping:
+        return default
+    value = mapping[key]
+    if not isinstance(value, bool):
+        raise ConfigError(
+            mapping.where(key), f"`{key}` in {what} must be true or false, found {_describe(value)}"
+        )
+    return value
+
+
 def vector(value: Any, where: Position | str, what: str, length: int | None = None) -> list[float]:
     """A list of finite numbers (of ``length`` items when given)."""
     if not isinstance(value, list) or any(

@@ -32,7 +32,7 @@ import numpy as np
 
 from hapticdesk.gestures.options import GESTURE_OPTIONS
 from hapticdesk.gestures.strokes.shapes import SHAPES, hand_drawn, normalised, resample
-from hapticdesk.gestures.strokes.unistroke import TemplateSet, template_set
+from hapticdesk.gestures.strokes.unistroke import BUILTIN_EXTRA_SCORE, TemplateSet, template_set
 
 MIN_SCORE = GESTURE_OPTIONS["stroke"]["min_score"].default
 MAX_ROTATION = GESTURE_OPTIONS["stroke"]["max_rotation_deg"].default
@@ -251,10 +251,11 @@ def run_real(folder: str, live: bool, plot: str | None) -> None:
     truth = [s.shape for s in strokes]
     base = protractor_vectors(paths)
     # verdicts: (protocol, subject, speed, truth, best shape, score, baseline shape, known,
-    # the score the best shape asks beyond min_score: its templates' own agreement less margin)
-    rows: list[tuple[str, str, str, str, str | None, float, str, bool, float]] = []
+    # the score the best shape asks beyond min_score: its templates' own agreement less margin,
+    # and what a built-in template asks above min_score)
+    rows: list[tuple[str, str, str, str, str | None, float, str, bool, float, float]] = []
 
-    def judge(name, templates, te, known, baseline_t, baseline_labels, subject_of):
+    def judge(name, templates, te, known, baseline_t, baseline_labels, subject_of, extra=0.0):
         top1 = protractor_top1(baseline_t, baseline_labels, base[te])
         matches = templates.classify_many([paths[i] for i in te], 0.0, MAX_ROTATION)
         own = templates.thresholds(math.radians(MAX_ROTATION))
@@ -270,6 +271,7 @@ def run_real(folder: str, live: bool, plot: str | None) -> None:
                     b,
                     truth[i] in known,
                     own.get(m.best_shape, 0.0) if m.best_shape else 0.0,
+                    extra,
                 )
             )
 
@@ -317,6 +319,7 @@ def run_real(folder: str, live: bool, plot: str | None) -> None:
             protractor_vectors([p for _, p in bt]),
             [n for n, _ in bt],
             lambda i: strokes[i].subject,
+            BUILTIN_EXTRA_SCORE,  # (every template here is built-in)
         )
     print(
         f"Stroke accuracy on real people: the $1 logs ({len(strokes)} strokes, "
@@ -474,8 +477,9 @@ def _builtin_paths() -> list[tuple[str, np.ndarray]]:
 
 def _accepted(row, min_score: float) -> bool:
     """A verdict row's best shape is taken at ``min_score``: its score reaches min_score
-    and what the shape's own templates ask (TemplateSet.thresholds)."""
-    return row[5] >= max(min_score, row[8])
+    and what the shape's own templates ask (TemplateSet.thresholds), plus what a built-in
+    template asks beyond min_score."""
+    return row[5] >= max(min_score + row[9], row[8])
 
 
 def _plot_threshold(rows, path: str) -> None:
@@ -489,15 +493,18 @@ def _plot_threshold(rows, path: str) -> None:
     fig, ax = plt.subplots(figsize=(7, 4.2))
     for name in dict.fromkeys(r[0] for r in rows):
         # (score, what the shape asks of its own, right shape) per known stroke
-        known = np.array([(r[5], r[8], r[4] == r[3]) for r in rows if r[0] == name and r[7]])
-        taken = known[:, None, 0] >= np.maximum(taus[None, :], known[:, None, 1])
+        known = np.array([(r[5], r[8], r[4] == r[3], r[9]) for r in rows if r[0] == name and r[7]])
+        taken = known[:, None, 0] >= np.maximum(
+            taus[None, :] + known[:, None, 3], known[:, None, 1]
+        )
         right = 100 * np.mean(taken & (known[:, None, 2] > 0), axis=0)
         ax.plot(taus, right, label=f"right: {name}")
-        unknown = np.array([(r[5], r[8]) for r in rows if r[0] == name and not r[7]])
+        unknown = np.array([(r[5], r[8], r[9]) for r in rows if r[0] == name and not r[7]])
         if len(unknown):
+            floor = np.maximum(taus[None, :] + unknown[:, None, 2], unknown[:, None, 1])
             ax.plot(
                 taus,
-                100 * np.mean(unknown[:, None, 0] >= np.maximum(taus, unknown[:, None, 1]), axis=0),
+                100 * np.mean(unknown[:, None, 0] >= floor, axis=0),
                 "k--",
                 label="unknown shapes accepted (open set)",
             )

@@ -134,3 +134,22 @@ def test_a_file_that_is_not_a_log_is_named(tmp_path):
     bad.write_text("<Gesture")
     with pytest.raises(ConfigError, match=r"not a readable \$1 gesture log"):
         read_logged_stroke(bad)
+
+
+def test_a_stroke_nearest_a_built_in_template_asks_more():
+    """Built-in templates are not compared by form, so a stroke nearest one asks min_score +
+    BUILTIN_EXTRA_SCORE (non-shapes taken for a built-in shape: 18 % -> 5 % at 0.8)."""
+    from hapticdesk.gestures.strokes.unistroke import BUILTIN_EXTRA_SCORE
+
+    u = np.linspace(0.0, 2 * np.pi, 120)
+    circle = np.column_stack([np.cos(u), np.sin(u)])
+    egg = np.column_stack([1.3 * np.cos(u) + 0.1 * np.sin(3 * u), np.sin(u)])
+    for ideal in (True, False):
+        templates = TemplateSet()
+        templates.add("circle", circle, ideal=ideal)
+        score = templates.classify(egg, 0.0).score
+        assert 0.5 < score < 1.0
+        just_below = score - BUILTIN_EXTRA_SCORE / 2
+        taken = templates.classify(egg, just_below).shape
+        assert taken == (None if ideal else "circle")
+        assert templates.classify(egg, score - BUILTIN_EXTRA_SCORE - 0.01).shape == "circle"

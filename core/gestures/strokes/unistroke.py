@@ -31,11 +31,11 @@ The score is clipped to 0..1. The nearest shape is the one of highest score; it 
 when its score reaches ``min_score`` and, for a shape with two or more templates as drawn,
 the templates' own agreement less ``TIGHTNESS_MARGIN``: a shape its writer draws the same
 way each time asks more of a stroke than one drawn loosely. A stroke nearest a built-in
-template asks ``BUILTIN_EXTRA_SCORE`` more (form is not compared against those). Measured on real people (the $1
-logs, scripts/stroke_accuracy.py --dollar; figures in the README): one global threshold on
-the warped score could not keep both writer-independent strokes at Protractor's top-1 and
-unknown shapes at ≤ 5 % accepted, nine of ten unknowns accepted being a brace taken for the
-same person's bracket or caret ↔ question mark. Matching is a few array operations over all
+template asks ``BUILTIN_EXTRA_SCORE`` more (form is not compared against those). Measured
+on real people (the $1 logs, scripts/stroke_accuracy.py --dollar; figures in the README):
+one global threshold on the warped score could not keep both writer-independent strokes at
+Protractor's top-1 and unknown shapes at ≤ 5 % accepted, nine of ten unknowns accepted
+being a brace taken for the same person's bracket or caret ↔ question mark. Matching is a few array operations over all
 templates; the warping loops over the band's cells, not over templates or samples.
 """
 

@@ -35,8 +35,9 @@ template asks ``BUILTIN_EXTRA_SCORE`` more (form is not compared against those).
 on real people (the $1 logs, scripts/stroke_accuracy.py --dollar; figures in the README):
 one global threshold on the warped score could not keep both writer-independent strokes at
 Protractor's top-1 and unknown shapes at ≤ 5 % accepted, nine of ten unknowns accepted
-being a brace taken for the same person's bracket or caret ↔ question mark. Matching is a few array operations over all
-templates; the warping loops over the band's cells, not over templates or samples.
+being a brace taken for the same person's bracket or caret ↔ question mark. Matching is a
+few array operations over all templates; the warping loops over the band's cells, not over
+templates or samples.
 """
 
 from __future__ import annotations

@@ -115,3 +115,26 @@ def noisy_presses() -> tuple[np.ndarray, np.ndarray]:
 def statics():
     """(push_at, press_profile, readings_for) for tests that build their own loads."""
     return push_at, press_profile, readings_for
+
+
+def _shape_error_p95(profile, rec, accel=None) -> float:
+    """p95 (m) of the located points against the true point one low-pass delay earlier (the
+    lag taken out: what is left is the path's ripple and noise)."""
+    from hapticdesk.estimator import ContactEstimator
+
+    est = ContactEstimator(profile)
+    block = est.push(rec.t, rec.wrench, accel)
+    lag = round(est.position_delay_s * profile.sample_rate_hz)
+    touching = rec.extra["true_fn"] > 0
+    idx = np.flatnonzero(block.located & touching)
+    idx = idx[(idx >= lag) & touching[np.maximum(idx - lag, 0)]]
+    err = np.hypot(
+        block.x[idx] - rec.extra["true_x"][idx - lag], block.y[idx] - rec.extra["true_y"][idx - lag]
+    )
+    return float(np.percentile(err, 95))
+
+
+@pytest.fixture
+def shape_error_p95() -> Callable[..., float]:
+    """How far a located path strays from the true one, its lag taken out (vibration tests)."""
+    return _shape_error_p95

@@ -110,27 +110,12 @@ def test_the_sway_ring_after_a_swipe_is_removed(accel_desk, swipes):
     assert np.median(with_accel) < 0.15 * np.median(without)
 
 
-def _shape_error_p95(profile, rec, accel) -> float:
-    """p95 (m) of the located points against the true point one low-pass delay earlier (the
-    lag taken out: what is left is the path's ripple and noise)."""
-    est = ContactEstimator(profile)
-    block = est.push(rec.t, rec.wrench, accel)
-    lag = round(est.position_delay_s * profile.sample_rate_hz)
-    touching = rec.extra["true_fn"] > 0
-    idx = np.flatnonzero(block.located & touching)
-    idx = idx[(idx >= lag) & touching[np.maximum(idx - lag, 0)]]
-    err = np.hypot(
-        block.x[idx] - rec.extra["true_x"][idx - lag], block.y[idx] - rec.extra["true_y"][idx - lag]
-    )
-    return float(np.percentile(err, 95))
-
-
-def test_a_traced_stroke_ripples_less_with_the_accelerometer(accel_desk, kita):
+def test_a_traced_stroke_ripples_less_with_the_accelerometer(accel_desk, kita, shape_error_p95):
     """The traced 北 (README Known limits: the sway's ripple): p95 4.7 mm without the
     accelerometer, 1.6 mm with it (seed 1)."""
     accel = accelerometer_readings(accel_desk, kita.extra)
-    without = _shape_error_p95(accel_desk, kita, None)
-    with_accel = _shape_error_p95(accel_desk, kita, accel)
+    without = shape_error_p95(accel_desk, kita, None)
+    with_accel = shape_error_p95(accel_desk, kita, accel)
     print(f"[vibration] 北 p95 without {without * 1e3:.2f} mm, with {with_accel * 1e3:.2f} mm")
     assert with_accel < 0.5 * without
     assert with_accel < 2.5e-3

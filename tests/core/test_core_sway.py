@@ -37,21 +37,6 @@ def shapes(accel_desk):
     return simulate(accel_desk, load_scene(SCENES / "shapes.yaml"), 1)
 
 
-def _shape_error_p95(profile, rec, accel=None) -> float:
-    """p95 (m) of the located points against the true point one low-pass delay earlier (the
-    lag taken out: what is left is the path's ripple and noise)."""
-    est = ContactEstimator(profile)
-    block = est.push(rec.t, rec.wrench, accel)
-    lag = round(est.position_delay_s * profile.sample_rate_hz)
-    touching = rec.extra["true_fn"] > 0
-    idx = np.flatnonzero(block.located & touching)
-    idx = idx[(idx >= lag) & touching[np.maximum(idx - lag, 0)]]
-    err = np.hypot(
-        block.x[idx] - rec.extra["true_x"][idx - lag], block.y[idx] - rec.extra["true_y"][idx - lag]
-    )
-    return float(np.percentile(err, 95))
-
-
 def test_the_legs_force_curvature_is_the_desks_acceleration(accel_desk, shapes):
     """The identity the stage rests on, checked against the simulated accelerometer: a =
     −F̈_h / (m ω_n²), with gain −1 and a small residual (zero-phase, so delay plays no part)."""
@@ -77,12 +62,14 @@ def test_the_legs_force_curvature_is_the_desks_acceleration(accel_desk, shapes):
     assert residual < 0.15
 
 
-def test_a_dragged_strokes_ripple_shrinks_as_with_an_accelerometer(accel_desk, shapes):
+def test_a_dragged_strokes_ripple_shrinks_as_with_an_accelerometer(
+    accel_desk, shapes, shape_error_p95
+):
     """shapes.yaml at 12 cm/s, seed 1: p95 against the lagged truth ≈ 20 mm plain, ≈ 1.4 mm
     with the accelerometer, ≈ 4 mm with the legs as the accelerometer."""
-    plain = _shape_error_p95(accel_desk, shapes)
-    accel = _shape_error_p95(accel_desk, shapes, accelerometer_readings(accel_desk, shapes.extra))
-    legs = _shape_error_p95(with_sway(accel_desk), shapes)
+    plain = shape_error_p95(accel_desk, shapes)
+    accel = shape_error_p95(accel_desk, shapes, accelerometer_readings(accel_desk, shapes.extra))
+    legs = shape_error_p95(with_sway(accel_desk), shapes)
     print(
         f"[sway] shapes p95: plain {plain * 1e3:.2f}, accelerometer {accel * 1e3:.2f}, "
         f"legs {legs * 1e3:.2f} mm"
@@ -164,7 +151,7 @@ def test_the_setting_is_read_and_a_bad_value_is_named(tmp_path):
 
 
 @pytest.mark.parametrize("true_hz", [5.4, 6.5])
-def test_a_sway_frequency_off_by_ten_percent_still_helps(true_hz):
+def test_a_sway_frequency_off_by_ten_percent_still_helps(true_hz, shape_error_p95):
     """A real desk's `natural_frequency_hz` is measured (``characterize``), not exact: the
     profile says 5.9 Hz, the simulated desk sways at ±10 % of it (seed 3: plain 27 / 18 mm,
     compensated 9 / 6 mm)."""
@@ -172,8 +159,8 @@ def test_a_sway_frequency_off_by_ten_percent_still_helps(true_hz):
     rec = simulate(
         replace(desk, natural_frequency_hz=true_hz), load_scene(SCENES / "shapes.yaml"), 3
     )
-    plain = _shape_error_p95(desk, rec)
-    legs = _shape_error_p95(with_sway(desk), rec)
+    plain = shape_error_p95(desk, rec)
+    legs = shape_error_p95(with_sway(desk), rec)
     print(
         f"[sway] desk at {true_hz} Hz, profile 5.9 Hz: plain {plain * 1e3:.2f}, "
         f"legs {legs * 1e3:.2f} mm"

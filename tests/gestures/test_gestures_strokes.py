@@ -229,3 +229,42 @@ def test_record_command_captures_strokes_from_a_simulated_scene(tmp_path, capsys
         main(["strokes", "record", "2bad", "--layout", str(layout), "--source", f"sim:{scene}"])
         == 2
     )
+
+
+def test_a_compensated_desks_strokes_keep_their_corners():
+    """Where the estimator takes the sway out (an accelerometer, or `sway_compensation`), a
+    stroke gets the calm smoothing whatever its wobble: a fast stroke's corners look like
+    sway to the wobble test and the heavy σ rounded them."""
+    from dataclasses import replace
+
+    from hapticdesk.files.profile import load_profile
+    from hapticdesk.gestures.recognizers.stroke import (
+        calm_smoothing_s,
+        smoothing_s,
+        stroke_path,
+        sway_compensated,
+    )
+
+    plain = load_profile("kitamura2017")
+    legs = replace(plain, estimation=replace(plain.estimation, sway_compensation=True))
+    accel = load_profile("kitamura2017-accel")
+    assert not sway_compensated(plain)
+    assert sway_compensated(legs) and sway_compensated(accel)
+    assert not sway_compensated(replace(legs, natural_frequency_hz=None))
+    assert smoothing_s(plain) > 2 * calm_smoothing_s(plain)
+    for desk in (legs, accel):
+        assert smoothing_s(desk) == calm_smoothing_s(desk)
+    # a clean square drawn at 0.3 m/s, 7 cm a side: its corners survive the calm σ only
+    side = np.linspace(0.0, 0.07, 24, endpoint=False)
+    square = np.vstack(
+        [np.column_stack(c) for c in ((side, 0 * side), (0 * side + 0.07, side),
+                                      (0.07 - side, 0 * side + 0.07), (0 * side, 0.07 - side))]
+    )  # fmt: skip
+    times = np.arange(len(square)) * (0.07 / 24 / 0.3)
+
+    def corner_gap(desk) -> float:
+        _, path = stroke_path(times, square, smoothing_s(desk), calm_smoothing_s(desk))
+        return float(np.min(np.hypot(path[:, 0] - 0.07, path[:, 1] - 0.0)))
+
+    # (13 mm from the corner with the calm σ, 22 mm with the heavy one the wobble test chose)
+    assert corner_gap(legs) < 0.7 * corner_gap(plain)

@@ -46,6 +46,7 @@ from hapticdesk.files.yamlfile import (
     Position,
     check_keys,
     choice,
+    flag,
     load_marked_yaml,
     number,
     require_mapping,
@@ -68,7 +69,6 @@ from hapticdesk.sim.actions import (
 from hapticdesk.sim.human import HumanModel
 from hapticdesk.sim.paths import SHAPES, shape_path, text_paths
 from hapticdesk.sim.scene_fields import (
-    field_flag,
     field_human,
     field_integer,
     field_list,
@@ -404,7 +404,7 @@ def _strokes(
         number(p, "size", what, minimum=0.0, exclusive_minimum=True) * unit if "size" in p else None
     )
     rotation = number(p, "rotation_deg", what, default=0.0)
-    clockwise = field_flag(p, "clockwise", what)
+    clockwise = flag(p, "clockwise", what, default=False)
     if "clockwise" in p and source != "shape":
         raise ConfigError(
             p.where("clockwise", of_key=True), f"`clockwise` in {what} applies to `shape` only"

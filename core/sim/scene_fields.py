@@ -51,13 +51,6 @@ def field_integer(m: MarkedDict, key: str, what: str, default: int, minimum: int
     return value
 
 
-def field_flag(m: MarkedDict, key: str, what: str) -> bool:
-    value = m.get(key, False)
-    if not isinstance(value, bool):
-        raise ConfigError(m.where(key), f"`{key}` in {what} must be true or false, found {value!r}")
-    return value
-
-
 def field_point(m: MarkedDict, key: str, what: str, unit: float) -> tuple[float, float]:
     u, v = vector(m[key], m.where(key), f"`{key}` of {what} ([u, v])", 2)
     return (u * unit, v * unit)

@@ -22,12 +22,12 @@ Differentiating twice amplifies noise, so F̈ is taken of the *low-passed* wrenc
 low-pass, paper's conventional filter) and the correction is applied to it: the correction
 is linear, so correcting then low-passing equals low-passing then correcting, and the
 low-pass bounds the noise (its second derivative, scaled by 1/ω_n², passes white noise with
-gain (f_c/f_n)² at most). The second difference spans ``SPAN`` samples each way, which keeps
-the delay small (``SPAN`` samples, a few degrees at the sway frequency) and averages what
-the low-pass lets through. The differentiated candidate (paper eq. 8) is a difference of the
+gain (f_c/f_n)² at most). The second difference spans ``SPAN_S`` each way, which keeps the
+delay small (``SPAN_S``, a few degrees at the sway frequency) and averages what the low-pass
+lets through. The differentiated candidate (paper eq. 8) is a difference of the
 same low-passed wrench and so is corrected with it.
 
-Stateful: the last ``2·SPAN`` samples of the low-passed horizontal force, so the output is the
+Stateful: the last ``2·SPAN_S`` of the low-passed horizontal force, so the output is the
 same for any split of the input; a gap restarts it like the filters (as if the desk had been
 still).
 
@@ -48,6 +48,12 @@ from hapticdesk.files.profile import DeskProfile
 SPAN_S = 0.003  # the second difference's half-width: its delay costs 6° of phase at 6 Hz
 
 
+def compensates(profile: DeskProfile, enabled: bool) -> bool:
+    """Whether the compensation runs on ``profile`` with the setting ``enabled``: it needs the
+    desk's sway frequency."""
+    return enabled and bool(profile.natural_frequency_hz)
+
+
 @dataclass(frozen=True, eq=False)
 class SwaySettings:
     """One desk's fixed quantities for the compensation (see the module docstring)."""
@@ -61,8 +67,9 @@ class SwaySettings:
         """The settings for ``profile``, or None when the compensation is off (``enabled``,
         the estimation setting ``sway_compensation``) or the desk's sway frequency is not
         known."""
-        if not enabled or not profile.natural_frequency_hz:
+        if not compensates(profile, enabled):
             return None
+        assert profile.natural_frequency_hz is not None
         cx, cy, cz = (float(v) for v in profile.center_of_mass())
         # c × (a, b, 0) = (-c_z b, c_z a, c_x b - c_y a)
         lever = np.array([[0.0, -cz], [cz, 0.0], [-cy, cx]])

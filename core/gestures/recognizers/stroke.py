@@ -20,6 +20,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from hapticdesk.estimator.contacts import ContactEvent
+from hapticdesk.estimator.sway import compensates
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.layout import Binding, Layout
@@ -64,9 +65,7 @@ def smoothing_s(desk: DeskProfile) -> float:
 def sway_compensated(desk: DeskProfile) -> bool:
     """The estimator removes the desk's inertial force on ``desk``'s located path: it has an
     accelerometer, or ``estimation.sway_compensation`` with a known sway frequency."""
-    return desk.accelerometer is not None or bool(
-        desk.estimation.sway_compensation and desk.natural_frequency_hz
-    )
+    return desk.accelerometer is not None or compensates(desk, desk.estimation.sway_compensation)
 
 
 def calm_smoothing_s(desk: DeskProfile) -> float:

@@ -83,7 +83,6 @@ def simulate_strokes(items, seed: int, desk_name: str = "kitamura2017", sway: bo
     desk (or ``desk_name``: kitamura2017-accel compensates its sway with an accelerometer;
     ``sway``: with the estimation setting ``sway_compensation`` on) and estimate: (desk,
     recording, contacts)."""
-    from dataclasses import replace
 
     from hapticdesk.estimator import estimate
     from hapticdesk.files.profile import load_profile
@@ -91,7 +90,7 @@ def simulate_strokes(items, seed: int, desk_name: str = "kitamura2017", sway: bo
 
     desk = load_profile(desk_name)
     if sway:
-        desk = replace(desk, estimation=replace(desk.estimation, sway_compensation=True))
+        desk = desk.with_estimation(sway_compensation=True)
     rng = np.random.default_rng(seed)
     actions: list = []
     for i, (_, path, speed, *timed) in enumerate(items):

@@ -27,7 +27,7 @@ from __future__ import annotations
 import argparse
 import tempfile
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -310,10 +310,9 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|---|")
     for label, desk in desks(args.desk).items():
         if args.max_sigma is not None:
-            estimation = replace(desk.estimation, max_sigma_m=args.max_sigma / 1000)
-            desk = replace(desk, estimation=estimation)
+            desk = desk.with_estimation(max_sigma_m=args.max_sigma / 1000)
         if args.sway_compensation:
-            desk = replace(desk, estimation=replace(desk.estimation, sway_compensation=True))
+            desk = desk.with_estimation(sway_compensation=True)
         started = time.monotonic()
         layout = buttons(desk, args.snap)
         tally = measure(desk, layout, args.taps, args.seed)

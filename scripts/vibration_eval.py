@@ -27,7 +27,6 @@ from __future__ import annotations
 import argparse
 import tempfile
 import time
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -52,7 +51,7 @@ def drag_errors(
     truth one low-pass delay earlier. ``compensate``: True with the accelerometer's readings,
     ``"legs"`` with ``estimation.sway_compensation`` instead (no readings)."""
     if compensate == "legs":
-        profile = replace(profile, estimation=replace(profile.estimation, sway_compensation=True))
+        profile = profile.with_estimation(sway_compensation=True)
     est = ContactEstimator(profile)
     accel = accelerometer_readings(profile, rec.extra) if compensate is True else None
     block = est.push(rec.t, rec.wrench, accel)

@@ -9,7 +9,7 @@ which every consumer of sensor data uses.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -189,6 +189,10 @@ class DeskProfile:
     def channel_names(self) -> list[str]:
         """All recording columns after ``t``, in order."""
         return [c for s in self.sensors for c in s.channel_names()]
+
+    def with_estimation(self, **changes: Any) -> DeskProfile:
+        """The same desk with these :class:`EstimationSettings` changed."""
+        return replace(self, estimation=replace(self.estimation, **changes))
 
     def surface(self, name: str) -> Surface:
         for s in self.surfaces:

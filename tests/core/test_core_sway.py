@@ -23,7 +23,7 @@ SCENES = Path(__file__).resolve().parents[2] / "examples" / "scenes"
 
 
 def with_sway(profile: DeskProfile, on: bool = True) -> DeskProfile:
-    return replace(profile, estimation=replace(profile.estimation, sway_compensation=on))
+    return profile.with_estimation(sway_compensation=on)
 
 
 @pytest.fixture(scope="module")

@@ -246,7 +246,7 @@ def test_a_compensated_desks_strokes_keep_their_corners():
     )
 
     plain = load_profile("kitamura2017")
-    legs = replace(plain, estimation=replace(plain.estimation, sway_compensation=True))
+    legs = plain.with_estimation(sway_compensation=True)
     accel = load_profile("kitamura2017-accel")
     assert not sway_compensated(plain)
     assert sway_compensated(legs) and sway_compensated(accel)

@@ -44,16 +44,22 @@ SCENES = Path(__file__).resolve().parent.parent / "examples" / "scenes"
 RING_FROM_S, RING_TO_S = 0.05, 1.0  # the window after a release where the ring is judged
 
 
-def drag_errors(
-    profile: DeskProfile, rec: Recording, compensate: bool | str
-) -> tuple[np.ndarray, ...]:
+#: how the sway is taken out of a run, and the label its rows get
+COMPENSATIONS = {
+    "none": "without compensation ",
+    "accelerometer": "with the accelerometer",
+    "legs": "legs as accelerometer ",
+}
+
+
+def drag_errors(profile: DeskProfile, rec: Recording, how: str) -> tuple[np.ndarray, ...]:
     """Errors (m) of the located samples in true contact: against the truth, and against the
-    truth one low-pass delay earlier. ``compensate``: True with the accelerometer's readings,
-    ``"legs"`` with ``estimation.sway_compensation`` instead (no readings)."""
-    if compensate == "legs":
+    truth one low-pass delay earlier. ``how``, one of COMPENSATIONS: ``"accelerometer"`` with
+    its readings, ``"legs"`` with ``estimation.sway_compensation`` instead (no readings)."""
+    if how == "legs":
         profile = profile.with_estimation(sway_compensation=True)
     est = ContactEstimator(profile)
-    accel = accelerometer_readings(profile, rec.extra) if compensate is True else None
+    accel = accelerometer_readings(profile, rec.extra) if how == "accelerometer" else None
     block = est.push(rec.t, rec.wrench, accel)
     tx, ty = rec.extra["true_x"], rec.extra["true_y"]
     touching = rec.extra["true_fn"] > 0
@@ -193,20 +199,17 @@ def main() -> None:
     print(f"desk {profile.name}, seeds 1..{args.seeds}")
     for scene_name in ("slider", "kita", "shapes"):
         scene = load_scene(SCENES / f"{scene_name}.yaml")
-        modes: tuple[bool | str, ...] = (False, True, "legs")
-        found: dict[bool | str, list[list[np.ndarray]]] = {m: [[], []] for m in modes}
+        found: dict[str, list[list[np.ndarray]]] = {how: [[], []] for how in COMPENSATIONS}
         for seed in range(1, args.seeds + 1):
             rec = simulate(profile, scene, seed)
-            for comp in modes:
-                err, shape = drag_errors(profile, rec, comp)
-                found[comp][0].append(err)
-                found[comp][1].append(shape)
-        label = {False: "without compensation ", True: "with the accelerometer",
-                 "legs": "legs as accelerometer "}  # fmt: skip
-        for comp in modes:
-            err, shape = (np.concatenate(x) * 1000 for x in found[comp])
+            for how in COMPENSATIONS:
+                err, shape = drag_errors(profile, rec, how)
+                found[how][0].append(err)
+                found[how][1].append(shape)
+        for how, label in COMPENSATIONS.items():
+            err, shape = (np.concatenate(x) * 1000 for x in found[how])
             print(
-                f"  {scene_name:7s} {label[comp]}: "
+                f"  {scene_name:7s} {label}: "
                 f"error p50 {np.percentile(err, 50):.2f} p95 {np.percentile(err, 95):.2f} mm; "
                 f"lag taken out p50 {np.percentile(shape, 50):.2f} "
                 f"p95 {np.percentile(shape, 95):.2f} mm ({len(err)} samples)"

@@ -2,8 +2,9 @@
 
 Simulates scenes of two-finger touches (a press held by one finger, a second finger landing
 0.05–0.5 s later 4–30 cm away, as a press or a tap) and of single touches (quick light taps,
-presses, swipes), runs the estimator and :func:`hapticdesk.estimator.multitouch.second_touches`,
-and counts the touches flagged as two-fingered.
+presses, swipes), runs the estimator (its stage :mod:`hapticdesk.estimator.multitouch`) and
+counts the touches flagged as two-fingered, how far the second finger is placed from where it
+landed, and how many fire a ``two_finger_tap``.
 
     python scripts/two_finger_accuracy.py [--two 200] [--single 1000] [--seed 0]
 """
@@ -11,16 +12,30 @@ and counts the touches flagged as two-fingered.
 from __future__ import annotations
 
 import argparse
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from hapticdesk.estimator import ContactEstimator
-from hapticdesk.estimator.multitouch import second_touches
+from hapticdesk.estimator.contacts import FLAG_MULTI
 from hapticdesk.files.profile import load_profile
+from hapticdesk.gestures.engine import GestureEngine
+from hapticdesk.gestures.layout import load_layout
 from hapticdesk.sim import Scene, simulate
 from hapticdesk.sim.actions import Press, Step, Swipe, Tap
 
+#: a layout binding only the two-finger tap, on the whole top, long enough for the pairs' press
+LAYOUT = """desk: kitamura2017
+units: cm
+regions:
+  top: {rect: [-35, -25, 35, 25]}
+bindings:
+  - {gesture: two_finger_tap, region: top, max_duration_s: 5.0, do: log}
+"""
 SPACING_S = 4.0  # one touch (or pair) every this many seconds
+HOLDING_S = 0.6  # a second finger this long after the first lands on a held press
 QUIET_S = 2.0
 PER_SCENE = 25
 
@@ -35,13 +50,13 @@ def _two(rng: np.random.Generator, start: float) -> list[Step]:
         p2 = _point(rng)
         if 0.04 <= np.hypot(p2[0] - p1[0], p2[1] - p1[1]) <= 0.3:
             break
-    stagger = float(rng.uniform(0.05, 0.5))
+    stagger = float(rng.uniform(0.05, 1.0))
     second: Step = (
         Tap(point=p2, start_s=start + stagger)
         if rng.random() < 0.5
         else Press(point=p2, hold_s=0.5, start_s=start + stagger)
     )
-    return [Press(point=p1, hold_s=1.0, start_s=start), second]
+    return [Press(point=p1, hold_s=1.2, start_s=start), second]
 
 
 def _single(rng: np.random.Generator, start: float) -> list[Step]:
@@ -57,25 +72,58 @@ def _single(rng: np.random.Generator, start: float) -> list[Step]:
     return [Swipe(from_point=p, to_point=q, start_s=start)]
 
 
-def flagged(desk, steps: list[list[Step]], seed: int) -> list[bool]:
-    """Simulate the touches and say for each whether a second finger was flagged in it."""
-    starts = [QUIET_S + i * SPACING_S for i in range(len(steps))]
-    scene = Scene([s for group in steps for s in group], quiet_s=QUIET_S, tail_s=2.0, seed=seed)
+@dataclass
+class Outcome:
+    """Per touch (or pair): flagged as two-fingered, a two_finger_tap fired, and how far the
+    second finger was placed from where it landed (NaN: not placed, or no second finger)."""
+
+    flagged: list[bool] = field(default_factory=list)
+    gesture: list[bool] = field(default_factory=list)
+    second_error_m: list[float] = field(default_factory=list)
+    kind: list[str] = field(default_factory=list)  # the single touch's kind, or the pair's
+
+
+def _kind(group: list[Step]) -> str:
+    """A single touch's kind; a pair: whether the first finger was holding (its press's rise,
+    at most 25 N at ≈45 N/s, over) when the second landed."""
+    if len(group) == 1:
+        return type(group[0]).__name__.lower()
+    return "holding" if group[1].start_s - group[0].start_s >= HOLDING_S else "rising"  # type: ignore[operator]
+
+
+def judge(desk, layout, groups: list[list[Step]], seed: int, out: Outcome) -> None:
+    """Simulate the touches, estimate (second-finger stage on) and recognise ``layout``."""
+    starts = [QUIET_S + i * SPACING_S for i in range(len(groups))]
+    scene = Scene([s for group in groups for s in group], quiet_s=QUIET_S, tail_s=2.0, seed=seed)
     rec = simulate(desk, scene)
-    block = ContactEstimator(desk).push(rec.t, rec.wrench)
-    multi = second_touches(desk, rec.t, rec.wrench, block).multi
-    return [bool(multi[(rec.t >= a) & (rec.t < a + SPACING_S - 0.5)].any()) for a in starts]
+    estimator = ContactEstimator(desk)
+    block = estimator.push(rec.t, rec.wrench)  # it flags second fingers itself
+    engine = GestureEngine(layout, position_delay_s=estimator.position_delay_s)
+    events = engine.feed(block) + engine.flush(float(block.t[-1]))
+    multi = (block.flags & FLAG_MULTI) != 0
+    for a, group in zip(starts, groups, strict=True):
+        during = (rec.t >= a) & (rec.t < a + SPACING_S - 0.5)
+        out.flagged.append(bool(multi[during].any()))
+        out.gesture.append(any(a <= e.t < a + SPACING_S - 0.5 for e in events))
+        out.kind.append(_kind(group))
+        placed = np.flatnonzero(during & block.located2)
+        if len(group) == 2 and len(placed):
+            true = np.array(group[1].point)  # type: ignore[attr-defined]
+            got = np.array([block.x2[placed[0]], block.y2[placed[0]]])
+            out.second_error_m.append(float(np.linalg.norm(got - true)))
+        else:
+            out.second_error_m.append(float("nan"))
 
 
-def run(kind: str, count: int, seed: int) -> list[bool]:
-    desk = load_profile("kitamura2017")
+def run(kind: str, count: int, seed: int, layout) -> Outcome:
+    desk = load_profile("kitamura2017").with_estimation(second_finger=True)
     rng = np.random.default_rng(seed)
     make = _two if kind == "two" else _single
-    out: list[bool] = []
+    out = Outcome()
     for first in range(0, count, PER_SCENE):
         n = min(PER_SCENE, count - first)
         groups = [make(rng, QUIET_S + i * SPACING_S) for i in range(n)]
-        out += flagged(desk, groups, seed + first)
+        judge(desk, layout, groups, seed + first, out)
     return out
 
 
@@ -85,13 +133,42 @@ def main() -> int:
     parser.add_argument("--single", type=int, default=1000)
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
-    two = run("two", args.two, args.seed)
-    single = run("single", args.single, args.seed + 10_000)
-    print(f"two-finger touches: {sum(two)}/{len(two)} detected ({100 * np.mean(two):.1f} %)")
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "two_finger.yaml"
+        path.write_text(LAYOUT, encoding="utf-8")
+        layout = load_layout(path)
+    two = run("two", args.two, args.seed, layout)
+    single = run("single", args.single, args.seed + 10_000, layout)
+    n2, n1 = len(two.flagged), len(single.flagged)
     print(
-        f"single touches: {sum(single)}/{len(single)} flagged as two "
-        f"(false alarms {100 * np.mean(single):.2f} %)"
+        f"two-finger touches: {sum(two.flagged)}/{n2} detected ({100 * np.mean(two.flagged):.1f} %)"
     )
+    print(
+        f"single touches: {sum(single.flagged)}/{n1} flagged as two "
+        f"(false alarms {100 * np.mean(single.flagged):.2f} %)"
+    )
+    errors = np.array(two.second_error_m)
+    kinds = np.array(two.kind)
+    for name, which in (("all", kinds != ""), ("first finger holding", kinds == "holding"),
+                        ("first finger still pressing in", kinds == "rising")):  # fmt: skip
+        got = errors[which & np.isfinite(errors)]
+        if len(got):
+            print(
+                f"second finger placed ({name}): {len(got)}/{which.sum()}, median "
+                f"{1e3 * np.median(got):.0f} mm, p95 {1e3 * np.percentile(got, 95):.0f} mm off"
+            )
+    print(
+        f"two_finger_tap (bound on the whole top, max_duration_s 5): {sum(two.gesture)}/{n2} pairs "
+        f"({100 * np.mean(two.gesture):.1f} %), {sum(single.gesture)}/{n1} single touches "
+        f"({100 * np.mean(single.gesture):.2f} %)"
+    )
+    singles = np.array(single.kind)
+    for name, plural in (("tap", "taps"), ("press", "presses"), ("swipe", "swipes")):
+        which = singles == name
+        print(
+            f"  single {plural}: {np.sum(np.array(single.flagged)[which])}/{which.sum()} flagged, "
+            f"{np.sum(np.array(single.gesture)[which])} two_finger_tap"
+        )
     return 0
 
 

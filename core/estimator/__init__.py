@@ -28,6 +28,8 @@ single-sample twin sits beside its block path and shares its formulas:
 6. :mod:`.methods` — ``force`` (the conventional), ``diff``, ``switched`` (paper Fig. 3
    with F_tth, F_rth) or ``fused`` (inverse-covariance combination of the candidates, no
    threshold; a point is reported when its 1-σ is below ``max_sigma_m``).
+7. :mod:`.multitouch` — optional (``second_finger``, or a layout binding ``two_finger_tap``):
+   a second finger that lands while the first holds, flagged ``FLAG_MULTI`` and placed.
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ from hapticdesk.estimator.detector import TouchDetector, phase_of, phases_of, sl
 from hapticdesk.estimator.filter_bank import FilterBank
 from hapticdesk.estimator.inertia import InertiaSettings, InertiaStage, accelerometer_readings
 from hapticdesk.estimator.methods import emit_one, select, select_one
+from hapticdesk.estimator.multitouch import SecondFingerStage
 from hapticdesk.estimator.notices import Notice, NoticeList
 from hapticdesk.estimator.samples import BAD_SAMPLE, SampleStage
 from hapticdesk.estimator.settings import EstimatorSettings
@@ -130,6 +133,7 @@ class ContactEstimator:
         #: delay (the gesture engine carries a swipe's end on by it)
         self.position_delay_s = self.stage_settings.position_delay_s
         self.notices = NoticeList()  # bounded: see NoticeList
+        self._second_finger_on = settings.second_finger
         self.reset()
 
     def reset(self) -> None:
@@ -143,6 +147,15 @@ class ContactEstimator:
         self.zeroing = ZeroStage(s, self.notices)
         self.detector = TouchDetector(s)
         self.candidates = CandidateStage(s)
+        self.second_finger = SecondFingerStage(self.profile) if self._second_finger_on else None
+
+    def use_second_finger(self, on: bool) -> None:
+        """Run the second-finger stage (:mod:`.multitouch`) from the next sample on, or stop
+        it: on when a layout binds a gesture that reads a second finger, whatever the
+        profile's ``second_finger`` says. Its state starts afresh."""
+        if on != self._second_finger_on:
+            self._second_finger_on = on
+            self.second_finger = SecondFingerStage(self.profile) if on else None
 
     def retare(self) -> None:
         """Forget the zero and take it again over the next ``tare_s`` of a still desk (as at
@@ -222,6 +235,8 @@ class ContactEstimator:
         if self.candidates.covs is None and noise is not None:
             self.candidates.covs = Covariances.of(self.stage_settings, noise)
         self._contacts(block, t, flags, lp, det, diff, det_slope, release, segments)
+        if self.second_finger is not None:
+            self.second_finger.process(raw, block)
 
     def _push_one(
         self, t: float, wrench: np.ndarray, accel: np.ndarray | None
@@ -269,6 +284,8 @@ class ContactEstimator:
             chosen, source = select_one(cf, cd, cq, f_mag, motion, s)
             if chosen is not None:
                 emit_one(block, chosen, source, s.frames)
+        if self.second_finger is not None:
+            self.second_finger.push_one(raw_a, block)
         return block
 
     def _contacts(
@@ -371,6 +388,10 @@ _BLANK_ONE = (
     np.zeros(1, np.int8),  # phase
     np.full(1, UNCERTAINTY_CAP_M),  # sigma_m
     np.zeros(1, np.uint8),  # flags
+    np.zeros(1, bool),  # located2
+    np.zeros(1),  # x2
+    np.zeros(1),  # y2
+    np.zeros(1),  # z2
 )
 
 

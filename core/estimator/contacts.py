@@ -7,7 +7,7 @@ see contacts only). Arrays never hold NaN or infinity: where a contact is not lo
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 from typing import Literal
 
 import numpy as np
@@ -25,7 +25,10 @@ FLAG_TIME_BACK = 4  # time did not increase
 FLAG_GAP = 8  # the time jumped by more than max_gap_s before this sample; filters restarted
 FLAG_NOT_TARED = 16  # no zero yet (tare pending or refused)
 FLAG_STUCK = 32  # every channel bit-identical to the sample before, for a run: a stuck driver
-FLAG_MULTI = 64  # a second finger on the desk (set by hapticdesk.estimator.multitouch)
+FLAG_MULTI = 64  # a second finger on the desk (hapticdesk.estimator.multitouch)
+#: a second finger's landing is flagged this long after it began (the change of wrench is
+#: taken over it), so the samples just before the flag already mix both fingers
+MULTI_LAG_S = 0.08
 # the desk has an accelerometer but this sample's reading is missing or saturated: its
 # inertial force is not removed (hapticdesk.estimator.inertia)
 FLAG_NO_ACCEL = 128
@@ -40,6 +43,11 @@ FLAG_NAMES = {
     FLAG_NO_ACCEL: "no_accel",
 }
 UNCERTAINTY_CAP_M = 10.0  # stands for "unknown" so the arrays stay finite
+
+
+def _left_out() -> np.ndarray:
+    """A field's default when a caller builds a block without it (filled to length k)."""
+    return np.zeros(0)
 
 
 @dataclass
@@ -58,6 +66,22 @@ class ContactBlock:
     phase: np.ndarray  # (k,) int8 PHASE_*
     sigma_m: np.ndarray  # (k,) 1-σ radial uncertainty of (x, y, z), metres
     flags: np.ndarray  # (k,) uint8 FLAG_* bits
+    # the second finger of a FLAG_MULTI contact, once its place is fitted (multitouch); the
+    # fields were added later, so they may be left out: not located, zeros
+    located2: np.ndarray = field(default_factory=_left_out)  # (k,) bool
+    x2: np.ndarray = field(default_factory=_left_out)  # (k,) desk frame, m; 0 if not located2
+    y2: np.ndarray = field(default_factory=_left_out)
+    z2: np.ndarray = field(default_factory=_left_out)
+
+    def __post_init__(self) -> None:
+        k = len(self.t)
+        if len(self.located2) != k:
+            self.located2 = np.zeros(k, bool)
+        elif self.located2.dtype != np.bool_:  # (k = 0: the default's float zeros)
+            self.located2 = self.located2.astype(bool)
+        for name in ("x2", "y2", "z2"):
+            if len(getattr(self, name)) != k:
+                setattr(self, name, np.zeros(k))
 
     def __len__(self) -> int:
         return len(self.t)
@@ -87,6 +111,10 @@ class ContactBlock:
             z.astype(np.int8),
             z.copy(),
             z.astype(np.uint8),
+            z.astype(bool),
+            z.copy(),
+            z.copy(),
+            z.copy(),
         )
 
     @classmethod
@@ -106,6 +134,10 @@ class ContactBlock:
             phase=np.zeros(k, np.int8),
             sigma_m=np.full(k, UNCERTAINTY_CAP_M),
             flags=np.zeros(k, np.uint8),
+            located2=np.zeros(k, bool),
+            x2=np.zeros(k),
+            y2=np.zeros(k),
+            z2=np.zeros(k),
         )
 
     def take(self, index: np.ndarray | slice) -> ContactBlock:
@@ -120,6 +152,9 @@ class ContactEvent:
 
     ``located`` False means the position is not known at this sample (x, y hold the last
     located values of this touch, or 0). ``sigma_m`` is the 1-σ uncertainty of the position.
+    ``multi``: a second finger is on the desk (``FLAG_MULTI``): x, y are then the two fingers'
+    centre of pressure, not a finger; ``x2``, ``y2`` where the second finger is, once
+    ``located2``.
     """
 
     t: float
@@ -131,6 +166,10 @@ class ContactEvent:
     sigma_m: float
     phase: str
     located: bool
+    multi: bool = False
+    located2: bool = False
+    x2: float = 0.0
+    y2: float = 0.0
 
 
 def contact_events(block: ContactBlock, was_in_contact: bool = False) -> list[ContactEvent]:
@@ -151,6 +190,8 @@ def contact_events(block: ContactBlock, was_in_contact: bool = False) -> list[Co
     force = block.force_n.tolist()
     sig = block.sigma_m.tolist()
     phase = block.phase.tolist()
+    multi = ((block.flags & FLAG_MULTI) != 0).tolist()
+    loc2, xs2, ys2 = block.located2.tolist(), block.x2.tolist(), block.y2.tolist()
     for i in range(len(t)):
         if loc[i]:
             last_xy = (xs[i], ys[i], surf[i])
@@ -167,6 +208,10 @@ def contact_events(block: ContactBlock, was_in_contact: bool = False) -> list[Co
                     sig[i] if loc[i] else UNCERTAINTY_CAP_M,
                     PHASE_NAMES[phase[i]],
                     bool(loc[i]),
+                    multi[i],
+                    loc2[i],
+                    xs2[i],
+                    ys2[i],
                 )
             )
         elif prev:

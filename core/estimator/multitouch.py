@@ -9,39 +9,46 @@ wrench of a single point force, the second finger's (the differentiated wrench, 
 centimetres away from where the first finger is; a finger pressing harder gives a change
 located where it already is.
 
-This is an analysis over a recording and the estimator's contacts (no per-sample loop);
-:func:`mark_second_touches` sets ``FLAG_MULTI`` on the contact samples it finds.
+Where the second finger is: the change located as it stands mixes in the first finger's own
+change of force (two vertical forces fix only the line through both fingers: any point on it
+explains one change with some split of the force). Taken about the first finger's point P₁,
+though, the first finger's force has no moment at all, so n × (ΔM − P₁ × ΔF) = (P₂ − P₁)·f₂
+follows the second finger's force alone, while the normal force n·ΔF = Δf₁ + f₂ holds both.
+Over a window from before the landing to after it, the first finger's part is fitted as a
+straight line in time (its drift) and the second's as 1/|P₂ − P₁| times the first quantity
+(:func:`fit_second_point`): a linear least-squares fit of three numbers.
+
+:class:`SecondFingerStage` is the estimator's stage (run by :class:`ContactEstimator` when
+``second_finger`` is on): it sets ``FLAG_MULTI`` on the contact samples from the landing to the
+contact's end and reports the second finger's point (``x2``, ``y2``, ``z2``, ``located2``) once
+its fit window is over. It carries its state between pushes, so any split of the input gives
+the same output.
 """
 
 from __future__ import annotations
 
+import math
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.signal import sosfilt, sosfilt_zi
 
-from hapticdesk.estimator.contacts import FLAG_MULTI, ContactBlock
+from hapticdesk.estimator.contacts import FLAG_MULTI, MULTI_LAG_S, ContactBlock
 from hapticdesk.estimator.filters import butter_lowpass_sos
 from hapticdesk.estimator.geometry import SurfaceFrame
 from hapticdesk.files.profile import DeskProfile
 
 LOWPASS_HZ = 12.0  # the wrench is smoothed this much before differencing (noise vs lag)
-LAG_S = 0.08  # the change of wrench is taken over this interval (a finger lands in ≈0.1 s)
-LANDING_S = 0.25  # the second finger's landing is over by its force's peak within this
+LAG_S = MULTI_LAG_S  # the change of wrench is taken over this long (a finger lands in ≈0.1 s)
+LANDING_S = 0.12  # the second finger's place is fitted over this long after its landing
 MIN_STEP_N = 2.0  # the force must rise at least this much over LAG_S ...
 MIN_STEP_SHARE = 0.1  # ... and at least this share of the force before it
 MIN_APART_M = 0.03  # the change located at least this far from the first finger
 MAX_FIRST_MOVE_M = 0.005  # the first finger held this still over the lag before (no swipe)
-
-
-@dataclass(frozen=True)
-class SecondTouches:
-    """Per sample of the contacts: a second finger on the desk, and where it landed."""
-
-    multi: np.ndarray  # (k,) bool: from the second finger's landing to the contact's end
-    x2: np.ndarray  # (k,) where the second finger landed (desk frame, m); 0 where not multi
-    y2: np.ndarray
-    z2: np.ndarray
+#: single samples that cannot end a landing wait in a queue of up to this many for one
+#: vectorised pass (SecondFingerStage.push_one)
+QUEUE_MAX = 256
 
 
 def locate_change(
@@ -61,78 +68,302 @@ def locate_change(
     return foot + lam[:, None] * f, ok
 
 
-def second_touches(
-    profile: DeskProfile, t: np.ndarray, readings: np.ndarray, block: ContactBlock
-) -> SecondTouches:
-    """Find second fingers in a recording (``readings`` (k, S, 6)) from its contacts ``block``
-    (the estimator's output for the same samples)."""
-    k = len(t)
-    fs = profile.sample_rate_hz
-    wrench = readings.reshape(k, -1) @ profile.wrench_map().T  # (k, 6) resultant
-    wrench = np.nan_to_num(wrench)
-    sos = butter_lowpass_sos(LOWPASS_HZ, fs)
-    zi = sosfilt_zi(sos)[:, :, None] * wrench[0][None, None, :]
-    smooth, _ = sosfilt(sos, wrench, axis=0, zi=zi)
-    n = max(1, round(LAG_S * fs))
-    landing_n = max(1, round(LANDING_S * fs))
-    multi = np.zeros(k, bool)
-    out = np.zeros((3, k))
-    if k <= n or not profile.surfaces:
-        return SecondTouches(multi, *out)
-    surface = profile.surfaces[0]
-    d_wrench = smooth[n:] - smooth[:-n]  # ΔW over the lag, ending at sample n..k-1
-    before = np.arange(k - n)  # the sample where each change starts
-    earlier = np.maximum(before - n, 0)  # the first finger held still since here
-    now = before + n
-    force_then = block.force_n[before]
-    step = np.linalg.norm(d_wrench[:, :3], axis=1)
-    rising = block.force_n[now] - force_then
-    origin, normal = np.asarray(surface.origin), np.asarray(surface.normal)
-    points, ok = locate_change(d_wrench, origin, normal)
-    first = np.stack([block.x[before], block.y[before], block.z[before]], axis=1)
-    apart = np.linalg.norm(points - first, axis=1)
-    rel = points - surface.origin  # the second finger must be on the board
-    on_board = SurfaceFrame.of(surface).contains(rel @ surface.u_axis, rel @ surface.v_axis)
-    moved = np.hypot(block.x[before] - block.x[earlier], block.y[before] - block.y[earlier])
-    landing = (
-        ok
-        & block.in_contact[before]
-        & block.located[before]
-        & block.located[earlier]
-        & (moved <= MAX_FIRST_MOVE_M)
-        & block.in_contact[now]
-        & (rising >= MIN_STEP_N)
-        & (step >= MIN_STEP_SHARE * force_then)
-        & (apart >= MIN_APART_M)
-        & on_board
-    )
-    if not landing.any():
-        return SecondTouches(multi, *out)
-    # contacts are runs of in_contact: a landing flags its contact from there to its end
-    edges = np.diff(np.concatenate([[0], block.in_contact.astype(np.int8), [0]]))
-    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-    hits = now[landing]
-    run = np.searchsorted(starts, hits, side="right") - 1
-    first_hit = np.full(len(starts), k)
-    np.minimum.at(first_hit, run, hits)
-    for j in np.flatnonzero(first_hit < k):  # per flagged contact (few), not per sample
-        a, b = first_hit[j], ends[j]
-        multi[a:b] = True
-        # the second finger: the steepest change of wrench over its landing (within
-        # LANDING_S of its start). Exact only while the first finger holds perfectly still:
-        # its own change mixes in (two vertical forces' wrenches fix just the line through
-        # both fingers), and pulls the point towards it.
-        span = d_wrench[a - n : min(b, a + landing_n) - n]
-        change = span[int(np.argmax(np.linalg.norm(span[:, :3], axis=1)))]
-        point, _ = locate_change(change[None, :], origin, normal)
-        out[:, a:b] = point[0][:, None]
-    return SecondTouches(multi, *out)
+def fit_second_point(
+    first: np.ndarray, normal: np.ndarray, wrench: np.ndarray, t: np.ndarray
+) -> np.ndarray | None:
+    """The second finger's point from the smoothed wrench (m, 6) over a window that starts
+    before its landing (times ``t``), the first finger at ``first`` (3,) on the plane with
+    ``normal`` (see the module docstring). None when the window does not pin it down."""
+    d = wrench - wrench[0]
+    d_force, d_moment = d[:, :3], d[:, 3:]
+    lever = np.cross(normal, d_moment - np.cross(first, d_force))  # (P₂ − P₁)·f₂
+    size = np.linalg.norm(lever, axis=1)
+    j = int(np.argmax(size))
+    if size[j] <= 0:
+        return None
+    toward = lever[j] / size[j]
+    along = lever @ toward  # |P₂ − P₁|·f₂
+    normal_force = d_force @ normal  # Δf₁ + f₂
+    tau = t - t[0]
+    design = np.stack([along, np.ones_like(tau), tau], axis=1)
+    (inv_distance, _, _), *_ = np.linalg.lstsq(design, normal_force, rcond=None)
+    if not inv_distance > 0:
+        return None
+    return first + toward / inv_distance
 
 
-def mark_second_touches(
-    profile: DeskProfile, t: np.ndarray, readings: np.ndarray, block: ContactBlock
-) -> SecondTouches:
-    """:func:`second_touches`, and ``FLAG_MULTI`` set on ``block``'s samples (in place)."""
-    found = second_touches(profile, t, readings, block)
-    block.flags[found.multi] |= FLAG_MULTI
-    return found
+@dataclass
+class _Track:
+    """The contact fields the detection looks back on (the last 2·lag samples are kept)."""
+
+    t: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    z: np.ndarray
+    located: np.ndarray
+    in_contact: np.ndarray
+    force_n: np.ndarray
+
+    @classmethod
+    def of(cls, block: ContactBlock) -> _Track:
+        return cls(*(getattr(block, name) for name in cls.__dataclass_fields__))
+
+    def then(self, block: ContactBlock) -> _Track:
+        """This track followed by ``block``'s samples."""
+        return _Track(
+            *(
+                np.concatenate([getattr(self, n), getattr(block, n)])
+                for n in self.__dataclass_fields__
+            )
+        )
+
+    def last(self, count: int) -> _Track:
+        """A copy of the last ``count`` samples."""
+        return _Track(*(getattr(self, n)[-count:].copy() for n in self.__dataclass_fields__))
+
+
+@dataclass
+class _Landing:
+    """A second finger's landing in the open contact, while its fit window fills."""
+
+    first: np.ndarray  # (3,) the first finger's point before the landing
+    wrench: list[np.ndarray]  # pieces (m, 6) of the smoothed wrench since the window's start
+    t: list[np.ndarray]
+    need: int  # samples still to come before the fit
+
+
+class SecondFingerStage:
+    """Flags a second finger on the contact samples and locates it (module docstring)."""
+
+    def __init__(self, profile: DeskProfile) -> None:
+        fs = profile.sample_rate_hz
+        self.sos = butter_lowpass_sos(LOWPASS_HZ, fs)
+        self.lag = max(1, round(LAG_S * fs))
+        self.landing_n = max(1, round(LANDING_S * fs))
+        self.surface = profile.surfaces[0] if profile.surfaces else None
+        if self.surface is not None:
+            self.origin = np.asarray(self.surface.origin, float)
+            self.normal = np.asarray(self.surface.normal, float)
+            self.frame = SurfaceFrame.of(self.surface)
+        self.zi: np.ndarray | None = None
+        # the last 2·lag samples (smoothed wrench, the contacts), for the next push's lags
+        self.history: tuple[np.ndarray, _Track] | None = None
+        self.in_contact = False  # the last sample was in contact ...
+        self.flagged = False  # ... with a second finger found in it
+        self.landing: _Landing | None = None  # its fit window, while it fills
+        self.second: np.ndarray | None = None  # its fitted point
+        # single samples waiting for one pass: their blocks, raw wrenches and (t, x, y, z,
+        # force_n, located, in_contact)
+        self.queue: list[ContactBlock] = []
+        self.queued_raw = np.empty((QUEUE_MAX, 6))
+        self.queued = np.empty((7, QUEUE_MAX))
+        # the last 2·lag + 1 samples' (force, x, y, located) for push_one's cheap test
+        self.recent: deque[tuple[float, float, float, bool]] = deque(maxlen=2 * self.lag + 1)
+        # the contact of the last processed sample is still open (for push_one's queue)
+        self.same_contact = False
+
+    def push_one(self, raw: np.ndarray, block: ContactBlock) -> None:
+        """:meth:`process` for one sample (``raw`` (6,)), the same output for any split.
+
+        Most samples cannot change anything but the smoothing and the history: out of
+        contact, in a contact whose second finger is already found (its flag and place are
+        set here at once), or where no landing can end because the force did not rise by
+        ``MIN_STEP_N`` over the lag after a still, located first finger. They wait in a queue
+        for one vectorised pass; only a sample that may end a landing, or the last of a
+        landing's fit window, runs it at once, so a push in contact costs little."""
+        inside = bool(block.in_contact[0])
+        force, x, y = float(block.force_n[0]), float(block.x[0]), float(block.y[0])
+        located = bool(block.located[0])
+        # out of contact counts as infinite force: no rise is measured from it
+        self.recent.append((force if inside else math.inf, x, y, located))
+        self.same_contact = self.same_contact and inside
+        waits = self._waits(inside, block)
+        j = len(self.queue)
+        self.queued_raw[j] = raw
+        self.queued[:, j] = (block.t[0], x, y, block.z[0], force, located, inside)
+        self.queue.append(block)
+        if not waits or j + 1 >= QUEUE_MAX:
+            self.flush()
+
+    def _waits(self, inside: bool, block: ContactBlock) -> bool:
+        """Whether this single sample may wait in the queue (see :meth:`push_one`); sets its
+        flag and second place when the open contact already has them."""
+        if not inside:
+            return True
+        if self.flagged and self.same_contact:  # the contact processed last is still open
+            block.flags[0] |= FLAG_MULTI
+            if self.landing is not None:  # each queued sample is one more of its window
+                return self.landing.need > len(self.queue) + 1
+            if self.second is not None:
+                block.x2[0], block.y2[0], block.z2[0] = self.second
+                block.located2[0] = True
+            return True
+        # the landing test's cheap conditions (see _landings), a little looser than it
+        recent, n = self.recent, self.lag
+        if len(recent) <= 2 * n:
+            return True
+        f_now = recent[-1][0]
+        f_before, x_before, y_before, located_before = recent[n]
+        _, x_earlier, y_earlier, located_earlier = recent[0]
+        return not (
+            located_before
+            and located_earlier
+            and f_now - f_before >= MIN_STEP_N
+            and math.hypot(x_before - x_earlier, y_before - y_earlier)
+            <= MAX_FIRST_MOVE_M * (1 + 1e-9)
+        )
+
+    def flush(self) -> None:
+        """Run the queued single samples through :meth:`process` as one block; the last one's
+        output is written back to its block (the others' was set by :meth:`_waits`)."""
+        if not self.queue:
+            return
+        queue, self.queue = self.queue, []
+        k = len(queue)
+        t, x, y, z, force, located, inside = self.queued[:, :k]
+        piece = ContactBlock.blank(t.copy())
+        piece.x[:], piece.y[:], piece.z[:], piece.force_n[:] = x, y, z, force
+        piece.located[:], piece.in_contact[:] = located, inside
+        self.process(self.queued_raw[:k].T, piece)
+        last = queue[-1]
+        last.flags[0] |= piece.flags[-1] & FLAG_MULTI
+        if piece.located2[-1]:
+            last.x2[0], last.y2[0], last.z2[0] = piece.x2[-1], piece.y2[-1], piece.z2[-1]
+            last.located2[0] = True
+
+    def process(self, raw: np.ndarray, block: ContactBlock) -> None:
+        """Flag and locate second fingers in ``block`` (in place) from the resultant wrench
+        ``raw`` (6, k) of the same samples."""
+        self.flush()
+        k = len(block)
+        if k == 0:
+            return
+        rows = np.nan_to_num(raw.T)
+        if self.zi is None:
+            self.zi = sosfilt_zi(self.sos)[:, :, None] * rows[0][None, None, :]
+        smooth, self.zi = sosfilt(self.sos, rows, axis=0, zi=self.zi)
+        if self.history is None:
+            ext_w, ext = smooth, _Track.of(block)
+        else:
+            ext_w = np.concatenate([self.history[0], smooth])
+            ext = self.history[1].then(block)
+        h = len(ext.t) - k  # the chunk's first sample in the extended arrays
+        if self.surface is not None:
+            landing = self._landings(ext_w, ext, h)
+            self._runs(landing, ext_w, ext, h, block)
+        keep = 2 * self.lag
+        self.history = (ext_w[-keep:].copy(), ext.last(keep))
+        self.in_contact = bool(block.in_contact[-1])
+        # the single-sample push's view of the samples since: the force over the last lag
+        # (infinite out of contact) and whether this contact stays open
+        tail = slice(-(2 * self.lag + 1), None)
+        force = np.where(ext.in_contact[tail], ext.force_n[tail], np.inf)
+        self.recent = deque(
+            zip(
+                force.tolist(),
+                ext.x[tail].tolist(),
+                ext.y[tail].tolist(),
+                ext.located[tail].tolist(),
+                strict=True,
+            ),
+            2 * self.lag + 1,
+        )
+        self.same_contact = self.in_contact
+
+    def _landings(self, w: np.ndarray, c: _Track, h: int) -> np.ndarray:
+        """(k,) whether each sample of the chunk ends a second finger's landing: the change of
+        wrench over the lag before it is a single force on the board, rising, apart from the
+        first finger, which was in contact, located and still over the lag before that."""
+        assert self.surface is not None  # (the caller checks)
+        n = self.lag
+        k = len(c.t) - h
+        out = np.zeros(k, bool)
+        now = np.arange(max(h, 2 * n), len(c.t))
+        before, earlier = now - n, now - 2 * n
+        force_then = c.force_n[before]
+        moved = np.hypot(c.x[before] - c.x[earlier], c.y[before] - c.y[earlier])
+        # the cheap conditions first: the change is located only where they hold
+        maybe = (
+            c.in_contact[before]
+            & c.located[before]
+            & c.located[earlier]
+            & (moved <= MAX_FIRST_MOVE_M)
+            & c.in_contact[now]
+            & (c.force_n[now] - force_then >= MIN_STEP_N)
+        )
+        at = np.flatnonzero(maybe)
+        if len(at) == 0:
+            return out
+        now, before, force_then = now[at], before[at], force_then[at]
+        d_wrench = w[now] - w[before]
+        step = np.linalg.norm(d_wrench[:, :3], axis=1)
+        points, ok = locate_change(d_wrench, self.origin, self.normal)
+        first = np.stack([c.x[before], c.y[before], c.z[before]], axis=1)
+        apart = np.linalg.norm(points - first, axis=1)
+        rel = points - self.origin  # the second finger must be on the board
+        on_board = self.frame.contains(rel @ self.surface.u_axis, rel @ self.surface.v_axis)
+        out[now - h] = (
+            ok & (step >= MIN_STEP_SHARE * force_then) & (apart >= MIN_APART_M) & on_board
+        )
+        return out
+
+    def _runs(
+        self, landing: np.ndarray, w: np.ndarray, c: _Track, h: int, block: ContactBlock
+    ) -> None:
+        """Per contact in the chunk (few; not per sample): flag it from its first landing on
+        and fit the second finger's point once the window after the landing is in."""
+        inside = block.in_contact.astype(np.int8)
+        edges = np.diff(np.concatenate([[0], inside, [0]]))
+        starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+        if not (self.in_contact and inside[0]):
+            self._end_contact()  # the contact open before the chunk (if any) ended
+        for a, b in zip(starts.tolist(), ends.tolist(), strict=True):
+            if a > 0:
+                self._end_contact()  # a new contact
+            if not self.flagged:
+                hits = np.flatnonzero(landing[a:b])
+                if len(hits) == 0:
+                    continue
+                first_hit = a + int(hits[0])
+                self.flagged = True
+                block.flags[first_hit:b] |= FLAG_MULTI
+                j = h + first_hit  # the landing's end in the extended arrays
+                lo = max(0, j - 2 * self.lag)
+                first = np.array([c.x[j - self.lag], c.y[j - self.lag], c.z[j - self.lag]])
+                self.landing = _Landing(first, [w[lo : j + 1]], [c.t[lo : j + 1]], self.landing_n)
+                a = first_hit + 1
+            else:
+                block.flags[a:b] |= FLAG_MULTI
+            if self.landing is not None:
+                got = min(b - a, self.landing.need)
+                self.landing.wrench.append(w[h + a : h + a + got])
+                self.landing.t.append(c.t[h + a : h + a + got])
+                self.landing.need -= got
+                a += got
+                if self.landing.need > 0:
+                    continue
+                self.second = fit_second_point(
+                    self.landing.first,
+                    self.normal,
+                    np.concatenate(self.landing.wrench),
+                    np.concatenate(self.landing.t),
+                )
+                self.landing = None
+                if self.second is not None and not self._on_board(self.second):
+                    self.second = None
+                a -= 1  # the fit is known at the window's last sample
+            if self.second is not None and a < b:
+                block.x2[a:b], block.y2[a:b], block.z2[a:b] = self.second[:, None]
+                block.located2[a:b] = True
+        if not inside[-1]:
+            self._end_contact()
+
+    def _on_board(self, point: np.ndarray) -> bool:
+        assert self.surface is not None
+        rel = point - self.origin
+        return bool(self.frame.contains(rel @ self.surface.u_axis, rel @ self.surface.v_axis))
+
+    def _end_contact(self) -> None:
+        self.flagged = False
+        self.landing = None
+        self.second = None

@@ -163,6 +163,9 @@ class EstimationSettings:
     # the legs as the accelerometer: the desk's inertial force from the measured force's
     # curvature and `desk.natural_frequency_hz` (see hapticdesk.estimator.sway)
     sway_compensation: bool = False
+    # flag a second finger that lands while the first holds, and locate it (see
+    # hapticdesk.estimator.multitouch); a layout that binds two_finger_tap turns it on
+    second_finger: bool = False
 
 
 @dataclass(frozen=True)

@@ -269,8 +269,8 @@ def _estimation(item: Any, where: Any) -> EstimationSettings:
     for key in allowed:
         if key == "method":
             values[key] = choice(m, "method", METHODS, "`estimation`", default=defaults.method)
-        elif key == "sway_compensation":
-            values[key] = flag(m, key, "`estimation`", default=defaults.sway_compensation)
+        elif key in ("sway_compensation", "second_finger"):
+            values[key] = flag(m, key, "`estimation`", default=getattr(defaults, key))
         elif key in m:
             strict = key not in (
                 "noise_force_n",

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from hapticdesk.estimator import ContactEstimator
-from hapticdesk.estimator.contacts import FLAG_MULTI
-from hapticdesk.estimator.multitouch import mark_second_touches
+from hapticdesk.estimator.contacts import FLAG_MULTI, ContactBlock
 from hapticdesk.files.profile import load_profile
 from hapticdesk.sim import Scene, simulate
-from hapticdesk.sim.actions import Press, Step, Tap
+from hapticdesk.sim.actions import Press, Step, Swipe, Tap
 
 PAIRS = [  # first finger (a press, held from ≈0.45 s on), second finger, its delay (s)
     ((-0.2, 0.0), (0.0, 0.1), 0.6),
@@ -22,38 +22,97 @@ PAIRS = [  # first finger (a press, held from ≈0.45 s on), second finger, its 
 SPACING_S = 4.0
 
 
-def test_second_fingers_are_found_and_located_single_touches_are_not_flagged():
-    desk = load_profile("kitamura2017")
+@pytest.fixture(scope="module")
+def desk():
+    return load_profile("kitamura2017").with_estimation(second_finger=True)
+
+
+@pytest.fixture(scope="module")
+def scene(desk):
+    """The pairs of PAIRS, then single touches (a press, a tap, a swipe) at the same places."""
     steps: list[Step] = []
-    starts = []
+    starts, singles = [], []
     for i, (p1, p2, delay) in enumerate(PAIRS):
         start = 2.0 + i * SPACING_S
         starts.append(start)
         steps += [Press(point=p1, hold_s=1.5, start_s=start), Tap(point=p2, start_s=start + delay)]
-    singles = []
-    for i, (p1, _, _) in enumerate(PAIRS):
+    for i, (p1, p2, _) in enumerate(PAIRS):
         start = 2.0 + (len(PAIRS) + i) * SPACING_S
         singles.append(start)
-        single: Step = Press(point=p1, start_s=start) if i % 2 else Tap(point=p1, start_s=start)
+        single: Step = [
+            Press(point=p1, start_s=start),
+            Tap(point=p1, start_s=start),
+            Swipe(from_point=p1, to_point=p2, start_s=start),
+        ][i % 3]
         steps.append(single)
     rec = simulate(desk, Scene(steps, seed=4, tail_s=2.0))
+    return rec, starts, singles
+
+
+def test_second_fingers_are_found_and_located_single_touches_are_not_flagged(desk, scene):
+    rec, starts, singles = scene
     t = rec.t
     block = ContactEstimator(desk).push(rec.t, rec.wrench)
-    found = mark_second_touches(desk, t, rec.wrench, block)
-    flagged = (block.flags & FLAG_MULTI) != 0
-    assert np.array_equal(flagged, found.multi)
+    flagged = (block.flags & FLAG_MULTI) != 0  # the estimator runs the detection itself
     assert not (flagged & ~block.in_contact).any()
+    assert not (block.located2 & ~flagged).any()
     errors = []
     for start, (_, p2, _) in zip(starts, PAIRS, strict=True):
-        hit = found.multi & (t >= start) & (t < start + SPACING_S)
+        hit = flagged & block.located2 & (t >= start) & (t < start + SPACING_S)
         if hit.any():
             i = np.flatnonzero(hit)[0]
-            errors.append(np.hypot(found.x2[i] - p2[0], found.y2[i] - p2[1]))
+            errors.append(np.hypot(block.x2[i] - p2[0], block.y2[i] - p2[1]))
     print(
         f"[multitouch] {len(errors)}/{len(PAIRS)} found, second finger errors (mm): "
         f"{np.round(np.array(errors) * 1e3, 1)}"
     )
     assert len(errors) >= len(PAIRS) - 1
-    assert np.median(errors) < 0.05  # rough: the first finger's own change mixes in
+    assert np.median(errors) < 0.02
     for start in singles:
-        assert not found.multi[(t >= start) & (t < start + SPACING_S)].any()
+        assert not flagged[(t >= start) & (t < start + SPACING_S)].any()
+
+
+def test_off_unless_asked(scene):
+    rec, _, _ = scene
+    plain = load_profile("kitamura2017")
+    assert plain.estimation.second_finger is False
+    block = ContactEstimator(plain).push(rec.t, rec.wrench)
+    assert not (block.flags & FLAG_MULTI).any() and not block.located2.any()
+
+
+def _equal(streamed: ContactBlock, batch: ContactBlock) -> None:
+    for name in ("in_contact", "located", "flags", "located2"):
+        np.testing.assert_array_equal(getattr(streamed, name), getattr(batch, name))
+    for name in ("x", "y", "x2", "y2", "z2"):
+        np.testing.assert_allclose(getattr(streamed, name), getattr(batch, name), atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "cuts", [(1_000, 2_301, 2_302, 2_650, 2_900), tuple(range(2_000, 3_200, 97))]
+)
+def test_streaming_equals_batch(desk, scene, cuts):
+    """Cuts inside the first pair's landing and its fit window."""
+    rec, _, _ = scene
+    k = 9_000
+    batch = ContactEstimator(desk).push(rec.t[:k], rec.wrench[:k])
+    assert (batch.flags & FLAG_MULTI).any() and batch.located2.any()
+    est = ContactEstimator(desk)
+    bounds = [0, *cuts, k]
+    parts = [
+        est.push(rec.t[a:b], rec.wrench[a:b]) for a, b in zip(bounds[:-1], bounds[1:], strict=True)
+    ]
+    _equal(ContactBlock.concat(parts), batch)
+
+
+def test_single_sample_pushes_equal_batch(desk, scene):
+    """One sample at a time over two pairs (the queue, the gate, the landing's fit window),
+    then a block again."""
+    rec, _, _ = scene
+    k0, k1, k2 = 1_500, 10_500, 12_000
+    batch = ContactEstimator(desk).push(rec.t[:k2], rec.wrench[:k2])
+    assert (batch.flags[k0:k1] & FLAG_MULTI).any() and batch.located2[k0:k1].any()
+    est = ContactEstimator(desk)
+    parts = [est.push(rec.t[:k0], rec.wrench[:k0])]
+    parts += [est.push(rec.t[i : i + 1], rec.wrench[i : i + 1]) for i in range(k0, k1)]
+    parts.append(est.push(rec.t[k1:k2], rec.wrench[k1:k2]))
+    _equal(ContactBlock.concat(parts), batch)

@@ -18,6 +18,10 @@ _PACKAGE = "hapticdesk.gestures.recognizers"
 RECOGNIZERS: dict[str, tuple[str, str]] = {
     "tap": (f"{_PACKAGE}.taps:TapRecognizer", "a short touch"),
     "double_tap": (f"{_PACKAGE}.taps:TapRecognizer", "two taps in quick succession"),
+    "two_finger_tap": (
+        f"{_PACKAGE}.taps:TapRecognizer",
+        "a short touch with a second finger landing beside the first",
+    ),
     "long_press": (f"{_PACKAGE}.long_press:LongPressRecognizer", "a touch held in place"),
     "press": (f"{_PACKAGE}.pressure:PressRecognizer", "a touch pressed harder than a tap"),
     "force": (f"{_PACKAGE}.pressure:ForceRecognizer", "force levels while touching"),

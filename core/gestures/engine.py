@@ -76,6 +76,11 @@ class GestureEngine:
             self.recognizers[gesture] = instances[cls]
         self._active = list(instances.values())
         self._tracker = TouchTracker(layout.desk, position_delay_s)
+        #: a bound gesture reads a second finger: the estimator must run its second-finger
+        #: stage (:meth:`ContactEstimator.use_second_finger`)
+        self.needs_second_finger = any(
+            gesture in getattr(cls, "needs_second_finger", ()) for gesture, cls in classes.items()
+        )
 
     def feed(self, block: ContactBlock) -> list[GestureEvent]:
         """Recognise gestures in the next block (any length, including 0).

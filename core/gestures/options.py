@@ -99,6 +99,11 @@ GESTURE_OPTIONS: dict[str, dict[str, OptionSpec]] = {
         "max_move": _m(0.015, _TAP_MOVE),
         "snap": _m(0.012, _TAP_SNAP),
     },
+    "two_finger_tap": {
+        "max_duration_s": _s(1.5, "longest two-finger touch, first finger down to release", 5.0),
+        "max_move": _m(0.015, "how far the first finger may move during the touch"),
+        "snap": _m(0.012, _TAP_SNAP),
+    },
     "long_press": {
         "max_move": _m(0.015, "how far the finger may move before the hold is cancelled"),
         "hold_s": OptionSpec(

@@ -5,7 +5,8 @@ those gestures. The engine gives it every contact event with the current :class:
 sample-time order, and asks it for timers: ``next_deadline()`` is the sample time at which it
 wants ``on_deadline(t)`` to be called, with ``t`` the first sample time at or after the
 deadline. Each event it returns carries ``t`` = the sample time at which it was decided.
-A desk senses one resultant force, so there is at most one touch at a time.
+A desk senses one resultant force, so there is at most one touch at a time (a second finger
+landing on it is flagged on that touch, :attr:`Touch.multi`).
 """
 
 from __future__ import annotations
@@ -32,6 +33,9 @@ class Recognizer:
     gestures: ClassVar[tuple[str, ...]] = ()
     #: plugin recognizers may describe their options so layouts are validated
     option_specs: ClassVar[dict[str, OptionSpec] | None] = None
+    #: those of its gestures that read a second finger (``touch.multi``): a layout binding
+    #: one turns on the estimator's second-finger stage (GestureEngine.needs_second_finger)
+    needs_second_finger: ClassVar[frozenset[str]] = frozenset()
 
     def __init__(self, layout: Layout, bindings: Sequence[Binding]) -> None:
         self.layout = layout

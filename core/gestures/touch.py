@@ -18,6 +18,7 @@ import math
 import numpy as np
 
 from hapticdesk.estimator.contacts import (
+    MULTI_LAG_S,
     UNCERTAINTY_CAP_M,
     ContactBlock,
     ContactEvent,
@@ -66,6 +67,12 @@ class Touch:
         self._ema_w = self._ema_wx = self._ema_wy = 0.0
         self._outliers_since: float | None = None  # start of the current run of outliers
         self.outliers = 0  # samples left out by the gate
+        #: a second finger landed during the touch (the estimator's ``FLAG_MULTI``); the
+        #: samples from then on place the fingers' centre of pressure, not a finger, so the
+        #: touch's position stays the first finger's
+        self.multi = False
+        #: where the second finger landed (x, y), once the estimator placed it
+        self.second: tuple[float, float] | None = None
 
     def add(self, event: ContactEvent) -> None:
         """Take one contact event of this touch (the engine calls this before the recognizers)."""
@@ -75,6 +82,15 @@ class Touch:
             self.t_up = event.t
             return
         self.peak_force_n = max(self.peak_force_n, event.force_n)
+        if event.multi:
+            if not self.multi:
+                self.multi = True
+                # the landing is seen a lag after it began: the samples since then already
+                # place both fingers' centre of pressure
+                self._forget_since(event.t - MULTI_LAG_S)
+            if event.located2:
+                self.second = (event.x2, event.y2)
+            return
         if not event.located:
             return
         if self.surface < 0:
@@ -109,6 +125,29 @@ class Touch:
         self._sigma.append(sigma)
         self._sx.append(self._ema_wx / self._ema_w)
         self._sy.append(self._ema_wy / self._ema_w)
+
+    def _forget_since(self, t: float) -> None:
+        """Leave the located samples from ``t`` on out of the touch's position."""
+        keep = len(self._t)
+        while keep and self._t[keep - 1] >= t:
+            keep -= 1
+        if keep == len(self._t):
+            return
+        for samples in (self._t, self._x, self._y, self._sigma, self._sx, self._sy, self._pressed):
+            del samples[keep:]
+        self._sum_w = self._sum_wx = self._sum_wy = 0.0
+        self._pressed_w = self._pressed_wx = self._pressed_wy = 0.0
+        for x, y, sigma, pressed in zip(self._x, self._y, self._sigma, self._pressed, strict=True):
+            w = 1.0 / (sigma * sigma)
+            self._sum_w, self._sum_wx, self._sum_wy = (
+                self._sum_w + w,
+                self._sum_wx + w * x,
+                self._sum_wy + w * y,
+            )
+            if pressed:
+                self._pressed_w += w
+                self._pressed_wx += w * x
+                self._pressed_wy += w * y
 
     def _accept(self, event: ContactEvent, sigma: float) -> bool:
         """The gate (see the module docstring)."""
@@ -235,6 +274,14 @@ class TouchTracker:
                 if on.any():
                     uv = surface.to_local(np.column_stack([sub.x[on], sub.y[on], sub.z[on]]))
                     sub.x[on], sub.y[on] = uv[:, 0], uv[:, 1]
+            if self._local_surfaces[0][0] == 0 and sub.located2.any():  # (multitouch: the
+                # second finger is placed on the first surface)
+                on = sub.located2
+                sub.x2, sub.y2 = sub.x2.copy(), sub.y2.copy()
+                uv = self._local_surfaces[0][1].to_local(
+                    np.column_stack([sub.x2[on], sub.y2[on], sub.z2[on]])
+                )
+                sub.x2[on], sub.y2[on] = uv[:, 0], uv[:, 1]
         events = contact_events(sub, was_in_contact=self._in_contact)
         self._in_contact = bool(inc[-1])
         return events

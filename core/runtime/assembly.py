@@ -144,6 +144,7 @@ def build_scene(
             recognizer_types=registry.recognizer_types(),
             position_delay_s=estimator.position_delay_s,
         )
+        estimator.use_second_finger(profile.estimation.second_finger or engine.needs_second_finger)
     except BaseException:
         _release(source, dispatcher, context)
         raise

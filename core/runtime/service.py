@@ -242,6 +242,9 @@ class Runtime:
                 recognizer_types=scene.registry.recognizer_types(),
                 position_delay_s=scene.estimator.position_delay_s,
             )
+            scene.estimator.use_second_finger(
+                scene.profile.estimation.second_finger or engine.needs_second_finger
+            )
         except BaseException:
             context.layout, context.settings, context.layout_path = before
             raise

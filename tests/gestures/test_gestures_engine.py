@@ -26,6 +26,7 @@ bindings:
   - {gesture: tap, region: lamp, do: log}
   - {gesture: double_tap, region: lamp, do: log}
   - {gesture: tap, region: fan, do: log}
+  - {gesture: two_finger_tap, region: fan, do: log}
   - {gesture: long_press, region: fan, do: log}
   - {gesture: long_press, region: fan, hold_s: 1.5, do: log}
   - {gesture: press, region: knob, do: log}

@@ -1,4 +1,4 @@
-"""Taps and double taps: one state machine, because they decide together.
+"""Taps, double taps and two-finger taps: one state machine, because they decide together.
 
 A touch is a tap when it is short (``max_duration_s``) and does not move (``max_move``),
 judged at the best position over the touch. Where a double tap is bound at that point, the
@@ -8,6 +8,12 @@ so a button reacts without the double-tap delay.
 A finger's position is known to a few millimetres (≈ 4.5 mm 1-σ for a light tap on the
 paper's desk), so a tap aimed 2 mm inside a button's edge often lands just outside it: a
 tap outside every bound region goes to the nearest one within its ``snap`` distance.
+
+A two-finger tap is a short touch in which a second finger landed beside a still first one
+(the estimator's second-finger stage, :mod:`hapticdesk.estimator.multitouch`, which a layout
+binding it turns on): judged at the first finger's place, it fires at the release instead
+of a tap or a double tap there. Two fingers landing at the same instant are one force to the
+sensors and make a plain tap between them.
 """
 
 from __future__ import annotations
@@ -46,14 +52,16 @@ def _is_tap(touch: Touch, x: float, y: float, options: dict[str, Any]) -> bool:
 
 
 class TapRecognizer(Recognizer):
-    """``tap`` and ``double_tap``."""
+    """``tap``, ``double_tap`` and ``two_finger_tap``."""
 
-    gestures = ("tap", "double_tap")
+    gestures = ("tap", "double_tap", "two_finger_tap")
+    needs_second_finger = frozenset({"two_finger_tap"})
 
     def __init__(self, layout: Layout, bindings: Sequence[Binding]) -> None:
         super().__init__(layout, bindings)
         self.taps = BoundRegions(layout, "tap")
         self.doubles = BoundRegions(layout, "double_tap")
+        self.two_finger = BoundRegions(layout, "two_finger_tap")
         self._pending: _PendingTap | None = None
         self._second_down = False  # a touch began inside the double-tap window
         self._deadline: float | None = None
@@ -72,6 +80,10 @@ class TapRecognizer(Recognizer):
             return []
         if event.kind != "up":
             return []
+        if touch.multi and self.two_finger:
+            two = self._two_finger(touch, event.t)
+            if two is not None:
+                return self.on_deadline(event.t) + [two]  # (a pending tap is single after all)
         out: list[GestureEvent] = []
         if self._pending is not None:
             first = self._pending
@@ -111,6 +123,20 @@ class TapRecognizer(Recognizer):
         if is_single:
             return [GestureEvent(t, "tap", tap_region, x, y, force_n=touch.peak_force_n)]
         return []
+
+    def _two_finger(self, touch: Touch, t: float) -> GestureEvent | None:
+        """The two-finger tap ``touch`` makes, judged at its first finger, if it makes one."""
+        if not touch.located:
+            return None
+        x, y, _ = touch.best()
+        found, region = self.two_finger.find(x, y, touch.surface, snap=True)
+        if not found or not _is_tap(touch, x, y, self.two_finger.options(region)):
+            return None
+        second = touch.second
+        extra = {} if second is None else {"x2": round(second[0], 6), "y2": round(second[1], 6)}
+        return GestureEvent(
+            t, "two_finger_tap", region, x, y, force_n=touch.peak_force_n, extra=extra
+        )
 
     def _double(self, first: _PendingTap, touch: Touch, t: float) -> GestureEvent | None:
         """The double tap made by ``first`` and the just released ``touch``, if they make one."""

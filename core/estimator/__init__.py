@@ -152,7 +152,8 @@ class ContactEstimator:
     def use_second_finger(self, on: bool) -> None:
         """Run the second-finger stage (:mod:`.multitouch`) from the next sample on, or stop
         it: on when a layout binds a gesture that reads a second finger, whatever the
-        profile's ``second_finger`` says. Its state starts afresh."""
+        profile's ``second_finger`` says. Turned on, it starts afresh; asked for what it
+        already does, nothing changes."""
         if on != self._second_finger_on:
             self._second_finger_on = on
             self.second_finger = SecondFingerStage(self.profile) if on else None

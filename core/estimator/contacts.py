@@ -26,8 +26,8 @@ FLAG_GAP = 8  # the time jumped by more than max_gap_s before this sample; filte
 FLAG_NOT_TARED = 16  # no zero yet (tare pending or refused)
 FLAG_STUCK = 32  # every channel bit-identical to the sample before, for a run: a stuck driver
 FLAG_MULTI = 64  # a second finger on the desk (hapticdesk.estimator.multitouch)
-#: a second finger's landing is flagged this long after it began (the change of wrench is
-#: taken over it), so the samples just before the flag already mix both fingers
+#: the change of wrench that shows a second finger's landing is taken over this long, so
+#: the samples up to this long before the flag may already mix both fingers
 MULTI_LAG_S = 0.08
 # the desk has an accelerometer but this sample's reading is missing or saturated: its
 # inertial force is not removed (hapticdesk.estimator.inertia)

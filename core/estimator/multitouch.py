@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import sosfilt, sosfilt_zi
 
-from hapticdesk.estimator.contacts import FLAG_MULTI, MULTI_LAG_S, ContactBlock
+from hapticdesk.estimator.contacts import FLAG_GAP, FLAG_MULTI, MULTI_LAG_S, ContactBlock
 from hapticdesk.estimator.filters import butter_lowpass_sos
 from hapticdesk.estimator.geometry import SurfaceFrame
 from hapticdesk.files.profile import DeskProfile
@@ -69,10 +69,10 @@ def locate_change(
 
 
 def fit_second_point(
-    first: np.ndarray, normal: np.ndarray, wrench: np.ndarray, t: np.ndarray
+    first: np.ndarray, normal: np.ndarray, wrench: np.ndarray
 ) -> np.ndarray | None:
     """The second finger's point from the smoothed wrench (m, 6) over a window that starts
-    before its landing (times ``t``), the first finger at ``first`` (3,) on the plane with
+    before its landing (evenly sampled), the first finger at ``first`` (3,) on the plane with
     ``normal`` (see the module docstring). None when the window does not pin it down."""
     d = wrench - wrench[0]
     d_force, d_moment = d[:, :3], d[:, 3:]
@@ -84,7 +84,7 @@ def fit_second_point(
     toward = lever[j] / size[j]
     along = lever @ toward  # |P₂ − P₁|·f₂
     normal_force = d_force @ normal  # Δf₁ + f₂
-    tau = t - t[0]
+    tau = np.arange(len(d), dtype=float)  # samples, not the times: they may be bad
     design = np.stack([along, np.ones_like(tau), tau], axis=1)
     (inv_distance, _, _), *_ = np.linalg.lstsq(design, normal_force, rcond=None)
     if not inv_distance > 0:
@@ -101,6 +101,7 @@ class _Track:
     y: np.ndarray
     z: np.ndarray
     located: np.ndarray
+    surface: np.ndarray
     in_contact: np.ndarray
     force_n: np.ndarray
 
@@ -128,7 +129,6 @@ class _Landing:
 
     first: np.ndarray  # (3,) the first finger's point before the landing
     wrench: list[np.ndarray]  # pieces (m, 6) of the smoothed wrench since the window's start
-    t: list[np.ndarray]
     need: int  # samples still to come before the fit
 
 
@@ -153,10 +153,10 @@ class SecondFingerStage:
         self.landing: _Landing | None = None  # its fit window, while it fills
         self.second: np.ndarray | None = None  # its fitted point
         # single samples waiting for one pass: their blocks, raw wrenches and (t, x, y, z,
-        # force_n, located, in_contact)
+        # force_n, located, in_contact, surface, gap)
         self.queue: list[ContactBlock] = []
         self.queued_raw = np.empty((QUEUE_MAX, 6))
-        self.queued = np.empty((7, QUEUE_MAX))
+        self.queued = np.empty((9, QUEUE_MAX))
         # the last 2·lag + 1 samples' (force, x, y, located) for push_one's cheap test
         self.recent: deque[tuple[float, float, float, bool]] = deque(maxlen=2 * self.lag + 1)
         # the contact of the last processed sample is still open (for push_one's queue)
@@ -169,8 +169,9 @@ class SecondFingerStage:
         contact, in a contact whose second finger is already found (its flag and place are
         set here at once), or where no landing can end because the force did not rise by
         ``MIN_STEP_N`` over the lag after a still, located first finger. They wait in a queue
-        for one vectorised pass; only a sample that may end a landing, or the last of a
-        landing's fit window, runs it at once, so a push in contact costs little."""
+        for one vectorised pass (at most QUEUE_MAX of them); a sample that may end a landing
+        (which a pressing finger's own rise also passes), the last of a landing's fit window,
+        or one after a gap runs it at once, with the queue."""
         inside = bool(block.in_contact[0])
         force, x, y = float(block.force_n[0]), float(block.x[0]), float(block.y[0])
         located = bool(block.located[0])
@@ -180,7 +181,11 @@ class SecondFingerStage:
         waits = self._waits(inside, block)
         j = len(self.queue)
         self.queued_raw[j] = raw
-        self.queued[:, j] = (block.t[0], x, y, block.z[0], force, located, inside)
+        queued = self.queued
+        queued[0, j], queued[1, j], queued[2, j], queued[3, j] = block.t[0], x, y, block.z[0]
+        queued[4, j], queued[5, j], queued[6, j] = force, located, inside
+        queued[7, j] = block.surface[0]
+        queued[8, j] = block.flags[0] & FLAG_GAP
         self.queue.append(block)
         if not waits or j + 1 >= QUEUE_MAX:
             self.flush()
@@ -188,6 +193,8 @@ class SecondFingerStage:
     def _waits(self, inside: bool, block: ContactBlock) -> bool:
         """Whether this single sample may wait in the queue (see :meth:`push_one`); sets its
         flag and second place when the open contact already has them."""
+        if block.flags[0] & FLAG_GAP:
+            return False  # the stage restarts there (process)
         if not inside:
             return True
         if self.flagged and self.same_contact:  # the contact processed last is still open
@@ -220,10 +227,11 @@ class SecondFingerStage:
             return
         queue, self.queue = self.queue, []
         k = len(queue)
-        t, x, y, z, force, located, inside = self.queued[:, :k]
+        t, x, y, z, force, located, inside, surface, gap = self.queued[:, :k]
         piece = ContactBlock.blank(t.copy())
         piece.x[:], piece.y[:], piece.z[:], piece.force_n[:] = x, y, z, force
-        piece.located[:], piece.in_contact[:] = located, inside
+        piece.located[:], piece.in_contact[:], piece.surface[:] = located, inside, surface
+        piece.flags[:] = gap
         self.process(self.queued_raw[:k].T, piece)
         last = queue[-1]
         last.flags[0] |= piece.flags[-1] & FLAG_MULTI
@@ -233,11 +241,26 @@ class SecondFingerStage:
 
     def process(self, raw: np.ndarray, block: ContactBlock) -> None:
         """Flag and locate second fingers in ``block`` (in place) from the resultant wrench
-        ``raw`` (6, k) of the same samples."""
+        ``raw`` (6, k) of the same samples. At a gap in time (``FLAG_GAP``) the stage starts
+        afresh, as the estimator's filters do: a change across it is no landing."""
         self.flush()
-        k = len(block)
-        if k == 0:
+        if len(block) == 0:
             return
+        gaps = np.flatnonzero(block.flags & FLAG_GAP).tolist()
+        bounds = [0, *(g for g in gaps if g > 0), len(block)]
+        for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+            if block.flags[a] & FLAG_GAP:
+                self._restart()
+            self._process(raw[:, a:b], block.take(slice(a, b)) if len(bounds) > 2 else block)
+
+    def _restart(self) -> None:
+        self.zi = None
+        self.history = None
+        self.in_contact = False
+        self._end_contact()
+
+    def _process(self, raw: np.ndarray, block: ContactBlock) -> None:
+        k = len(block)
         rows = np.nan_to_num(raw.T)
         if self.zi is None:
             self.zi = sosfilt_zi(self.sos)[:, :, None] * rows[0][None, None, :]
@@ -254,8 +277,9 @@ class SecondFingerStage:
         keep = 2 * self.lag
         self.history = (ext_w[-keep:].copy(), ext.last(keep))
         self.in_contact = bool(block.in_contact[-1])
-        # the single-sample push's view of the samples since: the force over the last lag
-        # (infinite out of contact) and whether this contact stays open
+        # the single-sample push's view of the samples since: (force, x, y, located) over the
+        # last 2·lag + 1 samples (force infinite out of contact) and whether this contact
+        # stays open
         tail = slice(-(2 * self.lag + 1), None)
         force = np.where(ext.in_contact[tail], ext.force_n[tail], np.inf)
         self.recent = deque(
@@ -287,6 +311,8 @@ class SecondFingerStage:
             c.in_contact[before]
             & c.located[before]
             & c.located[earlier]
+            & (c.surface[before] == 0)  # the first finger on the board, as the second
+            & (c.surface[earlier] == 0)
             & (moved <= MAX_FIRST_MOVE_M)
             & c.in_contact[now]
             & (c.force_n[now] - force_then >= MIN_STEP_N)
@@ -330,14 +356,13 @@ class SecondFingerStage:
                 j = h + first_hit  # the landing's end in the extended arrays
                 lo = max(0, j - 2 * self.lag)
                 first = np.array([c.x[j - self.lag], c.y[j - self.lag], c.z[j - self.lag]])
-                self.landing = _Landing(first, [w[lo : j + 1]], [c.t[lo : j + 1]], self.landing_n)
+                self.landing = _Landing(first, [w[lo : j + 1]], self.landing_n)
                 a = first_hit + 1
             else:
                 block.flags[a:b] |= FLAG_MULTI
             if self.landing is not None:
                 got = min(b - a, self.landing.need)
                 self.landing.wrench.append(w[h + a : h + a + got])
-                self.landing.t.append(c.t[h + a : h + a + got])
                 self.landing.need -= got
                 a += got
                 if self.landing.need > 0:
@@ -346,7 +371,6 @@ class SecondFingerStage:
                     self.landing.first,
                     self.normal,
                     np.concatenate(self.landing.wrench),
-                    np.concatenate(self.landing.t),
                 )
                 self.landing = None
                 if self.second is not None and not self._on_board(self.second):
@@ -361,7 +385,9 @@ class SecondFingerStage:
     def _on_board(self, point: np.ndarray) -> bool:
         assert self.surface is not None
         rel = point - self.origin
-        return bool(self.frame.contains(rel @ self.surface.u_axis, rel @ self.surface.v_axis))
+        return self.frame.contains_one(
+            float(rel @ self.surface.u_axis), float(rel @ self.surface.v_axis)
+        )
 
     def _end_contact(self) -> None:
         self.flagged = False

@@ -101,7 +101,7 @@ GESTURE_OPTIONS: dict[str, dict[str, OptionSpec]] = {
     },
     "two_finger_tap": {
         "max_duration_s": _s(1.5, "longest two-finger touch, first finger down to release", 5.0),
-        "max_move": _m(0.015, "how far the first finger may move during the touch"),
+        "max_move": _m(0.015, "how far the first finger may move before the second lands"),
         "snap": _m(0.012, _TAP_SNAP),
     },
     "long_press": {

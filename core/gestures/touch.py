@@ -85,8 +85,8 @@ class Touch:
         if event.multi:
             if not self.multi:
                 self.multi = True
-                # the landing is seen a lag after it began: the samples since then already
-                # place both fingers' centre of pressure
+                # the landing is seen from the change over the last MULTI_LAG_S: the samples
+                # since then may already place both fingers' centre of pressure
                 self._forget_since(event.t - MULTI_LAG_S)
             if event.located2:
                 self.second = (event.x2, event.y2)

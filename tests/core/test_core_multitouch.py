@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from hapticdesk.estimator import ContactEstimator
-from hapticdesk.estimator.contacts import FLAG_MULTI, ContactBlock
+from hapticdesk.estimator.contacts import FLAG_GAP, FLAG_MULTI, ContactBlock
 from hapticdesk.files.profile import load_profile
 from hapticdesk.sim import Scene, simulate
 from hapticdesk.sim.actions import Press, Step, Swipe, Tap
@@ -116,3 +118,51 @@ def test_single_sample_pushes_equal_batch(desk, scene):
     parts += [est.push(rec.t[i : i + 1], rec.wrench[i : i + 1]) for i in range(k0, k1)]
     parts.append(est.push(rec.t[k1:k2], rec.wrench[k1:k2]))
     _equal(ContactBlock.concat(parts), batch)
+
+
+def test_a_gap_restarts_the_stage_and_every_split_agrees(desk, scene):
+    """A gap in time inside the first pair's press: no landing is found across it, and a
+    stream pushed one sample at a time over the gap equals the batch."""
+    rec, starts, _ = scene
+    k, gap_at = 9_000, 3_000  # (2.5 s: the first press held, before its second finger)
+    t = rec.t[:k].copy()
+    t[gap_at:] += 0.2
+    batch = ContactEstimator(desk).push(t, rec.wrench[:k])
+    assert batch.flags[gap_at] & FLAG_GAP
+    assert (batch.flags & FLAG_MULTI).any()  # the second pair, after the gap
+    est = ContactEstimator(desk)
+    parts = [est.push(t[:2_900], rec.wrench[:2_900])]
+    parts += [est.push(t[i : i + 1], rec.wrench[i : i + 1]) for i in range(2_900, 3_400)]
+    parts.append(est.push(t[3_400:], rec.wrench[3_400:k]))
+    _equal(ContactBlock.concat(parts), batch)
+
+
+def test_an_outline_that_is_no_rectangle_and_bad_samples_give_no_crash(desk, scene):
+    """The top cut to an L (its far corner off; the polygon path of the outline test) and, in
+    a landing's fit window, samples with NaN and infinite readings and times."""
+    rec, starts, _ = scene
+    top = desk.surfaces[0]
+    ell = np.array([[-0.375, -0.25], [0.375, -0.25], [0.375, 0.1], [0.3, 0.1],
+                    [0.3, 0.25], [-0.375, 0.25]])  # fmt: skip
+    cut = replace(desk, surfaces=(replace(top, polygon=ell), *desk.surfaces[1:]))
+    clean = ContactEstimator(cut).push(rec.t, rec.wrench)
+    assert clean.located2.any()
+    t, wrench = rec.t.copy(), rec.wrench.copy()
+    i = int(np.searchsorted(t, starts[0] + PAIRS[0][2] + 0.1))
+    wrench[i : i + 40 : 4] = np.nan
+    wrench[i + 2 : i + 40 : 8, 0, 2] = np.inf
+    t[i + 1 : i + 40 : 10] = np.nan
+    for block in (
+        ContactEstimator(cut).push(t, wrench),
+        _one_at_a_time(ContactEstimator(cut), t, wrench, i - 200, i + 400),
+    ):
+        for name in ("x2", "y2", "z2", "x", "y", "force_n"):
+            assert np.isfinite(getattr(block, name)).all()
+
+
+def _one_at_a_time(est: ContactEstimator, t, wrench, a: int, b: int) -> ContactBlock:
+    """A batch up to ``a``, single samples to ``b``, a batch to the end."""
+    parts = [est.push(t[:a], wrench[:a])]
+    parts += [est.push(t[j : j + 1], wrench[j : j + 1]) for j in range(a, b)]
+    parts.append(est.push(t[b:], wrench[b:]))
+    return ContactBlock.concat(parts)

@@ -162,6 +162,10 @@ def main() -> int:
         f"({100 * np.mean(two.gesture):.1f} %), {sum(single.gesture)}/{n1} single touches "
         f"({100 * np.mean(single.gesture):.2f} %)"
     )
+    fired = np.array(two.gesture)
+    for name in ("holding", "rising"):
+        which = kinds == name
+        print(f"  pairs, first finger {name}: {fired[which].sum()}/{which.sum()}")
     singles = np.array(single.kind)
     for name, plural in (("tap", "taps"), ("press", "presses"), ("swipe", "swipes")):
         which = singles == name

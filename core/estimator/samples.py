@@ -132,8 +132,13 @@ class SampleStage:
         if not energy < 1.0:  # see _in_range
             return None
         if st.stuck_check:
-            if abs(energy - st.previous_energy) <= SAME_ENERGY:
-                return None  # maybe a repeat: the block path compares every channel
+            # an energy about the one before: compared channel by channel, as the block path
+            # does; only a true repeat needs it (to count the run). A quantised, quiet input
+            # meets the energy test a few times a second, which took the block path each time
+            if abs(energy - st.previous_energy) <= SAME_ENERGY and np.array_equal(
+                flat, st.previous
+            ):
+                return None
             st.previous, st.previous_energy, st.repeats = flat.copy(), energy, 0
         st.last_t = t
         raw = self.settings.wrench_map @ flat  # (6,): paper eqs. (1)–(4)

@@ -15,8 +15,10 @@ explains one change with some split of the force). Taken about the first finger'
 though, the first finger's force has no moment at all, so n × (ΔM − P₁ × ΔF) = (P₂ − P₁)·f₂
 follows the second finger's force alone, while the normal force n·ΔF = Δf₁ + f₂ holds both.
 Over a window from before the landing to after it, the first finger's part is fitted as a
-straight line in time (its drift) and the second's as 1/|P₂ − P₁| times the first quantity
-(:func:`fit_second_point`): a linear least-squares fit of three numbers.
+quadratic in time (its drift; a finger still pressing in bends it: a straight line left the
+second finger 28 mm off at the median there, 12 mm with the bend) and the second's as
+1/|P₂ − P₁| times the first quantity (:func:`fit_second_point`): a linear least-squares fit
+of four numbers.
 
 :class:`SecondFingerStage` is the estimator's stage (run by :class:`ContactEstimator` when
 ``second_finger`` is on): it sets ``FLAG_MULTI`` on the contact samples from the landing to the
@@ -41,7 +43,7 @@ from hapticdesk.files.profile import DeskProfile
 
 LOWPASS_HZ = 12.0  # the wrench is smoothed this much before differencing (noise vs lag)
 LAG_S = MULTI_LAG_S  # the change of wrench is taken over this long (a finger lands in ≈0.1 s)
-LANDING_S = 0.12  # the second finger's place is fitted over this long after its landing
+LANDING_S = 0.18  # the second finger's place is fitted over this long after its landing
 MIN_STEP_N = 2.0  # the force must rise at least this much over LAG_S ...
 MIN_STEP_SHARE = 0.1  # ... and at least this share of the force before it
 MIN_APART_M = 0.03  # the change located at least this far from the first finger
@@ -85,8 +87,8 @@ def fit_second_point(
     along = lever @ toward  # |P₂ − P₁|·f₂
     normal_force = d_force @ normal  # Δf₁ + f₂
     tau = np.arange(len(d), dtype=float)  # samples, not the times: they may be bad
-    design = np.stack([along, np.ones_like(tau), tau], axis=1)
-    (inv_distance, _, _), *_ = np.linalg.lstsq(design, normal_force, rcond=None)
+    design = np.stack([along, np.ones_like(tau), tau, tau * tau], axis=1)
+    (inv_distance, *_), *_ = np.linalg.lstsq(design, normal_force, rcond=None)
     if not inv_distance > 0:
         return None
     return first + toward / inv_distance

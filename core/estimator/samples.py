@@ -135,8 +135,11 @@ class SampleStage:
             # an energy about the one before: compared channel by channel, as the block path
             # does; only a true repeat needs it (to count the run). A quantised, quiet input
             # meets the energy test a few times a second, which took the block path each time
-            if abs(energy - st.previous_energy) <= SAME_ENERGY and np.array_equal(
-                flat, st.previous
+            previous = st.previous
+            if (
+                abs(energy - st.previous_energy) <= SAME_ENERGY
+                and previous is not None
+                and np.array_equal(flat, previous)
             ):
                 return None
             st.previous, st.previous_energy, st.repeats = flat.copy(), energy, 0

@@ -271,7 +271,7 @@ class ContactEstimator:
         else:
             fast = [det[i] - z[i] for i in range(3)]
         in_contact, mag, slope = self.detector.process_one(fast, det_slope, release)
-        block = _single_block(t, in_contact, mag)
+        block = _single_block(t, in_contact, mag, self.second_finger is not None)
         if in_contact:
             wrench6 = [lp[i].real - z[i] for i in range(3)] + [
                 lp[i].imag - z[i + 3] for i in range(3)
@@ -365,10 +365,12 @@ def _trace(t: np.ndarray, cands: Candidates, s: EstimatorSettings) -> CandidateT
     )
 
 
-def _single_block(t: float, in_contact: bool, force_n: float) -> ContactBlock:
+def _single_block(t: float, in_contact: bool, force_n: float, second: bool) -> ContactBlock:
     """A one-sample block, not yet located: copies of a blank one (a copy of a one-element
-    array costs a fraction of making one with ``np.full``)."""
-    block = ContactBlock(*(a.copy() for a in _BLANK_ONE))
+    array costs a fraction of making one with ``np.full``). Without the second-finger stage
+    (``second`` False) nothing writes its fields: they share read-only zeros."""
+    fields = _BLANK_ONE if second else _BLANK_ONE[:_FIRST_SECOND]
+    block = ContactBlock(*(a.copy() for a in fields), *(() if second else _NO_SECOND))
     block.t[0] = t
     block.in_contact[0] = in_contact
     block.force_n[0] = force_n
@@ -394,6 +396,10 @@ _BLANK_ONE = (
     np.zeros(1),  # y2
     np.zeros(1),  # z2
 )
+_FIRST_SECOND = 12  # where the second finger's fields begin
+_NO_SECOND = tuple(a.copy() for a in _BLANK_ONE[_FIRST_SECOND:])
+for _array in _NO_SECOND:
+    _array.flags.writeable = False
 
 
 def estimate(profile: DeskProfile, recording: Recording, method: str | None = None) -> ContactBlock:

@@ -7,7 +7,8 @@ finger lands while the first holds, the *change* of the wrench over the landing 
 wrench of a single point force, the second finger's (the differentiated wrench, paper eqs.
 8/12: ΔM = P₂ × ΔF). Located like any wrench (eqs. 1–2 on the surface's plane), it lies
 centimetres away from where the first finger is; a finger pressing harder gives a change
-located where it already is.
+located where it already is, and a finger starting to swipe one that is mostly sideways (its
+drag), not pressing down.
 
 Where the second finger is: the change located as it stands mixes in the first finger's own
 change of force (two vertical forces fix only the line through both fingers: any point on it
@@ -46,6 +47,9 @@ LAG_S = MULTI_LAG_S  # the change of wrench is taken over this long (a finger la
 LANDING_S = 0.18  # the second finger's place is fitted over this long after its landing
 MIN_STEP_N = 2.0  # the force must rise at least this much over LAG_S ...
 MIN_STEP_SHARE = 0.1  # ... and at least this share of the force before it
+MIN_NORMAL_SHARE = (
+    0.8  # ... pressed down: its normal part at least this share (a swipe's friction is not)
+)
 MIN_APART_M = 0.03  # the change located at least this far from the first finger
 MAX_FIRST_MOVE_M = 0.005  # the first finger held this still over the lag before (no swipe)
 #: single samples that cannot end a landing wait in a queue of up to this many for one
@@ -330,8 +334,13 @@ class SecondFingerStage:
         apart = np.linalg.norm(points - first, axis=1)
         rel = points - self.origin  # the second finger must be on the board
         on_board = self.frame.contains(rel @ self.surface.u_axis, rel @ self.surface.v_axis)
+        pressing = np.abs(d_wrench[:, :3] @ self.normal) >= MIN_NORMAL_SHARE * step
         out[now - h] = (
-            ok & (step >= MIN_STEP_SHARE * force_then) & (apart >= MIN_APART_M) & on_board
+            ok
+            & (step >= MIN_STEP_SHARE * force_then)
+            & pressing
+            & (apart >= MIN_APART_M)
+            & on_board
         )
         return out
 

@@ -164,6 +164,29 @@ def test_reload_keeps_the_zero_and_uses_the_new_layout_at_once(tmp_path, run_scr
     assert "reloaded" in seen["line"] and "1 bindings" in seen["line"]
 
 
+def test_a_reload_turns_the_second_finger_stage_on_and_off_with_the_layout(tmp_path, run_scripted):
+    """A layout that binds two_finger_tap needs the estimator's second-finger stage; a reload
+    to it turns the stage on in the running estimator, a reload away turns it off."""
+    path = write_layout(tmp_path / "a.yaml", "lamp")
+    two = LAYOUT % ("", "lamp", "lamp") + "  - {gesture: two_finger_tap, region: lamp, do: log}\n"
+    stages: list[object] = []
+
+    def reload_to(text):
+        def reload(rt):
+            stages.append(rt.scene.estimator.second_finger)
+            path.write_text(text)
+            rt.request("reload").add_done_callback(
+                lambda f: stages.append(rt.scene.estimator.second_finger)
+            )
+
+        return reload
+
+    plain = LAYOUT % ("", "lamp", "lamp")
+    run_scripted(TAPS, 5.0, {2.3: reload_to(two), 3.3: reload_to(plain)}, path)
+    before, on, still_on, off = stages
+    assert before is None and on is not None and still_on is on and off is None
+
+
 def test_a_reload_that_does_not_load_keeps_the_running_layout(tmp_path, run_scripted):
     path = write_layout(tmp_path / "a.yaml", "lamp")
     errors = []

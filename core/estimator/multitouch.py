@@ -47,9 +47,8 @@ LAG_S = MULTI_LAG_S  # the change of wrench is taken over this long (a finger la
 LANDING_S = 0.18  # the second finger's place is fitted over this long after its landing
 MIN_STEP_N = 2.0  # the force must rise at least this much over LAG_S ...
 MIN_STEP_SHARE = 0.1  # ... and at least this share of the force before it
-MIN_NORMAL_SHARE = (
-    0.8  # ... pressed down: its normal part at least this share (a swipe's friction is not)
-)
+# ... pressing down: its normal part at least this share of it (a swipe's drag is sideways)
+MIN_NORMAL_SHARE = 0.8
 MIN_APART_M = 0.03  # the change located at least this far from the first finger
 MAX_FIRST_MOVE_M = 0.005  # the first finger held this still over the lag before (no swipe)
 #: single samples that cannot end a landing wait in a queue of up to this many for one
@@ -102,7 +101,6 @@ def fit_second_point(
 class _Track:
     """The contact fields the detection looks back on (the last 2·lag samples are kept)."""
 
-    t: np.ndarray
     x: np.ndarray
     y: np.ndarray
     z: np.ndarray
@@ -276,7 +274,7 @@ class SecondFingerStage:
         else:
             ext_w = np.concatenate([self.history[0], smooth])
             ext = self.history[1].then(block)
-        h = len(ext.t) - k  # the chunk's first sample in the extended arrays
+        h = len(ext.x) - k  # the chunk's first sample in the extended arrays
         if self.surface is not None:
             landing = self._landings(ext_w, ext, h)
             self._runs(landing, ext_w, ext, h, block)
@@ -306,9 +304,9 @@ class SecondFingerStage:
         first finger, which was in contact, located and still over the lag before that."""
         assert self.surface is not None  # (the caller checks)
         n = self.lag
-        k = len(c.t) - h
+        k = len(c.x) - h
         out = np.zeros(k, bool)
-        now = np.arange(max(h, 2 * n), len(c.t))
+        now = np.arange(max(h, 2 * n), len(c.x))
         before, earlier = now - n, now - 2 * n
         force_then = c.force_n[before]
         moved = np.hypot(c.x[before] - c.x[earlier], c.y[before] - c.y[earlier])

@@ -24,7 +24,7 @@ from hapticdesk.estimator.contacts import (
     ContactEvent,
     contact_events,
 )
-from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile import DeskProfile, Surface
 
 #: time constant of the smoothed track used by slides and strokes, seconds
 TRACK_TIME_CONSTANT_S = 0.03
@@ -102,15 +102,9 @@ class Touch:
             self.outliers += 1
             return
         w = 1.0 / (sigma * sigma)
-        self._sum_w += w
-        self._sum_wx += w * event.x
-        self._sum_wy += w * event.y
         pressed = event.force_n >= self.pressed_n
         self._pressed.append(pressed)
-        if pressed:
-            self._pressed_w += w
-            self._pressed_wx += w * event.x
-            self._pressed_wy += w * event.y
+        self._weigh(w, event.x, event.y, pressed)
         if self._t:
             decay = math.exp(-(event.t - self._t[-1]) / TRACK_TIME_CONSTANT_S)
             self._ema_w *= decay
@@ -138,16 +132,17 @@ class Touch:
         self._sum_w = self._sum_wx = self._sum_wy = 0.0
         self._pressed_w = self._pressed_wx = self._pressed_wy = 0.0
         for x, y, sigma, pressed in zip(self._x, self._y, self._sigma, self._pressed, strict=True):
-            w = 1.0 / (sigma * sigma)
-            self._sum_w, self._sum_wx, self._sum_wy = (
-                self._sum_w + w,
-                self._sum_wx + w * x,
-                self._sum_wy + w * y,
-            )
-            if pressed:
-                self._pressed_w += w
-                self._pressed_wx += w * x
-                self._pressed_wy += w * y
+            self._weigh(1.0 / (sigma * sigma), x, y, pressed)
+
+    def _weigh(self, w: float, x: float, y: float, pressed: bool) -> None:
+        """Add one accepted sample to the sums of :meth:`best`."""
+        self._sum_w += w
+        self._sum_wx += w * x
+        self._sum_wy += w * y
+        if pressed:
+            self._pressed_w += w
+            self._pressed_wx += w * x
+            self._pressed_wy += w * y
 
     def _accept(self, event: ContactEvent, sigma: float) -> bool:
         """The gate (see the module docstring)."""
@@ -245,6 +240,16 @@ class Touch:
         return float(at_t[0]), float(at_t[1])
 
 
+def _to_local(
+    surface: Surface, x: np.ndarray, y: np.ndarray, z: np.ndarray, on: np.ndarray
+) -> None:
+    """The points ``on`` of (x, y, z) in the desk frame: their (x, y) rewritten in place as
+    ``surface``'s (u, v)."""
+    if on.any():
+        uv = surface.to_local(np.column_stack([x[on], y[on], z[on]]))
+        x[on], y[on] = uv[:, 0], uv[:, 1]
+
+
 class TouchTracker:
     """Turns contact blocks into contact events and keeps the current :class:`Touch`.
 
@@ -267,21 +272,12 @@ class TouchTracker:
         inc = block.in_contact
         previous = np.concatenate([[self._in_contact], inc[:-1]])
         sub = block.take(np.flatnonzero(inc | previous))
-        if self._local_surfaces and len(sub):
-            sub.x, sub.y = sub.x.copy(), sub.y.copy()
+        if self._local_surfaces and len(sub):  # (sub's arrays are copies: taken by index)
             for index, surface in self._local_surfaces:
-                on = sub.located & (sub.surface == index)
-                if on.any():
-                    uv = surface.to_local(np.column_stack([sub.x[on], sub.y[on], sub.z[on]]))
-                    sub.x[on], sub.y[on] = uv[:, 0], uv[:, 1]
-            if self._local_surfaces[0][0] == 0 and sub.located2.any():  # (multitouch: the
-                # second finger is placed on the first surface)
-                on = sub.located2
-                sub.x2, sub.y2 = sub.x2.copy(), sub.y2.copy()
-                uv = self._local_surfaces[0][1].to_local(
-                    np.column_stack([sub.x2[on], sub.y2[on], sub.z2[on]])
-                )
-                sub.x2[on], sub.y2[on] = uv[:, 0], uv[:, 1]
+                _to_local(surface, sub.x, sub.y, sub.z, sub.located & (sub.surface == index))
+            index, surface = self._local_surfaces[0]
+            if index == 0:  # (multitouch places the second finger on the first surface)
+                _to_local(surface, sub.x2, sub.y2, sub.z2, sub.located2)
         events = contact_events(sub, was_in_contact=self._in_contact)
         self._in_contact = bool(inc[-1])
         return events

@@ -12,7 +12,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile import DeskProfile, load_profile
 
 GRAVITY_N = 134.4  # 13.7 kg desk
 DITHER_N = 1e-9
@@ -132,6 +132,12 @@ def _shape_error_p95(profile, rec, accel=None) -> float:
         block.x[idx] - rec.extra["true_x"][idx - lag], block.y[idx] - rec.extra["true_y"][idx - lag]
     )
     return float(np.percentile(err, 95))
+
+
+@pytest.fixture(scope="session")
+def accel_desk() -> DeskProfile:
+    """The paper's desk with an accelerometer under its top (vibration tests)."""
+    return load_profile("kitamura2017-accel")
 
 
 @pytest.fixture

@@ -25,11 +25,6 @@ G = 9.80665
 
 
 @pytest.fixture(scope="module")
-def accel_desk():
-    return load_profile("kitamura2017-accel")
-
-
-@pytest.fixture(scope="module")
 def swipes(accel_desk):
     return simulate(accel_desk, load_scene(SCENES / "swipes.yaml"), 1)
 

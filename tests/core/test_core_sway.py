@@ -27,11 +27,6 @@ def with_sway(profile: DeskProfile, on: bool = True) -> DeskProfile:
 
 
 @pytest.fixture(scope="module")
-def accel_desk():
-    return load_profile("kitamura2017-accel")
-
-
-@pytest.fixture(scope="module")
 def shapes(accel_desk):
     """Gesture strokes dragged at 12 cm/s: the sway rings under the moving finger."""
     return simulate(accel_desk, load_scene(SCENES / "shapes.yaml"), 1)

@@ -6,7 +6,7 @@ presses, swipes), runs the estimator (its stage :mod:`hapticdesk.estimator.multi
 counts the touches flagged as two-fingered, how far the second finger is placed from where it
 landed, and how many fire a ``two_finger_tap``.
 
-    python scripts/two_finger_accuracy.py [--two 200] [--single 1000] [--seed 0]
+    python scripts/two_finger_accuracy.py [--two 200] [--single 1000] [--seed 0] [--desk unseen-six]
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from tap_accuracy import UNSEEN_DESKS, unseen_desk  # (a script beside this one)
 
 from hapticdesk.estimator import ContactEstimator
 from hapticdesk.estimator.contacts import FLAG_MULTI
@@ -115,8 +116,7 @@ def judge(desk, layout, groups: list[list[Step]], seed: int, out: Outcome) -> No
             out.second_error_m.append(float("nan"))
 
 
-def run(kind: str, count: int, seed: int, layout) -> Outcome:
-    desk = load_profile("kitamura2017").with_estimation(second_finger=True)
+def run(kind: str, count: int, seed: int, desk, layout) -> Outcome:
     rng = np.random.default_rng(seed)
     make = _two if kind == "two" else _single
     out = Outcome()
@@ -132,13 +132,22 @@ def main() -> int:
     parser.add_argument("--two", type=int, default=200)
     parser.add_argument("--single", type=int, default=1000)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--desk",
+        default="kitamura2017",
+        help="a profile, or a desk nothing was tuned on (unseen-six, unseen-four of "
+        "scripts/tap_accuracy.py)",
+    )
     args = parser.parse_args()
+    desk = (
+        unseen_desk(args.desk) if args.desk in UNSEEN_DESKS else load_profile(args.desk)
+    ).with_estimation(second_finger=True)
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "two_finger.yaml"
         path.write_text(LAYOUT, encoding="utf-8")
-        layout = load_layout(path)
-    two = run("two", args.two, args.seed, layout)
-    single = run("single", args.single, args.seed + 10_000, layout)
+        layout = load_layout(path, profile=desk)
+    two = run("two", args.two, args.seed, desk, layout)
+    single = run("single", args.single, args.seed + 10_000, desk, layout)
     n2, n1 = len(two.flagged), len(single.flagged)
     print(
         f"two-finger touches: {sum(two.flagged)}/{n2} detected ({100 * np.mean(two.flagged):.1f} %)"

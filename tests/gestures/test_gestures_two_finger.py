@@ -28,7 +28,8 @@ SPACING_S = 2.5
 
 def _scene(rng: np.random.Generator, n_two: int, n_single: int):
     """Two-finger taps on the lamp (the first finger held 0.3–0.5 s at 6–10 N, the second a
-    light tap 6–20 cm away 0.25–0.4 s after it) and plain taps on both buttons, shuffled."""
+    light tap 8–20 cm away, beyond MIN_APART_M, 0.25–0.4 s after it) and plain taps on both
+    buttons, shuffled."""
     kinds = rng.permutation(["two"] * n_two + ["lamp"] * n_single + ["fan"] * n_single)
     steps: list[Step] = []
     truth = []
@@ -38,7 +39,7 @@ def _scene(rng: np.random.Generator, n_two: int, n_single: int):
             p1 = (float(rng.uniform(-0.27, -0.13)), float(rng.uniform(-0.17, -0.03)))
             while True:
                 p2 = (float(rng.uniform(-0.33, 0.33)), float(rng.uniform(-0.22, 0.22)))
-                if 0.06 <= np.hypot(p2[0] - p1[0], p2[1] - p1[1]) <= 0.2:
+                if 0.08 <= np.hypot(p2[0] - p1[0], p2[1] - p1[1]) <= 0.2:
                     break
             peak = float(rng.uniform(6, 10))
             steps += [

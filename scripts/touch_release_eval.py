@@ -86,15 +86,16 @@ def unseen_desk() -> DeskProfile:
         return load_profile(path)
 
 
-def panel_desk(with_push_faces: bool = False) -> DeskProfile:
-    """The shipped desk with an upright front panel; with the faces a hand pushes
+def panel_desk(with_push_faces: bool = False, name: str = "kitamura2017-panel") -> DeskProfile:
+    """The shipped desk with an upright front panel (``name``: or that desk with three
+    accelerometers, ``kitamura2017-panel-accel``); with the faces a hand pushes
     (:data:`PUSH_FACES`) for the simulator."""
     if not with_push_faces:
-        return load_profile("kitamura2017-panel")
-    text = Path(load_profile("kitamura2017-panel").path).read_text()
+        return load_profile(name)
+    text = Path(load_profile(name).path).read_text()
     head, tail = text.split("estimation:")
     with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "kitamura2017-panel-pushed.yaml"
+        path = Path(tmp) / f"{name}-pushed.yaml"
         path.write_text(head + PUSH_FACES + "estimation:" + tail)
         return load_profile(path)
 

@@ -12,12 +12,12 @@ with an accelerometer estimated with and without its readings.
   force left in the resultant wrench (low-passed at the detection's 30 Hz) from 50 ms to 1 s
   after each release, and the phantom touch-downs there (a contact starting while nobody
   touches);
-- presses and taps at touch-down (``--panel``): the panel desk (``kitamura2017-panel``) with
-  the same accelerometer added, ``touch_release_eval.py``'s presses and taps on its top and
+- presses and taps at touch-down (``--panel``): the panel desk with three accelerometers
+  (``kitamura2017-panel-accel``), ``touch_release_eval.py``'s presses and taps on its top and
   its upright front panel: the share of presses located and the error p50/p95 at +20 and
-  +50 ms after the true touch-down (``fused``; a press not located counts as a miss); and, as
-  the bound a rotation-aware compensation could reach, the same presses with the simulator's
-  exact inertial wrench ``M q̈`` (rotation included) taken out of the readings.
+  +50 ms after the true touch-down (``fused``; a press not located counts as a miss), without
+  the readings, with one accelerometer at the top's centre instead, with the three; and, as
+  the bound, with the simulator's exact inertial wrench ``M q̈`` taken out of the readings.
 
     python scripts/vibration_eval.py --seeds 5      # the figures in README and docs/stability.md
 """
@@ -102,48 +102,61 @@ def ring(profile: DeskProfile, rec: Recording, compensate: bool) -> tuple[list[f
 
 
 def panel_touch_down(seeds: int) -> None:
-    """Touch-down on the panel desk with an accelerometer, with and without its readings."""
+    """Touch-down on the panel desk without accelerometer readings, with one accelerometer
+    (the desk taken as translating), with the three of ``kitamura2017-panel-accel`` (its
+    rotation too), and with the simulator's exact inertial wrench removed (the bound)."""
     import touch_release_eval as tre  # beside this script
 
     from hapticdesk.bench.accuracy import measure_accuracy
 
-    text = Path(str(load_profile("kitamura2017-panel").path)).read_text()
-    text = text.replace("name: kitamura2017-panel", "name: kitamura2017-panel-accel", 1)
-    text = text.replace(
-        "sensors:\n",
-        "accelerometer: {position: [0.0, 0.0, 0.71], noise_m_s2: 0.005, range_m_s2: 19.6}\n"
-        "sensors:\n",
-        1,
-    )
+    three = load_profile("kitamura2017-panel-accel")
+    text = Path(str(three.path)).read_text()
+    start = text.index("accelerometers:\n")
+    end = text.index("sensors:\n", start)
+    text = (
+        text[:start]
+        + "accelerometer: {position: [0.0, 0.0, 0.71], noise_m_s2: 0.005, range_m_s2: 19.6}\n"
+        + text[end:]
+    ).replace("name: kitamura2017-panel-accel", "name: kitamura2017-panel-one-accel", 1)
     with tempfile.TemporaryDirectory() as folder:
-        path = Path(folder) / "kitamura2017-panel-accel.yaml"
+        path = Path(folder) / "kitamura2017-panel-one-accel.yaml"
         path.write_text(text)
-        desk = load_profile(path)
+        one = load_profile(path)
+    labels = {
+        "without": "without accelerometers ",
+        "one": "one accelerometer      ",
+        "three": "three accelerometers   ",
+        "exact": "exact M q̈ removed      ",
+    }
     for surface, points in (("top", tre.PAPER_POINTS), ("front", tre.PANEL_POINTS)):
         scene = tre.presses_and_taps(points, f"va-{surface}", surface=surface)
-        recs = [simulate(desk, scene, seed) for seed in range(seeds)]
-        exact = [exact_compensation(desk, scene, seed) for seed in range(seeds)]
-        for how in ("without", "with", "exact"):
+        runs = {
+            "without": [simulate(three, scene, seed) for seed in range(seeds)],
+            "one": [simulate(one, scene, seed) for seed in range(seeds)],
+            "exact": [exact_compensation(three, scene, seed) for seed in range(seeds)],
+        }
+        runs["three"] = runs["without"]
+        for how, label in labels.items():
+            desk = one if how == "one" else three
             at: dict[str, list[np.ndarray]] = {"touch+20": [], "touch+50": []}
-            for rec in exact if how == "exact" else recs:
-                accel = accelerometer_readings(desk, rec.extra) if how == "with" else None
+            for rec in runs[how]:
+                use = how in ("one", "three")
+                accel = accelerometer_readings(desk, rec.extra) if use else None
                 block = ContactEstimator(desk, method="fused").push(rec.t, rec.wrench, accel)
                 found = measure_accuracy(block, rec.extra).at_times
                 for key in at:
                     at[key].append(found[key])
-            text = []
-            for key, parts in at.items():
-                err = np.concatenate(parts) * 1000
+            parts = []
+            for key, errs in at.items():
+                err = np.concatenate(errs) * 1000
                 ok = np.isfinite(err)
                 p50 = f"{np.median(err[ok]):.1f}" if ok.any() else "-"
                 with np.errstate(invalid="ignore"):  # (a miss is infinite)
                     p95 = tre.p95_mm(err / 1000)
-                text.append(f"{key} ms located {ok.mean():.0%} p50 {p50} p95 {p95} mm")
-            label = {"without": "without accelerometer", "with": "with accelerometer",
-                     "exact": "exact M q̈ removed  "}[how]  # fmt: skip
+                parts.append(f"{key} ms located {ok.mean():.0%} p50 {p50} p95 {p95} mm")
             print(
                 f"  panel desk, {surface:5s} {label} "
-                f"({sum(len(p) for p in at['touch+20'])} presses): " + "; ".join(text)
+                f"({sum(len(p) for p in at['touch+20'])} presses): " + "; ".join(parts)
             )
 
 

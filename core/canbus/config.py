@@ -390,6 +390,13 @@ def _accelerometer(section: MarkedDict, profile: DeskProfile, database: Any) -> 
             f"`can.accelerometer` decodes an accelerometer, but desk `{profile.name}` has "
             "none: add `accelerometer:` to the profile (where it is mounted, its axes)",
         )
+    if len(profile.accelerometers) > 1:
+        raise ConfigError(
+            section.where("accelerometer", of_key=True),
+            f"`can.accelerometer` decodes one accelerometer, but desk `{profile.name}` has "
+            f"{len(profile.accelerometers)}: several accelerometers over CAN are not supported "
+            "yet (record them as the columns acc_x, …, acc2_x, … of a recording instead)",
+        )
     item = require_mapping(section["accelerometer"], where, "`can.accelerometer`")
     check_keys(item, {"x", "y", "z", "counter", "status"}, "`can.accelerometer`")
     given = [a for a in ("x", "y", "z") if a in item]

@@ -343,7 +343,7 @@ def decode_can_log(path: str | Path, profile: DeskProfile) -> CanLogDecoding:
     extra = {}
     if accs and profile.accelerometer is not None:  # the columns a recording would have
         accel = np.concatenate(accs)
-        extra = {c: accel[:, i] for i, c in enumerate(profile.accelerometer.column_names())}
+        extra = {c: accel[:, i] for i, c in enumerate(profile.accelerometer_columns())}
     recording = Recording(t, np.concatenate(ws), profile.sensor_names, extra)
     return CanLogDecoding(recording, assembler.stats, list(assembler.notices))
 

@@ -10,16 +10,26 @@ equation the simulator integrates, :mod:`hapticdesk.sim.desk`)
 
 where u is the load about P_o (paper eqs. 1–4 hold for a desk at rest, q̈ = 0). A swaying
 desk therefore reads as a wobbling extra force — the 5.9 Hz ring a dragging finger leaves in
-the located path. One accelerometer on the top measures a, the acceleration of the desk
-taken as translating (θ̈ is not observable from one three-axis accelerometer; the paper's
-desk sways in translation, and its 10 Hz yaw mode is left, see README Known limits), so
+the located path. In every case
 
-    [F_o; M_o] ← [F_o; M_o] - G (f - f_rest),   G = [m I₃; m [c]×] · R_a
+    [F_o; M_o] ← [F_o; M_o] - G (f - f_rest)
 
-with ``f`` the reading (specific force, m/s²; the axes the profile lists), ``R_a`` those axes
-in the desk frame and ``f_rest = R_aᵀ (0, 0, g)`` the reading of a desk at rest (gravity), so
-a still desk is left untouched and the correction is linear: it commutes with the filters,
-needs no state, and gives the same output for any split of the input.
+with ``f`` the readings (specific force, m/s²; the axes the profile lists) and
+``f_rest`` the readings of a desk at rest (gravity along each axis), so a still desk is left
+untouched and the correction is linear: it commutes with the filters, needs no state, and
+gives the same output for any split of the input. ``G`` depends on how many accelerometers:
+
+- **One** measures a, the acceleration of the desk taken as translating (θ̈ is not
+  observable from one three-axis accelerometer; the paper's desk sways in translation):
+  ``G = [m I₃; m [c]×] · R_a``, ``R_a`` its axes in the desk frame. A press on an upright
+  panel twists the desk in yaw, which this leaves (docs/stability.md).
+- **Three or more**, not on one line (``accelerometers:``), measure the rigid motion itself:
+  the mount at p accelerates by d̈ + θ̈ × p (the tilt's share of gravity, g·θ, is below
+  0.3 % of θ̈ × p at the sway's frequencies and is left), so the stacked readings are
+  ``f - f_rest = H q̈`` with the rows ``R_iᵀ [I₃, -[p_i]×]`` of each accelerometer i, and
+  ``G = M H⁺``, M the desk's spatial inertia about P_o (mass, centre of mass and inertia
+  tensor from the profile: :meth:`DeskProfile.inertia_about_com`). Two accelerometers leave
+  the rotation about the line through them unseen; H⁺ then takes none of it.
 
 A reading that is missing (NaN, no accelerometer data given at all) or at its range is not
 used: that sample is left uncompensated and flagged ``FLAG_NO_ACCEL``, never NaN. The
@@ -34,38 +44,49 @@ from dataclasses import dataclass
 import numpy as np
 
 from hapticdesk.estimator.contacts import FLAG_NO_ACCEL
-from hapticdesk.files.profile import STANDARD_GRAVITY, DeskProfile
+from hapticdesk.files.profile import STANDARD_GRAVITY, DeskProfile, spatial_inertia
 
 
 @dataclass(frozen=True, eq=False)
 class InertiaSettings:
     """One desk's fixed quantities for the compensation (see the module docstring)."""
 
-    gain: np.ndarray  # (6, A): the inertial wrench [m a; m c × a] per unit of reading
+    gain: np.ndarray  # (6, A): the inertial wrench per unit of reading (module docstring)
     rest: np.ndarray  # (A,): the reading of a desk at rest (gravity along each axis)
-    limit: float  # |reading| at or beyond this is saturated
+    limit: np.ndarray  # (A,): |reading| at or beyond this is saturated
     n_axes: int
     columns: tuple[str, ...]  # the recording columns the readings come from
 
     @classmethod
     def of(cls, profile: DeskProfile) -> InertiaSettings | None:
         """The settings for ``profile``, or None when it has no accelerometer."""
-        spec = profile.accelerometer
-        if spec is None:
+        specs = profile.accelerometers
+        if not specs:
             return None
         if profile.mass_kg is None:  # (the profile loader refuses this; a hand-made profile)
             raise ValueError(f"desk {profile.name!r} has an accelerometer but no mass_kg")
-        axes = spec.axis_matrix()  # (3, A)
+        m = profile.mass_kg
         c = profile.center_of_mass()
-        lever = np.array([[0.0, -c[2], c[1]], [c[2], 0.0, -c[0]], [-c[1], c[0], 0.0]])
-        gain = profile.mass_kg * np.vstack([np.eye(3), lever]) @ axes  # (6, A)
+        axes = np.hstack([spec.axis_matrix() for spec in specs])  # (3, A)
+        if len(specs) == 1:  # the desk taken as translating: d̈ = R_a f
+            lever = np.array([[0.0, -c[2], c[1]], [c[2], 0.0, -c[0]], [-c[1], c[0], 0.0]])
+            gain = m * np.vstack([np.eye(3), lever]) @ axes  # (6, A)
+        else:  # the rigid motion q̈ = H⁺ f, then M q̈
+            rows = []
+            for spec in specs:
+                p = spec.position
+                px = np.array([[0.0, -p[2], p[1]], [p[2], 0.0, -p[0]], [-p[1], p[0], 0.0]])
+                rows.append(spec.axis_matrix().T @ np.hstack([np.eye(3), -px]))
+            motion = np.linalg.pinv(np.vstack(rows))  # (6, A)
+            gain = spatial_inertia(m, c, profile.inertia_about_com()) @ motion
         rest = axes.T @ np.array([0.0, 0.0, STANDARD_GRAVITY])
+        limit = np.concatenate([np.full(len(spec.axes), spec.range_m_s2) for spec in specs])
         return cls(
             gain=np.ascontiguousarray(gain),
             rest=rest,
-            limit=float(spec.range_m_s2),
+            limit=limit,
             n_axes=axes.shape[1],
-            columns=tuple(spec.column_names()),
+            columns=tuple(profile.accelerometer_columns()),
         )
 
 
@@ -135,10 +156,9 @@ def accelerometer_readings(
     """The accelerometer's readings (k, A) from a recording's extra columns, or None when the
     desk has no accelerometer or the recording lacks its columns (then every sample is
     estimated uncompensated, flagged)."""
-    spec = profile.accelerometer
-    if spec is None:
+    names = profile.accelerometer_columns()
+    if not names:
         return None
-    names = spec.column_names()
     if not all(name in columns for name in names):
         return None
     return np.column_stack([np.asarray(columns[name], dtype=float) for name in names])

@@ -9,6 +9,7 @@ which every consumer of sensor data uses.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
@@ -30,6 +31,20 @@ ACCEL_AXES = ("x", "y", "z")
 STANDARD_GRAVITY = 9.80665  # m/s²: the desk's weight (simulator), an accelerometer's rest reading
 DEFAULT_TOP_HEIGHT_M = 0.7  # a desk's top above its sensors when the profile has no surface
 COM_HEIGHT_FRACTION = 0.85  # the default centre of mass: a heavy top on light legs
+
+
+def spatial_inertia(mass_kg: float, center_of_mass: np.ndarray, inertia: np.ndarray) -> np.ndarray:
+    """The (6, 6) spatial inertia M about the desk origin for small motions q = [d; θ]: the
+    inertial wrench about the origin is M q̈ = [m (d̈ + θ̈ × c); m c × d̈ + I_o θ̈], with
+    ``inertia`` (3, 3) about the centre of mass c and I_o = I_c − m [c]×² (parallel axes)."""
+    c = np.asarray(center_of_mass, dtype=float)
+    cx = np.array([[0.0, -c[2], c[1]], [c[2], 0.0, -c[0]], [-c[1], c[0], 0.0]])
+    mass = np.zeros((6, 6))
+    mass[:3, :3] = mass_kg * np.eye(3)
+    mass[:3, 3:] = -mass_kg * cx
+    mass[3:, :3] = mass_kg * cx
+    mass[3:, 3:] = inertia - mass_kg * cx @ cx
+    return mass
 
 
 def rotation_matrix(roll_deg: float, pitch_deg: float, yaw_deg: float) -> np.ndarray:
@@ -70,6 +85,15 @@ class SensorSpec:
         return [f"{self.name}_{axis}" for axis in AXES]
 
 
+def accel_column_prefix(index: int) -> str:
+    """The recording columns' prefix of a desk's ``index``-th accelerometer (from 0): ``acc``,
+    then ``acc2``, ``acc3``, …"""
+    return "acc" if index == 0 else f"acc{index + 1}"
+
+
+ACCEL_COLUMN = re.compile(r"acc(?:[2-9]|[1-9][0-9]+)?_[xyz]")  # any accelerometer's column
+
+
 @dataclass(frozen=True)
 class AccelerometerSpec:
     """An accelerometer fixed to the desk top (optional; issue 15 item 6).
@@ -77,7 +101,8 @@ class AccelerometerSpec:
     It is sampled with the sensors (one reading per sample, the same clock and rate) and
     reports the specific force (acceleration minus gravity, so +g upwards at rest) along
     ``axes`` of its own frame, in m/s²; recordings carry it as the columns
-    :meth:`column_names` (``acc_x, acc_y, acc_z``).
+    :meth:`column_names` (``acc_x, acc_y, acc_z``; a desk's second and third accelerometers,
+    profile ``accelerometers:``, ``acc2_x, …`` and ``acc3_x, …``: :func:`accel_column_prefix`).
     """
 
     position: np.ndarray  # (3,) desk frame, metres
@@ -85,10 +110,11 @@ class AccelerometerSpec:
     axes: tuple[str, ...] = ACCEL_AXES  # which of its axes it measures, in column order
     noise_m_s2: float = 0.0  # σ of each axis's white noise (used by the simulator)
     range_m_s2: float = math.inf  # |reading| >= this is saturated
+    prefix: str = "acc"  # its recording columns' prefix: see accel_column_prefix
 
     def column_names(self) -> list[str]:
         """Recording columns of the accelerometer, in order."""
-        return [f"acc_{axis}" for axis in self.axes]
+        return [f"{self.prefix}_{axis}" for axis in self.axes]
 
     def axis_matrix(self) -> np.ndarray:
         """(3, A): the measured axes as unit vectors in the desk frame."""
@@ -183,7 +209,12 @@ class DeskProfile:
     natural_frequency_hz: float | None = None  # optional, used by the simulator
     # optional: the desk's centre of mass (desk frame, m); see :meth:`center_of_mass`
     center_of_mass_m: np.ndarray | None = None
-    accelerometer: AccelerometerSpec | None = None  # optional, see AccelerometerSpec
+    # optional: principal moments of inertia about the centre of mass along the desk's axes
+    # (kg·m²); see :meth:`inertia_about_com`
+    inertia_kg_m2: tuple[float, float, float] | None = None
+    # optional accelerometers on the desk (see AccelerometerSpec): one measures the desk's
+    # translation; three or more, not on one line, its rotation too (hapticdesk.estimator.inertia)
+    accelerometers: tuple[AccelerometerSpec, ...] = ()
 
     @property
     def sensor_names(self) -> list[str]:
@@ -228,6 +259,39 @@ class DeskProfile:
                 positions[:, 2].mean() + COM_HEIGHT_FRACTION * self.top_height_m(),
             ]
         )
+
+    @property
+    def accelerometer(self) -> AccelerometerSpec | None:
+        """The desk's first accelerometer, or None when it has none."""
+        return self.accelerometers[0] if self.accelerometers else None
+
+    def accelerometer_columns(self) -> list[str]:
+        """The recording columns of all the desk's accelerometers, in order."""
+        return [c for a in self.accelerometers for c in a.column_names()]
+
+    def inertia_about_com(self, mass_kg: float | None = None) -> np.ndarray:
+        """The desk's inertia tensor (3, 3) about its centre of mass, desk axes:
+        ``desk.inertia_kg_m2`` when the profile gives it, else a solid box of ``mass_kg``
+        (default the profile's) as wide and deep as the top board (its first horizontal
+        surface's outline, else the legs' span plus 0.1 m) and as tall as the top; the
+        simulator's default too."""
+        if self.inertia_kg_m2 is not None:
+            return np.diag(np.asarray(self.inertia_kg_m2, dtype=float))
+        m = float(mass_kg if mass_kg is not None else self.mass_kg or 0.0)
+        lx, ly = self.footprint_m()
+        h = self.top_height_m()
+        return np.diag([m / 12 * (ly**2 + h**2), m / 12 * (lx**2 + h**2), m / 12 * (lx**2 + ly**2)])
+
+    def footprint_m(self) -> tuple[float, float]:
+        """Width and depth of the desk: the first horizontal surface's outline, else the legs'
+        span plus 0.1 m."""
+        for surf in self.surfaces:
+            if surf.is_desk_xy:
+                span = np.ptp(surf.polygon, axis=0)
+                return float(span[0]), float(span[1])
+        positions = np.array([s.position for s in self.sensors], dtype=float)
+        span = np.ptp(positions[:, :2], axis=0) + 0.1
+        return float(span[0]), float(span[1])
 
     def wrench_map(self) -> np.ndarray:
         """(6, 6·S) matrix A with [F_o; M_o] = A · w for the stacked channels w.

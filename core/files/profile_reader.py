@@ -19,6 +19,7 @@ from hapticdesk.files.profile import (
     EstimationSettings,
     SensorSpec,
     Surface,
+    accel_column_prefix,
     rotation_matrix,
 )
 from hapticdesk.files.yamlfile import (
@@ -42,10 +43,11 @@ _TOP_KEYS = {
     "can",
     "desk",
     "accelerometer",
+    "accelerometers",
 }
 _SENSOR_KEYS = {"name", "position", "rotation_rpy_deg", "reports", "range"}
 _SURFACE_KEYS = {"name", "origin", "normal", "polygon", "u_axis"}
-_DESK_KEYS = {"mass_kg", "natural_frequency_hz", "center_of_mass_m", "note"}
+_DESK_KEYS = {"mass_kg", "natural_frequency_hz", "center_of_mass_m", "inertia_kg_m2", "note"}
 _ACCEL_KEYS = {"position", "rotation_rpy_deg", "axes", "noise_m_s2", "range_m_s2"}
 
 
@@ -88,7 +90,7 @@ def read_profile(doc: MarkedDict, path: Path) -> DeskProfile:
     can = doc.get("can")
     if can is not None:
         can = require_mapping(can, doc.where("can"), "`can`")
-    mass = natural = com = None
+    mass = natural = com = inertia = None
     if "desk" in doc:
         desk = require_mapping(doc["desk"], doc.where("desk"), "`desk`")
         check_keys(desk, _DESK_KEYS, "`desk`")
@@ -103,15 +105,25 @@ def read_profile(doc: MarkedDict, path: Path) -> DeskProfile:
                     3,
                 )
             )
-    accelerometer = None
-    if "accelerometer" in doc:
-        accelerometer = _accelerometer(doc["accelerometer"], doc.where("accelerometer"))
-        if mass is None:
-            raise ConfigError(
-                doc.where("accelerometer", of_key=True),
-                "an `accelerometer` needs the desk's mass: give `desk: {mass_kg: ...}` "
-                "(the inertial force it removes is mass × acceleration)",
+        if "inertia_kg_m2" in desk:
+            moments = vector(
+                desk["inertia_kg_m2"], desk.where("inertia_kg_m2"), "`inertia_kg_m2` of `desk`", 3
             )
+            if not all(math.isfinite(v) and v > 0 for v in moments):
+                raise ConfigError(
+                    desk.where("inertia_kg_m2"),
+                    "`inertia_kg_m2` of `desk` must be three positive moments of inertia "
+                    f"(kg·m², about the centre of mass along the desk's x, y, z), found {moments}",
+                )
+            inertia = (moments[0], moments[1], moments[2])
+    accelerometers = _accelerometers(doc)
+    if accelerometers and mass is None:
+        key = "accelerometer" if "accelerometer" in doc else "accelerometers"
+        raise ConfigError(
+            doc.where(key, of_key=True),
+            f"`{key}` needs the desk's mass: give `desk: {{mass_kg: ...}}` "
+            "(the inertial force it removes is mass × acceleration)",
+        )
     given = doc["estimation"] if isinstance(doc.get("estimation"), MarkedDict) else {}
     if natural is not None:
         # the filters must stay below the desk's lowest mode, as the paper's 4.77 Hz stays
@@ -131,12 +143,45 @@ def read_profile(doc: MarkedDict, path: Path) -> DeskProfile:
         mass_kg=mass,
         natural_frequency_hz=natural,
         center_of_mass_m=com,
-        accelerometer=accelerometer,
+        inertia_kg_m2=inertia,
+        accelerometers=accelerometers,
     )
 
 
-def _accelerometer(item: Any, where: Any) -> AccelerometerSpec:
-    what = "`accelerometer`"
+def _accelerometers(doc: MarkedDict) -> tuple[AccelerometerSpec, ...]:
+    """``accelerometer:`` (one) or ``accelerometers:`` (a list: three or more, not on one
+    line, measure the desk's rotation too; hapticdesk.estimator.inertia)."""
+    if "accelerometer" in doc and "accelerometers" in doc:
+        raise ConfigError(
+            doc.where("accelerometers", of_key=True),
+            "give either `accelerometer` (one) or `accelerometers` (a list), not both",
+        )
+    if "accelerometer" in doc:
+        return (_accelerometer(doc["accelerometer"], doc.where("accelerometer"), 0),)
+    if "accelerometers" not in doc:
+        return ()
+    items = doc["accelerometers"]
+    if not isinstance(items, list) or not items:
+        raise ConfigError(
+            doc.where("accelerometers"),
+            "`accelerometers` must be a list of accelerometers "
+            f"({{position: [x, y, z], ...}} each), found {items!r}",
+        )
+    places = items if isinstance(items, MarkedList) else None
+    return tuple(
+        _accelerometer(
+            item,
+            places.where(i) if places is not None else doc.where("accelerometers"),
+            i,
+            f"accelerometer {i + 1} of `accelerometers`",
+        )
+        for i, item in enumerate(items)
+    )
+
+
+def _accelerometer(
+    item: Any, where: Any, index: int, what: str = "`accelerometer`"
+) -> AccelerometerSpec:
     m = require_mapping(item, where, what)
     check_keys(m, _ACCEL_KEYS, what, required={"position"})
     position = np.array(vector(m["position"], m.where("position"), f"`position` of {what}", 3))
@@ -162,7 +207,9 @@ def _accelerometer(item: Any, where: Any) -> AccelerometerSpec:
         axes = tuple(a for a in ACCEL_AXES if a in raw)  # columns in x, y, z order
     noise = number(m, "noise_m_s2", what, default=0.0, minimum=0.0)
     limit = number(m, "range_m_s2", what, default=math.inf, minimum=0.0, exclusive_minimum=True)
-    return AccelerometerSpec(position, rotation_matrix(*rpy), axes, noise, limit)
+    return AccelerometerSpec(
+        position, rotation_matrix(*rpy), axes, noise, limit, accel_column_prefix(index)
+    )
 
 
 def _sensor(item: Any, where: Any, index: int) -> SensorSpec:

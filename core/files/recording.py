@@ -24,11 +24,10 @@ from typing import IO, TextIO
 
 import numpy as np
 
-from hapticdesk.files.profile import AXES
+from hapticdesk.files.profile import ACCEL_COLUMN, AXES
 from hapticdesk.files.yamlfile import ConfigError
 
 RECORDING_SUFFIXES = (".csv", ".npz")
-ACCEL_COLUMNS = ("acc_x", "acc_y", "acc_z")  # an accelerometer's readings, when recorded
 BLOCK_ROWS = 16_384  # samples per block read: ~14 s at 1.2 kHz; ~25 MB to parse a CSV block
 # an empty cell (between commas, or at either end of a line that has commas) reads as NaN
 _EMPTY_CELL = re.compile(r"(?m)(?:^|(?<=,))[ \t]*(?=,)|(?<=,)[ \t]*$")
@@ -70,12 +69,18 @@ class Recording:
 
 
 def accel_table(extra: dict[str, np.ndarray]) -> np.ndarray | None:
-    """The accelerometer columns among ``extra`` as (k, A) in x, y, z order, or None when
-    there are none (the estimator checks them against the desk's profile)."""
-    names = [c for c in ACCEL_COLUMNS if c in extra]
+    """The accelerometer columns among ``extra`` as (k, A): ``acc_*``, then ``acc2_*``, …,
+    each in x, y, z order (a profile's order), or None when there are none (the estimator
+    checks them against the desk's profile)."""
+    names = sorted((c for c in extra if ACCEL_COLUMN.fullmatch(c)), key=_accel_column_order)
     if not names:
         return None
     return np.column_stack([np.asarray(extra[c], dtype=float) for c in names])
+
+
+def _accel_column_order(name: str) -> tuple[int, str]:
+    prefix, axis = name.split("_")
+    return int(prefix[3:] or 1), axis
 
 
 def needed_columns(sensor_names: list[str]) -> list[str]:
@@ -270,7 +275,7 @@ class _CsvReader:
             # other columns are ignored (DESIGN.md): a text column is not an error; but an
             # accelerometer's columns are readings, whose silent loss would turn its
             # compensation off
-            if extra and extra[0][0] not in ACCEL_COLUMNS:
+            if extra and not ACCEL_COLUMN.fullmatch(extra[0][0]):
                 self.extra.remove(extra[0])
                 return
             raise ConfigError(

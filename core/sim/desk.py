@@ -43,7 +43,7 @@ import scipy.linalg
 import scipy.optimize
 import scipy.signal
 
-from hapticdesk.files.profile import STANDARD_GRAVITY, DeskProfile
+from hapticdesk.files.profile import STANDARD_GRAVITY, DeskProfile, spatial_inertia
 
 DEFAULT_MASS_KG = 13.7  # the paper's desk (Table 1)
 DEFAULT_SWAY_HZ = 5.9  # the paper's desk (§3.2)
@@ -131,24 +131,10 @@ class DeskModel:
         self.center_of_mass = com
         if params.inertia_kg_m2 is not None:
             inertia = np.diag(np.asarray(params.inertia_kg_m2, dtype=float))
-        else:
-            lx, ly = _footprint(profile, positions)
-            m = self.mass_kg
-            inertia = np.diag(
-                [
-                    m / 12 * (ly**2 + height**2),
-                    m / 12 * (lx**2 + height**2),
-                    m / 12 * (lx**2 + ly**2),
-                ]
-            )
+        else:  # the profile's, or a solid box of this mass (the estimator's default too)
+            inertia = profile.inertia_about_com(self.mass_kg)
         # spatial inertia about the origin for small motions (d, θ): momentum = M [ḋ; θ̇]
-        cx = skew(com)
-        mass = np.zeros((6, 6))
-        mass[:3, :3] = self.mass_kg * np.eye(3)
-        mass[:3, 3:] = -self.mass_kg * cx
-        mass[3:, :3] = self.mass_kg * cx
-        mass[3:, 3:] = inertia - self.mass_kg * cx @ cx
-        self.mass_matrix = mass
+        self.mass_matrix = spatial_inertia(self.mass_kg, com, inertia)
 
         h_spring = params.leg_spring_height_m
         h_spring = 0.5 * height if h_spring is None else float(h_spring)
@@ -168,7 +154,8 @@ class DeskModel:
 
         def lowest(log_k: float) -> float:
             k = self._assemble(math.exp(log_k) * sway_unit + vert_unit)
-            return float(np.sqrt(scipy.linalg.eigh(k, mass, eigvals_only=True)[0])) - target
+            lowest_mode = scipy.linalg.eigh(k, self.mass_matrix, eigvals_only=True)[0]
+            return float(np.sqrt(lowest_mode)) - target
 
         # the lowest mode rises monotonically with the sway stiffness: bracket, then solve
         lo, hi = math.log(1e-3), math.log(1e9)
@@ -362,13 +349,3 @@ def _check_positive(**values: float) -> None:
     for name, value in values.items():
         if not (value > 0 and math.isfinite(value)):
             raise ValueError(f"{name} must be a positive number, found {value}")
-
-
-def _footprint(profile: DeskProfile, positions: np.ndarray) -> tuple[float, float]:
-    """Width and depth of the desk: the first horizontal surface's outline, else the legs'."""
-    for surf in profile.surfaces:
-        if surf.is_desk_xy:
-            span = np.ptp(surf.polygon, axis=0)
-            return float(span[0]), float(span[1])
-    span = np.ptp(positions[:, :2], axis=0) + 0.1
-    return float(span[0]), float(span[1])

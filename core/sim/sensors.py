@@ -126,23 +126,24 @@ class SensorModel:
 
 
 class AccelerometerModel:
-    """An accelerometer fixed to the desk top (profile ``accelerometer``): the specific force
-    at its mount, in its own frame, plus white noise, clipped at its range.
+    """The accelerometers fixed to the desk (profile ``accelerometer`` or ``accelerometers``):
+    the specific force at each mount, in its own frame, plus white noise, clipped at its range.
 
     For the small motions of :class:`~hapticdesk.sim.desk.DeskModel` (``q = [d; θ]`` about
     the desk origin) the mount at ``p`` accelerates by ``a_p = d̈ + θ̈ × p`` and the
     accelerometer, turned by ``θ``, reads ``Rᵀ (a_p - g + θ × g)`` with g = (0, 0, -9.81)
     m/s² in the desk frame: +g upwards at rest, and the tilt's share of gravity as a real one
-    does.
+    does. Readings are the accelerometers' axes one after the other (their columns' order).
     """
 
     def __init__(self, profile: DeskProfile) -> None:
-        spec = profile.accelerometer
-        if spec is None:
+        if not profile.accelerometers:
             raise ValueError(f"desk {profile.name!r} has no accelerometer")
-        self.spec = spec
-        self._axes = spec.axis_matrix()  # (3, A) desk frame
-        self._lever = skew(spec.position)
+        self.specs = profile.accelerometers
+        self.columns = profile.accelerometer_columns()
+        self._parts = [(spec.axis_matrix(), skew(spec.position)) for spec in self.specs]
+        self._noise = np.concatenate([np.full(len(s.axes), s.noise_m_s2) for s in self.specs])
+        self._limit = np.concatenate([np.full(len(s.axes), s.range_m_s2) for s in self.specs])
 
     def readings(
         self,
@@ -154,12 +155,14 @@ class AccelerometerModel:
     ) -> np.ndarray:
         """Readings (k, A) for desk accelerations ``q̈`` and positions ``q`` (k, 6) each."""
         gravity = np.array([0.0, 0.0, -STANDARD_GRAVITY])
-        accel = qdd[:, :3] - qdd[:, 3:] @ self._lever.T  # d̈ + θ̈ × p = d̈ - [p]× θ̈
-        specific = accel - gravity + np.cross(q[:, 3:], gravity)
-        out = specific @ self._axes
-        if noise_rng is not None and self.spec.noise_m_s2 > 0:
-            out += noise_rng.standard_normal(out.shape) * self.spec.noise_m_s2
+        tilt = np.cross(q[:, 3:], gravity)
+        parts = []
+        for axes, lever in self._parts:
+            accel = qdd[:, :3] - qdd[:, 3:] @ lever.T  # d̈ + θ̈ × p = d̈ - [p]× θ̈
+            parts.append((accel - gravity + tilt) @ axes)
+        out = parts[0] if len(parts) == 1 else np.hstack(parts)
+        if noise_rng is not None and (self._noise > 0).any():
+            out += noise_rng.standard_normal(out.shape) * self._noise
         if saturation:
-            limit = self.spec.range_m_s2
-            np.clip(out, -limit, limit, out=out)
+            np.clip(out, -self._limit, self._limit, out=out)
         return out

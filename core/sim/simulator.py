@@ -91,13 +91,10 @@ class SimulationRun:
             self.sensor_model.draw_drift(stream(self.seed, STREAM_DRIFT)) if effects.drift else None
         )
         self._discrete = self.model.discretize(1.0 / self.fs) if effects.dynamics else None
-        spec = profile.accelerometer
-        self.accelerometer = AccelerometerModel(profile) if spec is not None else None
+        self.accelerometer = AccelerometerModel(profile) if profile.accelerometers else None
         #: the per-sample columns of :meth:`chunks`' third item: the ground truth, then the
-        #: accelerometer's readings when the desk has one (recordings' extra columns)
-        self.columns: tuple[str, ...] = TRUTH_COLUMNS + tuple(
-            spec.column_names() if spec is not None else ()
-        )
+        #: accelerometers' readings when the desk has some (recordings' extra columns)
+        self.columns: tuple[str, ...] = TRUTH_COLUMNS + tuple(profile.accelerometer_columns())
 
     def chunks(self) -> Iterator[tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]]:
         """Yield ``(t, wrench, columns)`` chunk by chunk, from the start: ``columns`` maps
@@ -145,8 +142,7 @@ class SimulationRun:
             noise_rng=stream(self.seed, STREAM_ACCEL, chunk) if self.effects.noise else None,
             saturation=self.effects.saturation,
         )
-        names = self.accelerometer.spec.column_names()
-        return {name: readings[:, i] for i, name in enumerate(names)}
+        return {name: readings[:, i] for i, name in enumerate(self.accelerometer.columns)}
 
 
 def simulate(

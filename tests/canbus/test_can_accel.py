@@ -120,3 +120,11 @@ can:
     )
     with pytest.raises(ConfigError, match=r"desk.yaml:15:\d+: .*no signal `Ux`"):
         can_config(wrong)
+    several = profile_text(
+        base.format(
+            accel="accelerometers: [{position: [0, 0, 0.7]}, {position: [0.3, 0, 0.7]}]\n",
+            signals="x: ACCEL.Ax, y: ACCEL.Ay, z: ACCEL.Az",
+        )
+    )
+    with pytest.raises(ConfigError, match=r"desk.yaml:15:\d+: .*has 2: several accelerometers"):
+        can_config(several)

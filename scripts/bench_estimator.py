@@ -10,7 +10,10 @@ contact: the worst case) or ``--scene day`` ordinary use (about a tenth in conta
    vectorised numpy/scipy version of the paper's method in ``scripts/reference_paper.py``
    (``force``, ``diff``, ``switched``), run in turn in this process, ``--repeats`` times
    each; the figure is the median. ``× ref`` is the reference's time over the method's (the
-   reference's own method, or its ``switched`` for ``fused``).
+   reference's own method, or its ``switched`` for ``fused``). ``floor`` is what every
+   sample must go through in this design before anything is detected or located: the wrench
+   map and the estimator's own filter bank (:class:`FilterBank`, the method's filters) in
+   the same pieces as a push; ``floor × ref`` bounds what the method's ``× ref`` can reach.
 2. A long batch (``--samples``, 2 million by default: the recording repeated), medians of
    ``--batch-repeats`` runs; ``--samples 0`` skips it.
 3. Streaming: 10 s after the tare pushed one sample at a time and in blocks of 12, each push
@@ -50,7 +53,9 @@ from typing import Any  # noqa: E402
 import numpy as np  # noqa: E402
 
 from hapticdesk.bench.scenes import desk_day, paper_experiment  # noqa: E402
-from hapticdesk.estimator import ContactEstimator  # noqa: E402
+from hapticdesk.estimator import BATCH_CHUNK, ContactEstimator  # noqa: E402
+from hapticdesk.estimator.filter_bank import FilterBank  # noqa: E402
+from hapticdesk.estimator.settings import EstimatorSettings  # noqa: E402
 from hapticdesk.files.profile import METHODS, DeskProfile, load_profile  # noqa: E402
 from hapticdesk.sim import simulate  # noqa: E402
 
@@ -71,6 +76,19 @@ def _median_seconds(run: Callable[[], object], repeats: int) -> float:
     return statistics.median(times)
 
 
+def floor(
+    desk: DeskProfile, settings: EstimatorSettings, t: np.ndarray, wrench: np.ndarray
+) -> None:
+    """The wrench map and the method's filter bank (``settings``) over (t, wrench), in the
+    pieces a push uses: the part of a push no later stage can save."""
+    bank = FilterBank(settings, [])
+    stacked = wrench.reshape(len(t), -1)
+    mapping = desk.wrench_map()
+    for a in range(0, len(t), BATCH_CHUNK):
+        raw = mapping @ stacked[a : a + BATCH_CHUNK].T
+        bank.process(t[a : a + BATCH_CHUNK], raw, np.zeros(raw.shape[1], np.uint8), True)
+
+
 def _reference_method(method: str) -> str:
     return method if method in REFERENCE_METHODS else "switched"
 
@@ -87,9 +105,12 @@ def side_by_side(
         jobs[method] = lambda m=method: ContactEstimator(desk, method=m)
     for method in REFERENCE_METHODS:
         jobs[f"ref:{method}"] = lambda m=method: reference_contacts(desk, t, wrench, m)
+    for method in METHODS:
+        settings = ContactEstimator(desk, method=method).stage_settings  # (not on the clock)
+        jobs[f"floor:{method}"] = lambda s=settings: floor(desk, s, t, wrench)
     for _ in range(repeats):
         for name, job in jobs.items():
-            if name.startswith("ref:"):
+            if name.startswith(("ref:", "floor:")):
                 start = time.perf_counter()
                 job()
             else:
@@ -182,6 +203,10 @@ def main() -> None:
             "times_reference_minute": round(
                 times[f"ref:{ref}"]["median_s"] / times[method]["median_s"], 2
             ),
+            "floor_minute_ms": round(times[f"floor:{method}"]["median_s"] * 1e3, 1),
+            "floor_times_reference": round(
+                times[f"ref:{ref}"]["median_s"] / times[f"floor:{method}"]["median_s"], 2
+            ),
         }
         if long:
             row["batch_samples_per_s"] = round(args.samples / long[method]["median_s"])
@@ -237,7 +262,7 @@ def main() -> None:
         f"{STREAM_S:g} s, {args.stream_repeats} runs"
     )
     head = (
-        f"{'method':<9}{'1 min ms':>9}{'ref ms':>8}{'× ref':>7}"
+        f"{'method':<9}{'1 min ms':>9}{'ref ms':>8}{'× ref':>7}{'floor ms':>9}{'× ref':>7}"
         + (f"{'batch Msa/s':>12}{'ref Msa/s':>10}{'× ref':>7}" if long else "")
         + f"{'µs/push':>9}{'in cont.':>9}{'p99.9':>7}{'max':>7}{'slow/s':>7}{'µs/sa k=12':>11}"
     )
@@ -245,6 +270,7 @@ def main() -> None:
     for r in rows:
         line = f"{r['method']:<9}{r['minute_ms']:>9}{r['reference_minute_ms']:>8}"
         line += f"{r['times_reference_minute']:>7}"
+        line += f"{r['floor_minute_ms']:>9}{r['floor_times_reference']:>7}"
         if long:
             line += f"{r['batch_samples_per_s'] / 1e6:>12.2f}"
             line += f"{r['reference_batch_samples_per_s'] / 1e6:>10.2f}"
@@ -253,7 +279,10 @@ def main() -> None:
         line += f"{r['us_per_push_max']:>7.0f}{r['slow_pushes_per_s']:>7}"
         line += f"{r['us_per_sample_block12']:>11}"
         print(line)
-    print("(ref: scripts/reference_paper.py, the same method; for `fused` its `switched`)")
+    print(
+        "(ref: scripts/reference_paper.py, the same method; for `fused` its `switched`. "
+        "floor: the wrench map and the method's filter bank alone)"
+    )
 
 
 if __name__ == "__main__":

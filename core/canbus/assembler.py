@@ -56,8 +56,8 @@ NOTICES_KEPT = 1000  # notices a source or assembler keeps (the oldest go first)
 @dataclass
 class AssembledBlock:
     """Samples given out by one push: ``t`` (k,), ``wrench`` (k, S, 6), new notices, and the
-    accelerometer's readings ``accel`` (k, A) when the desk has one on the bus (NaN where its
-    frame is missing or its status voids it)."""
+    accelerometers' readings ``accel`` (k, A) when the desk has some on the bus, one after the
+    other (NaN where a frame is missing or its status voids it)."""
 
     t: np.ndarray
     wrench: np.ndarray
@@ -164,7 +164,7 @@ class FrameAssembler:
         self._silent = np.zeros(len(names), dtype=bool)
         self._late_frames = np.zeros(len(names), dtype=np.int64)  # since the sensor last fit
         self._stopped: SensorSilentError | None = None
-        self._accel_axes = decoding.accel_axes  # the last group is the accelerometer's
+        self._accel_axes = decoding.accel_axes  # the last groups: the accelerometers
 
     # --- public -------------------------------------------------------------------------
 
@@ -478,10 +478,12 @@ class FrameAssembler:
         for notice in notices:
             log.warning("%s", notice.message)
         self.notices.extend(notices)
-        if self._accel_axes is None:
+        if not self._accel_axes:
             return AssembledBlock(t, wrench, notices, self._stopped)
-        accel = wrench[:, -1, self._accel_axes]
-        return AssembledBlock(t, wrench[:, :-1], notices, self._stopped, accel)
+        sensors = wrench.shape[1] - len(self._accel_axes)
+        parts = [wrench[:, sensors + i, axes] for i, axes in enumerate(self._accel_axes)]
+        accel = parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
+        return AssembledBlock(t, wrench[:, :sensors], notices, self._stopped, accel)
 
     # --- counting -----------------------------------------------------------------------
 

@@ -9,7 +9,9 @@ Validated here with ``file:line:column`` positions (the profile keeps the sectio
 
 A desk with an ``accelerometer`` reads it from database signals too:
 ``accelerometer: {x: ACCEL.Ax, y: ACCEL.Ay, z: ACCEL.Az, counter: ACCEL.Seq}``; it is
-assembled with the sensors as one more group of channels (:data:`ACCEL_GROUP`).
+assembled with the sensors as one more group of channels (:func:`accel_group`). A desk with
+several (profile ``accelerometers:``) lists them in the profile's order:
+``accelerometers: [{x: ACCEL.Ax, …}, {x: ACCEL2.Ax, …}, …]``.
 
 See docs/can.md for every key.
 """
@@ -41,9 +43,17 @@ from hapticdesk.files.yamlfile import (
 )
 
 ASSEMBLE_MODES = ("counter", "time")
-#: the accelerometer's name among the groups of channels the frames are assembled into (its
-#: x, y, z decode into the group's first three channels)
+#: the (first) accelerometer's name among the groups of channels the frames are assembled
+#: into (its x, y, z decode into the group's first three channels)
 ACCEL_GROUP = "accelerometer"
+
+
+def accel_group(index: int) -> str:
+    """The group name of the desk's ``index``-th accelerometer (from 0): ``accelerometer``,
+    then ``accelerometer2``, …"""
+    return ACCEL_GROUP if index == 0 else f"{ACCEL_GROUP}{index + 1}"
+
+
 SILENT_POLICIES = ("continue", "stop")
 _CAN_KEYS = {
     "interface",
@@ -58,6 +68,7 @@ _CAN_KEYS = {
     "reconnect_timeout_s",
     "sensors",
     "accelerometer",
+    "accelerometers",
 }
 _SIGNAL_SENSOR_KEYS = set(AXES) | {"counter", "status"}
 _ATI_KEYS = {"base", "calibration", "slot"}
@@ -111,15 +122,15 @@ class CanConfig:
     silent_sensor: str = "continue"
     reconnect_timeout_s: float = 10.0
     where: Position | str = ""
-    #: the desk's accelerometer from database signals (axes fx, fy, fz stand for its x, y, z)
-    accelerometer: SignalSensor | None = None
+    #: the desk's accelerometers from database signals, in the profile's order (axes fx, fy,
+    #: fz stand for their x, y, z)
+    accelerometers: tuple[SignalSensor, ...] = ()
 
     def groups(self) -> list[tuple[str, SignalSensor | AtiSensor]]:
         """The groups of channels assembled into samples: the sensors in the profile's
-        order, then the accelerometer when there is one."""
-        out = list(self.sensors.items())
-        if self.accelerometer is not None:
-            out.append((ACCEL_GROUP, self.accelerometer))
+        order, then the accelerometers."""
+        out: list[tuple[str, SignalSensor | AtiSensor]] = list(self.sensors.items())
+        out += [(accel_group(i), a) for i, a in enumerate(self.accelerometers)]
         return out
 
     @property
@@ -181,11 +192,9 @@ def parse_can_section(section: MarkedDict, profile: DeskProfile) -> CanConfig:
         else:
             sensors[name] = _signal_sensor(item, name, database, section)
     _check_distinct_ids(sensors, database, sensors_raw)
-    accelerometer = None
-    if "accelerometer" in section:
-        accelerometer = _accelerometer(section, profile, database)
+    accelerometers = _accelerometers(section, profile, database)
 
-    counted = list(sensors.values()) + ([accelerometer] if accelerometer else [])
+    counted = list(sensors.values()) + list(accelerometers)
     all_counted = all(isinstance(s, SignalSensor) and s.counters for s in counted)
     assemble = choice(
         section, "assemble", ASSEMBLE_MODES, "`can`", default="counter" if all_counted else "time"
@@ -232,7 +241,7 @@ def parse_can_section(section: MarkedDict, profile: DeskProfile) -> CanConfig:
             section, "reconnect_timeout_s", "`can`", default=10.0, minimum=0.0
         ),
         where=section.where(),
-        accelerometer=accelerometer,
+        accelerometers=accelerometers,
     )
 
 
@@ -380,30 +389,73 @@ def _signal_sensor(item: MarkedDict, name: str, database: Any, section: MarkedDi
     return SignalSensor(axes=axes, counters=counters, status=status)
 
 
-def _accelerometer(section: MarkedDict, profile: DeskProfile, database: Any) -> SignalSensor:
-    """``can.accelerometer``: the profile's accelerometer axes as database signals."""
-    where = section.where("accelerometer")
-    spec = profile.accelerometer
-    if spec is None:
+def _accelerometers(
+    section: MarkedDict, profile: DeskProfile, database: Any
+) -> tuple[SignalSensor, ...]:
+    """``can.accelerometer`` (one) or ``can.accelerometers`` (a list, one entry for each of
+    the profile's accelerometers in its order): their axes as database signals."""
+    key = "accelerometers" if "accelerometers" in section else "accelerometer"
+    if key not in section:
+        return ()
+    if "accelerometer" in section and "accelerometers" in section:
         raise ConfigError(
-            section.where("accelerometer", of_key=True),
-            f"`can.accelerometer` decodes an accelerometer, but desk `{profile.name}` has "
+            section.where("accelerometers", of_key=True),
+            "give either `can.accelerometer` (one) or `can.accelerometers` (a list), not both",
+        )
+    have = len(profile.accelerometers)
+    if have == 0:
+        raise ConfigError(
+            section.where(key, of_key=True),
+            f"`can.{key}` decodes an accelerometer, but desk `{profile.name}` has "
             "none: add `accelerometer:` to the profile (where it is mounted, its axes)",
         )
-    if len(profile.accelerometers) > 1:
-        raise ConfigError(
-            section.where("accelerometer", of_key=True),
-            f"`can.accelerometer` decodes one accelerometer, but desk `{profile.name}` has "
-            f"{len(profile.accelerometers)}: several accelerometers over CAN are not supported "
-            "yet (record them as the columns acc_x, …, acc2_x, … of a recording instead)",
-        )
-    item = require_mapping(section["accelerometer"], where, "`can.accelerometer`")
-    check_keys(item, {"x", "y", "z", "counter", "status"}, "`can.accelerometer`")
+    if key == "accelerometer":
+        if have > 1:
+            raise ConfigError(
+                section.where(key, of_key=True),
+                f"`can.accelerometer` decodes one accelerometer, but desk `{profile.name}` has "
+                f"{have}: list them as `can.accelerometers: [{{x: …, y: …, z: …}}, …]` in the "
+                "profile's order",
+            )
+        items: list[tuple[Any, Any]] = [(section["accelerometer"], section.where(key))]
+    else:
+        raw = section["accelerometers"]
+        if not isinstance(raw, MarkedList) or len(raw) != have:
+            raise ConfigError(
+                section.where(key),
+                f"`can.accelerometers` must be a list of {have} entries, one for each of desk "
+                f"`{profile.name}`'s accelerometers in its order, found "
+                f"{len(raw) if isinstance(raw, list) else repr(raw)}",
+            )
+        items = [(item, raw.where(i)) for i, item in enumerate(raw)]
+    return tuple(
+        _accelerometer(item, where, i, profile, database, section)
+        for i, (item, where) in enumerate(items)
+    )
+
+
+def _accelerometer(
+    item: Any,
+    where: Any,
+    index: int,
+    profile: DeskProfile,
+    database: Any,
+    section: MarkedDict,
+) -> SignalSensor:
+    """One accelerometer's axes as database signals."""
+    spec = profile.accelerometers[index]
+    what = (
+        "`can.accelerometer`"
+        if "accelerometer" in section
+        else (f"accelerometer {index + 1} of `can.accelerometers`")
+    )
+    item = require_mapping(item, where, what)
+    check_keys(item, {"x", "y", "z", "counter", "status"}, what)
     given = [a for a in ("x", "y", "z") if a in item]
     if given != list(spec.axes):
         raise ConfigError(
             item.where(),
-            f"`can.accelerometer` must give a signal for each of the accelerometer's axes "
+            f"{what} must give a signal for each of the accelerometer's axes "
             f"({', '.join(spec.axes)}), found {', '.join(given) or 'none'}",
         )
     # the same rules as a sensor's signals, its x, y, z in a sensor's fx, fy, fz
@@ -415,7 +467,7 @@ def _accelerometer(section: MarkedDict, profile: DeskProfile, database: Any) -> 
     renamed.value_positions = {
         ("f" + k if k in ("x", "y", "z") else k): p for k, p in item.value_positions.items()
     }
-    return _signal_sensor(renamed, ACCEL_GROUP, database, section)
+    return _signal_sensor(renamed, accel_group(index), database, section)
 
 
 def _counter_modulus(database: Any, ref: SignalRef) -> int:

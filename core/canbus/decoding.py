@@ -114,7 +114,7 @@ class DeskDecoding:
     """Everything needed to turn a desk's frames into samples."""
 
     kinds: list[FrameKind]
-    # in the profile's sensor order, then the accelerometer's (config.ACCEL_GROUP) if any
+    # in the profile's sensor order, then the accelerometers' (config.accel_group) if any
     readings: list[SensorReading]
     n_fields: int
     request_sensor: dict[int, int]  # ATI sample-request identifier -> sensor index
@@ -143,13 +143,15 @@ class DeskDecoding:
         return [r.name for r in self.readings]
 
     @property
-    def accel_axes(self) -> list[int] | None:
-        """The accelerometer group's channels that hold its axes (x, y, z order), or None
-        when the desk has no accelerometer on the bus (its group is the last reading)."""
-        last = self.readings[-1] if self.readings else None
-        if not isinstance(last, SignalReading) or last.name != ACCEL_GROUP:
-            return None
-        return sorted(last.axis_columns)
+    def accel_axes(self) -> list[list[int]]:
+        """For each accelerometer on the bus, in order, the channels of its group that hold
+        its axes (x, y, z order); empty when the desk has none (their groups come last)."""
+        out = []
+        for reading in reversed(self.readings):
+            if not isinstance(reading, SignalReading) or not reading.name.startswith(ACCEL_GROUP):
+                break
+            out.append(sorted(reading.axis_columns))
+        return out[::-1]
 
     def classify(self, frames: FrameArray) -> np.ndarray:
         """Code per frame: a kind index (>= 0) or FOREIGN, WRONG_LENGTH, PROTOCOL, REQUEST, …"""

@@ -48,12 +48,10 @@ class FrameEncoder:
         self.config = config
         self.sensor_names = profile.sensor_names
         self.calibrations: dict[str, ati.AtiCalibration] = {}
-        # the accelerometer (when on the bus) is the group after the sensors: its x, y, z
-        # are the group's channels 0, 1, 2
-        spec = profile.accelerometer if config.accelerometer is not None else None
-        self.accel_channels = (
-            None if spec is None else [("x", "y", "z").index(a) for a in spec.axes]
-        )
+        # the accelerometers (when on the bus) are the groups after the sensors: the x, y, z
+        # of each are its group's channels 0, 1, 2
+        specs = profile.accelerometers if config.accelerometers else ()
+        self.accel_channels = [[("x", "y", "z").index(a) for a in spec.axes] for spec in specs]
         messages: dict[str, _Message] = {}
         for s, (name, sensor) in enumerate(config.groups()):
             if isinstance(sensor, AtiSensor):
@@ -96,18 +94,22 @@ class FrameEncoder:
         ``status`` (k, S) integers go into status signals or ATI status words. A sample with
         a NaN channel sends no frame carrying it (as a lost frame). ``polls`` adds the host's
         ATI poll requests (marked as sent) before each sample's replies, as a capture has them.
-        ``accel`` (k, A): the accelerometer's readings, for a desk with one on the bus (none
-        given: its frames are not sent, as a silent board).
+        ``accel`` (k, A): the accelerometers' readings, one after the other, for a desk with
+        some on the bus (none given: their frames are not sent, as silent boards).
         """
         t = np.asarray(t, dtype=float)
         k = len(t)
         status = np.zeros((k, len(self.sensor_names)), dtype=np.int64) if status is None else status
-        if self.accel_channels is not None:  # one more group: the accelerometer's
-            group = np.full((k, 1, 6), np.nan if accel is None else 0.0)
+        if self.accel_channels:  # more groups: the accelerometers'
+            n = len(self.accel_channels)
+            groups = np.full((k, n, 6), np.nan if accel is None else 0.0)
             if accel is not None:
-                group[:, 0, self.accel_channels] = accel
-            wrench = np.concatenate([wrench, group], axis=1)
-            status = np.concatenate([status, np.zeros((k, 1), np.int64)], axis=1)
+                first = 0
+                for i, channels in enumerate(self.accel_channels):
+                    groups[:, i, channels] = accel[:, first : first + len(channels)]
+                    first += len(channels)
+            wrench = np.concatenate([wrench, groups], axis=1)
+            status = np.concatenate([status, np.zeros((k, n), np.int64)], axis=1)
         per_sample: list[FrameArray] = []  # each (k,) frames of one kind, interleaved below
         for msg in self.messages:
             little = np.zeros(k, dtype=np.uint64)
@@ -386,7 +388,7 @@ def encoder_for(
             n: AtiSensor(base=ati.DEFAULT_BASE + i) for i, n in enumerate(profile.sensor_names)
         }
         config = (
-            replace(config, sensors=sensors, assemble="time", accelerometer=None)
+            replace(config, sensors=sensors, assemble="time", accelerometers=())
             if config
             else CanConfig(sensors=sensors, where=where)
         )

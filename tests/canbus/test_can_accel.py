@@ -126,5 +126,66 @@ can:
             signals="x: ACCEL.Ax, y: ACCEL.Ay, z: ACCEL.Az",
         )
     )
-    with pytest.raises(ConfigError, match=r"desk.yaml:15:\d+: .*has 2: several accelerometers"):
+    with pytest.raises(ConfigError, match=r"desk.yaml:15:\d+: .*has 2: list them as"):
         can_config(several)
+    short = profile_text(
+        base.format(
+            accel="accelerometers: [{position: [0, 0, 0.7]}, {position: [0.3, 0, 0.7]}]\n",
+            signals="x: ACCEL.Ax, y: ACCEL.Ay, z: ACCEL.Az",
+        ).replace(
+            "  accelerometer: {x: ACCEL.Ax, y: ACCEL.Ay, z: ACCEL.Az}",
+            "  accelerometers: [{x: ACCEL.Ax, y: ACCEL.Ay, z: ACCEL.Az}]",
+        )
+    )
+    with pytest.raises(ConfigError, match=r"desk.yaml:15:\d+: .*a list of 2 entries"):
+        can_config(short)
+
+
+@pytest.mark.parametrize("suffix", [".asc", ".blf"])
+def test_three_accelerometers_round_trip_through_a_can_log(tmp_path, suffix):
+    """kitamura2017-panel-accel's three boards (ACCEL, ACCEL2, ACCEL3 with the legs' counter):
+    each one's readings come back in the profile's order, a lost ACCEL2 frame voids that
+    sample's compensation only, and the estimator places presses on the panel from the
+    log's readings as from the simulator's."""
+    from hapticdesk.sim import Scene, Tap
+
+    desk = load_profile("kitamura2017-panel-accel")
+    config = can_config(desk)
+    assert [name for name, _ in config.groups()][-3:] == [
+        "accelerometer",
+        "accelerometer2",
+        "accelerometer3",
+    ]
+    scene = Scene(actions=[Tap(point=(-0.25, 0.0), surface="front", peak_n=5.0)])
+    rec = simulate(desk, scene, 4)
+    accel = accelerometer_readings(desk, rec.extra)
+    assert accel is not None and accel.shape == (len(rec.t), 9)
+    sent = accel.copy()
+    sent[3_000, 3:6] = np.nan  # no ACCEL2 frame for this sample
+    frames = FrameEncoder(config, desk).encode(rec.t, rec.wrench, accel=sent)
+    assert len(frames) == 11 * len(rec.t) - 1  # eight of the legs, three ACCEL* a sample
+    path = tmp_path / f"panel{suffix}"
+    write_frames(path, [frames])
+    back = read_can_log(path, desk)
+    assert len(back.t) == len(rec.t)
+    assert [c for c in back.extra if c.startswith("acc")] == desk.accelerometer_columns()
+    decoded = accelerometer_readings(desk, back.extra)
+    assert decoded is not None
+    lost = np.isnan(decoded).any(axis=1)
+    assert np.flatnonzero(lost).tolist() == [3_000]
+    assert (
+        np.isnan(decoded[3_000, 3:6]).all()
+        and np.isfinite(decoded[3_000, [0, 1, 2, 6, 7, 8]]).all()
+    )
+    np.testing.assert_allclose(decoded[~lost], accel[~lost], atol=0.0005 + 1e-9)
+    from_log = estimate(desk, back)
+    exact = ContactEstimator(desk).push(back.t, back.wrench, accel)
+    np.testing.assert_array_equal((from_log.flags & FLAG_NO_ACCEL) != 0, lost)
+    np.testing.assert_array_equal(from_log.in_contact, exact.in_contact)
+    both = from_log.located & exact.located
+    assert both.sum() > 50
+    assert np.abs(from_log.x[both] - exact.x[both]).max() < 5e-4
+    source = open_can_log(path, desk)
+    streamed = np.concatenate([b.accel for b in source.blocks()])
+    source.close()
+    np.testing.assert_array_equal(streamed, decoded)

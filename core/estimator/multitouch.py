@@ -49,10 +49,21 @@ MIN_STEP_N = 2.0  # the force must rise at least this much over LAG_S ...
 MIN_STEP_SHARE = 0.1  # ... and at least this share of the force before it
 # ... pressing down: its normal part at least this share of it (a swipe's drag is sideways)
 MIN_NORMAL_SHARE = 0.8
-# the change located at least this far from the first finger: on a tall, soft desk (the
-# unseen 4-sensor desk of scripts/tap_accuracy.py) a single press's own change rocks the desk
-# and lands 3-6 cm off it: at 3 cm, 26 % of single touches there were taken for two fingers
+# How far from the first finger the change must be located. A single press's own change
+# strays from it as the press rocks the desk: by at most 2.8 cm on the paper desk and 3.0 cm
+# on the unseen 6-sensor desk of scripts/tap_accuracy.py, but 6.7 cm on its tall, soft
+# 4-sensor desk (300 single touches each), where a fixed 3 cm took 26 % of single touches for
+# two fingers. So the desk's own stray is measured: each press without a second finger gives
+# the farthest its changes landed (its stray); the minimum is STRAY_MARGIN times the upper
+# quartile of the last STRAY_PRESSES presses' strays (the quartile leaves out the few pairs
+# missed as single), within [MIN_APART_FLOOR_M, MIN_APART_CAP_M]; until STRAY_MIN_PRESSES
+# presses are in, MIN_APART_M (enough on all three desks)
 MIN_APART_M = 0.07
+MIN_APART_FLOOR_M = 0.03  # a finger's own width and the fit's spread
+MIN_APART_CAP_M = 0.15
+STRAY_MARGIN = 1.7  # the quartile to the largest stray: 1.56, 1.43, 1.63 on the three desks
+STRAY_PRESSES = 32
+STRAY_MIN_PRESSES = 8
 MAX_FIRST_MOVE_M = 0.005  # the first finger held this still over the lag before (no swipe)
 #: single samples that cannot end a landing wait in a queue of up to this many for one
 #: vectorised pass (SecondFingerStage.push_one)
@@ -168,6 +179,10 @@ class SecondFingerStage:
         self.recent: deque[tuple[float, float, float, bool]] = deque(maxlen=2 * self.lag + 1)
         # the contact of the last processed sample is still open (for push_one's queue)
         self.same_contact = False
+        # the desk's own stray (see MIN_APART_M): the last presses' and the open contact's
+        self.strays: deque[float] = deque(maxlen=STRAY_PRESSES)
+        self.contact_stray = 0.0
+        self.min_apart_m = MIN_APART_M
 
     def push_one(self, raw: np.ndarray, block: ContactBlock) -> None:
         """:meth:`process` for one sample (``raw`` (6,)), the same output for any split.
@@ -279,8 +294,8 @@ class SecondFingerStage:
             ext = self.history[1].then(block)
         h = len(ext.x) - k  # the chunk's first sample in the extended arrays
         if self.surface is not None:
-            landing = self._landings(ext_w, ext, h)
-            self._runs(landing, ext_w, ext, h, block)
+            change, apart = self._landings(ext_w, ext, h)
+            self._runs(change, apart, ext_w, ext, h, block)
         keep = 2 * self.lag
         self.history = (ext_w[-keep:].copy(), ext.last(keep))
         self.in_contact = bool(block.in_contact[-1])
@@ -301,14 +316,17 @@ class SecondFingerStage:
         )
         self.same_contact = self.in_contact
 
-    def _landings(self, w: np.ndarray, c: _Track, h: int) -> np.ndarray:
-        """(k,) whether each sample of the chunk ends a second finger's landing: the change of
-        wrench over the lag before it is a single force on the board, rising, apart from the
-        first finger, which was in contact, located and still over the lag before that."""
+    def _landings(self, w: np.ndarray, c: _Track, h: int) -> tuple[np.ndarray, np.ndarray]:
+        """Per sample of the chunk (k,): whether the change of wrench over the lag before it
+        is a single force on the board, rising and pressing down, while the first finger was
+        in contact, located and still over the lag before that; and how far from the first
+        finger that change lies (0 where it is no such change). A landing needs it far enough
+        (:meth:`_runs`, by the desk's measured stray)."""
         assert self.surface is not None  # (the caller checks)
         n = self.lag
         k = len(c.x) - h
         out = np.zeros(k, bool)
+        distance = np.zeros(k)
         now = np.arange(max(h, 2 * n), len(c.x))
         before, earlier = now - n, now - 2 * n
         force_then = c.force_n[before]
@@ -326,7 +344,7 @@ class SecondFingerStage:
         )
         at = np.flatnonzero(maybe)
         if len(at) == 0:
-            return out
+            return out, distance
         now, before, force_then = now[at], before[at], force_then[at]
         d_wrench = w[now] - w[before]
         step = np.linalg.norm(d_wrench[:, :3], axis=1)
@@ -336,20 +354,25 @@ class SecondFingerStage:
         rel = points - self.origin  # the second finger must be on the board
         on_board = self.frame.contains(rel @ self.surface.u_axis, rel @ self.surface.v_axis)
         pressing = np.abs(d_wrench[:, :3] @ self.normal) >= MIN_NORMAL_SHARE * step
-        out[now - h] = (
-            ok
-            & (step >= MIN_STEP_SHARE * force_then)
-            & pressing
-            & (apart >= MIN_APART_M)
-            & on_board
-        )
-        return out
+        change = ok & (step >= MIN_STEP_SHARE * force_then) & pressing & on_board
+        out[now - h] = change
+        distance[now - h] = np.where(change, apart, 0.0)
+        return out, distance
 
     def _runs(
-        self, landing: np.ndarray, w: np.ndarray, c: _Track, h: int, block: ContactBlock
+        self,
+        change: np.ndarray,
+        apart: np.ndarray,
+        w: np.ndarray,
+        c: _Track,
+        h: int,
+        block: ContactBlock,
     ) -> None:
-        """Per contact in the chunk (few; not per sample): flag it from its first landing on
-        and fit the second finger's point once the window after the landing is in."""
+        """Per contact in the chunk (few; not per sample): flag it from its first landing
+        (a ``change`` at least ``min_apart_m`` ``apart``) on, fit the second finger's point
+        once the window after the landing is in, and measure the stray of a press without
+        one. Contact by contact, so the minimum learnt at one contact's end holds for the
+        next whatever the split."""
         inside = block.in_contact.astype(np.int8)
         edges = np.diff(np.concatenate([[0], inside, [0]]))
         starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
@@ -359,8 +382,11 @@ class SecondFingerStage:
             if a > 0:
                 self._end_contact()  # a new contact
             if not self.flagged:
-                hits = np.flatnonzero(landing[a:b])
+                landing = change[a:b] & (apart[a:b] >= self.min_apart_m)
+                hits = np.flatnonzero(landing)
                 if len(hits) == 0:
+                    if b > a:
+                        self.contact_stray = max(self.contact_stray, float(apart[a:b].max()))
                     continue
                 first_hit = a + int(hits[0])
                 self.flagged = True
@@ -402,6 +428,15 @@ class SecondFingerStage:
         )
 
     def _end_contact(self) -> None:
+        """The open contact ended: a press without a second finger adds its stray."""
+        if not self.flagged and self.contact_stray > 0:
+            self.strays.append(self.contact_stray)
+            if len(self.strays) >= STRAY_MIN_PRESSES:
+                quartile = float(np.percentile(np.fromiter(self.strays, float), 75))
+                self.min_apart_m = min(
+                    max(STRAY_MARGIN * quartile, MIN_APART_FLOOR_M), MIN_APART_CAP_M
+                )
+        self.contact_stray = 0.0
         self.flagged = False
         self.landing = None
         self.second = None

@@ -23,6 +23,8 @@ from hapticdesk.runtime.pacing import PacedSource, Pacer
 from hapticdesk.runtime.source import Source, WrenchBlock
 
 if TYPE_CHECKING:  # the hooks are loaded for every command, even `--help`: no numpy here
+    import numpy as np
+
     from hapticdesk.files.profile import DeskProfile
     from hapticdesk.files.recording import Recording, RecordingBlocks
 
@@ -35,7 +37,10 @@ class RecordingSource(Source):
     """A recording handed out in blocks of ``block_size`` samples, as fast as they are read.
 
     ``recording``: a whole :class:`Recording`, or a :class:`RecordingBlocks` streamed from its
-    file one read block at a time.
+    file one read block at a time. ``accel_columns``: the desk's accelerometer columns
+    (:meth:`DeskProfile.accelerometer_columns`), whose readings go with each block when the
+    file has them all (none else: the estimator flags those samples uncompensated); without
+    it, every accelerometer column the file has, in order.
     """
 
     def __init__(
@@ -44,8 +49,10 @@ class RecordingSource(Source):
         sample_rate_hz: float,
         *,
         block_size: int = BLOCK_SIZE,
+        accel_columns: list[str] | None = None,
     ) -> None:
         self.recording = recording
+        self.accel_columns = accel_columns
         self.sensor_names = list(recording.sensor_names)
         self.sample_rate_hz = sample_rate_hz
         self.block_size = block_size
@@ -55,7 +62,7 @@ class RecordingSource(Source):
     def blocks(self) -> Iterator[WrenchBlock]:
         import numpy as np
 
-        from hapticdesk.files.recording import Recording, accel_table
+        from hapticdesk.files.recording import Recording
 
         rec_or_blocks = self.recording
         if isinstance(rec_or_blocks, Recording):
@@ -70,12 +77,25 @@ class RecordingSource(Source):
                         return
                     end = min(start + self.block_size, len(rec))
                     truth = {k: np.asarray(v[start:end]) for k, v in rec.extra.items()} or None
-                    accel = accel_table(truth) if truth else None
+                    accel = self._readings(truth) if truth else None
                     yield WrenchBlock(rec.t[start:end], rec.wrench[start:end], truth, accel)
         finally:
             close = getattr(parts, "close", None)  # a generator of file blocks
             if close is not None:
                 close()
+
+    def _readings(self, columns: dict[str, np.ndarray]) -> np.ndarray | None:
+        """The accelerometers' readings (k, A) among a block's extra ``columns``, or None."""
+        import numpy as np
+
+        from hapticdesk.files.recording import accel_table
+
+        names = self.accel_columns
+        if names is None:
+            return accel_table(columns)
+        if not names or not all(name in columns for name in names):
+            return None
+        return np.column_stack([np.asarray(columns[name], dtype=float) for name in names])
 
     def close(self) -> None:
         """Safe from another thread: a file being read is closed by the reading thread."""
@@ -102,7 +122,10 @@ def open_replay(
         if recording.is_empty():
             recording.close()
             raise ConfigError(str(path), "the recording holds no samples")
-        return PacedSource(RecordingSource(recording, profile.sample_rate_hz), speed)
+        source = RecordingSource(
+            recording, profile.sample_rate_hz, accel_columns=profile.accelerometer_columns()
+        )
+        return PacedSource(source, speed)
     from hapticdesk.canbus import logs
 
     if not logs.is_can_log(path):

@@ -16,7 +16,8 @@ with an accelerometer estimated with and without its readings.
   (``kitamura2017-panel-accel``), ``touch_release_eval.py``'s presses and taps on its top and
   its upright front panel: the share of presses located and the error p50/p95 at +20 and
   +50 ms after the true touch-down (``fused``; a press not located counts as a miss), without
-  the readings, with one accelerometer at the top's centre instead, with the three; and, as
+  the readings, with one accelerometer at the top's centre instead, with the three, with the
+  three on a desk whose true inertia is half or twice the box the estimator assumes; and, as
   the bound, with the simulator's exact inertial wrench ``M q̈`` taken out of the readings.
 
     python scripts/vibration_eval.py --seeds 5      # the figures in README and docs/stability.md
@@ -122,10 +123,29 @@ def panel_touch_down(seeds: int) -> None:
         path = Path(folder) / "kitamura2017-panel-one-accel.yaml"
         path.write_text(text)
         one = load_profile(path)
+    # the same desk whose true inertia is half or twice the box the estimator assumes
+    ixx, iyy, izz = np.diag(three.inertia_about_com())
+    off = {}
+    for factor in (0.5, 2.0):
+        moments = f"[{factor * ixx:.4f}, {factor * iyy:.4f}, {factor * izz:.4f}]"
+        changed = (
+            Path(str(three.path))
+            .read_text()
+            .replace(
+                "desk: {mass_kg: 13.7, natural_frequency_hz: 5.9}",
+                f"desk: {{mass_kg: 13.7, natural_frequency_hz: 5.9, inertia_kg_m2: {moments}}}",
+            )
+        )
+        with tempfile.TemporaryDirectory() as folder:
+            path = Path(folder) / "inertia.yaml"
+            path.write_text(changed.split("can:")[0])
+            off[factor] = load_profile(path)
     labels = {
         "without": "without accelerometers ",
         "one": "one accelerometer      ",
         "three": "three accelerometers   ",
+        "half": "three, true inertia ×0.5",
+        "twice": "three, true inertia ×2  ",
         "exact": "exact M q̈ removed      ",
     }
     for surface, points in (("top", tre.PAPER_POINTS), ("front", tre.PANEL_POINTS)):
@@ -134,13 +154,15 @@ def panel_touch_down(seeds: int) -> None:
             "without": [simulate(three, scene, seed) for seed in range(seeds)],
             "one": [simulate(one, scene, seed) for seed in range(seeds)],
             "exact": [exact_compensation(three, scene, seed) for seed in range(seeds)],
+            "half": [simulate(off[0.5], scene, seed) for seed in range(seeds)],
+            "twice": [simulate(off[2.0], scene, seed) for seed in range(seeds)],
         }
         runs["three"] = runs["without"]
         for how, label in labels.items():
             desk = one if how == "one" else three
             at: dict[str, list[np.ndarray]] = {"touch+20": [], "touch+50": []}
             for rec in runs[how]:
-                use = how in ("one", "three")
+                use = how in ("one", "three", "half", "twice")
                 accel = accelerometer_readings(desk, rec.extra) if use else None
                 block = ContactEstimator(desk, method="fused").push(rec.t, rec.wrench, accel)
                 found = measure_accuracy(block, rec.extra).at_times

@@ -24,12 +24,14 @@ gives the same output for any split of the input. ``G`` depends on how many acce
   ``G = [m I₃; m [c]×] · R_a``, ``R_a`` its axes in the desk frame. A press on an upright
   panel twists the desk in yaw, which this leaves (docs/stability.md).
 - **Three or more**, not on one line (``accelerometers:``), measure the rigid motion itself:
-  the mount at p accelerates by d̈ + θ̈ × p (the tilt's share of gravity, g·θ, is below
-  0.3 % of θ̈ × p at the sway's frequencies and is left), so the stacked readings are
+  the mount at p accelerates by d̈ + θ̈ × p (the tilt's share of gravity, g·θ, is about 1 %
+  of θ̈ × p at 5.9 Hz, and the sway's modes barely tilt: left), so the stacked readings are
   ``f - f_rest = H q̈`` with the rows ``R_iᵀ [I₃, -[p_i]×]`` of each accelerometer i, and
-  ``G = M H⁺``, M the desk's spatial inertia about P_o (mass, centre of mass and inertia
-  tensor from the profile: :meth:`DeskProfile.inertia_about_com`). Two accelerometers leave
-  the rotation about the line through them unseen; H⁺ then takes none of it.
+  ``G = M H⁺`` (:func:`rigid_motion`), M the desk's spatial inertia about P_o (mass, centre
+  of mass and inertia tensor from the profile: :meth:`DeskProfile.inertia_about_com`; a
+  wrong inertia leaves a wrong moment: give it when the desk is no uniform box). Two
+  accelerometers, or three on one line or with two axes each, leave some rotation unseen;
+  of the motions that fit their readings the one with the least rotation is taken.
 
 A reading that is missing (NaN, no accelerometer data given at all) or at its range is not
 used: that sample is left uncompensated and flagged ``FLAG_NO_ACCEL``, never NaN. The
@@ -44,7 +46,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from hapticdesk.estimator.contacts import FLAG_NO_ACCEL
-from hapticdesk.files.profile import STANDARD_GRAVITY, DeskProfile, spatial_inertia
+from hapticdesk.files.profile import (
+    STANDARD_GRAVITY,
+    AccelerometerSpec,
+    DeskProfile,
+    spatial_inertia,
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -71,14 +78,8 @@ class InertiaSettings:
         if len(specs) == 1:  # the desk taken as translating: d̈ = R_a f
             lever = np.array([[0.0, -c[2], c[1]], [c[2], 0.0, -c[0]], [-c[1], c[0], 0.0]])
             gain = m * np.vstack([np.eye(3), lever]) @ axes  # (6, A)
-        else:  # the rigid motion q̈ = H⁺ f, then M q̈
-            rows = []
-            for spec in specs:
-                p = spec.position
-                px = np.array([[0.0, -p[2], p[1]], [p[2], 0.0, -p[0]], [-p[1], p[0], 0.0]])
-                rows.append(spec.axis_matrix().T @ np.hstack([np.eye(3), -px]))
-            motion = np.linalg.pinv(np.vstack(rows))  # (6, A)
-            gain = spatial_inertia(m, c, profile.inertia_about_com()) @ motion
+        else:  # the rigid motion q̈ from the readings, then M q̈
+            gain = spatial_inertia(m, c, profile.inertia_about_com()) @ rigid_motion(specs)
         rest = axes.T @ np.array([0.0, 0.0, STANDARD_GRAVITY])
         limit = np.concatenate([np.full(len(spec.axes), spec.range_m_s2) for spec in specs])
         return cls(
@@ -88,6 +89,31 @@ class InertiaSettings:
             n_axes=axes.shape[1],
             columns=tuple(profile.accelerometer_columns()),
         )
+
+
+#: how much a rotation the accelerometers cannot tell apart costs against a translation in
+#: :func:`rigid_motion` (rad/s² per m/s²): what they do not see is taken as translation
+UNSEEN_ROTATION_SCALE = 1e-2
+
+
+def rigid_motion(specs: tuple[AccelerometerSpec, ...]) -> np.ndarray:
+    """(6, A): the desk's rigid motion q̈ = [d̈; θ̈] from the readings less gravity of several
+    accelerometers: the weighted least-squares solution of f − f_rest = H q̈ (rows
+    R_iᵀ [I₃, −[p_i]×], each weighted by 1/σ of its accelerometer when all give a noise).
+    Three not on one line see the whole motion and this is exact; fewer leave some rotations
+    unseen, and of the motions that fit the readings this takes the one with the least
+    rotation (scaled by UNSEEN_ROTATION_SCALE), not a mix of translation and rotation."""
+    rows, sigma = [], []
+    for spec in specs:
+        p = spec.position
+        px = np.array([[0.0, -p[2], p[1]], [p[2], 0.0, -p[0]], [-p[1], p[0], 0.0]])
+        rows.append(spec.axis_matrix().T @ np.hstack([np.eye(3), -px]))
+        sigma += [spec.noise_m_s2] * len(spec.axes)
+    h = np.vstack(rows)
+    noise = np.array(sigma)
+    weights = 1.0 / noise if (noise > 0).all() else np.ones(len(noise))
+    scale = np.diag([1.0, 1.0, 1.0] + [UNSEEN_ROTATION_SCALE] * 3)
+    return scale @ np.linalg.pinv((weights[:, None] * h) @ scale) * weights[None, :]
 
 
 class InertiaStage:
@@ -107,7 +133,7 @@ class InertiaStage:
         s = self.settings
         if accel.shape != (k, s.n_axes):
             raise ValueError(
-                f"accel must have shape (k, A) = ({k}, {s.n_axes}) for the accelerometer's "
+                f"accel must have shape (k, A) = ({k}, {s.n_axes}) for the accelerometers' "
                 f"columns {', '.join(s.columns)}, found {accel.shape}"
             )
         return accel

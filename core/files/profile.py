@@ -260,6 +260,14 @@ class DeskProfile:
             ]
         )
 
+    def __post_init__(self) -> None:
+        columns = self.accelerometer_columns()
+        if len(set(columns)) != len(columns):  # (the reader numbers them; a hand-made one)
+            raise ValueError(
+                f"desk {self.name!r}: its accelerometers' columns must differ, found "
+                f"{', '.join(columns)}: give each its own prefix (accel_column_prefix)"
+            )
+
     @property
     def accelerometer(self) -> AccelerometerSpec | None:
         """The desk's first accelerometer, or None when it has none."""

@@ -109,11 +109,14 @@ def read_profile(doc: MarkedDict, path: Path) -> DeskProfile:
             moments = vector(
                 desk["inertia_kg_m2"], desk.where("inertia_kg_m2"), "`inertia_kg_m2` of `desk`", 3
             )
-            if not all(math.isfinite(v) and v > 0 for v in moments):
+            if not all(math.isfinite(v) and v > 0 for v in moments) or max(moments) > (
+                sum(moments) - max(moments)
+            ) * (1 + 1e-9):
                 raise ConfigError(
                     desk.where("inertia_kg_m2"),
-                    "`inertia_kg_m2` of `desk` must be three positive moments of inertia "
-                    f"(kg·m², about the centre of mass along the desk's x, y, z), found {moments}",
+                    "`inertia_kg_m2` of `desk` must be three positive principal moments of "
+                    "inertia (kg·m², about the centre of mass along the desk's x, y, z), each "
+                    f"at most the sum of the other two (a body's are), found {moments}",
                 )
             inertia = (moments[0], moments[1], moments[2])
     accelerometers = _accelerometers(doc)

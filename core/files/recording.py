@@ -1,9 +1,9 @@
 """Recordings: sample times and every sensor's six channels, as CSV or NPZ (DESIGN.md).
 
 Header ``t`` then ``<sensor>_fx … <sensor>_mz`` for each sensor of the profile. Other columns
-are kept as ``extra`` (the simulator's ground truth ``true_x, true_y, true_fn``, a desk
-accelerometer's ``acc_x, acc_y, acc_z``) and otherwise ignored (text ones too, except the
-accelerometer's, whose bad cells are errors). A missing column is an error that names it.
+are kept as ``extra`` (the simulator's ground truth ``true_x, true_y, true_fn``, a desk's
+accelerometers' ``acc_x, acc_y, acc_z``, ``acc2_x``, …) and otherwise ignored (text ones too,
+except the accelerometers', whose bad cells are errors). A missing column is an error that names it.
 
 Files are read in blocks (:class:`RecordingBlocks`) so that a replay's memory does not grow
 with the file: CSV through numpy's C parser a block of lines at a time, NPZ each column's

@@ -22,8 +22,9 @@ class WrenchBlock:
     t: np.ndarray
     wrench: np.ndarray
     truth: dict[str, np.ndarray] | None = None  # ground truth where the source knows it
-    #: (k, A) the desk's accelerometer readings (``acc_x, acc_y, acc_z`` as the profile lists
-    #: them) where the desk has one and the source carries them; see hapticdesk.estimator.inertia
+    #: (k, A) the desk's accelerometers' readings (``acc_x, acc_y, acc_z``, then ``acc2_*``, …
+    #: as the profile lists them) where the desk has some and the source carries them; see
+    #: hapticdesk.estimator.inertia
     accel: np.ndarray | None = None
 
 

@@ -163,8 +163,8 @@ def simulate(
     centre of pressure when several fingers touch; NaN when nobody touches), ``true_fn`` (the
     normal force, 0 when not touching), ``true_fx, true_fy, true_fz`` (the force the fingers
     apply, desk frame), ``true_surface`` and ``true_action`` (indices, -1 when not touching);
-    then, for a desk with an accelerometer, its readings ``acc_x, acc_y, acc_z`` (m/s², the
-    axes the profile lists).
+    then, for a desk with accelerometers, their readings ``acc_x, acc_y, acc_z``, ``acc2_x``, …
+    (m/s², the axes the profile lists).
     """
     run = SimulationRun(
         profile, scene, seed, noise=noise, effects=effects, desk=desk, sensors=sensors

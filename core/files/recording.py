@@ -83,6 +83,24 @@ def _accel_column_order(name: str) -> tuple[int, str]:
     return int(prefix[3:] or 1), axis
 
 
+def _empty_cells_as_nan(text: str) -> str:
+    """``text`` (CSV lines) with each empty or blank cell written ``nan`` (a missing value, not
+    an error). The pattern tries every position (1.0 s for 105,000 lines of 34 columns, twice
+    numpy's parse): it runs only where an empty cell can be, which a plain numeric file never
+    has (no ``,,``, no cell at a line's end or start, no blank)."""
+    if (
+        ",," in text
+        or ",\n" in text
+        or "\n," in text
+        or text.startswith(",")
+        or text.endswith(",")
+        or " " in text
+        or "\t" in text
+    ):
+        return _EMPTY_CELL.sub("nan", text)
+    return text
+
+
 def needed_columns(sensor_names: list[str]) -> list[str]:
     """The columns a recording for ``sensor_names`` must have, in order."""
     return ["t"] + [f"{s}_{a}" for s in sensor_names for a in AXES]
@@ -226,7 +244,7 @@ class _CsvReader:
             self.close()
             return None
         self.line += len(lines)
-        text = _EMPTY_CELL.sub("nan", "".join(lines))
+        text = _empty_cells_as_nan("".join(lines))
         table = np.zeros((0, len(self.needed_index) + len(self.extra)))  # blank lines only
         while text.strip():
             usecols = self.needed_index + [i for _, i in self.extra]

@@ -64,6 +64,23 @@ def test_empty_cells_become_nan_for_the_estimator_to_flag(tmp_path):
     assert np.isnan(back.wrench[1]).sum() == 1
 
 
+@pytest.mark.parametrize("where", ["blank", "last", "last blank", "tab"])
+def test_every_kind_of_empty_cell_is_nan(tmp_path, where):
+    """The reader looks for empty cells only where a plain numeric file cannot have them:
+    each kind must still be found (a blank one, one at the line's end, a tab)."""
+    path = tmp_path / "rec.csv"
+    write_recording(path, sample_recording(3))
+    lines = path.read_text().splitlines()
+    cells = lines[2].split(",")
+    column = len(cells) - 1 if where.startswith("last") else 3
+    cells[column] = {"blank": "  ", "last": "", "last blank": " ", "tab": "\t"}[where]
+    lines[2] = ",".join(cells)
+    path.write_text("\n".join(lines) + "\n")
+    back = read_recording(path, NAMES)
+    assert np.isnan(back.table()[1]).sum() == 1
+    assert np.isfinite(np.delete(back.table(), 1, axis=0)).all()
+
+
 def test_not_a_number_is_an_error(tmp_path):
     path = tmp_path / "rec.csv"
     write_recording(path, sample_recording(3))

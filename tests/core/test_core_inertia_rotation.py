@@ -36,15 +36,30 @@ def _readings(profile, qdd: np.ndarray) -> np.ndarray:
     )
 
 
+def _changed(profile, tmp_path, old: str, new: str):
+    """``profile`` with ``old`` replaced by ``new`` in its YAML text."""
+    text = profile.path.read_text()
+    assert old in text
+    path = tmp_path / "changed.yaml"
+    path.write_text(text.replace(old, new))
+    return load_profile(path)
+
+
+def _assert_removes_the_whole_wrench(desk, n_axes: int, seed: int) -> None:
+    """For random rigid motions, the gain times the readings less gravity is the simulator's
+    own M q̈ (to 1e-9)."""
+    settings = InertiaSettings.of(desk)
+    assert settings is not None and settings.n_axes == n_axes
+    qdd = _motions(seed)
+    got = (_readings(desk, qdd) - settings.rest) @ settings.gain.T
+    expected = qdd @ DeskModel(desk).mass_matrix.T
+    np.testing.assert_allclose(got, expected, atol=1e-9 * np.abs(expected).max())
+
+
 def test_three_accelerometers_give_the_desks_whole_inertial_wrench(three) -> None:
     """Any rigid motion, rotation included: the gain times the readings less gravity is the
     simulator's own M q̈ (its mass, centre of mass and box inertia are the estimator's)."""
-    settings = InertiaSettings.of(three)
-    assert settings is not None and settings.n_axes == 9
-    qdd = _motions(1)
-    got = (_readings(three, qdd) - settings.rest) @ settings.gain.T
-    expected = qdd @ DeskModel(three).mass_matrix.T
-    np.testing.assert_allclose(got, expected, atol=1e-9 * np.abs(expected).max())
+    _assert_removes_the_whole_wrench(three, n_axes=9, seed=1)
 
 
 def test_one_accelerometer_misses_the_yaw(three, tmp_path) -> None:
@@ -121,22 +136,16 @@ def test_turned_mounts_with_fewer_axes_and_different_noise(three, tmp_path) -> N
     assert desk.accelerometer_columns() == [
         "acc_x", "acc_y", "acc_z", "acc2_x", "acc2_y", "acc3_x", "acc3_y", "acc3_z"
     ]  # fmt: skip
-    settings = InertiaSettings.of(desk)
-    assert settings is not None and settings.n_axes == 8
-    qdd = _motions(4)
-    got = (_readings(desk, qdd) - settings.rest) @ settings.gain.T
-    expected = qdd @ DeskModel(desk).mass_matrix.T
-    np.testing.assert_allclose(got, expected, atol=1e-9 * np.abs(expected).max())
+    _assert_removes_the_whole_wrench(desk, n_axes=8, seed=4)
 
 
 def test_each_accelerometer_has_its_own_range(three, tmp_path) -> None:
-    text = three.path.read_text().replace(
+    desk = _changed(
+        three,
+        tmp_path,
         "{position: [0.30, -0.20, 0.71], noise_m_s2: 0.005, range_m_s2: 19.6}",
         "{position: [0.30, -0.20, 0.71], noise_m_s2: 0.005, range_m_s2: 39.2}",
     )
-    path = tmp_path / "ranges.yaml"
-    path.write_text(text)
-    desk = load_profile(path)
     settings = InertiaSettings.of(desk)
     assert settings is not None
     np.testing.assert_array_equal(settings.limit, [19.6] * 3 + [39.2] * 3 + [19.6] * 3)
@@ -315,13 +324,12 @@ def test_hand_made_accelerometers_need_their_own_columns(three) -> None:
 
 
 def test_a_given_inertia_is_used_by_the_estimator_and_the_simulator(three, tmp_path) -> None:
-    text = three.path.read_text().replace(
+    given = _changed(
+        three,
+        tmp_path,
         "desk: {mass_kg: 13.7, natural_frequency_hz: 5.9}",
         "desk: {mass_kg: 13.7, natural_frequency_hz: 5.9, inertia_kg_m2: [0.5, 0.7, 1.1]}",
     )
-    path = tmp_path / "given.yaml"
-    path.write_text(text)
-    given = load_profile(path)
     np.testing.assert_allclose(given.inertia_about_com(), np.diag([0.5, 0.7, 1.1]))
     settings = InertiaSettings.of(given)
     assert settings is not None

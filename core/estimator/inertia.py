@@ -41,7 +41,7 @@ desk's mass and centre of mass come from the profile (``desk.mass_kg``,
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -63,6 +63,26 @@ class InertiaSettings:
     limit: np.ndarray  # (A,): |reading| at or beyond this is saturated
     n_axes: int
     columns: tuple[str, ...]  # the recording columns the readings come from
+    # several accelerometers: the rows of H, their weights and M, for the gain without some
+    # readings (gain_from); None with one (the translating desk needs all its axes)
+    rows: np.ndarray | None = None  # (A, 6)
+    weights: np.ndarray | None = None  # (A,)
+    spatial: np.ndarray | None = None  # (6, 6)
+    _partial: dict[bytes, np.ndarray] = field(default_factory=dict, repr=False)
+
+    def gain_from(self, usable: np.ndarray) -> np.ndarray | None:
+        """The gain (6, A) from only the ``usable`` readings (A,) bool (zero columns for the
+        others), or None where they cannot give the motion (one accelerometer, or none
+        usable). Cached per pattern: a lost frame or a saturated axis recurs."""
+        if self.rows is None or self.weights is None or self.spatial is None or not usable.any():
+            return None
+        key = usable.tobytes()
+        gain = self._partial.get(key)
+        if gain is None:
+            gain = np.zeros((6, self.n_axes))
+            gain[:, usable] = self.spatial @ rigid_motion(self.rows[usable], self.weights[usable])
+            self._partial[key] = gain
+        return gain
 
     @classmethod
     def of(cls, profile: DeskProfile) -> InertiaSettings | None:
@@ -75,11 +95,14 @@ class InertiaSettings:
         m = profile.mass_kg
         c = profile.center_of_mass()
         axes = np.hstack([spec.axis_matrix() for spec in specs])  # (3, A)
+        rows = weights = spatial = None
         if len(specs) == 1:  # the desk taken as translating: d̈ = R_a f
             lever = np.array([[0.0, -c[2], c[1]], [c[2], 0.0, -c[0]], [-c[1], c[0], 0.0]])
             gain = m * np.vstack([np.eye(3), lever]) @ axes  # (6, A)
         else:  # the rigid motion q̈ from the readings, then M q̈
-            gain = spatial_inertia(m, c, profile.inertia_about_com()) @ rigid_motion(specs)
+            rows, weights = motion_rows(specs)
+            spatial = spatial_inertia(m, c, profile.inertia_about_com())
+            gain = spatial @ rigid_motion(rows, weights)
         rest = axes.T @ np.array([0.0, 0.0, STANDARD_GRAVITY])
         limit = np.concatenate([np.full(len(spec.axes), spec.range_m_s2) for spec in specs])
         return cls(
@@ -88,6 +111,9 @@ class InertiaSettings:
             limit=limit,
             n_axes=axes.shape[1],
             columns=tuple(profile.accelerometer_columns()),
+            rows=rows,
+            weights=weights,
+            spatial=spatial,
         )
 
 
@@ -96,24 +122,29 @@ class InertiaSettings:
 UNSEEN_ROTATION_SCALE = 1e-2
 
 
-def rigid_motion(specs: tuple[AccelerometerSpec, ...]) -> np.ndarray:
-    """(6, A): the desk's rigid motion q̈ = [d̈; θ̈] from the readings less gravity of several
-    accelerometers: the weighted least-squares solution of f − f_rest = H q̈ (rows
-    R_iᵀ [I₃, −[p_i]×], each weighted by 1/σ of its accelerometer when all give a noise).
-    Three not on one line see the whole motion and this is exact; fewer leave some rotations
-    unseen, and of the motions that fit the readings this takes the one with the least
-    rotation (scaled by UNSEEN_ROTATION_SCALE), not a mix of translation and rotation."""
+def motion_rows(specs: tuple[AccelerometerSpec, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """The rows (A, 6) of H, R_iᵀ [I₃, −[p_i]×] for each accelerometer i (its readings less
+    gravity are H q̈), and their weights (A,): 1/σ of each accelerometer when all give a
+    noise, else equal."""
     rows, sigma = [], []
     for spec in specs:
         p = spec.position
         px = np.array([[0.0, -p[2], p[1]], [p[2], 0.0, -p[0]], [-p[1], p[0], 0.0]])
         rows.append(spec.axis_matrix().T @ np.hstack([np.eye(3), -px]))
         sigma += [spec.noise_m_s2] * len(spec.axes)
-    h = np.vstack(rows)
     noise = np.array(sigma)
     weights = 1.0 / noise if (noise > 0).all() else np.ones(len(noise))
+    return np.vstack(rows), weights
+
+
+def rigid_motion(rows: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """(6, A): the desk's rigid motion q̈ = [d̈; θ̈] from readings less gravity, the weighted
+    least-squares solution of f − f_rest = H q̈ (:func:`motion_rows`). Three accelerometers
+    not on one line see the whole motion and this is exact; fewer leave some rotations
+    unseen, and of the motions that fit the readings this takes the one with the least
+    rotation (scaled by UNSEEN_ROTATION_SCALE), not a mix of translation and rotation."""
     scale = np.diag([1.0, 1.0, 1.0] + [UNSEEN_ROTATION_SCALE] * 3)
-    return scale @ np.linalg.pinv((weights[:, None] * h) @ scale) * weights[None, :]
+    return scale @ np.linalg.pinv((weights[:, None] * rows) @ scale) * weights[None, :]
 
 
 class InertiaStage:
@@ -138,25 +169,42 @@ class InertiaStage:
             )
         return accel
 
-    def usable(self, accel: np.ndarray) -> np.ndarray:
-        """Which readings (..., A) can be used: every axis finite and inside the range."""
+    def usable_axes(self, accel: np.ndarray) -> np.ndarray:
+        """Which axes' readings (..., A) can be used: finite and inside the range."""
         with np.errstate(invalid="ignore"):  # NaN compares False: not usable
-            return np.asarray((np.abs(accel) < self.settings.limit).all(axis=-1))
+            return np.asarray(np.abs(accel) < self.settings.limit)
+
+    def usable(self, accel: np.ndarray) -> np.ndarray:
+        """Which readings (..., A) can be used whole: every axis finite and inside the range."""
+        return np.asarray(self.usable_axes(accel).all(axis=-1))
 
     def process(self, raw: np.ndarray, accel: np.ndarray | None) -> np.ndarray:
-        """Subtract the inertial wrench from ``raw`` (6, k) in place where the reading in
-        ``accel`` (k, A) is usable; returns the flags (k,) uint8, ``FLAG_NO_ACCEL`` where it
-        is not (every sample when ``accel`` is None)."""
+        """Subtract the inertial wrench from ``raw`` (6, k) in place where the readings in
+        ``accel`` (k, A) are usable; returns the flags (k,) uint8, ``FLAG_NO_ACCEL`` where
+        the sample is left uncompensated (every sample when ``accel`` is None). With several
+        accelerometers a sample some of whose axes are lost or saturated is compensated from
+        the others (:meth:`InertiaSettings.gain_from`), unflagged while any is usable."""
         flags = np.zeros(raw.shape[1], np.uint8)
         if accel is None:
             flags[:] = FLAG_NO_ACCEL
             return flags
-        usable = self.usable(accel)
-        if not usable.all():
-            flags[~usable] = FLAG_NO_ACCEL
-            # the rest reading there: no compensation (and no NaN into the wrench)
-            accel = np.where(usable[:, None], accel, self.settings.rest)
-        raw -= inertial_wrench(self.settings, accel).T
+        axes = self.usable_axes(accel)
+        usable = axes.all(axis=1)
+        if usable.all():
+            raw -= inertial_wrench(self.settings, accel).T
+            return flags
+        # the rest reading where an axis is not usable: none of it (and no NaN) gets in
+        accel = np.where(axes, accel, self.settings.rest)
+        raw[:, usable] -= inertial_wrench(self.settings, accel[usable]).T
+        partial = np.flatnonzero(~usable)
+        patterns, which = np.unique(axes[partial], axis=0, return_inverse=True)
+        for j, pattern in enumerate(patterns):
+            at = partial[which.reshape(-1) == j]
+            gain = self.settings.gain_from(pattern)
+            if gain is None:
+                flags[at] = FLAG_NO_ACCEL
+            else:
+                raw[:, at] -= gain @ (accel[at] - self.settings.rest).T
         return flags
 
     def process_one(self, raw: np.ndarray, accel: np.ndarray | None) -> np.ndarray | None:

@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
+from hapticdesk.analysis.inertia_fit import InertiaFit, fit_inertia
 from hapticdesk.files.profile import AXES, LOWPASS_PER_NATURAL_FREQUENCY, DeskProfile
 from hapticdesk.files.recording import Recording
 from hapticdesk.files.yamlfile import ConfigError
@@ -116,6 +117,9 @@ class Characterization:
     lowest_mode_hz: float | None = None
     suggested_cutoff_hz: float | None = None
     notes: list[str] = field(default_factory=list)
+    # the desk's moments of inertia, for a desk with several accelerometers (inertia_fit)
+    inertia: InertiaFit | None = None
+    inertia_kg_m2: list[float] | None = None  # the three to give the profile
     spectrum_hz: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
     spectrum: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
 
@@ -126,10 +130,10 @@ class Characterization:
                 return item
         raise KeyError(channel)
 
-    def profile_values(self) -> dict[str, dict[str, float]]:
+    def profile_values(self) -> dict[str, dict[str, float | list[float]]]:
         """The measured values in the profile's terms (``desk:`` and ``estimation:``)."""
-        desk: dict[str, float] = {}
-        estimation: dict[str, float] = {}
+        desk: dict[str, float | list[float]] = {}
+        estimation: dict[str, float | list[float]] = {}
         if self.lowest_mode_hz is not None and self.suggested_cutoff_hz is not None:
             desk["natural_frequency_hz"] = round(self.lowest_mode_hz, 2)
             # named, not left to be derived from the natural frequency: a profile that names
@@ -145,6 +149,8 @@ class Characterization:
             values = [getattr(x, attr) for x in items if x.unit == kind]
             if values:  # RMS over the channels: the profile has one number per kind
                 estimation[key] = float(f"{math.sqrt(np.mean(np.square(values))):.3g}")
+        if self.inertia_kg_m2 is not None:
+            desk["inertia_kg_m2"] = self.inertia_kg_m2
         out = {}
         if desk:
             out["desk"] = desk
@@ -159,7 +165,7 @@ class Characterization:
             return None
         lines = []
         for section, items in values.items():
-            inner = ", ".join(f"{k}: {v:g}" for k, v in items.items())
+            inner = ", ".join(f"{k}: {_yaml_number(v)}" for k, v in items.items())
             lines.append(f"{section}: {{{inner}}}")
         return "\n".join(lines)
 
@@ -287,7 +293,21 @@ def characterize(profile: DeskProfile, recording: Recording) -> Characterization
         lowest = result.modes[0].frequency_hz
         result.lowest_mode_hz = lowest
         result.suggested_cutoff_hz = round(CUTOFF_RATIO * lowest, 2)
+
+    # --- the moments of inertia, with several accelerometers ------------------------------
+    if len(profile.accelerometers) > 1:
+        fit = fit_inertia(profile, recording, baseline)
+        result.inertia = fit
+        if any(m is not None for m in fit.moments):
+            result.inertia_kg_m2 = fit.with_profile(profile)
     return result
+
+
+def _yaml_number(value: float | list[float]) -> str:
+    """A value of the snippet in YAML flow style."""
+    if isinstance(value, list):
+        return "[" + ", ".join(f"{v:g}" for v in value) + "]"
+    return f"{value:g}"
 
 
 def _hold_last_good(x: np.ndarray, good: np.ndarray) -> np.ndarray:

@@ -78,6 +78,17 @@ def format_report(c: Characterization, recording: str, desk: str) -> str:
         )
     else:
         lines.append(f"natural frequencies: {c.modes_reason}")
+    if c.inertia is not None:
+        fit = c.inertia
+        if fit.reason:
+            lines.append(f"moments of inertia: {fit.reason}")
+        else:
+            lines.append(
+                f"moments of inertia (from {fit.presses} press(es) and the accelerometers):"
+            )
+            for axis, moment, rho in zip("xyz", fit.moments, fit.correlation, strict=True):
+                got = f"{moment:.4g} kg·m²" if moment is not None else "not moved enough to fit"
+                lines.append(f"  about {axis}: {got} (correlation {rho:.3f})")
     for note in c.notes:
         lines.append(f"note: {note}")
     snippet = c.snippet()

@@ -1,0 +1,141 @@
+"""The desk's moments of inertia, fitted from a recording of presses on a desk that has three
+or more accelerometers (issue 15 item 4: the rotation's inertial moment is only as right as
+the inertia the estimator assumes).
+
+The sensors read the desk's inertial wrench less the load (:mod:`hapticdesk.estimator.inertia`):
+``F_o = m (d̈ + θ̈ × c) − f`` and ``M_o = m c × d̈ + (I_c − m [c]×²) θ̈ − P × f``, with the
+finger's force f at P. The accelerometers give q̈ = [d̈; θ̈]; the estimator, run with the
+profile as it is, gives where each press held still (its located point over the hold, once
+the desk's ring has died down); the first equation gives f. What is left is linear in the
+inertia about the centre of mass:
+
+    I_c θ̈ = M_o − m c × d̈ + m [c]×² θ̈ + P × f
+
+so each principal moment is a least-squares slope, over the samples around the presses and
+the free ring after them, both sides band-passed alike (``BAND_HZ``: the sway and yaw modes,
+without the tare's and the held force's slow errors). A moment is reported only where the
+recording moved the desk about that axis enough to fit it (the correlation of the two sides
+at least ``MIN_CORRELATION``): presses on an upright panel's ends twist the desk in yaw,
+which is the moment the panel needs; presses hardly roll or pitch a desk on stiff legs, so
+those are usually left as the profile has them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import signal
+
+from hapticdesk.estimator import ContactEstimator
+from hapticdesk.estimator.contacts import ContactBlock
+from hapticdesk.estimator.inertia import (
+    InertiaSettings,
+    InertiaStage,
+    accelerometer_readings,
+    rigid_motion,
+)
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.recording import Recording
+
+BAND_HZ = (2.0, 40.0)
+HOLD_AFTER_S = 0.3  # a press's point: where it held from this long after touch-down
+MIN_HOLD_SAMPLES = 10
+AROUND_S = 0.3  # a press's point applies from this long before touch-down to after release
+MIN_CORRELATION = 0.9
+AXES_NAMES = ("x", "y", "z")
+
+
+@dataclass(frozen=True)
+class InertiaFit:
+    """Per desk axis (x, y, z): the fitted principal moment about the centre of mass (kg·m²),
+    None where the recording did not move the desk enough about it; and how well it fits."""
+
+    moments: tuple[float | None, float | None, float | None]
+    correlation: tuple[float, float, float]
+    presses: int
+    reason: str = ""  # why nothing was fitted
+
+    def with_profile(self, profile: DeskProfile) -> list[float]:
+        """The three moments to give the profile: the fitted ones, the profile's elsewhere."""
+        current = np.diag(profile.inertia_about_com())
+        return [
+            float(f"{m:.4g}") if m is not None else float(f"{c:.4g}")
+            for m, c in zip(self.moments, current, strict=True)
+        ]
+
+
+def fit_inertia(profile: DeskProfile, recording: Recording, baseline: np.ndarray) -> InertiaFit:
+    """Fit the desk's moments of inertia from ``recording`` (see the module docstring);
+    ``baseline`` (k, 6) or (1, 6): the resultant wrench of the idle desk at each sample (its
+    tare)."""
+    settings = InertiaSettings.of(profile)
+    nothing = (None, None, None)
+    no = (0.0, 0.0, 0.0)
+    if settings is None or settings.rows is None or settings.weights is None:
+        return InertiaFit(nothing, no, 0, "needs several accelerometers (`accelerometers:`)")
+    accel = accelerometer_readings(profile, recording.extra)
+    if accel is None:
+        return InertiaFit(nothing, no, 0, "the recording has no accelerometer readings")
+    fs = profile.sample_rate_hz
+    k = len(recording.t)
+    if k < 4 * round(fs / BAND_HZ[0]):
+        return InertiaFit(nothing, no, 0, "the recording is too short")
+    usable = InertiaStage(settings).usable(accel)
+    block = ContactEstimator(profile).push(recording.t, recording.wrench, accel)
+    points, presses = _press_points(block, fs)
+    if presses == 0:
+        return InertiaFit(nothing, no, 0, "no press held still long enough")
+    readings = np.where(usable[:, None], accel, settings.rest) - settings.rest
+    motion = readings @ rigid_motion(settings.rows, settings.weights).T
+    d_acc, t_acc = motion[:, :3], motion[:, 3:]
+    wrench = recording.wrench.reshape(k, -1) @ profile.wrench_map().T - baseline
+    m = float(profile.mass_kg or 0.0)
+    c = profile.center_of_mass()
+    cx = np.array([[0.0, -c[2], c[1]], [c[2], 0.0, -c[0]], [-c[1], c[0], 0.0]])
+    force = m * (d_acc + np.cross(t_acc, c)) - wrench[:, :3]  # the finger's, f
+    left = wrench[:, 3:] - m * np.cross(c, d_acc) + m * (t_acc @ (cx @ cx).T)
+    left += np.cross(points, force)  # = I_c θ̈
+    left[~usable] = 0.0
+    spin = np.where(usable[:, None], t_acc, 0.0)
+    sos = signal.butter(2, BAND_HZ, btype="band", fs=fs, output="sos")
+    left = signal.sosfiltfilt(sos, np.nan_to_num(left), axis=0)
+    spin = signal.sosfiltfilt(sos, spin, axis=0)
+    moments: list[float | None] = []
+    correlation = []
+    for axis in range(3):
+        power = float(spin[:, axis] @ spin[:, axis])
+        rho = (
+            float(np.corrcoef(left[:, axis], spin[:, axis])[0, 1])
+            if power > 0 and float(left[:, axis] @ left[:, axis]) > 0
+            else 0.0
+        )
+        correlation.append(rho)
+        slope = float(left[:, axis] @ spin[:, axis]) / power if power > 0 else 0.0
+        moments.append(slope if rho >= MIN_CORRELATION and slope > 0 else None)
+    return InertiaFit(
+        (moments[0], moments[1], moments[2]),
+        (correlation[0], correlation[1], correlation[2]),
+        presses,
+    )
+
+
+def _press_points(block: ContactBlock, fs: float) -> tuple[np.ndarray, int]:
+    """Per sample, the point (3,) of the press around it (where it held still), zero away
+    from presses; and how many presses gave a point."""
+    k = len(block)
+    points = np.zeros((k, 3))
+    inside = block.in_contact.astype(np.int8)
+    edges = np.diff(np.concatenate([[0], inside, [0]]))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    pad = round(AROUND_S * fs)
+    presses = 0
+    for a, e in zip(starts.tolist(), ends.tolist(), strict=True):
+        hold = np.arange(a + round(HOLD_AFTER_S * fs), e)
+        hold = hold[block.located[hold]]
+        if len(hold) < MIN_HOLD_SAMPLES:
+            continue
+        point = [float(np.median(getattr(block, name)[hold])) for name in ("x", "y", "z")]
+        points[max(0, a - pad) : min(k, e + pad)] = point
+        presses += 1
+    return points, presses

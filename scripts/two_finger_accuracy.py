@@ -82,7 +82,7 @@ class Outcome:
     gesture: list[bool] = field(default_factory=list)
     second_error_m: list[float] = field(default_factory=list)
     kind: list[str] = field(default_factory=list)  # the single touch's kind, or the pair's
-    carried: int = 0  # groups that began while the group before was still in contact
+    carried: int = 0  # groups left out: begun while the group before was still in contact
 
 
 def _kind(group: list[Step]) -> str:
@@ -114,13 +114,12 @@ def judge(
     for a, group in zip(starts, groups, strict=True):
         out = two if len(group) == 2 else single
         during = (rec.t >= a) & (rec.t < a + SPACING_S - 0.5)
-        # a press before may still be released (a slow release takes seconds): its contact
-        # is not this group's
+        # a press before still down when this group lands (a slow release takes seconds):
+        # the two merge into one contact, which is neither group's; left out of the rates
         first = int(np.searchsorted(rec.t, a))
         if block.in_contact[first]:
             out.carried += 1
-            gone = np.flatnonzero(~block.in_contact[first:])
-            during[first : first + (int(gone[0]) if len(gone) else len(during))] = False
+            continue
         out.flagged.append(bool(multi[during].any()))
         out.gesture.append(any(a <= e.t < a + SPACING_S - 0.5 for e in events))
         out.kind.append(_kind(group))
@@ -185,8 +184,8 @@ def main() -> int:
     )
     if two.carried or single.carried:
         print(
-            f"(began while the touch before was still down, judged on their own contact only: "
-            f"{two.carried} pairs, {single.carried} single touches)"
+            f"(left out, begun while the touch before was still down: {two.carried} pairs, "
+            f"{single.carried} single touches)"
         )
     print(
         f"single touches: {sum(single.flagged)}/{n1} flagged as two "

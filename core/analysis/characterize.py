@@ -296,7 +296,7 @@ def characterize(profile: DeskProfile, recording: Recording) -> Characterization
 
     # --- the moments of inertia, with several accelerometers ------------------------------
     if len(profile.accelerometers) > 1:
-        fit = fit_inertia(profile, recording, baseline)
+        fit = fit_inertia(profile, recording, baseline, fs)
         result.inertia = fit
         if any(m is not None for m in fit.moments):
             result.inertia_kg_m2 = fit.with_profile(profile)

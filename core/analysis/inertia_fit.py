@@ -42,6 +42,9 @@ BAND_HZ = (2.0, 40.0)
 HOLD_AFTER_S = 0.3  # a press's point: where it held from this long after touch-down
 MIN_HOLD_SAMPLES = 10
 AROUND_S = 0.3  # a press's point applies from this long before touch-down to after release
+# a touch that did not hold still (a tap) has no known point: the samples this near it are
+# left out of the fit (the band-pass spreads its error about this far)
+UNKNOWN_MARGIN_S = 1.0
 MIN_CORRELATION = 0.9
 AXES_NAMES = ("x", "y", "z")
 
@@ -65,10 +68,15 @@ class InertiaFit:
         ]
 
 
-def fit_inertia(profile: DeskProfile, recording: Recording, baseline: np.ndarray) -> InertiaFit:
+def fit_inertia(
+    profile: DeskProfile,
+    recording: Recording,
+    baseline: np.ndarray,
+    sample_rate_hz: float | None = None,
+) -> InertiaFit:
     """Fit the desk's moments of inertia from ``recording`` (see the module docstring);
     ``baseline`` (k, 6) or (1, 6): the resultant wrench of the idle desk at each sample (its
-    tare)."""
+    tare); ``sample_rate_hz``: the recording's (default the profile's)."""
     settings = InertiaSettings.of(profile)
     nothing = (None, None, None)
     no = (0.0, 0.0, 0.0)
@@ -77,13 +85,15 @@ def fit_inertia(profile: DeskProfile, recording: Recording, baseline: np.ndarray
     accel = accelerometer_readings(profile, recording.extra)
     if accel is None:
         return InertiaFit(nothing, no, 0, "the recording has no accelerometer readings")
-    fs = profile.sample_rate_hz
+    fs = sample_rate_hz or profile.sample_rate_hz
     k = len(recording.t)
     if k < 4 * round(fs / BAND_HZ[0]):
         return InertiaFit(nothing, no, 0, "the recording is too short")
     usable = InertiaStage(settings).usable(accel)
+    if not usable.any():
+        return InertiaFit(nothing, no, 0, "no usable accelerometer reading in the recording")
     block = ContactEstimator(profile).push(recording.t, recording.wrench, accel)
-    points, presses = _press_points(block, fs)
+    points, unknown, presses = _press_points(block, fs)
     if presses == 0:
         return InertiaFit(nothing, no, 0, "no press held still long enough")
     readings = np.where(usable[:, None], accel, settings.rest) - settings.rest
@@ -101,6 +111,8 @@ def fit_inertia(profile: DeskProfile, recording: Recording, baseline: np.ndarray
     sos = signal.butter(2, BAND_HZ, btype="band", fs=fs, output="sos")
     left = signal.sosfiltfilt(sos, np.nan_to_num(left), axis=0)
     spin = signal.sosfiltfilt(sos, spin, axis=0)
+    left[unknown] = 0.0  # (out of the sums below)
+    spin[unknown] = 0.0
     moments: list[float | None] = []
     correlation = []
     for axis in range(3):
@@ -120,11 +132,14 @@ def fit_inertia(profile: DeskProfile, recording: Recording, baseline: np.ndarray
     )
 
 
-def _press_points(block: ContactBlock, fs: float) -> tuple[np.ndarray, int]:
+def _press_points(block: ContactBlock, fs: float) -> tuple[np.ndarray, np.ndarray, int]:
     """Per sample, the point (3,) of the press around it (where it held still), zero away
-    from presses; and how many presses gave a point."""
+    from presses; where a touch without such a point is too near to fit (k,) bool; and how
+    many presses gave a point."""
     k = len(block)
     points = np.zeros((k, 3))
+    unknown = np.zeros(k, bool)
+    margin = round(UNKNOWN_MARGIN_S * fs)
     inside = block.in_contact.astype(np.int8)
     edges = np.diff(np.concatenate([[0], inside, [0]]))
     starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
@@ -134,8 +149,9 @@ def _press_points(block: ContactBlock, fs: float) -> tuple[np.ndarray, int]:
         hold = np.arange(a + round(HOLD_AFTER_S * fs), e)
         hold = hold[block.located[hold]]
         if len(hold) < MIN_HOLD_SAMPLES:
+            unknown[max(0, a - margin) : min(k, e + margin)] = True
             continue
         point = [float(np.median(getattr(block, name)[hold])) for name in ("x", "y", "z")]
         points[max(0, a - pad) : min(k, e + pad)] = point
         presses += 1
-    return points, presses
+    return points, unknown, presses

@@ -251,8 +251,9 @@ class ContactEstimator:
         zero = self.zeroing
         if self.trace or zero.state.zero is None or not s.shared_lp:
             return None
-        if self.inertia is not None and (accel is None or not self.inertia.usable(accel[0])):
-            return None  # checked before any stage's state moves on
+        if self.inertia is not None:  # checked before any stage's state moves on
+            if accel is None or not self.inertia.compensates(accel[0]):
+                return None
         raw_a = self.samples.process_one(t, wrench)
         if raw_a is None:
             return None

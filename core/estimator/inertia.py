@@ -34,7 +34,11 @@ gives the same output for any split of the input. ``G`` depends on how many acce
   of the motions that fit their readings the one with the least rotation is taken.
 
 A reading that is missing (NaN, no accelerometer data given at all) or at its range is not
-used: that sample is left uncompensated and flagged ``FLAG_NO_ACCEL``, never NaN. The
+used. With one accelerometer that sample is left uncompensated and flagged
+``FLAG_NO_ACCEL``, never NaN. With several, the sample is compensated from the readings that
+are usable (the motion they see; with one board of three lost the rotation about the
+other two's line is unseen: 7-10 % of a random motion's wrench left) and flagged only when
+none is. The
 desk's mass and centre of mass come from the profile (``desk.mass_kg``,
 ``desk.center_of_mass_m`` or its default, :meth:`DeskProfile.center_of_mass`).
 """
@@ -68,12 +72,17 @@ class InertiaSettings:
     rows: np.ndarray | None = None  # (A, 6)
     weights: np.ndarray | None = None  # (A,)
     spatial: np.ndarray | None = None  # (6, 6)
-    _partial: dict[bytes, np.ndarray] = field(default_factory=dict, repr=False)
+    _partial: dict[bytes, np.ndarray] = field(
+        default_factory=dict, init=False, repr=False, compare=False
+    )
 
     def gain_from(self, usable: np.ndarray) -> np.ndarray | None:
         """The gain (6, A) from only the ``usable`` readings (A,) bool (zero columns for the
         others), or None where they cannot give the motion (one accelerometer, or none
         usable). Cached per pattern: a lost frame or a saturated axis recurs."""
+        usable = np.asarray(usable, dtype=bool)
+        if usable.shape != (self.n_axes,):
+            raise ValueError(f"usable must be ({self.n_axes},) bool, found {usable.shape}")
         if self.rows is None or self.weights is None or self.spatial is None or not usable.any():
             return None
         key = usable.tobytes()
@@ -207,15 +216,27 @@ class InertiaStage:
                 raw[:, at] -= gain @ (accel[at] - self.settings.rest).T
         return flags
 
+    def compensates(self, accel: np.ndarray) -> bool:
+        """Whether :meth:`process_one` compensates the sample with readings ``accel`` (A,)."""
+        axes = self.usable_axes(accel)
+        return bool(axes.all()) or self.settings.gain_from(axes) is not None
+
     def process_one(self, raw: np.ndarray, accel: np.ndarray | None) -> np.ndarray | None:
         """:meth:`process` for one sample: ``raw`` (6,) less the inertial wrench (a new
-        array), or None where the reading is not usable (the block path flags it)."""
+        array), from the usable readings as :meth:`process` does; None where it would flag
+        the sample (the block path does)."""
         if accel is None:
             return None
         row = np.asarray(accel, dtype=float).reshape(-1)
-        if row.shape != (self.settings.n_axes,) or not bool(self.usable(row)):
+        if row.shape != (self.settings.n_axes,):
             return None
-        return raw - inertial_wrench(self.settings, row)
+        axes = self.usable_axes(row)
+        if axes.all():
+            return raw - inertial_wrench(self.settings, row)
+        gain = self.settings.gain_from(axes)
+        if gain is None:
+            return None
+        return raw - gain @ (np.where(axes, row, self.settings.rest) - self.settings.rest)
 
 
 def inertial_wrench(settings: InertiaSettings, accel: np.ndarray) -> np.ndarray:

@@ -57,13 +57,18 @@ MIN_NORMAL_SHARE = 0.8
 # the farthest its changes landed (its stray); the minimum is STRAY_MARGIN times the upper
 # quartile of the last STRAY_PRESSES presses' strays (the quartile leaves out the few pairs
 # missed as single), within [MIN_APART_FLOOR_M, MIN_APART_CAP_M]; until STRAY_MIN_PRESSES
-# presses are in, MIN_APART_M (enough on all three desks)
+# presses are in, MIN_APART_M (enough on all three desks). Only presses under the minimum
+# are measured, so a minimum learnt low would never rise if presses later strayed further
+# (a heavier hand, a monitor put on the desk): when more than MAX_FLAGGED_SHARE of the last
+# STRAY_PRESSES contacts with a change were flagged, the stage starts learning afresh
+# from MIN_APART_M (a missed pair is better than a made-up one)
 MIN_APART_M = 0.07
 MIN_APART_FLOOR_M = 0.03  # a finger's own width and the fit's spread
 MIN_APART_CAP_M = 0.15
 STRAY_MARGIN = 1.7  # the quartile to the largest stray: 1.56, 1.43, 1.63 on the three desks
 STRAY_PRESSES = 32
 STRAY_MIN_PRESSES = 8
+MAX_FLAGGED_SHARE = 0.5
 MAX_FIRST_MOVE_M = 0.005  # the first finger held this still over the lag before (no swipe)
 #: single samples that cannot end a landing wait in a queue of up to this many for one
 #: vectorised pass (SecondFingerStage.push_one)
@@ -181,6 +186,7 @@ class SecondFingerStage:
         self.same_contact = False
         # the desk's own stray (see MIN_APART_M): the last presses' and the open contact's
         self.strays: deque[float] = deque(maxlen=STRAY_PRESSES)
+        self.flagged_contacts: deque[bool] = deque(maxlen=STRAY_PRESSES)
         self.contact_stray = 0.0
         self.min_apart_m = MIN_APART_M
 
@@ -385,8 +391,10 @@ class SecondFingerStage:
                 landing = change[a:b] & (apart[a:b] >= self.min_apart_m)
                 hits = np.flatnonzero(landing)
                 if len(hits) == 0:
-                    if b > a:
-                        self.contact_stray = max(self.contact_stray, float(apart[a:b].max()))
+                    if b > a:  # (fmax: a NaN never wins, whatever the split)
+                        self.contact_stray = float(
+                            np.fmax(self.contact_stray, np.fmax.reduce(apart[a:b]))
+                        )
                     continue
                 first_hit = a + int(hits[0])
                 self.flagged = True
@@ -429,6 +437,13 @@ class SecondFingerStage:
 
     def _end_contact(self) -> None:
         """The open contact ended: a press without a second finger adds its stray."""
+        if self.flagged or self.contact_stray > 0:
+            recent = self.flagged_contacts
+            recent.append(self.flagged)
+            if len(recent) >= STRAY_MIN_PRESSES and sum(recent) > MAX_FLAGGED_SHARE * len(recent):
+                self.strays.clear()  # see MAX_FLAGGED_SHARE: learn afresh
+                recent.clear()
+                self.min_apart_m = MIN_APART_M
         if not self.flagged and self.contact_stray > 0:
             self.strays.append(self.contact_stray)
             if len(self.strays) >= STRAY_MIN_PRESSES:

@@ -231,6 +231,14 @@ def test_the_minimum_distance_is_the_desks_own_stray(desk):
     np.testing.assert_array_equal(ContactBlock.concat(parts).flags, block.flags)
     assert streamed.second_finger is not None
     assert streamed.second_finger.min_apart_m == pytest.approx(stage.min_apart_m, rel=1e-9)
+    # one sample at a time over four presses' ends (the single-sample queue), then the rest
+    one = ContactEstimator(desk)
+    cut = int(np.searchsorted(rec.t, 2.0 + 4 * 6.0))
+    parts = [one.push(rec.t[i : i + 1], rec.wrench[i : i + 1]) for i in range(cut)]
+    parts.append(one.push(rec.t[cut:], rec.wrench[cut:]))
+    np.testing.assert_array_equal(ContactBlock.concat(parts).flags, block.flags)
+    assert one.second_finger is not None
+    assert one.second_finger.min_apart_m == pytest.approx(stage.min_apart_m, rel=1e-9)
 
     tall = unseen_desk("unseen-four").with_estimation(second_finger=True)
     rec = simulate(tall, _presses_then_pairs(10, 0.05, seed=3))
@@ -238,3 +246,24 @@ def test_the_minimum_distance_is_the_desks_own_stray(desk):
     estimator.push(rec.t, rec.wrench)
     assert estimator.second_finger is not None
     assert estimator.second_finger.min_apart_m > 0.06
+
+
+def test_a_minimum_learnt_low_is_learnt_afresh_when_most_contacts_are_flagged(desk):
+    """Only presses under the minimum are measured, so a minimum learnt low could not rise
+    if presses later strayed further (every one flagged, none measured): once more than
+    half of the last contacts with a change are flagged, it starts again from 7 cm."""
+    from hapticdesk.estimator import multitouch
+
+    stage = multitouch.SecondFingerStage(desk)
+    for _ in range(10):  # ten presses whose own change strayed 1.5 cm at most
+        stage.contact_stray = 0.015
+        stage._end_contact()
+    assert stage.min_apart_m == multitouch.MIN_APART_FLOOR_M
+    for _ in range(10):  # as many flagged: half, still trusted
+        stage.flagged = True
+        stage._end_contact()
+    assert stage.min_apart_m == multitouch.MIN_APART_FLOOR_M
+    stage.flagged = True
+    stage._end_contact()
+    assert stage.min_apart_m == multitouch.MIN_APART_M
+    assert len(stage.strays) == 0

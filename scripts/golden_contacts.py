@@ -2,7 +2,8 @@
 """Record or check the estimator's outputs (the golden file of tests/core/test_core_golden.py).
 
 Behind a refactor of the estimator its outputs must stay equal (to 1e-9) on the paper, shelf
-and day scenes, for every method, in batch and in 1- and 7-sample pushes. ``--write`` records
+and day scenes, and on two desks with accelerometers (one; three, one board's readings lost
+for a while), for every method, in batch and in 1- and 7-sample pushes. ``--write`` records
 them from the code as it is; ``--check`` compares the code as it is now against a recording.
 ``--short`` uses the shortened scenes the committed golden file holds (a few seconds of each);
 without it the full scenes are used (a local check before and after a refactor: a few MB).
@@ -21,8 +22,10 @@ import numpy as np
 
 from hapticdesk.bench.scenes import desk_day, paper_experiment
 from hapticdesk.estimator import ContactEstimator
-from hapticdesk.files.profile import METHODS, load_profile
-from hapticdesk.sim import Press, Scene, simulate
+from hapticdesk.estimator.inertia import accelerometer_readings
+from hapticdesk.files.profile import METHODS, DeskProfile, load_profile
+from hapticdesk.files.recording import Recording
+from hapticdesk.sim import Press, Scene, Swipe, simulate
 
 FIELDS = ("in_contact", "located", "surface", "x", "y", "z", "force_n", "source", "phase")
 FIELDS += ("sigma_m", "flags")
@@ -44,15 +47,46 @@ def _scenes(short: bool) -> dict[str, tuple[str, Scene]]:
     day = desk_day(minutes=0.5 if short else 10.0)
     if short:
         paper = Scene(actions=paper.actions[:3], quiet_s=paper.quiet_s, name="paper-short")
+    accel = Scene(
+        actions=[Swipe(from_point=(-0.2, 0.0), to_point=(0.1, 0.0)), Press(point=(-0.2, -0.1))],
+        quiet_s=2.0,
+        name="accel",
+    )
+    panel = Scene(
+        actions=[Press(point=(-0.25, 0.0), surface="front", hold_s=1.0)],
+        quiet_s=2.0,
+        name="panel-accel",
+    )
     return {
         "paper": ("kitamura2017", paper),
         "shelf": ("kitamura2017-shelf", shelf),
         "day": ("kitamura2017", day),
+        "accel": ("kitamura2017-accel", accel),
+        "panel-accel": ("kitamura2017-panel-accel", panel),
     }
 
 
-def _pushed(est: ContactEstimator, t: np.ndarray, w: np.ndarray, k: int) -> dict[str, np.ndarray]:
-    blocks = [est.push(t[i : i + k], w[i : i + k]) for i in range(0, len(t), k)]
+def _readings(desk: DeskProfile, rec: Recording) -> np.ndarray | None:
+    """The desk's accelerometer readings; on a desk with several, the second board's lost
+    for 0.8 s from 2.4 s on (the partial-readings path, in the press) and one reading at
+    its range."""
+    accel = accelerometer_readings(desk, rec.extra)
+    if accel is None or len(desk.accelerometers) < 2:
+        return accel
+    accel = accel.copy()
+    fs = desk.sample_rate_hz
+    accel[int(2.4 * fs) : int(3.2 * fs), 3:6] = np.nan
+    accel[int(3.5 * fs), 0] = desk.accelerometers[0].range_m_s2
+    return accel
+
+
+def _pushed(
+    est: ContactEstimator, t: np.ndarray, w: np.ndarray, k: int, accel: np.ndarray | None
+) -> dict[str, np.ndarray]:
+    blocks = [
+        est.push(t[i : i + k], w[i : i + k], None if accel is None else accel[i : i + k])
+        for i in range(0, len(t), k)
+    ]
     return {f: np.concatenate([getattr(b, f) for b in blocks]) for f in FIELDS}
 
 
@@ -70,12 +104,13 @@ def golden_outputs(short: bool, pushes: bool) -> dict[str, np.ndarray]:
     for scene_name, (desk_name, scene) in _scenes(short).items():
         desk = load_profile(desk_name)
         rec = simulate(desk, scene, seed=0)
+        accel = _readings(desk, rec)
         for method in METHODS:
             sizes = ("batch", 1, 7) if pushes else ("batch",)
             for size in sizes:
                 est = ContactEstimator(desk, method=method)
                 k = len(rec.t) if size == "batch" else int(size)
-                fields = _pushed(est, rec.t, rec.wrench, k)
+                fields = _pushed(est, rec.t, rec.wrench, k, accel)
                 if short:
                     fields = _thinned(fields)
                 for f, values in fields.items():

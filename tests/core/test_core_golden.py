@@ -1,7 +1,8 @@
 """The golden test: the estimator's outputs stay what they were when the file was recorded.
 
 ``tests/core/data/golden_contacts.npz`` holds every field of the contacts of every method on
-short paper, shelf and day scenes (``python scripts/golden_contacts.py --write ... --short``).
+short paper, shelf and day scenes and on desks with one and three accelerometers
+(``python scripts/golden_contacts.py --write ... --short``).
 A change that means to alter the outputs records the file anew, in its own commit, and says
 why; a refactor must leave it equal to 1e-9, in batch and in 1- and 7-sample pushes.
 """

@@ -100,10 +100,23 @@ class ZeroStage:
         st.win_bad[m] = False
         if m + 1 < w:
             st.win_fill = m + 1
-        else:  # (_windows reads the fill before this sample: m, the block's first index)
-            self._windows(np.array([t]), st.win_lp, st.win_raw, st.win_bad, 1, [0], [])
+        else:
+            self._window_one(t)
             st.win_fill = 0
         st.last_window_t = t
+
+    def _window_one(self, t: float) -> None:
+        """:meth:`_windows` for the one window a single sample ends, with as few numpy calls
+        as it takes: at a window's end (5 times a second) they run cold, and the general
+        code's dozen took about 125 µs there against 21 µs warm. The same reductions (a
+        window's max and min, its mean), so the same values as a block's."""
+        st, s = self.state, self.settings.user
+        spread = float((st.win_lp.max(axis=1) - st.win_lp.min(axis=1)).max())
+        bad = bool(np.count_nonzero(st.win_bad) / len(st.win_bad) > 0.1)  # (as _windows)
+        if st.zero is not None and (bad or spread >= s.still_n):
+            st.still_run = st.object_run = 0  # not still: ends a still run (see _windows)
+            return
+        self._window_done(spread, bad, st.win_raw.mean(axis=1).tolist(), st.win_raw, t)
 
     def process(
         self, t: np.ndarray, lp_force: np.ndarray, raw: np.ndarray, flags: np.ndarray

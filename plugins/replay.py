@@ -86,16 +86,11 @@ class RecordingSource(Source):
 
     def _readings(self, columns: dict[str, np.ndarray]) -> np.ndarray | None:
         """The accelerometers' readings (k, A) among a block's extra ``columns``, or None."""
-        import numpy as np
+        from hapticdesk.files.recording import accel_table, named_columns
 
-        from hapticdesk.files.recording import accel_table
-
-        names = self.accel_columns
-        if names is None:
+        if self.accel_columns is None:
             return accel_table(columns)
-        if not names or not all(name in columns for name in names):
-            return None
-        return np.column_stack([np.asarray(columns[name], dtype=float) for name in names])
+        return named_columns(columns, self.accel_columns)
 
     def close(self) -> None:
         """Safe from another thread: a file being read is closed by the reading thread."""

@@ -35,7 +35,7 @@ from hapticdesk.estimator.inertia import (
     accelerometer_readings,
     rigid_motion,
 )
-from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile import DeskProfile, spatial_inertia
 from hapticdesk.files.recording import Recording
 
 BAND_HZ = (2.0, 40.0)
@@ -46,7 +46,6 @@ AROUND_S = 0.3  # a press's point applies from this long before touch-down to af
 # left out of the fit (the band-pass spreads its error about this far)
 UNKNOWN_MARGIN_S = 1.0
 MIN_CORRELATION = 0.9
-AXES_NAMES = ("x", "y", "z")
 
 
 @dataclass(frozen=True)
@@ -98,14 +97,17 @@ def fit_inertia(
         return InertiaFit(nothing, no, 0, "no press held still long enough")
     readings = np.where(usable[:, None], accel, settings.rest) - settings.rest
     motion = readings @ rigid_motion(settings.rows, settings.weights).T
-    d_acc, t_acc = motion[:, :3], motion[:, 3:]
+    t_acc = motion[:, 3:]
     wrench = recording.wrench.reshape(k, -1) @ profile.wrench_map().T - baseline
-    m = float(profile.mass_kg or 0.0)
-    c = profile.center_of_mass()
-    cx = np.array([[0.0, -c[2], c[1]], [c[2], 0.0, -c[0]], [-c[1], c[0], 0.0]])
-    force = m * (d_acc + np.cross(t_acc, c)) - wrench[:, :3]  # the finger's, f
-    left = wrench[:, 3:] - m * np.cross(c, d_acc) + m * (t_acc @ (cx @ cx).T)
-    left += np.cross(points, force)  # = I_c θ̈
+    # M q̈ without I_c θ̈: [m (d̈ + θ̈ × c); m c × d̈ − m [c]×² θ̈]
+    known = (
+        motion
+        @ spatial_inertia(
+            float(profile.mass_kg or 0.0), profile.center_of_mass(), np.zeros((3, 3))
+        ).T
+    )
+    force = known[:, :3] - wrench[:, :3]  # the finger's, f
+    left = wrench[:, 3:] - known[:, 3:] + np.cross(points, force)  # = I_c θ̈
     left[~usable] = 0.0
     spin = np.where(usable[:, None], t_acc, 0.0)
     sos = signal.butter(2, BAND_HZ, btype="band", fs=fs, output="sos")

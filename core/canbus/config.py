@@ -417,7 +417,9 @@ def _accelerometers(
                 f"{have}: list them as `can.accelerometers: [{{x: …, y: …, z: …}}, …]` in the "
                 "profile's order",
             )
-        items: list[tuple[Any, Any]] = [(section["accelerometer"], section.where(key))]
+        items: list[tuple[Any, Any, str]] = [
+            (section["accelerometer"], section.where(key), "`can.accelerometer`")
+        ]
     else:
         raw = section["accelerometers"]
         if not isinstance(raw, MarkedList) or len(raw) != have:
@@ -427,28 +429,28 @@ def _accelerometers(
                 f"`{profile.name}`'s accelerometers in its order, found "
                 f"{len(raw) if isinstance(raw, list) else repr(raw)}",
             )
-        items = [(item, raw.where(i)) for i, item in enumerate(raw)]
+        items = [
+            (item, raw.where(i), f"accelerometer {i + 1} of `can.accelerometers`")
+            for i, item in enumerate(raw)
+        ]
     return tuple(
-        _accelerometer(item, where, i, profile, database, section)
-        for i, (item, where) in enumerate(items)
+        _accelerometer(item, where, what, i, profile, database, section)
+        for i, (item, where, what) in enumerate(items)
     )
 
 
 def _accelerometer(
     item: Any,
     where: Any,
+    what: str,
     index: int,
     profile: DeskProfile,
     database: Any,
     section: MarkedDict,
 ) -> SignalSensor:
-    """One accelerometer's axes as database signals."""
+    """The profile's ``index``-th accelerometer's axes as database signals (``what``: its
+    entry, for errors)."""
     spec = profile.accelerometers[index]
-    what = (
-        "`can.accelerometer`"
-        if "accelerometer" in section
-        else (f"accelerometer {index + 1} of `can.accelerometers`")
-    )
     item = require_mapping(item, where, what)
     check_keys(item, {"x", "y", "z", "counter", "status"}, what)
     given = [a for a in ("x", "y", "z") if a in item]

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hapticdesk.canbus import ati_netcanoem as ati
-from hapticdesk.canbus.config import ACCEL_GROUP, AtiSensor, CanConfig, SignalSensor
+from hapticdesk.canbus.config import AtiSensor, CanConfig, SignalSensor
 from hapticdesk.canbus.dbc_signals import SignalLayout, frame_words
 from hapticdesk.canbus.frames import ERROR, EXTENDED, REMOTE, FrameArray
 from hapticdesk.files.profile import AXES, DeskProfile
@@ -122,6 +122,7 @@ class DeskDecoding:
     counter_modulus: int | None  # set when every kind has a counter
     # kind of a reply's second frame -> kind of its first (an ATI board's 0x1 after its 0x0)
     second_halves: dict[int, int] = field(default_factory=dict)
+    n_accelerometers: int = 0  # the last readings are the accelerometers' (config.groups)
 
     def __post_init__(self) -> None:
         keys, codes = [], []
@@ -146,12 +147,12 @@ class DeskDecoding:
     def accel_axes(self) -> list[list[int]]:
         """For each accelerometer on the bus, in order, the channels of its group that hold
         its axes (x, y, z order); empty when the desk has none (their groups come last)."""
+        first = len(self.readings) - self.n_accelerometers
         out = []
-        for reading in reversed(self.readings):
-            if not isinstance(reading, SignalReading) or not reading.name.startswith(ACCEL_GROUP):
-                break
+        for reading in self.readings[first:]:
+            assert isinstance(reading, SignalReading)  # (accelerometers are database signals)
             out.append(sorted(reading.axis_columns))
-        return out[::-1]
+        return out
 
     def classify(self, frames: FrameArray) -> np.ndarray:
         """Code per frame: a kind index (>= 0) or FOREIGN, WRONG_LENGTH, PROTOCOL, REQUEST, …"""
@@ -269,7 +270,14 @@ def build_decoding(
     if kinds and all(k.counter is not None for k in kinds):
         modulus = 1 << kinds[0].counter.length  # type: ignore[union-attr]
     return DeskDecoding(
-        kinds, readings, column, request_sensor, frozenset(protocol), modulus, second_halves
+        kinds,
+        readings,
+        column,
+        request_sensor,
+        frozenset(protocol),
+        modulus,
+        second_halves,
+        len(config.accelerometers),
     )
 
 

@@ -54,8 +54,10 @@ from hapticdesk.files.profile import (
     STANDARD_GRAVITY,
     AccelerometerSpec,
     DeskProfile,
+    skew,
     spatial_inertia,
 )
+from hapticdesk.files.recording import named_columns
 
 
 @dataclass(frozen=True, eq=False)
@@ -67,11 +69,11 @@ class InertiaSettings:
     limit: np.ndarray  # (A,): |reading| at or beyond this is saturated
     n_axes: int
     columns: tuple[str, ...]  # the recording columns the readings come from
-    # several accelerometers: the rows of H, their weights and M, for the gain without some
-    # readings (gain_from); None with one (the translating desk needs all its axes)
+    # several accelerometers: the rows of H and their weights, with M, for the gain without
+    # some readings (gain_from); None with one (the translating desk needs all its axes)
     rows: np.ndarray | None = None  # (A, 6)
     weights: np.ndarray | None = None  # (A,)
-    spatial: np.ndarray | None = None  # (6, 6)
+    spatial: np.ndarray | None = None  # (6, 6) the desk's spatial inertia M
     _partial: dict[bytes, np.ndarray] = field(
         default_factory=dict, init=False, repr=False, compare=False
     )
@@ -104,13 +106,12 @@ class InertiaSettings:
         m = profile.mass_kg
         c = profile.center_of_mass()
         axes = np.hstack([spec.axis_matrix() for spec in specs])  # (3, A)
-        rows = weights = spatial = None
-        if len(specs) == 1:  # the desk taken as translating: d̈ = R_a f
-            lever = np.array([[0.0, -c[2], c[1]], [c[2], 0.0, -c[0]], [-c[1], c[0], 0.0]])
-            gain = m * np.vstack([np.eye(3), lever]) @ axes  # (6, A)
+        spatial = spatial_inertia(m, c, profile.inertia_about_com())
+        rows = weights = None
+        if len(specs) == 1:  # the desk taken as translating: d̈ = R_a f, M q̈ = [m d̈; m c × d̈]
+            gain = spatial[:, :3] @ axes  # (6, A)
         else:  # the rigid motion q̈ from the readings, then M q̈
             rows, weights = motion_rows(specs)
-            spatial = spatial_inertia(m, c, profile.inertia_about_com())
             gain = spatial @ rigid_motion(rows, weights)
         rest = axes.T @ np.array([0.0, 0.0, STANDARD_GRAVITY])
         limit = np.concatenate([np.full(len(spec.axes), spec.range_m_s2) for spec in specs])
@@ -137,9 +138,7 @@ def motion_rows(specs: tuple[AccelerometerSpec, ...]) -> tuple[np.ndarray, np.nd
     noise, else equal."""
     rows, sigma = [], []
     for spec in specs:
-        p = spec.position
-        px = np.array([[0.0, -p[2], p[1]], [p[2], 0.0, -p[0]], [-p[1], p[0], 0.0]])
-        rows.append(spec.axis_matrix().T @ np.hstack([np.eye(3), -px]))
+        rows.append(spec.axis_matrix().T @ np.hstack([np.eye(3), -skew(spec.position)]))
         sigma += [spec.noise_m_s2] * len(spec.axes)
     noise = np.array(sigma)
     weights = 1.0 / noise if (noise > 0).all() else np.ones(len(noise))
@@ -251,9 +250,4 @@ def accelerometer_readings(
     """The accelerometer's readings (k, A) from a recording's extra columns, or None when the
     desk has no accelerometer or the recording lacks its columns (then every sample is
     estimated uncompensated, flagged)."""
-    names = profile.accelerometer_columns()
-    if not names:
-        return None
-    if not all(name in columns for name in names):
-        return None
-    return np.column_stack([np.asarray(columns[name], dtype=float) for name in names])
+    return named_columns(columns, profile.accelerometer_columns())

@@ -33,12 +33,16 @@ DEFAULT_TOP_HEIGHT_M = 0.7  # a desk's top above its sensors when the profile ha
 COM_HEIGHT_FRACTION = 0.85  # the default centre of mass: a heavy top on light legs
 
 
+def skew(v: np.ndarray) -> np.ndarray:
+    """[v]×, the matrix with [v]× w = v × w."""
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
 def spatial_inertia(mass_kg: float, center_of_mass: np.ndarray, inertia: np.ndarray) -> np.ndarray:
     """The (6, 6) spatial inertia M about the desk origin for small motions q = [d; θ]: the
     inertial wrench about the origin is M q̈ = [m (d̈ + θ̈ × c); m c × d̈ + I_o θ̈], with
     ``inertia`` (3, 3) about the centre of mass c and I_o = I_c − m [c]×² (parallel axes)."""
-    c = np.asarray(center_of_mass, dtype=float)
-    cx = np.array([[0.0, -c[2], c[1]], [c[2], 0.0, -c[0]], [-c[1], c[0], 0.0]])
+    cx = skew(np.asarray(center_of_mass, dtype=float))
     mass = np.zeros((6, 6))
     mass[:3, :3] = mass_kg * np.eye(3)
     mass[:3, 3:] = -mass_kg * cx
@@ -310,8 +314,7 @@ class DeskProfile:
         blocks = []
         for s in self.sensors:
             r = s.sign * s.rotation
-            p = s.position
-            px = np.array([[0, -p[2], p[1]], [p[2], 0, -p[0]], [-p[1], p[0], 0]])
+            px = skew(s.position)
             block = np.zeros((6, 6))
             block[:3, :3] = r
             block[3:, 3:] = r

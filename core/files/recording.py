@@ -73,9 +73,15 @@ def accel_table(extra: dict[str, np.ndarray]) -> np.ndarray | None:
     each in x, y, z order (a profile's order), or None when there are none (the estimator
     checks them against the desk's profile)."""
     names = sorted((c for c in extra if ACCEL_COLUMN.fullmatch(c)), key=_accel_column_order)
-    if not names:
+    return named_columns(extra, names)
+
+
+def named_columns(extra: dict[str, np.ndarray], names: list[str]) -> np.ndarray | None:
+    """The columns ``names`` among ``extra`` as (k, len(names)) floats, or None when there are
+    no names or any is missing (an accelerometer's readings: all of them or none)."""
+    if not names or not all(name in extra for name in names):
         return None
-    return np.column_stack([np.asarray(extra[c], dtype=float) for c in names])
+    return np.column_stack([np.asarray(extra[name], dtype=float) for name in names])
 
 
 def _accel_column_order(name: str) -> tuple[int, str]:

@@ -43,15 +43,10 @@ import scipy.linalg
 import scipy.optimize
 import scipy.signal
 
-from hapticdesk.files.profile import STANDARD_GRAVITY, DeskProfile, spatial_inertia
+from hapticdesk.files.profile import STANDARD_GRAVITY, DeskProfile, skew, spatial_inertia
 
 DEFAULT_MASS_KG = 13.7  # the paper's desk (Table 1)
 DEFAULT_SWAY_HZ = 5.9  # the paper's desk (§3.2)
-
-
-def skew(v: np.ndarray) -> np.ndarray:
-    """[v]×, the matrix with [v]× w = v × w."""
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 def point_load(force: np.ndarray, point: np.ndarray) -> np.ndarray:

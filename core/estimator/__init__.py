@@ -251,15 +251,16 @@ class ContactEstimator:
         zero = self.zeroing
         if self.trace or zero.state.zero is None or not s.shared_lp:
             return None
-        if self.inertia is not None:  # checked before any stage's state moves on
-            if accel is None or not self.inertia.compensates(accel[0]):
+        inertial = None
+        if self.inertia is not None:  # before any stage's state moves on
+            inertial = self.inertia.wrench_one(None if accel is None else accel[0])
+            if inertial is None:
                 return None
         raw_a = self.samples.process_one(t, wrench)
         if raw_a is None:
             return None
-        if self.inertia is not None:
-            raw_a = self.inertia.process_one(raw_a, accel)
-            assert raw_a is not None  # (usable, checked above)
+        if inertial is not None:
+            raw_a = raw_a - inertial
         raw = raw_a.tolist()
         lp, det, diff, det_slope, release = self.filters.process_one(raw)
         # the zero before this sample: one set where it ends a window applies from the next on

@@ -215,15 +215,11 @@ class InertiaStage:
                 raw[:, at] -= gain @ (accel[at] - self.settings.rest).T
         return flags
 
-    def compensates(self, accel: np.ndarray) -> bool:
-        """Whether :meth:`process_one` compensates the sample with readings ``accel`` (A,)."""
-        axes = self.usable_axes(accel)
-        return bool(axes.all()) or self.settings.gain_from(axes) is not None
-
-    def process_one(self, raw: np.ndarray, accel: np.ndarray | None) -> np.ndarray | None:
-        """:meth:`process` for one sample: ``raw`` (6,) less the inertial wrench (a new
-        array), from the usable readings as :meth:`process` does; None where it would flag
-        the sample (the block path does)."""
+    def wrench_one(self, accel: np.ndarray | None) -> np.ndarray | None:
+        """:meth:`process` for one sample: the inertial wrench (6,) its readings ``accel``
+        (A,) give, from the usable ones as :meth:`process` does, to subtract from its
+        resultant; None where :meth:`process` would flag the sample (the block path does).
+        Needs no state, so it can be asked before any stage's state moves on."""
         if accel is None:
             return None
         row = np.asarray(accel, dtype=float).reshape(-1)
@@ -231,11 +227,11 @@ class InertiaStage:
             return None
         axes = self.usable_axes(row)
         if axes.all():
-            return raw - inertial_wrench(self.settings, row)
+            return inertial_wrench(self.settings, row)
         gain = self.settings.gain_from(axes)
         if gain is None:
             return None
-        return raw - gain @ (np.where(axes, row, self.settings.rest) - self.settings.rest)
+        return gain @ (np.where(axes, row, self.settings.rest) - self.settings.rest)
 
 
 def inertial_wrench(settings: InertiaSettings, accel: np.ndarray) -> np.ndarray:

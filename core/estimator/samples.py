@@ -112,7 +112,9 @@ class SampleStage:
                 flags[gap] = FLAG_GAP
             st.last_t = float(t[-1])
             with np.errstate(invalid="ignore", over="ignore"):
-                raw = self.settings.wrench_map @ flat.T  # (6, k): paper eqs. (1)–(4)
+                # (6, k): paper eqs. (1)–(4); as (k, 6S) @ (6S, 6) and viewed transposed,
+                # which BLAS does in half the time of (6, 6S) @ (6S, k) on the rows as given
+                raw = (flat @ self.settings.wrench_map_t).T
             st.last_good = raw[:, -1].copy()
             return flags, raw
         return self._process_slowly(t, flat, flags)

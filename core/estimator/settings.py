@@ -37,6 +37,7 @@ class EstimatorSettings:
     sample_rate_hz: float
     n_sensors: int
     wrench_map: np.ndarray  # (6, 6S): paper eqs. (1)–(4)
+    wrench_map_t: np.ndarray  # (6S, 6): its transpose, contiguous (the batch path's layout)
     range_flat: np.ndarray  # (6S,) each channel's rating
     inv_range2: np.ndarray  # (6S,) 1 / rating²
     frames: list[SurfaceFrame]
@@ -103,6 +104,7 @@ class EstimatorSettings:
             sample_rate_hz=fs,
             n_sensors=len(profile.sensors),
             wrench_map=np.ascontiguousarray(profile.wrench_map()),
+            wrench_map_t=np.ascontiguousarray(profile.wrench_map().T),
             range_flat=range_flat,
             inv_range2=1.0 / range_flat**2,
             frames=[SurfaceFrame.of(surf) for surf in profile.surfaces],

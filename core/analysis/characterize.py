@@ -38,7 +38,12 @@ import numpy as np
 from scipy import signal
 
 from hapticdesk.analysis.inertia_fit import InertiaFit, fit_inertia
-from hapticdesk.files.profile import AXES, LOWPASS_PER_NATURAL_FREQUENCY, DeskProfile
+from hapticdesk.files.profile import (
+    AXES,
+    LOWPASS_PER_NATURAL_FREQUENCY,
+    DeskProfile,
+    is_body_inertia,
+)
 from hapticdesk.files.recording import Recording
 from hapticdesk.files.yamlfile import ConfigError
 
@@ -299,7 +304,14 @@ def characterize(profile: DeskProfile, recording: Recording) -> Characterization
         fit = fit_inertia(profile, recording, baseline, fs)
         result.inertia = fit
         if any(m is not None for m in fit.moments):
-            result.inertia_kg_m2 = fit.with_profile(profile)
+            moments = fit.with_profile(profile)
+            if is_body_inertia(moments):
+                result.inertia_kg_m2 = moments
+            else:  # (all three fitted, and no body has them: a fit to distrust)
+                result.notes.append(
+                    f"the fitted moments of inertia {moments} are no body's (one exceeds the "
+                    "other two's sum): not suggested; record firmer presses near the ends"
+                )
     return result
 
 

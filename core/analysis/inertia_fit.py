@@ -59,12 +59,30 @@ class InertiaFit:
     reason: str = ""  # why nothing was fitted
 
     def with_profile(self, profile: DeskProfile) -> list[float]:
-        """The three moments to give the profile: the fitted ones, the profile's elsewhere."""
+        """The three moments to give the profile: the fitted ones, the profile's elsewhere,
+        those scaled up just enough that each moment is at most the sum of the other two (a
+        body's are, and the profile reader refuses others). A fitted yaw above the assumed
+        roll and pitch's sum says those were too small: a desk is closer to a flat plate,
+        where the yaw moment is their sum, than the profile's box."""
         current = np.diag(profile.inertia_about_com())
-        return [
-            float(f"{m:.4g}") if m is not None else float(f"{c:.4g}")
-            for m, c in zip(self.moments, current, strict=True)
-        ]
+        fitted = np.array([m if m is not None else 0.0 for m in self.moments])
+        kept = np.where([m is None for m in self.moments], current, 0.0)
+        scale = _least_body_scale(fitted, kept)
+        return [float(f"{v:.4g}") for v in fitted + scale * kept]
+
+
+def _least_body_scale(fitted: np.ndarray, kept: np.ndarray) -> float:
+    """The least s ≥ 1 for which I = fitted + s·kept (each axis one or the other) has every
+    moment at most the sum of the other two; 1 where none does (nothing helps)."""
+    scale = 1.0
+    for a in range(3):
+        b, c = (a + 1) % 3, (a + 2) % 3
+        # I_a ≤ I_b + I_c  ⇔  s (kept_a − kept_b − kept_c) ≤ fitted_b + fitted_c − fitted_a
+        slope = kept[a] - kept[b] - kept[c]
+        room = fitted[b] + fitted[c] - fitted[a]
+        if slope < 0 and scale * slope > room:
+            scale = room / slope * (1 + 1e-3)  # (a little over: the snippet is rounded)
+    return scale
 
 
 def fit_inertia(

@@ -38,6 +38,14 @@ def skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
+def is_body_inertia(moments: list[float] | tuple[float, ...]) -> bool:
+    """Three principal moments of inertia a body can have: finite, positive, each at most the
+    sum of the other two."""
+    return all(math.isfinite(v) and v > 0 for v in moments) and max(moments) <= (
+        sum(moments) - max(moments)
+    ) * (1 + 1e-9)
+
+
 def spatial_inertia(mass_kg: float, center_of_mass: np.ndarray, inertia: np.ndarray) -> np.ndarray:
     """The (6, 6) spatial inertia M about the desk origin for small motions q = [d; θ]: the
     inertial wrench about the origin is M q̈ = [m (d̈ + θ̈ × c); m c × d̈ + I_o θ̈], with

@@ -20,6 +20,7 @@ from hapticdesk.files.profile import (
     SensorSpec,
     Surface,
     accel_column_prefix,
+    is_body_inertia,
     rotation_matrix,
 )
 from hapticdesk.files.yamlfile import (
@@ -109,9 +110,7 @@ def read_profile(doc: MarkedDict, path: Path) -> DeskProfile:
             moments = vector(
                 desk["inertia_kg_m2"], desk.where("inertia_kg_m2"), "`inertia_kg_m2` of `desk`", 3
             )
-            if not all(math.isfinite(v) and v > 0 for v in moments) or max(moments) > (
-                sum(moments) - max(moments)
-            ) * (1 + 1e-9):
+            if not is_body_inertia(moments):
                 raise ConfigError(
                     desk.where("inertia_kg_m2"),
                     "`inertia_kg_m2` of `desk` must be three positive principal moments of "

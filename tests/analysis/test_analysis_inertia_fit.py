@@ -11,11 +11,12 @@ import numpy as np
 import pytest
 
 from hapticdesk.analysis.characterize import characterize
+from hapticdesk.analysis.inertia_fit import InertiaFit
 from hapticdesk.bench.accuracy import measure_accuracy
 from hapticdesk.commands.characterize import format_report
 from hapticdesk.estimator import ContactEstimator
 from hapticdesk.estimator.inertia import accelerometer_readings
-from hapticdesk.files.profile import DeskProfile, load_profile
+from hapticdesk.files.profile import DeskProfile, is_body_inertia, load_profile
 from hapticdesk.sim import Press, Scene, Tap, simulate
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "scripts"))
@@ -100,3 +101,31 @@ def test_nothing_is_fitted_without_what_it_needs(three, tmp_path):
     idle = simulate(three, Scene([], quiet_s=4.0), seed=2)
     fit = characterize(three, idle).inertia
     assert fit is not None and fit.reason and all(m is None for m in fit.moments)
+
+
+@pytest.mark.parametrize(
+    ("moments", "fitted_axes"),
+    [((None, None, 5.674), (2,)), ((None, 0.2, 9.0), (1, 2)), ((0.5, None, None), (0,))],
+)
+def test_the_suggested_moments_are_always_a_bodys(three, tmp_path, moments, fitted_axes):
+    """A fitted yaw above the profile's roll and pitch's sum (a wide desk heavier at its ends
+    than the box the profile assumes: seen on a 1.2 m desk whose yaw was fitted to 0.2 %) made
+    a snippet the profile reader refuses. The moments left as the profile has them are now
+    scaled up just enough; the fitted ones are kept as fitted, and the snippet loads."""
+    fit = InertiaFit(moments, (0.0, 0.0, 0.0), 8)
+    suggested = fit.with_profile(three)
+    assert is_body_inertia(suggested)
+    for axis in fitted_axes:
+        assert suggested[axis] == pytest.approx(moments[axis], rel=1e-3)
+    box = np.diag(three.inertia_about_com())
+    kept = [a for a in range(3) if a not in fitted_axes]
+    scales = [suggested[a] / box[a] for a in kept]
+    assert scales == pytest.approx([scales[0]] * len(kept), rel=1e-3)  # one scale for all
+    assert all(s >= 1 - 1e-3 for s in scales)
+    if all(moments[a] is None or moments[a] <= 3.0 for a in range(3)):
+        assert scales == pytest.approx([1.0] * len(kept), rel=1e-3)  # nothing to mend
+    else:
+        ordered = sorted(suggested)
+        assert ordered[2] == pytest.approx(ordered[0] + ordered[1], rel=2e-3)  # just enough
+    pasted = _with_inertia(three, suggested, tmp_path)
+    assert np.diag(pasted.inertia_about_com()) == pytest.approx(suggested)

@@ -18,9 +18,16 @@ with an accelerometer estimated with and without its readings.
   +50 ms after the true touch-down (``fused``; a press not located counts as a miss), without
   the readings, with one accelerometer at the top's centre instead, with the three, with the
   three on a desk whose true inertia is half or twice the box the estimator assumes; and, as
-  the bound, with the simulator's exact inertial wrench ``M q̈`` taken out of the readings.
+  the bound, with the simulator's exact inertial wrench ``M q̈`` taken out of the readings;
+- the same on panel desks unlike the shipped one (``--panel-variants``, :data:`PANEL_VARIANTS`:
+  wider with five legs turned and upside down and accelerometers turned, small and light,
+  heavy with six legs), each with a true inertia off the box the profile assumes: the yaw
+  fitted by ``characterize`` from eight presses among taps, then presses and taps on the top
+  and the panel estimated without the readings, with the box and with the fitted inertia.
 
     python scripts/vibration_eval.py --seeds 5      # the figures in README and docs/stability.md
+    python scripts/vibration_eval.py --panel --seeds 6
+    python scripts/vibration_eval.py --panel-variants --seeds 3
 """
 
 from __future__ import annotations
@@ -29,6 +36,7 @@ import argparse
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import scipy.signal
@@ -38,7 +46,7 @@ from hapticdesk.estimator.filters import butter_lowpass_sos
 from hapticdesk.estimator.inertia import InertiaSettings, InertiaStage, accelerometer_readings
 from hapticdesk.files.profile import DeskProfile, load_profile
 from hapticdesk.files.recording import Recording
-from hapticdesk.sim import simulate
+from hapticdesk.sim import Action, Press, Scene, Tap, simulate
 from hapticdesk.sim.scene import load_scene
 
 SCENES = Path(__file__).resolve().parent.parent / "examples" / "scenes"
@@ -168,18 +176,181 @@ def panel_touch_down(seeds: int) -> None:
                 found = measure_accuracy(block, rec.extra).at_times
                 for key in at:
                     at[key].append(found[key])
-            parts = []
-            for key, errs in at.items():
-                err = np.concatenate(errs) * 1000
-                ok = np.isfinite(err)
-                p50 = f"{np.median(err[ok]):.1f}" if ok.any() else "-"
-                with np.errstate(invalid="ignore"):  # (a miss is infinite)
-                    p95 = tre.p95_mm(err / 1000)
-                parts.append(f"{key} ms located {ok.mean():.0%} p50 {p50} p95 {p95} mm")
-            print(
-                f"  panel desk, {surface:5s} {label} "
-                f"({sum(len(p) for p in at['touch+20'])} presses): " + "; ".join(parts)
+            print(f"  panel desk, {surface:5s} {label} " + _at_times_line(at))
+
+
+def _at_times_line(at: dict[str, list[np.ndarray]]) -> str:
+    """The share located, p50 and p95 (a miss counted as a miss) of each time's errors."""
+    import touch_release_eval as tre  # beside this script
+
+    parts = []
+    for key, errs in at.items():
+        err = np.concatenate(errs) * 1000
+        ok = np.isfinite(err)
+        p50 = f"{np.median(err[ok]):.1f}" if ok.any() else "-"
+        with np.errstate(invalid="ignore"):  # (a miss is infinite)
+            p95 = tre.p95_mm(err / 1000)
+        parts.append(f"{key} ms located {ok.mean():.0%} p50 {p50} p95 {p95} mm")
+    return f"({sum(len(p) for p in at['touch+20'])} presses): " + "; ".join(parts)
+
+
+_RANGE = "range: {force_n: [150, 150, 300], moment_nm: [4, 4, 4]}"
+_ACC = "noise_m_s2: 0.005, range_m_s2: 19.6"
+
+#: panel desks unlike ``kitamura2017-panel-accel``: ``desk`` and ``sensors`` / ``accelerometers``
+#: entries, the top (height, half width, half depth) and the front panel (middle's height,
+#: half width, half height); ``true``: the true moments of inertia as multiples of the box the
+#: profile assumes (roll, pitch, yaw)
+PANEL_VARIANTS: dict[str, dict[str, Any]] = {
+    "wide-five": {
+        "desk": "mass_kg: 22.0, natural_frequency_hz: 7.5, center_of_mass_m: [0.06, 0.04, 0.45]",
+        "true": (0.8, 1.2, 1.6),
+        "sensors": [
+            f"{{name: a, position: [-0.55, -0.30, 0.0], rotation_rpy_deg: [0, 0, 90], "
+            f"reports: load, {_RANGE}}}",
+            f"{{name: b, position: [0.55, -0.30, 0.0], rotation_rpy_deg: [180, 0, 0], "
+            f"reports: load, {_RANGE}}}",
+            f"{{name: c, position: [0.55, 0.30, 0.0], rotation_rpy_deg: [0, 0, 180], "
+            f"reports: load, {_RANGE}}}",
+            f"{{name: d, position: [-0.55, 0.30, 0.0], rotation_rpy_deg: [180, 0, 90], "
+            f"reports: load, {_RANGE}}}",
+            f"{{name: e, position: [0.0, 0.30, 0.0], reports: load, {_RANGE}}}",
+        ],
+        "accelerometers": [
+            f"{{position: [-0.45, -0.25, 0.72], rotation_rpy_deg: [0, 0, 90], {_ACC}}}",
+            f"{{position: [0.50, 0.10, 0.72], rotation_rpy_deg: [180, 0, 0], {_ACC}}}",
+            f"{{position: [-0.20, 0.30, 0.72], {_ACC}}}",
+        ],
+        "top": (0.74, 0.6, 0.35),
+        "panel": (0.56, 0.6, 0.15),
+    },
+    "small-light": {
+        "desk": "mass_kg: 8.0, natural_frequency_hz: 9.0",
+        "true": (1.3, 0.7, 0.6),
+        "sensors": [
+            f"{{name: {n}, position: [{x}, {y}, 0.0], {_RANGE}}}"
+            for n, x, y in (("fl", -0.26, -0.17), ("fr", 0.26, -0.17), ("bl", -0.26, 0.17))
+        ]
+        + [f"{{name: br, position: [0.26, 0.17, 0.0], {_RANGE}}}"],
+        "accelerometers": [  # near the feet, not under the top
+            f"{{position: [{x}, {y}, 0.05], {_ACC}}}"
+            for x, y in ((-0.26, -0.17), (0.26, -0.17), (0.26, 0.17))
+        ],
+        "top": (0.70, 0.30, 0.20),
+        "panel": (0.60, 0.30, 0.08),
+    },
+    "heavy-six": {
+        "desk": "mass_kg: 40.0, natural_frequency_hz: 4.2",
+        "true": (1.0, 1.2, 1.3),
+        "sensors": [
+            f"{{name: s{i}, position: [{x}, {y}, 0.0], {_RANGE}}}"
+            for i, (x, y) in enumerate(
+                [(-0.75, -0.3), (0.0, -0.3), (0.75, -0.3), (-0.75, 0.3), (0.0, 0.3), (0.75, 0.3)]
             )
+        ],
+        "accelerometers": [
+            f"{{position: [{x}, {y}, 0.70], {_ACC}}}"
+            for x, y in ((-0.6, -0.2), (0.6, -0.2), (0.1, 0.3))
+        ],
+        "top": (0.73, 0.8, 0.35),
+        "panel": (0.58, 0.8, 0.12),
+    },
+}
+
+
+def _variant_profile(
+    name: str, v: dict[str, Any], folder: Path, moments: Any = None
+) -> DeskProfile:
+    """The variant ``v`` as a profile (``moments``: its principal moments of inertia, None:
+    the box)."""
+    height, half_x, half_y = v["top"]
+    middle, half_u, half_v = v["panel"]
+    desk = v["desk"]
+    if moments is not None:
+        desk += ", inertia_kg_m2: [" + ", ".join(f"{m:.5g}" for m in moments) + "]"
+    lines = [f"name: {name}", "sample_rate_hz: 1200", f"desk: {{{desk}}}", "accelerometers:"]
+    lines += [f"  - {a}" for a in v["accelerometers"]]
+    lines += ["sensors:"] + [f"  - {s}" for s in v["sensors"]]
+    lines += [
+        "surfaces:",
+        f"  - {{name: top, origin: [0.0, 0.0, {height}], normal: [0, 0, 1], polygon: "
+        f"[[-{half_x}, -{half_y}], [{half_x}, -{half_y}], [{half_x}, {half_y}], "
+        f"[-{half_x}, {half_y}]]}}",
+        f"  - {{name: front, origin: [0.0, -{half_y}, {middle}], normal: [0, -1, 0], "
+        f"u_axis: [1, 0, 0], polygon: [[-{half_u}, -{half_v}], [{half_u}, -{half_v}], "
+        f"[{half_u}, {half_v}], [-{half_u}, {half_v}]]}}",
+        "estimation: {method: fused}",
+    ]
+    path = folder / f"{name}-{len(list(folder.iterdir()))}.yaml"
+    path.write_text("\n".join(lines) + "\n")
+    return load_profile(path)
+
+
+def _calibration(half_u: float) -> Scene:
+    """What the set-up asks (README, "Setting up a new desk"): firm presses near the panel's
+    ends and on the top, here among taps (which the fit leaves out)."""
+    steps: list[Action] = []
+    for x in (-0.8 * half_u, 0.8 * half_u) * 2:
+        steps += [Press(point=(x, 0.0), surface="front"), Press(point=(x / 2, 0.0))]
+        steps.append(Tap(point=(x, 0.0), surface="front"))
+    return Scene(steps, quiet_s=2.0)
+
+
+def panel_variants(seeds: int) -> None:
+    """Touch-down on each of :data:`PANEL_VARIANTS`: the yaw fitted from a calibration
+    recording, then presses and taps estimated without the readings, with the box inertia
+    and with the fitted one (``fused``; a miss counts as a miss)."""
+    import touch_release_eval as tre  # beside this script
+
+    from hapticdesk.analysis.characterize import characterize
+    from hapticdesk.bench.accuracy import measure_accuracy
+
+    for name, v in PANEL_VARIANTS.items():
+        with tempfile.TemporaryDirectory() as folder_name:
+            folder = Path(folder_name)
+            box = _variant_profile(name, v, folder)
+            truth = np.diag(box.inertia_about_com()) * np.array(v["true"])
+            true_desk = _variant_profile(name, v, folder, truth)
+            found = characterize(box, simulate(true_desk, _calibration(v["panel"][1]), 100))
+            fitted = (
+                _variant_profile(name, v, folder, found.inertia_kg_m2)
+                if found.inertia_kg_m2
+                else box
+            )
+            rho = found.inertia.correlation if found.inertia else (0.0, 0.0, 0.0)
+            print(
+                f"{name}: {len(box.sensors)} legs, {box.mass_kg:g} kg, "
+                f"{box.natural_frequency_hz:g} Hz; moments (roll, pitch, yaw) kg·m² true "
+                f"{', '.join(f'{m:.3g}' for m in truth)}, box "
+                f"{', '.join(f'{m:.3g}' for m in np.diag(box.inertia_about_com()))}, fitted "
+                + (
+                    ", ".join(f"{m:.3g}" for m in found.inertia_kg_m2)
+                    if found.inertia_kg_m2
+                    else "none"
+                )
+                + f" (yaw correlation {rho[2]:.3f})"
+            )
+            grid = [(x, y) for y in (0.5, 0.0, -0.5) for x in (-0.7, 0.0, 0.7)]
+            spans = {"top": v["top"][1:], "front": v["panel"][1:]}
+            for surface, (half_a, half_b) in spans.items():
+                points = [(x * half_a, y * half_b) for x, y in grid]
+                scene = tre.presses_and_taps(points, f"{name}-{surface}", surface=surface)
+                runs = [simulate(true_desk, scene, seed) for seed in range(seeds)]
+                for label, desk, use in (
+                    ("without readings", box, False),
+                    ("box inertia     ", box, True),
+                    ("fitted inertia  ", fitted, True),
+                ):
+                    at: dict[str, list[np.ndarray]] = {"touch+20": [], "touch+50": []}
+                    for rec in runs:
+                        accel = accelerometer_readings(desk, rec.extra) if use else None
+                        block = ContactEstimator(desk, method="fused").push(
+                            rec.t, rec.wrench, accel
+                        )
+                        found_at = measure_accuracy(block, rec.extra).at_times
+                        for key in at:
+                            at[key].append(found_at[key])
+                    print(f"  {surface:5s} {label} " + _at_times_line(at))
 
 
 def exact_compensation(desk: DeskProfile, scene: object, seed: int) -> Recording:
@@ -224,8 +395,15 @@ def main() -> None:
     parser.add_argument("--desk", default="kitamura2017-accel")
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--panel", action="store_true", help="only touch-down on the panel desk")
+    parser.add_argument(
+        "--panel-variants", action="store_true", help="only touch-down on other panel desks"
+    )
     args = parser.parse_args()
     started = time.perf_counter()
+    if args.panel_variants:
+        panel_variants(args.seeds)
+        print(f"({time.perf_counter() - started:.0f} s)")
+        return
     if args.panel:
         panel_touch_down(args.seeds)
         print(f"({time.perf_counter() - started:.0f} s)")

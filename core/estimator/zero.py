@@ -3,12 +3,14 @@
 An automatic tare over the first ``tare_s`` of a quiet desk (refused with a notice and
 retried while the desk is not quiet); the zero then follows sensor drift whenever the idle
 desk rests for ``drift_settle_s``, and a load held perfectly still for ``settle_s`` (an
-object put down) becomes part of it, with a notice. A load as still as the idle desk was at
-the tare (no finger holds that still: fingers tremble and wander) joins it already after
-``object_settle_s``; when the load later steps back to the zero from before an object
-joined it (the object lifted), that zero is restored at once. The desk is judged on windows of
-``WINDOW_S``; a zero decided at the end of a window applies from the next sample on, whatever
-the block boundaries, so streaming equals batch.
+object put down) becomes part of it, with a notice. A load as still as the idle desk (its
+windows' spread and the wander of their means, measured on the idle desk since the tare: no
+finger holds that still, fingers tremble and wander) joins it already after
+``object_settle_s``, the zero then the mean over the windows that showed it still; when the
+load later steps back to the zero from before an object joined it (the object lifted), that
+zero is restored at once. The desk is judged on windows of ``WINDOW_S``; a zero decided at
+the end of a window applies from the next sample on, whatever the block boundaries, so
+streaming equals batch.
 """
 
 from __future__ import annotations
@@ -23,12 +25,38 @@ from hapticdesk.estimator.notices import Notice, add_notice, log
 from hapticdesk.estimator.samples import BAD_SAMPLE
 from hapticdesk.estimator.settings import EstimatorSettings
 
-# a load still within this many times the idle desk's own unsteadiness (the median spread of
-# the low-passed force in a tare window: the filters settle in the first) is an object, not a
-# finger. Measured on the simulator (the 0.3 kg cup of tests/core/test_core_objects.py against
-# 3 s holds at 2.6 N and firm, 8 seeds): 2.0 took 1 light hold in 36 for an object, 1.5 4 in
-# 48, 1.2 1 in 48 with the cup still absorbed in 0.7 s; 1.0 no longer absorbs the cup in 1 s.
-OBJECT_STILL_FACTOR = 1.2
+# A load still within these multiples of the idle desk's own unsteadiness is an object, not a
+# finger (fingers tremble and wander), once held for ``object_settle_s``: the windows' spreads
+# (of the low-passed force; their median, none over OBJECT_SPIKE times the limit) within
+# OBJECT_STILL_FACTOR of the idle desk's, and the windows' means within OBJECT_WANDER_FACTOR
+# of how far the idle desk's means stray over as many windows in a row. Each yardstick is the
+# median (IDLE_QUANTILE) of the idle desk's own, over the tare's windows and then every idle
+# still window (the last IDLE_WINDOWS): a median of a few windows is steady, a high quantile
+# of them is not. The factors are about 1.2 times the idle desk's 90th percentile over its
+# median (1.3–1.6 for the spread, 1.4–2.0 for the wander on seven simulated desks of 4–6
+# sensors, 8–40 kg, 4–9 Hz, 500–1200 Hz; scripts/objects_eval.py). Relative to the yardsticks,
+# over 0.6 s a still object's wander is 0.59 at the median, a finger held still at 2.6–8 N's
+# 6.7 (2.3 at the 10th percentile): the wander tells them apart best, as a finger's 8–12 Hz
+# tremor is mostly above the low-pass. Before, one yardstick for both, the median spread of
+# the tare's five windows, was noisy (a later idle window's median spread was 0.56–0.99 of it
+# from desk to desk) and the wrong scale for the wander (a 500 Hz desk's idle means stray
+# about as far as its windows spread): 193 of 336 objects joined the zero within 1 s on those
+# desks, now 326; fingers held still 3 s taken for one: 6 of 252, now 13 (10 of them 2.6 N
+# holds: a light finger can be as still as a cup).
+OBJECT_STILL_FACTOR = 1.8
+OBJECT_WANDER_FACTOR = 2.0
+# ... or within this share of the load, whichever is more: a finger's force wanders by a few
+# per cent of itself, so a heavy load that strays this little is no finger even on a desk
+# whose own idle wander is larger (a tall desk swaying at 4.5 Hz: its 0.2 s means stray 0.05 N)
+HEAVY_WANDER_SHARE = 0.004
+# and a window's spread within this share of the load: a finger's 8–12 Hz tremor (1.5 % RMS)
+# leaves about 1 % of its force in a window's spread after the 4.8 Hz low-pass
+HEAVY_SPREAD_SHARE = 0.003
+# one window of the run may spread up to this many times the limit (the desk's own noise now
+# and then) while the run's median spread is within it
+OBJECT_SPIKE = 1.3
+IDLE_QUANTILE = 0.5
+IDLE_WINDOWS = 64
 # below this spread at the tare the readings are synthetic (no real sensor is that quiet):
 # there is no yardstick for stillness, and objects wait for ``settle_s``
 OBJECT_NOISE_FLOOR_N = 1e-4
@@ -61,10 +89,17 @@ class ZeroState:
         self.still_hi: list[float] = [0.0, 0.0, 0.0]
         self.still_means: list[list[float]] = []
         self.tare_spreads: list[float] = []
-        self.quiet_spread = 0.0  # the median window spread at the tare (the idle desk)
+        # the idle desk's unsteadiness: the IDLE_QUANTILE of its recent window spreads, and of
+        # how far its window means strayed over an object's wait (``n_object`` windows) in a row
+        self.quiet_spread = 0.0
+        self.quiet_wander = 0.0
+        self.idle_spreads: list[float] = []  # the last IDLE_WINDOWS of each
+        self.idle_wanders: list[float] = []
+        self.idle_tail: list[tuple[float, list[float]]] = []  # (end, force mean) of the last
         self.object_run = 0  # windows the load has been as still as the idle desk
         self.object_lo: list[float] = [0.0, 0.0, 0.0]
         self.object_hi: list[float] = [0.0, 0.0, 0.0]
+        self.object_spreads: list[float] = []  # the spreads of the object run's windows
         # objects absorbed into the zero, last on top: (the zero before it, its weight |F|)
         self.objects: list[tuple[list[float], float]] = []
 
@@ -88,6 +123,9 @@ class ZeroStage:
         self.settings = settings
         self.notices = notices
         self.state = ZeroState(settings.window)
+        self.window_s = settings.window / settings.sample_rate_hz
+        # the idle desk's wander is measured over as many windows as an object waits
+        self.wander_windows = max(2, settings.n_object)
 
     def process_one(self, t: float, lp_force: list[float], raw: list[float]) -> None:
         """:meth:`process` for one good sample once tared: remembered, and where it ends a
@@ -225,6 +263,8 @@ class ZeroStage:
         st.still_run += 1
         st.still_means.append(mean)
         load = math.sqrt(f[0] ** 2 + f[1] ** 2 + f[2] ** 2)
+        if load < s.drift_max_n:  # the idle desk: a window of its own unsteadiness
+            self._idle_window(spread, mean[:3], t_end)
         if load < s.drift_max_n and s.drift_settle_s > 0:
             st.object_run = 0
             self._follow_drift(load, t_end)
@@ -233,7 +273,13 @@ class ZeroStage:
         if not fast and st.still_run % self.settings.n_settle:
             return
         st.objects.append((st.zero_list, load))
-        st.set_zero(mean, t_end)
+        # the new zero: the mean over the windows that showed the load still, not the last
+        # one alone (a desk swaying at 4–5 Hz moves a 0.2 s window's mean moment enough to
+        # put a press 2–3 mm off)
+        held = (
+            st.still_means[-min(st.object_run, len(st.still_means)) :] if fast else st.still_means
+        )
+        st.set_zero([math.fsum(c) / len(held) for c in zip(*held, strict=True)], t_end)
         st.still_run = 0
         n_object = self.settings.n_object
         held_s = s.object_settle_s if n_object and st.object_run >= n_object else s.settle_s
@@ -242,24 +288,57 @@ class ZeroStage:
 
     def _object_still(self, spread: float, f: tuple[float, float, float], load: float) -> bool:
         """One more window of a load as still as the idle desk: is it held long enough to be
-        an object? (A finger's tremor and slow wander move it more.)"""
+        an object? (A finger's tremor and slow wander move it more.) The last ``n_object``
+        windows' median spread must be within the limit, and none over OBJECT_SPIKE times it:
+        one noisy window of the desk's own does not start the wait again."""
         st, n_object = self.state, self.settings.n_object
-        limit = OBJECT_STILL_FACTOR * st.quiet_spread
+        limit = max(OBJECT_STILL_FACTOR * st.quiet_spread, HEAVY_SPREAD_SHARE * load)
         # (a load lighter than drift_max_n is drift, also when drift is not followed)
         light = load < self.settings.user.drift_max_n
-        if not n_object or light or st.quiet_spread < OBJECT_NOISE_FLOOR_N or spread >= limit:
+        if (
+            not n_object
+            or light
+            or st.quiet_spread < OBJECT_NOISE_FLOOR_N
+            or spread >= OBJECT_SPIKE * limit
+        ):
             st.object_run = 0
             return False
         if st.object_run:
             lo = [min(a, b) for a, b in zip(st.object_lo, f, strict=True)]
             hi = [max(a, b) for a, b in zip(st.object_hi, f, strict=True)]
-            if max(b - a for a, b in zip(lo, hi, strict=True)) >= limit:
+            allowed = max(OBJECT_WANDER_FACTOR * st.quiet_wander, HEAVY_WANDER_SHARE * load)
+            if max(b - a for a, b in zip(lo, hi, strict=True)) >= allowed:
                 st.object_run = 0  # the load wandered: a finger, or still settling
         if st.object_run == 0:
             lo, hi = list(f), list(f)
+            st.object_spreads = []
         st.object_lo, st.object_hi = lo, hi
         st.object_run += 1
-        return st.object_run >= n_object
+        st.object_spreads.append(spread)
+        recent = sorted(st.object_spreads[-n_object:])
+        return st.object_run >= n_object and recent[len(recent) // 2] < limit
+
+    def _idle_window(self, spread: float, mean: list[float], t_end: float) -> None:
+        """One more window of the idle desk: its spread, and how far the force means of the
+        last ``wander_windows`` in a row strayed, update the yardsticks of stillness."""
+        st = self.state
+        st.idle_spreads.append(spread)
+        tail = [
+            (t, m)
+            for t, m in st.idle_tail
+            if t_end - t < (self.wander_windows - 0.5) * self.window_s
+        ]
+        tail.append((t_end, mean))
+        st.idle_tail = tail
+        if len(tail) == self.wander_windows:  # (that many in a row: none was left out)
+            columns = list(zip(*(m for _, m in tail), strict=True))
+            st.idle_wanders.append(max(max(c) - min(c) for c in columns))
+        for values in (st.idle_spreads, st.idle_wanders):
+            if len(values) > IDLE_WINDOWS:
+                del values[0]
+        st.quiet_spread = _quantile(st.idle_spreads, IDLE_QUANTILE)
+        if st.idle_wanders:
+            st.quiet_wander = _quantile(st.idle_wanders, IDLE_QUANTILE)
 
     def _lifted(self, mean: list[float], t_end: float) -> bool:
         """A still window back at the zero from before the last absorbed object: it was lifted;
@@ -338,7 +417,12 @@ class ZeroStage:
             samples = np.concatenate(st.tare_raw, axis=1)
             st.set_zero(samples.mean(axis=1), t_end)
             st.noise = np.atleast_2d(np.cov(samples))
-            st.quiet_spread = float(np.median(st.tare_spreads))
+            st.idle_spreads, st.idle_wanders, st.idle_tail = [], [], []
+            for i, (spread_i, mean_i) in enumerate(
+                zip(st.tare_spreads, st.tare_means, strict=True)
+            ):
+                end = t_end - (len(st.tare_spreads) - 1 - i) * self.window_s
+                self._idle_window(float(spread_i), mean_i, end)
             st.tare_raw, st.tare_means, st.tare_spreads = [], [], []
             add_notice(self.notices, t_end, "tare", f"tared over {s.tare_s:g} s of a quiet desk")
         elif st.windows_seen % n_tare == 0:
@@ -350,6 +434,12 @@ class ZeroStage:
                 f"t = {t_end:.2f} s (is someone touching or leaning on it?); retrying",
                 logging.WARNING,
             )
+
+
+def _quantile(values: list[float], q: float) -> float:
+    """The ``q`` quantile of ``values`` by nearest rank (plain floats: a window's end is hot)."""
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, int(q * len(ordered)))]
 
 
 def subtract_zero(

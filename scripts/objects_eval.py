@@ -1,0 +1,161 @@
+#!/usr/bin/env python3
+"""Objects on desks the estimator was not tuned on (issue 15 item 5), on the simulator.
+
+For each desk: objects of 0.15, 0.3, 1.5 and 3 kg put down at points across the top (over
+0.3 s) must join the zero within 1 s after they are down ("absorbed"), and fingers held
+still for 3 s at 2.6 N and 4 N (a hand resting, a light press) must never be taken for one.
+Prints, per desk, how many objects were absorbed within 1 s, the median and slowest delay,
+and how many holds were absorbed (false absorptions: a finger's touch lost).
+
+Desks: the paper's, the panel desk with three accelerometers, and unlike them a 1.2 m desk
+on five turned and upside-down legs reporting the load (``touch_release_eval.UNSEEN_DESK``),
+the six-sensor desk at 1 kHz and the tall four-sensor desk of ``tap_accuracy.UNSEEN_DESKS``,
+and the heavy six-legged bench and the small light desk of
+``vibration_eval.PANEL_VARIANTS``.
+
+    python scripts/objects_eval.py [--seeds 4]
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import touch_release_eval as tre  # (scripts beside this one)
+import vibration_eval as ve
+from tap_accuracy import UNSEEN_DESKS, unseen_desk
+
+from hapticdesk.estimator import ContactEstimator
+from hapticdesk.estimator.inertia import accelerometer_readings
+from hapticdesk.files.profile import DeskProfile, load_profile
+from hapticdesk.sim import Scene, simulate
+from hapticdesk.sim.actions import Idle, LiftObject, Press, PutObject
+
+PUT_S = 3.0
+DOWN_S = 0.3  # a put-down (or a lift) takes this long
+PRESS_AFTER_S = 1.2  # a press this long after the object is down
+LIFT_S = 7.0
+WITHIN_S = 1.0
+MASSES_KG = (0.15, 0.3, 1.5, 3.0)
+#: where on the top, as shares of its half width and half depth
+SPOTS = ((-0.5, 0.4), (0.8, 0.8), (0.6, -0.6), (-0.7, 0.7), (0.0, 0.0), (0.3, -0.2))
+HOLDS_N = (2.6, 4.0, 8.0)
+HOLD_S = 3.0
+
+
+def desks(folder: Path) -> dict[str, DeskProfile]:
+    """The desks measured, by name."""
+    unseen = folder / "unseen-wide.yaml"
+    unseen.write_text(tre.UNSEEN_DESK)
+    found = {
+        "paper": load_profile("kitamura2017"),
+        "panel-accel": load_profile("kitamura2017-panel-accel"),
+        "unseen-wide": load_profile(unseen),
+    }
+    for name in UNSEEN_DESKS:
+        found[name] = unseen_desk(name)
+    for name in ("heavy-six", "small-light"):
+        found[name] = ve._variant_profile(name, ve.PANEL_VARIANTS[name], folder)
+    return found
+
+
+def _run(desk: DeskProfile, scene: Scene) -> tuple[list[tuple[str, float]], list[float]]:
+    """The notices (kind, time) of the estimator on a run of ``scene``, and the median
+    location error (m) of each press in it (over its located samples; inf: none)."""
+    rec = simulate(desk, scene)
+    est = ContactEstimator(desk)
+    block = est.push(rec.t, rec.wrench, accelerometer_readings(desk, rec.extra))
+    truth = rec.extra
+    err = np.hypot(block.x - truth["true_x"], block.y - truth["true_y"])
+    errors = []
+    for action in scene.actions:
+        if isinstance(action, Press):
+            start = float(action.start_s or 0.0)
+            near = block.located & (rec.t > start) & (rec.t < start + 2.5) & (truth["true_fn"] > 0)
+            errors.append(float(np.median(err[near])) if near.any() else np.inf)
+    return [(n.kind, n.t) for n in est.notices], errors
+
+
+def objects(desk: DeskProfile, seed: int) -> tuple[list[float], list[float], list[float]]:
+    """For each mass, put at a spot of its own, then a 15 N press elsewhere 1.2 s after it is
+    down, a lift, and another press 0.7 s after the lift: the delay (s) from when the object
+    is down to when it joined the zero (inf: not within the run), how long after the lift the
+    zero from before it came back, and the two presses' median error less that of the same
+    presses on the empty desk (m, the larger of the two)."""
+    half_x, half_y = np.abs(desk.surfaces[0].polygon).max(axis=0)
+    button = (0.2 * half_x, -0.3 * half_y)
+    delays, lifts, worse = [], [], []
+    for i, mass in enumerate(MASSES_KG):
+        sx, sy = SPOTS[(i + seed) % len(SPOTS)]
+        put = PutObject(name="o", mass_kg=mass, point=(sx * half_x, sy * half_y), start_s=PUT_S)
+        presses = [
+            Press(point=button, peak_n=15.0, hold_s=1.0, start_s=PUT_S + DOWN_S + PRESS_AFTER_S),
+            Press(point=button, peak_n=15.0, hold_s=1.0, start_s=LIFT_S + DOWN_S + 0.7),
+        ]
+        with_object = [put, presses[0], LiftObject(name="o", start_s=LIFT_S), presses[1]]
+        notices, errors = _run(desk, Scene(with_object, tail_s=0.5, seed=seed))
+        _, plain = _run(desk, Scene([Idle(duration_s=0.0), *presses], tail_s=0.5, seed=seed))
+        # ("drift": the load joined the zero, lighter than a touch)
+        after = [t - PUT_S - DOWN_S for kind, t in notices if kind in ("absorbed", "drift")]
+        delays.append(after[0] if after else np.inf)
+        lifted = [t - LIFT_S - DOWN_S for kind, t in notices if kind == "lifted"]
+        lifts.append(lifted[0] if lifted else np.inf)
+        worse.append(max(a - b for a, b in zip(errors, plain, strict=True)))
+    return delays, lifts, worse
+
+
+def holds(desk: DeskProfile, seed: int) -> list[bool]:
+    """For each force, a finger held still: was it absorbed?"""
+    half_x, half_y = np.abs(desk.surfaces[0].polygon).max(axis=0)
+    taken = []
+    for i, force in enumerate(HOLDS_N):
+        sx, sy = SPOTS[(i + 2 * seed + 1) % len(SPOTS)]
+        press = Press(
+            point=(sx * half_x * 0.8, sy * half_y * 0.8),
+            peak_n=force,
+            hold_s=HOLD_S,
+            start_s=PUT_S,
+        )
+        notices, _ = _run(desk, Scene([press], tail_s=0.5, seed=seed))
+        taken.append(any(kind == "absorbed" for kind, _ in notices))
+    return taken
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=4)
+    args = parser.parse_args()
+    started = time.perf_counter()
+    totals: dict[str, list] = {"delays": [], "lifts": [], "worse": [], "taken": []}
+    with tempfile.TemporaryDirectory() as folder:
+        for name, desk in desks(Path(folder)).items():
+            runs = [objects(desk, s) for s in range(1, args.seeds + 1)]
+            delays = np.array([d for run in runs for d in run[0]])
+            lifts = np.array([d for run in runs for d in run[1]])
+            worse = np.array([d for run in runs for d in run[2]]) * 1e3
+            taken = [x for s in range(1, args.seeds + 1) for x in holds(desk, s)]
+            for key, values in zip(totals, (delays, lifts, worse, taken), strict=True):
+                totals[key] += list(values)
+            print(f"{name:12s} " + _line(delays, lifts, worse, taken))
+    print("all          " + _line(*(np.array(v) for v in totals.values())))  # type: ignore[misc]
+    print(f"({time.perf_counter() - started:.0f} s)")
+
+
+def _line(delays: np.ndarray, lifts: np.ndarray, worse: np.ndarray, taken: Any) -> str:
+    slowest = f"{delays.max():.1f} s" if np.isfinite(delays.max()) else "never"
+    return (
+        f"objects absorbed within {WITHIN_S:g} s: {(delays <= WITHIN_S).sum()} of {len(delays)} "
+        f"(median {np.median(delays):.2f} s, slowest {slowest}); zero back "
+        f"{np.median(lifts):.2f} s after a lift (slowest {lifts.max():.1f} s); presses after "
+        f"within 2 mm of the empty desk's: {(worse <= 2.0).sum()} of {len(worse)} (worst "
+        f"{worse.max():.1f} mm); fingers held still taken for an object: {sum(taken)} of "
+        f"{len(taken)}"
+    )
+
+
+if __name__ == "__main__":
+    main()

@@ -229,9 +229,13 @@ PANEL_VARIANTS: dict[str, dict[str, Any]] = {
         "true": (1.3, 0.7, 0.6),
         "sensors": [
             f"{{name: {n}, position: [{x}, {y}, 0.0], {_RANGE}}}"
-            for n, x, y in (("fl", -0.26, -0.17), ("fr", 0.26, -0.17), ("bl", -0.26, 0.17))
-        ]
-        + [f"{{name: br, position: [0.26, 0.17, 0.0], {_RANGE}}}"],
+            for n, x, y in (
+                ("fl", -0.26, -0.17),
+                ("fr", 0.26, -0.17),
+                ("bl", -0.26, 0.17),
+                ("br", 0.26, 0.17),
+            )
+        ],
         "accelerometers": [  # near the feet, not under the top
             f"{{position: [{x}, {y}, 0.05], {_ACC}}}"
             for x, y in ((-0.26, -0.17), (0.26, -0.17), (0.26, 0.17))

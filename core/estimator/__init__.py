@@ -264,7 +264,7 @@ class ContactEstimator:
         raw = raw_a.tolist()
         lp, det, diff, det_slope, release = self.filters.process_one(raw)
         # the zero before this sample: one set where it ends a window applies from the next on
-        z, zero_t = zero.state.zero_list, zero.state.zero_t
+        z, zero_t, resting = zero.state.zero_list, zero.state.zero_t, zero.state.resting
         zero.process_one(t, [v.real for v in lp], raw)
         if s.det_full:
             fast = [det[i].real - z[i] for i in range(3)] + [
@@ -275,6 +275,7 @@ class ContactEstimator:
         in_contact, mag, slope = self.detector.process_one(fast, det_slope, release)
         block = _single_block(t, in_contact, mag, self.second_finger is not None)
         if in_contact:
+            block.resting[0] = resting
             wrench6 = [lp[i].real - z[i] for i in range(3)] + [
                 lp[i].imag - z[i + 3] for i in range(3)
             ]
@@ -310,7 +311,7 @@ class ContactEstimator:
             block.flags |= FLAG_NOT_TARED
             return
         # (wrenches packed: force + 1j·moment; the low-passed one is tared in place)
-        fast, age, tared = subtract_zero(t, det, lp, segments, s.det_full)
+        fast, age, tared, resting = subtract_zero(t, det, lp, segments, s.det_full)
         f_det = fast.real if s.det_full else fast
         block.flags[~tared] |= FLAG_NOT_TARED
         f_det_mag = np.sqrt(np.einsum("ik,ik->k", f_det, f_det))
@@ -323,6 +324,7 @@ class ContactEstimator:
         block.in_contact[:] = self.detector.process(
             f_det, f_det_mag, slope_along(f_det, release, f_det_mag), None if all_tared else tared
         )
+        np.logical_and(resting, block.in_contact, out=block.resting)
         # candidates only for good samples in contact (a bad one keeps the contact state but
         # has no position of its own); they are the costly part
         idx = np.flatnonzero(block.in_contact & ((flags & BAD_SAMPLE) == 0))
@@ -371,8 +373,10 @@ def _single_block(t: float, in_contact: bool, force_n: float, second: bool) -> C
     """A one-sample block, not yet located: copies of a blank one (a copy of a one-element
     array costs a fraction of making one with ``np.full``). Without the second-finger stage
     (``second`` False) nothing writes its fields: they share read-only zeros."""
-    fields = _BLANK_ONE if second else _BLANK_ONE[:_FIRST_SECOND]
-    block = ContactBlock(*(a.copy() for a in fields), *(() if second else _NO_SECOND))
+    own = _BLANK_ONE if second else _BLANK_ONE[:_FIRST_SECOND]
+    block = ContactBlock(
+        *(a.copy() for a in own), *(() if second else _NO_SECOND), resting=_NOT_RESTING.copy()
+    )
     block.t[0] = t
     block.in_contact[0] = in_contact
     block.force_n[0] = force_n
@@ -399,6 +403,7 @@ _BLANK_ONE = (
     np.zeros(1),  # z2
 )
 _FIRST_SECOND = 12  # where the second finger's fields begin
+_NOT_RESTING = np.zeros(1, bool)  # the last field, resting
 _NO_SECOND = tuple(a.copy() for a in _BLANK_ONE[_FIRST_SECOND:])
 for _array in _NO_SECOND:
     _array.flags.writeable = False

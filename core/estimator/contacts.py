@@ -72,9 +72,16 @@ class ContactBlock:
     x2: np.ndarray = field(default_factory=_left_out)  # (k,) desk frame, m; 0 if not located2
     y2: np.ndarray = field(default_factory=_left_out)
     z2: np.ndarray = field(default_factory=_left_out)
+    # (k,) bool: in contact, and the load has been as still as an object put down since the
+    # last window judged (the zero stage's verdict is pending); added later, may be left out
+    resting: np.ndarray = field(default_factory=_left_out)
 
     def __post_init__(self) -> None:
         k = len(self.t)
+        if len(self.resting) != k:
+            self.resting = np.zeros(k, bool)
+        elif self.resting.dtype != np.bool_:
+            self.resting = self.resting.astype(bool)
         if len(self.located2) != k:
             self.located2 = np.zeros(k, bool)
         elif self.located2.dtype != np.bool_:  # (k = 0: the default's float zeros)
@@ -138,6 +145,7 @@ class ContactBlock:
             x2=np.zeros(k),
             y2=np.zeros(k),
             z2=np.zeros(k),
+            resting=np.zeros(k, bool),
         )
 
     def take(self, index: np.ndarray | slice) -> ContactBlock:
@@ -154,7 +162,8 @@ class ContactEvent:
     located values of this touch, or 0). ``sigma_m`` is the 1-σ uncertainty of the position.
     ``multi``: a second finger is on the desk (``FLAG_MULTI``): x, y are then the two fingers'
     centre of pressure, not a finger; ``x2``, ``y2`` where the second finger is, once
-    ``located2``.
+    ``located2``. ``resting``: the load is as still as an object put down, and the estimator
+    has not yet decided whether it is one (``ContactBlock.resting``).
     """
 
     t: float
@@ -170,6 +179,7 @@ class ContactEvent:
     located2: bool = False
     x2: float = 0.0
     y2: float = 0.0
+    resting: bool = False
 
 
 def contact_events(block: ContactBlock, was_in_contact: bool = False) -> list[ContactEvent]:
@@ -192,6 +202,7 @@ def contact_events(block: ContactBlock, was_in_contact: bool = False) -> list[Co
     phase = block.phase.tolist()
     multi = ((block.flags & FLAG_MULTI) != 0).tolist()
     loc2, xs2, ys2 = block.located2.tolist(), block.x2.tolist(), block.y2.tolist()
+    resting = block.resting.tolist()
     for i in range(len(t)):
         if loc[i]:
             last_xy = (xs[i], ys[i], surf[i])
@@ -212,6 +223,7 @@ def contact_events(block: ContactBlock, was_in_contact: bool = False) -> list[Co
                     loc2[i],
                     xs2[i],
                     ys2[i],
+                    resting[i],
                 )
             )
         elif prev:

@@ -69,7 +69,7 @@ OBJECT_NOISE_FLOOR_N = 1e-4
 # of the object's weight (or ``still_n``, whichever is larger) of that zero
 LIFT_TOLERANCE = 0.2
 
-ZeroSegments = tuple[np.ndarray, np.ndarray]  # starts (n,), zeros (7, n): [F; M] and set time
+ZeroSegments = tuple[np.ndarray, np.ndarray]  # starts (n,), (8, n): [F; M], set time, resting
 
 
 class ZeroState:
@@ -79,7 +79,10 @@ class ZeroState:
         self.zero: np.ndarray | None = None  # (6,), None before the tare
         self.zero_list: list[float] = []  # the same as plain floats
         self.zero_t = 0.0  # when the zero was last set, for the drift since then
-        self.segment: ZeroSegments = (np.zeros(1, int), np.full((7, 1), np.nan))
+        # the load has been as still as an object put down since the last window judged (an
+        # object run under way): recognizers wait for the verdict before a hold fires
+        self.resting = False
+        self.segment: ZeroSegments = (np.zeros(1, int), np.array(self.column())[:, None])
         self.noise: np.ndarray | None = None  # (6, 6) measured at the tare
         self.win_lp = np.zeros((3, window))  # the current, unfinished window
         self.win_raw = np.zeros((6, window))
@@ -109,10 +112,17 @@ class ZeroState:
         self.objects: list[tuple[list[float], float]] = []
 
     def column(self) -> list[float]:
-        """The zero (6,) and the time it was set, as one column; NaN before the tare."""
+        """The zero (6,), the time it was set and whether the load is resting (0 or 1), as
+        one column; the zero and its time NaN before the tare."""
         if self.zero is None:
-            return [math.nan] * 7
-        return [*self.zero_list, self.zero_t]
+            return [math.nan] * 7 + [float(self.resting)]
+        return [*self.zero_list, self.zero_t, float(self.resting)]
+
+    def set_resting(self, resting: bool) -> None:
+        """Whether the load is resting (see ``resting``) from the next sample on."""
+        if resting != self.resting:
+            self.resting = resting
+            self.segment = (np.zeros(1, int), np.array(self.column())[:, None])
 
     def set_zero(self, zero: np.ndarray | list[float], t: float) -> None:
         self.zero_list = [float(z) for z in zero]
@@ -158,8 +168,10 @@ class ZeroStage:
         bad = bool(np.count_nonzero(st.win_bad) / len(st.win_bad) > 0.1)  # (as _windows)
         if st.zero is not None and (bad or spread >= s.still_n):
             st.still_run = st.object_run = 0  # not still: ends a still run (see _windows)
+            st.set_resting(False)
             return
         self._window_done(spread, bad, st.win_raw.mean(axis=1).tolist(), st.win_raw, t)
+        st.set_resting(st.zero is not None and st.object_run > 0)
 
     def process(
         self, t: np.ndarray, lp_force: np.ndarray, raw: np.ndarray, flags: np.ndarray
@@ -226,15 +238,20 @@ class ZeroStage:
         previous = -1
         for j in range(n_full):
             if st.zero is not None and not still[j]:
+                if st.resting:  # (the load moved: no longer resting, from the next sample)
+                    st.set_resting(False)
+                    starts.append(int(ends[j]) + 1)
+                    zeros.append(st.column())
                 continue
             if st.zero is not None and j != previous + 1:
                 st.still_run = st.object_run = 0  # windows in between were not still
             previous = j
-            before = st.zero
+            before, resting = st.zero, st.resting
             self._window_done(
                 spread[j], any_bad[j], mean_rows[j], all_raw[:, j * w : (j + 1) * w], t_end[j]
             )
-            if st.zero is not before:
+            st.set_resting(st.zero is not None and st.object_run > 0)
+            if st.zero is not before or st.resting != resting:
                 starts.append(int(ends[j]) + 1)
                 zeros.append(st.column())
         if previous != n_full - 1:
@@ -451,10 +468,10 @@ def _quantile(values: list[float], q: float) -> float:
 
 def subtract_zero(
     t: np.ndarray, det: np.ndarray, lp: np.ndarray, segments: ZeroSegments, det_full: bool
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The zero taken off the fast wrench (a new array) and the low-passed one (in place),
     segment by segment (it is piecewise constant). Returns the tared fast wrench, the age of
-    the zero at each sample (s) and where a zero was known."""
+    the zero at each sample (s), where a zero was known and where the load was resting."""
     starts, zeros = segments
     k = len(t)
     ends = [*starts[1:].tolist(), k]
@@ -463,8 +480,11 @@ def subtract_zero(
     packed_zeros = zeros[:3] + 1j * zeros[3:6]
     fast_zeros = packed_zeros if det_full else zeros[:3]
     tared = np.ones(k, bool)
+    resting = np.zeros(k, bool)
     age = np.empty(k)  # time since the zero in force was set
     for a, b, j in zip(starts.tolist(), ends, range(len(ends)), strict=True):
+        if zeros[7, j]:
+            resting[a:b] = True
         if tared_zero[j]:
             fast[:, a:b] -= fast_zeros[:, j : j + 1]
             lp[:, a:b] -= packed_zeros[:, j : j + 1]
@@ -472,4 +492,4 @@ def subtract_zero(
         else:
             tared[a:b] = False
             age[a:b] = 0.0
-    return fast, age, tared
+    return fast, age, tared, resting

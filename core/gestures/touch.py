@@ -73,11 +73,15 @@ class Touch:
         self.multi = False
         #: where the second finger landed (x, y), once the estimator placed it
         self.second: tuple[float, float] | None = None
+        #: the load is as still as an object put down and the estimator has not yet decided
+        #: (the latest event's ``resting``): a hold waits for the verdict
+        self.resting = False
 
     def add(self, event: ContactEvent) -> None:
         """Take one contact event of this touch (the engine calls this before the recognizers)."""
         self.t_last = event.t
         self.force_n = event.force_n
+        self.resting = event.resting
         if event.kind == "up":
             self.t_up = event.t
             return

@@ -87,7 +87,7 @@ def upstream(desk, bad_input):
     zero = ZeroStage(s, [])
     segments = zero.process(t, lp.real, raw, flags)
     assert zero.state.noise is not None
-    fast, age, tared = subtract_zero(t, det, lp.copy(), segments, s.det_full)
+    fast, age, tared, _ = subtract_zero(t, det, lp.copy(), segments, s.det_full)
     return {
         "t": t,
         "flags": flags,
@@ -194,9 +194,9 @@ def test_the_filter_bank_one_sample_twin_equals_its_block_path(desk, upstream):
 
 
 def _zero_per_sample(segments, k: int) -> np.ndarray:
-    """The zero segments (starts, zeros) as a (7, k) array."""
+    """The zero segments (starts, zeros) as an (8, k) array: [F; M], set time, resting."""
     starts, zeros = segments
-    out = np.empty((7, k))
+    out = np.empty((8, k))
     for a, b, j in zip(starts, [*starts[1:], k], range(len(starts)), strict=True):
         out[:, a:b] = zeros[:, j : j + 1]
     return out
@@ -234,7 +234,7 @@ def test_the_zero_stage_one_sample_twin_judges_window_ends_as_its_block_path(des
     start = 3000  # well after the tare
     assert not np.isnan(want[0, start])
     single.process(t[:start], lp[:, :start], raw[:, :start], flags[:start])
-    got = np.empty((7, len(t) - start))
+    got = np.empty((8, len(t) - start))
     for i in range(start, len(t)):
         got[:, i - start] = single.state.column()  # the zero this sample is tared with
         single.process_one(float(t[i]), lp[:, i], raw[:, i])

@@ -7,6 +7,10 @@ A binding with ``repeat: true`` keeps firing while the finger stays (hold to dim
 keyboard's auto-repeat): events with phase ``repeat`` every ``interval_s`` after its tier.
 A held press that ends without a release being seen (a gap, a stop, the end of a recording)
 or that moves away after a tier ends with phase ``cancel`` instead of ``end``.
+
+A load as still as an object put down (the estimator's ``resting``) holds no tier until the
+estimator has decided: an object joins the zero and its touch ends without an event; a
+finger soon trembles or wanders, and the tiers due by then fire.
 """
 
 from __future__ import annotations
@@ -68,6 +72,12 @@ class LongPressRecognizer(Recognizer):
         if self._cancelled or not touch.located:
             return []
         if event.t < touch.t_down + self.first_tier:
+            return []
+        if touch.resting:
+            # as still as an object put down: a cup on the button must not hold it. The
+            # estimator decides within 0.6-0.8 s of stillness: an object ends the touch (it
+            # joins the zero), a finger's tremor or wander ends the resting and the due tiers
+            # fire then
             return []
         if not self._placed:
             self._placed = True

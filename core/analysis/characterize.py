@@ -307,7 +307,7 @@ def characterize(profile: DeskProfile, recording: Recording) -> Characterization
             moments = fit.with_profile(profile)
             if is_body_inertia(moments):
                 result.inertia_kg_m2 = moments
-            else:  # (all three fitted, and no body has them: a fit to distrust)
+            else:  # (a fitted moment too small for the others: a fit to distrust)
                 result.notes.append(
                     f"the fitted moments of inertia {moments} are no body's (one exceeds the "
                     "other two's sum): not suggested; record firmer presses near the ends"

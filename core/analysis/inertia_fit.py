@@ -35,7 +35,7 @@ from hapticdesk.estimator.inertia import (
     accelerometer_readings,
     rigid_motion,
 )
-from hapticdesk.files.profile import DeskProfile, spatial_inertia
+from hapticdesk.files.profile import DeskProfile, is_body_inertia, spatial_inertia
 from hapticdesk.files.recording import Recording
 
 BAND_HZ = (2.0, 40.0)
@@ -63,17 +63,23 @@ class InertiaFit:
         those scaled up just enough that each moment is at most the sum of the other two (a
         body's are, and the profile reader refuses others). A fitted yaw above the assumed
         roll and pitch's sum says those were too small: a desk is closer to a flat plate,
-        where the yaw moment is their sum, than the profile's box."""
+        where the yaw moment is their sum, than the profile's box. Only scaling up is tried:
+        a fit that would need the others smaller (a fitted moment too small for them) is
+        returned as it is, and is no body's (see :func:`is_body_inertia`)."""
         current = np.diag(profile.inertia_about_com())
         fitted = np.array([m if m is not None else 0.0 for m in self.moments])
         kept = np.where([m is None for m in self.moments], current, 0.0)
         scale = _least_body_scale(fitted, kept)
+        for margin in (1.0, 1.0001, 1.001, 1.01):  # (the snippet is rounded to 4 digits)
+            moments = [float(f"{v:.4g}") for v in fitted + scale * margin * kept]
+            if is_body_inertia(moments):
+                return moments
         return [float(f"{v:.4g}") for v in fitted + scale * kept]
 
 
 def _least_body_scale(fitted: np.ndarray, kept: np.ndarray) -> float:
     """The least s ≥ 1 for which I = fitted + s·kept (each axis one or the other) has every
-    moment at most the sum of the other two; 1 where none does (nothing helps)."""
+    moment at most the sum of the other two; 1 where no s ≥ 1 gives that."""
     scale = 1.0
     for a in range(3):
         b, c = (a + 1) % 3, (a + 2) % 3
@@ -81,7 +87,7 @@ def _least_body_scale(fitted: np.ndarray, kept: np.ndarray) -> float:
         slope = kept[a] - kept[b] - kept[c]
         room = fitted[b] + fitted[c] - fitted[a]
         if slope < 0 and scale * slope > room:
-            scale = room / slope * (1 + 1e-3)  # (a little over: the snippet is rounded)
+            scale = room / slope
     return scale
 
 

@@ -112,9 +112,7 @@ class SampleStage:
                 flags[gap] = FLAG_GAP
             st.last_t = float(t[-1])
             with np.errstate(invalid="ignore", over="ignore"):
-                # (6, k): paper eqs. (1)–(4); as (k, 6S) @ (6S, 6) and viewed transposed,
-                # which BLAS does in half the time of (6, 6S) @ (6S, k) on the rows as given
-                raw = (flat @ self.settings.wrench_map_t).T
+                raw = self._resultant(flat)
             st.last_good = raw[:, -1].copy()
             return flags, raw
         return self._process_slowly(t, flat, flags)
@@ -149,6 +147,12 @@ class SampleStage:
         raw = self.settings.wrench_map @ flat  # (6,): paper eqs. (1)–(4)
         st.last_good = raw
         return raw
+
+    def _resultant(self, flat: np.ndarray) -> np.ndarray:
+        """[F_o; M_o] (6, k) of the stacked channels ``flat`` (k, 6S), paper eqs. (1)–(4): as
+        (k, 6S) @ (6S, 6) viewed transposed, which BLAS does in half the time of
+        (6, 6S) @ (6S, k) on the rows as given."""
+        return (flat @ self.settings.wrench_map_t).T
 
     def _in_range(self, flat: np.ndarray, energy: np.ndarray) -> tuple[bool, np.ndarray | None]:
         """Σ (channel / rating)² < 1 for every sample: proves no channel is saturated and all
@@ -331,7 +335,7 @@ class SampleStage:
             flags[np.flatnonzero(good)[gap]] |= FLAG_GAP
             st.last_t = float(good_t[-1])
         with np.errstate(invalid="ignore", over="ignore"):  # bad rows are replaced below
-            raw = self.settings.wrench_map @ flat.T
+            raw = self._resultant(flat)
         return flags, self._hold_last_good(raw, good)
 
     def _hold_last_good(self, raw: np.ndarray, good: np.ndarray) -> np.ndarray:

@@ -41,7 +41,7 @@ from hapticdesk.estimator.settings import EstimatorSettings
 # the tare's five windows, was noisy (a later idle window's median spread was 0.56–0.99 of it
 # from desk to desk) and the wrong scale for the wander (a 500 Hz desk's idle means stray
 # about as far as its windows spread): 193 of 336 objects joined the zero within 1 s on those
-# desks, now 306; fingers held still 3 s taken for one: 6 of 252, now 3.
+# desks, now 306; fingers held still 3 s taken for one: 6 of 252, now 4.
 OBJECT_STILL_FACTOR = 1.8
 OBJECT_WANDER_FACTOR = 2.0
 # ... or within this share of the load, whichever is more: a finger's force wanders by a few
@@ -56,7 +56,7 @@ HEAVY_SPREAD_SHARE = 0.003
 OBJECT_SPIKE = 1.3
 # a load lighter than this (about half a kilogram) may be a finger resting lightly, which can
 # be as still as a cup for 0.6 s: it waits one window more. On the seven desks (12 seeds):
-# fingers held still at 2.6–4 N taken for an object 13 of 168 -> 3, objects of 0.15–0.3 kg
+# fingers held still at 2.6–4 N taken for an object 13 of 168 -> 4, objects of 0.15–0.3 kg
 # within 1 s 158 of 168 -> 138 (touch_release_eval's light long presses on its unseen desk:
 # 2 phantom releases -> 0)
 LIGHT_LOAD_N = 5.0
@@ -105,9 +105,10 @@ class ZeroState:
         self.idle_wanders: list[float] = []
         self.idle_tail: list[tuple[float, list[float]]] = []  # (end, force mean) of the last
         self.object_run = 0  # windows the load has been as still as the idle desk
-        self.object_lo: list[float] = [0.0, 0.0, 0.0]
-        self.object_hi: list[float] = [0.0, 0.0, 0.0]
-        self.object_spreads: list[float] = []  # the spreads of the object run's windows
+        # the last of them judged (spread, force mean less the zero), and whether their means
+        # stayed within the allowed wander
+        self.object_windows: list[tuple[float, tuple[float, float, float]]] = []
+        self.object_resting = False
         # objects absorbed into the zero, last on top: (the zero before it, its weight |F|)
         self.objects: list[tuple[list[float], float]] = []
 
@@ -171,14 +172,14 @@ class ZeroStage:
             st.set_resting(False)
             return
         self._window_done(spread, bad, st.win_raw.mean(axis=1).tolist(), st.win_raw, t)
-        st.set_resting(st.zero is not None and st.object_run > 0)
+        st.set_resting(st.zero is not None and st.object_run > 0 and st.object_resting)
 
     def process(
         self, t: np.ndarray, lp_force: np.ndarray, raw: np.ndarray, flags: np.ndarray
     ) -> ZeroSegments:
         """The zero in force for each sample, as segments: ``starts`` (n,) sample indices
-        where a zero takes effect and ``zeros`` (7, n), [F; M] and the time it was set (NaN
-        before the tare)."""
+        where a zero (or whether the load rests) takes effect and ``zeros`` (8, n), [F; M],
+        the time it was set (NaN before the tare) and the load resting (0 or 1)."""
         st, w = self.state, self.settings.window
         m, k = st.win_fill, len(t)
         bad = (flags & (BAD_SAMPLE | FLAG_GAP)) != 0
@@ -250,7 +251,7 @@ class ZeroStage:
             self._window_done(
                 spread[j], any_bad[j], mean_rows[j], all_raw[:, j * w : (j + 1) * w], t_end[j]
             )
-            st.set_resting(st.zero is not None and st.object_run > 0)
+            st.set_resting(st.zero is not None and st.object_run > 0 and st.object_resting)
             if st.zero is not before or st.resting != resting:
                 starts.append(int(ends[j]) + 1)
                 zeros.append(st.column())
@@ -295,25 +296,28 @@ class ZeroStage:
         if not fast and st.still_run % self.settings.n_settle:
             return
         st.objects.append((st.zero_list, load))
-        # the new zero: the mean over the windows that showed the load still, not the last
-        # one alone (a desk swaying at 4–5 Hz moves a 0.2 s window's mean moment enough to
-        # put a press 2–3 mm off)
-        held = (
-            st.still_means[-min(st.object_run, len(st.still_means)) :] if fast else st.still_means
-        )
-        st.set_zero([math.fsum(c) / len(held) for c in zip(*held, strict=True)], t_end)
+        if fast:
+            # the new zero: the mean over the windows that showed it an object, not the last
+            # one alone (a desk swaying at 4–5 Hz moves a 0.2 s window's mean moment enough
+            # to put a press 2–3 mm off); their means are within the allowed wander
+            held = st.still_means[-len(st.object_windows) :]
+            st.set_zero([math.fsum(c) / len(held) for c in zip(*held, strict=True)], t_end)
+            held_s = len(held) * self.window_s
+        else:
+            st.set_zero(mean, t_end)
+            held_s = s.settle_s
         st.still_run = 0
-        n_object = self.settings.n_object
-        held_s = s.object_settle_s if n_object and st.object_run >= n_object else s.settle_s
         st.object_run = 0
         self._absorbed(f, load, held_s, t_end)
 
     def _object_still(self, spread: float, f: tuple[float, float, float], load: float) -> bool:
         """One more window of a load as still as the idle desk: is it held long enough to be
-        an object? (A finger's tremor and slow wander move it more.) The last ``n_object``
-        windows' (one more under LIGHT_LOAD_N) median spread must be within the limit, and none
-        over OBJECT_SPIKE times it: one noisy window of the desk's own does not start the wait
-        again."""
+        an object? (A finger's tremor and slow wander move it more.) Judged on the last
+        ``n_object`` windows (one more under LIGHT_LOAD_N): their means within the allowed
+        wander of each other, their upper median spread within the limit, and none over
+        OBJECT_SPIKE times it (one noisy window of the desk's own does not start the wait
+        again). Also notes whether the load is resting: its windows so far as still as an
+        object's."""
         st, n_object = self.state, self.settings.n_object
         limit = max(OBJECT_STILL_FACTOR * st.quiet_spread, HEAVY_SPREAD_SHARE * load)
         # (a load lighter than drift_max_n is drift, also when drift is not followed)
@@ -326,21 +330,18 @@ class ZeroStage:
         ):
             st.object_run = 0
             return False
-        if st.object_run:
-            lo = [min(a, b) for a, b in zip(st.object_lo, f, strict=True)]
-            hi = [max(a, b) for a, b in zip(st.object_hi, f, strict=True)]
-            allowed = max(OBJECT_WANDER_FACTOR * st.quiet_wander, HEAVY_WANDER_SHARE * load)
-            if max(b - a for a, b in zip(lo, hi, strict=True)) >= allowed:
-                st.object_run = 0  # the load wandered: a finger, or still settling
         if st.object_run == 0:
-            lo, hi = list(f), list(f)
-            st.object_spreads = []
-        st.object_lo, st.object_hi = lo, hi
+            st.object_windows = []
         st.object_run += 1
-        st.object_spreads.append(spread)
         wait = n_object + 1 if load < LIGHT_LOAD_N else n_object
-        recent = sorted(st.object_spreads[-wait:])
-        return st.object_run >= wait and recent[len(recent) // 2] < limit
+        st.object_windows.append((spread, f))
+        del st.object_windows[:-wait]
+        columns = zip(*(window for _, window in st.object_windows), strict=True)
+        wander = max(max(c) - min(c) for c in columns)
+        allowed = max(OBJECT_WANDER_FACTOR * st.quiet_wander, HEAVY_WANDER_SHARE * load)
+        st.object_resting = wander < allowed  # (a load that strays is no object, for now)
+        spreads = sorted(window_spread for window_spread, _ in st.object_windows)
+        return st.object_resting and st.object_run >= wait and spreads[len(spreads) // 2] < limit
 
     def _idle_window(self, spread: float, mean: list[float], t_end: float) -> None:
         """One more window of the idle desk: its spread, and how far the force means of the

@@ -13,7 +13,7 @@ from hapticdesk.files.profile import load_profile
 from hapticdesk.gestures.engine import GestureEngine
 from hapticdesk.gestures.layout import load_layout
 from hapticdesk.sim import Scene, simulate
-from hapticdesk.sim.actions import Idle, LongPress, PutObject
+from hapticdesk.sim.actions import Idle, LiftObject, LongPress, PutObject
 
 BUTTON = (0.02, -0.01)
 LAYOUT = """\
@@ -58,16 +58,18 @@ def test_an_object_put_on_a_button_holds_nothing(desk, layout, mass_kg, seed):
     assert not contacts.in_contact[contacts.t > 3.3 + 1.5].any()
 
 
-@pytest.mark.parametrize("seed", [1, 2, 3])
-def test_a_finger_still_holds_the_button(desk, layout, seed):
-    """A firm long press fires at its tier as before; a light one (2.6 N, as still as a cup
-    at times) fires too, later by up to about a second while the estimator looks."""
-    for force_n, latest_s in ((8.0, 0.005), (2.6, 1.0)):
-        press = LongPress(point=BUTTON, peak_n=force_n, hold_s=2.0, start_s=3.0)
-        fired, contacts = _holds(desk, layout, Scene([press], tail_s=0.5, seed=seed))
-        down = float(contacts.t[np.argmax(contacts.in_contact)])
-        assert len(fired) == 1, force_n
-        assert 0.8 - 1e-9 <= fired[0].t - down <= 0.8 + latest_s, force_n
+def test_a_finger_still_holds_the_button(desk, layout):
+    """A firm long press fires at its tier (now and then a window later: seed 33); a light
+    one (2.6 N, as still as a cup at times) fires too, later by up to about a second while
+    the estimator looks. Forty seeds: a finger that wandered a little in every window once
+    stayed resting all along (seed 29), its long press never fired."""
+    for seed in range(1, 41):
+        for force_n, latest_s in ((8.0, 0.25), (2.6, 1.0)):
+            press = LongPress(point=BUTTON, peak_n=force_n, hold_s=2.0, start_s=3.0)
+            fired, contacts = _holds(desk, layout, Scene([press], tail_s=0.5, seed=seed))
+            down = float(contacts.t[np.argmax(contacts.in_contact)])
+            assert len(fired) == 1, (seed, force_n)
+            assert 0.8 - 1e-9 <= fired[0].t - down <= 0.8 + latest_s, (seed, force_n)
 
 
 def test_resting_is_the_same_streamed_one_sample_at_a_time(desk):
@@ -78,3 +80,27 @@ def test_resting_is_the_same_streamed_one_sample_at_a_time(desk):
     streamed = ContactEstimator(desk)
     one = [streamed.push(rec.t[i : i + 1], rec.wrench[i : i + 1]) for i in range(len(rec.t))]
     np.testing.assert_array_equal(np.concatenate([b.resting for b in one]), batch.resting)
+
+
+def test_resting_is_the_same_in_any_blocks(desk):
+    """Pushed in random blocks (a cup put down and lifted, a light long press), resting and
+    contact are what one push gives."""
+    scene = Scene(
+        [
+            PutObject(name="cup", mass_kg=0.3, point=BUTTON, start_s=3.0),
+            LiftObject(name="cup", start_s=5.0),
+            LongPress(point=BUTTON, peak_n=2.6, hold_s=2.0, start_s=6.0),
+        ],
+        tail_s=0.5,
+        seed=4,
+    )
+    rec = simulate(desk, scene)
+    batch = ContactEstimator(desk).push(rec.t, rec.wrench)
+    assert batch.resting.any()
+    rng = np.random.default_rng(0)
+    cuts = np.unique(rng.integers(1, len(rec.t), 400))
+    est = ContactEstimator(desk)
+    bounds = zip([0, *cuts], [*cuts, len(rec.t)], strict=True)
+    parts = [est.push(rec.t[a:b], rec.wrench[a:b]) for a, b in bounds]
+    np.testing.assert_array_equal(np.concatenate([p.resting for p in parts]), batch.resting)
+    np.testing.assert_array_equal(np.concatenate([p.in_contact for p in parts]), batch.in_contact)

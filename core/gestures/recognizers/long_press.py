@@ -73,11 +73,11 @@ class LongPressRecognizer(Recognizer):
             return []
         if event.t < touch.t_down + self.first_tier:
             return []
-        if touch.resting:
+        if touch.resting and self._reached is None:
             # as still as an object put down: a cup on the button must not hold it. The
             # estimator decides within 0.6-0.8 s of stillness: an object ends the touch (it
             # joins the zero), a finger's tremor or wander ends the resting and the due tiers
-            # fire then
+            # fire then. (Once a tier fired, the touch was a finger: repeats go on.)
             return []
         if not self._placed:
             self._placed = True

@@ -103,7 +103,8 @@ class ZeroState:
         self.quiet_wander = 0.0
         self.idle_spreads: list[float] = []  # the last IDLE_WINDOWS of each
         self.idle_wanders: list[float] = []
-        self.idle_tail: list[tuple[float, list[float]]] = []  # (end, force mean) of the last
+        self.idle_tail: list[tuple[int, list[float]]] = []  # (window index, force mean) of the last
+        self.window_index = 0  # windows judged so far, still or not (which are in a row)
         self.object_run = 0  # windows the load has been as still as the idle desk
         # the last of them judged (spread, force mean less the zero), and whether their means
         # stayed within the allowed wander
@@ -165,6 +166,7 @@ class ZeroStage:
         code's dozen took about 125 µs there against 21 µs warm. The same reductions (a
         window's max and min, its mean), so the same values as a block's."""
         st, s = self.state, self.settings.user
+        st.window_index += 1
         spread = float((st.win_lp.max(axis=1) - st.win_lp.min(axis=1)).max())
         bad = bool(np.count_nonzero(st.win_bad) / len(st.win_bad) > 0.1)  # (as _windows)
         if st.zero is not None and (bad or spread >= s.still_n):
@@ -238,6 +240,7 @@ class ZeroStage:
         still = [not b and sp < still_n for b, sp in zip(any_bad, spread, strict=True)]
         previous = -1
         for j in range(n_full):
+            st.window_index += 1
             if st.zero is not None and not still[j]:
                 if st.resting:  # (the load moved: no longer resting, from the next sample)
                     st.set_resting(False)
@@ -287,7 +290,7 @@ class ZeroStage:
         st.still_means.append(mean)
         load = math.sqrt(f[0] ** 2 + f[1] ** 2 + f[2] ** 2)
         if load < s.drift_max_n:  # the idle desk: a window of its own unsteadiness
-            self._idle_window(spread, mean[:3], t_end)
+            self._idle_window(spread, mean[:3], st.window_index)
         if load < s.drift_max_n and s.drift_settle_s > 0:
             st.object_run = 0
             self._follow_drift(load, t_end)
@@ -343,17 +346,14 @@ class ZeroStage:
         spreads = sorted(window_spread for window_spread, _ in st.object_windows)
         return st.object_resting and st.object_run >= wait and spreads[len(spreads) // 2] < limit
 
-    def _idle_window(self, spread: float, mean: list[float], t_end: float) -> None:
-        """One more window of the idle desk: its spread, and how far the force means of the
-        last ``wander_windows`` in a row strayed, update the yardsticks of stillness."""
+    def _idle_window(self, spread: float, mean: list[float], index: int) -> None:
+        """One more window of the idle desk (``index``: its number, see ``window_index``):
+        its spread, and how far the force means of the last ``wander_windows`` in a row
+        strayed, update the yardsticks of stillness."""
         st = self.state
         st.idle_spreads.append(spread)
-        tail = [
-            (t, m)
-            for t, m in st.idle_tail
-            if t_end - t < (self.wander_windows - 0.5) * self.window_s
-        ]
-        tail.append((t_end, mean))
+        tail = [(i, m) for i, m in st.idle_tail if index - i < self.wander_windows]
+        tail.append((index, mean))
         st.idle_tail = tail
         if len(tail) == self.wander_windows:  # (that many in a row: none was left out)
             columns = list(zip(*(m for _, m in tail), strict=True))
@@ -445,9 +445,9 @@ class ZeroStage:
             st.idle_spreads, st.idle_wanders, st.idle_tail = [], [], []
             for i, (spread_i, mean_i) in enumerate(
                 zip(st.tare_spreads, st.tare_means, strict=True)
-            ):
-                end = t_end - (len(st.tare_spreads) - 1 - i) * self.window_s
-                self._idle_window(float(spread_i), mean_i, end)
+            ):  # (the tare's windows are in a row, this one the last)
+                index = st.window_index - (len(st.tare_spreads) - 1 - i)
+                self._idle_window(float(spread_i), mean_i, index)
             st.tare_raw, st.tare_means, st.tare_spreads = [], [], []
             add_notice(self.notices, t_end, "tare", f"tared over {s.tare_s:g} s of a quiet desk")
         elif st.windows_seen % n_tare == 0:

@@ -56,12 +56,10 @@ HOLD_S = 3.0
 
 def desks(folder: Path) -> dict[str, DeskProfile]:
     """The desks measured, by name."""
-    unseen = folder / "unseen-wide.yaml"
-    unseen.write_text(tre.UNSEEN_DESK)
     found = {
         "paper": load_profile("kitamura2017"),
         "panel-accel": load_profile("kitamura2017-panel-accel"),
-        "unseen-wide": load_profile(unseen),
+        "unseen-wide": tre.unseen_desk(),
     }
     for name in UNSEEN_DESKS:
         found[name] = unseen_desk(name)

@@ -78,14 +78,12 @@ class ContactBlock:
 
     def __post_init__(self) -> None:
         k = len(self.t)
-        if len(self.resting) != k:
-            self.resting = np.zeros(k, bool)
-        elif self.resting.dtype != np.bool_:
-            self.resting = self.resting.astype(bool)
-        if len(self.located2) != k:
-            self.located2 = np.zeros(k, bool)
-        elif self.located2.dtype != np.bool_:  # (k = 0: the default's float zeros)
-            self.located2 = self.located2.astype(bool)
+        for name in ("located2", "resting"):
+            value = getattr(self, name)
+            if len(value) != k:
+                setattr(self, name, np.zeros(k, bool))
+            elif value.dtype != np.bool_:  # (k = 0: the default's float zeros)
+                setattr(self, name, value.astype(bool))
         for name in ("x2", "y2", "z2"):
             if len(getattr(self, name)) != k:
                 setattr(self, name, np.zeros(k))

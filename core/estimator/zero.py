@@ -79,8 +79,8 @@ class ZeroState:
         self.zero: np.ndarray | None = None  # (6,), None before the tare
         self.zero_list: list[float] = []  # the same as plain floats
         self.zero_t = 0.0  # when the zero was last set, for the drift since then
-        # the load has been as still as an object put down since the last window judged (an
-        # object run under way): recognizers wait for the verdict before a hold fires
+        # the load has been as still as an object put down since the last window judged
+        # (``object_pending``): recognizers wait for the verdict before a hold fires
         self.resting = False
         self.segment: ZeroSegments = (np.zeros(1, int), np.array(self.column())[:, None])
         self.noise: np.ndarray | None = None  # (6, 6) measured at the tare
@@ -119,6 +119,12 @@ class ZeroState:
         if self.zero is None:
             return [math.nan] * 7 + [float(self.resting)]
         return [*self.zero_list, self.zero_t, float(self.resting)]
+
+    @property
+    def object_pending(self) -> bool:
+        """After a window: an object run is under way and its windows stay within the allowed
+        wander, so the load is resting until the verdict."""
+        return self.zero is not None and self.object_run > 0 and self.object_resting
 
     def set_resting(self, resting: bool) -> None:
         """Whether the load is resting (see ``resting``) from the next sample on."""
@@ -174,7 +180,7 @@ class ZeroStage:
             st.set_resting(False)
             return
         self._window_done(spread, bad, st.win_raw.mean(axis=1).tolist(), st.win_raw, t)
-        st.set_resting(st.zero is not None and st.object_run > 0 and st.object_resting)
+        st.set_resting(st.object_pending)
 
     def process(
         self, t: np.ndarray, lp_force: np.ndarray, raw: np.ndarray, flags: np.ndarray
@@ -254,7 +260,7 @@ class ZeroStage:
             self._window_done(
                 spread[j], any_bad[j], mean_rows[j], all_raw[:, j * w : (j + 1) * w], t_end[j]
             )
-            st.set_resting(st.zero is not None and st.object_run > 0 and st.object_resting)
+            st.set_resting(st.object_pending)
             if st.zero is not before or st.resting != resting:
                 starts.append(int(ends[j]) + 1)
                 zeros.append(st.column())

@@ -116,8 +116,6 @@ def panel_touch_down(seeds: int) -> None:
     rotation too), and with the simulator's exact inertial wrench removed (the bound)."""
     import touch_release_eval as tre  # beside this script
 
-    from hapticdesk.bench.accuracy import measure_accuracy
-
     three = load_profile("kitamura2017-panel-accel")
     text = Path(str(three.path)).read_text()
     start = text.index("accelerometers:\n")
@@ -168,15 +166,26 @@ def panel_touch_down(seeds: int) -> None:
         runs["three"] = runs["without"]
         for how, label in labels.items():
             desk = one if how == "one" else three
-            at: dict[str, list[np.ndarray]] = {"touch+20": [], "touch+50": []}
-            for rec in runs[how]:
-                use = how in ("one", "three", "half", "twice")
-                accel = accelerometer_readings(desk, rec.extra) if use else None
-                block = ContactEstimator(desk, method="fused").push(rec.t, rec.wrench, accel)
-                found = measure_accuracy(block, rec.extra).at_times
-                for key in at:
-                    at[key].append(found[key])
+            use = how in ("one", "three", "half", "twice")
+            at = _touch_down_errors(desk, runs[how], use)
             print(f"  panel desk, {surface:5s} {label} " + _at_times_line(at))
+
+
+def _touch_down_errors(
+    desk: DeskProfile, runs: list[Recording], use_readings: bool
+) -> dict[str, list[np.ndarray]]:
+    """``fused``'s errors at +20 and +50 ms after each true touch-down of ``runs`` (a press
+    not located: inf), estimated on ``desk``, with its accelerometers' readings or without."""
+    from hapticdesk.bench.accuracy import measure_accuracy
+
+    at: dict[str, list[np.ndarray]] = {"touch+20": [], "touch+50": []}
+    for rec in runs:
+        accel = accelerometer_readings(desk, rec.extra) if use_readings else None
+        block = ContactEstimator(desk, method="fused").push(rec.t, rec.wrench, accel)
+        found = measure_accuracy(block, rec.extra).at_times
+        for key in at:
+            at[key].append(found[key])
+    return at
 
 
 def _at_times_line(at: dict[str, list[np.ndarray]]) -> str:
@@ -307,7 +316,6 @@ def panel_variants(seeds: int) -> None:
     import touch_release_eval as tre  # beside this script
 
     from hapticdesk.analysis.characterize import characterize
-    from hapticdesk.bench.accuracy import measure_accuracy
 
     for name, v in PANEL_VARIANTS.items():
         with tempfile.TemporaryDirectory() as folder_name:
@@ -345,15 +353,7 @@ def panel_variants(seeds: int) -> None:
                     ("box inertia     ", box, True),
                     ("fitted inertia  ", fitted, True),
                 ):
-                    at: dict[str, list[np.ndarray]] = {"touch+20": [], "touch+50": []}
-                    for rec in runs:
-                        accel = accelerometer_readings(desk, rec.extra) if use else None
-                        block = ContactEstimator(desk, method="fused").push(
-                            rec.t, rec.wrench, accel
-                        )
-                        found_at = measure_accuracy(block, rec.extra).at_times
-                        for key in at:
-                            at[key].append(found_at[key])
+                    at = _touch_down_errors(desk, runs, use)
                     print(f"  {surface:5s} {label} " + _at_times_line(at))
 
 

@@ -83,9 +83,9 @@ def floor(
     pieces a push uses: the part of a push no later stage can save."""
     bank = FilterBank(settings, [])
     stacked = wrench.reshape(len(t), -1)
-    mapping = desk.wrench_map()
+    mapping_t = settings.wrench_map_t  # (the map as the estimator's samples stage applies it)
     for a in range(0, len(t), BATCH_CHUNK):
-        raw = mapping @ stacked[a : a + BATCH_CHUNK].T
+        raw = (stacked[a : a + BATCH_CHUNK] @ mapping_t).T
         bank.process(t[a : a + BATCH_CHUNK], raw, np.zeros(raw.shape[1], np.uint8), True)
 
 

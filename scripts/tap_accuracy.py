@@ -20,6 +20,7 @@ true force reached it; the others are counted apart ("under 2 N").
 
     python scripts/tap_accuracy.py                  # 1,000 taps on each desk, about 1 min
     python scripts/tap_accuracy.py --taps 200 --desk unseen-four
+    python scripts/tap_accuracy.py --desk paper --noise 0.1   # a quieter sensor
 """
 
 from __future__ import annotations
@@ -48,6 +49,7 @@ from hapticdesk.sim import (
     Tap,
     simulate,
 )
+from hapticdesk.sim.sensors import SensorParameters
 
 ROOT = Path(__file__).resolve().parents[1]
 BUTTONS = ROOT / "examples" / "layouts" / "buttons.yaml"
@@ -193,11 +195,14 @@ def true_touches(rec: SimulationRun) -> list[tuple[float, float, int, float]]:
     ]
 
 
-def run(desk: DeskProfile, layout: Layout, n: int, seed: int) -> Tally:
-    """Simulate ``n`` edge taps on ``desk`` and judge the engine's tap events."""
+def run(
+    desk: DeskProfile, layout: Layout, n: int, seed: int, sensors: SensorParameters | None = None
+) -> Tally:
+    """Simulate ``n`` edge taps on ``desk`` and judge the engine's tap events; ``sensors``:
+    the simulated sensors' noise and resolution (default: the paper's)."""
     rng = np.random.default_rng(seed)
     scene, which, peak = edge_taps(rng, n)
-    rec = simulate(desk, scene, seed=seed)
+    rec = simulate(desk, scene, seed=seed, sensors=sensors)
     contacts = estimate(desk, rec)
     engine = GestureEngine(layout, position_delay_s=ContactEstimator(desk).position_delay_s)
     events = [
@@ -255,11 +260,18 @@ def buttons(desk: DeskProfile, snap_mm: float | None = None) -> Layout:
         return load_layout(path, profile=desk)
 
 
-def measure(desk: DeskProfile, layout: Layout, n: int, seed: int, chunk: int = 250) -> Tally:
+def measure(
+    desk: DeskProfile,
+    layout: Layout,
+    n: int,
+    seed: int,
+    chunk: int = 250,
+    sensors: SensorParameters | None = None,
+) -> Tally:
     """``n`` taps in scenes of at most ``chunk`` (bounded memory), seeds ``seed``, ``seed+1``…"""
     total = Tally()
     for k, start in enumerate(range(0, n, chunk)):
-        total.add(run(desk, layout, min(chunk, n - start), seed + k))
+        total.add(run(desk, layout, min(chunk, n - start), seed + k, sensors))
     return total
 
 
@@ -301,6 +313,14 @@ def main() -> None:
         help="every desk with estimation.sway_compensation on (the legs as the accelerometer)",
     )
     parser.add_argument(
+        "--noise",
+        type=float,
+        metavar="N",
+        help="the simulated sensors' noise: its amplitude on the desk's total F_z (default: "
+        "the paper's 0.4 N; each channel keeps its resolution, 1/2000 of its rating, where "
+        "the profile rates it)",
+    )
+    parser.add_argument(
         "--desk",
         choices=("paper", "unseen", "unseen-six", "unseen-four", "unseen-switched", "all"),
         default="all",
@@ -315,7 +335,8 @@ def main() -> None:
             desk = desk.with_estimation(sway_compensation=True)
         started = time.monotonic()
         layout = buttons(desk, args.snap)
-        tally = measure(desk, layout, args.taps, args.seed)
+        sensors = None if args.noise is None else SensorParameters(noise_amplitude_n=args.noise)
+        tally = measure(desk, layout, args.taps, args.seed, sensors=sensors)
         print(tally.line(label) + f"  <!-- {time.monotonic() - started:.0f} s -->")
 
 

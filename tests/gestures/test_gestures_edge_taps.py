@@ -44,6 +44,24 @@ def test_snap_is_what_keeps_edge_taps():
     assert tally.wrong == 0 and tally.phantom == 0
 
 
+@pytest.mark.xfail(
+    strict=True,
+    reason="known weakness: a sensor quieter than its resolution step is not dithered; the "
+    "zero taken at the tare is then off by up to half a step per channel and the noise "
+    "measured there does not show it (README, 'Taps near a button's edge')",
+)
+def test_a_sensor_quieter_than_its_resolution_step_places_taps_as_well():
+    """The paper desk's sensors with no noise beyond their 1/2000 resolution (the simulator's
+    0.4 N amplitude already holds the rounding: any amplitude under about 0.26 N is rounding
+    alone). A quieter sensor must not place taps worse; today 28 % of them land right and
+    18 of 1,000 in a wrong button (`python scripts/tap_accuracy.py --desk paper --noise 0.2`)."""
+    desk = load_profile("kitamura2017")
+    quiet = tap_accuracy.SensorParameters(noise_amplitude_n=0.2)
+    tally = tap_accuracy.measure(desk, tap_accuracy.buttons(desk), 200, 5, sensors=quiet)
+    assert tally.wrong == 0 and tally.phantom == 0
+    assert tally.right >= 0.975 * judged(tally)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("which", ["paper", "unseen-six"])
 def test_a_thousand_edge_taps(which):

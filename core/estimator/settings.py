@@ -97,14 +97,15 @@ class EstimatorSettings:
         def windows(seconds: float) -> int:
             return max(1, math.ceil(seconds / (window / fs) - 1e-9))
 
+        mapping = profile.wrench_map()
         return cls(
             user=s,
             method=s.method,
             trace=trace,
             sample_rate_hz=fs,
             n_sensors=len(profile.sensors),
-            wrench_map=np.ascontiguousarray(profile.wrench_map()),
-            wrench_map_t=np.ascontiguousarray(profile.wrench_map().T),
+            wrench_map=np.ascontiguousarray(mapping),
+            wrench_map_t=np.ascontiguousarray(mapping.T),
             range_flat=range_flat,
             inv_range2=1.0 / range_flat**2,
             frames=[SurfaceFrame.of(surf) for surf in profile.surfaces],

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -345,8 +346,7 @@ class ZeroStage:
         wait = n_object + 1 if load < LIGHT_LOAD_N else n_object
         st.object_windows.append((spread, f))
         del st.object_windows[:-wait]
-        columns = zip(*(window for _, window in st.object_windows), strict=True)
-        wander = max(max(c) - min(c) for c in columns)
+        wander = _wander([window for _, window in st.object_windows])
         allowed = max(OBJECT_WANDER_FACTOR * st.quiet_wander, HEAVY_WANDER_SHARE * load)
         st.object_resting = wander < allowed  # (a load that strays is no object, for now)
         spreads = sorted(window_spread for window_spread, _ in st.object_windows)
@@ -362,8 +362,7 @@ class ZeroStage:
         tail.append((index, mean))
         st.idle_tail = tail
         if len(tail) == self.wander_windows:  # (that many in a row: none was left out)
-            columns = list(zip(*(m for _, m in tail), strict=True))
-            st.idle_wanders.append(max(max(c) - min(c) for c in columns))
+            st.idle_wanders.append(_wander([m for _, m in tail]))
         for values in (st.idle_spreads, st.idle_wanders):
             if len(values) > IDLE_WINDOWS:
                 del values[0]
@@ -465,6 +464,12 @@ class ZeroStage:
                 f"t = {t_end:.2f} s (is someone touching or leaning on it?); retrying",
                 logging.WARNING,
             )
+
+
+def _wander(means: Sequence[Sequence[float]]) -> float:
+    """How far window means strayed: the widest range of any component over ``means`` (one
+    measure for an object's windows and the idle desk's yardstick, so they compare)."""
+    return max(max(c) - min(c) for c in zip(*means, strict=True))
 
 
 def _quantile(values: list[float], q: float) -> float:

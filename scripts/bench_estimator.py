@@ -55,6 +55,7 @@ import numpy as np  # noqa: E402
 from hapticdesk.bench.scenes import desk_day, paper_experiment  # noqa: E402
 from hapticdesk.estimator import BATCH_CHUNK, ContactEstimator  # noqa: E402
 from hapticdesk.estimator.filter_bank import FilterBank  # noqa: E402
+from hapticdesk.estimator.samples import SampleStage  # noqa: E402
 from hapticdesk.estimator.settings import EstimatorSettings  # noqa: E402
 from hapticdesk.files.profile import METHODS, DeskProfile, load_profile  # noqa: E402
 from hapticdesk.sim import simulate  # noqa: E402
@@ -76,16 +77,15 @@ def _median_seconds(run: Callable[[], object], repeats: int) -> float:
     return statistics.median(times)
 
 
-def floor(
-    desk: DeskProfile, settings: EstimatorSettings, t: np.ndarray, wrench: np.ndarray
-) -> None:
-    """The wrench map and the method's filter bank (``settings``) over (t, wrench), in the
-    pieces a push uses: the part of a push no later stage can save."""
+def floor(settings: EstimatorSettings, t: np.ndarray, wrench: np.ndarray) -> None:
+    """The wrench map (the samples stage's own, :meth:`SampleStage.resultant`) and the
+    method's filter bank (``settings``) over (t, wrench), in the pieces a push uses: the part
+    of a push no later stage can save."""
     bank = FilterBank(settings, [])
+    samples = SampleStage(settings, [])
     stacked = wrench.reshape(len(t), -1)
-    mapping_t = settings.wrench_map_t  # (the map as the estimator's samples stage applies it)
     for a in range(0, len(t), BATCH_CHUNK):
-        raw = (stacked[a : a + BATCH_CHUNK] @ mapping_t).T
+        raw = samples.resultant(stacked[a : a + BATCH_CHUNK])
         bank.process(t[a : a + BATCH_CHUNK], raw, np.zeros(raw.shape[1], np.uint8), True)
 
 
@@ -107,7 +107,7 @@ def side_by_side(
         jobs[f"ref:{method}"] = lambda m=method: reference_contacts(desk, t, wrench, m)
     for method in METHODS:
         settings = ContactEstimator(desk, method=method).stage_settings  # (not on the clock)
-        jobs[f"floor:{method}"] = lambda s=settings: floor(desk, s, t, wrench)
+        jobs[f"floor:{method}"] = lambda s=settings: floor(s, t, wrench)
     for _ in range(repeats):
         for name, job in jobs.items():
             if name.startswith(("ref:", "floor:")):

@@ -112,7 +112,7 @@ class SampleStage:
                 flags[gap] = FLAG_GAP
             st.last_t = float(t[-1])
             with np.errstate(invalid="ignore", over="ignore"):
-                raw = self._resultant(flat)
+                raw = self.resultant(flat)
             st.last_good = raw[:, -1].copy()
             return flags, raw
         return self._process_slowly(t, flat, flags)
@@ -148,7 +148,7 @@ class SampleStage:
         st.last_good = raw
         return raw
 
-    def _resultant(self, flat: np.ndarray) -> np.ndarray:
+    def resultant(self, flat: np.ndarray) -> np.ndarray:
         """[F_o; M_o] (6, k) of the stacked channels ``flat`` (k, 6S), paper eqs. (1)–(4): as
         (k, 6S) @ (6S, 6) viewed transposed, which BLAS does in half the time of
         (6, 6S) @ (6S, k) on the rows as given."""
@@ -335,7 +335,7 @@ class SampleStage:
             flags[np.flatnonzero(good)[gap]] |= FLAG_GAP
             st.last_t = float(good_t[-1])
         with np.errstate(invalid="ignore", over="ignore"):  # bad rows are replaced below
-            raw = self._resultant(flat)
+            raw = self.resultant(flat)
         return flags, self._hold_last_good(raw, good)
 
     def _hold_last_good(self, raw: np.ndarray, good: np.ndarray) -> np.ndarray:

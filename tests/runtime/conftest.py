@@ -16,7 +16,7 @@ import socket
 import subprocess
 import threading
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -192,6 +192,22 @@ class Subscriber:
             while len(self.lines) < count and time.monotonic() < deadline:
                 self._cond.wait(0.05)
         return self.messages()
+
+    def wait_until(
+        self, done: Callable[[list[tuple[bool, str, str]]], bool], timeout: float = 15.0
+    ) -> list[tuple[bool, str, str]]:
+        """The messages once ``done`` holds for them; fails the test with what arrived if not.
+
+        Prefer this to :meth:`wait_for` where the count varies (state messages ride along):
+        a count reached early returns before the message the test is about has arrived.
+        """
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while time.monotonic() < deadline:
+                if done(self.messages()):
+                    return self.messages()
+                self._cond.wait(0.05)
+        raise AssertionError(f"timed out; the broker carried: {self.messages()}")
 
     def stop(self) -> None:
         self.process.terminate()

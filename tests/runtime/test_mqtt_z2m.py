@@ -126,7 +126,7 @@ def test_zigbee2mqtt_style_over_mosquitto(broker, subscribe, tmp_path, paper_des
     report, events = run_layout(layout, hold_file(tmp_path, paper_desk), broker.url)
     assert report.error is None
     assert [e["gesture"] for e in events] == ["tap", "long_press", "long_press"]
-    messages = live.wait_for(8)
+    messages = live.wait_until(lambda m: sum(t.endswith("/event") for _, t, _ in m) == 3)
     actions = [p for _, t, p in messages if t == "hapticdesk/study/action"]
     assert actions == ["lamp_single", "lamp_hold", "lamp_release"]
     states = [json.loads(p) for _, t, p in messages if t == "hapticdesk/study"]

@@ -300,13 +300,14 @@ def test_home_assistant_discovery_and_availability(broker, subscribe, tmp_path, 
     assert configs[f"{node}/desk_swipe_up/config"][1]["type"] == "swipe_up"
     assert configs[f"{node}/desk_swipe_up/config"][1]["subtype"] == "desk"
     # the desk's own topics: online, the gesture as an action string and in full, offline
-    messages = live.wait_for(4)
+    offline = ("hapticdesk/study/availability", "offline")
+    messages = live.wait_until(lambda m: offline in [(t, p) for _, t, p in m])
     by_topic = [(topic, payload) for _, topic, payload in messages]
     assert by_topic[0] == ("hapticdesk/study/availability", "online")
     assert ("hapticdesk/study/action", "lamp_tap") in by_topic
     event = next(json.loads(p) for t, p in by_topic if t == "hapticdesk/study/event")
     assert event == {**events[0], "action": "lamp_tap"}
-    assert by_topic[-1] == ("hapticdesk/study/availability", "offline")
+    assert by_topic[-1] == offline
 
 
 RUN = [sys.executable, "-m", "hapticdesk", "run", "--speed", "1"]

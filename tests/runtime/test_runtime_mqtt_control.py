@@ -11,7 +11,6 @@ import re
 import subprocess
 import sys
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -61,16 +60,6 @@ def publish(broker: Mosquitto, topic: str, payload: str) -> None:
     )  # fmt: skip
 
 
-def wait_until(sub: Subscriber, done: Callable[[Messages], bool], timeout: float = 15) -> Messages:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        messages = sub.messages()
-        if done(messages):
-            return messages
-        time.sleep(0.05)
-    raise AssertionError(f"timed out; the broker carried: {sub.messages()}")
-
-
 def regions(messages: Messages) -> list[str]:
     return [json.loads(p)["region"] for _, t, p in messages if t == "hapticdesk/study/event"]
 
@@ -92,22 +81,22 @@ def test_set_commands_switch_layouts_pause_and_retare_a_running_desk(
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
     try:
-        wait_until(sub, lambda m: len(regions(m)) >= 2)
+        sub.wait_until(lambda m: len(regions(m)) >= 2)
         publish(broker, "hapticdesk/study/set", '{"layout": "evening"}')
-        wait_until(sub, lambda m: "fan" in regions(m))
+        sub.wait_until(lambda m: "fan" in regions(m))
         publish(broker, "hapticdesk/study/set", '{"command": "pause"}')
-        paused = wait_until(sub, lambda m: len(results(m)) == 2)
+        paused = sub.wait_until(lambda m: len(results(m)) == 2)
         time.sleep(1.6)  # three taps happen meanwhile
         during = sub.messages()
         publish(broker, "hapticdesk/study/set", "resume")
-        wait_until(sub, lambda m: len(regions(m)) > len(regions(during)))
+        sub.wait_until(lambda m: len(regions(m)) > len(regions(during)))
         publish(broker, "hapticdesk/study/set", '{"layout": "attic"}')
         publish(broker, "hapticdesk/study/set", '{"tare": true}')
-        retared = wait_until(sub, lambda m: len(results(m)) == 5)
+        retared = sub.wait_until(lambda m: len(results(m)) == 5)
         time.sleep(1.6)
         after_tare = sub.messages()
         publish(broker, "hapticdesk/study/set", "explode")
-        wait_until(sub, lambda m: len(results(m)) == 6)
+        sub.wait_until(lambda m: len(results(m)) == 6)
         process.terminate()
         _, err = process.communicate(timeout=20)
     finally:
@@ -143,7 +132,7 @@ def test_a_second_desk_with_the_same_name_is_refused(broker, subscribe, tmp_path
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
     try:
-        wait_until(availability, lambda m: any(p == "online" for _, _, p in m))
+        availability.wait_until(lambda m: any(p == "online" for _, _, p in m))
         second = subprocess.run(
             [*RUN, "--layout", str(layout), "--source", f"replay:{recording}"],
             capture_output=True, text=True, timeout=30,

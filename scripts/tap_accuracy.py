@@ -321,6 +321,13 @@ def main() -> None:
         "the profile rates it)",
     )
     parser.add_argument(
+        "--resolution",
+        type=float,
+        metavar="SHARE",
+        help="the simulated sensors' resolution step as a share of each channel's rating "
+        "(default: the paper's 1/2000; 0: unrounded)",
+    )
+    parser.add_argument(
         "--desk",
         choices=("paper", "unseen", "unseen-six", "unseen-four", "unseen-switched", "all"),
         default="all",
@@ -335,7 +342,10 @@ def main() -> None:
             desk = desk.with_estimation(sway_compensation=True)
         started = time.monotonic()
         layout = buttons(desk, args.snap)
-        sensors = None if args.noise is None else SensorParameters(noise_amplitude_n=args.noise)
+        sensors = None
+        if args.noise is not None or args.resolution is not None:
+            given = {"noise_amplitude_n": args.noise, "resolution": args.resolution}
+            sensors = SensorParameters(**{k: v for k, v in given.items() if v is not None})
         tally = measure(desk, layout, args.taps, args.seed, sensors=sensors)
         print(tally.line(label) + f"  <!-- {time.monotonic() - started:.0f} s -->")
 

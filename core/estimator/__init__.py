@@ -233,8 +233,9 @@ class ContactEstimator:
         lp, det, diff, det_slope, release = self.filters.process(t, raw, flags, started)
         segments = self.zeroing.process(t, lp.real, raw, flags)
         noise = self.zeroing.state.noise
-        if self.candidates.covs is None and noise is not None:
-            self.candidates.covs = Covariances.of(self.stage_settings, noise)
+        resolution = self.samples.resolution
+        if noise is not None and (resolution.changed() or self.candidates.covs is None):
+            self.candidates.covs = Covariances.of(self.stage_settings, noise, resolution.used)
         self._contacts(block, t, flags, lp, det, diff, det_slope, release, segments)
         if self.second_finger is not None:
             self.second_finger.process(raw, block)
@@ -261,6 +262,9 @@ class ContactEstimator:
             return None
         if inertial is not None:
             raw_a = raw_a - inertial
+        resolution = self.samples.resolution
+        if resolution.dirty and resolution.changed():
+            self.candidates.covs = Covariances.of(s, zero.state.noise, resolution.used)
         raw = raw_a.tolist()
         lp, det, diff, det_slope, release = self.filters.process_one(raw)
         # the zero before this sample: one set where it ends a window applies from the next on

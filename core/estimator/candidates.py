@@ -27,6 +27,7 @@ from hapticdesk.estimator.geometry import (
     intersect_one,
     pack_cov,
 )
+from hapticdesk.estimator.resolution import rounding_deficit
 from hapticdesk.estimator.settings import EstimatorSettings
 
 # `fused` leaves out a differentiated candidate this much less sure than the force's: it adds
@@ -46,7 +47,11 @@ class Covariances:
     packed: dict[str, list[tuple[float, float, float, float, float, float]]]
 
     @classmethod
-    def of(cls, settings: EstimatorSettings, measured: np.ndarray) -> Covariances:
+    def of(
+        cls, settings: EstimatorSettings, measured: np.ndarray, step: np.ndarray | None = None
+    ) -> Covariances:
+        """From the noise ``measured`` at the tare (6, 6) and the channels' resolution steps
+        (6S,) learned so far (resolution.py; None or 0: none)."""
         s, m = settings.user, settings.wrench_map
         if s.noise_force_n > 0 or s.noise_moment_nm > 0:
             per_channel = np.tile(
@@ -55,6 +60,11 @@ class Covariances:
             cov = m @ np.diag(per_channel**2) @ m.T
         else:
             cov = measured
+        # the rounding of channels quieter than their step (resolution.py): in each reading
+        # (in the noise), and slow (the zero's offset, and a reading's while it sits on one
+        # step), which the low-passes pass whole; the difference cancels the offset
+        slow = np.zeros((6, 6)) if step is None else rounding_deficit(m, step, cov)
+        cov = cov + slow
         # a floor so that a perfectly noise-free input (simulation) still gives finite weights
         cov = cov + np.eye(6) * 1e-12
         rates = np.tile(
@@ -63,10 +73,10 @@ class Covariances:
         )
         drift_cov = m @ np.diag(rates**2) @ m.T
         frames = settings.frames
-        lp = [f.project_cov(cov * settings.gain_lp) for f in frames]
+        lp = [f.project_cov(cov * settings.gain_lp + 2.0 * slow) for f in frames]
         drift = [f.project_cov(drift_cov) for f in frames]
         diff = [f.project_cov(cov * settings.gain_diff) for f in frames]
-        det = [f.project_cov(cov * settings.gain_det) for f in frames]
+        det = [f.project_cov(cov * settings.gain_det + 2.0 * slow) for f in frames]
         named = (("lp", lp), ("diff", diff), ("det", det), ("drift", drift))
         packed = {name: [pack_cov(c) for c in covs] for name, covs in named}
         return cls(lp, diff, det, drift, packed)

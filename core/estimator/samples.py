@@ -31,6 +31,7 @@ from hapticdesk.estimator.contacts import (
     FLAG_TIME_BACK,
 )
 from hapticdesk.estimator.notices import Notice, add_notice, log
+from hapticdesk.estimator.resolution import Resolution
 from hapticdesk.estimator.settings import EstimatorSettings
 
 BAD_SAMPLE = FLAG_NAN | FLAG_SATURATED | FLAG_TIME_BACK | FLAG_STUCK  # replaced by the last good
@@ -79,6 +80,7 @@ class SampleStage:
             steps=np.empty(SQUARES_PIECE),
             live=self.live_n,
         )
+        self.resolution = Resolution(len(settings.range_flat))  # each channel's step
 
     def process(self, t: np.ndarray, wrench: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Flags (k,) and the wrench (6, k) for ``t`` (k,), ``wrench`` (k, S, 6); a bad
@@ -111,6 +113,7 @@ class SampleStage:
             if gap.any():
                 flags[gap] = FLAG_GAP
             st.last_t = float(t[-1])
+            self.resolution.observe(flat)
             with np.errstate(invalid="ignore", over="ignore"):
                 raw = self.resultant(flat)
             st.last_good = raw[:, -1].copy()
@@ -144,6 +147,7 @@ class SampleStage:
                 return None
             st.previous, st.previous_energy, st.repeats = flat.copy(), energy, 0
         st.last_t = t
+        self.resolution.observe_one(flat)
         raw = self.settings.wrench_map @ flat  # (6,): paper eqs. (1)–(4)
         st.last_good = raw
         return raw
@@ -334,6 +338,7 @@ class SampleStage:
                 gap[0] = False
             flags[np.flatnonzero(good)[gap]] |= FLAG_GAP
             st.last_t = float(good_t[-1])
+            self.resolution.observe(flat[good])
         with np.errstate(invalid="ignore", over="ignore"):  # bad rows are replaced below
             raw = self.resultant(flat)
         return flags, self._hold_last_good(raw, good)

@@ -211,11 +211,18 @@ class MqttLink:
         if self.refused is not None:
             line += f", {len(lost)} NOT delivered: the broker refused the login ({self.refused})"
         elif not flushed and lost:
+            # one entry per topic (the first payload and how many more): a light's command
+            # is not hidden behind the desk's own state and event messages
+            by_topic: dict[str, list[Message]] = {}
+            for m in lost:
+                by_topic.setdefault(m.topic, []).append(m)
             shown = "; ".join(
-                f"{m.topic} {m.payload[:60].decode('utf-8', 'replace')}" for m in lost[:5]
+                f"{topic} {group[0].payload[:60].decode('utf-8', 'replace')}"
+                + (f" (and {len(group) - 1} more)" if len(group) > 1 else "")
+                for topic, group in list(by_topic.items())[:5]
             )
             line += f", {len(lost)} NOT delivered (broker away): {shown}" + (
-                " …" if len(lost) > 5 else ""
+                " …" if len(by_topic) > 5 else ""
             )
         return line
 

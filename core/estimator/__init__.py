@@ -23,8 +23,9 @@ single-sample twin sits beside its block path and shares its formulas:
 5. :mod:`.candidates` — P_er from the force and P_ed from the differentiated force (and,
    for ``fused``, one from the fast wrench), each the intersection of its line of action
    with the surfaces (paper eqs. 5, 12; :mod:`.geometry`), each with a covariance propagated
-   from the noise measured at the tare, plus the zero's drift since it was set and, for
-   P_ed, the term eq. (11) drops.
+   from the noise measured at the tare, plus the rounding of channels quieter than their
+   resolution step (:mod:`.resolution`, the steps learned by stage 1), the zero's drift
+   since it was set and, for P_ed, the term eq. (11) drops.
 6. :mod:`.methods` — ``force`` (the conventional), ``diff``, ``switched`` (paper Fig. 3
    with F_tth, F_rth) or ``fused`` (inverse-covariance combination of the candidates, no
    threshold; a point is reported when its 1-σ is below ``max_sigma_m``).
@@ -232,13 +233,18 @@ class ContactEstimator:
         started = self.samples.state.last_good is not None
         lp, det, diff, det_slope, release = self.filters.process(t, raw, flags, started)
         segments = self.zeroing.process(t, lp.real, raw, flags)
+        self._update_covariances()
+        self._contacts(block, t, flags, lp, det, diff, det_slope, release, segments)
+        if self.second_finger is not None:
+            self.second_finger.process(raw, block)
+
+    def _update_covariances(self) -> None:
+        """The candidates' covariances: made at the tare, and made again when a channel's
+        resolution step learned from the readings is new or has shrunk (resolution.py)."""
         noise = self.zeroing.state.noise
         resolution = self.samples.resolution
         if noise is not None and (resolution.changed() or self.candidates.covs is None):
             self.candidates.covs = Covariances.of(self.stage_settings, noise, resolution.used)
-        self._contacts(block, t, flags, lp, det, diff, det_slope, release, segments)
-        if self.second_finger is not None:
-            self.second_finger.process(raw, block)
 
     def _push_one(
         self, t: float, wrench: np.ndarray, accel: np.ndarray | None
@@ -262,9 +268,7 @@ class ContactEstimator:
             return None
         if inertial is not None:
             raw_a = raw_a - inertial
-        resolution = self.samples.resolution
-        if resolution.dirty and resolution.changed():
-            self.candidates.covs = Covariances.of(s, zero.state.noise, resolution.used)
+        self._update_covariances()
         raw = raw_a.tolist()
         lp, det, diff, det_slope, release = self.filters.process_one(raw)
         # the zero before this sample: one set where it ends a window applies from the next on

@@ -63,6 +63,7 @@ class Touch:
         self._sy: list[float] = []
         self._sum_w = self._sum_wx = self._sum_wy = 0.0
         self._pressed: list[bool] = []
+        self._force: list[float] = []
         self._pressed_w = self._pressed_wx = self._pressed_wy = 0.0
         self._ema_w = self._ema_wx = self._ema_wy = 0.0
         self._outliers_since: float | None = None  # start of the current run of outliers
@@ -108,6 +109,7 @@ class Touch:
         w = 1.0 / (sigma * sigma)
         pressed = event.force_n >= self.pressed_n
         self._pressed.append(pressed)
+        self._force.append(event.force_n)
         self._weigh(w, event.x, event.y, pressed)
         if self._t:
             decay = math.exp(-(event.t - self._t[-1]) / TRACK_TIME_CONSTANT_S)
@@ -131,7 +133,16 @@ class Touch:
             keep -= 1
         if keep == len(self._t):
             return
-        for samples in (self._t, self._x, self._y, self._sigma, self._sx, self._sy, self._pressed):
+        for samples in (
+            self._t,
+            self._x,
+            self._y,
+            self._sigma,
+            self._sx,
+            self._sy,
+            self._pressed,
+            self._force,
+        ):
             del samples[keep:]
         self._sum_w = self._sum_wx = self._sum_wy = 0.0
         self._pressed_w = self._pressed_wx = self._pressed_wy = 0.0
@@ -207,17 +218,24 @@ class Touch:
         """(n, 2) smoothed track (for strokes and slides)."""
         return np.column_stack([self._sx, self._sy]) if self._t else np.zeros((0, 2))
 
-    def moved(self, x: float, y: float) -> float:
+    def moved(self, x: float, y: float, min_force_n: float = 0.0) -> float:
         """How far the touch went from (x, y) beyond its own uncertainty, metres.
 
         The largest distance of a sample from (x, y) less twice that sample's σ: a noisy
         sample at touch-down does not count as movement, a real slide does. Only pressed
         samples count when there are any: the lift-off tail below the contact force is where
         the differentiated candidate's still-finger assumption breaks (13 cm jumps seen).
+        With ``min_force_n``, only the samples pressed that hard (when there are any): a firm
+        hold judged without its rise, whose points err as 1/force and, on sensors quieter
+        than their resolution step, by more than their σ says.
         """
         if not self._t:
             return 0.0
         pressed = np.asarray(self._pressed)
+        if min_force_n > 0:
+            firm = pressed & (np.asarray(self._force) >= min_force_n)
+            if firm.any():
+                pressed = firm
         keep = pressed if pressed.any() else np.ones(len(pressed), bool)
         d = np.hypot(np.asarray(self._x)[keep] - x, np.asarray(self._y)[keep] - y)
         return max(0.0, float((d - 2 * np.asarray(self._sigma)[keep]).max()))

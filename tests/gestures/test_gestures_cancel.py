@@ -207,3 +207,35 @@ def test_home_assistant_is_told_of_the_repeats_of_a_long_press(make_layout):
         "dim_long_press_repeat": "button_long_press_repeat",  # what the repeats send
         "dim_long_press_end": "button_long_release",
     }
+
+
+def _firm_press(timeline, path, force_n: float = 20.0):
+    """A 20 N press held 1.5 s whose points in the first 40 ms of its 0.1 s rise (2-9 N) land
+    2.5 cm off with a σ of 2 mm: what a sensor quieter than its resolution step gives (it
+    errs as 1/force, and by more than its σ says)."""
+    rise = lambda tau: np.minimum(force_n, 2.0 + (force_n - 2.0) * tau / 0.1)  # noqa: E731
+    tl = timeline(3.0).touch(1.0, 1.5, path, force_n=force_n, force_profile=rise, noise=False)
+    during_rise = (tl.t >= 1.0) & (tl.t < 1.04)
+    tl.x[during_rise] += 0.025
+    tl.sigma[during_rise] = 0.002
+    return tl
+
+
+def test_a_firm_hold_is_not_cancelled_by_its_own_rise(make_layout, timeline):
+    # judged on every pressed sample, the rise's points (2.5 cm off, at 2-9 N) made the still
+    # 20 N hold look moved off: no long press (21 of 60 on the paper desk at half its noise)
+    tl = _firm_press(timeline, (-0.2, -0.1))
+    engine = GestureEngine(make_layout(REPEAT))
+    events = engine.feed(tl.block()) + engine.flush(float(tl.t[-1]))
+    assert [e.phase for e in events][0] is None and events[-1].phase == "end"
+
+
+def test_a_firm_hold_that_slides_away_is_still_cancelled(make_layout, timeline):
+    path = lambda u: np.column_stack(  # noqa: E731 - still for 0.8 s of 1.5 s, then slides 5 cm
+        [-0.2 + 0.05 * np.clip((u - 0.55) / 0.45, 0, 1), np.full_like(u, -0.1)]
+    )
+    tl = _firm_press(timeline, path)
+    engine = GestureEngine(make_layout(REPEAT))
+    events = engine.feed(tl.block()) + engine.flush(float(tl.t[-1]))
+    phases = [e.phase for e in events]
+    assert phases[0] is None and phases[-1] == "cancel" and "end" not in phases

@@ -16,6 +16,7 @@ from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.layout import load_layout
 from hapticdesk.gestures.strokes.shapes import hand_drawn
 from hapticdesk.sim import Drag, Idle, LongPress, Press, Ramp, Scene, Stroke, Swipe, Tap, simulate
+from hapticdesk.sim.sensors import SensorParameters
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "layouts"
 GRID = np.array([(x, y) for y in (0.08, 0.0, -0.08) for x in (-0.08, 0.0, 0.08)])  # b1..b9
@@ -316,3 +317,41 @@ def test_light_quick_taps_make_no_swipe(paper_desk, write_layout):
     swipes = [e for e in events if e.gesture == "swipe"]
     assert len(taps) >= 0.6 * n  # (the lightest never reach 2 N: no touch, no tap)
     assert swipes == []
+
+
+def test_firm_long_presses_fire_on_a_sensor_quieter_than_its_resolution(paper_desk, write_layout):
+    # at half the paper's noise each reading is its rounding: a firm press's rise is placed
+    # 2-3 cm off with a σ of a few mm, and judged on every pressed sample the still hold looked
+    # moved off (39 of 60 fired); it is judged on the samples pressed at least half the peak
+    layout = load_layout(
+        write_layout(
+            "desk: kitamura2017\nunits: cm\nregions:\n  lamp: {rect: [-25, -15, -15, -5]}\n"
+            "bindings:\n  - {gesture: long_press, region: lamp, hold_s: 0.8, do: log}\n"
+        )
+    )
+    rng = np.random.default_rng(2)
+    n = 20
+    scene = Scene(
+        actions=[
+            LongPress(
+                point=(-0.2 + float(dx), -0.1 + float(dy)),
+                peak_n=float(peak),
+                hold_s=1.5,
+                wait_s=float(wait),
+            )
+            for dx, dy, peak, wait in zip(
+                rng.uniform(-0.005, 0.005, n),
+                rng.uniform(-0.005, 0.005, n),
+                rng.uniform(15.0, 25.0, n),
+                rng.uniform(0.8, 1.5, n),
+                strict=True,
+            )
+        ]
+    )
+    rec = simulate(paper_desk, scene, seed=2, sensors=SensorParameters(noise_amplitude_n=0.2))
+    contacts = estimate(paper_desk, rec)
+    engine = GestureEngine(layout, position_delay_s=ContactEstimator(paper_desk).position_delay_s)
+    events = engine.feed(contacts) + engine.flush(float(contacts.t[-1]))
+    tiers = [e for e in events if e.gesture == "long_press" and e.phase is None]
+    assert len(tiers) == n and {e.region for e in tiers} == {"lamp"}
+    assert [e.phase for e in events if e.phase is not None] == ["end"] * n

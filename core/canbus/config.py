@@ -18,6 +18,7 @@ See docs/can.md for every key.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -55,6 +56,9 @@ def accel_group(index: int) -> str:
 
 
 SILENT_POLICIES = ("continue", "stop")
+#: the largest CAN database read: a desk's is a few kB and a whole vehicle's DBC a few MB;
+#: cantools holds some 70 times the file's size while parsing it
+MAX_DATABASE_BYTES = 8 * 1024 * 1024
 _CAN_KEYS = {
     "interface",
     "channel",
@@ -193,6 +197,7 @@ def parse_can_section(section: MarkedDict, profile: DeskProfile) -> CanConfig:
             sensors[name] = _signal_sensor(item, name, database, section)
     _check_distinct_ids(sensors, database, sensors_raw)
     accelerometers = _accelerometers(section, profile, database)
+    _check_scales([*sensors.values(), *accelerometers], database, database_path)
 
     counted = list(sensors.values()) + list(accelerometers)
     all_counted = all(isinstance(s, SignalSensor) and s.counters for s in counted)
@@ -281,15 +286,62 @@ def _load_database(section: MarkedDict, profile: DeskProfile) -> tuple[Path, Any
         path = profile.path.parent / path
     if not path.is_file():
         raise ConfigError(where, f"CAN database {raw!r} not found (looked for {path})")
+    size = path.stat().st_size
+    if size > MAX_DATABASE_BYTES:
+        raise ConfigError(
+            where,
+            f"CAN database {path} is {size / 2**20:.1f} MiB; at most "
+            f"{MAX_DATABASE_BYTES / 2**20:g} MiB is read (a desk's database is a few kB: keep "
+            "its messages in a file of their own)",
+        )
     import cantools  # lazily: only a desk on CAN needs it
 
     try:
         database = cantools.database.load_file(str(path), strict=True)
     except Exception as err:  # cantools raises many kinds (ParseError, UnsupportedDatabaseFormat…)
-        raise ConfigError(where, f"cannot load CAN database {path}: {err}") from None
+        raise ConfigError(where, f"cannot load CAN database {path}: {_load_failure(err)}") from None
     if not hasattr(database, "get_message_by_name"):
         raise ConfigError(where, f"{path} is a diagnostics database, expected a CAN database")
     return path, database
+
+
+def _load_failure(err: BaseException) -> str:
+    """Why cantools could not load a database, never empty: cantools reports each format it
+    tried (``DBC: "…"``), and an exception without a message (a MemoryError) reads as ``""``."""
+    tried = [
+        (name.upper(), getattr(err, f"e_{name}", None))
+        for name in ("arxml", "dbc", "kcd", "sym", "cdd")
+    ]
+    parts = [f'{name}: "{_exception_text(e)}"' for name, e in tried if e is not None]
+    return ", ".join(parts) if parts else _exception_text(err)
+
+
+def _exception_text(err: BaseException) -> str:
+    text = str(err).strip()
+    if text:
+        return text
+    if isinstance(err, MemoryError):
+        return "it needs more memory than there is"
+    return f"an unexplained {type(err).__name__}"
+
+
+def _check_scales(
+    groups: list[SignalSensor | AtiSensor], database: Any, database_path: Path | None
+) -> None:
+    """A signal read as a force, moment or acceleration needs a finite non-zero scale: with
+    scale 0 every frame decodes as the offset (and encoding one divides by zero)."""
+    for group in groups:
+        if not isinstance(group, SignalSensor):
+            continue
+        for ref in group.axes.values():
+            message = database.get_message_by_name(ref.message)
+            scale = float(message.get_signal_by_name(ref.signal).scale)
+            if scale == 0.0 or not math.isfinite(scale):
+                raise ConfigError(
+                    ref.where,
+                    f"signal `{ref}` of CAN database {database_path} has scale {scale:g}; "
+                    "expected a finite non-zero scale (with 0 every frame reads the same)",
+                )
 
 
 def _signal_ref(value: Any, where: Position | str, what: str, database: Any) -> SignalRef:

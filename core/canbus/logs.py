@@ -39,6 +39,12 @@ PYTHON_CAN_SUFFIXES = (".asc", ".blf", ".log", ".trc")
 WRITE_SUFFIXES = PYTHON_CAN_SUFFIXES
 CANDUMP_TEXT_SUFFIXES = (".txt", ".candump", ".dump")
 CHUNK_FRAMES = 50_000
+#: the longest line a text log may have: a CAN FD frame of 64 bytes is under 400 characters in
+#: every format read here, so a longer line is not a frame (a corrupt or hostile file would
+#: otherwise be read whole into memory as one line)
+MAX_LINE_CHARS = 4096
+#: how much of a ``.log`` file is looked at to tell candump ``-l`` from candump's printed text
+SNIFF_CHARS = 65_536
 # candump -l / python-can .log lines: "(1700000000.000000) can0 123#DEADBEEF"
 _CANUTILS_LINE = re.compile(r"^\s*\(\d+(\.\d+)?\)\s+\S+\s+[0-9A-Fa-f]+#")
 # ... and all of one, as python-can's reader parses it without raising: an optional CAN FD
@@ -87,13 +93,19 @@ def read_frames(path: str | Path, chunk_frames: int = CHUNK_FRAMES) -> Iterator[
 
 
 def _looks_canutils(path: Path) -> bool:
+    """Whether the first line with text in the file's first :data:`SNIFF_CHARS` characters is
+    a candump ``-l`` frame (a bounded read: a file of one endless line is not read whole)."""
     try:
         with _open_text(path) as fh:
-            for line in fh:
-                if line.strip():
-                    return bool(_CANUTILS_LINE.match(line))
-    except (OSError, UnicodeDecodeError):
+            head = fh.read(SNIFF_CHARS)
+    except (OSError, EOFError, UnicodeDecodeError):
         return True  # let python-can report what is wrong
+    lines = head.splitlines()
+    if len(head) == SNIFF_CHARS and lines:
+        lines.pop()  # cut short by the bound: not a whole line
+    for line in lines:
+        if line.strip():
+            return bool(_CANUTILS_LINE.match(line))
     return True
 
 
@@ -121,25 +133,74 @@ def _python_can_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
     fmt = _suffix(path)
     mode = "rb" if fmt == ".blf" else "rt"
     batch: list[Any] = []
+    text: _BoundedLines | None = None  # (None also when opening the file fails)
+    lines: _CanutilsLines | None = None
     try:
         # we open the file so that it is closed whatever the reader raises
         opener = gzip.open if path.suffix.lower() == ".gz" else open
         with opener(path, mode) as fh:
-            lines = _CanutilsLines(fh) if fmt == ".log" else None
-            for msg in getattr(can, _READERS[fmt])(lines if lines is not None else fh):
+            text = _BoundedLines(fh, path) if fmt != ".blf" else None
+            lines = _CanutilsLines(text) if fmt == ".log" else None
+            source = lines if lines is not None else text if text is not None else fh
+            for msg in getattr(can, _READERS[fmt])(source):
                 batch.append(msg)
                 if len(batch) >= chunk_frames:
                     yield FrameArray.from_messages(batch)
                     batch = []
+    except ConfigError:
+        raise  # a line too long: already says where
     except (ValueError, OSError, EOFError, KeyError, IndexError, can.CanError) as err:
-        where = f"{path}:{lines.number}" if lines is not None else str(path)
+        where = f"{path}:{text.number}" if text is not None else str(path)
         raise ConfigError(where, f"not a readable {fmt} CAN log: {err}") from None
+    except MemoryError:
+        where = f"{path}:{text.number}" if text is not None else str(path)
+        raise ConfigError(
+            where, f"not a readable {fmt} CAN log: it needs more memory than there is"
+        ) from None
     except Exception as err:  # BLF and gzip readers raise their own kinds on corrupt files
         raise ConfigError(str(path), f"not a readable {fmt} CAN log: {err!r}") from None
     if batch:
         yield FrameArray.from_messages(batch)
     if lines is not None:
         _warn_skipped(path, lines.skipped, lines.n_skipped)
+
+
+class _BoundedLines:
+    """A text log's lines, each read with a bounded length: a line longer than
+    :data:`MAX_LINE_CHARS` is a ConfigError at ``file:line`` instead of the whole file read
+    into memory. Iterates (python-can's readers) and has ``readline`` (cantools' parser);
+    ``number`` is the line last read, for errors."""
+
+    def __init__(self, fh: Any, path: Path) -> None:
+        self._fh = fh
+        self._path = path
+        self.number = 0
+
+    def __iter__(self) -> Iterator[str]:
+        return self
+
+    def __next__(self) -> str:
+        line = self.readline()
+        if not line:
+            raise StopIteration
+        return line
+
+    def readline(self) -> str:
+        limit = MAX_LINE_CHARS
+        line: str = self._fh.readline(limit + 2)  # room for the line end ("\r\n")
+        if not line:
+            return line
+        self.number += 1
+        if len(line.rstrip("\r\n")) > limit:
+            raise ConfigError(
+                f"{self._path}:{self.number}",
+                f"a line longer than {limit} characters; a CAN log line (a frame, a header "
+                "or a comment) is a few hundred at most: is this a CAN log?",
+            )
+        return line
+
+    def close(self) -> None:
+        """python-can closes its file when done; ours is closed by its ``with``."""
 
 
 class _CanutilsLines:
@@ -210,7 +271,9 @@ def _candump_text_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
     relative = False
     try:
         with _open_text(path) as fh:
-            for number, (line, frame) in enumerate(Parser(fh).iterlines(keep_unknowns=True), 1):
+            lines = _BoundedLines(fh, path)
+            for line, frame in Parser(lines).iterlines(keep_unknowns=True):  # type: ignore[arg-type]
+                number = lines.number
                 if frame is None:
                     if line.strip() and not line.lstrip().startswith(("#", ";")):
                         n_unknown += 1
@@ -231,7 +294,7 @@ def _candump_text_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
                 remote.append(frame.is_remote_frame)
                 if len(datas) >= chunk_frames:
                     yield chunk()
-    except (OSError, UnicodeDecodeError) as err:
+    except (OSError, EOFError, UnicodeDecodeError) as err:
         raise ConfigError(str(path), f"cannot read: {err}") from None
     if datas:
         yield chunk()

@@ -1,0 +1,167 @@
+"""Hostile CAN logs and databases: a line of any length, a huge or broken database, a signal
+that cannot be decoded. Each is a clear error naming the file (and line), found in bounded
+memory; the limits are made small here instead of writing gigabytes."""
+
+from __future__ import annotations
+
+import gzip
+import re
+from pathlib import Path
+
+import pytest
+
+from hapticdesk.canbus import config as can_config_module
+from hapticdesk.canbus import logs
+from hapticdesk.canbus.config import can_config
+from hapticdesk.canbus.logs import read_frames, write_frames
+from hapticdesk.files.yamlfile import ConfigError
+
+LIMIT = 200
+PROFILE = """name: t
+sample_rate_hz: 1000
+sensors:
+  - {name: fl, position: [-0.3, -0.2, 0]}
+  - {name: fr, position: [0.3, -0.2, 0]}
+  - {name: bl, position: [-0.3, 0.2, 0]}
+  - {name: br, position: [0.3, 0.2, 0]}
+can:
+  database: kitamura2017.dbc
+  sensors:
+"""
+SIGNALS = """    {n}: {{fx: {N}_FORCE.Fx, fy: {N}_FORCE.Fy, fz: {N}_FORCE.Fz,
+         mx: {N}_MOMENT.Mx, my: {N}_MOMENT.My, mz: {N}_MOMENT.Mz}}
+"""
+
+
+def full_can() -> str:
+    return PROFILE + "".join(SIGNALS.format(n=n, N=n.upper()) for n in ("fl", "fr", "bl", "br"))
+
+
+def line_of(text: str, needle: str) -> int:
+    return next(i for i, line in enumerate(text.splitlines(), 1) if needle in line)
+
+
+def error_at(load, text: str) -> tuple[int, int, str]:
+    profile = load(text)
+    with pytest.raises(ConfigError) as info:
+        can_config(profile)
+    match = re.match(r".*desk\.yaml:(\d+):(\d+): (.*)", str(info.value), re.S)
+    assert match, str(info.value)
+    return int(match[1]), int(match[2]), match[3]
+
+
+def _insert_long_line(path: Path, at: int, gz: bool = False) -> None:
+    """Put a line of ``5 * LIMIT`` characters (no frame) in front of line ``at``."""
+    lines = path.read_text(encoding="utf-8").splitlines(keepends=True)
+    lines.insert(at - 1, "7" * (5 * LIMIT) + "\n")
+    text = "".join(lines)
+    if gz:
+        path.unlink()
+        with gzip.open(str(path) + ".gz", "wt", encoding="utf-8") as fh:
+            fh.write(text)
+    else:
+        path.write_text(text, encoding="utf-8")
+
+
+@pytest.mark.parametrize("suffix", [".log", ".asc", ".trc", ".txt", ".log.gz", ".asc.gz"])
+@pytest.mark.parametrize("at", [1, 3])
+def test_a_line_too_long_is_refused_at_file_and_line(
+    tmp_path, monkeypatch, canopen_traffic, suffix, at
+):
+    monkeypatch.setattr(logs, "MAX_LINE_CHARS", LIMIT)
+    gz = suffix.endswith(".gz")
+    written = tmp_path / f"bus{suffix.removesuffix('.gz')}"
+    frames = canopen_traffic(40, 1.0, t0=1_700_000_000.0)
+    if written.suffix == ".txt":  # candump's printed text: "  can0  123   [8]  00 11 …"
+        rows = []
+        for i in range(len(frames)):
+            data = " ".join(f"{b:02X}" for b in frames.data[i, : frames.dlc[i]].tolist())
+            rows.append(f"  can0  {int(frames.ident[i]):03X}   [{frames.dlc[i]}]  {data}\n")
+        written.write_text("".join(rows), encoding="utf-8")
+    else:
+        write_frames(written, [frames])
+    _insert_long_line(written, at, gz)
+    path = Path(str(written) + ".gz") if gz else written
+    with pytest.raises(ConfigError) as info:
+        for _ in read_frames(path):
+            pass
+    assert str(info.value).startswith(f"{path}:{at}: a line longer than {LIMIT} characters")
+
+
+def test_a_line_at_the_limit_is_read(tmp_path, monkeypatch):
+    line = "(1700000000.000000) can0 123#" + "00" * 8
+    monkeypatch.setattr(logs, "MAX_LINE_CHARS", len(line))
+    path = tmp_path / "bus.log"
+    path.write_text(f"{line}\r\n{line}\n{line}", encoding="utf-8")
+    assert sum(len(chunk) for chunk in read_frames(path)) == 3
+
+
+def test_sniffing_reads_a_bounded_prefix(tmp_path, monkeypatch):
+    """A `.log` of one endless line is not read whole to tell candump -l from printed text."""
+    monkeypatch.setattr(logs, "SNIFF_CHARS", 64)
+    path = tmp_path / "one-line.log"
+    path.write_text("\0" * 10_000, encoding="utf-8")
+    reads: list[int] = []
+    real_open = logs._open_text
+
+    def spy(p):
+        fh = real_open(p)
+        real_read = fh.read
+
+        def read(size=-1):
+            reads.append(size)
+            return real_read(size)
+
+        fh.read = read
+        return fh
+
+    monkeypatch.setattr(logs, "_open_text", spy)
+    assert logs._looks_canutils(path) is True  # undecided: python-can then names the line
+    assert reads == [64]
+    path.write_text("  can0  123   [1]  00\n" + "x" * 10_000, encoding="utf-8")
+    assert logs._looks_canutils(path) is False
+
+
+def test_a_database_too_big_is_refused_before_it_is_parsed(profile_text, monkeypatch):
+    monkeypatch.setattr(can_config_module, "MAX_DATABASE_BYTES", 1000)
+
+    def never(*args, **kwargs):
+        raise AssertionError("parsed")
+
+    import cantools
+
+    monkeypatch.setattr(cantools.database, "load_file", never)
+    text = full_can()
+    line, col, message = error_at(profile_text, text)
+    assert (line, col) == (line_of(text, "kitamura2017.dbc"), 13)
+    assert "kitamura2017.dbc is" in message and "MiB; at most" in message
+
+
+def test_a_failure_without_a_message_still_says_why(profile_text, monkeypatch):
+    import cantools
+
+    def fails(*args, **kwargs):
+        raise cantools.database.UnsupportedDatabaseFormatError(
+            None, MemoryError(), None, None, None
+        )
+
+    monkeypatch.setattr(cantools.database, "load_file", fails)
+    _, _, message = error_at(profile_text, full_can())
+    assert 'DBC: "it needs more memory than there is"' in message
+    assert '""' not in message
+
+
+def test_a_signal_of_scale_zero_is_refused(profile_text, tmp_path):
+    profile_text(full_can())  # writes the shipped DBC next to the profile
+    dbc = tmp_path / "kitamura2017.dbc"
+    text = dbc.read_text(encoding="utf-8")
+    changed = re.sub(r"(SG_ Fz : 32\|16@1- \()0\.01,", r"\g<1>0,", text, count=1)
+    assert changed != text
+    dbc.write_text(changed, encoding="utf-8")
+    profile = profile_text(full_can())
+    with pytest.raises(ConfigError) as info:
+        can_config(profile)
+    message = str(info.value)
+    # the first message with Fz in the DBC is FL_FORCE
+    assert f"desk.yaml:{line_of(full_can(), 'fz: FL_FORCE.Fz')}:" in message
+    assert "`FL_FORCE.Fz`" in message and "kitamura2017.dbc has scale 0" in message

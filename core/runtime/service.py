@@ -100,7 +100,10 @@ class RunReport:
 
     def summary(self) -> list[str]:
         d = self.dispatch.totals
-        how = f"stopped by {self.stopped_by}" if self.stopped_by else "the source ended"
+        if self.stopped_by:
+            how = f"stopped by {self.stopped_by}"
+        else:  # the error, as the summary's last line, says what failed
+            how = "the source failed" if self.error else "the source ended"
         lines = [
             f"{how}: {self.samples} samples ({self.sample_time_s:.2f} s of sensor time) in "
             f"{self.wall_s:.2f} s; {self.gesture_count} gestures"
@@ -335,28 +338,42 @@ class Runtime:
     def _sense(self) -> None:
         scene = self.scene
         t_first = t_last = None
-        for block in scene.source.blocks():
-            if self._stop.is_set():
-                break
-            self.apply_control()  # between blocks: a command never sees half a block
-            if len(block.t) == 0:
-                continue
-            if t_first is None:
-                t_first = float(block.t[0])
-            # (it logs its own notices)
-            contacts = scene.estimator.push(block.t, block.wrench, block.accel)
-            self._emit(scene.engine.feed(contacts))
-            self._update_live(contacts)
-            if scene.observers:
-                scene.observers(contacts, scene.estimator.zero)
-            for tap in self.block_taps:
-                tap(block.t, block.wrench)
-            self.report.samples += len(block.t)
-            t_last = self._t_last = float(block.t[-1])
-        self.apply_control()
+        try:
+            for block in scene.source.blocks():
+                if self._stop.is_set():
+                    break
+                self.apply_control()  # between blocks: a command never sees half a block
+                if len(block.t) == 0:
+                    continue
+                if t_first is None:
+                    t_first = float(block.t[0])
+                # (it logs its own notices)
+                contacts = scene.estimator.push(block.t, block.wrench, block.accel)
+                self._emit(scene.engine.feed(contacts))
+                self._update_live(contacts)
+                if scene.observers:
+                    scene.observers(contacts, scene.estimator.zero)
+                for tap in self.block_taps:
+                    tap(block.t, block.wrench)
+                self.report.samples += len(block.t)
+                t_last = self._t_last = float(block.t[-1])
+            self.apply_control()
+        except BaseException:
+            # the source failed (a bad line in a replayed file) or a stage did: what was
+            # sensed until then ends as at a normal end — a tap pressed and released is
+            # decided and sent — and the error the run reports stays the first one
+            try:
+                self._end_sensing(t_first, t_last)
+            except Exception:
+                log.exception("ending the gestures after the error failed")
+            raise
+        self._end_sensing(t_first, t_last)
+
+    def _end_sensing(self, t_first: float | None, t_last: float | None) -> None:
+        """The samples' time span into the report, and the engine flushed at the last one."""
         if t_first is not None and t_last is not None:
-            self._emit(scene.engine.flush(t_last))
             self.report.sample_time_s = t_last - t_first
+            self._emit(self.scene.engine.flush(t_last))
 
     def _emit(self, events: list[GestureEvent]) -> None:
         if self.paused:  # recognised (the engine's state stays right) but not sent

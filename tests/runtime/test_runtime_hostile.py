@@ -1,0 +1,122 @@
+"""Hostile input to a run: a source that fails part way ends the run as a normal end would
+(nothing already sensed is lost, the summary says the source failed), and a payload template
+that would loop for hours is refused when the layout is checked."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from hapticdesk.files.recording import write_recording
+from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.plugins import templating
+from hapticdesk.plugins.templating import SAMPLE_VARIABLES, TemplateError, compile_template
+from hapticdesk.registry import load_registry
+from hapticdesk.runtime.assembly import build_scene
+from hapticdesk.runtime.service import Runtime, report_json
+
+from .taps import Tap, tap_recording
+
+LAYOUT = {
+    "desk": "kitamura2017",
+    "units": "cm",
+    "regions": {"lamp": {"rect": [-5, -5, 5, 5]}},
+    "bindings": [
+        {"gesture": "tap", "region": "lamp", "do": {"log": {}}},
+        {"gesture": "long_press", "region": "lamp", "hold_s": 0.5, "do": {"log": {}}},
+    ],
+}
+
+
+def _run(tmp_path: Path, paper_desk, fail_at_end: bool):
+    layout = tmp_path / "layout.yaml"
+    layout.write_text(json.dumps(LAYOUT))
+    recording = tmp_path / "taps.npz"
+    # the last press is still held when the samples end: flushing ends the long press
+    taps = [Tap(1.5, 0.0, 0.0), Tap(2.5, 0.0, 0.0, duration_s=2.0)]
+    write_recording(recording, tap_recording(paper_desk, taps, 3.6))
+    scene = build_scene(layout, f"replay:{recording}", load_registry(entry_points=False), speed=0)
+    events_path = tmp_path / f"events-{fail_at_end}.jsonl"
+    runtime = Runtime(scene, events_path=events_path)
+    flushed: list[float] = []
+    engine_flush = scene.engine.flush
+
+    def flush(t: float):
+        flushed.append(t)
+        return engine_flush(t)
+
+    scene.engine.flush = flush  # type: ignore[method-assign]
+    if fail_at_end:
+        blocks = scene.source.blocks
+
+        def failing() -> Iterator:
+            yield from blocks()
+            raise ConfigError("taps.csv:9999:3", "column `fl_fz`: 'abc' is not a number")
+
+        scene.source.blocks = failing  # type: ignore[method-assign]
+    report = runtime.run(handle_signals=False)
+    events = [json.loads(line) for line in events_path.read_text().splitlines()]
+    return events, report, flushed
+
+
+def test_a_source_that_fails_ends_the_run_as_a_normal_end(tmp_path, paper_desk):
+    normal, normal_report, normal_flushed = _run(tmp_path, paper_desk, fail_at_end=False)
+    failed, report, flushed = _run(tmp_path, paper_desk, fail_at_end=True)
+    assert normal_report.error is None and normal_flushed
+    # the same gestures (the held press's end comes from the flush), the same sensor time
+    assert [e["gesture"] for e in normal].count("long_press") >= 2
+    assert failed == normal
+    assert flushed == normal_flushed
+    assert report.samples == normal_report.samples
+    assert report.sample_time_s == pytest.approx(normal_report.sample_time_s)
+    assert report.sample_time_s > 3.5
+    assert report.error == "taps.csv:9999:3: column `fl_fz`: 'abc' is not a number"
+    lines = report.summary()
+    assert lines[0].startswith(f"the source failed: {report.samples} samples (3.60 s")
+    assert lines[-1] == f"error: {report.error}"
+    assert normal_report.summary()[0].startswith("the source ended:")
+    info = json.loads(report_json(report))
+    assert info["error"] == report.error and info["sample_time_s"] > 3.5
+
+
+NESTED = "{%- for i in range(99999) -%}{%- for j in range(99999) -%}{%- endfor -%}{%- endfor -%}"
+DOUBLING = (
+    "{% macro f(n) %}{% if n %}{{ f(n - 1) }}{{ f(n - 1) }}{% endif %}{% endmacro %}{{ f(40) }}"
+)
+
+
+@pytest.mark.parametrize("text", [NESTED, DOUBLING], ids=["nested-loops", "doubling-macro"])
+def test_a_template_that_would_run_for_hours_is_too_costly(text, monkeypatch):
+    monkeypatch.setattr(templating, "MAX_STEPS", 2_000)
+    with pytest.raises(ConfigError) as info:
+        compile_template(text, "layout.yaml:4:62", "`payload` of `mqtt`")
+    assert str(info.value) == (
+        "layout.yaml:4:62: `payload` of `mqtt` is too costly to render for an event: "
+        "it takes more than 2000 loop turns and calls"
+    )
+
+
+def test_a_template_too_slow_at_run_time_fails_for_that_event(monkeypatch):
+    template = compile_template(
+        "{% for i in range(3) %}{{ i }}{% endfor %}", "layout.yaml:1:1", "`payload`"
+    )
+    assert template.render_value(SAMPLE_VARIABLES) == 12  # "012" reads as a number
+    monkeypatch.setattr(templating, "MAX_RENDER_S", -1.0)  # every step is past the deadline
+    with pytest.raises(TemplateError, match="takes longer than -1 s"):
+        template.render(SAMPLE_VARIABLES)
+
+
+def test_each_rendering_has_a_budget_of_its_own(monkeypatch):
+    monkeypatch.setattr(templating, "MAX_STEPS", 50)
+    text = "{% for k in event %}{{ loop.index }}{% if loop.last %}/{{ loop.length }}{% endif %}"
+    text += "{% else %}none{% endfor %}"
+    template = compile_template(text, "layout.yaml:1:1", "`payload`")
+    once = template.render(SAMPLE_VARIABLES)
+    assert once.endswith(f"/{len(SAMPLE_VARIABLES['event'])}")
+    for _ in range(
+        5
+    ):  # 15 turns each: a budget shared by the renderings would run out in the fourth
+        assert template.render(SAMPLE_VARIABLES) == once

@@ -16,7 +16,9 @@ from __future__ import annotations
 import functools
 import math
 import re
-from collections.abc import Callable, Mapping
+import time
+from collections.abc import Callable, Iterable, Iterator, Mapping
+from contextvars import ContextVar
 from dataclasses import dataclass
 from functools import cache
 from typing import Any
@@ -48,6 +50,11 @@ VARIABLES = (*EVENT_FIELDS, "action", "desk", "event")
 MAX_RENDERED_CHARS = 65_536
 #: the largest exponent of ``**`` (10 ** 1000 is already far beyond any payload)
 MAX_EXPONENT = 1000
+#: the most loop turns and calls one rendering may take: a payload loops over a few dozen
+#: items, and loops nested in loops would otherwise run for hours with nothing to show
+MAX_STEPS = 100_000
+#: the longest one rendering may take (checked at every loop turn and call), seconds
+MAX_RENDER_S = 1.0
 #: the variables of the sample event a template is rendered with once when it is checked
 SAMPLE_VARIABLES: dict[str, Any] = {
     "t": 0.0,
@@ -80,13 +87,47 @@ class TemplateLimitError(TemplateError):
     """A template would render (or build on its way) more than the limits allow."""
 
 
+class _Budget:
+    """What is left of one rendering's :data:`MAX_STEPS` and :data:`MAX_RENDER_S`."""
+
+    __slots__ = ("deadline", "steps")
+
+    def __init__(self) -> None:
+        self.steps = MAX_STEPS
+        self.deadline = time.monotonic() + MAX_RENDER_S
+
+    def spend(self) -> None:
+        self.steps -= 1
+        if self.steps < 0:
+            raise TemplateLimitError(f"it takes more than {MAX_STEPS} loop turns and calls")
+        if time.monotonic() > self.deadline:
+            raise TemplateLimitError(f"it takes longer than {MAX_RENDER_S:g} s")
+
+
+#: the budget of the rendering under way in this thread (dispatcher lanes render in parallel)
+_BUDGET: ContextVar[_Budget | None] = ContextVar("hapticdesk_template_budget", default=None)
+
+
+def _spend() -> None:
+    budget = _BUDGET.get()
+    if budget is not None:
+        budget.spend()
+
+
+def _counted(iterable: Iterable[Any]) -> Iterator[Any]:
+    """``iterable``, spending one step of the rendering's budget per item."""
+    for item in iterable:
+        _spend()
+        yield item
+
+
 def is_template(text: str) -> bool:
     return "{{" in text or "{%" in text
 
 
 @cache
 def _environment() -> Any:
-    from jinja2 import StrictUndefined
+    from jinja2 import StrictUndefined, nodes
     from jinja2.sandbox import ImmutableSandboxedEnvironment
 
     def limit(size: int, what: str) -> None:
@@ -109,7 +150,23 @@ def _environment() -> Any:
                 raise TemplateLimitError(f"an exponent over {MAX_EXPONENT} ({right})")
             return super().call_binop(context, operator, left, right)
 
+        def call(__self, __context: Any, __obj: Any, *args: Any, **kwargs: Any) -> Any:  # noqa: N805
+            # every call of a sandboxed template comes here: a macro calling itself twice
+            # is as costly as nested loops
+            _spend()
+            return super().call(__context, __obj, *args, **kwargs)
+
+        def _parse(self, source: str, name: str | None, filename: str | None) -> Any:
+            # every `for` loop iterates through _counted: an empty loop body has no call
+            # and no output to count otherwise
+            tree = super()._parse(source, name, filename)
+            for loop in tree.find_all(nodes.For):
+                counter = nodes.EnvironmentAttribute("count_steps", lineno=loop.lineno)
+                loop.iter = nodes.Call(counter, [loop.iter], [], None, None, lineno=loop.lineno)
+            return tree
+
     env = BoundedEnvironment(undefined=StrictUndefined, autoescape=False)
+    env.count_steps = _counted  # type: ignore[attr-defined]
     del env.globals["lipsum"]  # random text of any length: no use in a payload
     for name, size in _FILTER_SIZES.items():
         env.filters[name] = _bounded_filter(name, env.filters[name], size, limit)
@@ -194,14 +251,21 @@ class Template:
 
 
 def _render_bounded(compiled: Any, variables: Mapping[str, Any]) -> str:
-    """The rendered text, stopped as soon as it grows past :data:`MAX_RENDERED_CHARS`."""
+    """The rendered text, stopped as soon as it grows past :data:`MAX_RENDERED_CHARS` or
+    spends more than its budget of loop turns, calls and time."""
     parts: list[str] = []
     size = 0
-    for part in compiled.generate(variables):
-        size += len(part)
-        if size > MAX_RENDERED_CHARS:
-            raise TemplateLimitError(f"the text rendered exceeds {MAX_RENDERED_CHARS} characters")
-        parts.append(part)
+    token = _BUDGET.set(_Budget())
+    try:
+        for part in compiled.generate(variables):
+            size += len(part)
+            if size > MAX_RENDERED_CHARS:
+                raise TemplateLimitError(
+                    f"the text rendered exceeds {MAX_RENDERED_CHARS} characters"
+                )
+            parts.append(part)
+    finally:
+        _BUDGET.reset(token)
     return "".join(parts)
 
 

@@ -7,6 +7,9 @@ loads YAML into ordinary dicts and lists that also carry the position of each ke
 
 from __future__ import annotations
 
+import os
+import re
+import stat
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -176,6 +179,18 @@ else:  # pragma: no cover - PyYAML built without libyaml
             Resolver.__init__(self)
 
 
+# YAML 1.1 (PyYAML) reads a float only with a dot and a signed exponent: `5e-2`, `1e6` and
+# `2.5e3` would be text, and a profile's `1e6` an error that looks absurd. YAML 1.2 (and
+# ruamel, which the browser UI edits with) reads them as numbers; so do we. The resolver is
+# added to this loader's own table (PyYAML copies it per class), after the built-in ones:
+# integers and the forms YAML 1.1 already reads keep their meaning.
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
+    list("-+0123456789."),
+)
+
+
 def _construct(node: yaml.Node, file: str, loader: _Loader) -> Any:
     if isinstance(node, yaml.MappingNode):
         if node.tag in _UNSUPPORTED_TAGS:
@@ -268,11 +283,47 @@ def load_marked_yaml(path: str | Path, text: str | None = None, max_bytes: int =
 
 def _read_bytes(path: Path, max_bytes: int) -> bytes:
     """At most ``max_bytes + 1`` bytes: enough to tell that a file is too large."""
+    regular_file_size(path, "the file")
     try:
         with path.open("rb") as f:
             return f.read(max_bytes + 1)
     except OSError as err:
         raise ConfigError(str(path), f"cannot read the file: {err.strerror or err}") from None
+
+
+def file_kind(mode: int) -> str:
+    """What a file of ``os.stat`` mode ``mode`` is, for a message (``a directory`` …)."""
+    if stat.S_ISREG(mode):
+        return "a regular file"
+    if stat.S_ISDIR(mode):
+        return "a directory"
+    if stat.S_ISFIFO(mode):
+        return "a named pipe (FIFO)"
+    if stat.S_ISCHR(mode):
+        return "a character device"
+    if stat.S_ISBLK(mode):
+        return "a block device"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "not a regular file"
+
+
+def regular_file_size(path: str | Path, what: str) -> int:
+    """The size in bytes of ``path``, which must be a regular file (after symlinks).
+
+    Checked before opening: opening a named pipe with no writer blocks forever, a device
+    such as /dev/zero never ends, a directory cannot be read. ``what`` names the file in the
+    message (``the file``, ``the stroke file`` …).
+    """
+    try:
+        info = os.stat(path)
+    except OSError as err:
+        raise ConfigError(str(path), f"cannot read {what}: {err.strerror or err}") from None
+    if not stat.S_ISREG(info.st_mode):
+        raise ConfigError(
+            str(path), f"cannot read {what}: it is {file_kind(info.st_mode)}, not a regular file"
+        )
+    return info.st_size
 
 
 def _encode(text: str, file: str) -> bytes:
@@ -286,7 +337,14 @@ def _encode(text: str, file: str) -> bytes:
 
 
 def _decode(data: bytes, file: str) -> str:
-    """Strict UTF-8 (a UTF-8 byte-order mark is allowed); otherwise say where and why."""
+    return decode_utf8(data, file, "YAML")
+
+
+def decode_utf8(data: bytes, file: str, kind: str) -> str:
+    """Strict UTF-8 (a UTF-8 byte-order mark is allowed); otherwise say where and why.
+
+    ``kind`` names what the text should be (``YAML``, ``a CSV stroke`` …) in the messages.
+    """
     for bom, name in (
         (b"\xff\xfe", "UTF-16"),
         (b"\xfe\xff", "UTF-16"),
@@ -298,7 +356,7 @@ def _decode(data: bytes, file: str) -> str:
     if nul >= 0:
         raise ConfigError(
             _byte_position(data, nul, file),
-            "a NUL byte: this is a binary file (or UTF-16 text), not YAML saved as UTF-8",
+            f"a NUL byte: this is a binary file (or UTF-16 text), not {kind} saved as UTF-8",
         )
     try:
         return data.decode("utf-8-sig")
@@ -363,7 +421,10 @@ def number(
     value = mapping[key]
     where = mapping.where(key)
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ConfigError(where, f"`{key}` in {what} must be a number, found {_describe(value)}")
+        raise ConfigError(
+            where,
+            f"`{key}` in {what} must be a number, found {_describe(value)}{_number_hint(value)}",
+        )
     value = float(value)
     if value != value or value in (float("inf"), float("-inf")):
         raise ConfigError(where, f"`{key}` in {what} must be finite, found {value}")
@@ -389,11 +450,16 @@ def flag(mapping: MarkedDict, key: str, what: str, *, default: bool) -> bool:
 
 def vector(value: Any, where: Position | str, what: str, length: int | None = None) -> list[float]:
     """A list of finite numbers (of ``length`` items when given)."""
-    if not isinstance(value, list) or any(
-        isinstance(v, bool) or not isinstance(v, int | float) for v in value
-    ):
-        shape = f"{length} numbers" if length else "a list of numbers"
+    shape = f"{length} numbers" if length else "a list of numbers"
+    if not isinstance(value, list):
         raise ConfigError(where, f"{what} must be {shape}, found {_describe(value)}")
+    for i, v in enumerate(value):
+        if isinstance(v, bool) or not isinstance(v, int | float):
+            item_where = value.where(i) if isinstance(value, MarkedList) else where
+            raise ConfigError(
+                item_where,
+                f"{what} must be {shape}; item {i + 1} is {_describe(v)}{_number_hint(v)}",
+            )
     if length is not None and len(value) != length:
         raise ConfigError(where, f"{what} must have {length} numbers, found {len(value)}")
     out = [float(v) for v in value]
@@ -419,6 +485,17 @@ def choice(
             f"`{key}` in {what} must be one of {', '.join(allowed)}, found {_describe(value)}",
         )
     return str(value)
+
+
+def _number_hint(value: Any) -> str:
+    """A hint when ``value`` is text that reads as a number (it was quoted)."""
+    if not isinstance(value, str):
+        return ""
+    try:
+        float(value.replace("_", ""))
+    except ValueError:
+        return ""
+    return "; write the number without quotes"
 
 
 def _describe(value: Any) -> str:

@@ -13,7 +13,6 @@ with the file: CSV through numpy's C parser a block of lines at a time, NPZ each
 from __future__ import annotations
 
 import csv
-import itertools
 import re
 import zipfile
 import zlib
@@ -25,10 +24,16 @@ from typing import IO, TextIO
 import numpy as np
 
 from hapticdesk.files.profile import ACCEL_COLUMN, AXES
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.files.yamlfile import ConfigError, regular_file_size
 
 RECORDING_SUFFIXES = (".csv", ".npz")
 BLOCK_ROWS = 16_384  # samples per block read: ~14 s at 1.2 kHz; ~25 MB to parse a CSV block
+#: the longest line read, in characters: a sample's line is a few hundred, a header a few
+#: thousand; a file without line breaks (or /dev/zero) must not be read whole into one line.
+#: Below the csv module's field limit (131,072), so no cell can reach it.
+MAX_LINE_CHARS = 100_000
+#: a block also ends once its lines hold this many characters (a block of long lines)
+MAX_BLOCK_CHARS = 32_000_000
 # an empty cell (between commas, or at either end of a line that has commas) reads as NaN
 _EMPTY_CELL = re.compile(r"(?m)(?:^|(?<=,))[ \t]*(?=,)|(?<=,)[ \t]*$")
 
@@ -203,19 +208,27 @@ class _CsvReader:
     def __init__(self, path: Path, sensor_names: list[str]) -> None:
         self.where = str(path)
         self.sensor_names = sensor_names
+        self._fh: TextIO | None = None
+        regular_file_size(path, "the recording")  # a FIFO would block, /dev/zero never end
         try:
-            self._fh: TextIO | None = path.open(encoding="utf-8-sig", newline=None)
+            self._fh = path.open(encoding="utf-8-sig", newline=None)
         except OSError as err:
             raise ConfigError(self.where, f"cannot read: {err.strerror or err}") from None
+        self.line = 0  # file lines handed out so far
+        self._pending: list[str] = []  # lines read ahead (without their line ends)
+        self._tail = ""  # the start of a line whose end is not read yet
+        self._eof = False
         try:
-            first = self._fh.readline()
-        except UnicodeDecodeError as err:
+            head = self._take_lines(1)
+            first = head[0] if head else ""
+            if not first.strip():
+                raise ConfigError(
+                    f"{self.where}:1", "empty file, expected a header starting with `t`"
+                )
+            header = [h.strip() for h in self._cells(first, 1)]
+        except BaseException:
             self.close()
-            raise ConfigError(f"{self.where}:1", f"not UTF-8 text: {err.reason}") from None
-        if not first.strip():
-            self.close()
-            raise ConfigError(f"{self.where}:1", "empty file, expected a header starting with `t`")
-        header = [h.strip() for h in next(csv.reader([first]))]
+            raise
         seen: dict[str, int] = {}
         for i, name in enumerate(header):
             if name and name in seen:
@@ -234,23 +247,87 @@ class _CsvReader:
         self.needed_index = [seen[c] for c in needed]
         # other named columns are kept as extras while they hold numbers, else ignored
         self.extra = [(n, i) for i, n in enumerate(header) if n and n not in needed]
-        self.line = 1  # file lines consumed so far
+
+    def _take_lines(self, rows: int) -> list[str]:
+        """The next ``rows`` lines (fewer at the end of the file), without their line ends.
+
+        Read in pieces of bounded size and split by C string methods (no Python work per
+        line), so a line is never longer than :data:`MAX_LINE_CHARS`: a file without line
+        breaks is refused after that many characters, not read whole.
+        """
+        assert self._fh is not None
+        while len(self._pending) < rows and not self._eof:
+            want = min(MAX_BLOCK_CHARS, max(1 << 16, 256 * (rows - len(self._pending))))
+            try:
+                data = self._fh.read(want)
+            except UnicodeDecodeError as err:
+                raise ConfigError(
+                    f"{self.where}:{self.line + len(self._pending) + 1}",
+                    f"not UTF-8 text near here: {err.reason}",
+                ) from None
+            if not data:
+                self._eof = True
+                if self._tail:
+                    self._pending.append(self._tail)
+                    self._tail = ""
+                break
+            parts = (self._tail + data).split("\n")
+            self._tail = parts.pop()
+            self._pending.extend(parts)
+            longest = max(map(len, parts), default=0)
+            if longest > MAX_LINE_CHARS or len(self._tail) > MAX_LINE_CHARS:
+                before = len(self._pending) - len(parts)  # lines read ahead before these
+                index = next(
+                    (i for i, x in enumerate(parts) if len(x) > MAX_LINE_CHARS), len(parts)
+                )
+                raise ConfigError(
+                    f"{self.where}:{self.line + before + index + 1}",
+                    f"a line longer than {MAX_LINE_CHARS} characters (a recording's lines are a "
+                    "few hundred): is this a recording, with a line break after each sample?",
+                )
+        lines = self._pending[:rows]
+        del self._pending[:rows]
+        self.line += len(lines)
+        return lines
+
+    def _cells(self, line: str, number: int) -> list[str]:
+        """The cells of one CSV line (file line ``number``), as the csv module reads them."""
+        try:
+            return next(csv.reader([line]), [])
+        except csv.Error as err:
+            raise ConfigError(f"{self.where}:{number}", f"not a CSV line: {err}") from None
+
+    def _check_widths(self, text: str, lines: list[str], first_line: int) -> None:
+        """Every data line has as many values as the header: numpy reads only the columns it
+        is asked for and would drop a value too many without a word (a shifted row). Counted
+        cheaply: the block's commas against the header's, line by line only when they differ
+        (or when quotes may hide commas)."""
+        width = len(self.header)
+        quoted = '"' in text
+        if not quoted:
+            n_data = len(lines) - lines.count("")  # numpy skips empty lines
+            if text.count(",") == (width - 1) * n_data:
+                return
+        for j, line in enumerate(lines):
+            if not line:
+                continue
+            found = len(self._cells(line, first_line + j)) if quoted else line.count(",") + 1
+            if found != width:
+                raise ConfigError(
+                    f"{self.where}:{first_line + j}",
+                    f"this row has {found} value(s), the header {width}",
+                )
 
     def read(self, rows: int, _done: int) -> Recording | None:
         if self._fh is None:
             return None
         first_line = self.line + 1
-        try:
-            lines = list(itertools.islice(self._fh, rows))
-        except UnicodeDecodeError as err:
-            raise ConfigError(
-                f"{self.where}:{first_line}", f"not UTF-8 text near here: {err.reason}"
-            ) from None
+        lines = self._take_lines(rows)
         if not lines:
             self.close()
             return None
-        self.line += len(lines)
-        text = _empty_cells_as_nan("".join(lines))
+        text = _empty_cells_as_nan("\n".join(lines))
+        self._check_widths(text, lines, first_line)
         table = np.zeros((0, len(self.needed_index) + len(self.extra)))  # blank lines only
         while text.strip():
             usecols = self.needed_index + [i for _, i in self.extra]
@@ -272,7 +349,7 @@ class _CsvReader:
             i = int(np.argmax(~np.isfinite(rec.t)))
             offset = _data_line_offsets(lines)[i]
             column = self.needed_index[0]
-            cells = next(csv.reader([lines[offset]]))
+            cells = self._cells(lines[offset], first_line + offset)
             cell = cells[column].strip() if column < len(cells) else ""
             raise ConfigError(
                 f"{self.where}:{first_line + offset}:{column + 1}",

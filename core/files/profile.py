@@ -9,6 +9,7 @@ which every consumer of sensor data uses.
 from __future__ import annotations
 
 import math
+import os
 import re
 from dataclasses import dataclass, field, replace
 from importlib import resources
@@ -20,6 +21,7 @@ import numpy as np
 from hapticdesk.files.yamlfile import (
     ConfigError,
     MarkedDict,
+    file_kind,
     load_marked_yaml,
     require_mapping,
 )
@@ -363,6 +365,16 @@ def resolve_profile_path(name_or_path: str | Path, relative_to: Path | None = No
     if not path.is_absolute() and relative_to is not None:
         path = relative_to / path
     if not path.is_file():
+        try:
+            mode: int | None = os.stat(path).st_mode
+        except OSError:
+            mode = None
+        if mode is not None:  # it is there, but not a file (a directory, a FIFO, /dev/zero)
+            raise ConfigError(
+                str(name_or_path),
+                f"the desk profile is {file_kind(mode)}, not a regular file "
+                "(a profile is a YAML file, or the name of a shipped one)",
+            )
         shipped = ", ".join(sorted(p.stem for p in _shipped_profiles()))
         raise ConfigError(str(name_or_path), f"no such desk profile; shipped profiles: {shipped}")
     return path

@@ -35,6 +35,30 @@ from hapticdesk.files.yamlfile import (
     vector,
 )
 
+#: a desk's sample rate, Hz: fast enough for the paper's 4.77 Hz low-pass (below half of
+#: it), and no faster than a force sensor samples (ATI's boards: 7 kHz); the estimator and
+#: the simulator size buffers by it
+MIN_SAMPLE_RATE_HZ = 10.0
+MAX_SAMPLE_RATE_HZ = 100_000.0
+#: the lowest low-pass cut-off as a share of the sample rate (0.0048 Hz at 1.2 kHz): the
+#: estimator's noise gains sum impulse responses of 8 × rate / cut-off samples (2 million)
+MIN_CUTOFF_PER_RATE = 4e-6
+#: the longest estimation windows, seconds (the paper's: 0.166 s, a 1 s tare, 5 s settle)
+MAX_WINDOW_S = {
+    "diff_window_s": 5.0,
+    "tare_s": 60.0,
+    "max_gap_s": 60.0,
+    "settle_s": 3600.0,
+    "object_settle_s": 3600.0,
+    "drift_settle_s": 3600.0,
+}
+#: enough for any surface outline drawn by hand (as a layout's regions)
+MAX_SURFACE_POINTS = 500
+#: a sensor's rating (`range`), N or N·m: a smaller one is a typing mistake, and its
+#: inverse square (the estimator's weights) would overflow
+MIN_RATING = 1e-3
+MAX_RATING = 1e7
+
 _TOP_KEYS = {
     "name",
     "sample_rate_hz",
@@ -58,7 +82,13 @@ def read_profile(doc: MarkedDict, path: Path) -> DeskProfile:
     name = doc["name"]
     if not isinstance(name, str) or not name:
         raise ConfigError(doc.where("name"), "`name` must be a non-empty text")
-    rate = number(doc, "sample_rate_hz", "the desk profile", minimum=0.0, exclusive_minimum=True)
+    rate = number(
+        doc,
+        "sample_rate_hz",
+        "the desk profile",
+        minimum=MIN_SAMPLE_RATE_HZ,
+        maximum=MAX_SAMPLE_RATE_HZ,
+    )
 
     sensors_raw = doc["sensors"]
     if not isinstance(sensors_raw, MarkedList) or not sensors_raw:
@@ -134,6 +164,7 @@ def read_profile(doc: MarkedDict, path: Path) -> DeskProfile:
         for key in ("force_lowpass_hz", "diff_lowpass_hz"):
             if key not in given:
                 estimation = replace(estimation, **{key: cutoff})
+    _check_against_rate(estimation, rate, doc, given)
     return DeskProfile(
         name=name,
         sample_rate_hz=rate,
@@ -148,6 +179,41 @@ def read_profile(doc: MarkedDict, path: Path) -> DeskProfile:
         inertia_kg_m2=inertia,
         accelerometers=accelerometers,
     )
+
+
+def _check_against_rate(
+    settings: EstimationSettings, rate: float, doc: MarkedDict, given: Any
+) -> None:
+    """The filters' cut-offs against the sample rate, each at the place that set it: the
+    key in `estimation`, else `desk: natural_frequency_hz` (which sets the low-passes), else
+    `sample_rate_hz` (a default cut-off)."""
+    estimation = given if isinstance(given, MarkedDict) else None
+    lowest = MIN_CUTOFF_PER_RATE * rate
+    for key in ("force_lowpass_hz", "diff_lowpass_hz", "detect_lowpass_hz"):
+        value = getattr(settings, key)
+        if estimation is not None and key in estimation:
+            where, source = estimation.where(key), f"`{key}` in `estimation`"
+        elif key != "detect_lowpass_hz" and isinstance(doc.get("desk"), MarkedDict) and (
+            "natural_frequency_hz" in doc["desk"]
+        ):
+            where = doc["desk"].where("natural_frequency_hz")
+            source = f"`{key}` (from `desk: natural_frequency_hz`)"
+        else:
+            where, source = doc.where("sample_rate_hz"), f"the default `{key}`"
+        # the fast detection low-pass is held below 0.45 × the rate by the estimator itself
+        if key != "detect_lowpass_hz" and value >= rate / 2:
+            raise ConfigError(
+                where,
+                f"{source} is {value:g} Hz; a low-pass cut-off must be below half the sample "
+                f"rate (the Nyquist frequency, {rate / 2:g} Hz at `sample_rate_hz` {rate:g})",
+            )
+        if value < lowest:
+            raise ConfigError(
+                where,
+                f"{source} is {value:g} Hz; a cut-off must be at least {lowest:g} Hz "
+                f"({MIN_CUTOFF_PER_RATE:g} × `sample_rate_hz` {rate:g}): lower, the filter "
+                "would take longer to settle than any touch lasts",
+            )
 
 
 def _accelerometers(doc: MarkedDict) -> tuple[AccelerometerSpec, ...]:
@@ -244,6 +310,12 @@ def _sensor(item: Any, where: Any, index: int) -> SensorSpec:
         for arr, key in ((force_range, "force_n"), (moment_range, "moment_nm")):
             if arr is not None and np.any(arr <= 0):
                 raise ConfigError(rng.where(key), f"`{key}` of {what} must be positive ratings")
+            if arr is not None and not np.all((arr >= MIN_RATING) & (arr <= MAX_RATING)):
+                raise ConfigError(
+                    rng.where(key),
+                    f"`{key}` of {what} must be ratings from {MIN_RATING:g} to {MAX_RATING:g}, "
+                    f"found {arr.tolist()}",
+                )
     return SensorSpec(name, position, rotation_matrix(*rpy), reports, force_range, moment_range)
 
 
@@ -291,9 +363,11 @@ def _surface(item: Any, where: Any) -> Surface:
         u, v = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
         offset = origin[:2].copy()  # the polygon is in desk (x, y)
     poly_raw = m["polygon"]
-    if not isinstance(poly_raw, list) or len(poly_raw) < 3:
+    if not isinstance(poly_raw, list) or not 3 <= len(poly_raw) <= MAX_SURFACE_POINTS:
+        found = f", found {len(poly_raw)}" if isinstance(poly_raw, list) else ""
         raise ConfigError(
-            m.where("polygon"), f"`polygon` of {what} must list 3 or more [u, v] points"
+            m.where("polygon"),
+            f"`polygon` of {what} must list 3 to {MAX_SURFACE_POINTS} [u, v] points{found}",
         )
     pts = np.array(
         [
@@ -333,7 +407,14 @@ def _estimation(item: Any, where: Any) -> EstimationSettings:
                 "drift_force_n_per_min",
                 "drift_moment_nm_per_min",
             )
-            values[key] = number(m, key, "`estimation`", minimum=0.0, exclusive_minimum=strict)
+            values[key] = number(
+                m,
+                key,
+                "`estimation`",
+                minimum=0.0,
+                exclusive_minimum=strict,
+                maximum=MAX_WINDOW_S.get(key),
+            )
     settings = EstimationSettings(**values)
     if settings.min_normal_cos >= 1.0:
         raise ConfigError(m.where("min_normal_cos"), "`min_normal_cos` must be below 1")

@@ -32,6 +32,17 @@ def emulate_in_background(argv) -> threading.Thread:
     return thread
 
 
+def _wait_for_a_listener(channel: str, timeout_s: float = 10.0) -> None:
+    """Until a bus is open on the virtual ``channel`` (a fixed sleep lost the first frames
+    of a recording on a loaded machine: 1404 of 1440 samples)."""
+    from can.interfaces import virtual
+
+    deadline = time.monotonic() + timeout_s
+    while not virtual.channels.get(channel):
+        assert time.monotonic() < deadline, f"nothing listens on virtual:{channel}"
+        time.sleep(0.01)
+
+
 @pytest.mark.parametrize("suffix", [".csv", ".asc"])
 def test_record_a_live_bus_fed_by_emulate(
     tmp_path, recording_file, capsys, suffix, dbc_tolerance, can_desk, virtual_channel
@@ -52,13 +63,13 @@ def test_record_a_live_bus_fed_by_emulate(
                 "-o",
                 str(out),
                 "--seconds",
-                "2.5",
+                "5",  # from the bus's opening: emulate's start and 1.2 s of frames, under load
                 "--json",
             ],
         ),
     )
     recorder.start()
-    time.sleep(0.3)
+    _wait_for_a_listener(name)  # a virtual bus gives frames only to the buses already open
     assert (
         main(
             [

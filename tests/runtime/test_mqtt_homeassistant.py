@@ -238,8 +238,15 @@ def test_discovery_over_mosquitto_event_sensors_connectivity(
     force = configs["homeassistant/sensor/study/force/config"]
     assert (force["unit_of_measurement"], force["state_class"]) == ("N", "measurement")
     assert "homeassistant/binary_sensor/study/occupancy/config" in configs
-    # the event entity turns every published event into one of its event types
-    published = [p for _, t, p in live.messages() if t == "hapticdesk/study/event"]
+    # the event entity turns every published event into one of its event types (waited for:
+    # the run has ended, but the subscriber may not have printed them all yet)
+    every = live.wait_until(
+        lambda m: (
+            sum(t == "hapticdesk/study/event" for _, t, _ in m) >= len(events)
+            and [p for _, t, p in m if t == "hapticdesk/study/availability"][-1:] == ["offline"]
+        )
+    )
+    published = [p for _, t, p in every if t == "hapticdesk/study/event"]
     assert len(published) == len(events)
     for payload in published:
         assert json.loads(render(event["value_template"], payload))["event_type"] in set(
@@ -252,7 +259,7 @@ def test_discovery_over_mosquitto_event_sensors_connectivity(
         fired = [p for p in published if render(trigger["value_template"], p) == trigger["payload"]]
         assert len(fired) == 1
     # the sensors read the state JSON on hapticdesk/study: numbers, throttled to 2 Hz
-    states = [p for _, t, p in live.messages() if t == "hapticdesk/study"]
+    states = [p for _, t, p in every if t == "hapticdesk/study"]
     sensors = {
         name: configs[f"homeassistant/{component}/study/{name}/config"]
         for component, name in [("sensor", "force"), ("sensor", "x"), ("sensor", "y"),

@@ -187,7 +187,8 @@ def test_announcements_again_are_sent_once_each_on_a_live_broker(broker):
             for _ in range(500):
                 link._on_message(None, None, online)
         assert link.flush(10)
-        time.sleep(0.3)
+        sub.wait_until(lambda m: len(m) >= 6)
+        time.sleep(0.3)  # (and no more come)
         assert len(sub.messages()) == 6  # the three again, once each
     finally:
         link.close()

@@ -17,7 +17,7 @@ import pytest
 
 from hapticdesk.files.recording import write_recording
 
-from .conftest import Mosquitto, Subscriber, _program
+from .conftest import Mosquitto, Subscriber, _program, wait_subscribed
 from .taps import Tap, tap_recording
 
 LAYOUT = """\
@@ -153,7 +153,9 @@ def test_a_second_desk_with_the_same_name_is_refused(broker, subscribe, tmp_path
     assert "Traceback" not in second.stderr
     # the first desk kept its session: connected once, never lost
     assert "lost the connection" not in first_err
-    assert [p for _, _, p in availability.messages()] == ["online", "offline"]
+    # (the first desk's "offline" may reach the subscriber a moment after it exits)
+    got = availability.wait_until(lambda m: [p for _, _, p in m][-1:] == ["offline"])
+    assert [p for _, _, p in got] == ["online", "offline"]
 
 
 def test_desks_on_one_broker_under_site_and_floor_prefixes(broker, subscribe, tmp_path, paper_desk):
@@ -371,7 +373,7 @@ def test_the_acl_example_keeps_each_desk_to_its_own_prefix(mosquitto_available, 
     broker.start()
     try:
         sub = Subscriber(broker, "hapticdesk/#", extra=["-u", "fleet", "-P", "f1eet"])
-        time.sleep(0.5)
+        wait_subscribed(broker, "hapticdesk/#")  # (a fixed sleep could miss the one message)
 
         def desk_publishes(topic: str) -> None:
             subprocess.run(

@@ -66,6 +66,14 @@ PEAK_FLOOR_RATIO = 6.0  # noise-only spectra (χ² of ≥ 12 dof) stay far below
 MAX_MODES = 6
 CUTOFF_RATIO = LOWPASS_PER_NATURAL_FREQUENCY  # paper §3.2: 4.77 Hz below the 5.9 Hz mode
 
+#: the sample rates characterize works at (10 Hz: a mode above 1 Hz still has samples to show
+#: in; 100 kHz: the zero-padded spectrum of a segment stays under a million bins)
+MIN_RATE_HZ = 10.0
+MAX_RATE_HZ = 100_000.0
+#: a reading beyond this (N or N·m) is no sensor's: left out like NaN, so that the
+#: statistics cannot overflow
+MAX_READING = 1e12
+
 RESULTANT = ("total_fx", "total_fy", "total_fz", "total_mx", "total_my", "total_mz")
 
 
@@ -183,34 +191,65 @@ class Characterization:
         return out
 
 
-def characterize(profile: DeskProfile, recording: Recording) -> Characterization:
+def characterize(
+    profile: DeskProfile, recording: Recording, where: str = "recording"
+) -> Characterization:
     """Measure noise, drift and natural frequencies of the desk in ``recording`` (module doc).
 
-    Raises :class:`ConfigError` when the recording is too short or its times are unusable.
+    Raises :class:`ConfigError` at ``where`` (the recording's file name) when the recording
+    is too short or its times or values are unusable.
     """
+    # NaN and inf are flagged and left out below; what arithmetic makes of the rest (a
+    # window of large values) is judged by the results, not printed as numpy's warnings
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
+        return _characterize(profile, recording, where)
+
+
+def _characterize(profile: DeskProfile, recording: Recording, where: str) -> Characterization:
     t = np.asarray(recording.t, dtype=float)
     k = len(t)
+    needs = f"characterize needs at least {2 * QUIET_WINDOW_S:g} s"
+    if k < 2:
+        raise ConfigError(where, f"{k} sample(s): too short, {needs}")
     flat = recording.wrench.reshape(k, -1)
     steps = np.diff(t)
     good_steps = steps[np.isfinite(steps) & (steps > 0)]
     if len(good_steps) == 0:
-        raise ConfigError("recording", "no increasing sample times: cannot characterize")
-    fs = 1.0 / float(np.median(good_steps))
+        raise ConfigError(
+            where,
+            "no sample time is after the one before it: cannot characterize (expected "
+            "increasing times in seconds)",
+        )
+    period_s = float(np.median(good_steps))
+    fs = 1.0 / period_s
+    if not MIN_RATE_HZ <= fs <= MAX_RATE_HZ:
+        raise ConfigError(
+            where,
+            f"the sample times are {period_s:.6g} s apart (median): {fs:.6g} Hz; characterize "
+            f"expects {MIN_RATE_HZ:g} Hz to {MAX_RATE_HZ:g} Hz (the profile says "
+            f"{profile.sample_rate_hz:g} Hz; are the times in seconds?)",
+        )
     n_w = max(4, round(QUIET_WINDOW_S * fs))
     if k < 2 * n_w:
-        raise ConfigError(
-            "recording",
-            f"too short: {k} samples, characterize needs at least {2 * QUIET_WINDOW_S:g} s",
-        )
+        raise ConfigError(where, f"too short: {k} samples, {needs}")
     notes = []
     if abs(fs - profile.sample_rate_hz) > 0.02 * profile.sample_rate_hz:
         notes.append(
             f"the recording is sampled at {fs:.1f} Hz, the profile says "
             f"{profile.sample_rate_hz:g} Hz; the recording's times are used"
         )
-    good = np.isfinite(flat).all(axis=1) & np.isfinite(t)
+    good = (np.abs(flat) <= MAX_READING).all(axis=1) & np.isfinite(t)  # (False for NaN)
+    if not good.any():
+        raise ConfigError(
+            where,
+            f"no sample has usable forces and moments (all hold NaN, inf or a value beyond "
+            f"{MAX_READING:g}): cannot characterize",
+        )
     if not good.all():
-        notes.append(f"{int(np.count_nonzero(~good))} samples with NaN or inf are left out")
+        notes.append(
+            f"{int(np.count_nonzero(~good))} samples with NaN, inf or a value beyond "
+            f"{MAX_READING:g} are left out"
+        )
         flat = _hold_last_good(flat, good)
     resultant = flat @ profile.wrench_map().T  # (k, 6): paper eqs. (1)–(4)
 

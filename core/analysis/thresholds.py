@@ -49,6 +49,9 @@ from hapticdesk.files.yamlfile import ConfigError
 CONVERGED_M_S = 0.2  # paper §5.2: |dD_er/dt| ≤ 0.2 m/s
 DIVERGED_M = 0.01  # paper §5.2: |D_er − D_ed| ≥ 0.01 m
 SLOPE_WINDOW_S = 0.05
+#: the longest slope window: a touch lasts about half a second, so a window of seconds
+#: would fit a line through the whole press and more
+MAX_SLOPE_WINDOW_S = 10.0
 GATE_HYSTERESIS_N = 0.1  # contact ends below contact_force_n − this (no chatter at 2 N)
 
 
@@ -151,8 +154,14 @@ def derive_thresholds(
 ) -> ThresholdReport:
     """Find the presses in ``recording`` and derive F_tth and F_rth from each (module doc).
 
-    Raises :class:`ConfigError` when the desk has no surface to measure distances on.
+    Raises :class:`ConfigError` when the desk has no surface to measure distances on, and
+    ValueError for a ``slope_window_s`` outside (0, :data:`MAX_SLOPE_WINDOW_S`].
     """
+    if not 0.0 < slope_window_s <= MAX_SLOPE_WINDOW_S:
+        raise ValueError(
+            f"slope_window_s must be over 0 and at most {MAX_SLOPE_WINDOW_S:g} s, "
+            f"found {slope_window_s}"
+        )
     if not profile.surfaces:
         raise ConfigError(
             str(profile.path or profile.name),

@@ -32,7 +32,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     profile = load_profile(args.desk)
     recording = read_any_recording(args.recording, profile)
-    result = characterize(profile, recording)
+    result = characterize(profile, recording, where=str(args.recording))
     if args.json:
         info = result.to_dict()
         info.update(recording=str(args.recording), desk=profile.name)

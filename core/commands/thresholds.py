@@ -14,6 +14,7 @@ import sys
 from hapticdesk.analysis.thresholds import (
     CONVERGED_M_S,
     DIVERGED_M,
+    MAX_SLOPE_WINDOW_S,
     SLOPE_WINDOW_S,
     ThresholdReport,
     ThresholdSummary,
@@ -47,7 +48,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
         type=float,
         default=SLOPE_WINDOW_S,
         metavar="S",
-        help=f"window of the dD_er/dt line fit, seconds (default {SLOPE_WINDOW_S:g})",
+        help=f"window of the dD_er/dt line fit, seconds (default {SLOPE_WINDOW_S:g}, at most "
+        f"{MAX_SLOPE_WINDOW_S:g})",
     )
 
 
@@ -57,6 +59,12 @@ def run(args: argparse.Namespace) -> int:
         if not (value > 0 and value < float("inf")):
             flag = "--" + name.replace("_", "-")
             raise ConfigError(flag, f"must be a positive number, found {value}")
+    if args.slope_window > MAX_SLOPE_WINDOW_S:
+        raise ConfigError(
+            "--slope-window",
+            f"must be at most {MAX_SLOPE_WINDOW_S:g} s (a touch lasts about half a second), "
+            f"found {args.slope_window:g}",
+        )
     profile = load_profile(args.desk)
     recording = read_any_recording(args.recording, profile)
     report = derive_thresholds(

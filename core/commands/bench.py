@@ -8,7 +8,9 @@ import sys
 import time
 from pathlib import Path
 
+from hapticdesk.commands.output_path import check_output_path
 from hapticdesk.files.profile import DeskProfile, load_profile
+from hapticdesk.files.yamlfile import ConfigError
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -33,6 +35,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # before minutes of work: matplotlib would refuse a format only when it draws
+    for flag, path in (("--plot", args.plot), ("--paper-png", args.paper_png)):
+        if path is not None:
+            check_output_path(path, flag, (".png",), "the plot")
+    if args.seeds is not None and args.seeds < 1:
+        raise ConfigError("--seeds", f"must be 1 or more simulated sessions, found {args.seeds}")
     profile = load_profile(args.desk)
     if args.paper:
         return _paper(args, profile)

@@ -12,6 +12,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from hapticdesk.commands.output_path import check_output_path
 from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.gestures.layout import Binding, Layout
 from hapticdesk.gestures.options import GESTURE_OPTIONS, describe_value
@@ -27,6 +28,8 @@ def run(args: argparse.Namespace) -> int:
     from hapticdesk.registry import load_registry
     from hapticdesk.runtime.assembly import load_scene_layout
 
+    if args.png:  # before the work: matplotlib would refuse the format only after it
+        check_output_path(Path(args.png), "--png", (".png",), "the drawing")
     registry = load_registry()
     # the same loading as `run`: actions, recognizers and plugins' sections all checked
     layout, _ = load_scene_layout(args.layout, registry, args.desk)

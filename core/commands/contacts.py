@@ -12,6 +12,7 @@ from typing import TextIO
 
 import numpy as np
 
+from hapticdesk.commands.output_path import cannot_write, check_output_path
 from hapticdesk.estimator import ContactEstimator
 from hapticdesk.estimator.contacts import FLAG_NAMES, PHASE_NAMES, SOURCE_NAMES, ContactBlock
 from hapticdesk.estimator.inertia import accelerometer_readings
@@ -73,6 +74,9 @@ def summary(block: ContactBlock, seconds: float, method: str) -> dict[str, objec
 
 
 def run(args: argparse.Namespace) -> int:
+    output = Path(args.output) if args.output and args.output != "-" else None
+    if output is not None:  # before the work: a wrong name is not found after it
+        check_output_path(output, str(output), what="the contacts file")
     profile = load_profile(args.desk)
     recording = read_any_recording(args.recording, profile)
     estimator = ContactEstimator(profile, method=args.method)
@@ -82,9 +86,12 @@ def run(args: argparse.Namespace) -> int:
     seconds = time.perf_counter() - start
     if args.output == "-":
         write_contacts_csv(sys.stdout, block, profile)
-    elif args.output:
-        with Path(args.output).open("w", encoding="utf-8", newline="") as fh:
-            write_contacts_csv(fh, block, profile)
+    elif output is not None:
+        try:
+            with output.open("w", encoding="utf-8", newline="") as fh:
+                write_contacts_csv(fh, block, profile)
+        except OSError as err:
+            raise cannot_write(output, err) from None
     info = summary(block, seconds, estimator.method)
     info["notices"] = [
         {"t": n.t, "kind": n.kind, "message": n.message}

@@ -79,17 +79,22 @@ def run(args: argparse.Namespace) -> int:
 # --- classify --------------------------------------------------------------------------------
 
 
-def _stroke_paths(paths: list[str]) -> list[Path]:
+def _stroke_paths(paths: list[str]) -> tuple[list[Path], list[Path]]:
+    """The stroke files named or in the folders named, and the folders that hold none."""
     out: list[Path] = []
+    empty: list[Path] = []
     for text in paths:
         path = Path(text)
         if path.is_dir():
-            out += sorted(
+            found = sorted(
                 p for p in path.rglob("*") if p.is_file() and p.suffix.lower() in STROKE_SUFFIXES
             )
+            out += found
+            if not found:
+                empty.append(path)
         else:
             out.append(path)  # a missing file is reported when it is read
-    return out
+    return out, empty
 
 
 def classify(args: argparse.Namespace) -> int:
@@ -103,9 +108,16 @@ def classify(args: argparse.Namespace) -> int:
     if args.no_builtin and not user:
         raise ConfigError("--no-builtin", "needs --templates DIR holding at least one shape")
     templates = template_set(user, builtin=not args.no_builtin)
-    failed = 0
+    paths, empty = _stroke_paths(args.paths)
+    for folder in empty:
+        print(
+            f"hapticdesk strokes: error: {folder}: no stroke files "
+            f"({', '.join(STROKE_SUFFIXES)}) in this folder or below",
+            file=sys.stderr,
+        )
+    failed = len(empty)
     rows: list[dict[str, Any]] = []
-    for path in _stroke_paths(args.paths):
+    for path in paths:
         try:
             points = read_stroke(path)
         except ConfigError as err:

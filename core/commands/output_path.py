@@ -1,0 +1,33 @@
+"""Files a command writes, checked before the work that fills them: a folder, a missing folder
+or a format that cannot be written is a clear error at once, not a traceback after the work.
+What the check cannot foresee (no permission, a full disk) is :func:`cannot_write`'s error,
+the same words as ``simulate`` and ``record`` use."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from hapticdesk.files.yamlfile import ConfigError
+
+
+def check_output_path(
+    path: Path, where: str, suffixes: tuple[str, ...] | None = None, what: str = "the output"
+) -> None:
+    """Raise ConfigError at ``where`` (the file or the flag naming it) unless ``path`` can be
+    a file to write: not a folder, in a folder that exists, with one of ``suffixes``."""
+    if suffixes is not None and path.suffix.lower() not in suffixes:
+        raise ConfigError(
+            where,
+            f"{what} is written as {' or '.join(suffixes)}: expected a file name ending in "
+            f"{' or '.join(suffixes)}, found {path.name!r}",
+        )
+    target = "" if where == str(path) else f" {path}"  # (a flag names it: say which file)
+    if path.is_dir():
+        raise ConfigError(where, f"cannot write{target}: it is a folder; expected a file name")
+    if not path.parent.is_dir():
+        raise ConfigError(where, f"cannot write{target}: the folder {path.parent} does not exist")
+
+
+def cannot_write(path: Path | str, err: OSError) -> ConfigError:
+    """The error for an output that could not be written after all."""
+    return ConfigError(str(path), f"cannot write: {err.strerror or err}")

@@ -13,12 +13,16 @@ command.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import functools
 import importlib
 import importlib.util
 import logging
 import os
 import sys
+import threading
+import warnings
+from collections.abc import Iterator
 from typing import Any
 
 # The BLAS libraries numpy and scipy load start a thread per core at import; on the estimator's
@@ -94,6 +98,11 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
         description="A desk on force/torque sensors as a touch and gesture surface.",
     )
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output")
+    parser.add_argument(
+        "--debug",
+        action="store_true",
+        help=f"show the traceback of an unexpected error (or set {DEBUG_VARIABLE}=1)",
+    )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     # a core command needs no plugin loaded; anything else (or the help) may be a plugin's
     for name, (module, text) in _available(with_plugins=only not in COMMANDS).items():
@@ -103,6 +112,9 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
             _module(module).configure(p)
     return parser
 
+
+#: set to 1 (or give --debug) to see an unexpected error's traceback instead of one line
+DEBUG_VARIABLE = "HAPTICDESK_DEBUG"
 
 #: core commands that never touch an array: nothing to load numpy and scipy for
 NO_ARRAYS = frozenset({"plugins"})
@@ -128,6 +140,22 @@ def load_blas_with_one_thread() -> None:
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     command = next((a for a in argv if not a.startswith("-")), None)
+    # known before the arguments are parsed (building the parser can fail too), and taken
+    # wherever it is given: before or after the command's own arguments
+    debug = "--debug" in argv or os.environ.get(DEBUG_VARIABLE, "") not in ("", "0")
+    argv = [a for a in argv if a != "--debug"]
+    try:
+        return _main(argv, command, debug)
+    except KeyboardInterrupt:
+        return 130
+    except Exception as err:  # the last safety net: a bug, or a failure nobody foresaw
+        if debug:
+            raise
+        print(_unexpected(command, err), file=sys.stderr)
+        return 1
+
+
+def _main(argv: list[str], command: str | None, debug: bool) -> int:
     if command in COMMANDS and command not in NO_ARRAYS:
         load_blas_with_one_thread()
     parser = build_parser(only=command)
@@ -147,12 +175,56 @@ def main(argv: list[str] | None = None) -> int:
     from hapticdesk.files.yamlfile import ConfigError
 
     try:
-        return int(module.run(args) or 0)
+        with _short_reports(args.command, debug):
+            return int(module.run(args) or 0)
     except ConfigError as err:
         print(f"hapticdesk {args.command}: error: {err}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        return 130
+
+
+def _unexpected(command: str | None, err: BaseException) -> str:
+    """One line for an error nothing else handled: what it says, its kind, how to see more."""
+    lines = str(err).strip().splitlines()
+    what = lines[0] if lines else ""
+    if len(what) > 300:
+        what = what[:300] + " …"
+    if not what:
+        what = "out of memory" if isinstance(err, MemoryError) else "no message"
+    name = f"hapticdesk {command}" if command else "hapticdesk"
+    return (
+        f"{name}: error: {what} (an unexpected {type(err).__name__}; run with --debug or "
+        f"{DEBUG_VARIABLE}=1 for the traceback)"
+    )
+
+
+@contextlib.contextmanager
+def _short_reports(command: str, debug: bool) -> Iterator[None]:
+    """While a command runs, a library's warning (numpy's ``overflow encountered``) is one
+    line naming the command, not the library's file and line; an error that ends another
+    thread is one line too. ``debug`` keeps Python's own reports."""
+    if debug:
+        yield
+        return
+
+    def show(message: Any, category: type[Warning], *args: Any, **kwargs: Any) -> None:
+        print(f"hapticdesk {command}: warning: {message} ({category.__name__})", file=sys.stderr)
+
+    def thread_failed(hook: threading.ExceptHookArgs) -> None:
+        if hook.exc_type is SystemExit or hook.exc_value is None:
+            return
+        name = hook.thread.name if hook.thread is not None else "a thread"
+        print(
+            f"{_unexpected(command, hook.exc_value)} (in thread {name})",
+            file=sys.stderr,
+        )
+
+    saved = warnings.showwarning, threading.excepthook
+    warnings.showwarning = show
+    threading.excepthook = thread_failed
+    try:
+        yield
+    finally:
+        warnings.showwarning, threading.excepthook = saved
 
 
 if __name__ == "__main__":

@@ -1,0 +1,177 @@
+"""No Python traceback reaches a user of the command line: an unexpected error is one line
+naming the command, its kind and how to see the traceback (``--debug``, HAPTICDESK_DEBUG=1);
+a library's warning is one line without a source path; outputs are checked before the work;
+a folder with no stroke files is said so."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import threading
+import warnings
+
+import numpy as np
+import pytest
+
+from hapticdesk.cli import main
+from hapticdesk.commands import plugins as plugins_command
+
+HINT = "run with --debug or HAPTICDESK_DEBUG=1 for the traceback)"
+
+
+@pytest.fixture
+def failing(monkeypatch):
+    """Make `hapticdesk plugins` (no numpy to load, no files) do what a test asks."""
+    monkeypatch.delenv("HAPTICDESK_DEBUG", raising=False)
+
+    def use(run):
+        monkeypatch.setattr(plugins_command, "run", run)
+
+    return use
+
+
+def _raise(err: BaseException):
+    def run(args):
+        raise err
+
+    return run
+
+
+@pytest.mark.parametrize(
+    ("err", "line"),
+    [
+        (RuntimeError("boom\nsecond line"), "error: boom (an unexpected RuntimeError; "),
+        (MemoryError(), "error: out of memory (an unexpected MemoryError; "),
+        (ValueError(), "error: no message (an unexpected ValueError; "),
+    ],
+)
+def test_an_unexpected_error_is_one_line(failing, capsys, err, line):
+    failing(_raise(err))
+    assert main(["plugins"]) == 1
+    assert capsys.readouterr().err == f"hapticdesk plugins: {line}{HINT}\n"
+
+
+def test_debug_shows_the_traceback(failing, monkeypatch, capsys):
+    failing(_raise(RuntimeError("boom")))
+    with pytest.raises(RuntimeError, match="boom"):
+        main(["plugins", "--debug"])
+    monkeypatch.setenv("HAPTICDESK_DEBUG", "1")
+    with pytest.raises(RuntimeError, match="boom"):
+        main(["plugins"])
+    monkeypatch.setenv("HAPTICDESK_DEBUG", "0")
+    assert main(["plugins"]) == 1
+
+
+def test_ctrl_c_stays_quiet(failing, capsys):
+    failing(_raise(KeyboardInterrupt()))
+    assert main(["plugins"]) == 130
+    assert capsys.readouterr().err == ""
+
+
+def test_warnings_and_failed_threads_are_one_line_each(failing, capsys):
+    def run(args):
+        with warnings.catch_warnings():
+            warnings.simplefilter("always")
+            np.log(np.zeros(1))  # numpy: "divide by zero encountered in log"
+        thread = threading.Thread(target=lambda: 1 / 0, name="worker")
+        thread.start()
+        thread.join()
+        return 0
+
+    failing(run)
+    shown, hook = warnings.showwarning, threading.excepthook
+    assert main(["plugins"]) == 0
+    err = capsys.readouterr().err.splitlines()
+    assert err == [
+        "hapticdesk plugins: warning: divide by zero encountered in log (RuntimeWarning)",
+        f"hapticdesk plugins: error: division by zero (an unexpected ZeroDivisionError; {HINT} "
+        "(in thread worker)",
+    ]
+    assert (warnings.showwarning, threading.excepthook) == (shown, hook)  # put back
+
+
+def test_outputs_are_checked_before_the_work(tmp_path, capsys):
+    folder = tmp_path / "out.csv"
+    folder.mkdir()
+    missing = tmp_path / "nowhere" / "x.csv"
+    recording = tmp_path / "not-read.csv"  # the outputs are refused before it is read
+    cases = [
+        (
+            ["contacts", str(recording), "--desk", "kitamura2017", "-o", str(folder)],
+            f"hapticdesk contacts: error: {folder}: cannot write: it is a folder; expected a "
+            "file name",
+        ),
+        (
+            ["contacts", str(recording), "--desk", "kitamura2017", "-o", str(missing)],
+            f"hapticdesk contacts: error: {missing}: cannot write: the folder {missing.parent} "
+            "does not exist",
+        ),
+        (
+            ["check", str(tmp_path / "layout.yaml"), "--png", "x.csv"],
+            "hapticdesk check: error: --png: the drawing is written as .png: expected a file "
+            "name ending in .png, found 'x.csv'",
+        ),
+        (
+            ["bench", "--quick", "--seeds", "1", "--plot", "x.csv"],
+            "hapticdesk bench: error: --plot: the plot is written as .png: expected a file "
+            "name ending in .png, found 'x.csv'",
+        ),
+        (
+            ["bench", "--paper", "--paper-png", str(missing.with_suffix(".png"))],
+            f"hapticdesk bench: error: --paper-png: cannot write {missing.with_suffix('.png')}:"
+            f" the folder {missing.parent} does not exist",
+        ),
+        (
+            ["bench", "--quick", "--seeds", "-1"],
+            "hapticdesk bench: error: --seeds: must be 1 or more simulated sessions, found -1",
+        ),
+    ]
+    for argv, message in cases:
+        assert main(argv) == 2, argv
+        assert capsys.readouterr().err.strip() == message
+
+
+def test_contacts_that_cannot_be_written_after_all(tmp_path, capsys, monkeypatch):
+    from pathlib import Path
+
+    from hapticdesk.files.profile import load_profile
+    from hapticdesk.files.recording import write_recording
+    from hapticdesk.sim import Idle, Scene, simulate
+
+    recording = tmp_path / "rec.csv"
+    write_recording(recording, simulate(load_profile("kitamura2017"), Scene([Idle(0.2)])))
+    output = tmp_path / "contacts.csv"
+
+    real_open = Path.open
+
+    def refuse(self, *args, **kwargs):
+        if self == output:  # (the desk profile and the recording are read as before)
+            raise PermissionError(13, "Permission denied")
+        return real_open(self, *args, **kwargs)
+
+    monkeypatch.setattr(Path, "open", refuse)
+    assert main(["contacts", str(recording), "--desk", "kitamura2017", "-o", str(output)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == f"hapticdesk contacts: error: {output}: cannot write: Permission denied"
+
+
+def test_a_folder_without_strokes_is_said(tmp_path, capsys):
+    assert main(["strokes", "classify", str(tmp_path)]) == 1
+    assert capsys.readouterr().err == (
+        f"hapticdesk strokes: error: {tmp_path}: no stroke files (.csv, .json) in this folder "
+        "or below\n"
+    )
+
+
+def test_a_real_run_prints_no_traceback(tmp_path):
+    """End to end in a fresh interpreter: what a user sees (one line, exit 2)."""
+    folder = tmp_path / "out.csv"
+    folder.mkdir()
+    done = subprocess.run(
+        [sys.executable, "-m", "hapticdesk", "contacts", "x.csv", "--desk", "kitamura2017",
+         "-o", str(folder)],
+        capture_output=True, text=True, timeout=60, cwd=tmp_path,
+    )  # fmt: skip
+    assert done.returncode == 2
+    expected = f"hapticdesk contacts: error: {folder}: cannot write: it is a folder; expected a"
+    assert done.stderr == expected + " file name\n"

@@ -50,8 +50,9 @@ VARIABLES = (*EVENT_FIELDS, "action", "desk", "event")
 MAX_RENDERED_CHARS = 65_536
 #: the largest exponent of ``**`` (10 ** 1000 is already far beyond any payload)
 MAX_EXPONENT = 1000
-#: the most loop turns and calls one rendering may take: a payload loops over a few dozen
-#: items, and loops nested in loops would otherwise run for hours with nothing to show
+#: the most loop turns and calls one rendering may take (text or lists made on the way count
+#: a step per kB): a payload loops over a few dozen items, and loops nested in loops would
+#: otherwise run for hours with nothing to show
 MAX_STEPS = 100_000
 #: the longest one rendering may take (checked at every loop turn and call), seconds
 MAX_RENDER_S = 1.0
@@ -96,8 +97,8 @@ class _Budget:
         self.steps = MAX_STEPS
         self.deadline = time.monotonic() + MAX_RENDER_S
 
-    def spend(self) -> None:
-        self.steps -= 1
+    def spend(self, steps: int) -> None:
+        self.steps -= steps
         if self.steps < 0:
             raise TemplateLimitError(f"it takes more than {MAX_STEPS} loop turns and calls")
         if time.monotonic() > self.deadline:
@@ -108,10 +109,19 @@ class _Budget:
 _BUDGET: ContextVar[_Budget | None] = ContextVar("hapticdesk_template_budget", default=None)
 
 
-def _spend() -> None:
+def _spend(steps: int = 1) -> None:
     budget = _BUDGET.get()
     if budget is not None:
-        budget.spend()
+        budget.spend(steps)
+
+
+def _made(value: Any) -> Any:
+    """``value``, spending a step per kB (or 1,000 items) it holds: text or lists built in a
+    loop (``map`` over a long list, a namespace growing by ``+``) then cost what they take
+    in memory, not one step each."""
+    if isinstance(value, str | list | tuple | dict):
+        _spend(len(value) // 1024)
+    return value
 
 
 def _counted(iterable: Iterable[Any]) -> Iterator[Any]:
@@ -139,7 +149,7 @@ def _environment() -> Any:
     class BoundedEnvironment(ImmutableSandboxedEnvironment):
         # intercepted operators are also never folded into constants when compiling, so
         # `{{ "a" * 10**10 }}` cannot allocate at compile time either
-        intercepted_binops = frozenset({"*", "**"})
+        intercepted_binops = frozenset({"*", "**", "+"})
 
         def call_binop(self, context: Any, operator: str, left: Any, right: Any) -> Any:
             if operator == "*":
@@ -148,13 +158,19 @@ def _environment() -> Any:
                         limit(len(seq) * n, "repeating")
             if operator == "**" and isinstance(right, int | float) and abs(right) > MAX_EXPONENT:
                 raise TemplateLimitError(f"an exponent over {MAX_EXPONENT} ({right})")
-            return super().call_binop(context, operator, left, right)
+            _spend()
+            return _made(super().call_binop(context, operator, left, right))
 
         def call(__self, __context: Any, __obj: Any, *args: Any, **kwargs: Any) -> Any:  # noqa: N805
             # every call of a sandboxed template comes here: a macro calling itself twice
             # is as costly as nested loops
             _spend()
-            return super().call(__context, __obj, *args, **kwargs)
+            return _made(super().call(__context, __obj, *args, **kwargs))
+
+        def call_filter(self, *args: Any, **kwargs: Any) -> Any:
+            # the filters `map`, `select` … apply to each item of a list
+            _spend()
+            return _made(super().call_filter(*args, **kwargs))
 
         def _parse(self, source: str, name: str | None, filename: str | None) -> Any:
             # every `for` loop iterates through _counted: an empty loop body has no call

@@ -88,7 +88,19 @@ DOUBLING = (
 )
 
 
-@pytest.mark.parametrize("text", [NESTED, DOUBLING], ids=["nested-loops", "doubling-macro"])
+# each step small, but 60 kB made and kept at every one: 6 GB by the end
+MAPPED = "{{ range(99999) | map('center', 60000) | list | length }}"
+GROWING = (
+    "{% set ns = namespace(x='') %}{% for i in range(99999) %}"
+    "{% set ns.x = ns.x + 'a' * 60000 %}{% endfor %}{{ ns.x | length }}"
+)
+
+
+@pytest.mark.parametrize(
+    "text",
+    [NESTED, DOUBLING, MAPPED, GROWING],
+    ids=["nested-loops", "doubling-macro", "mapped-text", "growing-text"],
+)
 def test_a_template_that_would_run_for_hours_is_too_costly(text, monkeypatch):
     monkeypatch.setattr(templating, "MAX_STEPS", 2_000)
     with pytest.raises(ConfigError) as info:

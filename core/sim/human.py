@@ -27,9 +27,14 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.optimize
 
+from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.sim.actions import Drag, LongPress, Press, Ramp, Stroke, Swipe, Tap, TouchStep
 
 Range = tuple[float, float]
+
+#: the most samples one touch's track may have (its force, point and tangential force are
+#: held for the whole run: 40 bytes a sample, 80 MB); 28 min at 1.2 kHz
+MAX_TOUCH_SAMPLES = 2_000_000
 
 
 # settings that may be 0 (switching an effect off); every other one must be positive
@@ -137,6 +142,14 @@ def touch_track(
     duration = profile.duration
     k0 = math.ceil(t0 * fs - 1e-9)
     k1 = math.floor((t0 + duration) * fs + 1e-9)
+    if k1 - k0 + 1 > MAX_TOUCH_SAMPLES:  # before its arrays are made
+        kind = {"LongPress": "long_press"}.get(type(action).__name__, type(action).__name__)
+        raise ConfigError(
+            action.where,
+            f"this {kind.lower()} lasts {duration:g} s, {k1 - k0 + 1} samples at {fs:g} Hz; one "
+            f"touch may have at most {MAX_TOUCH_SAMPLES} samples ({MAX_TOUCH_SAMPLES / fs:g} s "
+            "at this desk's rate)",
+        )
     tau = np.arange(k0, k1 + 1) / fs - t0
     fn, uv, tangential = profile.sample(tau, rng, human, fs)
     return Touch(k0, fn, uv, tangential, surface, index), duration

@@ -79,6 +79,13 @@ from hapticdesk.sim.scene_fields import (
 )
 
 MIN_QUIET_S = 1.5  # the estimator tares over the first second; leave it a margin
+#: the longest time a scene may give (quiet_s, tail_s, duration_s, start_s, wait_s, hold_s,
+#: an action's duration_s …): a day. What a run may hold in memory is bounded by samples, in
+#: the timeline (one touch's track) and in `simulate` (the whole recording).
+MAX_SCENE_S = 86_400.0
+#: the most times an action may repeat, and the most actions a timeline may expand to
+MAX_REPEAT = 10_000
+MAX_ACTIONS = 100_000
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 
 
@@ -174,17 +181,19 @@ def scene_from_mapping(doc: MarkedDict, path: Path) -> Scene:
     desk = field_text(doc, "desk", what, default="") or None
     seed = field_integer(doc, "seed", what, default=0, minimum=0)
     unit = UNITS[choice(doc, "units", tuple(UNITS), what, default="m")]
-    quiet = number(doc, "quiet_s", what, default=2.0)
+    quiet = number(doc, "quiet_s", what, default=2.0, maximum=MAX_SCENE_S)
     if quiet < MIN_QUIET_S:
         raise ConfigError(
             doc.where("quiet_s"),
             f"`quiet_s` must be >= {MIN_QUIET_S:g} s: the estimator tares over the first "
             f"second of a quiet desk; found {quiet:g}",
         )
-    tail = number(doc, "tail_s", what, default=1.0, minimum=0.0)
+    tail = number(doc, "tail_s", what, default=1.0, minimum=0.0, maximum=MAX_SCENE_S)
     duration = None
     if "duration_s" in doc:
-        duration = number(doc, "duration_s", what, minimum=0.0, exclusive_minimum=True)
+        duration = number(
+            doc, "duration_s", what, minimum=0.0, exclusive_minimum=True, maximum=MAX_SCENE_S
+        )
         if duration <= quiet:
             raise ConfigError(
                 doc.where("duration_s"), f"`duration_s` must exceed quiet_s ({quiet:g})"
@@ -219,6 +228,12 @@ def scene_from_mapping(doc: MarkedDict, path: Path) -> Scene:
     actions: list[Step] = []
     for i, item in enumerate(timeline):
         actions.extend(_timeline_item(item, timeline.where(i), i, unit, path))
+        if len(actions) > MAX_ACTIONS:
+            raise ConfigError(
+                timeline.where(i),
+                f"the timeline expands to more than {MAX_ACTIONS} actions by here "
+                "(with their `repeat`)",
+            )
     return Scene(
         actions,
         quiet_s=quiet,
@@ -261,12 +276,16 @@ def _timeline_item(item: Any, where: Position, index: int, unit: float, path: Pa
     what = f"`{kind}` ({what})"
     check_keys(p, _ACTION_KEYS[kind] | _COMMON, what, _REQUIRED.get(kind, set()))
     timing: dict[str, Any] = {
-        "start_s": number(p, "start_s", what, minimum=0.0) if "start_s" in p else None,
-        "wait_s": number(p, "wait_s", what, minimum=0.0) if "wait_s" in p else None,
+        "start_s": (
+            number(p, "start_s", what, minimum=0.0, maximum=MAX_SCENE_S) if "start_s" in p else None
+        ),
+        "wait_s": (
+            number(p, "wait_s", what, minimum=0.0, maximum=MAX_SCENE_S) if "wait_s" in p else None
+        ),
         "label": field_text(p, "label", what, default=""),
         "where": p.where(),
     }
-    repeat = field_integer(p, "repeat", what, default=1, minimum=1)
+    repeat = field_integer(p, "repeat", what, default=1, minimum=1, maximum=MAX_REPEAT)
     try:
         first = _build(kind, p, what, unit, path, timing)
     except ValueError as err:
@@ -286,7 +305,9 @@ def _build(
     def opt(key: str, *, positive: bool = True) -> float | None:
         if key not in p:
             return None
-        return number(p, key, what, minimum=0.0, exclusive_minimum=positive)
+        # a time (`hold_s`, `duration_s`) at most a day
+        longest = MAX_SCENE_S if key.endswith("_s") else None
+        return number(p, key, what, minimum=0.0, exclusive_minimum=positive, maximum=longest)
 
     def speed() -> float | None:
         v = opt("speed")
@@ -324,7 +345,13 @@ def _build(
                 from_n=from_n,
                 to_n=to_n,
                 duration_s=number(
-                    p, "duration_s", what, default=3.0, minimum=0.0, exclusive_minimum=True
+                    p,
+                    "duration_s",
+                    what,
+                    default=3.0,
+                    minimum=0.0,
+                    exclusive_minimum=True,
+                    maximum=MAX_SCENE_S,
                 ),
                 surface=field_surface(p, what),
                 **timing,
@@ -359,7 +386,9 @@ def _build(
                 name=field_text(p, "object", what),
                 mass_kg=number(p, "mass_kg", what, minimum=0.0, exclusive_minimum=True),
                 point=field_point(p, "point", what, unit),
-                duration_s=number(p, "duration_s", what, default=0.3, minimum=0.0),
+                duration_s=number(
+                    p, "duration_s", what, default=0.3, minimum=0.0, maximum=MAX_SCENE_S
+                ),
                 surface=field_surface(p, what),
                 **timing,
             )
@@ -368,11 +397,15 @@ def _build(
         return [
             LiftObject(
                 name=field_text(p, "object", what),
-                duration_s=number(p, "duration_s", what, default=0.3, minimum=0.0),
+                duration_s=number(
+                    p, "duration_s", what, default=0.3, minimum=0.0, maximum=MAX_SCENE_S
+                ),
                 **timing,
             )
         ]
-    return [Idle(duration_s=number(p, "duration_s", what, minimum=0.0), **timing)]
+    return [
+        Idle(duration_s=number(p, "duration_s", what, minimum=0.0, maximum=MAX_SCENE_S), **timing)
+    ]
 
 
 def _strokes(
@@ -476,7 +509,7 @@ def _strokes(
         if not np.any(np.linalg.norm(np.diff(pts, axis=0), axis=1) > 0):
             raise ConfigError(p.where(source), f"`{source}` of {what} needs two distinct points")
         paths = [pts]
-    pen_up = number(p, "pen_up_s", what, default=0.45, minimum=0.0)
+    pen_up = number(p, "pen_up_s", what, default=0.45, minimum=0.0, maximum=MAX_SCENE_S)
     label = timing["label"] or (str(p["text"]) if source == "text" else str(p.get("shape", "")))
     out: list[Step] = []
     for i, pts in enumerate(paths):

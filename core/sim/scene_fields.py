@@ -40,13 +40,19 @@ def field_text(m: MarkedDict, key: str, what: str, default: str | None = None) -
     return str(value)
 
 
-def field_integer(m: MarkedDict, key: str, what: str, default: int, minimum: int) -> int:
+def field_integer(
+    m: MarkedDict, key: str, what: str, default: int, minimum: int, maximum: int | None = None
+) -> int:
     if key not in m:
         return default
     value = m[key]
     if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
         raise ConfigError(
             m.where(key), f"`{key}` in {what} must be a whole number >= {minimum}, found {value!r}"
+        )
+    if maximum is not None and value > maximum:
+        raise ConfigError(
+            m.where(key), f"`{key}` in {what} must be at most {maximum}, found {value}"
         )
     return value
 

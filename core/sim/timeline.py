@@ -31,6 +31,9 @@ from hapticdesk.sim.desk import STANDARD_GRAVITY, point_load
 from hapticdesk.sim.human import Touch, touch_track
 from hapticdesk.sim.scene import Scene
 
+#: the most samples all the touches of a scene may have together (each touch's track is held
+#: for the whole run, 40 bytes a sample: 400 MB)
+MAX_TRACK_SAMPLES = 10_000_000
 STREAM_HUMAN = 1  # SeedSequence spawn keys: one stream per purpose, independent of each other
 STREAM_NOISE = 2
 STREAM_DRIFT = 3
@@ -101,6 +104,7 @@ class Timeline:
         self.touches: list[Touch] = []
         self.objects: list[ObjectLoad] = []
         self.spans: list[ActionSpan] = []
+        self._track_samples = 0
         surfaces = {s.name: i for i, s in enumerate(profile.surfaces)}
 
         for obj in scene.objects:
@@ -204,6 +208,14 @@ class Timeline:
                 action, start, self.fs, rng, self.scene.human, surf, index
             )
             self.touches.append(touch)
+            self._track_samples += len(touch.fn)
+            if self._track_samples > MAX_TRACK_SAMPLES:
+                raise ConfigError(
+                    action.where,
+                    f"the scene's touches last more than {MAX_TRACK_SAMPLES} samples together "
+                    f"by this {kind} ({MAX_TRACK_SAMPLES / self.fs:g} s at {self.fs:g} Hz), "
+                    "the most a run holds",
+                )
             return duration
         if isinstance(action, PutObject):
             if action.name in placed and placed[action.name].off0 == math.inf:

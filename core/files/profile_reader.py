@@ -193,8 +193,10 @@ def _check_against_rate(
         value = getattr(settings, key)
         if estimation is not None and key in estimation:
             where, source = estimation.where(key), f"`{key}` in `estimation`"
-        elif key != "detect_lowpass_hz" and isinstance(doc.get("desk"), MarkedDict) and (
-            "natural_frequency_hz" in doc["desk"]
+        elif (
+            key != "detect_lowpass_hz"
+            and isinstance(doc.get("desk"), MarkedDict)
+            and ("natural_frequency_hz" in doc["desk"])
         ):
             where = doc["desk"].where("natural_frequency_hz")
             source = f"`{key}` (from `desk: natural_frequency_hz`)"

@@ -411,8 +411,10 @@ class _NpzReader:
         self.where = str(path)
         self.sensor_names = sensor_names
         self._members: list[tuple[str, IO[bytes], np.dtype]] = []
+        self._zip: zipfile.ZipFile | None = None
+        regular_file_size(path, "the recording")  # a FIFO would block, /dev/zero never end
         try:
-            self._zip: zipfile.ZipFile | None = zipfile.ZipFile(path)
+            self._zip = zipfile.ZipFile(path)
             columns = self._headers()
         except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as err:
             self.close()

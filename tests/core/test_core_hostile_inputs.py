@@ -158,21 +158,24 @@ def test_a_blank_and_a_last_line_without_end_are_still_read(tmp_path: Path) -> N
 
 
 @pytest.mark.parametrize(
-    "read",
+    ("suffix", "read"),
     [
-        lambda p: load_marked_yaml(p),
-        lambda p: read_recording(p, NAMES),
-        lambda p: read_stroke(p),
+        (".yaml", load_marked_yaml),
+        (".csv", lambda p: read_recording(p, NAMES)),
+        (".npz", lambda p: read_recording(p, NAMES)),
+        (".csv", read_stroke),
     ],
-    ids=["yaml", "recording", "stroke"],
+    ids=["yaml", "recording", "npz", "stroke"],
 )
 def test_a_fifo_without_writer_is_refused_at_once(
-    tmp_path: Path, read: Callable[[Path], Any]
+    tmp_path: Path, suffix: str, read: Callable[[Path], Any]
 ) -> None:
-    fifo = tmp_path / "fifo.csv"
+    fifo = tmp_path / f"fifo{suffix}"
     os.mkfifo(fifo)
     try:
-        with pytest.raises(ConfigError, match=r"fifo.csv: cannot read .*a named pipe \(FIFO\)"):
+        with pytest.raises(
+            ConfigError, match=rf"fifo{suffix}: cannot read .*a named pipe \(FIFO\)"
+        ):
             within(5.0, lambda: read(fifo))
     finally:
         # a reader still blocked in open() (the bug) is released by a writer opening it

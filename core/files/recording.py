@@ -38,6 +38,16 @@ MAX_BLOCK_CHARS = 32_000_000
 _EMPTY_CELL = re.compile(r"(?m)(?:^|(?<=,))[ \t]*(?=,)|(?<=,)[ \t]*$")
 
 
+def _line_of_error(err: ConfigError, first_line: int, count: int) -> int | None:
+    """The file line a reading error names, when it is one of the ``count`` lines from
+    ``first_line`` on (``file:line`` or ``file:line:column``)."""
+    found = re.search(r":(\d+)(?::\d+)?$", str(err.where))
+    if found is None:
+        return None
+    line = int(found.group(1))
+    return line if first_line <= line < first_line + count else None
+
+
 def _data_line_offsets(lines: list[str]) -> list[int]:
     """Offsets of the lines numpy reads as rows (it skips empty ones); for error messages."""
     return [j for j, line in enumerate(lines) if line.strip("\r\n")]
@@ -218,6 +228,9 @@ class _CsvReader:
         self._pending: list[str] = []  # lines read ahead (without their line ends)
         self._tail = ""  # the start of a line whose end is not read yet
         self._eof = False
+        # a bad line found: raised once the good samples before it are handed out (so a
+        # replay loses none of them to a bad line further on in the same block)
+        self._failure: ConfigError | None = None
         try:
             head = self._take_lines(1)
             first = head[0] if head else ""
@@ -280,11 +293,15 @@ class _CsvReader:
                 index = next(
                     (i for i, x in enumerate(parts) if len(x) > MAX_LINE_CHARS), len(parts)
                 )
-                raise ConfigError(
+                failure = ConfigError(
                     f"{self.where}:{self.line + before + index + 1}",
                     f"a line longer than {MAX_LINE_CHARS} characters (a recording's lines are a "
                     "few hundred): is this a recording, with a line break after each sample?",
                 )
+                if self.line + before + index == 0:
+                    raise failure  # (the header)
+                del self._pending[before + index :]  # the lines before it are read first
+                self._tail, self._eof, self._failure = "", True, failure
         lines = self._pending[:rows]
         del self._pending[:rows]
         self.line += len(lines)
@@ -322,10 +339,27 @@ class _CsvReader:
         if self._fh is None:
             return None
         first_line = self.line + 1
-        lines = self._take_lines(rows)
+        lines = self._take_lines(rows) if self._failure is None or self._pending else []
         if not lines:
+            failure, self._failure = self._failure, None
             self.close()
+            if failure is not None:
+                raise failure
             return None
+        while True:
+            try:
+                return self._parse(lines, first_line)
+            except ConfigError as err:
+                bad = _line_of_error(err, first_line, len(lines))
+                if bad is None or bad <= first_line:
+                    raise
+                # the samples before the bad line first; the error on the next read
+                lines = lines[: bad - first_line]
+                self._failure, self._pending = err, []
+
+    def _parse(self, lines: list[str], first_line: int) -> Recording:
+        """The samples of ``lines`` (file lines from ``first_line`` on); ConfigError at the
+        first bad one."""
         text = _empty_cells_as_nan("\n".join(lines))
         self._check_widths(text, lines, first_line)
         table = np.zeros((0, len(self.needed_index) + len(self.extra)))  # blank lines only

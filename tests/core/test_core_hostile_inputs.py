@@ -148,6 +148,33 @@ def test_a_line_without_end_is_refused_after_the_line_limit(
         read_recording(path, NAMES, block_rows=1)
 
 
+@pytest.mark.parametrize(
+    "bad",
+    [
+        "0.02,x," + ROW[4:],
+        "0.02," + ROW[2:] + ",2",
+        "0.02," + "9" * 3000 + ROW[3:],
+        "nan" + ROW[1:],
+    ],
+    ids=["not a number", "a value too many", "a line too long", "no time"],
+)
+def test_the_samples_before_a_bad_line_are_handed_out_first(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, bad: str
+) -> None:
+    # a replay read in blocks lost the good rows of the block that held a bad line (a run
+    # ended at 16,384 samples on a file good to line 27,000): nothing read is lost now
+    monkeypatch.setattr(recording, "MAX_LINE_CHARS", 1000)
+    rows = [f"{i * 1e-3}," + ROW[2:] for i in range(30)]
+    rows[20] = bad  # file line 22
+    path = write_rows(tmp_path / "late_bad.csv", rows)
+    with recording.RecordingBlocks(path, NAMES, block_rows=8) as blocks:
+        got: list[float] = []
+        with pytest.raises(ConfigError, match=r"late_bad.csv:22\b"):
+            for block in blocks.blocks():
+                got += block.t.tolist()
+    np.testing.assert_allclose(got, [i * 1e-3 for i in range(20)])
+
+
 def test_a_blank_and_a_last_line_without_end_are_still_read(tmp_path: Path) -> None:
     path = tmp_path / "ok.csv"
     path.write_text(HEADER + "\r\n0," + ROW[2:] + "\r\n\r\n1," + ROW[2:])

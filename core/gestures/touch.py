@@ -218,24 +218,28 @@ class Touch:
         """(n, 2) smoothed track (for strokes and slides)."""
         return np.column_stack([self._sx, self._sy]) if self._t else np.zeros((0, 2))
 
-    def moved(self, x: float, y: float, min_force_n: float = 0.0) -> float:
+    def moved(self, x: float, y: float, rise_share: float = 0.0) -> float:
         """How far the touch went from (x, y) beyond its own uncertainty, metres.
 
         The largest distance of a sample from (x, y) less twice that sample's σ: a noisy
         sample at touch-down does not count as movement, a real slide does. Only pressed
         samples count when there are any: the lift-off tail below the contact force is where
         the differentiated candidate's still-finger assumption breaks (13 cm jumps seen).
-        With ``min_force_n``, only the samples pressed that hard (when there are any): a firm
-        hold judged without its rise, whose points err as 1/force and, on sensors quieter
-        than their resolution step, by more than their σ says.
+        With ``rise_share``, the touch's rise is left out too: the samples before the force
+        first reached that share of its peak so far, whose points err as 1/force and, on
+        sensors quieter than their resolution step, by more than their σ says. Every later
+        sample counts, however light (a finger easing off as it slides away).
         """
         if not self._t:
             return 0.0
         pressed = np.asarray(self._pressed)
-        if min_force_n > 0:
-            firm = pressed & (np.asarray(self._force) >= min_force_n)
-            if firm.any():
-                pressed = firm
+        if rise_share > 0:
+            force = np.asarray(self._force)
+            risen = int(np.argmax(force >= rise_share * self.peak_force_n))
+            after = pressed.copy()
+            after[:risen] = False
+            if after.any():
+                pressed = after
         keep = pressed if pressed.any() else np.ones(len(pressed), bool)
         d = np.hypot(np.asarray(self._x)[keep] - x, np.asarray(self._y)[keep] - y)
         return max(0.0, float((d - 2 * np.asarray(self._sigma)[keep]).max()))

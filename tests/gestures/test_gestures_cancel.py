@@ -209,11 +209,16 @@ def test_home_assistant_is_told_of_the_repeats_of_a_long_press(make_layout):
     }
 
 
-def _firm_press(timeline, path, force_n: float = 20.0):
+def _firm_press(timeline, path, force_n: float = 20.0, ease_to_n: float | None = None):
     """A 20 N press held 1.5 s whose points in the first 40 ms of its 0.1 s rise (2-9 N) land
     2.5 cm off with a σ of 2 mm: what a sensor quieter than its resolution step gives (it
     errs as 1/force, and by more than its σ says)."""
-    rise = lambda tau: np.minimum(force_n, 2.0 + (force_n - 2.0) * tau / 0.1)  # noqa: E731
+    def rise(tau: np.ndarray) -> np.ndarray:
+        force = np.minimum(force_n, 2.0 + (force_n - 2.0) * tau / 0.1)
+        if ease_to_n is not None:  # eased off as it slides (from 0.8 s on)
+            force = force - (force_n - ease_to_n) * np.clip((tau - 0.8) / 0.7, 0, 1)
+        return force
+
     tl = timeline(3.0).touch(1.0, 1.5, path, force_n=force_n, force_profile=rise, noise=False)
     during_rise = (tl.t >= 1.0) & (tl.t < 1.04)
     tl.x[during_rise] += 0.025
@@ -230,11 +235,12 @@ def test_a_firm_hold_is_not_cancelled_by_its_own_rise(make_layout, timeline):
     assert [e.phase for e in events][0] is None and events[-1].phase == "end"
 
 
-def test_a_firm_hold_that_slides_away_is_still_cancelled(make_layout, timeline):
+@pytest.mark.parametrize("ease_to_n", [None, 6.0], ids=["at full force", "easing off"])
+def test_a_firm_hold_that_slides_away_is_still_cancelled(make_layout, timeline, ease_to_n):
     path = lambda u: np.column_stack(  # noqa: E731 - still for 0.8 s of 1.5 s, then slides 5 cm
         [-0.2 + 0.05 * np.clip((u - 0.55) / 0.45, 0, 1), np.full_like(u, -0.1)]
     )
-    tl = _firm_press(timeline, path)
+    tl = _firm_press(timeline, path, ease_to_n=ease_to_n)
     engine = GestureEngine(make_layout(REPEAT))
     events = engine.feed(tl.block()) + engine.flush(float(tl.t[-1]))
     phases = [e.phase for e in events]

@@ -23,11 +23,11 @@ from hapticdesk.gestures.layout import Binding, Layout
 from hapticdesk.gestures.recognizer import BoundRegions, Recognizer
 from hapticdesk.gestures.touch import Touch
 
-#: whether the finger left the spot is judged on the samples pressed at least this share of
-#: the touch's peak force so far. A firm press's rise is placed least well (the error goes as
-#: 1/force), and on sensors quieter than their resolution step by more than its σ says: 15-25 N
-#: presses on the paper's desk at half its noise had their first points 2 cm off at 2-8 N and
-#: were cancelled 21 times in 60 when judged on every pressed sample
+#: whether the finger left the spot is judged from when the force first reached this share of
+#: the touch's peak so far (the rise left out). A firm press's rise is placed least well (the
+#: error goes as 1/force), and on sensors quieter than their resolution step by more than its
+#: σ says: 15-25 N presses on the paper's desk at half its noise had their first points 2 cm
+#: off at 2-8 N and were cancelled 21 times in 60 when judged on every pressed sample
 HOLD_FORCE_SHARE = 0.5
 
 
@@ -122,10 +122,10 @@ class LongPressRecognizer(Recognizer):
 
     def _moved_off(self, touch: Touch) -> bool:
         """The finger left the spot (checked when something is about to fire, not at every
-        sample: ``moved`` looks at the whole touch), judged on the samples pressed at least
-        HOLD_FORCE_SHARE of the peak so far: the rise of a firm press is placed least well."""
+        sample: ``moved`` looks at the whole touch), judged without the rise, before the force
+        first reached HOLD_FORCE_SHARE of its peak so far: it is placed least well."""
         x, y, _ = touch.best()
-        moved = touch.moved(x, y, min_force_n=HOLD_FORCE_SHARE * touch.peak_force_n)
+        moved = touch.moved(x, y, rise_share=HOLD_FORCE_SHARE)
         return moved > self.bound.options(self._region)["max_move"]
 
     def _cancel(self, t: float) -> list[GestureEvent]:

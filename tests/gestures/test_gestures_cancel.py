@@ -213,10 +213,11 @@ def _firm_press(timeline, path, force_n: float = 20.0, ease_to_n: float | None =
     """A 20 N press held 1.5 s whose points in the first 40 ms of its 0.1 s rise (2-9 N) land
     2.5 cm off with a σ of 2 mm: what a sensor quieter than its resolution step gives (it
     errs as 1/force, and by more than its σ says)."""
+
     def rise(tau: np.ndarray) -> np.ndarray:
         force = np.minimum(force_n, 2.0 + (force_n - 2.0) * tau / 0.1)
         if ease_to_n is not None:  # eased off as it slides (from 0.8 s on)
-            force = force - (force_n - ease_to_n) * np.clip((tau - 0.8) / 0.7, 0, 1)
+            force = force - (force_n - ease_to_n) * np.clip((tau - 0.8) / 0.2, 0, 1)
         return force
 
     tl = timeline(3.0).touch(1.0, 1.5, path, force_n=force_n, force_profile=rise, noise=False)

@@ -180,15 +180,21 @@ else:  # pragma: no cover - PyYAML built without libyaml
 
 
 # YAML 1.1 (PyYAML) reads a float only with a dot and a signed exponent: `5e-2`, `1e6` and
-# `2.5e3` would be text, and a profile's `1e6` an error that looks absurd. YAML 1.2 (and
-# ruamel, which the browser UI edits with) reads them as numbers; so do we. The resolver is
-# added to this loader's own table (PyYAML copies it per class), after the built-in ones:
-# integers and the forms YAML 1.1 already reads keep their meaning.
-_Loader.add_implicit_resolver(
-    "tag:yaml.org,2002:float",
-    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
-    list("-+0123456789."),
-)
+# `2.5e3` are text, and a profile's `1e6` an error that looks absurd (YAML 1.2, and ruamel
+# which the browser UI edits with, read them as numbers). Such a plain (unquoted) scalar is
+# kept as the text written, marked: :func:`number` and :func:`vector` read it as the number
+# it is, while a payload or an argv that means text keeps `1e3` as written (a resolver for
+# the whole file turned an exec's `1e3` argument into "1000.0").
+_EXPONENT_FLOAT = re.compile(r"[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+")
+
+
+class NumberText(str):
+    """A plain YAML scalar that YAML 1.2 reads as a float and YAML 1.1 as text (``1e6``)."""
+
+
+def as_number(value: Any) -> Any:
+    """``value``, or the float a :class:`NumberText` writes."""
+    return float(value.replace("_", "")) if isinstance(value, NumberText) else value
 
 
 def _construct(node: yaml.Node, file: str, loader: _Loader) -> Any:
@@ -225,6 +231,14 @@ def _construct(node: yaml.Node, file: str, loader: _Loader) -> Any:
         raise _unsupported(node, file)
     if node.tag == _TIMESTAMP_TAG:
         return str(node.value)  # a date as written: nothing here reads dates
+    if (
+        isinstance(node, yaml.ScalarNode)
+        and node.tag == "tag:yaml.org,2002:str"
+        and not node.style  # plain: None from PyYAML's parser, "" from libyaml's
+        and len(node.value) <= MAX_NUMBER_CHARS
+        and _EXPONENT_FLOAT.fullmatch(node.value)
+    ):
+        return NumberText(node.value)
     if node.tag in _NUMBER_TAGS and len(node.value) > MAX_NUMBER_CHARS:
         raise ConfigError(
             _pos(file, node),
@@ -418,7 +432,7 @@ def number(
         if default is None:
             raise ConfigError(mapping.where(), f"{what} is missing `{key}` (a number)")
         return default
-    value = mapping[key]
+    value = as_number(mapping[key])
     where = mapping.where(key)
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise ConfigError(
@@ -453,7 +467,8 @@ def vector(value: Any, where: Position | str, what: str, length: int | None = No
     shape = f"{length} numbers" if length else "a list of numbers"
     if not isinstance(value, list):
         raise ConfigError(where, f"{what} must be {shape}, found {_describe(value)}")
-    for i, v in enumerate(value):
+    items = [as_number(v) for v in value]
+    for i, v in enumerate(items):
         if isinstance(v, bool) or not isinstance(v, int | float):
             item_where = value.where(i) if isinstance(value, MarkedList) else where
             raise ConfigError(
@@ -462,7 +477,7 @@ def vector(value: Any, where: Position | str, what: str, length: int | None = No
             )
     if length is not None and len(value) != length:
         raise ConfigError(where, f"{what} must have {length} numbers, found {len(value)}")
-    out = [float(v) for v in value]
+    out = [float(v) for v in items]
     if any(v != v or abs(v) == float("inf") for v in out):
         raise ConfigError(where, f"{what} must be finite numbers, found {value}")
     return out

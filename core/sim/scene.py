@@ -44,6 +44,7 @@ from hapticdesk.files.yamlfile import (
     MarkedDict,
     MarkedList,
     Position,
+    as_number,
     check_keys,
     choice,
     flag,
@@ -265,7 +266,7 @@ def _timeline_item(item: Any, where: Position, index: int, unit: float, path: Pa
             m.where(kind, of_key=True),
             f"unknown action `{kind}` in {what}; one of {', '.join(_ACTION_KEYS)}",
         )
-    value = m[kind]
+    value = as_number(m[kind])
     if kind == "idle" and isinstance(value, int | float) and not isinstance(value, bool):
         shorthand = MarkedDict({"duration_s": value})
         shorthand.position = m.where(kind)

@@ -14,6 +14,7 @@ from hapticdesk.files.yamlfile import (
     MarkedDict,
     MarkedList,
     Position,
+    as_number,
     check_keys,
     number,
     require_mapping,
@@ -99,7 +100,7 @@ def field_human(value: Any, where: Position) -> HumanModel:
     values: dict[str, Any] = {}
     for key in m:
         if isinstance(getattr(defaults, key), tuple):
-            raw = m[key]
+            raw = as_number(m[key])
             if isinstance(raw, int | float) and not isinstance(raw, bool):
                 raw = [raw, raw]
             lo, hi = vector(raw, m.where(key), f"`{key}` in `human` (a number or [low, high])", 2)

@@ -242,23 +242,27 @@ def test_a_desk_that_is_not_a_file_says_what_it_is(tmp_path: Path, kind: str) ->
 
 
 def test_yaml_numbers_with_an_exponent_and_no_dot_are_numbers(tmp_path: Path) -> None:
-    doc = load_marked_yaml(
-        "x.yaml", text="a: 5e-2\nb: 1e6\nc: 2.5e3\nd: 5\ne: 1_000\nf: -1E-3\ng: e5\nh: 1.0e+6\n"
-    )
-    assert doc == {
-        "a": 0.05,
-        "b": 1e6,
-        "c": 2500.0,
-        "d": 5,
-        "e": 1000,
-        "f": -0.001,
-        "g": "e5",
-        "h": 1e6,
-    }
-    assert isinstance(doc["d"], int) and isinstance(doc["b"], float)
-    import yaml  # the loader's resolver is its own: PyYAML's is left as it was
+    text = "a: 5e-2\nb: 1e6\nc: 2.5e3\nd: 5\ne: 1_000\nf: -1E-3\ng: e5\nh: 1.0e+6\n"
+    text += "v: [1e3, 2]\n"
+    doc = load_marked_yaml("x.yaml", text=text)
+    read = {key: number(doc, key, "x") for key in "abcdefh"}
+    assert read == {"a": 0.05, "b": 1e6, "c": 2500.0, "d": 5, "e": 1000, "f": -0.001, "h": 1e6}
+    assert vector(doc["v"], doc.where("v"), "v", 2) == [1000.0, 2.0]
+    assert doc["g"] == "e5"
+    # where text is meant (a payload, an exec argument) `1e3` stays what was written: as
+    # YAML 1.1 reads it, before and after; PyYAML's own loader is left as it was
+    assert doc["b"] == "1e6" and str(doc["b"]) == "1e6" and isinstance(doc["d"], int)
+    import yaml
 
     assert yaml.safe_load("a: 1e6") == {"a": "1e6"}
+
+
+def test_an_exponent_number_in_a_payload_or_argv_stays_text(tmp_path: Path) -> None:
+    import json
+
+    doc = load_marked_yaml("x.yaml", text="argv: [echo, 1e3]\npayload: {code: 1e3}\n")
+    assert [str(a) for a in doc["argv"]] == ["echo", "1e3"]
+    assert json.dumps(doc["payload"]) == '{"code": "1e3"}'
 
 
 def test_a_quoted_number_is_named_with_a_hint() -> None:

@@ -19,7 +19,7 @@ import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, TextIO
+from typing import IO, BinaryIO
 
 import numpy as np
 
@@ -32,7 +32,8 @@ BLOCK_ROWS = 16_384  # samples per block read: ~14 s at 1.2 kHz; ~25 MB to parse
 #: thousand; a file without line breaks (or /dev/zero) must not be read whole into one line.
 #: Below the csv module's field limit (131,072), so no cell can reach it.
 MAX_LINE_CHARS = 100_000
-#: a block also ends once its lines hold this many characters (a block of long lines)
+#: a block also ends once its lines hold this many characters (a block of long lines; with
+#: the read ahead, at most twice this is held)
 MAX_BLOCK_CHARS = 32_000_000
 # an empty cell (between commas, or at either end of a line that has commas) reads as NaN
 _EMPTY_CELL = re.compile(r"(?m)(?:^|(?<=,))[ \t]*(?=,)|(?<=,)[ \t]*$")
@@ -218,15 +219,18 @@ class _CsvReader:
     def __init__(self, path: Path, sensor_names: list[str]) -> None:
         self.where = str(path)
         self.sensor_names = sensor_names
-        self._fh: TextIO | None = None
+        self._fh: BinaryIO | None = None
         regular_file_size(path, "the recording")  # a FIFO would block, /dev/zero never end
         try:
-            self._fh = path.open(encoding="utf-8-sig", newline=None)
+            self._fh = path.open("rb")
         except OSError as err:
             raise ConfigError(self.where, f"cannot read: {err.strerror or err}") from None
         self.line = 0  # file lines handed out so far
-        self._pending: list[str] = []  # lines read ahead (without their line ends)
-        self._tail = ""  # the start of a line whose end is not read yet
+        # lines read ahead (decoded, without their line ends) and their characters
+        self._pending: list[str] = []
+        self._pending_chars = 0
+        self._tail = b""  # the start of a line whose end is not read yet
+        self._started = False  # (a UTF-8 byte order mark is dropped from the first bytes)
         self._eof = False
         # a bad line found: raised once the good samples before it are handed out (so a
         # replay loses none of them to a bad line further on in the same block)
@@ -262,50 +266,69 @@ class _CsvReader:
         self.extra = [(n, i) for i, n in enumerate(header) if n and n not in needed]
 
     def _take_lines(self, rows: int) -> list[str]:
-        """The next ``rows`` lines (fewer at the end of the file), without their line ends.
+        """The next ``rows`` lines (fewer at the end of the file, or once they hold
+        :data:`MAX_BLOCK_CHARS`), without their line ends.
 
-        Read in pieces of bounded size and split by C string methods (no Python work per
-        line), so a line is never longer than :data:`MAX_LINE_CHARS`: a file without line
-        breaks is refused after that many characters, not read whole.
+        Read as bytes in pieces of bounded size, split and decoded by C string methods (no
+        Python work per line), so a line is never longer than :data:`MAX_LINE_CHARS`: a file
+        without line breaks is refused after that many characters, not read whole. A line
+        that is too long or not UTF-8 ends the reading there: the lines before it are handed
+        out first, then its error (``_failure``).
         """
         assert self._fh is not None
-        while len(self._pending) < rows and not self._eof:
+        while len(self._pending) < rows and self._pending_chars < MAX_BLOCK_CHARS and not self._eof:
             want = min(MAX_BLOCK_CHARS, max(1 << 16, 256 * (rows - len(self._pending))))
-            try:
-                data = self._fh.read(want)
-            except UnicodeDecodeError as err:
-                raise ConfigError(
-                    f"{self.where}:{self.line + len(self._pending) + 1}",
-                    f"not UTF-8 text near here: {err.reason}",
-                ) from None
+            data = self._fh.read(want)
+            if not self._started:
+                self._started = True
+                data = data.removeprefix(b"\xef\xbb\xbf")
             if not data:
                 self._eof = True
-                if self._tail:
-                    self._pending.append(self._tail)
-                    self._tail = ""
-                break
-            parts = (self._tail + data).split("\n")
-            self._tail = parts.pop()
-            self._pending.extend(parts)
-            longest = max(map(len, parts), default=0)
-            if longest > MAX_LINE_CHARS or len(self._tail) > MAX_LINE_CHARS:
-                before = len(self._pending) - len(parts)  # lines read ahead before these
-                index = next(
-                    (i for i, x in enumerate(parts) if len(x) > MAX_LINE_CHARS), len(parts)
-                )
-                failure = ConfigError(
-                    f"{self.where}:{self.line + before + index + 1}",
-                    f"a line longer than {MAX_LINE_CHARS} characters (a recording's lines are a "
-                    "few hundred): is this a recording, with a line break after each sample?",
-                )
-                if self.line + before + index == 0:
-                    raise failure  # (the header)
-                del self._pending[before + index :]  # the lines before it are read first
-                self._tail, self._eof, self._failure = "", True, failure
+                parts, self._tail = [self._tail] if self._tail else [], b""
+            else:
+                # (a CR LF split between two reads meets again here)
+                parts = (self._tail + data).replace(b"\r\n", b"\n").split(b"\n")
+                self._tail = parts.pop()
+            self._add_lines(parts)
         lines = self._pending[:rows]
         del self._pending[:rows]
+        self._pending_chars -= sum(map(len, lines))
         self.line += len(lines)
         return lines
+
+    def _add_lines(self, parts: list[bytes]) -> None:
+        """Decode complete lines read ahead; stop at one too long or not UTF-8."""
+        first = self.line + len(self._pending) + 1  # the file line of parts[0]
+        bad: ConfigError | None = None
+        longest = max(map(len, parts), default=0)
+        if longest > MAX_LINE_CHARS or len(self._tail) > MAX_LINE_CHARS:
+            index = next((i for i, x in enumerate(parts) if len(x) > MAX_LINE_CHARS), len(parts))
+            bad = ConfigError(
+                f"{self.where}:{first + index}",
+                f"a line longer than {MAX_LINE_CHARS} characters (a recording's lines are a "
+                "few hundred): is this a recording, with a line break after each sample?",
+            )
+            parts = parts[:index]
+        data = b"\n".join(parts)
+        try:
+            text = data.decode("utf-8")
+        except UnicodeDecodeError as err:
+            index = data.count(b"\n", 0, err.start)
+            column = err.start - (data.rfind(b"\n", 0, err.start) + 1) + 1
+            bad = ConfigError(
+                f"{self.where}:{first + index}:{column}",
+                f"not UTF-8 text: byte 0x{data[err.start]:02x} ({err.reason}); save the "
+                "recording as UTF-8",
+            )
+            parts = parts[:index]
+            text = b"\n".join(parts).decode("utf-8")
+        if parts:
+            self._pending.extend(text.split("\n"))
+            self._pending_chars += len(text)
+        if bad is not None:
+            if first + len(parts) == 1:
+                raise bad  # (the header)
+            self._tail, self._eof, self._failure = b"", True, bad
 
     def _cells(self, line: str, number: int) -> list[str]:
         """The cells of one CSV line (file line ``number``), as the csv module reads them."""
@@ -328,7 +351,10 @@ class _CsvReader:
         for j, line in enumerate(lines):
             if not line:
                 continue
-            found = len(self._cells(line, first_line + j)) if quoted else line.count(",") + 1
+            cells = self._cells(line, first_line + j) if quoted else line.split(",")
+            found = len(cells)
+            if found > width and not "".join(cells[width:]).strip():
+                continue  # empty cells after the last column (a logger's trailing comma)
             if found != width:
                 raise ConfigError(
                     f"{self.where}:{first_line + j}",
@@ -355,7 +381,7 @@ class _CsvReader:
                     raise
                 # the samples before the bad line first; the error on the next read
                 lines = lines[: bad - first_line]
-                self._failure, self._pending = err, []
+                self._failure, self._pending, self._pending_chars = err, [], 0
 
     def _parse(self, lines: list[str], first_line: int) -> Recording:
         """The samples of ``lines`` (file lines from ``first_line`` on); ConfigError at the

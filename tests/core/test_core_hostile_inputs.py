@@ -175,6 +175,39 @@ def test_the_samples_before_a_bad_line_are_handed_out_first(
     np.testing.assert_allclose(got, [i * 1e-3 for i in range(20)])
 
 
+def test_a_trailing_comma_is_not_a_value_too_many(tmp_path: Path) -> None:
+    # a logger that ends each row with a comma was read before the width check: still read
+    path = write_rows(tmp_path / "trailing.csv", [f"{i * 1e-3}," + ROW[2:] + "," for i in range(5)])
+    assert len(read_recording(path, NAMES)) == 5
+
+
+def test_a_block_ends_once_its_lines_hold_the_block_limit(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(recording, "MAX_BLOCK_CHARS", 1000)  # about 20 rows of 50 characters
+    path = write_rows(tmp_path / "rows.csv", [f"{i * 1e-3}," + ROW[2:] for i in range(200)])
+    with recording.RecordingBlocks(path, NAMES, block_rows=16_384) as blocks:
+        sizes = [len(block) for block in blocks.blocks()]
+    # (a block holds the limit and at most one read of as many characters more)
+    assert sum(sizes) == 200 and max(sizes) <= 2 * 1000 // len(ROW) + 2 and len(sizes) >= 5
+
+
+def test_a_byte_that_is_not_utf8_is_named_at_its_line_after_the_samples_before(
+    tmp_path: Path,
+) -> None:
+    path = tmp_path / "bad_utf8.csv"
+    rows = [f"{i * 1e-3}," + ROW[2:] for i in range(1500)]
+    data = (HEADER + "\n" + "\n".join(rows) + "\n").encode()
+    at = data.index(("\n" + rows[999] + "\n").encode()) + 1 + 6  # line 1001, column 7
+    path.write_bytes(data[:at] + b"\xe9" + data[at + 1 :])
+    with recording.RecordingBlocks(path, NAMES, block_rows=16_384) as blocks:
+        got: list[float] = []
+        with pytest.raises(ConfigError, match=r"bad_utf8.csv:1001:7: not UTF-8 text: byte 0xe9"):
+            for block in blocks.blocks():
+                got += block.t.tolist()
+    assert len(got) == 999
+
+
 def test_a_blank_and_a_last_line_without_end_are_still_read(tmp_path: Path) -> None:
     path = tmp_path / "ok.csv"
     path.write_text(HEADER + "\r\n0," + ROW[2:] + "\r\n\r\n1," + ROW[2:])

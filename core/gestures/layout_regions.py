@@ -77,6 +77,12 @@ class RegionReader:
             )
         kind = kinds[0]
         surfaces = [s.name for s in self.desk.surfaces]
+        if not surfaces:  # (a bare sensor's profile, e.g. ati-bench: nothing to touch)
+            raise ConfigError(
+                m.where(),
+                f"{what}: the desk `{self.desk.name}` has no surfaces to put a region on; "
+                "its profile needs `surfaces:`",
+            )
         surface = choice(m, "surface", tuple(surfaces), what, default=surfaces[0])
         index = surfaces.index(surface)
         center = None

@@ -103,7 +103,7 @@ class RunReport:
         if self.stopped_by:
             how = f"stopped by {self.stopped_by}"
         else:  # the error, as the summary's last line, says what failed
-            how = "the source failed" if self.error else "the source ended"
+            how = "sensing failed" if self.error else "the source ended"  # (source or stage)
         lines = [
             f"{how}: {self.samples} samples ({self.sample_time_s:.2f} s of sensor time) in "
             f"{self.wall_s:.2f} s; {self.gesture_count} gestures"

@@ -180,8 +180,8 @@ def simulate(
             scene.where,
             f"the scene lasts {run.timeline.duration_s:g} s, {run.n_samples} samples at "
             f"{fs:g} Hz; a simulated recording holds at most {MAX_SIMULATE_SAMPLES} samples "
-            f"({MAX_SIMULATE_SAMPLES / fs:g} s at this desk's rate): shorten the scene, or play "
-            "it with `hapticdesk run --source sim:SCENE`, which streams it",
+            f"({MAX_SIMULATE_SAMPLES / fs:g} s at this desk's rate): shorten the scene (a "
+            "`run --source sim:SCENE` streams a longer one)",
         )
     parts = list(run.chunks())
     t = np.concatenate([p[0] for p in parts])

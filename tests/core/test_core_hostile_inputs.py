@@ -385,4 +385,6 @@ def test_every_rate_the_reader_accepts_builds_an_estimator(tmp_path: Path, rate:
 
     path = desk_with(tmp_path, sub("sample_rate_hz: 1200", f"sample_rate_hz: {rate}"))
     profile = load_profile(path)
-    ContactEstimator(profile)  # the filters are designed without an error
+    settings = ContactEstimator(profile).stage_settings  # the filters are designed
+    assert np.isfinite(settings.lp_sos).all() and np.isfinite(settings.det_sos).all()
+    assert settings.n_diff >= 1 and settings.window >= 1

@@ -179,3 +179,14 @@ def test_a_warning_is_printed_once(tmp_path, capsys, caplog, monkeypatch):
     shown = captured.out + captured.err + "\n".join(r.getMessage() for r in caplog.records)
     assert len(re.findall("no actions today", shown)) == 1
     assert len(re.findall("reaches beyond surface `top`", shown)) == 1
+
+
+def test_a_region_on_a_desk_without_surfaces_is_refused_at_the_region(tmp_path, capsys):
+    # a layout for a desk, checked against the bare-sensor profile (nothing to touch): an
+    # IndexError before (the layout naming that desk itself was refused at its `desk:`)
+    layout = tmp_path / "layout.yaml"
+    layout.write_text("desk: kitamura2017\n" + REGION_A + TAP)
+    assert main(["check", str(layout), "--desk", str(PROFILES / "ati-bench.yaml")]) == 2
+    err = capsys.readouterr().err
+    assert re.search(r"layout.yaml:2:\d+: region `a`: the desk `ati-bench` has no surfaces", err)
+    assert "Traceback" not in err

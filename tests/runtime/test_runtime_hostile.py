@@ -1,5 +1,5 @@
 """Hostile input to a run: a source that fails part way ends the run as a normal end would
-(nothing already sensed is lost, the summary says the source failed), and a payload template
+(nothing already sensed is lost, the summary says sensing failed), and a payload template
 that would loop for hours is refused when the layout is checked."""
 
 from __future__ import annotations
@@ -75,7 +75,7 @@ def test_a_source_that_fails_ends_the_run_as_a_normal_end(tmp_path, paper_desk):
     assert report.sample_time_s > 3.5
     assert report.error == "taps.csv:9999:3: column `fl_fz`: 'abc' is not a number"
     lines = report.summary()
-    assert lines[0].startswith(f"the source failed: {report.samples} samples (3.60 s")
+    assert lines[0].startswith(f"sensing failed: {report.samples} samples (3.60 s")
     assert lines[-1] == f"error: {report.error}"
     assert normal_report.summary()[0].startswith("the source ended:")
     info = json.loads(report_json(report))

@@ -140,7 +140,7 @@ def _python_can_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
         opener = gzip.open if path.suffix.lower() == ".gz" else open
         with opener(path, mode) as fh:
             text = _BoundedLines(fh, path) if fmt != ".blf" else None
-            lines = _CanutilsLines(text) if fmt == ".log" else None
+            lines = _CanutilsLines(text) if fmt == ".log" and text is not None else None
             source = lines if lines is not None else text if text is not None else fh
             for msg in getattr(can, _READERS[fmt])(source):
                 batch.append(msg)
@@ -206,23 +206,21 @@ class _BoundedLines:
 class _CanutilsLines:
     """The lines of a candump ``-l`` file that are frames; the others are skipped and counted
     (python-can's reader raises on the first junk line, which would end a replay with no line
-    number). ``number`` is the line being read, for errors."""
+    number). The lines come from :class:`_BoundedLines`, which numbers them."""
 
-    def __init__(self, fh: Any) -> None:
-        self._fh = fh
-        self.number = 0
+    def __init__(self, lines: _BoundedLines) -> None:
+        self._lines = lines
         self.skipped: list[int] = []  # the first few, for the warning
         self.n_skipped = 0
 
     def __iter__(self) -> Iterator[str]:
-        for number, line in enumerate(self._fh, 1):
-            self.number = number
+        for line in self._lines:
             if _CANUTILS_FRAME.match(line):
                 yield line
             elif line.strip() and not line.lstrip().startswith(("#", ";")):
                 self.n_skipped += 1
                 if len(self.skipped) < 3:
-                    self.skipped.append(number)
+                    self.skipped.append(self._lines.number)
 
     def close(self) -> None:
         """python-can closes its file when done; ours is closed by its ``with``."""

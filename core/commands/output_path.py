@@ -1,7 +1,7 @@
 """Files a command writes, checked before the work that fills them: a folder, a missing folder
 or a format that cannot be written is a clear error at once, not a traceback after the work.
 What the check cannot foresee (no permission, a full disk) is :func:`cannot_write`'s error,
-the same words as ``simulate`` and ``record`` use."""
+which ``contacts``, ``simulate`` and ``record`` share."""
 
 from __future__ import annotations
 

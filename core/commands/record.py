@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from hapticdesk.commands.output_path import cannot_write
 from hapticdesk.files.profile import DeskProfile, load_profile
 from hapticdesk.files.recording import (
     RECORDING_SUFFIXES,
@@ -238,14 +239,14 @@ def _write_frames(output: Path, frames: Any, write: Any) -> int:
     try:
         return int(write(output, frames))
     except OSError as err:
-        raise ConfigError(str(output), f"cannot write: {err.strerror or err}") from None
+        raise cannot_write(output, err) from None
 
 
 def _write(output: Path, rec: Recording) -> None:
     try:
         write_recording(output, rec)
     except OSError as err:
-        raise ConfigError(str(output), f"cannot write: {err.strerror or err}") from None
+        raise cannot_write(output, err) from None
 
 
 def _summary(t: np.ndarray, problems: list[str]) -> dict[str, Any]:

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hapticdesk.commands.output_path import cannot_write
 from hapticdesk.files.profile import load_profile
 from hapticdesk.files.recording import RECORDING_SUFFIXES, write_recording
 from hapticdesk.files.yamlfile import ConfigError
@@ -83,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         write_recording(output, rec)
     except OSError as err:
-        raise ConfigError(str(output), f"cannot write: {err.strerror or err}") from None
+        raise cannot_write(output, err) from None
     touching = rec.extra["true_fn"] > 0
     touches = int(np.count_nonzero(touching[1:] & ~touching[:-1]) + int(touching[:1].sum()))
     seed = scene.seed if args.seed is None else args.seed

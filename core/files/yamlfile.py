@@ -305,21 +305,19 @@ def _read_bytes(path: Path, max_bytes: int) -> bytes:
         raise ConfigError(str(path), f"cannot read the file: {err.strerror or err}") from None
 
 
+_FILE_KINDS = (
+    (stat.S_ISREG, "a regular file"),
+    (stat.S_ISDIR, "a directory"),
+    (stat.S_ISFIFO, "a named pipe (FIFO)"),
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+    (stat.S_ISSOCK, "a socket"),
+)
+
+
 def file_kind(mode: int) -> str:
     """What a file of ``os.stat`` mode ``mode`` is, for a message (``a directory`` …)."""
-    if stat.S_ISREG(mode):
-        return "a regular file"
-    if stat.S_ISDIR(mode):
-        return "a directory"
-    if stat.S_ISFIFO(mode):
-        return "a named pipe (FIFO)"
-    if stat.S_ISCHR(mode):
-        return "a character device"
-    if stat.S_ISBLK(mode):
-        return "a block device"
-    if stat.S_ISSOCK(mode):
-        return "a socket"
-    return "not a regular file"
+    return next((name for test, name in _FILE_KINDS if test(mode)), "not a regular file")
 
 
 def regular_file_size(path: str | Path, what: str) -> int:

@@ -24,6 +24,13 @@ RATE_WINDOW_S = 0.05  # slope of the fast force for the touch/hold/release phase
 # averaged with its hold (its noise, ≈ 3 N/s here, is still far below the
 # 10 N/s of release_slope_n_s)
 RELEASE_WINDOW_S = 0.02
+# With the sway compensated (stage 2b), a window's spread is taken of means over about this
+# long: the correction, a second derivative, adds broadband noise up to ~150 Hz at about
+# (force low-pass / sway frequency)² of the channels' own (the idle paper desk's window
+# spread 0.03 N -> 0.09 N), and at twice the paper's noise no window stayed under `still_n`,
+# so the drift was never followed. A 20 ms mean keeps the load's own motion (below the 4.8 Hz
+# low-pass, and the 6 Hz sway that is left: 98 %) and drops most of that noise.
+SWAY_STILL_MEAN_S = 0.02
 UNRATED_LIMIT = 1e12  # a channel without a rating counts as saturated beyond this
 
 
@@ -59,6 +66,7 @@ class EstimatorSettings:
     n_release: int  # samples of its slope for the release prediction (≤ n_rate)
     release_scale: float
     window: int  # samples per tare/stillness window
+    still_block: int  # samples averaged before a window's spread is taken (a divisor of it)
     n_tare: int  # windows of a tare
     n_settle: int  # windows a still load is held before it joins the zero
     n_drift: int  # windows an idle desk rests before its drift is followed
@@ -93,6 +101,7 @@ class EstimatorSettings:
         n_rate = max(1, round(RATE_WINDOW_S * fs))
         n_release = min(n_rate, max(1, round(RELEASE_WINDOW_S * fs)))
         window = max(1, round(WINDOW_S * fs))
+        sway = SwaySettings.of(profile, s)
 
         def windows(seconds: float) -> int:
             return max(1, math.ceil(seconds / (window / fs) - 1e-9))
@@ -136,9 +145,16 @@ class EstimatorSettings:
             n_drift=windows(s.drift_settle_s),
             n_object=windows(s.object_settle_s) if s.object_settle_s > 0 else 0,
             det_full=s.method == "fused" or trace,
-            sway=SwaySettings.of(profile, s.sway_compensation),
+            sway=sway,
+            still_block=_divisor_near(window, SWAY_STILL_MEAN_S * fs) if sway else 1,
         )
 
     def up(self) -> np.ndarray:
         """The first surface's normal (the desk's up), or +z."""
         return self.normals[0] if len(self.normals) else np.array([0.0, 0.0, 1.0])
+
+
+def _divisor_near(n: int, target: float) -> int:
+    """The divisor of ``n`` nearest to ``target`` (at least 1)."""
+    divisors = [d for d in range(1, n + 1) if n % d == 0]
+    return min(divisors, key=lambda d: abs(d - target))

@@ -73,6 +73,16 @@ LIFT_TOLERANCE = 0.2
 ZeroSegments = tuple[np.ndarray, np.ndarray]  # starts (n,), (8, n): [F; M], set time, resting
 
 
+def window_spreads(lp_w: np.ndarray, block: int) -> np.ndarray:
+    """How far each window's low-passed force spreads, its largest axis (n,), from windows
+    ``lp_w`` (3, n, w): over means of ``block`` samples (``EstimatorSettings.still_block``,
+    1 unless the sway is compensated: see ``SWAY_STILL_MEAN_S``)."""
+    if block > 1:
+        three, n, w = lp_w.shape
+        lp_w = lp_w.reshape(three, n, w // block, block).mean(axis=3)
+    return (lp_w.max(axis=2) - lp_w.min(axis=2)).max(axis=0)
+
+
 class ZeroState:
     """The current zero, the unfinished window and the tare / stillness state machine."""
 
@@ -174,7 +184,7 @@ class ZeroStage:
         window's max and min, its mean), so the same values as a block's."""
         st, s = self.state, self.settings.user
         st.window_index += 1
-        spread = float((st.win_lp.max(axis=1) - st.win_lp.min(axis=1)).max())
+        spread = float(window_spreads(st.win_lp[:, None, :], self.settings.still_block)[0])
         bad = bool(np.count_nonzero(st.win_bad) / len(st.win_bad) > 0.1)  # (as _windows)
         if st.zero is not None and (bad or spread >= s.still_n):
             st.still_run = st.object_run = 0  # not still: ends a still run (see _windows)
@@ -233,7 +243,7 @@ class ZeroStage:
         m = st.win_fill
         cut = n_full * w
         lp_w = all_lp[:, :cut].reshape(3, n_full, w)
-        spread: list[float] = (lp_w.max(axis=2) - lp_w.min(axis=2)).max(axis=0).tolist()
+        spread: list[float] = window_spreads(lp_w, self.settings.still_block).tolist()
         means = all_raw[:, :cut].reshape(6, n_full, w).mean(axis=2)
         # a window is unusable for the zero when more than a tenth of it was held over
         bad_share = all_bad[:cut].reshape(n_full, w).mean(axis=1)

@@ -201,8 +201,9 @@ class EstimationSettings:
     noise_force_n: float = 0.0  # per-channel noise σ if known; 0 = measure during the tare
     noise_moment_nm: float = 0.0
     # the legs as the accelerometer: the desk's inertial force from the measured force's
-    # curvature and `desk.natural_frequency_hz` (see hapticdesk.estimator.sway)
-    sway_compensation: bool = False
+    # curvature and `desk.natural_frequency_hz` (see hapticdesk.estimator.sway); None (auto,
+    # the default): on for `fused` on a desk without an accelerometer
+    sway_compensation: bool | None = None
     # flag a second finger that lands while the first holds, and locate it (see
     # hapticdesk.estimator.multitouch); a layout that binds two_finger_tap turns it on
     second_finger: bool = False

@@ -30,6 +30,7 @@ from hapticdesk.files.yamlfile import (
     check_keys,
     choice,
     flag,
+    flag_or_auto,
     number,
     require_mapping,
     vector,
@@ -394,8 +395,10 @@ def _estimation(item: Any, where: Any) -> EstimationSettings:
     for key in allowed:
         if key == "method":
             values[key] = choice(m, "method", METHODS, "`estimation`", default=defaults.method)
-        elif key in ("sway_compensation", "second_finger"):
-            values[key] = flag(m, key, "`estimation`", default=getattr(defaults, key))
+        elif key == "sway_compensation":
+            values[key] = flag_or_auto(m, key, "`estimation`")
+        elif key == "second_finger":
+            values[key] = flag(m, key, "`estimation`", default=defaults.second_finger)
         elif key in m:
             strict = key not in (
                 "noise_force_n",

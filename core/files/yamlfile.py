@@ -460,6 +460,20 @@ def flag(mapping: MarkedDict, key: str, what: str, *, default: bool) -> bool:
     return value
 
 
+def flag_or_auto(mapping: MarkedDict, key: str, what: str) -> bool | None:
+    """Read ``true``, ``false`` or ``auto`` at ``key``; ``auto`` or no key is None (the
+    program decides)."""
+    if key not in mapping or mapping[key] == "auto":
+        return None
+    value = mapping[key]
+    if not isinstance(value, bool):
+        raise ConfigError(
+            mapping.where(key),
+            f"`{key}` in {what} must be true, false or auto, found {_describe(value)}",
+        )
+    return value
+
+
 def vector(value: Any, where: Position | str, what: str, length: int | None = None) -> list[float]:
     """A list of finite numbers (of ``length`` items when given)."""
     shape = f"{length} numbers" if length else "a list of numbers"

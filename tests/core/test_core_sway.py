@@ -108,10 +108,26 @@ def test_single_sample_pushes_equal_batch(accel_desk, shapes):
     np.testing.assert_allclose(streamed.force_n, batch.force_n, atol=1e-9)
 
 
-def test_off_by_default_and_without_a_sway_frequency(accel_desk):
-    assert SwaySettings.of(accel_desk, accel_desk.estimation.sway_compensation) is None
-    assert SwaySettings.of(replace(accel_desk, natural_frequency_hz=None), True) is None
-    assert SwaySettings.of(accel_desk, True) is not None
+def test_on_by_default_for_fused_without_an_accelerometer(accel_desk):
+    """Unset (auto): on for `fused` on a desk that knows its sway frequency and has no
+    accelerometer; never for the paper's own methods unless asked; never without a
+    frequency; true and false decide."""
+    plain = load_profile("kitamura2017")
+    assert plain.estimation.method == "fused" and plain.estimation.sway_compensation is None
+    assert SwaySettings.of(plain, plain.estimation) is not None
+    for method in ("force", "diff", "switched"):
+        assert SwaySettings.of(plain, replace(plain.estimation, method=method)) is None
+    off = plain.with_estimation(sway_compensation=False)
+    assert SwaySettings.of(off, off.estimation) is None
+    no_frequency = replace(plain, natural_frequency_hz=None)
+    assert SwaySettings.of(no_frequency, no_frequency.estimation) is None
+    # an accelerometer measures the sway itself: auto leaves the legs out, true adds them
+    assert accel_desk.estimation.method == "fused"
+    assert SwaySettings.of(accel_desk, accel_desk.estimation) is None
+    forced = accel_desk.with_estimation(sway_compensation=True)
+    assert SwaySettings.of(forced, forced.estimation) is not None
+    switched = plain.with_estimation(method="switched", sway_compensation=True)
+    assert SwaySettings.of(switched, switched.estimation) is not None
 
 
 def test_extreme_input_gives_no_nan(accel_desk):
@@ -136,13 +152,16 @@ def test_the_setting_is_read_and_a_bad_value_is_named(tmp_path):
     good = tmp_path / "good.yaml"
     good.write_text(text.replace("estimation:\n", "estimation:\n  sway_compensation: true\n", 1))
     assert load_profile(good).estimation.sway_compensation is True
+    auto = tmp_path / "auto.yaml"
+    auto.write_text(text.replace("estimation:\n", "estimation:\n  sway_compensation: auto\n", 1))
+    assert load_profile(auto).estimation.sway_compensation is None
     bad = tmp_path / "bad.yaml"
     bad.write_text(text.replace("estimation:\n", "estimation:\n  sway_compensation: 1\n", 1))
     with pytest.raises(ConfigError) as err:
         load_profile(bad)
     line = text[: text.index("estimation:\n")].count("\n") + 2
     assert f"bad.yaml:{line}:" in str(err.value)
-    assert "true or false" in str(err.value)
+    assert "true, false or auto" in str(err.value)
 
 
 @pytest.mark.parametrize("true_hz", [5.4, 6.5])
@@ -154,7 +173,7 @@ def test_a_sway_frequency_off_by_ten_percent_still_helps(true_hz, shape_error_p9
     rec = simulate(
         replace(desk, natural_frequency_hz=true_hz), load_scene(SCENES / "shapes.yaml"), 3
     )
-    plain = shape_error_p95(desk, rec)
+    plain = shape_error_p95(with_sway(desk, False), rec)
     legs = shape_error_p95(with_sway(desk), rec)
     print(
         f"[sway] desk at {true_hz} Hz, profile 5.9 Hz: plain {plain * 1e3:.2f}, "

@@ -245,11 +245,13 @@ def test_a_compensated_desks_strokes_keep_their_corners():
         sway_compensated,
     )
 
-    plain = load_profile("kitamura2017")
+    shipped = load_profile("kitamura2017")  # `fused`: compensated unless the profile says not
+    plain = shipped.with_estimation(sway_compensation=False)
     legs = plain.with_estimation(sway_compensation=True)
     accel = load_profile("kitamura2017-accel")
     assert not sway_compensated(plain)
-    assert sway_compensated(legs) and sway_compensated(accel)
+    assert not sway_compensated(shipped.with_estimation(method="switched"))
+    assert sway_compensated(shipped) and sway_compensated(legs) and sway_compensated(accel)
     assert not sway_compensated(replace(legs, natural_frequency_hz=None))
     assert smoothing_s(plain) > 2 * calm_smoothing_s(plain)
     for desk in (legs, accel):

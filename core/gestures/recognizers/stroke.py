@@ -64,8 +64,9 @@ def smoothing_s(desk: DeskProfile) -> float:
 
 def sway_compensated(desk: DeskProfile) -> bool:
     """The estimator removes the desk's inertial force on ``desk``'s located path: it has an
-    accelerometer, or ``estimation.sway_compensation`` with a known sway frequency."""
-    return desk.accelerometer is not None or compensates(desk, desk.estimation.sway_compensation)
+    accelerometer, or the legs as one (:func:`compensates`: ``estimation.sway_compensation``,
+    on for ``fused`` unless set, with a known sway frequency)."""
+    return desk.accelerometer is not None or compensates(desk)
 
 
 def calm_smoothing_s(desk: DeskProfile) -> float:

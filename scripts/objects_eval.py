@@ -178,13 +178,30 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=4)
     parser.add_argument("--long-press", action="store_true", help="objects and fingers on a button")
+    parser.add_argument(
+        "--sway-compensation",
+        choices=("on", "off", "auto"),
+        nargs="?",
+        const="on",
+        default="auto",
+        help="estimation.sway_compensation (the legs as the accelerometer) on every desk; "
+        "auto: each profile's (on for `fused` without an accelerometer)",
+    )
     args = parser.parse_args()
+
+    def desks_as_asked(folder: Path) -> dict[str, DeskProfile]:
+        found = desks(folder)
+        if args.sway_compensation == "auto":
+            return found
+        on = args.sway_compensation == "on"
+        return {name: d.with_estimation(sway_compensation=on) for name, d in found.items()}
+
     started = time.perf_counter()
     if args.long_press:
         delays: dict[float, list[float]] = {}
         fired_by: dict[float, list[bool]] = {}
         with tempfile.TemporaryDirectory() as folder:
-            for desk in desks(Path(folder)).values():
+            for desk in desks_as_asked(Path(folder)).values():
                 d, o = long_presses(desk, Path(folder), range(1, args.seeds + 1))
                 for key, values in d.items():
                     delays.setdefault(key, []).extend(values)
@@ -206,7 +223,7 @@ def main() -> None:
         return
     totals: dict[str, list] = {"delays": [], "lifts": [], "worse": [], "taken": []}
     with tempfile.TemporaryDirectory() as folder:
-        for name, desk in desks(Path(folder)).items():
+        for name, desk in desks_as_asked(Path(folder)).items():
             runs = [objects(desk, s) for s in range(1, args.seeds + 1)]
             delays = np.array([d for run in runs for d in run[0]])
             lifts = np.array([d for run in runs for d in run[1]])

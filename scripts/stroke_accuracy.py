@@ -78,10 +78,11 @@ def drawings(rng: np.random.Generator, per_shape: int, with_others: bool, style:
     return [items[i] for i in order]
 
 
-def simulate_strokes(items, seed: int, desk_name: str = "kitamura2017", sway: bool = False):
+def simulate_strokes(items, seed: int, desk_name: str = "kitamura2017", sway: str = "auto"):
     """Simulate the strokes (label, path, speed[, times]) one after the other on the paper's
     desk (or ``desk_name``: kitamura2017-accel compensates its sway with an accelerometer;
-    ``sway``: with the estimation setting ``sway_compensation`` on) and estimate: (desk,
+    ``sway``: the estimation setting ``sway_compensation``, "on", "off" or "auto", the
+    profile's) and estimate: (desk,
     recording, contacts)."""
 
     from hapticdesk.estimator import estimate
@@ -89,8 +90,8 @@ def simulate_strokes(items, seed: int, desk_name: str = "kitamura2017", sway: bo
     from hapticdesk.sim import Idle, Scene, Stroke, simulate
 
     desk = load_profile(desk_name)
-    if sway:
-        desk = desk.with_estimation(sway_compensation=True)
+    if sway != "auto":
+        desk = desk.with_estimation(sway_compensation=sway == "on")
     rng = np.random.default_rng(seed)
     actions: list = []
     for i, (_, path, speed, *timed) in enumerate(items):
@@ -127,7 +128,7 @@ def capture_strokes(desk, rec, contacts, count: int) -> list[np.ndarray | None]:
 
 
 def trace_on_desk(
-    items, seed: int, desk_name: str = "kitamura2017", sway: bool = False
+    items, seed: int, desk_name: str = "kitamura2017", sway: str = "auto"
 ) -> list[np.ndarray | None]:
     """Simulate the strokes one after the other, estimate, capture: one path per stroke."""
     return capture_strokes(*simulate_strokes(items, seed, desk_name, sway), len(items))
@@ -395,7 +396,7 @@ def _path_speed(path: np.ndarray, t: np.ndarray) -> float:
 
 
 def run_human_speed(
-    folder: str, test_reps: int, seed: int, desk_name: str = "kitamura2017", sway: bool = False
+    folder: str, test_reps: int, seed: int, desk_name: str = "kitamura2017", sway: str = "auto"
 ) -> None:
     """Real strokes at their real speed on the simulated desk: built-in, 1 and 3 own
     templates captured on the desk the same way, per speed."""
@@ -435,13 +436,13 @@ def run_human_speed(
             rows.setdefault((name, "all"), []).append(verdict)
     print(
         f"Real strokes at their real speed on the simulated {desk_name} desk"
-        f"{' with sway_compensation' if sway else ''}: the $1 logs "
+        f"{_sway_label(sway)}: the $1 logs "
         f"({len(test)} test strokes, {len(enrol)} enrolment strokes captured the same way), "
         f"scaled to {HUMAN_SIZE_M[0] * 100:g}–{HUMAN_SIZE_M[1] * 100:g} cm, traced with their "
         f"logged times; min_score {MIN_SCORE}, max_rotation_deg {MAX_ROTATION:g} "
         f"(`python scripts/stroke_accuracy.py --human-speed {folder} --reps {test_reps}"
         f"{f' --desk {desk_name}' if desk_name != 'kitamura2017' else ''}"
-        f"{' --sway-compensation' if sway else ''}`, "
+        f"{_sway_flag(sway)}`, "
         f"{time.perf_counter() - started:.0f} s)\n"
     )
     print("| templates | speed (median, 10–90 %) | right | rejected | wrong |")
@@ -519,6 +520,14 @@ def _plot_threshold(rows, path: str) -> None:
     print(f"\nwrote {path}")
 
 
+def _sway_label(sway: str) -> str:
+    return {"on": " with sway_compensation", "off": " without sway_compensation"}.get(sway, "")
+
+
+def _sway_flag(sway: str) -> str:
+    return "" if sway == "auto" else f" --sway-compensation {sway}"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--per-shape", type=int, default=20, help="test strokes per shape")
@@ -526,8 +535,12 @@ def main() -> None:
     parser.add_argument("--desk", default="kitamura2017", help="the simulated desk's profile")
     parser.add_argument(
         "--sway-compensation",
-        action="store_true",
-        help="the desk with estimation.sway_compensation on (the legs as the accelerometer)",
+        choices=("on", "off", "auto"),
+        nargs="?",
+        const="on",
+        default="auto",
+        help="estimation.sway_compensation (the legs as the accelerometer) on the desk; auto: "
+        "the profile's (on for `fused` without an accelerometer)",
     )
     parser.add_argument("--synthetic", action="store_true", help="noisy paths, no simulator")
     parser.add_argument("--quick", action="store_true", help="skip the user-template rows")
@@ -581,8 +594,7 @@ def main() -> None:
     how = (
         "synthetic noisy paths"
         if args.synthetic
-        else f"traced on the simulated {args.desk} desk"
-        + (" with sway_compensation" if args.sway_compensation else "")
+        else f"traced on the simulated {args.desk} desk" + _sway_label(args.sway_compensation)
     )
     print(
         f"Stroke accuracy, {args.per_shape} strokes per shape × {len(SHAPES)} shapes, {how}; "
@@ -590,7 +602,7 @@ def main() -> None:
         f"(`python scripts/stroke_accuracy.py --per-shape {args.per_shape} --seed {args.seed}"
         f"{' --synthetic' if args.synthetic else ''}"
         f"{f' --desk {args.desk}' if args.desk != 'kitamura2017' else ''}"
-        f"{' --sway-compensation' if args.sway_compensation else ''}"
+        f"{_sway_flag(args.sway_compensation)}"
         f"`, {time.perf_counter() - started:.0f} s)\n"
     )
     print(

@@ -309,8 +309,12 @@ def main() -> None:
     )
     parser.add_argument(
         "--sway-compensation",
-        action="store_true",
-        help="every desk with estimation.sway_compensation on (the legs as the accelerometer)",
+        choices=("on", "off", "auto"),
+        nargs="?",
+        const="on",
+        default="auto",
+        help="estimation.sway_compensation (the legs as the accelerometer) on every desk; "
+        "auto: each profile's (on for `fused` without an accelerometer)",
     )
     parser.add_argument(
         "--noise",
@@ -338,8 +342,8 @@ def main() -> None:
     for label, desk in desks(args.desk).items():
         if args.max_sigma is not None:
             desk = desk.with_estimation(max_sigma_m=args.max_sigma / 1000)
-        if args.sway_compensation:
-            desk = desk.with_estimation(sway_compensation=True)
+        if args.sway_compensation != "auto":
+            desk = desk.with_estimation(sway_compensation=args.sway_compensation == "on")
         started = time.monotonic()
         layout = buttons(desk, args.snap)
         sensors = None

@@ -64,9 +64,9 @@ COMPENSATIONS = {
 def drag_errors(profile: DeskProfile, rec: Recording, how: str) -> tuple[np.ndarray, ...]:
     """Errors (m) of the located samples in true contact: against the truth, and against the
     truth one low-pass delay earlier. ``how``, one of COMPENSATIONS: ``"accelerometer"`` with
-    its readings, ``"legs"`` with ``estimation.sway_compensation`` instead (no readings)."""
-    if how == "legs":
-        profile = profile.with_estimation(sway_compensation=True)
+    its readings, ``"legs"`` with ``estimation.sway_compensation`` instead (no readings),
+    ``"none"`` with neither."""
+    profile = profile.with_estimation(sway_compensation=how == "legs")
     est = ContactEstimator(profile)
     accel = accelerometer_readings(profile, rec.extra) if how == "accelerometer" else None
     block = est.push(rec.t, rec.wrench, accel)

@@ -78,6 +78,9 @@ def drawings(rng: np.random.Generator, per_shape: int, with_others: bool, style:
     return [items[i] for i in order]
 
 
+STROKES_A_SESSION = 200  # strokes a simulated session: bounds the memory of one recording
+
+
 def simulate_strokes(items, seed: int, desk_name: str = "kitamura2017", sway: str = "auto"):
     """Simulate the strokes (label, path, speed[, times]) one after the other on the paper's
     desk (or ``desk_name``: kitamura2017-accel compensates its sway with an accelerometer;
@@ -130,8 +133,14 @@ def capture_strokes(desk, rec, contacts, count: int) -> list[np.ndarray | None]:
 def trace_on_desk(
     items, seed: int, desk_name: str = "kitamura2017", sway: str = "auto"
 ) -> list[np.ndarray | None]:
-    """Simulate the strokes one after the other, estimate, capture: one path per stroke."""
-    return capture_strokes(*simulate_strokes(items, seed, desk_name, sway), len(items))
+    """Simulate the strokes one after the other, estimate, capture: one path per stroke. In
+    sessions of STROKES_A_SESSION (seeds ``seed`` + the first stroke's index): a simulated
+    recording is bounded (``simulate`` refuses one over 2 million samples)."""
+    paths: list[np.ndarray | None] = []
+    for lo in range(0, len(items), STROKES_A_SESSION):
+        part = items[lo : lo + STROKES_A_SESSION]
+        paths += capture_strokes(*simulate_strokes(part, seed + lo, desk_name, sway), len(part))
+    return paths
 
 
 def trace_synthetic(items, seed: int) -> list[np.ndarray]:
@@ -404,11 +413,8 @@ def run_human_speed(
     enrol, test = human_speed_items(folder, test_reps, seed)
     if not test:
         raise SystemExit(f"no $1 logs (*.xml) under {folder}")
-    paths: list[np.ndarray | None] = []
     items = enrol + test
-    chunk = 200  # strokes a simulated session: bounds the memory of one recording
-    for lo in range(0, len(items), chunk):
-        paths += trace_on_desk(items[lo : lo + chunk], seed + lo, desk_name, sway)
+    paths = trace_on_desk(items, seed, desk_name, sway)
     captured = {lab: p for (lab, *_), p in zip(items, paths, strict=True)}
     builtin = template_set()
     own: dict[tuple[str, str, int], TemplateSet] = {}

@@ -104,11 +104,14 @@ def plot_pareto(rows: list[dict[str, Any]], path: Path) -> None:
                 where="post",
                 color="black",
                 lw=1.0,
-                label="Pareto front",
                 zorder=2,
             )
         ax.set_yscale("log")
-        ax.yaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+        shown = [e for e in err if e is not None and e > 0]
+        # within one decade 1-2-5 leaves a single labelled tick: label more of them there
+        narrow = bool(shown) and max(shown) < 10 * min(shown)
+        subs = (1.0, 1.5, 2.0, 3.0, 5.0, 7.0) if narrow else (1.0, 2.0, 5.0)
+        ax.yaxis.set_major_locator(LogLocator(base=10, subs=subs))
         ax.yaxis.set_major_formatter(plain)
         ax.yaxis.set_minor_formatter(FuncFormatter(lambda v, _: ""))
         ax.xaxis.set_major_formatter(plain)
@@ -116,12 +119,13 @@ def plot_pareto(rows: list[dict[str, Any]], path: Path) -> None:
         ax.set_ylabel("error p95 (mm)")
         ax.set_title(title, fontsize=10)
         ax.grid(alpha=0.3, which="both")
-        if n == 0:
-            for method, colour in colours.items():
-                ax.scatter([], [], color=colour, label=method)
-            ax.legend(fontsize=8, loc="upper right")
     key_ax = fig.add_subplot(grid[0, -1])
     key_ax.axis("off")
+    # the colours' legend beside the numbered key, off the data (on a panel it hid points)
+    for method, colour in colours.items():
+        key_ax.scatter([], [], color=colour, label=method)
+    key_ax.plot([], [], color="black", lw=1.0, label="Pareto front")
+    key_ax.legend(fontsize=8, loc="lower left", title="method", title_fontsize=8)
     key_ax.text(
         0,
         1,

@@ -34,7 +34,12 @@ from typing import Any
 import numpy as np
 import touch_release_eval as tre  # (scripts beside this one)
 import vibration_eval as ve
-from tap_accuracy import UNSEEN_DESKS, unseen_desk
+from tap_accuracy import (
+    UNSEEN_DESKS,
+    add_sway_compensation_option,
+    unseen_desk,
+    with_sway_compensation,
+)
 
 from hapticdesk.estimator import ContactEstimator
 from hapticdesk.estimator.inertia import accelerometer_readings
@@ -178,23 +183,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=4)
     parser.add_argument("--long-press", action="store_true", help="objects and fingers on a button")
-    parser.add_argument(
-        "--sway-compensation",
-        choices=("on", "off", "auto"),
-        nargs="?",
-        const="on",
-        default="auto",
-        help="estimation.sway_compensation (the legs as the accelerometer) on every desk; "
-        "auto: each profile's (on for `fused` without an accelerometer)",
-    )
+    add_sway_compensation_option(parser, "every desk")
     args = parser.parse_args()
 
     def desks_as_asked(folder: Path) -> dict[str, DeskProfile]:
-        found = desks(folder)
-        if args.sway_compensation == "auto":
-            return found
-        on = args.sway_compensation == "on"
-        return {name: d.with_estimation(sway_compensation=on) for name, d in found.items()}
+        found = desks(folder).items()
+        return {name: with_sway_compensation(d, args.sway_compensation) for name, d in found}
 
     started = time.perf_counter()
     if args.long_press:

@@ -29,6 +29,7 @@ from collections import Counter
 from functools import partial
 
 import numpy as np
+from tap_accuracy import add_sway_compensation_option, with_sway_compensation  # (beside this)
 
 from hapticdesk.gestures.options import GESTURE_OPTIONS
 from hapticdesk.gestures.strokes.shapes import SHAPES, hand_drawn, normalised, resample
@@ -84,17 +85,14 @@ STROKES_A_SESSION = 200  # strokes a simulated session: bounds the memory of one
 def simulate_strokes(items, seed: int, desk_name: str = "kitamura2017", sway: str = "auto"):
     """Simulate the strokes (label, path, speed[, times]) one after the other on the paper's
     desk (or ``desk_name``: kitamura2017-accel compensates its sway with an accelerometer;
-    ``sway``: the estimation setting ``sway_compensation``, "on", "off" or "auto", the
-    profile's) and estimate: (desk,
-    recording, contacts)."""
+    ``sway``: ``--sway-compensation``'s choice, on, off or auto, the profile's) and estimate:
+    (desk, recording, contacts)."""
 
     from hapticdesk.estimator import estimate
     from hapticdesk.files.profile import load_profile
     from hapticdesk.sim import Idle, Scene, Stroke, simulate
 
-    desk = load_profile(desk_name)
-    if sway != "auto":
-        desk = desk.with_estimation(sway_compensation=sway == "on")
+    desk = with_sway_compensation(load_profile(desk_name), sway)
     rng = np.random.default_rng(seed)
     actions: list = []
     for i, (_, path, speed, *timed) in enumerate(items):
@@ -539,15 +537,7 @@ def main() -> None:
     parser.add_argument("--per-shape", type=int, default=20, help="test strokes per shape")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--desk", default="kitamura2017", help="the simulated desk's profile")
-    parser.add_argument(
-        "--sway-compensation",
-        choices=("on", "off", "auto"),
-        nargs="?",
-        const="on",
-        default="auto",
-        help="estimation.sway_compensation (the legs as the accelerometer) on the desk; auto: "
-        "the profile's (on for `fused` without an accelerometer)",
-    )
+    add_sway_compensation_option(parser, "the desk")
     parser.add_argument("--synthetic", action="store_true", help="noisy paths, no simulator")
     parser.add_argument("--quick", action="store_true", help="skip the user-template rows")
     parser.add_argument("--dollar", metavar="DIR", help="real people: the $1 XML logs under DIR")

@@ -294,6 +294,32 @@ def desks(which: str) -> dict[str, DeskProfile]:
     return out
 
 
+#: ``--sway-compensation``'s choices: the estimation setting ``sway_compensation`` each sets
+SWAY_CHOICES = {"on": True, "off": False, "auto": None}
+
+
+def add_sway_compensation_option(parser: argparse.ArgumentParser, where: str) -> None:
+    """``--sway-compensation [on|off|auto]`` (bare: on; default auto, the profile's) for the
+    desks ``where`` names; :func:`with_sway_compensation` applies it. (Shared by the scripts
+    that measure with and without it.)"""
+    parser.add_argument(
+        "--sway-compensation",
+        choices=tuple(SWAY_CHOICES),
+        nargs="?",
+        const="on",
+        default="auto",
+        help=f"estimation.sway_compensation (the legs as the accelerometer) on {where}; auto: "
+        "the profile's (on for `fused` without an accelerometer)",
+    )
+
+
+def with_sway_compensation(desk: DeskProfile, choice: str) -> DeskProfile:
+    """``desk`` with ``--sway-compensation``'s ``choice``; ``auto`` leaves the profile's."""
+    return (
+        desk if choice == "auto" else desk.with_estimation(sway_compensation=SWAY_CHOICES[choice])
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--taps", type=int, default=1000, help="taps per desk (default 1000)")
@@ -307,15 +333,7 @@ def main() -> None:
         metavar="MM",
         help="the estimator's `max_sigma_m` on every desk (default: the profile's, 8 mm)",
     )
-    parser.add_argument(
-        "--sway-compensation",
-        choices=("on", "off", "auto"),
-        nargs="?",
-        const="on",
-        default="auto",
-        help="estimation.sway_compensation (the legs as the accelerometer) on every desk; "
-        "auto: each profile's (on for `fused` without an accelerometer)",
-    )
+    add_sway_compensation_option(parser, "every desk")
     parser.add_argument(
         "--noise",
         type=float,
@@ -342,8 +360,7 @@ def main() -> None:
     for label, desk in desks(args.desk).items():
         if args.max_sigma is not None:
             desk = desk.with_estimation(max_sigma_m=args.max_sigma / 1000)
-        if args.sway_compensation != "auto":
-            desk = desk.with_estimation(sway_compensation=args.sway_compensation == "on")
+        desk = with_sway_compensation(desk, args.sway_compensation)
         started = time.monotonic()
         layout = buttons(desk, args.snap)
         sensors = None

@@ -58,14 +58,6 @@ def _cell(row: dict[str, Any], key: str, fmt: str) -> str:
     return MISS if located is not None else "—"
 
 
-def _narrow_ticks(lo: float, hi: float) -> list[float]:
-    """Plain, evenly spaced tick values (1, 2, 2.5 or 5 times a power of ten apart) over
-    ``lo``..``hi``, for a logarithmic axis that spans less than a decade."""
-    from matplotlib.ticker import MaxNLocator
-
-    return [float(v) for v in MaxNLocator(nbins=6, steps=[1, 2, 2.5, 5, 10]).tick_values(lo, hi)]
-
-
 def plot_pareto(rows: list[dict[str, Any]], path: Path) -> None:
     """Error at equal coverage against µs per sample (single-sample streaming), the Pareto
     front marked. Points carry numbers, explained in a key beside the panels, so labels
@@ -74,7 +66,7 @@ def plot_pareto(rows: list[dict[str, Any]], path: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.ticker import FixedLocator, FuncFormatter, LogLocator
+    from matplotlib.ticker import FixedLocator, FuncFormatter, LogLocator, MaxNLocator
 
     colours = {
         "force": "tab:blue",
@@ -116,9 +108,12 @@ def plot_pareto(rows: list[dict[str, Any]], path: Path) -> None:
             )
         ax.set_yscale("log")
         shown = [e for e in err if e is not None and e > 0]
-        if shown and max(shown) < 10 * min(shown) and min(shown) > 0:
-            # within one decade 1-2-5 leaves a single labelled tick: name more of them there
-            ax.yaxis.set_major_locator(FixedLocator(_narrow_ticks(min(shown), max(shown))))
+        if shown and max(shown) < 10 * min(shown):
+            # within one decade 1-2-5 leaves a single labelled tick: evenly spaced plain ones
+            even = MaxNLocator(nbins=6, steps=[1, 2, 2.5, 5, 10]).tick_values(
+                min(shown), max(shown)
+            )
+            ax.yaxis.set_major_locator(FixedLocator(even))
         else:
             ax.yaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
         ax.yaxis.set_major_formatter(plain)

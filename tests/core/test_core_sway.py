@@ -17,7 +17,9 @@ from hapticdesk.estimator.sway import SwaySettings
 from hapticdesk.files.profile import DeskProfile, load_profile
 from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.sim import simulate
-from hapticdesk.sim.scene import load_scene
+from hapticdesk.sim.actions import Idle
+from hapticdesk.sim.scene import Scene, load_scene
+from hapticdesk.sim.sensors import SensorParameters
 
 SCENES = Path(__file__).resolve().parents[2] / "examples" / "scenes"
 
@@ -188,10 +190,6 @@ def test_the_idle_compensated_desk_still_follows_its_drift(noise_n):
     spread tripled (0.03 -> 0.09 N) and at twice the paper's noise no window stayed under
     `still_n`, so the zero was set at the tare and never again (2 zero updates in 30 s).
     Judged on 20 ms means, the compensated desk follows its drift as often as the plain one."""
-    from hapticdesk.sim.actions import Idle
-    from hapticdesk.sim.scene import Scene
-    from hapticdesk.sim.sensors import SensorParameters
-
     desk = load_profile("kitamura2017")
     rec = simulate(
         desk,

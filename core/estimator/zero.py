@@ -55,6 +55,11 @@ HEAVY_SPREAD_SHARE = 0.003
 # one window of the run may spread up to this many times the limit (the desk's own noise now
 # and then) while the run's median spread is within it
 OBJECT_SPIKE = 1.3
+# once a load rests (its means within the allowed wander), it rests on until they stray this
+# many times the allowed wander (or a window is not still): on seven desks a 0.3 kg cup's
+# means strayed up to 1.46 times it before the verdict (a long press fired on 5 of 42 cups),
+# a finger's mostly far past it within a few windows
+OBJECT_RESTING_KEEP = 1.6
 # a load lighter than this (about half a kilogram) may be a finger resting lightly, which can
 # be as still as a cup for 0.6 s: it waits one window more. On the seven desks (12 seeds):
 # fingers held still at 2.6–4 N taken for an object 13 of 168 -> 4, objects of 0.15–0.3 kg
@@ -358,9 +363,14 @@ class ZeroStage:
         del st.object_windows[:-wait]
         wander = _wander([window for _, window in st.object_windows])
         allowed = max(OBJECT_WANDER_FACTOR * st.quiet_wander, HEAVY_WANDER_SHARE * load)
-        st.object_resting = wander < allowed  # (a load that strays is no object, for now)
+        still = wander < allowed  # (a load that strays is no object, for now)
+        # the resting flag, once up in this run, drops only past OBJECT_RESTING_KEEP times the
+        # allowed wander: a cup's means can stray just over it for a window or two while its
+        # landing rings out, and a hold would fire on that one window
+        keep = OBJECT_RESTING_KEEP if st.object_resting and st.object_run > 1 else 1.0
+        st.object_resting = wander < keep * allowed
         spreads = sorted(window_spread for window_spread, _ in st.object_windows)
-        return st.object_resting and st.object_run >= wait and spreads[len(spreads) // 2] < limit
+        return still and st.object_run >= wait and spreads[len(spreads) // 2] < limit
 
     def _idle_window(self, spread: float, mean: list[float], index: int) -> None:
         """One more window of the idle desk (``index``: its number, see ``window_index``):

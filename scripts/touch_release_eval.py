@@ -242,7 +242,8 @@ def p95_mm(errors_m: np.ndarray) -> float | str:
     """The p95 in mm, a miss counting as infinite ("miss" when over 5 % are missed)."""
     if len(errors_m) == 0:
         return "n/a"
-    value = float(np.percentile(np.where(np.isfinite(errors_m), errors_m * 1e3, np.inf), 95))
+    with np.errstate(invalid="ignore"):  # (between two misses: inf - inf, a miss all the same)
+        value = float(np.percentile(np.where(np.isfinite(errors_m), errors_m * 1e3, np.inf), 95))
     return round(value, 2) if np.isfinite(value) else "miss"
 
 

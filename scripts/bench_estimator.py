@@ -14,6 +14,10 @@ contact: the worst case) or ``--scene day`` ordinary use (about a tenth in conta
    sample must go through in this design before anything is detected or located: the wrench
    map and the estimator's own filter bank (:class:`FilterBank`, the method's filters) in
    the same pieces as a push; ``floor × ref`` bounds what the method's ``× ref`` can reach.
+   ``ref floor`` is the reference's own share of that: its map, tare and two filters
+   (``reference_filtered``), which any implementation of the paper's method must compute;
+   the last line says how it compares with half the reference's time (a method twice as
+   fast as the reference must finish in that half).
 2. A long batch (``--samples``, 2 million by default: the recording repeated), medians of
    ``--batch-repeats`` runs; ``--samples 0`` skips it.
 3. Streaming: 10 s after the tare pushed one sample at a time and in blocks of 12, each push
@@ -61,7 +65,11 @@ from hapticdesk.files.profile import METHODS, DeskProfile, load_profile  # noqa:
 from hapticdesk.sim import simulate  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from reference_paper import REFERENCE_METHODS, reference_contacts  # noqa: E402
+from reference_paper import (  # noqa: E402
+    REFERENCE_METHODS,
+    reference_contacts,
+    reference_filtered,
+)
 
 MINUTE_S = 60.0
 STREAM_S = 10.0
@@ -105,6 +113,7 @@ def side_by_side(
         jobs[method] = lambda m=method: ContactEstimator(desk, method=m)
     for method in REFERENCE_METHODS:
         jobs[f"ref:{method}"] = lambda m=method: reference_contacts(desk, t, wrench, m)
+    jobs["ref:floor"] = lambda: reference_filtered(desk, wrench)
     for method in METHODS:
         settings = ContactEstimator(desk, method=method).stage_settings  # (not on the clock)
         jobs[f"floor:{method}"] = lambda s=settings: floor(s, t, wrench)
@@ -246,6 +255,7 @@ def main() -> None:
         "cpus_used": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else None,
         "load_average": os.getloadavg() if hasattr(os, "getloadavg") else None,
         "methods": rows,
+        "reference_floor_minute_ms": round(times["ref:floor"]["median_s"] * 1e3, 1),
     }
     if args.json:
         print(json.dumps(info, indent=1))
@@ -282,6 +292,14 @@ def main() -> None:
     print(
         "(ref: scripts/reference_paper.py, the same method; for `fused` its `switched`. "
         "floor: the wrench map and the method's filter bank alone)"
+    )
+    ref_floor = info["reference_floor_minute_ms"]
+    fastest_ref = min(r["reference_minute_ms"] for r in rows)
+    print(
+        f"ref floor: the reference's own map, tare and two filters, {ref_floor} ms of its "
+        f"{fastest_ref}-{max(r['reference_minute_ms'] for r in rows)} ms "
+        f"({ref_floor / fastest_ref:.0%} of the fastest); twice as fast as the reference "
+        f"means under {fastest_ref / 2:.1f} ms"
     )
 
 

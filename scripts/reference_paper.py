@@ -74,15 +74,23 @@ def _on_top(
     return x, y, inside
 
 
-def reference_contacts(
-    profile: DeskProfile, t: np.ndarray, wrench: np.ndarray, method: str = "switched"
-) -> ReferenceContacts:
-    """Contacts by the paper's method for a whole recording: ``t`` (k,), ``wrench`` (k, S, 6)."""
-    if method not in REFERENCE_METHODS:
-        raise ValueError(f"method must be one of {', '.join(REFERENCE_METHODS)}, not {method!r}")
+@dataclass(frozen=True)
+class ReferenceFiltered:
+    """Steps 1–4 for a whole recording ((k, 6) arrays of [F_o; M_o])."""
+
+    wrench_f: np.ndarray  # low-passed, tared
+    wrench_d: np.ndarray  # pseudo-differentiated, low-passed
+    n_tare: int  # samples of the tare
+
+
+def reference_filtered(profile: DeskProfile, wrench: np.ndarray) -> ReferenceFiltered:
+    """Steps 1–4: the map, the tare, the low-pass and the differentiated force for a whole
+    recording ``wrench`` (k, S, 6). What every method of the paper must compute before it
+    locates anything: ``scripts/bench_estimator.py`` times it apart as the reference's own
+    floor."""
     s = profile.estimation
     fs = profile.sample_rate_hz
-    k = len(t)
+    k = len(wrench)
 
     # paper eqs. (1)–(4): [F_o; M_o] = A · w for every sample at once
     w = wrench.reshape(k, -1) @ profile.wrench_map().T  # (k, 6)
@@ -99,6 +107,19 @@ def reference_contacts(
     past = np.concatenate([np.repeat(w[:1], n, axis=0), w[:-n]])
     sos_d = signal.butter(2, s.diff_lowpass_hz, fs=fs, output="sos")
     wrench_d = signal.sosfilt(sos_d, (w - past) * (fs / n), axis=0)
+    return ReferenceFiltered(wrench_f, wrench_d, n_tare)
+
+
+def reference_contacts(
+    profile: DeskProfile, t: np.ndarray, wrench: np.ndarray, method: str = "switched"
+) -> ReferenceContacts:
+    """Contacts by the paper's method for a whole recording: ``t`` (k,), ``wrench`` (k, S, 6)."""
+    if method not in REFERENCE_METHODS:
+        raise ValueError(f"method must be one of {', '.join(REFERENCE_METHODS)}, not {method!r}")
+    s = profile.estimation
+    k = len(t)
+    filtered = reference_filtered(profile, wrench)
+    wrench_f, wrench_d, n_tare = filtered.wrench_f, filtered.wrench_d, filtered.n_tare
 
     force = np.linalg.norm(wrench_f[:, :3], axis=1)
     contact = (force >= s.contact_force_n) & (np.arange(k) >= n_tare)  # Fig. 3, step 4

@@ -141,9 +141,12 @@ def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     command = next((a for a in argv if not a.startswith("-")), None)
     # known before the arguments are parsed (building the parser can fail too), and taken
-    # wherever it is given: before or after the command's own arguments
-    debug = "--debug" in argv or os.environ.get(DEBUG_VARIABLE, "") not in ("", "0")
-    argv = [a for a in argv if a != "--debug"]
+    # wherever it is given: before or after the command's own arguments, but not after
+    # "--", where everything is an argument (a file may be called --debug)
+    options_end = argv.index("--") if "--" in argv else len(argv)
+    given = "--debug" in argv[:options_end]
+    debug = given or os.environ.get(DEBUG_VARIABLE, "") not in ("", "0")
+    argv = [a for i, a in enumerate(argv) if i >= options_end or a != "--debug"]
     try:
         return _main(argv, command, debug)
     except KeyboardInterrupt:

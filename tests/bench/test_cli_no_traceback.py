@@ -175,3 +175,22 @@ def test_a_real_run_prints_no_traceback(tmp_path):
     assert done.returncode == 2
     expected = f"hapticdesk contacts: error: {folder}: cannot write: it is a folder; expected a"
     assert done.stderr == expected + " file name\n"
+
+
+def test_after_a_double_dash_debug_is_a_file_name(monkeypatch, capsys):
+    """``--`` ends the options: a recording called ``--debug`` is read as one (and said
+    missing), not taken for the flag."""
+    monkeypatch.delenv("HAPTICDESK_DEBUG", raising=False)
+    assert main(["contacts", "--desk", "kitamura2017", "--", "--debug"]) == 2
+    err = capsys.readouterr().err
+    assert "--debug: cannot read the recording: No such file or directory" in err
+
+
+def test_a_missing_recording_is_said_missing_whatever_its_name(capsys, tmp_path):
+    """Without a recording suffix a file is read as a CAN log: missing, it is said missing,
+    not taken for a log the desk's profile (no ``can:`` section) cannot decode."""
+    missing = tmp_path / "session"
+    assert main(["contacts", "--desk", "kitamura2017", str(missing)]) == 2
+    assert f"{missing}: cannot read the recording: No such file or directory" in (
+        capsys.readouterr().err
+    )

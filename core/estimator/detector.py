@@ -8,7 +8,12 @@ true force, so the true force is about ``|F| + slope · det_delay_s``; without t
 release (20 N/s) took 25 ms to fall through the hysteresis. Only a steep fall
 is extrapolated (``release_slope_n_s``, 10 N/s by default: the slope over 20 ms of a held press
 — tremor 1.5 %, wander 3 %, noise — stays under 3 N/s; the slowest releases of the human model
-fall at about 20 N/s), so a steady hold is never released. The phase of a contact (touch, hold,
+fall at about 20 N/s), so a steady hold is never released. A contact that ends while the fast
+force is still above the release level (a predicted release, or a force turning away from the
+surface) re-arms only once the force has fallen below that level: until then a new touch-down
+needs ``contact_force_n`` plus the hysteresis (see ``TouchDetector.blocked``; a light tap whose
+force flattened at 2.0 N right after its predicted release touched down again for 10 ms and
+its button fired twice). The phase of a contact (touch, hold,
 release) follows the fast force's slope. :meth:`TouchDetector.process` is the block path;
 :meth:`TouchDetector.process_one` the same for one sample on plain floats, with the decision
 (:func:`contact_decision`) and the phase (:func:`phase_of`) written once for both.
@@ -123,6 +128,9 @@ class TouchDetector:
     def __init__(self, settings: EstimatorSettings) -> None:
         self.settings = settings
         self.in_contact = False
+        # a contact ended above the release level and the force has not fallen below it
+        # since: a touch-down needs the hysteresis on top of contact_force_n (module doc)
+        self.blocked = False
         normals = settings.normals
         self.upright = np.flatnonzero(np.abs(normals[:, 2]) < UPRIGHT_MAX_NZ)
         self.guarded = bool(len(self.upright))  # (a plain bool for the single-sample path)
@@ -165,8 +173,33 @@ class TouchDetector:
         if tared is not None:
             above &= tared
             below |= ~tared
-        in_contact = hysteresis(above, below, self.in_contact)
+        in_contact = self._rearmed(above, below, f_det_mag)
         self.in_contact = bool(in_contact[-1])
+        return in_contact
+
+    def _rearmed(self, above: np.ndarray, below: np.ndarray, mag: np.ndarray) -> np.ndarray:
+        """In contact (k,) from the touch-downs ``above`` and releases ``below``, where a
+        touch-down after a contact that ended above the release level needs the hysteresis
+        on top until the force has fallen below that level (module doc). Per sample, as
+        :meth:`process_one`: re-armed when |F| is below the release level, then the touch-down
+        judged, then blocked after a contact that ended at or above it. Early ends are rare
+        (a few a minute), so the vectorised switch is run again once per new one found."""
+        s = self.settings.user
+        low = s.contact_force_n - s.release_hysteresis_n
+        rearm = mag < low
+        weak = mag < s.contact_force_n + s.release_hysteresis_n
+        state, blocked_before = self.in_contact, self.blocked
+        early = np.zeros(len(mag), bool)
+        for _ in range(len(mag) + 1):  # (ends after a few rounds: one per early end)
+            starts = np.concatenate(([False], early[:-1]))  # blocked from the next sample
+            blocked = hysteresis(starts & ~rearm, rearm, blocked_before)
+            in_contact = hysteresis(above & ~(blocked & weak), below, state)
+            before = np.concatenate(([state], in_contact[:-1]))
+            now_early = before & ~in_contact & ~rearm
+            if np.array_equal(now_early, early):
+                break
+            early = now_early
+        self.blocked = bool(early[-1] or blocked[-1])
         return in_contact
 
     def process_one(
@@ -201,7 +234,15 @@ class TouchDetector:
         else:
             pressing = False
         above, below = contact_decision(pressing, mag, falling, s, holding)
-        self.in_contact = above or (self.in_contact and not below)
+        user = s.user
+        if mag < user.contact_force_n - user.release_hysteresis_n:
+            self.blocked = False
+        elif self.blocked and mag < user.contact_force_n + user.release_hysteresis_n:
+            above = False
+        was = self.in_contact
+        self.in_contact = above or (was and not below)
+        if was and not self.in_contact and mag >= user.contact_force_n - user.release_hysteresis_n:
+            self.blocked = True
         return self.in_contact, mag, slope
 
 

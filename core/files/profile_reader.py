@@ -45,6 +45,23 @@ MAX_SAMPLE_RATE_HZ = 100_000.0
 #: estimator's noise gains sum impulse responses of 8 × rate / cut-off samples (2 million)
 MIN_CUTOFF_PER_RATE = 4e-6
 #: the longest estimation windows, seconds (the paper's: 0.166 s, a 1 s tare, 5 s settle)
+#: physical bounds on `estimation` values that are not windows: beyond them a value is a
+#: typing mistake, and its square (a covariance) or inverse would overflow downstream
+MAX_ESTIMATION = {
+    "noise_force_n": 1e3,
+    "noise_moment_nm": 1e3,
+    "drift_force_n_per_min": 1e3,
+    "drift_moment_nm_per_min": 1e3,
+}
+#: a desk's mass (kg): a heavier one is a typing mistake (the simulator's modes overflow)
+MAX_DESK_MASS_KG = 1e4
+#: a desk's lowest natural frequency (Hz) at least this, and at most this share of the sample
+#: rate (its low-pass cut-off, 0.81 of it, must stay below the Nyquist frequency)
+MIN_NATURAL_HZ = 0.5
+#: a desk's principal moments of inertia (kg·m²): outside, a typing mistake (inverted, they
+#: overflow)
+MIN_INERTIA, MAX_INERTIA = 1e-6, 1e6
+MAX_NATURAL_SHARE = 0.4
 MAX_WINDOW_S = {
     "diff_window_s": 5.0,
     "tare_s": 60.0,
@@ -126,8 +143,18 @@ def read_profile(doc: MarkedDict, path: Path) -> DeskProfile:
     if "desk" in doc:
         desk = require_mapping(doc["desk"], doc.where("desk"), "`desk`")
         check_keys(desk, _DESK_KEYS, "`desk`")
-        mass = number(desk, "mass_kg", "`desk`", default=0.0, minimum=0.0) or None
+        mass = (
+            number(desk, "mass_kg", "`desk`", default=0.0, minimum=0.0, maximum=MAX_DESK_MASS_KG)
+            or None
+        )
         natural = number(desk, "natural_frequency_hz", "`desk`", default=0.0, minimum=0.0) or None
+        if natural is not None and not MIN_NATURAL_HZ <= natural <= MAX_NATURAL_SHARE * rate:
+            raise ConfigError(
+                desk.where("natural_frequency_hz"),
+                f"`natural_frequency_hz` of `desk` must be {MIN_NATURAL_HZ:g} to "
+                f"{MAX_NATURAL_SHARE * rate:g} Hz ({MAX_NATURAL_SHARE:g} of the sample rate, "
+                f"{rate:g} Hz) or 0 (not known), found {natural:g}",
+            )
         if "center_of_mass_m" in desk:
             com = np.array(
                 vector(
@@ -141,12 +168,15 @@ def read_profile(doc: MarkedDict, path: Path) -> DeskProfile:
             moments = vector(
                 desk["inertia_kg_m2"], desk.where("inertia_kg_m2"), "`inertia_kg_m2` of `desk`", 3
             )
-            if not is_body_inertia(moments):
+            if not is_body_inertia(moments) or not all(
+                MIN_INERTIA <= v <= MAX_INERTIA for v in moments
+            ):
                 raise ConfigError(
                     desk.where("inertia_kg_m2"),
                     "`inertia_kg_m2` of `desk` must be three positive principal moments of "
                     "inertia (kg·m², about the centre of mass along the desk's x, y, z), each "
-                    f"at most the sum of the other two (a body's are), found {moments}",
+                    f"at most the sum of the other two (a body's are) and {MIN_INERTIA:g} to "
+                    f"{MAX_INERTIA:g}, found {moments}",
                 )
             inertia = (moments[0], moments[1], moments[2])
     accelerometers = _accelerometers(doc)
@@ -418,7 +448,7 @@ def _estimation(item: Any, where: Any) -> EstimationSettings:
                 "`estimation`",
                 minimum=0.0,
                 exclusive_minimum=strict,
-                maximum=MAX_WINDOW_S.get(key),
+                maximum=MAX_WINDOW_S.get(key, MAX_ESTIMATION.get(key)),
             )
     settings = EstimationSettings(**values)
     if settings.min_normal_cos >= 1.0:

@@ -14,6 +14,11 @@ from collections.abc import Iterator
 from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.runtime.source import Source, WrenchBlock
 
+#: replay speeds (times real time) a person would ask for; beyond them a typing mistake
+MIN_SPEED, MAX_SPEED = 1e-3, 1e6
+#: one wait at most this long (s); a longer pause is waited in pieces
+LONGEST_WAIT_S = 60.0
+
 
 class Pacer:
     """Holds blocks back until their sample time has come: wall = start + (t - t0) / speed.
@@ -23,9 +28,11 @@ class Pacer:
     """
 
     def __init__(self, speed: float, stop: threading.Event) -> None:
-        if speed < 0:
+        if not (speed == 0 or MIN_SPEED <= speed <= MAX_SPEED):  # (NaN too)
             raise ConfigError(
-                "--speed", f"--speed must be 0 (as fast as possible) or more, found {speed:g}"
+                "--speed",
+                f"--speed must be 0 (as fast as possible) or {MIN_SPEED:g} to {MAX_SPEED:g} "
+                f"times real time, found {speed:g}",
             )
         self.speed = speed
         self._stop = stop
@@ -39,8 +46,10 @@ class Pacer:
         if self.speed == 0:
             return not self._stop.is_set()
         delay = self.wall_time(t) - time.perf_counter()
-        if delay > 0:
-            return not self._stop.wait(delay)
+        while delay > 0:  # in pieces: a wait longer than the clock can hold overflows
+            if self._stop.wait(min(delay, LONGEST_WAIT_S)):
+                return False
+            delay = self.wall_time(t) - time.perf_counter()
         return not self._stop.is_set()
 
     def wall_time(self, t: float) -> float:

@@ -305,7 +305,12 @@ class Runtime:
                 self._draw_status()
             self._draw_status(final=True)
             if self._events_out is not None:
-                self._events_out.close()
+                try:
+                    self._events_out.close()
+                except OSError as err:  # (what was left in its buffer: the disk is still full)
+                    self.report.error = self.report.error or (
+                        f"{self.events_path}: cannot write the events: {err.strerror or err}"
+                    )
             # queued commands get drain_timeout_s in all: first the actions' own queues, then
             # the shared connections they handed their messages to
             deadline = time.monotonic() + (0.0 if self._force else self.drain_timeout_s)
@@ -328,8 +333,12 @@ class Runtime:
             self._sense()
         except ConfigError as err:  # e.g. a bad line in a replayed file
             self.report.error = str(err)
-        except Exception as err:  # a bug: keep the trace for the log, still shut down cleanly
-            log.exception("sensing stopped by an internal error")
+        except OSError as err:  # e.g. the events file's disk is full
+            where = f"{err.filename}: " if err.filename else ""
+            self.report.error = f"{where}{err.strerror or err}"
+        except Exception as err:  # a bug: one line for the user, still shut down cleanly
+            log.error("sensing stopped by an internal error: %s: %s", type(err).__name__, err)
+            log.debug("the internal error's traceback", exc_info=True)  # (-vv shows it)
             self.report.error = f"internal error: {type(err).__name__}: {err}"
         finally:
             # what the source read and rejected (a CAN source's decode statistics)
@@ -380,8 +389,13 @@ class Runtime:
             return
         for event in events:
             if self._events_out is not None:
-                self._events_out.write(event.to_json() + "\n")
-                self._events_out.flush()
+                try:
+                    self._events_out.write(event.to_json() + "\n")
+                    self._events_out.flush()
+                except OSError as err:  # (a full disk: /dev/full, a quota)
+                    raise ConfigError(
+                        str(self.events_path), f"cannot write the events: {err.strerror or err}"
+                    ) from None
             self.scene.dispatcher.submit(event)
             self.report.gestures[event.gesture] += 1
             self.live.last_gesture = f"{event.action_name} at {event.t:.2f} s"

@@ -37,6 +37,17 @@ CONTACT_RATE_HZ = 50.0
 CLIENT_QUEUE = 500
 LOOPBACK = {"127.0.0.1", "localhost", "::1"}
 PHASES = ("", "touch", "hold", "release")
+#: the largest request body read (a layout, an edit, a stroke's points)
+MAX_BODY_BYTES = 1_000_000
+
+
+class BadRequest(Exception):
+    """A request the page would not send: answered with ``status`` and one error, no trace."""
+
+    def __init__(self, status: int, message: str) -> None:
+        super().__init__(message)
+        self.status = status
+        self.message = message
 
 
 def parse_listen(text: str) -> tuple[str, int]:
@@ -297,11 +308,37 @@ class UiServer:
             text = self.layout_path.read_text(encoding="utf-8")
             return PlainTextResponse(text, media_type="application/yaml")
 
+        async def body_bytes(request: Request) -> bytes:
+            """The request's body, refused (BadRequest, 413) past MAX_BODY_BYTES before more
+            is read: its declared length first, then as it streams in."""
+            declared = request.headers.get("content-length", "")
+            too_big = BadRequest(413, f"the request is larger than {MAX_BODY_BYTES:,} bytes")
+            if declared.isdigit() and int(declared) > MAX_BODY_BYTES:
+                raise too_big
+            data = bytearray()
+            async for chunk in request.stream():
+                data += chunk
+                if len(data) > MAX_BODY_BYTES:
+                    raise too_big
+            return bytes(data)
+
         async def body_text(request: Request) -> str:
-            data = await request.body()
-            if len(data) > 1_000_000:
-                raise ConfigError(None, "the layout is larger than 1 MB")
-            return data.decode("utf-8", errors="replace")
+            return (await body_bytes(request)).decode("utf-8", errors="replace")
+
+        async def json_object(request: Request) -> dict[str, Any]:
+            """The request's body as a JSON object (BadRequest, 400, for anything else)."""
+            try:
+                payload = json.loads(await body_bytes(request))
+            except (ValueError, RecursionError):  # (not JSON, not UTF-8, nested too deep)
+                payload = None
+            if not isinstance(payload, dict):
+                raise BadRequest(400, "the request's body must be a JSON object")
+            return payload
+
+        async def refuse_bad_request(request: Request, err: Exception) -> Response:
+            assert isinstance(err, BadRequest)
+            error = {"line": 0, "column": 0, "message": err.message}
+            return JSONResponse({"ok": False, "errors": [error]}, status_code=err.status)
 
         async def check(request: Request) -> Response:
             if not allowed(request):
@@ -346,11 +383,15 @@ class UiServer:
         async def edit(request: Request) -> Response:
             if not allowed(request):
                 return refused()
-            payload = await request.json()
+            payload = await json_object(request)
+            if not isinstance(payload.get("text", ""), str):
+                raise BadRequest(400, "`text` must be the layout's text")
             try:
                 text = apply_edit(payload.get("text", ""), payload)
             except ConfigError as err:
                 return JSONResponse({"ok": False, "errors": [error_of(err)]}, status_code=422)
+            except (TypeError, ValueError, AttributeError, KeyError, IndexError) as err:
+                raise BadRequest(400, f"not an edit the designer makes: {err}") from None
             return JSONResponse({"ok": True, "text": text})
 
         async def schema(request: Request) -> Response:
@@ -363,7 +404,7 @@ class UiServer:
         async def strokes(request: Request) -> Response:
             if not allowed(request):
                 return refused()
-            payload = await request.json()
+            payload = await json_object(request)
             layout_text = self.layout_path.read_text(encoding="utf-8")
             try:
                 result = await asyncio.to_thread(
@@ -378,7 +419,7 @@ class UiServer:
                 return refused()
             from hapticdesk.plugins.ui.setup_api import SetupSession
 
-            payload = await request.json()
+            payload = await json_object(request)
             points = payload.get("points")
             runtime = self.runtime
             problem = None
@@ -459,7 +500,11 @@ class UiServer:
             WebSocketRoute("/ws", ws),
             Mount("/static", StaticFiles(directory=STATIC), name="static"),
         ]
-        return Starlette(routes=routes, lifespan=lifespan)
+        return Starlette(
+            routes=routes,
+            lifespan=lifespan,
+            exception_handlers={BadRequest: refuse_bad_request},
+        )
 
     @property
     def registry(self) -> Any:

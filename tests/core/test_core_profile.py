@@ -114,3 +114,25 @@ def test_estimation_values_are_checked(tmp_path):
     path = write(tmp_path, GOOD + "estimation: {diff_window_s: -1}\n")
     with pytest.raises(ConfigError, match=r":17:.*must be > 0"):
         load_profile(path)
+
+
+@pytest.mark.parametrize(
+    ("extra", "needle"),
+    [
+        ("desk: {natural_frequency_hz: 1.0e-300}", "must be 0.5 to 400 Hz"),
+        ("desk: {natural_frequency_hz: 2999}", "must be 0.5 to 400 Hz"),
+        ("desk: {mass_kg: 1.0e+6}", "must be <= 10000"),
+        ("desk: {inertia_kg_m2: [1.0e-308, 1.0e-308, 1.0e-308]}", "1e-06 to 1e+06"),
+        ("estimation: {noise_force_n: 1.0e+160}", "must be <= 1000"),
+    ],
+)
+def test_values_no_desk_has_are_refused_where_they_stand(tmp_path, extra, needle):
+    """The fuzzing pass: these passed `check` and then failed deep inside (a division by
+    zero in the sway model, the simulator's modes, an eigendecomposition) as "an unexpected
+    error" with no place. Now the profile says where, and what a desk has."""
+    path = write(tmp_path, GOOD + extra + "\n")
+    with pytest.raises(ConfigError) as info:
+        load_profile(path)
+    text = str(info.value)
+    assert text.startswith(f"{path}:{GOOD.count(chr(10)) + 1}:"), text  # (the added line)
+    assert needle in text

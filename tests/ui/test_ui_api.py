@@ -161,3 +161,34 @@ def test_the_page_fetches_nothing_from_elsewhere() -> None:
         text = path.read_text()
         urls = re.findall(r"(?:https?:)?//[A-Za-z0-9.-]+\.[a-z]{2,}", text)
         assert urls in ([], ["http://www.w3.org"]), (path.name, urls)
+
+
+@pytest.mark.parametrize("route", ["/api/edit", "/api/strokes", "/api/setup/start"])
+@pytest.mark.parametrize("body", [b"x", b"[]", b"null", b"[" * 100_000, b"\xff\xfe"])
+def test_a_body_that_is_not_a_json_object_is_a_400_not_a_trace(
+    client: TestClient, route: str, body: bytes
+) -> None:
+    """The fuzzing pass's tracebacks: ``request.json()`` on such a body raised in the route
+    (HTTP 500 and a trace on the server's log); now one error, no trace."""
+    response = client.post(route, content=body)
+    assert response.status_code == 400
+    assert response.json()["errors"][0]["message"] == "the request's body must be a JSON object"
+
+
+def test_an_edit_of_the_wrong_shape_is_a_400(client: TestClient) -> None:
+    response = client.post("/api/edit", json={"op": "set_region", "name": "b", "shape": "rect",
+                                              "rect": 3, "text": ""})  # fmt: skip
+    assert response.status_code == 400
+    assert "not an edit the designer makes" in response.json()["errors"][0]["message"]
+    assert client.post("/api/edit", json={"text": []}).status_code == 400
+
+
+@pytest.mark.parametrize(("method", "route"), [("post", "/api/check"), ("put", "/api/layout")])
+def test_a_body_over_a_megabyte_is_refused_before_it_is_read(
+    client: TestClient, method: str, route: str
+) -> None:
+    """Over 1 MB: 413 with one error (it was a ConfigError outside any handler: a trace),
+    refused on its declared length before the body is read."""
+    response = getattr(client, method)(route, content=b"a: 1\n" * 250_000)
+    assert response.status_code == 413
+    assert "larger than 1,000,000 bytes" in response.json()["errors"][0]["message"]

@@ -14,6 +14,7 @@ strings are kept as written. jinja2 is imported only when a layout has a templat
 from __future__ import annotations
 
 import functools
+import json
 import math
 import re
 import time
@@ -193,9 +194,49 @@ def _width(value: Any) -> int:
     return len(value) if isinstance(value, str) else int(value)
 
 
-def _format_widths(text: Any) -> int:
-    """The sum of the field widths in a %-format string (``%99999s`` pads to 99999)."""
-    return sum(int(w) for w in re.findall(r"%[-+ #0]*(\d+)", str(text)))
+#: a %-conversion: an optional (key), flags, a width and a precision, each digits or `*`
+_CONVERSION = re.compile(r"%(?:\([^)]*\))?[-+ #0]*(\d+|\*)?(?:\.(\d+|\*))?")
+#: a width or precision of more digits than this is counted as this many characters (and
+#: refused): int() of thousands of digits is itself refused by Python
+_MAX_DIGITS = 9
+
+
+def _format_widths(text: Any, args: tuple[Any, ...]) -> int:
+    """An upper bound of the padding a %-format string adds: its field widths and
+    precisions (``%99999s`` pads to 99999, ``%.99999f`` prints 99999 decimals, ``%(a)9s``
+    too), and for a ``*`` (the width taken from the arguments) every integer argument."""
+    total, star = 0, False
+    for width, precision in _CONVERSION.findall(str(text)):
+        for part in (width, precision):
+            if part == "*":
+                star = True
+            elif part:
+                total += 10**_MAX_DIGITS if len(part) > _MAX_DIGITS else int(part)
+    if star:
+        total += sum(abs(a) for a in args if isinstance(a, int) and not isinstance(a, bool))
+    return total
+
+
+#: `tojson`'s indent at most this (a payload's JSON needs no more)
+MAX_JSON_INDENT = 16
+
+
+def _json_size(value: Any, indent: Any = None) -> int:
+    """An upper bound of ``tojson``'s result: refused past MAX_JSON_INDENT (an indent of
+    4·10⁸ spaces made gigabytes before the length was checked)."""
+    if indent is None:
+        spaces = 0
+    elif isinstance(indent, int) and not isinstance(indent, bool) and indent >= 0:
+        spaces = indent
+    elif isinstance(indent, str):
+        spaces = len(indent)
+    else:
+        spaces = MAX_JSON_INDENT + 1
+    if spaces > MAX_JSON_INDENT:
+        raise TemplateLimitError(f"a `tojson` indent over {MAX_JSON_INDENT} ({indent!r})")
+    text = json.dumps(value, default=str, separators=(",", ":"))
+    # each value on its own line, indented at most its depth (a payload's: a few) times
+    return len(text) * (2 + spaces * 8)
 
 
 # filter -> an upper bound of its result's length from its arguments, computed before any
@@ -205,7 +246,10 @@ _FILTER_SIZES: dict[str, Callable[..., int]] = {
     "center": lambda s, width=80: len(str(s)) + _width(width),
     "indent": lambda s, width=4, *_: len(str(s)) * (1 + _width(width)),
     "wordwrap": lambda _env, s, width=79, *_, **__: 2 * len(str(s)) + _width(width),
-    "format": lambda s, *args, **kw: len(str(s)) + len(str(args)) + _format_widths(s),
+    "format": lambda s, *args, **kw: (
+        len(str(s)) + len(str(args)) + len(str(kw)) + _format_widths(s, args)
+    ),
+    "tojson": lambda _ctx, value, indent=None: _json_size(value, indent),
     "replace": lambda _ctx, s, old, new, *_: len(str(s)) * max(1, len(str(new))) + len(str(new)),
 }
 

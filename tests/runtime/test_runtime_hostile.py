@@ -132,3 +132,26 @@ def test_each_rendering_has_a_budget_of_its_own(monkeypatch):
         5
     ):  # 15 turns each: a budget shared by the renderings would run out in the fourth
         assert template.render(SAMPLE_VARIABLES) == once
+
+
+@pytest.mark.parametrize(
+    ("text", "needle"),
+    [
+        ("{{ event | tojson(indent=4 * 10**8) }}", "a `tojson` indent over 16"),
+        ('{{ "%.999999999f" | format(1.5) }}', "the `format` filter would make"),
+        ('{{ "%*d" | format(300000000, 1) }}', "the `format` filter would make"),
+        ('{{ "%(a)900000000s" | format(a=1) }}', "the `format` filter would make"),
+        ('{{ "%' + "9" * 5000 + 's" | format(1) }}', "the `format` filter would make"),
+    ],
+    ids=["tojson-indent", "precision", "star-width", "keyed-width", "5000-digit-width"],
+)
+def test_a_filter_asked_for_gigabytes_is_refused_before_it_makes_them(text, needle):
+    """The fuzzing pass: `hapticdesk check` on a 250-byte layout took 11.9 GB and 52 s
+    (tojson's indent), 3.9 GB (a precision), about 1 GB (a `*` width, a keyed width): the
+    filters' cost check saw plain widths only."""
+    with pytest.raises(ConfigError, match="too costly to render") as info:
+        compile_template(text, "layout.yaml:4:62", "`payload` of `mqtt`")
+    assert needle in str(info.value)
+    ordinary = compile_template('{{ event | tojson(indent=2) }}{{ "%5.2f" | format(x) }}',
+                                "layout.yaml:1:1", "`payload`")  # fmt: skip
+    assert ordinary.render(SAMPLE_VARIABLES)

@@ -19,6 +19,7 @@ See docs/can.md for every key.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -294,6 +295,8 @@ def _load_database(section: MarkedDict, profile: DeskProfile) -> tuple[Path, Any
             f"{MAX_DATABASE_BYTES / 2**20:g} MiB is read (a desk's database is a few kB: keep "
             "its messages in a file of their own)",
         )
+    if path.suffix.lower() == ".dbc":
+        _check_dbc_sizes(path)
     import cantools  # lazily: only a desk on CAN needs it
 
     try:
@@ -303,6 +306,37 @@ def _load_database(section: MarkedDict, profile: DeskProfile) -> tuple[Path, Any
     if not hasattr(database, "get_message_by_name"):
         raise ConfigError(where, f"{path} is a diagnostics database, expected a CAN database")
     return path, database
+
+
+#: a DBC message's length in bytes at most this (a CAN FD frame's); cantools builds tables
+#: as long as the length it is told (BO_ … : 99999999 ran past a minute and 2.8 GB)
+MAX_FRAME_BYTES = 64
+#: signals in a DBC at most this many (2000 messages of 64 signals took cantools 25 s, 475 MB)
+MAX_DBC_SIGNALS = 10_000
+_DBC_MESSAGE = re.compile(r"^\s*BO_\s+\d+\s+\w+\s*:\s*(\d+)")
+_DBC_SIGNAL = re.compile(r"^\s*SG_\s")
+
+
+def _check_dbc_sizes(path: Path) -> None:
+    """Refuse, at its line, a DBC message longer than a CAN frame, and a DBC with more
+    signals than any desk has, before cantools builds them (file:line:column)."""
+    signals = 0
+    with path.open(encoding="utf-8", errors="replace") as lines:  # (size checked above)
+        for number, line in enumerate(lines, 1):
+            found = _DBC_MESSAGE.match(line)
+            if found and (len(found[1]) > 3 or int(found[1]) > MAX_FRAME_BYTES):
+                raise ConfigError(
+                    Position(str(path), number, found.start(1) + 1),
+                    f"message length {found[1]} bytes; a CAN frame carries at most "
+                    f"{MAX_FRAME_BYTES} (CAN FD)",
+                )
+            signals += bool(_DBC_SIGNAL.match(line))
+            if signals > MAX_DBC_SIGNALS:
+                raise ConfigError(
+                    Position(str(path), number, 1),
+                    f"more than {MAX_DBC_SIGNALS:,} signals: a desk's database has a few dozen "
+                    "(keep its messages in a file of their own)",
+                )
 
 
 def _load_failure(err: BaseException) -> str:

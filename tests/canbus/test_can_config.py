@@ -214,3 +214,32 @@ def test_ati_mistakes(profile_text):
 
 def test_a_bench_profile_has_one_sensor_and_no_surfaces(bench):
     assert len(bench.sensors) == 1 and not bench.surfaces
+
+
+@pytest.mark.parametrize(
+    ("change", "needle"),
+    [
+        ("message length", "a CAN frame carries at most 64"),
+        ("many signals", "more than 10,000 signals"),
+    ],
+)
+def test_a_database_cantools_would_build_for_minutes_is_refused_at_its_line(
+    profile_text, tmp_path, change, needle
+):
+    """The fuzzing pass: `BO_ 272 FL_FORCE: 99999999` ran cantools past a minute and 2.8 GB;
+    2,000 messages of 64 signals took 25 s and 475 MB. Refused first, at the DBC's line."""
+    dbc = (tmp_path / "kitamura2017.dbc").read_text()
+    if change == "message length":
+        bad = dbc.replace("BO_ 272 FL_FORCE: 8", "BO_ 272 FL_FORCE: 99999999", 1)
+    else:
+        signal = ' SG_ S{k} : 0|8@1+ (1,0) [0|255] "" Vector__XXX\n'
+        bad = dbc + "".join(
+            f"BO_ {4096 + m} M{m}: 8 Vector__XXX\n" + "".join(signal.format(k=k) for k in range(8))
+            for m in range(1300)
+        )
+    (tmp_path / "big.dbc").write_text(bad)
+    profile = profile_text(full_can().replace("kitamura2017.dbc", "big.dbc"))
+    with pytest.raises(ConfigError) as info:
+        can_config(profile)
+    assert re.match(r".*big\.dbc:\d+:\d+: ", str(info.value)), str(info.value)
+    assert needle in str(info.value)

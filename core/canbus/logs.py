@@ -133,6 +133,7 @@ def _python_can_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
     fmt = _suffix(path)
     mode = "rb" if fmt == ".blf" else "rt"
     batch: list[Any] = []
+    failure: ConfigError | None = None
     text: _BoundedLines | None = None  # (None also when opening the file fails)
     lines: _CanutilsLines | None = None
     try:
@@ -147,20 +148,24 @@ def _python_can_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
                 if len(batch) >= chunk_frames:
                     yield FrameArray.from_messages(batch)
                     batch = []
-    except ConfigError:
-        raise  # a line too long: already says where
+    except ConfigError as err:  # a line too long: already says where
+        failure = err
     except (ValueError, OSError, EOFError, KeyError, IndexError, can.CanError) as err:
         where = f"{path}:{text.number}" if text is not None else str(path)
-        raise ConfigError(where, f"not a readable {fmt} CAN log: {err}") from None
+        failure = ConfigError(where, f"not a readable {fmt} CAN log: {err}")
     except MemoryError:
         where = f"{path}:{text.number}" if text is not None else str(path)
-        raise ConfigError(
+        failure = ConfigError(
             where, f"not a readable {fmt} CAN log: it needs more memory than there is"
-        ) from None
+        )
     except Exception as err:  # BLF and gzip readers raise their own kinds on corrupt files
-        raise ConfigError(str(path), f"not a readable {fmt} CAN log: {err!r}") from None
+        failure = ConfigError(str(path), f"not a readable {fmt} CAN log: {err!r}")
+    # the frames read before a failure go on first: nothing already read is lost (a corrupt
+    # block near the end of a BLF file dropped every frame before it)
     if batch:
         yield FrameArray.from_messages(batch)
+    if failure is not None:
+        raise failure
     if lines is not None:
         _warn_skipped(path, lines.skipped, lines.n_skipped)
 

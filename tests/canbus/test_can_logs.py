@@ -185,3 +185,23 @@ def test_ati_capture_without_calibration(tmp_path, ati_log_frames):
         ConfigError, match=r"ATI sensor `fl` \(base 0x20\): the log lacks matrix row 0"
     ):
         read_can_log(path, profile)
+
+
+def test_frames_before_a_corrupt_end_are_not_lost(tmp_path, can_desk, dbc_log_frames):
+    """The fuzzing pass: a truncated ``.asc.gz`` (its gzip stream cut short) streamed
+    nothing of its good lines; the frames read before the error were held in a batch and
+    dropped with it. Now they are decoded first, then the error says where."""
+    _, _, frames = dbc_log_frames
+    whole = tmp_path / "desk.asc.gz"
+    write_frames(whole, [frames])
+    complete = read_can_log(whole, can_desk)
+    cut = tmp_path / "cut.asc.gz"
+    data = whole.read_bytes()
+    cut.write_bytes(data[: len(data) * 9 // 10])
+    got = []
+    with pytest.raises(ConfigError, match=r"cut\.asc\.gz"), open_can_log(cut, can_desk) as src:
+        for block in src.blocks():
+            got.append(block.t)
+    decoded = np.concatenate(got) if got else np.zeros(0)
+    assert len(decoded) > 0.5 * len(complete.t)  # (about nine tenths; none before)
+    np.testing.assert_array_equal(decoded, complete.t[: len(decoded)])

@@ -43,6 +43,9 @@ CHUNK_FRAMES = 50_000
 #: every format read here, so a longer line is not a frame (a corrupt or hostile file would
 #: otherwise be read whole into memory as one line)
 MAX_LINE_CHARS = 4096
+#: a text log whose first this many lines hold no frame is no CAN log (headers and comments
+#: are a few dozen lines)
+MAX_LINES_BEFORE_A_FRAME = 10_000
 #: how much of a ``.log`` file is looked at to tell candump ``-l`` from candump's printed text
 SNIFF_CHARS = 65_536
 # candump -l / python-can .log lines: "(1700000000.000000) can0 123#DEADBEEF"
@@ -144,6 +147,8 @@ def _python_can_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
             lines = _CanutilsLines(text) if fmt == ".log" and text is not None else None
             source = lines if lines is not None else text if text is not None else fh
             for msg in getattr(can, _READERS[fmt])(source):
+                if text is not None:
+                    text.framed = True
                 batch.append(msg)
                 if len(batch) >= chunk_frames:
                     yield FrameArray.from_messages(batch)
@@ -180,6 +185,7 @@ class _BoundedLines:
         self._fh = fh
         self._path = path
         self.number = 0
+        self.framed = False  # a frame was read (set by the reader's loop)
 
     def __iter__(self) -> Iterator[str]:
         return self
@@ -196,6 +202,14 @@ class _BoundedLines:
         if not line:
             return line
         self.number += 1
+        if self.number > MAX_LINES_BEFORE_A_FRAME and not self.framed:
+            # (a file of blank or junk lines was read to its end, minutes for 100 MB, before
+            # it said "no CAN frames found")
+            raise ConfigError(
+                f"{self._path}:{self.number}",
+                f"no CAN frame in its first {MAX_LINES_BEFORE_A_FRAME:,} lines: is this a CAN "
+                "log?",
+            )
         if len(line.rstrip("\r\n")) > limit:
             raise ConfigError(
                 f"{self._path}:{self.number}",
@@ -283,6 +297,7 @@ def _candump_text_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
                         if len(unknown_lines) < 3:
                             unknown_lines.append(number)
                     continue
+                lines.framed = True
                 stamp = frame.timestamp
                 if isinstance(stamp, datetime.timedelta):
                     relative = True

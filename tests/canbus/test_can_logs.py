@@ -205,3 +205,13 @@ def test_frames_before_a_corrupt_end_are_not_lost(tmp_path, can_desk, dbc_log_fr
     decoded = np.concatenate(got) if got else np.zeros(0)
     assert len(decoded) > 0.5 * len(complete.t)  # (about nine tenths; none before)
     np.testing.assert_array_equal(decoded, complete.t[: len(decoded)])
+
+
+@pytest.mark.parametrize("name", ["blank.log", "blank.txt", "blank.asc"])
+def test_a_text_log_of_no_frames_is_refused_after_its_first_lines(tmp_path, can_desk, name):
+    """The fuzzing pass: 100 MB of junk lines in a `.log` were read to the end (368 s)
+    before "no CAN frames found". Now the first 10,000 lines decide, wherever the file ends."""
+    path = tmp_path / name
+    path.write_text("x\n" * 200_000)
+    with pytest.raises(ConfigError, match=r":10001: no CAN frame in its first 10,000 lines"):
+        read_can_log(path, can_desk)

@@ -207,8 +207,7 @@ class _BoundedLines:
             # it said "no CAN frames found")
             raise ConfigError(
                 f"{self._path}:{self.number}",
-                f"no CAN frame in its first {MAX_LINES_BEFORE_A_FRAME:,} lines: is this a CAN "
-                "log?",
+                f"no CAN frame in its first {MAX_LINES_BEFORE_A_FRAME:,} lines: is this a CAN log?",
             )
         if len(line.rstrip("\r\n")) > limit:
             raise ConfigError(

@@ -115,6 +115,8 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
 
 #: set to 1 (or give --debug) to see an unexpected error's traceback instead of one line
 DEBUG_VARIABLE = "HAPTICDESK_DEBUG"
+#: what in it means off (anything else: on)
+OFF_WORDS = frozenset({"", "0", "false", "no", "off"})
 
 #: core commands that never touch an array: nothing to load numpy and scipy for
 NO_ARRAYS = frozenset({"plugins"})
@@ -145,7 +147,7 @@ def main(argv: list[str] | None = None) -> int:
     # "--", where everything is an argument (a file may be called --debug)
     options_end = argv.index("--") if "--" in argv else len(argv)
     given = "--debug" in argv[:options_end]
-    debug = given or os.environ.get(DEBUG_VARIABLE, "") not in ("", "0")
+    debug = given or os.environ.get(DEBUG_VARIABLE, "").strip().lower() not in OFF_WORDS
     argv = [a for i, a in enumerate(argv) if i >= options_end or a != "--debug"]
     try:
         return _main(argv, command, debug)

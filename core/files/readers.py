@@ -6,7 +6,7 @@ from pathlib import Path
 
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.recording import RECORDING_SUFFIXES, Recording, read_recording
-from hapticdesk.files.yamlfile import regular_file_size
+from hapticdesk.files.yamlfile import ConfigError, regular_file_size
 
 
 def read_any_recording(path: str | Path, profile: DeskProfile) -> Recording:
@@ -19,6 +19,13 @@ def read_any_recording(path: str | Path, profile: DeskProfile) -> Recording:
     regular_file_size(path, "the recording")
     if Path(path).suffix.lower() in RECORDING_SUFFIXES:
         return read_recording(path, profile.sensor_names)
-    from hapticdesk.canbus.logs import read_can_log  # a CAN log: imports python-can lazily
+    from hapticdesk.canbus.logs import is_can_log, read_can_log  # (python-can: lazily)
 
+    if profile.can is None and not is_can_log(path):
+        raise ConfigError(
+            str(path),
+            f"not a recording hapticdesk reads: expected {' or '.join(RECORDING_SUFFIXES)}, or "
+            "a CAN log (.asc, .blf, .log, .trc, candump text) with a desk profile that has a "
+            "`can:` section",
+        )
     return read_can_log(path, profile)

@@ -23,6 +23,8 @@ from hapticdesk.files.yamlfile import (
 )
 
 DEFAULT_QUEUE_SIZE = 1000
+#: the most messages a queue may hold (each a few hundred bytes: about 100 MB at most)
+MAX_QUEUE_SIZE = 1_000_000
 _MQTT_KEYS = {
     "broker",
     "username",
@@ -121,6 +123,8 @@ def parse_broker_url(url: str, where: Position | str) -> tuple[bool, str, int, s
         port = parts.port
     except ValueError:
         raise ConfigError(where, f"broker URL {url!r} has an invalid port") from None
+    if port == 0:  # (``or`` below would take it for no port at all)
+        raise ConfigError(where, f"broker URL {url!r} has port 0; expected 1 to 65535")
     tls = parts.scheme == "mqtts"
     return tls, parts.hostname, port or (8883 if tls else 1883), parts.username
 
@@ -207,7 +211,16 @@ def settings_from_layout(
         discovery_prefix=str(m.get("discovery_prefix", "homeassistant")).strip("/"),
         base_topic=str(m.get("base_topic", "hapticdesk")).strip("/"),
         prefix=str(m["prefix"]).strip("/") if "prefix" in m else None,
-        queue_size=int(number(m, "queue_size", "`mqtt`", default=DEFAULT_QUEUE_SIZE, minimum=1)),
+        queue_size=int(
+            number(
+                m,
+                "queue_size",
+                "`mqtt`",
+                default=DEFAULT_QUEUE_SIZE,
+                minimum=1,
+                maximum=MAX_QUEUE_SIZE,
+            )
+        ),
         protocol=_protocol(m),
         expiry_s=int(
             number(m, "expiry_s", "`mqtt`", default=DEFAULT_EXPIRY_S, minimum=0, maximum=2**32 - 1)
@@ -263,6 +276,10 @@ def _password(m: MarkedDict, relative_to: Path | None) -> str | None:
         except OSError as err:
             raise ConfigError(
                 m.where("password_file"), f"cannot read {path}: {err.strerror}"
+            ) from None
+        except UnicodeDecodeError:
+            raise ConfigError(
+                m.where("password_file"), f"{path} is not text (UTF-8): expected the password"
             ) from None
     return None
 

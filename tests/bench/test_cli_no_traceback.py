@@ -58,8 +58,9 @@ def test_debug_shows_the_traceback(failing, monkeypatch, capsys):
     monkeypatch.setenv("HAPTICDESK_DEBUG", "1")
     with pytest.raises(RuntimeError, match="boom"):
         main(["plugins"])
-    monkeypatch.setenv("HAPTICDESK_DEBUG", "0")
-    assert main(["plugins"]) == 1
+    for off in ("0", "false", "No", " off "):  # (false turned it on)
+        monkeypatch.setenv("HAPTICDESK_DEBUG", off)
+        assert main(["plugins"]) == 1
 
 
 def test_ctrl_c_stays_quiet(failing, capsys):
@@ -192,5 +193,16 @@ def test_a_missing_recording_is_said_missing_whatever_its_name(capsys, tmp_path)
     missing = tmp_path / "session"
     assert main(["contacts", "--desk", "kitamura2017", str(missing)]) == 2
     assert f"{missing}: cannot read the recording: No such file or directory" in (
+        capsys.readouterr().err
+    )
+
+
+def test_a_file_that_is_no_recording_is_said_so(capsys, tmp_path):
+    """A ``.npy`` (or any file not a recording nor a CAN log) for a desk without `can:` was
+    reported as the profile's missing `can:` section."""
+    array = tmp_path / "a.npy"
+    array.write_bytes(b"\x93NUMPY")
+    assert main(["contacts", "--desk", "kitamura2017", str(array)]) == 2
+    assert f"{array}: not a recording hapticdesk reads: expected .csv or .npz" in (
         capsys.readouterr().err
     )

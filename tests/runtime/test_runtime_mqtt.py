@@ -200,9 +200,15 @@ def test_username_and_password_from_a_file_or_the_environment(
         ("{broker: 'http://host'}", "'http", "mqtt://host[:port] or mqtts://host[:port]"),
         ("{tls: {cert: l.yaml}}", "{cert", "needs both `cert` and `key`"),
         ("{discovery: 'yes'}", "'yes'", "`discovery` of `mqtt` must be true or false"),
+        # the fuzzing pass: port 0 connected to 1883, a 1e18 queue was taken, a binary
+        # password file was "a plugin crashed ... UnicodeDecodeError"
+        ("{broker: 'mqtt://localhost:0'}", "'mqtt", "has port 0; expected 1 to 65535"),
+        ("{queue_size: 1.0e+18}", "1.0e", "`queue_size` in `mqtt` must be <= 1e+06"),
+        ("{password_file: binary.pw}", "binary", "binary.pw is not text (UTF-8)"),
     ],
 )
 def test_mqtt_section_errors_point_at_the_layout(tmp_path, text, at, expected):
+    (tmp_path / "binary.pw").write_bytes(b"\xff\xfe\x00secret")
     (tmp_path / "l.yaml").write_text(text)
     with pytest.raises(ConfigError) as err:
         settings_from_layout(load_marked_yaml("l.yaml", text), desk="d", relative_to=tmp_path)

@@ -464,6 +464,11 @@ class _CsvReader:
             self._fh = None
 
 
+#: the most members (columns) an NPZ recording may have: 60,000 tiny extra columns took
+#: 3.4 GB (each read as a stream of its own); a 40-sensor desk has 241
+MAX_NPZ_MEMBERS = 1024
+
+
 class _NpzReader:
     """Each column's ``.npy`` member read in slices: no column is ever loaded whole."""
 
@@ -475,10 +480,18 @@ class _NpzReader:
         regular_file_size(path, "the recording")  # a FIFO would block, /dev/zero never end
         try:
             self._zip = zipfile.ZipFile(path)
-            columns = self._headers()
+            members = len(self._zip.infolist())
+            columns = self._headers() if members <= MAX_NPZ_MEMBERS else {}
         except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as err:
             self.close()
             raise ConfigError(self.where, f"not a readable NPZ recording: {err}") from None
+        if members > MAX_NPZ_MEMBERS:  # (each opened member is a stream with its buffers)
+            self.close()
+            raise ConfigError(
+                self.where,
+                f"{members:,} members; a recording has one per column (time, six per sensor, "
+                f"a few more): at most {MAX_NPZ_MEMBERS:,} are read",
+            )
         needed = needed_columns(sensor_names)
         missing = [c for c in needed if c not in columns]
         if missing:

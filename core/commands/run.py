@@ -25,6 +25,10 @@ from hapticdesk.runtime.service import RunReport, Runtime, report_json
 UNDELIVERED_EXIT = 3
 
 
+#: the longest wait a time option takes (a day)
+MAX_SECONDS = 86_400.0
+
+
 def seconds(text: str) -> float:
     """An argparse type: a finite number of seconds, 0 or more."""
     try:
@@ -33,6 +37,8 @@ def seconds(text: str) -> float:
         raise argparse.ArgumentTypeError(f"expected seconds (a number), found {text!r}") from None
     if not math.isfinite(value) or value < 0:
         raise argparse.ArgumentTypeError(f"expected a finite number of seconds >= 0, found {text}")
+    if value > MAX_SECONDS:  # (a wait that long overflows the clock's timeout)
+        raise argparse.ArgumentTypeError(f"expected at most {MAX_SECONDS:g} seconds, found {text}")
     return value
 
 

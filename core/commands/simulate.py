@@ -21,6 +21,9 @@ from hapticdesk.sim.simulator import SimEffects, simulate
 
 DEFAULT_DESK = "kitamura2017"
 
+#: the most noise (N, amplitude on the total F_z) a simulated sensor is given
+MAX_NOISE_N = 1e3
+
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
@@ -71,9 +74,10 @@ def run(args: argparse.Namespace) -> int:
     effects = SimEffects.ideal() if args.ideal else SimEffects(dynamics=not args.static)
     sensors = None
     if args.noise_amplitude is not None:
-        if not (args.noise_amplitude >= 0 and np.isfinite(args.noise_amplitude)):
+        if not 0 <= args.noise_amplitude <= MAX_NOISE_N:  # (NaN too)
             raise ConfigError(
-                "--noise-amplitude", f"must be a number >= 0, found {args.noise_amplitude}"
+                "--noise-amplitude",
+                f"must be 0 to {MAX_NOISE_N:g} N, found {args.noise_amplitude}",
             )
         sensors = SensorParameters(noise_amplitude_n=args.noise_amplitude)
     start = time.perf_counter()

@@ -81,6 +81,8 @@ def test_slow_close_of_many_actions_stays_within_the_drain_time():
         ("--action-timeout", "0", "expected a number of seconds above 0"),
         ("--drain", "inf", "expected a finite number of seconds"),
         ("--drain", "-1", "expected a finite number of seconds >= 0"),
+        ("--drain", "1e10", "expected at most 86400 seconds"),  # (overflowed the wait)
+        ("--action-timeout", "1e10", "expected at most 86400 seconds"),
     ],
 )
 def test_time_options_must_be_finite_seconds(tmp_path, option, value, expected):

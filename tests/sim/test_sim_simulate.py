@@ -249,7 +249,8 @@ def test_cli_options(
         (["{tmp}/missing.yaml", "-o", "{tmp}/r.csv"], "cannot read the file"),
         (["{bad}", "-o", "{tmp}/r.csv"], "bad.yaml:2:5: unknown action `tapp`"),
         (["{scene}", "--desk", "nodesk", "-o", "{tmp}/r.csv"], "no such desk profile"),
-        (["{scene}", "-o", "{tmp}/r.csv", "--noise-amplitude", "-1"], "must be a number >= 0"),
+        (["{scene}", "-o", "{tmp}/r.csv", "--noise-amplitude", "-1"], "must be 0 to 1000 N"),
+        (["{scene}", "-o", "{tmp}/r.csv", "--noise-amplitude", "1e308"], "must be 0 to 1000 N"),
         (
             ["{outside}", "-o", "{tmp}/r.csv"],
             "outside.yaml:2:10: tap: point (0.9, 0) m lies outside",

@@ -119,8 +119,8 @@ def test_estimation_values_are_checked(tmp_path):
 @pytest.mark.parametrize(
     ("extra", "needle"),
     [
-        ("desk: {natural_frequency_hz: 1.0e-300}", "must be 0.5 to 400 Hz"),
-        ("desk: {natural_frequency_hz: 2999}", "must be 0.5 to 400 Hz"),
+        ("desk: {natural_frequency_hz: 1.0e-300}", "must be at least 0.5 Hz"),
+        ("desk: {natural_frequency_hz: 2999}", "must be below half the sample rate"),
         ("desk: {mass_kg: 1.0e+6}", "must be <= 10000"),
         ("desk: {inertia_kg_m2: [1.0e-308, 1.0e-308, 1.0e-308]}", "1e-06 to 1e+06"),
         ("estimation: {noise_force_n: 1.0e+160}", "must be <= 1000"),

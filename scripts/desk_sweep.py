@@ -6,15 +6,14 @@ optional middle legs, random yaw, some upside down (roll 180), some `reports: lo
 with the paper's rated ranges (so rounded to 1/2000 of the rating), mass 8-45 kg, natural
 frequency 3.5-10 Hz, 500/1000/1200 Hz, `fused`) and on each runs
 
-1. ``tap_accuracy.measure`` as shipped (the edge taps of scripts/tap_accuracy.py with its
+1. ``tap_accuracy.measure``'s runs (the edge taps of scripts/tap_accuracy.py with its
    not-taps every 40 taps: a swipe over the buttons, a 1.5 s press, a 0.35 kg mug put on a
-   button and lifted): right/judged, wrong, missed, phantom;
-2. the same runs again (same seeds, so the same recordings; the tally is checked equal to
-   1.) with a detail pass: every wrong or phantom tap with what was happening, and a second
-   engine on the same contacts whose layout also binds ``long_press`` (0.8 s) on the nine
-   buttons and ``swipe`` anywhere, to count long presses and swipes nobody made (a long
-   press outside a 1.5 s press or in another button; a swipe outside the swipe, or in the
-   wrong direction).
+   button and lifted), judged as it judges them (``tap_accuracy.judge_taps``): right/judged,
+   wrong, missed, phantom, with what was happening at every wrong or phantom tap;
+2. on the same contacts a second engine whose layout also binds ``long_press`` (0.8 s) on
+   the nine buttons and ``swipe`` anywhere, to count long presses and swipes nobody made (a
+   long press outside a 1.5 s press or in another button; a swipe outside the swipe, or in
+   the wrong direction).
 
 Desks with any gesture nobody made are measured again with ``sway_compensation`` off.
 
@@ -39,13 +38,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))  # (tap_accuracy beside
 
 import tap_accuracy as ta  # noqa: E402
 
-from hapticdesk.estimator import ContactEstimator, estimate  # noqa: E402
+from hapticdesk.estimator import ContactEstimator  # noqa: E402
 from hapticdesk.estimator.contacts import PHASE_NAMES, SOURCE_NAMES  # noqa: E402
 from hapticdesk.files.profile import DeskProfile, profile_from_mapping  # noqa: E402
 from hapticdesk.files.yamlfile import load_marked_yaml  # noqa: E402
-from hapticdesk.gestures.engine import GestureEngine  # noqa: E402
 from hapticdesk.gestures.layout import load_layout  # noqa: E402
-from hapticdesk.sim import LongPress, Swipe, Tap, simulate  # noqa: E402
+from hapticdesk.sim import LongPress, Swipe  # noqa: E402
 from hapticdesk.sim.timeline import Timeline  # noqa: E402
 
 RANGE = "range: {force_n: [150, 150, 300], moment_nm: [4, 4, 4]}"
@@ -213,24 +211,15 @@ def contact_summary(contacts, a: int, b: int) -> dict:
 
 
 def detail_run(desk: DeskProfile, n: int, seed: int, sensors=None) -> dict:
-    """The same run as ``ta.run(desk, buttons, n, seed)``, judged again with what happened."""
-    rng = np.random.default_rng(seed)
-    scene, which, peak = ta.edge_taps(rng, n)
-    rec = simulate(desk, scene, seed=seed, sensors=sensors)
-    contacts = estimate(desk, rec)
-    delay = ContactEstimator(desk).position_delay_s
-    t_end = float(contacts.t[-1])
-
-    def events_of(layout):
-        engine = GestureEngine(layout, position_delay_s=delay)
-        return engine.feed(contacts) + engine.flush(t_end)
-
-    taps = [e for e in events_of(ta.buttons(desk)) if e.gesture == "tap"]
-    full = events_of(full_layout(desk))
+    """``ta.run(desk, buttons, n, seed)``: its tally, with what happened at each wrong or
+    phantom tap, and a second engine's long presses and swipes nobody made."""
+    run = ta.simulate_taps(desk, n, seed, sensors)
+    scene, which, peak, rec, contacts = run.scene, run.which, run.peak, run.rec, run.contacts
+    touches = run.touches
+    taps = [e for e in ta.gesture_events(desk, ta.buttons(desk), contacts) if e.gesture == "tap"]
+    full = ta.gesture_events(desk, full_layout(desk), contacts)
     spans = Timeline(desk, scene, seed).spans
     starts = np.array([s.start_s for s in spans])
-    tap_actions = [k for k, a in enumerate(scene.actions) if isinstance(a, Tap)]
-    touches = [t for t in ta.true_touches(rec) if t[2] in tap_actions]
     fs = desk.sample_rate_hz
 
     def context(t: float) -> dict:
@@ -244,39 +233,13 @@ def detail_run(desk: DeskProfile, n: int, seed: int, sensors=None) -> dict:
             "span_s": [round(span.start_s, 3), round(span.end_s, 3)],
         }
 
-    # taps: the same judging as ta.run
-    times = np.array([e.t for e in taps])
-    used = np.zeros(len(taps), bool)
-    tally = ta.Tally(taps=n)
+    # taps: judged as ta.run judges them, each wrong one and each phantom in detail
+    verdicts = ta.judge_taps(desk, contacts, touches, which, peak, taps)
+    tally = verdicts.tally
     cases = []
-    cf = desk.estimation.contact_force_n
-    for i, (start, end, action, true_peak) in enumerate(touches):
-        hit = np.flatnonzero((times >= start) & (times <= end + 0.2) & ~used)
-        under = true_peak < cf
-        light = not under and peak[i] < 3.0
-        tally.light += int(light)
-        if len(hit) == 0:
-            if under:
-                tally.under += 1
-                continue
-            tally.missed += 1
-            during = (contacts.t >= start) & (contacts.t <= end + 0.1)
-            tally.unfelt += int(not contacts.in_contact[during].any())
-            tally.unlocated += int(
-                contacts.in_contact[during].any() and not contacts.located[during].any()
-            )
-            continue
-        used[hit[0]] = True
-        e = taps[hit[0]]
-        right = e.region == f"b{which[i] + 1}"
-        if under and right:
-            tally.under += 1
-            continue
-        if right:
-            tally.right += 1
-            tally.light_right += int(light)
-            continue
-        tally.wrong += 1
+    for i, k in verdicts.wrong:
+        start, end, action, true_peak = touches[i]
+        e = taps[k]
         a, b = int(round(start * fs)), int(round((end + 0.1) * fs))
         touching = rec.extra["true_fn"][a:b] > 0
         tx = float(np.mean(rec.extra["true_x"][a:b][touching]))
@@ -301,8 +264,7 @@ def detail_run(desk: DeskProfile, n: int, seed: int, sensors=None) -> dict:
                 "est": contact_summary(contacts, a, b),
             }
         )
-    tally.phantom = int((~used).sum())
-    for k in np.flatnonzero(~used):
+    for k in verdicts.phantom:
         e = taps[k]
         j = min(int(np.searchsorted(contacts.t, e.t)), len(contacts.t) - 1)
         seg_end = j
@@ -376,8 +338,8 @@ def detail_run(desk: DeskProfile, n: int, seed: int, sensors=None) -> dict:
 
 
 def assess(desk: DeskProfile, n: int, seed: int, chunk: int = 250, sensors=None) -> dict:
-    """``ta.measure`` as shipped, then the detail pass over the same runs (checked equal)."""
-    official = ta.measure(desk, ta.buttons(desk), n, seed, chunk=chunk, sensors=sensors)
+    """``ta.measure``'s runs (chunks of ``chunk`` taps, seeds ``seed``, ``seed`` + 1 …),
+    each in detail (:func:`detail_run`)."""
     tally = ta.Tally()
     extra: dict = {}
     cases: list = []
@@ -387,9 +349,7 @@ def assess(desk: DeskProfile, n: int, seed: int, chunk: int = 250, sensors=None)
         for key, v in part["extra"].items():
             extra[key] = extra.get(key, 0) + v
         cases += part["cases"]
-    if tally != official:
-        raise RuntimeError(f"detail pass {tally} differs from tap_accuracy.measure {official}")
-    return {"tally": vars(official), "extra": extra, "cases": cases}
+    return {"tally": vars(tally), "extra": extra, "cases": cases}
 
 
 def problems(result: dict) -> int:
@@ -473,26 +433,20 @@ def report(results: list[dict]) -> None:
 
 def dig(path: str, index: int, case: int, sway: str, sensors=None) -> None:
     """Print one case of a results file sample by sample."""
-    results = {r["params"]["index"]: r for r in json.loads(Path(path).read_text())["desks"]}
-    r = results[index]
-    seed = json.loads(Path(path).read_text())["seed"]
+    sweep = json.loads(Path(path).read_text())
+    r = {d["params"]["index"]: d for d in sweep["desks"]}[index]
+    seed = sweep["seed"]
     params, text = draw_desk(seed, index)
     desk = ta.with_sway_compensation(profile(text, f"sweep-{seed}-{index}"), sway)
     c = r["auto"]["cases"][case]
     print(describe(params))
     print(json.dumps(c, indent=1))
     chunk_seed = c["seed"]
-    n_in_chunk = min(
-        250, json.loads(Path(path).read_text())["taps"] - 250 * (chunk_seed - r["run_seed"])
-    )
-    rng = np.random.default_rng(chunk_seed)
-    scene, which, peak = ta.edge_taps(rng, n_in_chunk)
-    rec = simulate(desk, scene, seed=chunk_seed, sensors=sensors)
-    contacts = estimate(desk, rec)
-    delay = ContactEstimator(desk).position_delay_s
+    n_in_chunk = min(250, sweep["taps"] - 250 * (chunk_seed - r["run_seed"]))
+    taps = ta.simulate_taps(desk, n_in_chunk, chunk_seed, sensors)
+    rec, contacts = taps.rec, taps.contacts
     for layout in (ta.buttons(desk), full_layout(desk)):
-        engine = GestureEngine(layout, position_delay_s=delay)
-        ev = engine.feed(contacts) + engine.flush(float(contacts.t[-1]))
+        ev = ta.gesture_events(desk, layout, contacts)
         near = [e for e in ev if abs(e.t - c["t"]) < 1.5]
         print(
             "events near:",

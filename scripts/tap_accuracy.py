@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from hapticdesk.estimator import ContactEstimator, estimate
+from hapticdesk.estimator.contacts import ContactBlock
 from hapticdesk.files.profile import DeskProfile, load_profile, profile_from_mapping
 from hapticdesk.files.yamlfile import load_marked_yaml
 from hapticdesk.gestures.engine import GestureEngine
@@ -195,26 +196,73 @@ def true_touches(rec: SimulationRun) -> list[tuple[float, float, int, float]]:
     ]
 
 
-def run(
-    desk: DeskProfile, layout: Layout, n: int, seed: int, sensors: SensorParameters | None = None
-) -> Tally:
-    """Simulate ``n`` edge taps on ``desk`` and judge the engine's tap events; ``sensors``:
-    the simulated sensors' noise and resolution (default: the paper's)."""
+@dataclass
+class TapRun:
+    """``n`` edge taps simulated on a desk and estimated (:func:`simulate_taps`)."""
+
+    scene: Scene
+    which: np.ndarray  # the button each tap aimed at (0..8)
+    peak: np.ndarray  # each tap's peak force as asked
+    rec: SimulationRun
+    contacts: ContactBlock
+    touches: list[tuple[float, float, int, float]]  # the taps' true touches, in order
+
+
+def simulate_taps(
+    desk: DeskProfile, n: int, seed: int, sensors: SensorParameters | None = None
+) -> TapRun:
+    """Simulate ``n`` edge taps on ``desk`` with ``seed`` and estimate them; ``sensors``: the
+    simulated sensors' noise and resolution (default: the paper's)."""
     rng = np.random.default_rng(seed)
     scene, which, peak = edge_taps(rng, n)
     rec = simulate(desk, scene, seed=seed, sensors=sensors)
     contacts = estimate(desk, rec)
-    engine = GestureEngine(layout, position_delay_s=ContactEstimator(desk).position_delay_s)
-    events = [
-        e for e in engine.feed(contacts) + engine.flush(float(contacts.t[-1])) if e.gesture == "tap"
-    ]
     tap_actions = [k for k, a in enumerate(scene.actions) if isinstance(a, Tap)]
     touches = [touch for touch in true_touches(rec) if touch[2] in tap_actions]
     if [touch[2] for touch in touches] != tap_actions:
         raise RuntimeError(f"the simulation made {len(touches)} tap touches for {n} taps")
+    return TapRun(scene, which, peak, rec, contacts, touches)
+
+
+def gesture_events(desk: DeskProfile, layout: Layout, contacts: ContactBlock) -> list:
+    """The events the gesture engine fires for ``contacts`` on ``layout``, to the end."""
+    engine = GestureEngine(layout, position_delay_s=ContactEstimator(desk).position_delay_s)
+    return engine.feed(contacts) + engine.flush(float(contacts.t[-1]))
+
+
+def run(
+    desk: DeskProfile, layout: Layout, n: int, seed: int, sensors: SensorParameters | None = None
+) -> Tally:
+    """Simulate ``n`` edge taps on ``desk`` and judge the engine's tap events."""
+    taps = simulate_taps(desk, n, seed, sensors)
+    events = [e for e in gesture_events(desk, layout, taps.contacts) if e.gesture == "tap"]
+    return judge_taps(desk, taps.contacts, taps.touches, taps.which, taps.peak, events).tally
+
+
+@dataclass
+class TapVerdicts:
+    """One run's taps judged: the tally, the taps fired in a wrong button (the tap's index,
+    the event's) and the tap events no tap made (their indices)."""
+
+    tally: Tally
+    wrong: list[tuple[int, int]]
+    phantom: list[int]
+
+
+def judge_taps(
+    desk: DeskProfile,
+    contacts: ContactBlock,
+    touches: list[tuple[float, float, int, float]],
+    which: np.ndarray,
+    peak: np.ndarray,
+    events: list,
+) -> TapVerdicts:
+    """Judge the tap ``events`` against the true tap ``touches`` (:func:`true_touches`, in
+    order; ``which`` button each aimed at, ``peak`` the force asked for)."""
     times = np.array([e.t for e in events])
     used = np.zeros(len(events), bool)
-    tally = Tally(taps=n)
+    tally = Tally(taps=len(touches))
+    wrong: list[tuple[int, int]] = []
     contact_force = desk.estimation.contact_force_n
     for i, (start, end, _, true_peak) in enumerate(touches):
         # a tap fires at the release the estimator sees, within a few samples of the true one
@@ -243,8 +291,9 @@ def run(
             tally.light_right += int(light)
         else:
             tally.wrong += 1
+            wrong.append((i, int(hit[0])))
     tally.phantom = int((~used).sum())
-    return tally
+    return TapVerdicts(tally, wrong, np.flatnonzero(~used).tolist())
 
 
 def buttons(desk: DeskProfile, snap_mm: float | None = None) -> Layout:

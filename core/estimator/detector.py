@@ -234,14 +234,16 @@ class TouchDetector:
         else:
             pressing = False
         above, below = contact_decision(pressing, mag, falling, s, holding)
+        # the re-arm rule of _rearmed, on one sample
         user = s.user
-        if mag < user.contact_force_n - user.release_hysteresis_n:
+        low = user.contact_force_n - user.release_hysteresis_n
+        if mag < low:
             self.blocked = False
         elif self.blocked and mag < user.contact_force_n + user.release_hysteresis_n:
             above = False
         was = self.in_contact
         self.in_contact = above or (was and not below)
-        if was and not self.in_contact and mag >= user.contact_force_n - user.release_hysteresis_n:
+        if was and not self.in_contact and mag >= low:
             self.blocked = True
         return self.in_contact, mag, slope
 

@@ -44,7 +44,6 @@ MAX_SAMPLE_RATE_HZ = 100_000.0
 #: the lowest low-pass cut-off as a share of the sample rate (0.0048 Hz at 1.2 kHz): the
 #: estimator's noise gains sum impulse responses of 8 × rate / cut-off samples (2 million)
 MIN_CUTOFF_PER_RATE = 4e-6
-#: the longest estimation windows, seconds (the paper's: 0.166 s, a 1 s tare, 5 s settle)
 #: physical bounds on `estimation` values that are not windows: beyond them a value is a
 #: typing mistake, and its square (a covariance) or inverse would overflow downstream
 MAX_ESTIMATION = {
@@ -61,6 +60,7 @@ MIN_NATURAL_HZ = 0.5
 #: a desk's principal moments of inertia (kg·m²): outside, a typing mistake (inverted, they
 #: overflow)
 MIN_INERTIA, MAX_INERTIA = 1e-6, 1e6
+#: the longest estimation windows, seconds (the paper's: 0.166 s, a 1 s tare, 5 s settle)
 MAX_WINDOW_S = {
     "diff_window_s": 5.0,
     "tare_s": 60.0,

@@ -15,10 +15,11 @@ def read_any_recording(path: str | Path, profile: DeskProfile) -> Recording:
     CAN logs are decoded through the profile's ``can:`` section; python-can and cantools are
     imported only for them.
     """
-    # first: a missing file is said so, not taken for a CAN log the profile cannot decode
-    regular_file_size(path, "the recording")
     if Path(path).suffix.lower() in RECORDING_SUFFIXES:
-        return read_recording(path, profile.sensor_names)
+        return read_recording(path, profile.sensor_names)  # (it checks the file itself)
+    # before the CAN log's own checks: a missing file is said so, not taken for a CAN log
+    # the profile cannot decode
+    regular_file_size(path, "the recording")
     from hapticdesk.canbus.logs import is_can_log, read_can_log  # (python-can: lazily)
 
     if profile.can is None and not is_can_log(path):

@@ -308,9 +308,7 @@ class Runtime:
                 try:
                     self._events_out.close()
                 except OSError as err:  # (what was left in its buffer: the disk is still full)
-                    self.report.error = self.report.error or (
-                        f"{self.events_path}: cannot write the events: {err.strerror or err}"
-                    )
+                    self.report.error = self.report.error or str(self._events_failed(err))
             # queued commands get drain_timeout_s in all: first the actions' own queues, then
             # the shared connections they handed their messages to
             deadline = time.monotonic() + (0.0 if self._force else self.drain_timeout_s)
@@ -393,13 +391,15 @@ class Runtime:
                     self._events_out.write(event.to_json() + "\n")
                     self._events_out.flush()
                 except OSError as err:  # (a full disk: /dev/full, a quota)
-                    raise ConfigError(
-                        str(self.events_path), f"cannot write the events: {err.strerror or err}"
-                    ) from None
+                    raise self._events_failed(err) from None
             self.scene.dispatcher.submit(event)
             self.report.gestures[event.gesture] += 1
             self.live.last_gesture = f"{event.action_name} at {event.t:.2f} s"
             self.live.gestures += 1
+
+    def _events_failed(self, err: OSError) -> ConfigError:
+        """The error for an events file that could not be written (``--events``)."""
+        return ConfigError(str(self.events_path), f"cannot write the events: {err.strerror or err}")
 
     def _update_live(self, contacts: ContactBlock) -> None:
         live = self.live

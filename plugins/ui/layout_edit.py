@@ -27,7 +27,11 @@ def error_dict(err: ConfigError) -> dict[str, Any]:
     where = err.where
     if isinstance(where, Position):
         return {"line": where.line, "column": where.column, "message": err.message}
-    message = err.message if where is None else f"{where}: {err.message}"
+    return message_error(err.message if where is None else f"{where}: {err.message}")
+
+
+def message_error(message: str) -> dict[str, Any]:
+    """An error with no place in the layout file, as :func:`error_dict` gives one."""
     return {"line": 0, "column": 0, "message": message}
 
 

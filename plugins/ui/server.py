@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from hapticdesk.files.yamlfile import ConfigError
-from hapticdesk.plugins.ui.layout_edit import check_layout_text, desk_message
+from hapticdesk.plugins.ui.layout_edit import check_layout_text, desk_message, message_error
 from hapticdesk.plugins.ui.layout_edit import error_dict as error_of
 
 log = logging.getLogger(__name__)
@@ -337,8 +337,8 @@ class UiServer:
 
         async def refuse_bad_request(request: Request, err: Exception) -> Response:
             assert isinstance(err, BadRequest)
-            error = {"line": 0, "column": 0, "message": err.message}
-            return JSONResponse({"ok": False, "errors": [error]}, status_code=err.status)
+            errors = [message_error(err.message)]
+            return JSONResponse({"ok": False, "errors": errors}, status_code=err.status)
 
         async def check(request: Request) -> Response:
             if not allowed(request):
@@ -353,7 +353,7 @@ class UiServer:
             if self.read_only:
                 message = "no layout file was given (start with --layout FILE to save)"
                 return JSONResponse(
-                    {"ok": False, "errors": [{"line": 0, "column": 0, "message": message}]},
+                    {"ok": False, "errors": [message_error(message)]},
                     status_code=403,
                 )
             text = await body_text(request)
@@ -428,7 +428,7 @@ class UiServer:
             elif not isinstance(points, list) or len(points) < len(runtime.scene.profile.sensors):
                 problem = "mark at least as many points as the desk has sensors"
             if problem:
-                error = {"line": 0, "column": 0, "message": problem}
+                error = message_error(problem)
                 return JSONResponse({"ok": False, "errors": [error]}, status_code=422)
             if self.setup is not None:
                 await asyncio.to_thread(self.setup.finish_quietly)
@@ -440,7 +440,7 @@ class UiServer:
                 return refused()
             session, self.setup = self.setup, None
             if session is None:
-                error = {"line": 0, "column": 0, "message": "no set-up check was started"}
+                error = message_error("no set-up check was started")
                 return JSONResponse({"ok": False, "errors": [error]}, status_code=422)
             try:
                 result = await asyncio.to_thread(session.finish)

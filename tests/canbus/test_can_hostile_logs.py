@@ -16,38 +16,9 @@ from hapticdesk.canbus.config import can_config
 from hapticdesk.canbus.logs import read_frames, write_frames
 from hapticdesk.files.yamlfile import ConfigError
 
+from .can_profiles import error_at, full_can, line_of
+
 LIMIT = 200
-PROFILE = """name: t
-sample_rate_hz: 1000
-sensors:
-  - {name: fl, position: [-0.3, -0.2, 0]}
-  - {name: fr, position: [0.3, -0.2, 0]}
-  - {name: bl, position: [-0.3, 0.2, 0]}
-  - {name: br, position: [0.3, 0.2, 0]}
-can:
-  database: kitamura2017.dbc
-  sensors:
-"""
-SIGNALS = """    {n}: {{fx: {N}_FORCE.Fx, fy: {N}_FORCE.Fy, fz: {N}_FORCE.Fz,
-         mx: {N}_MOMENT.Mx, my: {N}_MOMENT.My, mz: {N}_MOMENT.Mz}}
-"""
-
-
-def full_can() -> str:
-    return PROFILE + "".join(SIGNALS.format(n=n, N=n.upper()) for n in ("fl", "fr", "bl", "br"))
-
-
-def line_of(text: str, needle: str) -> int:
-    return next(i for i, line in enumerate(text.splitlines(), 1) if needle in line)
-
-
-def error_at(load, text: str) -> tuple[int, int, str]:
-    profile = load(text)
-    with pytest.raises(ConfigError) as info:
-        can_config(profile)
-    match = re.match(r".*desk\.yaml:(\d+):(\d+): (.*)", str(info.value), re.S)
-    assert match, str(info.value)
-    return int(match[1]), int(match[2]), match[3]
 
 
 def _insert_long_line(path: Path, at: int, gz: bool = False) -> None:

@@ -509,6 +509,7 @@ def main() -> None:
     parser.add_argument("--sway", default="auto", choices=("auto", "on", "off"))
     parser.add_argument("--res0", action="store_true", help="--dig with unrounded sensors")
     args = parser.parse_args()
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)  # (before minutes of work)
     if args.dig:
         from hapticdesk.sim.sensors import SensorParameters
 

@@ -105,6 +105,7 @@ def open_replay(
     argument: str, profile: DeskProfile, *, speed: float = 1.0, **options: Any
 ) -> Source:
     """``replay:FILE``: a CSV/NPZ recording, or a CAN log by any other suffix."""
+    from hapticdesk.files.readers import check_sample_rate
     from hapticdesk.files.recording import RECORDING_SUFFIXES, RecordingBlocks
 
     if not argument:
@@ -114,9 +115,13 @@ def open_replay(
         raise ConfigError("--source", f"replay: no such file {argument}")
     if path.suffix.lower() in RECORDING_SUFFIXES:
         recording = RecordingBlocks(path, profile.sensor_names)
-        if recording.is_empty():
+        try:
+            if recording.is_empty():
+                raise ConfigError(str(path), "the recording holds no samples")
+            check_sample_rate(recording.first_times(), profile, str(path))
+        except ConfigError:
             recording.close()
-            raise ConfigError(str(path), "the recording holds no samples")
+            raise
         source = RecordingSource(
             recording, profile.sample_rate_hz, accel_columns=profile.accelerometer_columns()
         )

@@ -31,7 +31,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     profile = load_profile(args.desk)
-    recording = read_any_recording(args.recording, profile)
+    # (its rate is measured, not taken from the profile)
+    recording = read_any_recording(args.recording, profile, at_profile_rate=False)
     result = characterize(profile, recording, where=str(args.recording))
     if args.json:
         info = result.to_dict()

@@ -5,7 +5,8 @@ SPEC: ``can:INTERFACE:CHANNEL`` (a live bus; ``can`` alone takes the profile's),
 chooses what is written: ``.csv``/``.npz`` the decoded samples (the recording format), or
 ``.asc``/``.blf``/``.log``/``.trc`` the raw CAN frames through python-can's loggers (with the
 ATI calibration exchange and polls, so the log decodes on its own). Ctrl-C ends a live
-recording and keeps everything recorded so far.
+recording and keeps everything recorded so far; a replayed recording with a bad line keeps
+the samples before it and exits 1.
 """
 
 from __future__ import annotations
@@ -22,10 +23,12 @@ import numpy as np
 
 from hapticdesk.commands.output_path import cannot_write
 from hapticdesk.files.profile import DeskProfile, load_profile
+from hapticdesk.files.readers import check_sample_rate
 from hapticdesk.files.recording import (
     RECORDING_SUFFIXES,
     Recording,
-    read_recording,
+    RecordingBlocks,
+    concat_recordings,
     write_recording,
 )
 from hapticdesk.files.yamlfile import ConfigError
@@ -90,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
         )
         for line in summary.get("problems", []):
             print(f"  {line}")
-    return 0
+    return 1 if summary.get("failed") else 0
 
 
 # --- a live bus -------------------------------------------------------------------------------
@@ -172,6 +175,7 @@ def _record_bus(args: argparse.Namespace, profile: DeskProfile, output: Path) ->
 def _record_file(
     kind: str, argument: str, args: argparse.Namespace, profile: DeskProfile, output: Path
 ) -> dict[str, Any]:
+    stopped_by: ConfigError | None = None
     if not argument:
         raise ConfigError("--source", f"{kind} needs a file: {kind}:FILE")
     path = Path(argument).expanduser()
@@ -203,7 +207,8 @@ def _record_file(
         decoded = decode_can_log(path, profile)
         rec, problems = decoded.recording, decoded.stats.summary()
     elif kind == "replay":
-        rec, problems = read_recording(path, profile.sensor_names), []
+        rec, stopped_by = _read_until_error(path, profile)
+        problems = []
     else:
         from hapticdesk.sim import load_scene, simulate
 
@@ -218,7 +223,7 @@ def _record_file(
         )
     if not raw:
         _write(output, rec)
-        return _summary(rec.t, problems)
+        return _stopped(_summary(rec.t, problems), stopped_by, len(rec))
     from hapticdesk.canbus.config import can_config
     from hapticdesk.canbus.emulator import FrameEncoder
     from hapticdesk.canbus.logs import write_frames
@@ -232,7 +237,36 @@ def _record_file(
     n = _write_frames(output, [start, body], write_frames)
     summary = _summary(rec.t, problems)
     summary["frames"] = n
+    return _stopped(summary, stopped_by, len(rec))
+
+
+def _stopped(summary: dict[str, Any], err: ConfigError | None, kept: int) -> dict[str, Any]:
+    """``summary`` of a replay that a bad line stopped (``err``): said, and a failure."""
+    if err is not None:
+        print(
+            f"hapticdesk record: stopped at a bad line: {err}; wrote the {kept} samples before it",
+            file=sys.stderr,
+        )
+        summary["stopped"] = str(err)
+        summary["failed"] = True
     return summary
+
+
+def _read_until_error(path: Path, profile: DeskProfile) -> tuple[Recording, ConfigError | None]:
+    """A recording read whole, or the samples before its first bad line (the reader hands
+    them out first) and that line's error. A file bad from its first sample (or its header),
+    or at another rate than the profile's, is refused: nothing of it was good."""
+    parts: list[Recording] = []
+    with RecordingBlocks(path, profile.sensor_names) as reader:
+        check_sample_rate(reader.first_times(), profile, str(path))
+        try:
+            for block in reader.blocks():
+                parts.append(block)
+        except ConfigError as err:
+            if not parts:
+                raise
+            return concat_recordings(parts, profile.sensor_names), err
+    return concat_recordings(parts, profile.sensor_names), None
 
 
 def _write_frames(output: Path, frames: Any, write: Any) -> int:

@@ -2,19 +2,73 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
+
+import numpy as np
 
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.recording import RECORDING_SUFFIXES, Recording, read_recording
 from hapticdesk.files.yamlfile import ConfigError, regular_file_size
 
+# a recording's sample interval may differ from its profile's by this share (a sensor's clock,
+# the jitter of CAN timestamps); beyond it the filters and windows, made for the profile's
+# rate, are wrong (a 600 Hz recording on a 1200 Hz profile halves every time constant)
+RATE_TOLERANCE = 0.1
+RATE_CHECK_SAMPLES = 20_000  # the first samples the interval is measured on
+RATE_CHECK_MIN = 20  # fewer intervals than this say nothing about the rate
+# the time column in another unit than seconds, by the factor it is off
+TIME_UNITS = {1e3: "milliseconds", 1e6: "microseconds", 1e9: "nanoseconds"}
 
-def read_any_recording(path: str | Path, profile: DeskProfile) -> Recording:
-    """A recording (.csv, .npz) or a CAN log (.asc, .blf, .log, .trc, candump text).
+
+def check_sample_rate(t: np.ndarray, profile: DeskProfile, where: str) -> None:
+    """Refuse a recording whose samples ``t`` do not come at the profile's rate (its median
+    interval, within :data:`RATE_TOLERANCE`): the estimator's filters are made for that rate,
+    and a time column in milliseconds would turn every sample into a gap."""
+    steps = np.diff(np.asarray(t[:RATE_CHECK_SAMPLES], float))
+    steps = steps[np.isfinite(steps) & (steps > 0)]
+    if len(steps) < RATE_CHECK_MIN:
+        return
+    interval = float(np.median(steps))
+    off = interval * profile.sample_rate_hz  # the interval in the profile's intervals
+    if abs(math.log(off)) <= math.log1p(RATE_TOLERANCE):
+        return
+    unit = next(
+        (u for f, u in TIME_UNITS.items() if abs(math.log(off / f)) <= math.log1p(RATE_TOLERANCE)),
+        None,
+    )
+    said = (
+        f"the time column t looks like {unit}; it must be seconds"
+        if unit is not None
+        else f"record at {profile.sample_rate_hz:g} Hz, or give the desk a profile with "
+        f"sample_rate_hz: {1 / interval:.4g}"
+    )
+    raise ConfigError(
+        where,
+        f"samples come every {interval:.4g} s ({1 / interval:.4g} Hz, the median interval of "
+        f"the first {len(steps) + 1:,}), but desk {profile.name!r} samples at "
+        f"{profile.sample_rate_hz:g} Hz (its sample_rate_hz), which its filters are made for: "
+        + said,
+    )
+
+
+def read_any_recording(
+    path: str | Path, profile: DeskProfile, *, at_profile_rate: bool = True
+) -> Recording:
+    """A recording (.csv, .npz) or a CAN log (.asc, .blf, .log, .trc, candump text), whose
+    samples come at the profile's rate (:func:`check_sample_rate`) unless
+    ``at_profile_rate`` is False (``characterize`` measures a desk's rate itself).
 
     CAN logs are decoded through the profile's ``can:`` section; python-can and cantools are
     imported only for them.
     """
+    recording = _read(path, profile)
+    if at_profile_rate:
+        check_sample_rate(recording.t, profile, str(path))
+    return recording
+
+
+def _read(path: str | Path, profile: DeskProfile) -> Recording:
     if Path(path).suffix.lower() in RECORDING_SUFFIXES:
         return read_recording(path, profile.sensor_names)  # (it checks the file itself)
     # before the CAN log's own checks: a missing file is said so, not taken for a CAN log

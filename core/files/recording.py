@@ -189,6 +189,11 @@ class RecordingBlocks:
         """True when the file holds no samples."""
         return self._first is None
 
+    def first_times(self) -> np.ndarray:
+        """The first block's sample times, before :meth:`blocks` hands it out (empty when the
+        file holds no samples or the block is out)."""
+        return np.zeros(0) if self._first is None else self._first.t
+
     @property
     def rows_read(self) -> int:
         """Samples handed out so far."""

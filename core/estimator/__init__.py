@@ -35,6 +35,7 @@ single-sample twin sits beside its block path and shares its formulas:
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -46,7 +47,7 @@ from hapticdesk.estimator.filter_bank import FilterBank
 from hapticdesk.estimator.inertia import InertiaSettings, InertiaStage, accelerometer_readings
 from hapticdesk.estimator.methods import emit_one, select, select_one
 from hapticdesk.estimator.multitouch import SecondFingerStage
-from hapticdesk.estimator.notices import Notice, NoticeList
+from hapticdesk.estimator.notices import Notice, NoticeList, add_notice
 from hapticdesk.estimator.samples import BAD_SAMPLE, SampleStage
 from hapticdesk.estimator.settings import EstimatorSettings
 from hapticdesk.estimator.zero import ZeroSegments, ZeroStage, subtract_zero
@@ -148,6 +149,7 @@ class ContactEstimator:
         self.zeroing = ZeroStage(s, self.notices)
         self.detector = TouchDetector(s)
         self.candidates = CandidateStage(s)
+        self._accel_missing = False  # in a spell of samples without accelerometer readings
         self.second_finger = SecondFingerStage(self.profile) if self._second_finger_on else None
 
     def use_second_finger(self, on: bool) -> None:
@@ -229,6 +231,7 @@ class ContactEstimator:
         flags, raw = self.samples.process(t, wrench)
         if self.inertia is not None:
             flags |= self.inertia.process(raw, accel)
+            self._note_accelerometer(float(t[0]), accel is not None)
         block.flags[:] = flags
         started = self.samples.state.last_good is not None
         lp, det, diff, det_slope, release = self.filters.process(t, raw, flags, started)
@@ -237,6 +240,25 @@ class ContactEstimator:
         self._contacts(block, t, flags, lp, det, diff, det_slope, release, segments)
         if self.second_finger is not None:
             self.second_finger.process(raw, block)
+
+    def _note_accelerometer(self, t: float, given: bool) -> None:
+        """A warning when a desk with an accelerometer gets samples without its readings (a
+        recording without its columns, a source that does not pass them): they are estimated
+        uncompensated, and only the ``no_accel`` flag would say so. Once per spell."""
+        if given or self._accel_missing:
+            self._accel_missing = not given
+            return
+        self._accel_missing = True
+        assert self.inertia_settings is not None
+        add_notice(
+            self.notices,
+            t,
+            "no_accel",
+            f"no accelerometer readings ({', '.join(self.inertia_settings.columns)}) come with "
+            f"the samples of desk {self.profile.name!r}: its sway is not compensated (the "
+            "samples are flagged no_accel)",
+            logging.WARNING,
+        )
 
     def _update_covariances(self) -> None:
         """The candidates' covariances: made at the tare, and made again when a channel's

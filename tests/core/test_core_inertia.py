@@ -139,6 +139,24 @@ def test_missing_and_saturated_readings_fall_back_with_a_flag(accel_desk, kita):
     np.testing.assert_array_equal(none.in_contact, plain.in_contact)
 
 
+def test_samples_without_readings_are_warned_once_per_spell(accel_desk, kita):
+    """A recording without the desk's acc_* columns (or a source that drops them) is said,
+    not only flagged: before, `hapticdesk contacts` ran it uncompensated without a word."""
+    t, wrench = kita.t[:6_000], kita.wrench[:6_000]
+    accel = accelerometer_readings(accel_desk, kita.extra)[:6_000]
+    est = ContactEstimator(accel_desk)
+    est.push(t[:2_000], wrench[:2_000], accel[:2_000])
+    assert [n for n in est.notices if n.kind == "no_accel"] == []
+    est.push(t[2_000:3_000], wrench[2_000:3_000])  # a spell without: one warning
+    est.push(t[3_000:3_001], wrench[3_000:3_001])
+    est.push(t[3_001:4_000], wrench[3_001:4_000])
+    est.push(t[4_000:5_000], wrench[4_000:5_000], accel[4_000:5_000])  # back
+    est.push(t[5_000:], wrench[5_000:])  # and a second spell
+    said = [n for n in est.notices if n.kind == "no_accel"]
+    assert [n.t for n in said] == [t[2_000], t[5_000]]
+    assert "acc_x, acc_y, acc_z" in said[0].message and "not compensated" in said[0].message
+
+
 def test_streaming_with_an_accelerometer_equals_batch(accel_desk, kita):
     k = 9_000
     t, wrench = kita.t[:k], kita.wrench[:k]

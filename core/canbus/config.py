@@ -198,6 +198,7 @@ def parse_can_section(section: MarkedDict, profile: DeskProfile) -> CanConfig:
             sensors[name] = _signal_sensor(item, name, database, section)
     _check_distinct_ids(sensors, database, sensors_raw)
     accelerometers = _accelerometers(section, profile, database)
+    _check_distinct_signals(sensors, accelerometers)
     _check_scales([*sensors.values(), *accelerometers], database, database_path)
 
     counted = list(sensors.values()) + list(accelerometers)
@@ -611,6 +612,29 @@ def _calibration(raw: Any, where: Position | str, name: str) -> AtiCalibration:
         force_unit=choice(m, "force_unit", tuple(force_names), what, default="N"),
         torque_unit=choice(m, "torque_unit", tuple(torque_names), what, default="N-m"),
     )
+
+
+def _check_distinct_signals(
+    sensors: dict[str, SignalSensor | AtiSensor],
+    accelerometers: tuple[SignalSensor, ...],
+) -> None:
+    """No signal read as two axes (a copied line left unedited: two axes would read one
+    value, and the desk's balance of forces and moments would be wrong without a word)."""
+    owners = [(f"sensor `{n}`", s) for n, s in sensors.items() if isinstance(s, SignalSensor)]
+    owners += [(f"accelerometer {i + 1}", a) for i, a in enumerate(accelerometers)]
+    first: dict[str, tuple[str, SignalRef]] = {}
+    for label, sensor in owners:
+        for axis, ref in sensor.axes.items():
+            # (an accelerometer's x, y, z ride in a sensor's fx, fy, fz)
+            said = f"`{axis[1:] if label.startswith('accel') else axis}` of {label}"
+            if str(ref) in first:
+                other, other_ref = first[str(ref)]
+                raise ConfigError(
+                    ref.where,
+                    f"{said} reads signal `{ref}`, which {other} reads already (at "
+                    f"{other_ref.where}); each axis needs its own signal",
+                )
+            first[str(ref)] = (said, ref)
 
 
 def _check_distinct_ids(

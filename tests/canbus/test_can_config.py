@@ -65,6 +65,21 @@ def test_unknown_message_and_signal(profile_text):
     assert line == line_of(text, "BL_TORQUE") and "no message `BL_TORQUE`" in message
 
 
+def test_one_signal_read_as_two_axes_is_refused_at_the_second(profile_text):
+    # a copied line left unedited: fz reads fx, and the balance would be silently wrong
+    text = full_can().replace("fz: BR_FORCE.Fz", "fz: BR_FORCE.Fx")
+    line, col, message = error_at(profile_text, text)
+    row = text.splitlines()[line - 1]
+    assert line == line_of(text, "br: {fx") and col == row.index("fz: BR_FORCE.Fx") + 5
+    assert message.startswith(
+        "`fz` of sensor `br` reads signal `BR_FORCE.Fx`, which `fx` of sensor `br` reads "
+        "already (at "
+    )
+    assert message.endswith(
+        f"desk.yaml:{line}:{row.index('BR_FORCE.Fx') + 1}); each axis needs its own signal"
+    )
+
+
 def test_signal_must_be_message_dot_signal(profile_text):
     text = full_can().replace("fx: FL_FORCE.Fx", "fx: 12")
     _, _, message = error_at(profile_text, text)

@@ -46,6 +46,10 @@ MAX_LINE_CHARS = 4096
 #: a text log whose first this many lines hold no frame is no CAN log (headers and comments
 #: are a few dozen lines)
 MAX_LINES_BEFORE_A_FRAME = 10_000
+#: the most one BLF log container may inflate to: python-can writes containers of 128 KiB and
+#: Vector's tools like ones, so a container inflating further is no log but a zlib bomb (one
+#: of 4 MB grew python-can's reader to 4.1 GB before this bound)
+MAX_BLF_CONTAINER_BYTES = 64 * 1024 * 1024
 #: how much of a ``.log`` file is looked at to tell candump ``-l`` from candump's printed text
 SNIFF_CHARS = 65_536
 # candump -l / python-can .log lines: "(1700000000.000000) can0 123#DEADBEEF"
@@ -146,7 +150,10 @@ def _python_can_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
             text = _BoundedLines(fh, path) if fmt != ".blf" else None
             lines = _CanutilsLines(text) if fmt == ".log" and text is not None else None
             source = lines if lines is not None else text if text is not None else fh
-            for msg in getattr(can, _READERS[fmt])(source):
+            messages = (
+                _blf_messages(fh, path) if fmt == ".blf" else getattr(can, _READERS[fmt])(source)
+            )
+            for msg in messages:
                 if text is not None:
                     text.framed = True
                 batch.append(msg)
@@ -173,6 +180,43 @@ def _python_can_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
         raise failure
     if lines is not None:
         _warn_skipped(path, lines.skipped, lines.n_skipped)
+
+
+def _blf_messages(fh: Any, path: Path) -> Iterator[Any]:
+    """python-can's BLF reading with each log container inflated within
+    :data:`MAX_BLF_CONTAINER_BYTES` (its own reader inflates a container whole, however
+    large): its loop over the objects, with python-can's container parser."""
+    import zlib
+
+    from can.io import blf
+
+    reader = blf.BLFReader(fh)
+    head = blf.OBJ_HEADER_BASE_STRUCT
+    while data := reader.file.read(head.size):
+        if len(data) < head.size:
+            raise blf.BLFParseError("the file ends inside an object's header")
+        signature, _, _, obj_size, obj_type = head.unpack(data)
+        if signature != b"LOBJ" or obj_size < head.size:
+            raise blf.BLFParseError("an object without its LOBJ header")
+        obj_data = reader.file.read(obj_size - head.size)
+        reader.file.read(obj_size % 4)  # padding
+        if obj_type != blf.LOG_CONTAINER:
+            continue
+        method, _ = blf.LOG_CONTAINER_STRUCT.unpack_from(obj_data)
+        container = obj_data[blf.LOG_CONTAINER_STRUCT.size :]
+        if method == blf.ZLIB_DEFLATE:
+            inflater = zlib.decompressobj()
+            container = inflater.decompress(container, MAX_BLF_CONTAINER_BYTES)
+            if inflater.unconsumed_tail:
+                raise ConfigError(
+                    str(path),
+                    f"a log container inflates to more than {MAX_BLF_CONTAINER_BYTES >> 20} MiB "
+                    "(a BLF log's hold about 128 KiB): not a CAN log hapticdesk reads",
+                )
+        elif method != blf.NO_COMPRESSION:
+            log.warning("%s: a log container of unknown compression %d skipped", path, method)
+            continue
+        yield from reader._parse_container(container)
 
 
 class _BoundedLines:

@@ -136,3 +136,35 @@ def test_a_signal_of_scale_zero_is_refused(profile_text, tmp_path):
     # the first message with Fz in the DBC is FL_FORCE
     assert f"desk.yaml:{line_of(full_can(), 'fz: FL_FORCE.Fz')}:" in message
     assert "`FL_FORCE.Fz`" in message and "kitamura2017.dbc has scale 0" in message
+
+
+def test_a_blf_container_that_inflates_past_the_bound_is_refused_after_the_frames_before(
+    tmp_path, monkeypatch, canopen_traffic
+):
+    """A zlib bomb in a BLF log: python-can's reader inflates a container whole (4 MB grew it
+    to 4.1 GB); read here, the container stops at the bound and the frames before it go on."""
+    import zlib
+
+    from can.io import blf
+
+    monkeypatch.setattr(logs, "MAX_BLF_CONTAINER_BYTES", 1 << 20)
+    path = tmp_path / "bus.blf"
+    frames = canopen_traffic(40, 1.0, t0=1_700_000_000.0)
+    write_frames(path, [frames])
+    good = sum(len(chunk) for chunk in read_frames(path))
+    assert good == len(frames)
+    bomb = zlib.compress(b"\0" * (8 << 20), 9)  # 8 MiB of zeros in about 8 KiB
+    header = blf.LOG_CONTAINER_STRUCT.pack(blf.ZLIB_DEFLATE, 128 * 1024)  # (it lies)
+    size = blf.OBJ_HEADER_BASE_STRUCT.size + len(header) + len(bomb)
+    obj = blf.OBJ_HEADER_BASE_STRUCT.pack(b"LOBJ", 16, 1, size, blf.LOG_CONTAINER)
+    with path.open("ab") as fh:
+        fh.write(obj + header + bomb + b"\0" * (size % 4))
+    read = 0
+    with pytest.raises(ConfigError) as info:
+        for chunk in read_frames(path):
+            read += len(chunk)
+    assert read == good  # nothing read before it is lost
+    assert str(info.value) == (
+        f"{path}: a log container inflates to more than 1 MiB (a BLF log's hold about "
+        "128 KiB): not a CAN log hapticdesk reads"
+    )

@@ -37,6 +37,7 @@ from hapticdesk.files.yamlfile import (
     MarkedDict,
     MarkedList,
     Position,
+    as_flag,
     check_keys,
     choice,
     number,
@@ -166,9 +167,9 @@ def parse_can_section(section: MarkedDict, profile: DeskProfile) -> CanConfig:
         bitrate = _integer(section, "bitrate", "`can`", minimum=1)
     bus_options: dict[str, Any] = {}
     if "bus_options" in section:
-        bus_options = dict(
-            require_mapping(section["bus_options"], section.where("bus_options"), "`bus_options`")
-        )
+        raw = require_mapping(section["bus_options"], section.where("bus_options"), "`bus_options`")
+        # (python-can's options are typed: YAML 1.1's `fd: yes` stays the boolean it meant)
+        bus_options = {k: as_flag(v) for k, v in raw.items()}
     database_path, database = None, None
     if "database" in section:
         database_path, database = _load_database(section, profile)

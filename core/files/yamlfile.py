@@ -192,6 +192,38 @@ class NumberText(str):
     """A plain YAML scalar that YAML 1.2 reads as a float and YAML 1.1 as text (``1e6``)."""
 
 
+class FlagText(str):
+    """A plain YAML scalar that YAML 1.1 (PyYAML) reads as a boolean and YAML 1.2 (and ruamel,
+    which the browser UI edits with) as text: ``on``, ``off``, ``yes``, ``no`` in any case.
+    Kept as the text written, so that a Zigbee2MQTT payload's ``state: ON`` is sent as "ON"
+    (it went out as ``true``); a setting that is true or false reads it through
+    :func:`as_flag`, as before."""
+
+
+_FLAG_TRUE = {"on", "yes"}
+# YAML 1.1's octal ints (`010` is 8); YAML 1.2 writes octal `0o10` and reads `010` as 10
+_YAML11_OCTAL = re.compile(r"[-+]?0[0-7_]+")
+
+
+def as_flag(value: Any) -> Any:
+    """``value``, or the boolean a :class:`FlagText` says."""
+    return value.lower() in _FLAG_TRUE if isinstance(value, FlagText) else value
+
+
+def _yaml12_scalar(node: yaml.ScalarNode) -> Any:
+    """Where YAML 1.1 and 1.2 read a plain scalar differently, 1.2's reading (the UI's
+    ruamel and every other current YAML reader agree with it); else None. A sexagesimal
+    `1:30` is text in 1.2 (PyYAML: 90), `010` is 10 (PyYAML: 8), `on` text (PyYAML: true)."""
+    value = node.value
+    if node.tag == "tag:yaml.org,2002:bool" and value.lower() not in ("true", "false"):
+        return FlagText(value)
+    if node.tag in _NUMBER_TAGS and ":" in value:
+        return value
+    if node.tag == "tag:yaml.org,2002:int" and _YAML11_OCTAL.fullmatch(value):
+        return int(value.replace("_", ""), 10)
+    return None
+
+
 def as_number(value: Any) -> Any:
     """``value``, or the float a :class:`NumberText` writes."""
     return float(value.replace("_", "")) if isinstance(value, NumberText) else value
@@ -239,6 +271,10 @@ def _construct(node: yaml.Node, file: str, loader: _Loader) -> Any:
         and _EXPONENT_FLOAT.fullmatch(node.value)
     ):
         return NumberText(node.value)
+    if isinstance(node, yaml.ScalarNode) and not node.style and len(node.value) <= MAX_NUMBER_CHARS:
+        read = _yaml12_scalar(node)
+        if read is not None:
+            return read
     if node.tag in _NUMBER_TAGS and len(node.value) > MAX_NUMBER_CHARS:
         raise ConfigError(
             _pos(file, node),
@@ -452,7 +488,7 @@ def flag(mapping: MarkedDict, key: str, what: str, *, default: bool) -> bool:
     """Read ``true`` or ``false`` at ``key``."""
     if key not in mapping:
         return default
-    value = mapping[key]
+    value = as_flag(mapping[key])
     if not isinstance(value, bool):
         raise ConfigError(
             mapping.where(key), f"`{key}` in {what} must be true or false, found {_describe(value)}"
@@ -465,7 +501,7 @@ def flag_or_auto(mapping: MarkedDict, key: str, what: str) -> bool | None:
     program decides)."""
     if key not in mapping or mapping[key] == "auto":
         return None
-    value = mapping[key]
+    value = as_flag(mapping[key])
     if not isinstance(value, bool):
         raise ConfigError(
             mapping.where(key),

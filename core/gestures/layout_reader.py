@@ -20,6 +20,7 @@ from hapticdesk.files.yamlfile import (
     MarkedDict,
     MarkedList,
     Position,
+    as_flag,
     check_keys,
     choice,
     require_mapping,
@@ -156,7 +157,7 @@ class LayoutReader:
 
     def _builtin_templates(self, has_user_templates: bool) -> bool:
         """`builtin_templates: false` leaves only the layout's own templates."""
-        value = self.doc.get("builtin_templates", True)
+        value = as_flag(self.doc.get("builtin_templates", True))
         where = self.doc.where("builtin_templates")
         if not isinstance(value, bool):
             raise ConfigError(where, f"`builtin_templates` is true or false, found {value!r}")

@@ -18,7 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Literal
 
-from hapticdesk.files.yamlfile import ConfigError, MarkedDict, Position, number
+from hapticdesk.files.yamlfile import ConfigError, MarkedDict, Position, as_flag, number
 
 Kind = Literal[
     "seconds", "length", "newtons", "fraction", "degrees", "choice", "bool", "names", "levels"
@@ -240,6 +240,7 @@ def read_option(
             raise ConfigError(where, f"{label} must be one of {allowed}, found {value!r}")
         return value
     if spec.kind == "bool":
+        value = as_flag(value)
         if not isinstance(value, bool):
             raise ConfigError(where, f"{label} must be true or false, found {value!r}")
         return value

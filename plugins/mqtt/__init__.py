@@ -42,7 +42,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from hapticdesk.files.yamlfile import ConfigError, Position
+from hapticdesk.files.yamlfile import ConfigError, Position, as_flag
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.plugins.action_options import options_mapping, text, where
@@ -214,9 +214,10 @@ def parse_options(
         else None
     )
     qos = qos_of(m, "`mqtt`", -1)
-    if "retain" in m and not isinstance(m["retain"], bool):
+    retain = as_flag(m.get("retain"))
+    if "retain" in m and not isinstance(retain, bool):
         raise ConfigError(m.where("retain"), "`retain` of `mqtt` must be true or false")
-    return compiled, payload, None if qos < 0 else qos, m.get("retain")
+    return compiled, payload, None if qos < 0 else qos, retain
 
 
 def validate(options: Any, position: Position | str) -> None:

@@ -17,6 +17,7 @@ from hapticdesk.files.yamlfile import (
     ConfigError,
     MarkedDict,
     Position,
+    as_flag,
     check_keys,
     number,
     require_mapping,
@@ -192,7 +193,7 @@ def settings_from_layout(
     if not client_id or len(client_id) > 128:
         raise ConfigError(m.where("client_id"), "`client_id` must be 1 to 128 characters")
     for key_name in ("retain", "discovery"):
-        if key_name in m and not isinstance(m[key_name], bool):
+        if key_name in m and not isinstance(as_flag(m[key_name]), bool):
             raise ConfigError(m.where(key_name), f"`{key_name}` of `mqtt` must be true or false")
     return MqttSettings(
         host=host,
@@ -206,8 +207,8 @@ def settings_from_layout(
         client_id=client_id,
         keepalive=int(number(m, "keepalive", "`mqtt`", default=60, minimum=5, maximum=65535)),
         qos=qos_of(m, "`mqtt`", 2),
-        retain=bool(m.get("retain", False)),
-        discovery=bool(m.get("discovery", False)),
+        retain=bool(as_flag(m.get("retain", False))),
+        discovery=bool(as_flag(m.get("discovery", False))),
         discovery_prefix=str(m.get("discovery_prefix", "homeassistant")).strip("/"),
         base_topic=str(m.get("base_topic", "hapticdesk")).strip("/"),
         prefix=str(m["prefix"]).strip("/") if "prefix" in m else None,

@@ -298,6 +298,50 @@ def test_an_exponent_number_in_a_payload_or_argv_stays_text(tmp_path: Path) -> N
     assert json.dumps(doc["payload"]) == '{"code": "1e3"}'
 
 
+def test_words_and_numbers_read_as_yaml_1_2_reads_them(tmp_path: Path) -> None:
+    """PyYAML is YAML 1.1: `state: ON` went out to Zigbee2MQTT as `{"state": true}`, `1:30`
+    was 90 and `010` was 8, while the browser UI's ruamel (YAML 1.2) read the same file as
+    "ON", "1:30" and 10. Now both read it alike; a true-or-false setting still takes `on`."""
+    import json
+
+    from hapticdesk.files.yamlfile import flag
+    from hapticdesk.gestures.event import GestureEvent
+    from hapticdesk.plugins.mqtt.message import encode_payload
+    from hapticdesk.plugins.templating import compile_value, event_variables
+
+    text = "payload: {state: ON, at: 1:30, code: 010, power: off, ok: true}\nretain: no\n"
+    text += "a: yes\nb: Off\nc: 'on'\nd: 0x1F\n"
+    doc = load_marked_yaml("x.yaml", text=text)
+    rendered = compile_value(doc["payload"], doc.where("payload"), "`payload`").render(
+        event_variables(GestureEvent(1.0, "tap", "lamp", 0.0, 0.0), "study")
+    )
+    assert json.loads(encode_payload(rendered)) == {
+        "state": "ON",
+        "at": "1:30",
+        "code": 10,
+        "power": "off",
+        "ok": True,
+    }
+    assert [flag(doc, k, "x", default=False) for k in ("retain", "a", "b")] == [False, True, False]
+    with pytest.raises(ConfigError, match="x.yaml:5:4: `c` in x must be true or false"):
+        flag(doc, "c", "x", default=False)  # quoted: text, in 1.1 as in 1.2
+    assert doc["d"] == 31
+    # and the settings that are true or false read them as before
+    from hapticdesk.gestures.layout import load_layout
+    from hapticdesk.plugins.mqtt.settings import settings_from_layout
+
+    mqtt = load_marked_yaml("x.yaml", text="mqtt: {discovery: off, retain: yes}\n")["mqtt"]
+    settings = settings_from_layout(mqtt, desk="study")
+    assert settings.discovery is False and settings.retain is True
+    path = tmp_path / "layout.yaml"
+    path.write_text(
+        "desk: kitamura2017\nunits: cm\nregions: {lamp: {rect: [-26, -16, -14, -4]}}\n"
+        "bindings:\n  - {gesture: long_press, region: lamp, release: yes, do: {log: {}}}\n",
+        encoding="utf-8",
+    )
+    assert load_layout(path).bindings[0].options["release"] is True
+
+
 def test_a_quoted_number_is_named_with_a_hint() -> None:
     doc = load_marked_yaml("x.yaml", text="a: '5e-2'\nv: [1, 2, '3', 4]\n")
     with pytest.raises(ConfigError, match=r"x.yaml:1:4: .*found str '5e-2'; write the number"):

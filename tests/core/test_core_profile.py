@@ -69,7 +69,8 @@ def test_any_orientation_and_sign(tmp_path):
             4,
             "3 or more sensors",
         ),
-        ("name: bench", "name: bench\non: 1", 2, "boolean"),
+        # YAML 1.2 reads `on` as text (PyYAML's 1.1 read it as true): an unknown key
+        ("name: bench", "name: bench\non: 1", 2, "unknown key `on`"),
         (
             "    normal: [1, 0, 0]\n    u_axis: [0, 1, 0]\n",
             "    normal: [1, 0, 0]\n",

@@ -200,7 +200,8 @@ GOOD_REGION = "regions:\n  lamp: {rect: [-0.3, -0.2, -0.1, 0]}\n"
             44,
             ["binding 1", "must agree"],
         ),
-        (GOOD_REGION + "on: true\nbindings: []\n", 4, 1, ["boolean", "quotes"]),
+        (GOOD_REGION + "true: 1\nbindings: []\n", 4, 1, ["boolean", "quotes"]),
+        (GOOD_REGION + "on: true\nbindings: []\n", 4, 1, ["unknown key `on`", "allowed"]),
         (GOOD_REGION + "bindings: []\n", 4, 11, ["at least one binding"]),
         (
             GOOD_REGION

@@ -152,7 +152,11 @@ BAD = [
     ("timeline:\n  - tap: [0, 0]\n", "2:10", "must be a mapping"),
     ("timeline:\n  - tap: {point: [0, 0]\n", "3:1", "not valid YAML"),
     ("objects:\n  - {name: cup, mass_kg: 0}\ntimeline:\n  - idle: 1\n", "2:5", "missing `point`"),
-    ("timeline:\n  - idle: {duration_s: 1}\n  - {on: {point: [0, 0]}}\n", "3:6", "boolean"),
+    (
+        "timeline:\n  - idle: {duration_s: 1}\n  - {on: {point: [0, 0]}}\n",
+        "3:6",
+        "unknown action `on`",
+    ),
 ]
 
 

@@ -15,7 +15,10 @@ Both with and without ``estimation.sway_compensation`` (the legs as the accelero
 desk's sway, which a dragging finger excites, moves the located point against the finger
 and rings on after the swipe, so the idle desk is not still and its zero not followed.
 
-    python scripts/swipe_accuracy.py [--swipes 60] [--seeds 1,2,3]
+    python scripts/swipe_accuracy.py [--swipes 60] [--seeds 1,2,3] [--desk PROFILE]
+
+``--desk``: another desk's profile (a name or a path, e.g. examples/desks/eight-legs.yaml)
+in place of the paper's; its buttons are the same 5 cm grid at the top's centre.
 """
 
 from __future__ import annotations
@@ -136,15 +139,16 @@ def main() -> None:
     parser.add_argument("--swipes", type=int, default=60, help="swipes in a row, per seed")
     parser.add_argument("--speed-swipes", type=int, default=84, help="12 cm swipes, per seed")
     parser.add_argument("--seeds", default="1,2,3")
+    parser.add_argument("--desk", default="kitamura2017", help="desk profile: name or path")
     args = parser.parse_args()
     seeds = [int(s) for s in args.seeds.split(",")]
-    paper = load_profile("kitamura2017")
+    shipped = load_profile(args.desk)
     for label, desk in (
-        ("sway_compensation: false", paper.with_estimation(sway_compensation=False)),
-        ("the profile as shipped (sway compensation on for `fused`)", paper),
+        ("sway_compensation: false", shipped.with_estimation(sway_compensation=False)),
+        ("the profile as shipped (sway compensation on for `fused`)", shipped),
     ):
         started = time.monotonic()
-        print(f"## paper desk, {label}")
+        print(f"## {shipped.name}, {label}")
         bands: dict[tuple[float, float], collections.Counter] = {}
         for seed in seeds:
             for band, tally in speeds(desk, args.speed_swipes, seed).items():

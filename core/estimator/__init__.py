@@ -44,6 +44,7 @@ from hapticdesk.estimator.candidates import Candidates, CandidateStage, Covarian
 from hapticdesk.estimator.contacts import FLAG_NOT_TARED, UNCERTAINTY_CAP_M, ContactBlock
 from hapticdesk.estimator.detector import TouchDetector, phase_of, phases_of, slope_along
 from hapticdesk.estimator.filter_bank import FilterBank
+from hapticdesk.estimator.geometry import shear_ratio, shear_ratio_one
 from hapticdesk.estimator.inertia import InertiaSettings, InertiaStage, accelerometer_readings
 from hapticdesk.estimator.methods import emit_one, select, select_one
 from hapticdesk.estimator.multitouch import SecondFingerStage
@@ -135,6 +136,9 @@ class ContactEstimator:
         #: delay (the gesture engine carries a swipe's end on by it)
         self.position_delay_s = self.stage_settings.position_delay_s
         self.notices = NoticeList()  # bounded: see NoticeList
+        # each surface's normal, for the shear of a located sample (ContactBlock.shear)
+        self._normals = np.array([f.surface.normal for f in self.stage_settings.frames])
+        self._normal_lists: list[list[float]] = self._normals.tolist()
         self._second_finger_on = settings.second_finger
         self.reset()
 
@@ -318,6 +322,7 @@ class ContactEstimator:
             chosen, source = select_one(cf, cd, cq, f_mag, motion, s)
             if chosen is not None:
                 emit_one(block, chosen, source, s.frames)
+                block.shear[0] = shear_ratio_one(fast, self._normal_lists[chosen[0]])
         if self.second_finger is not None:
             self.second_finger.push_one(raw_a, block)
         return block
@@ -377,6 +382,9 @@ class ContactEstimator:
         if self.trace:
             self.traces.append(_trace(t[idx], cands, s))
         select(block, idx, cands, s)
+        at = idx[block.located[idx]]
+        if len(at):
+            block.shear[at] = shear_ratio(f_det[:, at], self._normals[block.surface[at]])
 
 
 def _trace(t: np.ndarray, cands: Candidates, s: EstimatorSettings) -> CandidateTrace:
@@ -405,7 +413,10 @@ def _single_block(t: float, in_contact: bool, force_n: float, second: bool) -> C
     (``second`` False) nothing writes its fields: they share read-only zeros."""
     own = _BLANK_ONE if second else _BLANK_ONE[:_FIRST_SECOND]
     block = ContactBlock(
-        *(a.copy() for a in own), *(() if second else _NO_SECOND), resting=_NOT_RESTING.copy()
+        *(a.copy() for a in own),
+        *(() if second else _NO_SECOND),
+        resting=_NOT_RESTING.copy(),
+        shear=_NO_SHEAR.copy(),
     )
     block.t[0] = t
     block.in_contact[0] = in_contact
@@ -433,7 +444,8 @@ _BLANK_ONE = (
     np.zeros(1),  # z2
 )
 _FIRST_SECOND = 12  # where the second finger's fields begin
-_NOT_RESTING = np.zeros(1, bool)  # the last field, resting
+_NOT_RESTING = np.zeros(1, bool)  # the fields after the second finger's: resting, shear
+_NO_SHEAR = np.zeros(1)
 _NO_SECOND = tuple(a.copy() for a in _BLANK_ONE[_FIRST_SECOND:])
 for _array in _NO_SECOND:
     _array.flags.writeable = False

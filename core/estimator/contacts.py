@@ -43,6 +43,7 @@ FLAG_NAMES = {
     FLAG_NO_ACCEL: "no_accel",
 }
 UNCERTAINTY_CAP_M = 10.0  # stands for "unknown" so the arrays stay finite
+SHEAR_CAP = 100.0  # the largest ContactBlock.shear: a force along the surface, none into it
 
 
 def _left_out() -> np.ndarray:
@@ -75,6 +76,10 @@ class ContactBlock:
     # (k,) bool: in contact, and the load has been as still as an object put down since the
     # last window judged (the zero stage's verdict is pending); added later, may be left out
     resting: np.ndarray = field(default_factory=_left_out)
+    # (k,) float: at a located sample, the external force's share along the surface over its
+    # share into it (|F_t| / |F_n|, at most SHEAR_CAP): a finger sliding drags the surface
+    # (0.3 and more, friction), a tap presses into it; 0 elsewhere. Added later, may be left out
+    shear: np.ndarray = field(default_factory=_left_out)
 
     def __post_init__(self) -> None:
         k = len(self.t)
@@ -84,7 +89,7 @@ class ContactBlock:
                 setattr(self, name, np.zeros(k, bool))
             elif value.dtype != np.bool_:  # (k = 0: the default's float zeros)
                 setattr(self, name, value.astype(bool))
-        for name in ("x2", "y2", "z2"):
+        for name in ("x2", "y2", "z2", "shear"):
             if len(getattr(self, name)) != k:
                 setattr(self, name, np.zeros(k))
 
@@ -120,6 +125,8 @@ class ContactBlock:
             z.copy(),
             z.copy(),
             z.copy(),
+            z.astype(bool),
+            z.copy(),
         )
 
     @classmethod
@@ -144,6 +151,7 @@ class ContactBlock:
             y2=np.zeros(k),
             z2=np.zeros(k),
             resting=np.zeros(k, bool),
+            shear=np.zeros(k),
         )
 
     def take(self, index: np.ndarray | slice) -> ContactBlock:
@@ -178,6 +186,7 @@ class ContactEvent:
     x2: float = 0.0
     y2: float = 0.0
     resting: bool = False
+    shear: float = 0.0  # ContactBlock.shear: tangential over normal force (0: not located)
 
 
 def contact_events(block: ContactBlock, was_in_contact: bool = False) -> list[ContactEvent]:
@@ -201,6 +210,7 @@ def contact_events(block: ContactBlock, was_in_contact: bool = False) -> list[Co
     multi = ((block.flags & FLAG_MULTI) != 0).tolist()
     loc2, xs2, ys2 = block.located2.tolist(), block.x2.tolist(), block.y2.tolist()
     resting = block.resting.tolist()
+    shear = block.shear.tolist()
     for i in range(len(t)):
         if loc[i]:
             last_xy = (xs[i], ys[i], surf[i])
@@ -222,6 +232,7 @@ def contact_events(block: ContactBlock, was_in_contact: bool = False) -> list[Co
                     xs2[i],
                     ys2[i],
                     resting[i],
+                    shear[i] if loc[i] else 0.0,
                 )
             )
         elif prev:

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from hapticdesk.estimator.contacts import SHEAR_CAP
 from hapticdesk.files.profile import Surface
 
 EDGE_TOLERANCE_M = 1e-9  # a point this close to an outline counts as inside
@@ -382,3 +383,20 @@ def pack_cov(c: np.ndarray) -> tuple[float, float, float, float, float, float]:
         float(c[1, 2]),
         float(c[2, 2]),
     )
+
+
+def shear_ratio(force: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """|F_t| / |F_n| of forces ``force`` (3, k) on surfaces of unit ``normal`` (k, 3): how
+    much a finger drags along the surface for how hard it presses into it, at most
+    :data:`SHEAR_CAP` (finite where F_n is 0)."""
+    into = np.einsum("ik,ki->k", force, normal)
+    along = np.sqrt(np.maximum(np.einsum("ik,ik->k", force, force) - into * into, 0.0))
+    return np.minimum(along / np.maximum(np.abs(into), along / SHEAR_CAP + 1e-300), SHEAR_CAP)
+
+
+def shear_ratio_one(force: list[float], normal: list[float]) -> float:
+    """:func:`shear_ratio` for one force (its first three values) in plain floats."""
+    fx, fy, fz = force[0], force[1], force[2]
+    into = fx * normal[0] + fy * normal[1] + fz * normal[2]
+    along = math.sqrt(max(fx * fx + fy * fy + fz * fz - into * into, 0.0))
+    return min(along / max(abs(into), along / SHEAR_CAP + 1e-300), SHEAR_CAP)

@@ -1,6 +1,7 @@
 """Noise-free wrenches are inverted exactly, for any desk (hypothesis), and the edge cases."""
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -125,3 +126,17 @@ def test_overlapping_surfaces_the_one_reached_first_wins():
         wrench = np.concatenate([f_o, np.cross(point, f_o)])[:, None]
         hit = intersect([top, shelf], wrench, 1.0, None, 0.2)
         assert hit.surface[0] == expected
+
+
+def test_shear_is_the_drag_along_the_surface_over_the_press_into_it():
+    from hapticdesk.estimator.contacts import SHEAR_CAP
+    from hapticdesk.estimator.geometry import shear_ratio, shear_ratio_one
+
+    forces = np.array([[3.0, 4.0, -10.0], [3.0, 4.0, -10.0], [0.0, 0.0, 0.0], [2.0, 0.0, 0.0]])
+    normals = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0]])
+    # a top pressed with 10 N and dragged with 5 N; an upright panel pushed with 4 N and
+    # dragged with sqrt(109) N; no force; a force along the surface alone (capped, finite)
+    want = [0.5, np.sqrt(109.0) / 4.0, 0.0, SHEAR_CAP]
+    np.testing.assert_allclose(shear_ratio(forces.T, normals), want, rtol=1e-12)
+    for f, n, w in zip(forces, normals, want, strict=True):
+        assert shear_ratio_one(f.tolist(), n.tolist()) == pytest.approx(w, rel=1e-12)

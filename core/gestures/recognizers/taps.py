@@ -45,9 +45,16 @@ class _PendingTap:
     double_options: dict[str, Any]
 
 
+#: a touch that dragged along the surface harder than this (Touch.dragged) slid: no tap,
+#: however little its located points moved (a flick on a desk whose points lag it)
+MAX_TAP_DRAG = 0.35
+
+
 def _is_tap(touch: Touch, x: float, y: float, options: dict[str, Any]) -> bool:
     return (
-        touch.duration() <= options["max_duration_s"] and touch.moved(x, y) <= options["max_move"]
+        touch.duration() <= options["max_duration_s"]
+        and touch.moved(x, y) <= options["max_move"]
+        and touch.dragged() <= MAX_TAP_DRAG
     )
 
 

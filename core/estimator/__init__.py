@@ -382,9 +382,15 @@ class ContactEstimator:
         if self.trace:
             self.traces.append(_trace(t[idx], cands, s))
         select(block, idx, cands, s)
-        at = idx[block.located[idx]]
-        if len(at):
-            block.shear[at] = shear_ratio(f_det[:, at], self._normals[block.surface[at]])
+        # the shear of each located sample, from the fast force and its surface's normal
+        located = block.located[idx]
+        if located.any():
+            if len(self._normals) == 1:
+                into = self._normals[0] @ f_det_at
+            else:  # (a sample not located has surface -1: any normal, left out below)
+                into = np.einsum("ik,ki->k", f_det_at, self._normals[block.surface[idx]])
+            shear = shear_ratio(into, f_det_mag_at)
+            block.shear[idx] = shear if located.all() else np.where(located, shear, 0.0)
 
 
 def _trace(t: np.ndarray, cands: Candidates, s: EstimatorSettings) -> CandidateTrace:

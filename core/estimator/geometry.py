@@ -385,13 +385,19 @@ def pack_cov(c: np.ndarray) -> tuple[float, float, float, float, float, float]:
     )
 
 
-def shear_ratio(force: np.ndarray, normal: np.ndarray) -> np.ndarray:
-    """|F_t| / |F_n| of forces ``force`` (3, k) on surfaces of unit ``normal`` (k, 3): how
-    much a finger drags along the surface for how hard it presses into it, at most
-    :data:`SHEAR_CAP` (finite where F_n is 0)."""
-    into = np.einsum("ik,ki->k", force, normal)
-    along = np.sqrt(np.maximum(np.einsum("ik,ik->k", force, force) - into * into, 0.0))
-    return np.minimum(along / np.maximum(np.abs(into), along / SHEAR_CAP + 1e-300), SHEAR_CAP)
+def shear_ratio(into: np.ndarray, magnitude: np.ndarray) -> np.ndarray:
+    """|F_t| / |F_n| of forces whose component along the surface's unit normal is ``into``
+    and whose magnitude is ``magnitude`` (arrays alike): how much a finger drags along the
+    surface for how hard it presses into it, at most :data:`SHEAR_CAP` (finite where F_n is
+    0). In place of temporaries where it can: it runs on every located sample."""
+    along = np.multiply(magnitude, magnitude)
+    along -= into * into
+    np.maximum(along, 0.0, out=along)
+    np.sqrt(along, out=along)
+    pressed = np.abs(into)
+    np.maximum(pressed, along * (1.0 / SHEAR_CAP) + 1e-300, out=pressed)
+    along /= pressed
+    return np.minimum(along, SHEAR_CAP, out=along)
 
 
 def shear_ratio_one(force: list[float], normal: list[float]) -> float:

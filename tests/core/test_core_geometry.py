@@ -137,6 +137,7 @@ def test_shear_is_the_drag_along_the_surface_over_the_press_into_it():
     # a top pressed with 10 N and dragged with 5 N; an upright panel pushed with 4 N and
     # dragged with sqrt(109) N; no force; a force along the surface alone (capped, finite)
     want = [0.5, np.sqrt(109.0) / 4.0, 0.0, SHEAR_CAP]
-    np.testing.assert_allclose(shear_ratio(forces.T, normals), want, rtol=1e-12)
+    into = np.einsum("ki,ki->k", forces, normals)
+    np.testing.assert_allclose(shear_ratio(into, np.linalg.norm(forces, axis=1)), want, rtol=1e-12)
     for f, n, w in zip(forces, normals, want, strict=True):
         assert shear_ratio_one(f.tolist(), n.tolist()) == pytest.approx(w, rel=1e-12)

@@ -139,6 +139,8 @@ class ContactEstimator:
         # each surface's normal, for the shear of a located sample (ContactBlock.shear)
         self._normals = np.array([f.surface.normal for f in self.stage_settings.frames])
         self._normal_lists: list[list[float]] = self._normals.tolist()
+        # (by surface index; -1, not located, reads the last: masked where used)
+        self._desk_xy = np.array([f.desk_xy for f in self.stage_settings.frames])
         self._second_finger_on = settings.second_finger
         self.reset()
 
@@ -322,7 +324,12 @@ class ContactEstimator:
             chosen, source = select_one(cf, cd, cq, f_mag, motion, s)
             if chosen is not None:
                 emit_one(block, chosen, source, s.frames)
-                block.shear[0] = shear_ratio_one(fast, self._normal_lists[chosen[0]])
+                n = self._normal_lists[chosen[0]]
+                block.shear[0] = shear_ratio_one(fast, n)
+                if self._desk_xy[chosen[0]]:
+                    into = fast[0] * n[0] + fast[1] * n[1] + fast[2] * n[2]
+                    block.drag_x[0] = into * n[0] - fast[0]
+                    block.drag_y[0] = into * n[1] - fast[1]
         if self.second_finger is not None:
             self.second_finger.push_one(raw_a, block)
         return block
@@ -386,11 +393,18 @@ class ContactEstimator:
         located = block.located[idx]
         if located.any():
             if len(self._normals) == 1:
-                into = self._normals[0] @ f_det_at
+                normal = self._normals[0][:, None]
             else:  # (a sample not located has surface -1: any normal, left out below)
-                into = np.einsum("ik,ki->k", f_det_at, self._normals[block.surface[idx]])
+                normal = self._normals[block.surface[idx]].T
+            into = np.einsum("ik,ik->k", f_det_at, normal)
             shear = shear_ratio(into, f_det_mag_at)
             block.shear[idx] = shear if located.all() else np.where(located, shear, 0.0)
+            # the drag along a horizontal board: the force along it, the finger's way (F is
+            # the desk's reaction); its x and y are the desk's
+            on_board = located & self._desk_xy[block.surface[idx]]
+            if on_board.any():
+                block.drag_x[idx] = np.where(on_board, into * normal[0] - f_det_at[0], 0.0)
+                block.drag_y[idx] = np.where(on_board, into * normal[1] - f_det_at[1], 0.0)
 
 
 def _trace(t: np.ndarray, cands: Candidates, s: EstimatorSettings) -> CandidateTrace:
@@ -423,6 +437,8 @@ def _single_block(t: float, in_contact: bool, force_n: float, second: bool) -> C
         *(() if second else _NO_SECOND),
         resting=_NOT_RESTING.copy(),
         shear=_NO_SHEAR.copy(),
+        drag_x=_NO_SHEAR.copy(),
+        drag_y=_NO_SHEAR.copy(),
     )
     block.t[0] = t
     block.in_contact[0] = in_contact

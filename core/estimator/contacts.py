@@ -80,6 +80,11 @@ class ContactBlock:
     # share into it (|F_t| / |F_n|, at most SHEAR_CAP): a finger sliding drags the surface
     # (0.3 and more, friction), a tap presses into it; 0 elsewhere. Added later, may be left out
     shear: np.ndarray = field(default_factory=_left_out)
+    # (k,) the finger's drag along a horizontal board at a located sample, desk x and y in
+    # newtons (the force along the surface, the finger's way: the way it slides); 0 elsewhere
+    # and on other surfaces. Added later, may be left out
+    drag_x: np.ndarray = field(default_factory=_left_out)
+    drag_y: np.ndarray = field(default_factory=_left_out)
 
     def __post_init__(self) -> None:
         k = len(self.t)
@@ -89,7 +94,7 @@ class ContactBlock:
                 setattr(self, name, np.zeros(k, bool))
             elif value.dtype != np.bool_:  # (k = 0: the default's float zeros)
                 setattr(self, name, value.astype(bool))
-        for name in ("x2", "y2", "z2", "shear"):
+        for name in ("x2", "y2", "z2", "shear", "drag_x", "drag_y"):
             if len(getattr(self, name)) != k:
                 setattr(self, name, np.zeros(k))
 
@@ -127,6 +132,8 @@ class ContactBlock:
             z.copy(),
             z.astype(bool),
             z.copy(),
+            z.copy(),
+            z.copy(),
         )
 
     @classmethod
@@ -152,6 +159,8 @@ class ContactBlock:
             z2=np.zeros(k),
             resting=np.zeros(k, bool),
             shear=np.zeros(k),
+            drag_x=np.zeros(k),
+            drag_y=np.zeros(k),
         )
 
     def take(self, index: np.ndarray | slice) -> ContactBlock:
@@ -187,6 +196,8 @@ class ContactEvent:
     y2: float = 0.0
     resting: bool = False
     shear: float = 0.0  # ContactBlock.shear: tangential over normal force (0: not located)
+    drag_x: float = 0.0  # ContactBlock.drag_x, drag_y: the finger's drag on a horizontal board
+    drag_y: float = 0.0
 
 
 def contact_events(block: ContactBlock, was_in_contact: bool = False) -> list[ContactEvent]:
@@ -211,6 +222,7 @@ def contact_events(block: ContactBlock, was_in_contact: bool = False) -> list[Co
     loc2, xs2, ys2 = block.located2.tolist(), block.x2.tolist(), block.y2.tolist()
     resting = block.resting.tolist()
     shear = block.shear.tolist()
+    drag_x, drag_y = block.drag_x.tolist(), block.drag_y.tolist()
     for i in range(len(t)):
         if loc[i]:
             last_xy = (xs[i], ys[i], surf[i])
@@ -233,6 +245,8 @@ def contact_events(block: ContactBlock, was_in_contact: bool = False) -> list[Co
                     ys2[i],
                     resting[i],
                     shear[i] if loc[i] else 0.0,
+                    drag_x[i] if loc[i] else 0.0,
+                    drag_y[i] if loc[i] else 0.0,
                 )
             )
         elif prev:

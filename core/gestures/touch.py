@@ -65,6 +65,7 @@ class Touch:
         self._pressed: list[bool] = []
         self._force: list[float] = []
         self._shear: list[float] = []  # pressed located samples' shear (ContactEvent.shear)
+        self._drag_x = self._drag_y = 0.0  # their drag (ContactEvent.drag_x, drag_y), summed
         self._pressed_w = self._pressed_wx = self._pressed_wy = 0.0
         self._ema_w = self._ema_wx = self._ema_wy = 0.0
         self._outliers_since: float | None = None  # start of the current run of outliers
@@ -105,6 +106,8 @@ class Touch:
             return  # one resultant force cannot touch two surfaces; keep the first
         if event.force_n >= self.pressed_n:  # (whatever the gate says of its position)
             self._shear.append(event.shear)
+            self._drag_x += event.drag_x
+            self._drag_y += event.drag_y
         sigma = max(event.sigma_m, SIGMA_FLOOR_M)
         if self._t and not self._accept(event, sigma):
             self.outliers += 1
@@ -228,6 +231,11 @@ class Touch:
         slide from a tap: friction drags the surface (simulated flicks 0.6-0.9 on four kinds
         of desk), a tap presses into it (0.06-0.16)."""
         return float(np.percentile(self._shear, 75)) if self._shear else 0.0
+
+    def drag(self) -> tuple[float, float]:
+        """The way the finger dragged a horizontal board, desk (x, y): its pressed samples'
+        drag summed (friction pulls the board the way a finger slides); (0, 0) elsewhere."""
+        return self._drag_x, self._drag_y
 
     def moved(self, x: float, y: float, rise_share: float = 0.0) -> float:
         """How far the touch went from (x, y) beyond its own uncertainty, metres.

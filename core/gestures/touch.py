@@ -66,6 +66,7 @@ class Touch:
         self._force: list[float] = []
         self._shear: list[float] = []  # pressed located samples' shear (ContactEvent.shear)
         self._drag_x = self._drag_y = 0.0  # their drag (ContactEvent.drag_x, drag_y), summed
+        self._drag_length = 0.0  # ... and its lengths summed
         self._pressed_w = self._pressed_wx = self._pressed_wy = 0.0
         self._ema_w = self._ema_wx = self._ema_wy = 0.0
         self._outliers_since: float | None = None  # start of the current run of outliers
@@ -108,6 +109,7 @@ class Touch:
             self._shear.append(event.shear)
             self._drag_x += event.drag_x
             self._drag_y += event.drag_y
+            self._drag_length += math.hypot(event.drag_x, event.drag_y)
         sigma = max(event.sigma_m, SIGMA_FLOOR_M)
         if self._t and not self._accept(event, sigma):
             self.outliers += 1
@@ -236,6 +238,13 @@ class Touch:
         """The way the finger dragged a horizontal board, desk (x, y): its pressed samples'
         drag summed (friction pulls the board the way a finger slides); (0, 0) elsewhere."""
         return self._drag_x, self._drag_y
+
+    def drag_straightness(self) -> float:
+        """How much the drag kept one way: its sum's length over its lengths' sum, 1 for a
+        straight slide, near 0 for a circle drawn; 0 without any drag."""
+        if self._drag_length <= 0.0:
+            return 0.0
+        return math.hypot(self._drag_x, self._drag_y) / self._drag_length
 
     def moved(self, x: float, y: float, rise_share: float = 0.0) -> float:
         """How far the touch went from (x, y) beyond its own uncertainty, metres.

@@ -18,7 +18,11 @@ On a desk whose sway the estimator cannot follow (examples/desks/eight-legs.yaml
 a quick swipe's points can run against the finger: a swipe the other way. Friction pulls
 the board the way the finger slides (``Touch.drag``; on simulated swipes on four kinds of
 desk, within 12 degrees of the finger's way), so a swipe whose points name another
-direction than that drag is not fired: a miss, not a wrong command.
+direction than that drag is not fired: a miss, not a wrong command. And where the points
+cannot follow the finger at all (flicks on that desk: 12 of 84 found by the points), a
+quick touch that dragged the board hard (SLIDE_DRAG) and one way (SLIDE_STRAIGHTNESS) slid:
+it is a swipe the way it dragged (its ``distance`` 0 where the points did not make the same
+swipe). Taps drag 0.06-0.16, simulated swipes 0.6-0.9, a circle drawn quickly every way.
 
 Carried on, a short touch's noise can look like motion: the line over a light, quick tap's
 few samples slopes with the touch-down's scatter, and 47 ms (90 ms on a 3 Hz desk) of that
@@ -57,6 +61,12 @@ FLICK_AGREE_COS = math.cos(math.pi / 4)
 #: a touch that dragged the board this hard (Touch.dragged) slid the way it dragged it: a
 #: swipe whose points name another direction is the desk's sway, not the finger (see above)
 DIRECTION_DRAG = 0.2
+#: a quick touch that dragged the board this hard (Touch.dragged; taps 0.06-0.16, simulated
+#: swipes 0.6-0.9) slid: a swipe the way it dragged, where the points could not follow it
+SLIDE_DRAG = 0.35
+#: ... and kept its drag this straight (Touch.drag_straightness: a circle drawn quickly
+#: drags every way, a swipe one)
+SLIDE_STRAIGHTNESS = 0.8
 #: the measured track (without the carry-on) must have moved this share of ``min_distance``
 MEASURED_SHARE = 0.4
 #: ... and this share away from the touch's best point (about its middle on a swipe)
@@ -101,32 +111,27 @@ class SwipeRecognizer(Recognizer):
             return []
         t = touch.times()
         start = touch.position_at(t[0], t[0], t[0] + END_WINDOW_S)
-        end = _end(touch, start)
-        assert start is not None and end is not None
+        assert start is not None
         found, region = self.bound.find(start[0], start[1], touch.surface)
         if not found or (region is None and self.sliders.find(*start, touch.surface)[0]):
             return []  # a drag that starts on a slider is the slider's, not a swipe anywhere
         o = self.bound.options(region)
-        dx, dy = end[0] - start[0], end[1] - start[1]
-        distance = math.hypot(dx, dy)
-        if touch.duration() > o["max_duration_s"] or distance < o["min_distance"]:
+        if touch.duration() > o["max_duration_s"]:
             return []
-        if touch.moved(*start) < MEASURED_SHARE * o["min_distance"]:
-            return []  # the carry-on alone made it: a still touch's noise (see above)
-        if touch.moved(*touch.best()[:2]) < STILL_SHARE * o["min_distance"]:
-            return []  # a still touch whose first points strayed (see above)
-        direction = direction_name(dx, dy, o["directions"])
+        by_points = self._by_points(touch, start, o)
         gx, gy = touch.drag()
-        if (
-            touch.dragged() >= DIRECTION_DRAG
-            and direction_name(gx, gy, o["directions"]) != direction
-        ):
-            return []  # the points went another way than the finger dragged: the desk's sway
-        # how far the path bows away from the straight line between the ends
-        track = touch.track() - np.asarray(start)
-        deviation = float(np.max(np.abs(track[:, 0] * dy - track[:, 1] * dx))) / distance
-        if deviation > o["max_deviation"] * distance:
+        dragged = touch.dragged()
+        slid = dragged >= SLIDE_DRAG and touch.drag_straightness() >= SLIDE_STRAIGHTNESS
+        if slid:  # the way it dragged, wherever the points went (see above)
+            direction = direction_name(gx, gy, o["directions"])
+            same = by_points is not None and by_points[0] == direction
+            distance = by_points[1] if same and by_points is not None else 0.0
+        elif by_points is None:
             return []
+        else:
+            direction, distance = by_points
+            if dragged >= DIRECTION_DRAG and direction_name(gx, gy, o["directions"]) != direction:
+                return []  # the points went another way than the finger dragged: the sway
         return [
             GestureEvent(
                 event.t, "swipe", region, start[0], start[1],
@@ -134,3 +139,24 @@ class SwipeRecognizer(Recognizer):
                 extra={"distance": round(distance, 6)},
             )
         ]  # fmt: skip
+
+    def _by_points(
+        self, touch: Touch, start: tuple[float, float], o: dict
+    ) -> tuple[str, float] | None:
+        """The swipe the located points make (direction, length), or None."""
+        end = _end(touch, start)
+        assert end is not None
+        dx, dy = end[0] - start[0], end[1] - start[1]
+        distance = math.hypot(dx, dy)
+        if distance < o["min_distance"]:
+            return None
+        if touch.moved(*start) < MEASURED_SHARE * o["min_distance"]:
+            return None  # the carry-on alone made it: a still touch's noise (see above)
+        if touch.moved(*touch.best()[:2]) < STILL_SHARE * o["min_distance"]:
+            return None  # a still touch whose first points strayed (see above)
+        # how far the path bows away from the straight line between the ends
+        track = touch.track() - np.asarray(start)
+        deviation = float(np.max(np.abs(track[:, 0] * dy - track[:, 1] * dx))) / distance
+        if deviation > o["max_deviation"] * distance:
+            return None
+        return direction_name(dx, dy, o["directions"]), distance

@@ -67,6 +67,9 @@ SLIDE_DRAG = 0.35
 #: ... and kept its drag this straight (Touch.drag_straightness: a circle drawn quickly
 #: drags every way, a swipe one)
 SLIDE_STRAIGHTNESS = 0.8
+#: ... and lasted this long: the lift-off of a flick seen as a touch of its own for a few
+#: samples (2 ms) drags the board back the other way (flicks on the tests' three-legged desk)
+SLIDE_MIN_S = 0.05
 #: the measured track (without the carry-on) must have moved this share of ``min_distance``
 MEASURED_SHARE = 0.4
 #: ... and this share away from the touch's best point (about its middle on a swipe)
@@ -121,7 +124,11 @@ class SwipeRecognizer(Recognizer):
         by_points = self._by_points(touch, start, o)
         gx, gy = touch.drag()
         dragged = touch.dragged()
-        slid = dragged >= SLIDE_DRAG and touch.drag_straightness() >= SLIDE_STRAIGHTNESS
+        slid = (
+            dragged >= SLIDE_DRAG
+            and touch.drag_straightness() >= SLIDE_STRAIGHTNESS
+            and touch.duration() >= SLIDE_MIN_S
+        )
         if slid:  # the way it dragged, wherever the points went (see above)
             direction = direction_name(gx, gy, o["directions"])
             same = by_points is not None and by_points[0] == direction

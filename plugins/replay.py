@@ -105,8 +105,8 @@ def open_replay(
     argument: str, profile: DeskProfile, *, speed: float = 1.0, **options: Any
 ) -> Source:
     """``replay:FILE``: a CSV/NPZ recording, or a CAN log by any other suffix."""
-    from hapticdesk.files.readers import check_sample_rate
-    from hapticdesk.files.recording import RECORDING_SUFFIXES, RecordingBlocks
+    from hapticdesk.files.readers import open_recording_blocks
+    from hapticdesk.files.recording import RECORDING_SUFFIXES
 
     if not argument:
         raise ConfigError("--source", "replay needs a file: replay:FILE.csv, .npz or a CAN log")
@@ -114,14 +114,10 @@ def open_replay(
     if not path.is_file():
         raise ConfigError("--source", f"replay: no such file {argument}")
     if path.suffix.lower() in RECORDING_SUFFIXES:
-        recording = RecordingBlocks(path, profile.sensor_names)
-        try:
-            if recording.is_empty():
-                raise ConfigError(str(path), "the recording holds no samples")
-            check_sample_rate(recording.first_times(), profile, str(path))
-        except ConfigError:
+        recording = open_recording_blocks(path, profile)
+        if recording.is_empty():
             recording.close()
-            raise
+            raise ConfigError(str(path), "the recording holds no samples")
         source = RecordingSource(
             recording, profile.sample_rate_hz, accel_columns=profile.accelerometer_columns()
         )

@@ -301,26 +301,21 @@ def detail_run(desk: DeskProfile, n: int, seed: int, sensors=None) -> dict:
             continue
         ctx = context(e.t)
         action = scene.actions[ctx["action"]]
-        if e.gesture == "long_press":
-            if isinstance(action, LongPress):
-                ok = e.region == region_of(*action.point)
-                extra["lp_right" if ok else "lp_wrong"] += 1
-                if ok:
-                    continue
-                cls = "wrong long_press"
-            else:
-                extra["lp_phantom"] += 1
-                cls = "phantom long_press"
+        made, key = (LongPress, "lp") if e.gesture == "long_press" else (Swipe, "sw")
+        if isinstance(action, made):
+            # a long press in the pressed button; a swipe the way the scene's swipes go
+            ok = (
+                e.region == region_of(*action.point)
+                if isinstance(action, LongPress)
+                else e.direction == "right"
+            )
+            extra[f"{key}_right" if ok else f"{key}_wrong"] += 1
+            if ok:
+                continue
+            cls = f"wrong {e.gesture}"
         else:
-            if isinstance(action, Swipe):
-                ok = e.direction == "right"
-                extra["sw_right" if ok else "sw_wrong"] += 1
-                if ok:
-                    continue
-                cls = "wrong swipe"
-            else:
-                extra["sw_phantom"] += 1
-                cls = "phantom swipe"
+            extra[f"{key}_phantom"] += 1
+            cls = f"phantom {e.gesture}"
         j = int(np.searchsorted(contacts.t, e.t))
         cases.append(
             {

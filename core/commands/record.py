@@ -23,11 +23,10 @@ import numpy as np
 
 from hapticdesk.commands.output_path import cannot_write
 from hapticdesk.files.profile import DeskProfile, load_profile
-from hapticdesk.files.readers import check_sample_rate
+from hapticdesk.files.readers import open_recording_blocks
 from hapticdesk.files.recording import (
     RECORDING_SUFFIXES,
     Recording,
-    RecordingBlocks,
     concat_recordings,
     write_recording,
 )
@@ -257,8 +256,7 @@ def _read_until_error(path: Path, profile: DeskProfile) -> tuple[Recording, Conf
     them out first) and that line's error. A file bad from its first sample (or its header),
     or at another rate than the profile's, is refused: nothing of it was good."""
     parts: list[Recording] = []
-    with RecordingBlocks(path, profile.sensor_names) as reader:
-        check_sample_rate(reader.first_times(), profile, str(path))
+    with open_recording_blocks(path, profile) as reader:
         try:
             for block in reader.blocks():
                 parts.append(block)

@@ -325,9 +325,9 @@ class ContactEstimator:
             if chosen is not None:
                 emit_one(block, chosen, source, s.frames)
                 n = self._normal_lists[chosen[0]]
-                block.shear[0] = shear_ratio_one(fast, n)
+                into = fast[0] * n[0] + fast[1] * n[1] + fast[2] * n[2]
+                block.shear[0] = shear_ratio_one(into, mag)
                 if self._desk_xy[chosen[0]]:
-                    into = fast[0] * n[0] + fast[1] * n[1] + fast[2] * n[2]
                     block.drag_x[0] = into * n[0] - fast[0]
                     block.drag_y[0] = into * n[1] - fast[1]
         if self.second_finger is not None:
@@ -466,8 +466,8 @@ _BLANK_ONE = (
     np.zeros(1),  # z2
 )
 _FIRST_SECOND = 12  # where the second finger's fields begin
-_NOT_RESTING = np.zeros(1, bool)  # the fields after the second finger's: resting, shear
-_NO_SHEAR = np.zeros(1)
+_NOT_RESTING = np.zeros(1, bool)  # the fields after the second finger's: resting, ...
+_NO_SHEAR = np.zeros(1)  # ... shear, drag_x and drag_y
 _NO_SECOND = tuple(a.copy() for a in _BLANK_ONE[_FIRST_SECOND:])
 for _array in _NO_SECOND:
     _array.flags.writeable = False

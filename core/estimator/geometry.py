@@ -400,9 +400,7 @@ def shear_ratio(into: np.ndarray, magnitude: np.ndarray) -> np.ndarray:
     return np.minimum(along, SHEAR_CAP, out=along)
 
 
-def shear_ratio_one(force: list[float], normal: list[float]) -> float:
-    """:func:`shear_ratio` for one force (its first three values) in plain floats."""
-    fx, fy, fz = force[0], force[1], force[2]
-    into = fx * normal[0] + fy * normal[1] + fz * normal[2]
-    along = math.sqrt(max(fx * fx + fy * fy + fz * fz - into * into, 0.0))
+def shear_ratio_one(into: float, magnitude: float) -> float:
+    """:func:`shear_ratio` for one force, in plain floats."""
+    along = math.sqrt(max(magnitude * magnitude - into * into, 0.0))
     return min(along / max(abs(into), along / SHEAR_CAP + 1e-300), SHEAR_CAP)

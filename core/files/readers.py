@@ -8,7 +8,12 @@ from pathlib import Path
 import numpy as np
 
 from hapticdesk.files.profile import DeskProfile
-from hapticdesk.files.recording import RECORDING_SUFFIXES, Recording, read_recording
+from hapticdesk.files.recording import (
+    RECORDING_SUFFIXES,
+    Recording,
+    RecordingBlocks,
+    read_recording,
+)
 from hapticdesk.files.yamlfile import ConfigError, regular_file_size
 
 # a recording's sample interval may differ from its profile's by this share (a sensor's clock,
@@ -31,12 +36,13 @@ def check_sample_rate(t: np.ndarray, profile: DeskProfile, where: str) -> None:
         return
     interval = float(np.median(steps))
     off = interval * profile.sample_rate_hz  # the interval in the profile's intervals
-    if abs(math.log(off)) <= math.log1p(RATE_TOLERANCE):
+
+    def near(factor: float) -> bool:
+        return abs(math.log(off / factor)) <= math.log1p(RATE_TOLERANCE)
+
+    if near(1.0):
         return
-    unit = next(
-        (u for f, u in TIME_UNITS.items() if abs(math.log(off / f)) <= math.log1p(RATE_TOLERANCE)),
-        None,
-    )
+    unit = next((u for f, u in TIME_UNITS.items() if near(f)), None)
     said = (
         f"the time column t looks like {unit}; it must be seconds"
         if unit is not None
@@ -50,6 +56,19 @@ def check_sample_rate(t: np.ndarray, profile: DeskProfile, where: str) -> None:
         f"{profile.sample_rate_hz:g} Hz (its sample_rate_hz), which its filters are made for: "
         + said,
     )
+
+
+def open_recording_blocks(path: str | Path, profile: DeskProfile) -> RecordingBlocks:
+    """A CSV or NPZ recording to stream in blocks (``replay:``, ``record``), its first block
+    read and checked to come at the profile's rate (:func:`check_sample_rate`); the file is
+    closed when it is refused."""
+    recording = RecordingBlocks(path, profile.sensor_names)
+    try:
+        check_sample_rate(recording.first_times(), profile, str(path))
+    except ConfigError:
+        recording.close()
+        raise
+    return recording
 
 
 def read_any_recording(

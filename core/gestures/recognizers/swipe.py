@@ -76,13 +76,13 @@ MEASURED_SHARE = 0.4
 STILL_SHARE = 0.2
 
 
-def _end(touch: Touch, start: tuple[float, float] | None) -> tuple[float, float] | None:
+def _end(touch: Touch, start: tuple[float, float]) -> tuple[float, float] | None:
     """Where the swipe ended: the line fitted over the last END_FIT_S carried on by the
     delay, or over the last FLICK_FIT_S where that goes farther the same way (a flick)."""
     t = touch.times()
     end = touch.position_at(t[-1] + touch.delay_s, t[-1] - END_FIT_S, t[-1])
     quick = touch.position_at(t[-1] + touch.delay_s, t[-1] - FLICK_FIT_S, t[-1])
-    if start is None or end is None or quick is None:
+    if end is None or quick is None:
         return end
     a = np.subtract(end, start)
     b = np.subtract(quick, start)
@@ -131,8 +131,9 @@ class SwipeRecognizer(Recognizer):
         )
         if slid:  # the way it dragged, wherever the points went (see above)
             direction = direction_name(gx, gy, o["directions"])
-            same = by_points is not None and by_points[0] == direction
-            distance = by_points[1] if same and by_points is not None else 0.0
+            distance = 0.0
+            if by_points is not None and by_points[0] == direction:
+                distance = by_points[1]
         elif by_points is None:
             return []
         else:

@@ -81,6 +81,38 @@ def test_a_hanging_call_is_timed_out_and_the_action_goes_on():
     assert report.lanes["hangs"].ok == 3
 
 
+def test_a_slow_call_given_up_on_still_finishes_within_the_drain_before_the_end():
+    # on a starved machine a call the watchdog gave up on may only be slow: what it sends
+    # (the desk's event on the shared MQTT link) must go before the run closes that link
+    finished: list[float] = []
+
+    def slow(event: GestureEvent) -> None:
+        time.sleep(0.45)
+        finished.append(event.t)
+
+    dispatcher = Dispatcher(watchdog_interval_s=0.01)
+    dispatcher.add_route(Route("r", lambda e: True, [Lane("slow", slow, timeout_s=0.3)]))
+    dispatcher.submit(tap(1))
+    time.sleep(0.35)  # the watchdog has given up on the call
+    report = dispatcher.close(5.0)
+    assert report.lanes["slow"].timed_out == 1
+    assert finished == [1.0]  # it finished before close returned
+
+
+def test_a_hung_call_holds_the_end_for_its_timeout_once_more_and_no_longer():
+    release = threading.Event()
+    dispatcher = Dispatcher(watchdog_interval_s=0.01)
+    hung = Lane("hung", lambda e: release.wait(30), timeout_s=0.3)
+    dispatcher.add_route(Route("r", lambda e: True, [hung]))
+    dispatcher.submit(tap(1))
+    time.sleep(0.4)  # the watchdog has given up on it
+    started = time.monotonic()
+    dispatcher.close(5.0)
+    waited = time.monotonic() - started
+    release.set()
+    assert 0.25 <= waited < 1.5  # the drain's other 4.7 s are left for the shared connections
+
+
 def test_an_action_that_keeps_hanging_is_given_up_and_its_events_dropped():
     release = threading.Event()
     dispatcher = Dispatcher(watchdog_interval_s=0.01)

@@ -237,6 +237,38 @@ def test_no_swipe_when_too_short_too_slow_or_curved(make_layout, timeline):
     assert run(layout, tl.block()) == []
 
 
+def _with_drag(block, drag_xy, shear):
+    """The block with every touching sample dragging the board by ``drag_xy`` (N) and a
+    shear of ``shear``, as the estimator reports a finger's friction."""
+    inc = block.in_contact
+    block.shear = np.where(inc, shear, 0.0)
+    block.drag_x = np.where(inc, drag_xy[0], 0.0)
+    block.drag_y = np.where(inc, drag_xy[1], 0.0)
+    return block
+
+
+@pytest.mark.parametrize(
+    ("drag", "fires"),
+    [
+        ((0.5, 0.0), True),  # friction the way the points went: a swipe
+        ((0.4, 0.3), True),  # 37 degrees off: still its way
+        ((0.0, 0.0), True),  # no drag measured (not a horizontal board): the points decide
+        ((-0.5, 0.0), False),  # against the points: a still touch's noise made the "swipe"
+        ((0.0, 0.5), False),  # across them
+    ],
+)
+def test_a_swipe_by_the_points_must_have_dragged_the_board_its_way(
+    make_layout, timeline, drag, fires
+):
+    # a light quick touch whose points strayed 6 cm (the sweep's swipes fired on taps: shear
+    # 0.02-0.19, the drag against or across the points in 10 of 13)
+    layout = make_layout(SWIPES)
+    tl = timeline(3.0).touch(1.0, 0.1, np.array([[0.0, 0.0], [0.06, 0.0]]))
+    block = _with_drag(tl.block(), drag, 0.1)
+    events = run(layout, block)
+    assert [e.direction for e in events] == (["right"] if fires else [])
+
+
 SLIDER = """
 units: cm
 regions:

@@ -37,6 +37,9 @@ REGION_KEYS = frozenset({*REGION_KINDS, "surface", "axis", "description"})
 REGION_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_-]*$")
 #: enough for any outline drawn by hand; the self-crossing check compares every pair of edges
 MAX_POLYGON_POINTS = 500
+#: no region reaches farther from the desk's origin, metres: a room, not a desk, is 100 m
+#: across (a radius of 1e200 had overflowed the outline's arithmetic into a crash)
+MAX_REACH_M = 100.0
 
 
 class RegionReader:
@@ -91,13 +94,25 @@ class RegionReader:
             outline = self._rect(m, what)
         elif kind == "circle":
             center, radius = self._circle(m, what)
+            self._within_reach(np.append(np.abs(center), radius), m.where(kind), what)
             outline = circle_outline(center, radius)
         else:
             outline = self._polygon(m, what)
+        self._within_reach(outline, m.where(kind), what)
         axis = self._axis(m, what, outline) if "axis" in m else None
         region = Region(name, kind, surface, index, outline, center, radius, axis)
         self._check_on_surface(region, m.where(kind))
         return region
+
+    def _within_reach(self, values: np.ndarray, where: Position, what: str) -> None:
+        """ConfigError when a coordinate or length (metres) is beyond :data:`MAX_REACH_M`."""
+        far = float(np.max(np.abs(values)))
+        if far > MAX_REACH_M:
+            raise ConfigError(
+                where,
+                f"{what} reaches {far / self.scale:g} {self.units} from the desk's origin; a "
+                f"region lies within {MAX_REACH_M / self.scale:g} {self.units} of it",
+            )
 
     def _rect(self, m: MarkedDict, what: str) -> np.ndarray:
         x0, y0, x1, y1 = (

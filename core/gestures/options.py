@@ -52,8 +52,14 @@ class OptionSpec:
     choices: tuple[Any, ...] = ()
 
 
-def _s(default: float, help: str, maximum: float = 60.0) -> OptionSpec:
-    return OptionSpec("seconds", default, "recognize", help, 0.0, maximum)
+def _s(default: float, help: str, maximum: float = 60.0, minimum: float = 0.0) -> OptionSpec:
+    return OptionSpec("seconds", default, "recognize", help, minimum, maximum)
+
+
+#: the shortest time between two events of one held touch (long-press repeats, slide and force
+#: updates): each can be a command to a light, and a light on Zigbee takes a few a second;
+#: 1e-300 had made an event of every sample (1,200 a second)
+MIN_EVENT_INTERVAL_S = 0.02
 
 
 def _m(default: float, help: str) -> OptionSpec:
@@ -118,7 +124,9 @@ GESTURE_OPTIONS: dict[str, dict[str, OptionSpec]] = {
             "match",
             "after the tier, fire again every `interval_s` while the finger stays (hold to dim)",
         ),
-        "interval_s": _s(0.25, "time between two repeats of a held long press", 10.0),
+        "interval_s": _s(
+            0.25, "time between two repeats of a held long press", 10.0, MIN_EVENT_INTERVAL_S
+        ),
     },
     "press": {
         "levels": OptionSpec(
@@ -139,7 +147,7 @@ GESTURE_OPTIONS: dict[str, dict[str, OptionSpec]] = {
     "force": {
         "min_n": OptionSpec("newtons", 2.0, "recognize", "force at value 0", 0.0),
         "max_n": OptionSpec("newtons", 20.0, "recognize", "force at value 1", 0.0),
-        "interval_s": _s(0.05, "shortest time between two updates", 10.0),
+        "interval_s": _s(0.05, "shortest time between two updates", 10.0, MIN_EVENT_INTERVAL_S),
         "step": OptionSpec(
             "fraction", 0.01, "recognize", "smallest change worth an update", 0.0, 1.0
         ),
@@ -169,7 +177,7 @@ GESTURE_OPTIONS: dict[str, dict[str, OptionSpec]] = {
         ),
     },
     "slide": {
-        "interval_s": _s(0.05, "shortest time between two updates", 10.0),
+        "interval_s": _s(0.05, "shortest time between two updates", 10.0, MIN_EVENT_INTERVAL_S),
         "step": OptionSpec(
             "fraction", 0.01, "recognize", "smallest change worth an update", 0.0, 1.0
         ),
@@ -222,7 +230,7 @@ def read_option(
     value = mapping[key]
     label = f"`{key}` of {what}"
     if spec.kind in ("seconds", "newtons", "fraction", "degrees"):
-        strict = spec.kind == "seconds"
+        strict = spec.kind == "seconds" and not spec.minimum  # (a time of 0 is no time)
         return number(
             mapping,
             key,

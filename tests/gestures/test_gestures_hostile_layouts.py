@@ -77,6 +77,27 @@ HOSTILE: dict[str, tuple[bytes, tuple[int, int], str]] = {
         "`polygon` of region `bow` crosses itself: the edge from point 1 crosses the edge "
         "from point 3",
     ),
+    "a circle of radius 1e200 (its outline overflowed into a crash)": (
+        (
+            "desk: kitamura2017\nunits: cm\nregions:\n"
+            "  a: {circle: {center: [0, 0], radius: 1e200}}\n" + TAP
+        ).encode(),
+        (4, 15),
+        "region `a` reaches 1e+200 cm from the desk's origin; a region lies within 10000 cm",
+    ),
+    "a rect to 1e308 (an overflow warning, then `OK`)": (
+        ("desk: kitamura2017\nregions: {a: {rect: [0, 0, 1e308, 0.1]}}\n" + TAP).encode(),
+        (2, 21),
+        "region `a` reaches 1e+308 m from the desk's origin",
+    ),
+    "a long press repeating every 1e-300 s (an event every sample)": (
+        (
+            "desk: kitamura2017\n" + REGION_A + "bindings:\n  - {gesture: long_press, region: a, "
+            "repeat: true, interval_s: 1e-300, do: log}\n"
+        ).encode(),
+        (4, 64),
+        "`interval_s` in binding 1 (`long_press`) must be >= 0.02, found 1e-300",
+    ),
     "a payload template that fails on every event": (
         (
             "desk: kitamura2017\n" + REGION_A + "bindings:\n  - {gesture: tap, region: a, do: "

@@ -71,6 +71,10 @@ MAX_WINDOW_S = {
 }
 #: enough for any surface outline drawn by hand (as a layout's regions)
 MAX_SURFACE_POINTS = 500
+#: how far from P_o a sensor, an accelerometer, the centre of mass or a surface may lie,
+#: metres: a room, not a desk, is 100 m across (a sensor at 1e300 m made the wrench map's
+#: moments infinite, and the estimator crashed on its covariances)
+MAX_REACH_M = 100.0
 #: a sensor's rating (`range`), N or N·m: a smaller one is a typing mistake, and its
 #: inverse square (the estimator's weights) would overflow
 MIN_RATING = 1e-3
@@ -154,9 +158,16 @@ def read_profile(doc: MarkedDict, path: Path) -> DeskProfile:
                 f"`natural_frequency_hz` of `desk` must be at least {MIN_NATURAL_HZ:g} Hz (no "
                 f"desk sways slower), or 0 (not known), found {natural:g}",
             )
+        if natural is not None and natural >= rate / 2:  # (1e300 overflowed the sway model)
+            raise ConfigError(
+                desk.where("natural_frequency_hz"),
+                f"`natural_frequency_hz` of `desk` is {natural:g} Hz; a sway the sensors can "
+                f"see is below half the sample rate ({rate / 2:g} Hz at `sample_rate_hz` "
+                f"{rate:g}); with sensors this slow give 0 (not known)",
+            )
         if "center_of_mass_m" in desk:
             com = np.array(
-                vector(
+                place(
                     desk["center_of_mass_m"],
                     desk.where("center_of_mass_m"),
                     "`center_of_mass_m` of `desk`",
@@ -248,6 +259,17 @@ def _check_against_rate(
             )
 
 
+def place(value: Any, where: Any, what: str, length: int) -> list[float]:
+    """A point of ``length`` coordinates (metres) within :data:`MAX_REACH_M` of P_o."""
+    out = vector(value, where, what, length)
+    far = max(abs(v) for v in out)
+    if far > MAX_REACH_M:
+        raise ConfigError(
+            where, f"{what} lies {far:g} m from P_o; a desk's parts lie within {MAX_REACH_M:g} m"
+        )
+    return out
+
+
 def _accelerometers(doc: MarkedDict) -> tuple[AccelerometerSpec, ...]:
     """``accelerometer:`` (one) or ``accelerometers:`` (a list: three or more, not on one
     line, measure the desk's rotation too; hapticdesk.estimator.inertia)."""
@@ -284,7 +306,7 @@ def _accelerometer(
 ) -> AccelerometerSpec:
     m = require_mapping(item, where, what)
     check_keys(m, _ACCEL_KEYS, what, required={"position"})
-    position = np.array(vector(m["position"], m.where("position"), f"`position` of {what}", 3))
+    position = np.array(place(m["position"], m.where("position"), f"`position` of {what}", 3))
     rpy = vector(
         m.get("rotation_rpy_deg", [0, 0, 0]),
         m.where("rotation_rpy_deg"),
@@ -321,7 +343,7 @@ def _sensor(item: Any, where: Any, index: int) -> SensorSpec:
             m.where("name"), f"sensor `name` must be letters, digits and _, found {name!r}"
         )
     what = f"sensor `{name}`"
-    position = np.array(vector(m["position"], m.where("position"), f"`position` of {what}", 3))
+    position = np.array(place(m["position"], m.where("position"), f"`position` of {what}", 3))
     rpy = vector(
         m.get("rotation_rpy_deg", [0, 0, 0]),
         m.where("rotation_rpy_deg"),
@@ -366,7 +388,7 @@ def _surface(item: Any, where: Any) -> Surface:
     if not isinstance(name, str) or not name:
         raise ConfigError(m.where("name"), "surface `name` must be a non-empty text")
     what = f"surface `{name}`"
-    origin = np.array(vector(m["origin"], m.where("origin"), f"`origin` of {what}", 3))
+    origin = np.array(place(m["origin"], m.where("origin"), f"`origin` of {what}", 3))
     normal = _unit(
         vector(m["normal"], m.where("normal"), f"`normal` of {what}", 3),
         m.where("normal"),
@@ -403,7 +425,7 @@ def _surface(item: Any, where: Any) -> Surface:
         )
     pts = np.array(
         [
-            vector(p, poly_raw.where(i), f"polygon point {i + 1} of {what}", 2)  # type: ignore[attr-defined]
+            place(p, poly_raw.where(i), f"polygon point {i + 1} of {what}", 2)  # type: ignore[attr-defined]
             for i, p in enumerate(poly_raw)
         ]
     )

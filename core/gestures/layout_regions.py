@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import MAX_REACH_M  # (a radius of 1e200 had crashed)
 from hapticdesk.files.yamlfile import (
     ConfigError,
     MarkedDict,
@@ -37,9 +38,6 @@ REGION_KEYS = frozenset({*REGION_KINDS, "surface", "axis", "description"})
 REGION_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_-]*$")
 #: enough for any outline drawn by hand; the self-crossing check compares every pair of edges
 MAX_POLYGON_POINTS = 500
-#: no region reaches farther from the desk's origin, metres: a room, not a desk, is 100 m
-#: across (a radius of 1e200 had overflowed the outline's arithmetic into a crash)
-MAX_REACH_M = 100.0
 
 
 class RegionReader:

@@ -87,6 +87,14 @@ MAX_SCENE_S = 86_400.0
 #: the most times an action may repeat, and the most actions a timeline may expand to
 MAX_REPEAT = 10_000
 MAX_ACTIONS = 100_000
+#: the hardest a scene's finger presses (N: a person leaning their whole weight on it) and
+#: the fastest its force may change (N/s): beyond, a typing mistake (a tap of 1e300 N
+#: saturated every simulated sensor and no contact was seen)
+MAX_FORCE_N = 1_000.0
+MAX_FORCE_RATE_N_S = 100_000.0
+#: a finger's speed, m/s: slower is a hold, faster no hand moves (a speed of 1e-300 was
+#: refused as a swipe of 10^300 samples, written out digit by digit)
+MIN_SPEED_M_S, MAX_SPEED_M_S = 0.001, 10.0
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 
 
@@ -306,13 +314,16 @@ def _build(
     def opt(key: str, *, positive: bool = True) -> float | None:
         if key not in p:
             return None
-        # a time (`hold_s`, `duration_s`) at most a day
-        longest = MAX_SCENE_S if key.endswith("_s") else None
+        # a time (`hold_s`, `duration_s`) at most a day; a force and its rate (above)
+        largest = {"_n_per_s": MAX_FORCE_RATE_N_S, "_s": MAX_SCENE_S, "_n": MAX_FORCE_N}
+        longest = next((v for end, v in largest.items() if key.endswith(end)), None)
         return number(p, key, what, minimum=0.0, exclusive_minimum=positive, maximum=longest)
 
     def speed() -> float | None:
-        v = opt("speed")
-        return None if v is None else v * unit
+        if "speed" not in p:
+            return None
+        lo, hi = MIN_SPEED_M_S / unit, MAX_SPEED_M_S / unit  # in the scene's units
+        return number(p, "speed", what, minimum=lo, maximum=hi) * unit
 
     if kind in ("press", "long_press"):
         cls = LongPress if kind == "long_press" else Press
@@ -448,7 +459,9 @@ def _strokes(
             p.where("pen_up_s", of_key=True), f"`pen_up_s` in {what} applies to `text` only"
         )
     force = (
-        number(p, "force_n", what, minimum=0.0, exclusive_minimum=True) if "force_n" in p else None
+        number(p, "force_n", what, minimum=0.0, exclusive_minimum=True, maximum=MAX_FORCE_N)
+        if "force_n" in p
+        else None
     )
     surface = field_surface(p, what)
     c = (float(center[0]), float(center[1])) if center is not None else (0.0, 0.0)

@@ -396,7 +396,27 @@ def sub(old: str, new: str) -> Callable[[str], str]:
                 t.replace("  diff_lowpass_hz: 4.77\n", "").replace("  force_lowpass_hz: 4.77\n", "")
             ),
             "15:45",
-            "`force_lowpass_hz` (from `desk: natural_frequency_hz`) is 808475 Hz",
+            "`natural_frequency_hz` of `desk` is 1e+06 Hz; a sway the sensors can see is below "
+            "half the sample rate (600 Hz",
+        ),
+        (
+            # with its own low-passes the desk's sway at 1e300 Hz had crashed the estimator
+            sub("natural_frequency_hz: 5.9", "natural_frequency_hz: 1e300"),
+            "15:45",
+            "`natural_frequency_hz` of `desk` is 1e+300 Hz",
+        ),
+        (
+            # a sensor at 1e300 m: infinite moments, the estimator crashed on its covariances
+            sub("position: [-0.34, -0.22, 0.0]", "position: [-1e300, -0.22, 0.0]"),
+            "17:26",
+            "`position` of sensor `fl` lies 1e+300 m from P_o; a desk's parts lie within 100 m",
+        ),
+        (sub("origin: [0.0, 0.0, 0.733]", "origin: [0.0, 0.0, 1e300]"), "27:13", "lies 1e+300 m"),
+        (
+            # the simulator had crashed with an OverflowError
+            sub("polygon: [[-0.375, -0.25]", "polygon: [[-1e300, -0.25]"),
+            "29:15",
+            "polygon point 1 of surface `top` lies 1e+300 m from P_o",
         ),
         (
             sub("force_n: [150, 150, 300]", "force_n: [1.0e-300, 150, 300]"),
@@ -427,7 +447,13 @@ def test_a_profile_the_estimator_cannot_run_is_refused_where_it_is_wrong(
 def test_every_rate_the_reader_accepts_builds_an_estimator(tmp_path: Path, rate: int) -> None:
     from hapticdesk.estimator import ContactEstimator
 
-    path = desk_with(tmp_path, sub("sample_rate_hz: 1200", f"sample_rate_hz: {rate}"))
+    def slower(text: str) -> str:
+        text = text.replace("sample_rate_hz: 1200", f"sample_rate_hz: {rate}", 1)
+        if rate < 2 * 5.9:  # a sway beyond half the rate is refused: not known (0)
+            text = text.replace("natural_frequency_hz: 5.9", "natural_frequency_hz: 0", 1)
+        return text
+
+    path = desk_with(tmp_path, slower)
     profile = load_profile(path)
     settings = ContactEstimator(profile).stage_settings  # the filters are designed
     assert np.isfinite(settings.lp_sos).all() and np.isfinite(settings.det_sos).all()

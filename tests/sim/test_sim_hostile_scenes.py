@@ -55,6 +55,34 @@ def test_a_time_beyond_a_day_is_refused_at_its_key(
     assert "must be <= 86400" in str(err.value)
 
 
+@pytest.mark.parametrize(
+    ("text", "where", "message"),
+    [
+        # a tap of 1e300 N saturated every simulated sensor: no contact was seen
+        ("  - tap: {point: [0, 0], peak_n: 1e300}\n", "3:34", "`peak_n` in `tap` (timeline item "
+         "1) must be <= 1000"),
+        ("  - swipe: {from: [0, 0], to: [0.1, 0], force_n: 1e300}\n", "3:50", "`force_n` in "
+         "`swipe` (timeline item 1) must be <= 1000"),
+        ("  - press: {point: [0, 0], rise_n_per_s: 1e300}\n", "3:42", "`rise_n_per_s` in "
+         "`press` (timeline item 1) must be <= 100000"),
+        # 1e-300 m/s had been refused as a swipe of a 300-digit number of samples
+        ("  - swipe: {from: [0, 0], to: [0.1, 0], speed: 1e-300}\n", "3:48", "`speed` in "
+         "`swipe` (timeline item 1) must be >= 0.001"),
+        ("  - drag: {from: [0, 0], to: [0.1, 0], speed: 1e300}\n", "3:47", "`speed` in `drag` "
+         "(timeline item 1) must be <= 10"),
+        ("  - stroke: {text: 一, force_n: 1e300}\n", "3:32", "`force_n` in `stroke` (timeline "
+         "item 1) must be <= 1000"),
+    ],
+)  # fmt: skip
+def test_a_force_or_speed_no_person_makes_is_refused_at_its_key(
+    tmp_path: Path, text: str, where: str, message: str
+) -> None:
+    path = scene_file(tmp_path, "timeline:\n" + text)
+    with pytest.raises(ConfigError) as err:
+        load_scene(path)
+    assert str(err.value).startswith(f"{path}:{where}: {message}"), str(err.value)
+
+
 def test_repeat_and_the_expanded_timeline_are_bounded(tmp_path: Path) -> None:
     path = scene_file(tmp_path, "timeline:\n  - tap: {point: [0, 0], repeat: 1000000000}\n")
     with pytest.raises(ConfigError, match=r"s.yaml:3:34: `repeat` in .* at most 10000"):

@@ -143,6 +143,8 @@ def _python_can_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
     failure: ConfigError | None = None
     text: _BoundedLines | None = None  # (None also when opening the file fails)
     lines: _CanutilsLines | None = None
+    mismatched: list[int] = []  # the first few lines whose data disagree with their DLC
+    n_mismatched = 0
     try:
         # we open the file so that it is closed whatever the reader raises
         opener = gzip.open if path.suffix.lower() == ".gz" else open
@@ -156,6 +158,14 @@ def _python_can_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
             for msg in messages:
                 if text is not None:
                     text.framed = True
+                    if msg.dlc != len(msg.data) and not (msg.is_remote_frame or msg.is_error_frame):
+                        # a line whose data bytes disagree with its DLC (cut short, or bytes
+                        # too many): which of the two is wrong cannot be told, so neither is
+                        # believed (python-can kept the bytes as found and said nothing)
+                        n_mismatched += 1
+                        if len(mismatched) < 3:
+                            mismatched.append(text.number)
+                        continue
                 batch.append(msg)
                 if len(batch) >= chunk_frames:
                     yield FrameArray.from_messages(batch)
@@ -176,6 +186,13 @@ def _python_can_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
     # block near the end of a BLF file dropped every frame before it)
     if batch:
         yield FrameArray.from_messages(batch)
+    if n_mismatched:
+        log.warning(
+            "%d frame(s) whose data bytes disagree with their DLC were skipped (%s%s)",
+            n_mismatched,
+            ", ".join(f"{path}:{number}" for number in mismatched),
+            " …" if n_mismatched > len(mismatched) else "",
+        )
     if failure is not None:
         raise failure
     if lines is not None:

@@ -168,3 +168,37 @@ def test_a_blf_container_that_inflates_past_the_bound_is_refused_after_the_frame
         f"{path}: a log container inflates to more than 1 MiB (a BLF log's hold about "
         "128 KiB): not a CAN log hapticdesk reads"
     )
+
+
+@pytest.mark.parametrize("suffix", [".asc", ".trc"])
+def test_a_frame_whose_bytes_disagree_with_its_dlc_is_skipped_and_named(tmp_path, caplog, suffix):
+    # python-can keeps a line's bytes as found: 4 bytes under a DLC of 8 had become a frame of
+    # 4 (zeros after), 10 bytes in a .trc one of 10; neither is believed now, and both named
+    import can
+
+    from hapticdesk.canbus.frames import FrameArray
+
+    path = tmp_path / f"bus{suffix}"
+    sent = [
+        can.Message(timestamp=1.0 + i / 1000, arbitration_id=0x181 + i % 4, data=bytes(range(8)))
+        for i in range(20)
+    ]
+    write_frames(path, [FrameArray.from_messages(sent)])
+    lines = path.read_text(encoding="utf-8").splitlines()
+    eights = [i for i, line in enumerate(lines) if line.rstrip().endswith("04 05 06 07")]
+    assert len(eights) == 20
+    short, long = eights[3], eights[7]
+    lines[short] = lines[short].rstrip()[: -len(" 04 05 06 07")]
+    lines[long] = lines[long].rstrip() + " 08 09"
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    with caplog.at_level("WARNING", logger="hapticdesk.canbus.logs"):
+        read = list(read_frames(path))
+    assert all((chunk.dlc == 8).all() for chunk in read)
+    if suffix == ".trc":
+        assert sum(len(chunk) for chunk in read) == 18
+        named = f"2 frame(s) whose data bytes disagree with their DLC were skipped ({path}:"
+        assert f"{named}{short + 1}, {path}:{long + 1})" in caplog.text
+    else:  # an ASC line may go on after its data (python-can reads the DLC's bytes of it)
+        assert sum(len(chunk) for chunk in read) == 19
+        named = f"1 frame(s) whose data bytes disagree with their DLC were skipped ({path}:"
+        assert f"{named}{short + 1})" in caplog.text

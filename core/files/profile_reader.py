@@ -162,7 +162,7 @@ def read_profile(doc: MarkedDict, path: Path) -> DeskProfile:
             raise ConfigError(
                 desk.where("natural_frequency_hz"),
                 f"`natural_frequency_hz` of `desk` is {natural:g} Hz; a sway the sensors can "
-                f"see is below half the sample rate ({rate / 2:g} Hz at `sample_rate_hz` "
+                f"see must be below half the sample rate ({rate / 2:g} Hz at `sample_rate_hz` "
                 f"{rate:g}); with sensors this slow give 0 (not known)",
             )
         if "center_of_mass_m" in desk:

@@ -396,8 +396,8 @@ def sub(old: str, new: str) -> Callable[[str], str]:
                 t.replace("  diff_lowpass_hz: 4.77\n", "").replace("  force_lowpass_hz: 4.77\n", "")
             ),
             "15:45",
-            "`natural_frequency_hz` of `desk` is 1e+06 Hz; a sway the sensors can see is below "
-            "half the sample rate (600 Hz",
+            "`natural_frequency_hz` of `desk` is 1e+06 Hz; a sway the sensors can see must be "
+            "below half the sample rate (600 Hz",
         ),
         (
             # with its own low-passes the desk's sway at 1e300 Hz had crashed the estimator

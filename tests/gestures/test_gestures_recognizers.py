@@ -269,6 +269,21 @@ def test_a_swipe_by_the_points_must_have_dragged_the_board_its_way(
     assert [e.direction for e in events] == (["right"] if fires else [])
 
 
+@pytest.mark.parametrize(
+    ("duration_s", "fires"),
+    [
+        (0.05, True),  # 10 cm in 50 ms: 2 m/s, a quick flick
+        (0.03, False),  # 3.3 m/s: faster than a finger
+        (0.01, False),  # a real stroke's 9 ms fragment whose points jumped 20 cm ($1 strokes)
+    ],
+)
+def test_a_swipe_faster_than_a_finger_is_none(make_layout, timeline, duration_s, fires):
+    layout = make_layout(SWIPES)
+    tl = timeline(3.0).touch(1.0, duration_s, np.array([[0.0, 0.0], [0.1, 0.0]]), rise_s=0.005)
+    events = run(layout, tl.block())
+    assert [e.direction for e in events] == (["right"] if fires else [])
+
+
 SLIDER = """
 units: cm
 regions:

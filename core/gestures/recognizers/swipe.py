@@ -75,6 +75,10 @@ SLIDE_MIN_S = 0.05
 #: surface (simulated swipes: within 12 degrees); the points of a tap whose noise made a 5 cm
 #: "swipe" went against its drag in 10 of 13 such cases (scripts/desk_sweep.py)
 POINTS_DRAG_COS = 0.5
+#: no finger swipes faster, m/s (the points' length over the touch's time; quick human flicks
+#: 1-2 m/s): a real stroke broken into a 9 ms fragment as the finger lifted "swiped" 20 cm
+#: (8 of 240 real $1 strokes on the three-legged desk, scripts/dollar_swipes.py)
+MAX_SPEED_M_S = 3.0
 #: the measured track (without the carry-on) must have moved this share of ``min_distance``
 MEASURED_SHARE = 0.4
 #: ... and this share away from the touch's best point (about its middle on a swipe)
@@ -165,6 +169,8 @@ class SwipeRecognizer(Recognizer):
         distance = math.hypot(dx, dy)
         if distance < o["min_distance"]:
             return None
+        if distance > MAX_SPEED_M_S * touch.duration():
+            return None  # faster than a finger: a fragment of a touch, its points jumping
         if touch.moved(*start) < MEASURED_SHARE * o["min_distance"]:
             return None  # the carry-on alone made it: a still touch's noise (see above)
         if touch.moved(*touch.best()[:2]) < STILL_SHARE * o["min_distance"]:

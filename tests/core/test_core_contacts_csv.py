@@ -1,0 +1,58 @@
+"""`hapticdesk contacts -o`: the CSV of DESIGN.md, written a column at a time, is the text a
+``csv.writer`` row by row makes (the way it was written before)."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import io
+
+import numpy as np
+
+from hapticdesk.commands.contacts import HEADER, write_contacts_csv
+from hapticdesk.estimator.contacts import PHASE_NAMES, SOURCE_NAMES, ContactBlock
+from hapticdesk.files.profile import load_profile
+
+
+def row_by_row(block: ContactBlock, names: list[str]) -> str:
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(HEADER)
+    for r in np.flatnonzero(block.in_contact).tolist():
+        pos = ["", "", "", ""]
+        if block.located[r]:
+            pos = [f"{block.x[r]:.6f}", f"{block.y[r]:.6f}", f"{block.z[r]:.6f}"]
+            pos.append(names[block.surface[r]])
+        writer.writerow(
+            [
+                f"{block.t[r]:.6f}",
+                *pos,
+                f"{block.force_n[r]:.4f}",
+                SOURCE_NAMES[block.source[r]],
+                PHASE_NAMES[block.phase[r]],
+            ]
+        )
+    return out.getvalue()
+
+
+def test_the_columns_are_the_rows_a_csv_writer_writes() -> None:
+    desk = load_profile("kitamura2017-shelf")
+    # a name with a comma and a quote stays one cell, quoted as the csv module quotes it
+    surfaces = (dataclasses.replace(desk.surfaces[0], name='top, "front"'), *desk.surfaces[1:])
+    desk = dataclasses.replace(desk, surfaces=surfaces)
+    rng = np.random.default_rng(3)
+    k = 500
+    block = ContactBlock.blank(np.arange(k) / 1200.0)
+    block.in_contact[:] = rng.random(k) < 0.7
+    block.located[:] = block.in_contact & (rng.random(k) < 0.6)
+    block.surface[:] = np.where(block.located, rng.integers(0, len(surfaces), k), -1)
+    for name in ("x", "y", "z", "force_n"):
+        getattr(block, name)[:] = rng.normal(size=k) * 0.3
+    block.source[:] = np.where(block.located, rng.integers(1, 4, k), 0)
+    block.phase[:] = np.where(block.in_contact, rng.integers(1, 4, k), 0)
+    out = io.StringIO()
+    assert write_contacts_csv(out, block, desk) == int(block.in_contact.sum())
+    assert out.getvalue() == row_by_row(block, [s.name for s in surfaces])
+    rows = list(csv.reader(io.StringIO(out.getvalue())))
+    assert rows[0] == HEADER and all(len(r) == len(HEADER) for r in rows)
+    assert {r[4] for r in rows[1:]} >= {'top, "front"', ""}

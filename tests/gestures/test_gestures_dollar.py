@@ -136,6 +136,44 @@ def test_a_file_that_is_not_a_log_is_named(tmp_path):
         read_logged_stroke(bad)
 
 
+def test_a_bad_log_is_named_at_its_line_and_column(tmp_path, monkeypatch):
+    from hapticdesk.gestures.strokes import dollar_logs
+
+    bad = tmp_path / "bad.xml"
+    bad.write_text(
+        '<Gesture Name="v01">\n  <Point X="1" Y="2" T="0"/>\n  <Point X="2" Y="inf" T="9"/>\n'
+        "</Gesture>\n"
+    )
+    with pytest.raises(ConfigError, match=rf"^{bad}:3:3: a <Point> needs finite X, Y and T"):
+        read_logged_stroke(bad)
+    bad.write_text(
+        '<Gesture Name="v01">\n  <Point X="1" Y="2" T="0"/>\n  <Point X="2"/>\n</Gesture>'
+    )
+    with pytest.raises(ConfigError, match=rf"^{bad}:3:3: a <Point> needs numeric X, Y and T"):
+        read_logged_stroke(bad)
+    bad.write_text('<Gesture Name="v01">\n  <Point X="1" Y="2" T="0">\n</Gesture>')
+    with pytest.raises(
+        ConfigError, match=rf"^{bad}:3:3: not a readable \$1 gesture log: mismatched"
+    ):
+        read_logged_stroke(bad)
+    # an entity bomb: expat refuses its amplification, nothing is expanded into memory
+    entities = ['<!ENTITY a0 "lol">'] + [
+        f'<!ENTITY a{i} "{("&a" + str(i - 1) + ";") * 10}">' for i in range(1, 10)
+    ]
+    bad.write_text(
+        f"<?xml version='1.0'?>\n<!DOCTYPE g [{''.join(entities)}]>\n"
+        '<Gesture Name="v01" Subject="&a9;"><Point X="1" Y="2" T="0"/></Gesture>'
+    )
+    with pytest.raises(ConfigError, match=r"not a readable \$1 gesture log"):
+        read_logged_stroke(bad)
+    monkeypatch.setattr(dollar_logs, "MAX_LOG_BYTES", 100)
+    bad.write_text('<Gesture Name="v01">' + '<Point X="1" Y="2" T="0"/>' * 10 + "</Gesture>")
+    with pytest.raises(ConfigError, match=r"bytes; a \$1 gesture log .* is at most 100"):
+        read_logged_stroke(bad)
+    with pytest.raises(ConfigError, match=r"not a regular file"):
+        read_logged_stroke(tmp_path)
+
+
 def test_a_stroke_nearest_a_built_in_template_asks_more():
     """Built-in templates are not compared by form, so a stroke nearest one asks min_score +
     BUILTIN_EXTRA_SCORE (non-shapes taken for a built-in shape: 18 % -> 5 % at 0.8)."""

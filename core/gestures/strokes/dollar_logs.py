@@ -10,14 +10,13 @@ built-in templates (``delete_mark`` is ``delete``); :data:`SHAPE_NAMES` maps the
 
 from __future__ import annotations
 
-import xml.etree.ElementTree as ET
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.files.yamlfile import ConfigError, regular_file_size
 
 #: log name -> built-in template name
 SHAPE_NAMES = {
@@ -40,6 +39,9 @@ SHAPE_NAMES = {
 }
 SPEEDS = ("slow", "medium", "fast")
 METRES_PER_PIXEL = 0.001
+#: a log holds one stroke of a few hundred points (the largest of the 2,400: 9 kB); a larger
+#: file is not one, and is not read into memory to find out
+MAX_LOG_BYTES = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -56,30 +58,63 @@ class LoggedStroke:
 
 
 def read_logged_stroke(path: str | Path) -> LoggedStroke:
-    """One $1 XML log file; a ConfigError naming the file when it is not one."""
+    """One $1 XML log file; a ConfigError at the file's line and column when it is not one.
+
+    Read with expat, which gives each ``<Point>`` its place in the file (ElementTree's tree
+    keeps none), from a regular file of at most :data:`MAX_LOG_BYTES`."""
+    from xml.parsers import expat
+
     path = Path(path)
+    size = regular_file_size(path, "the $1 gesture log")
+    if size > MAX_LOG_BYTES:
+        raise ConfigError(
+            str(path),
+            f"{size:,} bytes; a $1 gesture log (a few hundred points) is at most {MAX_LOG_BYTES:,}",
+        )
+    parser = expat.ParserCreate()
+    elements: list[tuple[str, dict[str, str], int, int]] = []  # (tag, attributes, line, column)
+
+    def start(tag: str, attributes: dict[str, str]) -> None:
+        elements.append((tag, attributes, parser.CurrentLineNumber, parser.CurrentColumnNumber))
+
+    def place(line: int, column: int) -> str:
+        return f"{path}:{line}:{column + 1}"
+
+    parser.StartElementHandler = start
     try:
-        root = ET.parse(path).getroot()
-    except (OSError, ET.ParseError) as err:
-        raise ConfigError(str(path), f"not a readable $1 gesture log: {err}") from None
+        parser.Parse(path.read_bytes(), True)
+    except (OSError, expat.ExpatError) as err:
+        where = f"{path}:{parser.ErrorLineNumber}:{parser.ErrorColumnNumber + 1}"
+        message = expat.ErrorString(err.code) if isinstance(err, expat.ExpatError) else err
+        raise ConfigError(where, f"not a readable $1 gesture log: {message}") from None
+    tag, root, *root_at = elements[0]
+    root_place = place(*root_at)
     name = root.get("Name", "")
     base = name.rstrip("0123456789")
-    if root.tag != "Gesture" or base not in SHAPE_NAMES:
+    if tag != "Gesture" or base not in SHAPE_NAMES:
         raise ConfigError(
-            str(path), f'expected <Gesture Name="<shape><rep>"> of a $1 shape, found {name!r}'
+            root_place, f'expected <Gesture Name="<shape><rep>"> of a $1 shape, found {name!r}'
         )
-    try:
-        xyt = np.array(
-            [[float(p.attrib[k]) for k in ("X", "Y", "T")] for p in root.iter("Point")]
-        ).reshape(-1, 3)
-    except (KeyError, ValueError) as err:
-        raise ConfigError(str(path), f"a <Point> needs numeric X, Y and T: {err}") from None
-    if len(xyt) < 2 or not np.all(np.isfinite(xyt)):
-        raise ConfigError(str(path), f"a stroke needs 2 or more finite points, found {len(xyt)}")
+    rows = []
+    for tag, point, line, column in elements[1:]:
+        if tag != "Point":
+            continue
+        try:
+            rows.append((float(point["X"]), float(point["Y"]), float(point["T"])))
+        except (KeyError, ValueError) as err:
+            where = place(line, column)
+            raise ConfigError(where, f"a <Point> needs numeric X, Y and T: {err}") from None
+    xyt = np.array(rows).reshape(-1, 3)
+    bad = np.flatnonzero(~np.isfinite(xyt).all(axis=1))
+    if len(bad):
+        at = [e for e in elements[1:] if e[0] == "Point"][bad[0]]
+        raise ConfigError(place(*at[2:]), f"a <Point> needs finite X, Y and T, found {xyt[bad[0]]}")
+    if len(xyt) < 2:
+        raise ConfigError(root_place, f"a stroke needs 2 or more points, found {len(xyt)}")
     points = np.column_stack([xyt[:, 0], -xyt[:, 1]]) * METRES_PER_PIXEL  # y down -> y away
     subject = root.get("Subject", "0")
     if not subject.isdigit():
-        raise ConfigError(str(path), f"Subject is a number, found {subject!r}")
+        raise ConfigError(root_place, f"Subject is a number, found {subject!r}")
     return LoggedStroke(
         shape=SHAPE_NAMES[base],
         subject=f"s{int(subject):02d}",

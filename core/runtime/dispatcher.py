@@ -7,10 +7,10 @@ watchdog gives up on a call that runs past its timeout, counts it, and starts a 
 for the lane (Python cannot kill the hung thread, it is left behind as a daemon; after
 :data:`MAX_ABANDONED` of them the lane pauses for :data:`PAUSE_S`, its events are dropped and
 counted meanwhile, and then it takes events again, which the log says). Events within one lane
-keep their order. At the end of a run a call left behind gets its timeout once more (within
-the drain) before the lane closes its action: on a starved machine a call the watchdog gave
-up on may only be slow, and the shared connection it publishes on must not say goodbye
-before it (a desk's event after its `offline`, seen once in a loaded test run).
+keep their order. At the end of a run the calls left behind get their timeout once more (at
+most half the drain, all together) before the shared connections close: on a starved machine
+a call the watchdog gave up on may only be slow, and the connection it publishes on must not
+say goodbye before it (a desk's event after its `offline`, seen once in a loaded test run).
 """
 
 from __future__ import annotations
@@ -255,14 +255,6 @@ class Lane:
             # whichever worker takes the stop (the watchdog may replace a hung one meanwhile)
             self._stopped.wait(max(0.0, deadline - time.monotonic()))
         with self._lock:
-            left_behind = [w for w in self._left_behind if w.is_alive()]
-        # slow rather than hung, on a starved machine: it gets its timeout once more (within
-        # the deadline, and no longer: a hung call must not eat the drain the shared
-        # connections need to deliver the other actions' commands)
-        wait_until = min(deadline, time.monotonic() + self.timeout_s)
-        for worker in left_behind:
-            worker.join(max(0.0, wait_until - time.monotonic()))
-        with self._lock:
             self.stats.not_run += self._drain()
             if self._busy_since is not None:  # still inside a call at the deadline
                 self.stats.timed_out += 1
@@ -284,6 +276,11 @@ class Lane:
         self._abandoned = 0
         self._stopped.clear()
         self._start_worker()
+
+    def left_behind(self) -> list[threading.Thread]:
+        """The workers still inside a call the watchdog gave up on."""
+        with self._lock:
+            return [w for w in self._left_behind if w.is_alive()]
 
     def _leave_behind(self) -> None:
         # under self._lock: the worker inside the call given up on
@@ -436,6 +433,7 @@ class Dispatcher:
         deadline = time.monotonic() + timeout_s
         for lane in self.lanes:
             lane.close(deadline)
+        self._wait_for_left_behind(deadline)
         for thread in self._retiring:
             thread.join(max(0.0, deadline - time.monotonic()))
         self._closed.set()
@@ -446,6 +444,19 @@ class Dispatcher:
             report.lanes.setdefault(lane.label, LaneStats()).add(lane.stats)
             report.totals.add(lane.stats)
         return report
+
+    def _wait_for_left_behind(self, deadline: float) -> None:
+        """Calls the watchdog gave up on may be slow rather than hung (a starved machine):
+        they get the longest of their lanes' timeouts once more, all together, and at most
+        half of what is left of the drain, which the shared connections need to deliver the
+        other actions' commands."""
+        waiting = [(worker, lane.timeout_s) for lane in self.lanes for worker in lane.left_behind()]
+        if not waiting:
+            return
+        now = time.monotonic()
+        budget = min(max(timeout for _, timeout in waiting), max(0.0, deadline - now) / 2)
+        for worker, _ in waiting:
+            worker.join(max(0.0, now + budget - time.monotonic()))
 
     def _watch(self) -> None:
         while not self._closed.wait(self._interval):

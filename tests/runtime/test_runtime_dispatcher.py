@@ -113,6 +113,25 @@ def test_a_hung_call_holds_the_end_for_its_timeout_once_more_and_no_longer():
     assert 0.25 <= waited < 1.5  # the drain's other 4.7 s are left for the shared connections
 
 
+def test_calls_left_behind_get_at_most_half_the_drain_together():
+    # a hung webhook (7 s timeout) against a 1 s drain, beside two others: the shared
+    # connections closed after the dispatcher still get half the drain
+    release = threading.Event()
+    dispatcher = Dispatcher(watchdog_interval_s=0.01)
+    for name, timeout in (("webhook", 0.3), ("exec", 0.2), ("other", 0.1)):
+        lane = Lane(name, lambda e: release.wait(30), timeout_s=timeout)
+        dispatcher.add_route(Route(name, lambda e: True, [lane]))
+    dispatcher.submit(tap(1))
+    time.sleep(0.5)  # the watchdog has given up on all three
+    for lane in dispatcher.lanes:
+        lane.timeout_s = 7.0  # as long as an http action's
+    started = time.monotonic()
+    dispatcher.close(1.0)
+    waited = time.monotonic() - started
+    release.set()
+    assert 0.4 <= waited < 0.75
+
+
 def test_an_action_that_keeps_hanging_is_given_up_and_its_events_dropped():
     release = threading.Event()
     dispatcher = Dispatcher(watchdog_interval_s=0.01)

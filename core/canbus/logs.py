@@ -158,7 +158,7 @@ def _python_can_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
             for msg in messages:
                 if text is not None:
                     text.framed = True
-                    if msg.dlc != len(msg.data) and not (msg.is_remote_frame or msg.is_error_frame):
+                    if not (_dlc_holds(msg) or msg.is_remote_frame or msg.is_error_frame):
                         # a line whose data bytes disagree with its DLC (cut short, or bytes
                         # too many): which of the two is wrong cannot be told, so neither is
                         # believed (python-can kept the bytes as found and said nothing)
@@ -197,6 +197,16 @@ def _python_can_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
         raise failure
     if lines is not None:
         _warn_skipped(path, lines.skipped, lines.n_skipped)
+
+
+def _dlc_holds(msg: Any) -> bool:
+    """A message's data bytes are what its DLC says: a classic frame's DLC is its length; a
+    CAN FD frame's is its length or (TRC 2.x) the DLC code of it (9 for 12 bytes … 15 for
+    64)."""
+    from can.util import dlc2len
+
+    n = len(msg.data)
+    return bool(n == msg.dlc or (msg.is_fd and n == dlc2len(msg.dlc)))
 
 
 def _blf_messages(fh: Any, path: Path) -> Iterator[Any]:

@@ -202,3 +202,25 @@ def test_a_frame_whose_bytes_disagree_with_its_dlc_is_skipped_and_named(tmp_path
         assert sum(len(chunk) for chunk in read) == 19
         named = f"1 frame(s) whose data bytes disagree with their DLC were skipped ({path}:"
         assert f"{named}{short + 1})" in caplog.text
+
+
+def test_can_fd_frames_whose_dlc_is_a_code_are_kept(tmp_path, caplog):
+    # TRC 2.x writes a CAN FD frame's DLC code (9 for 12 bytes, 15 for 64): those frames are
+    # whole, not a length that disagrees with their bytes
+    data = [bytes(range(n)) for n in (8, 12, 64, 8)]
+    rows = [
+        f"{i + 1:7d} {i:13.3f} {'FD' if len(d) > 8 else 'DT'} 1     0181 Rx -  "
+        f"{ {8: 8, 12: 9, 64: 15}[len(d)]:<4d} {' '.join(f'{b:02X}' for b in d)}"
+        for i, d in enumerate(data)
+    ]
+    path = tmp_path / "fd.trc"
+    path.write_text(
+        ";$FILEVERSION=2.1\n;$STARTTIME=45000.5\n;$COLUMNS=N,O,T,B,I,d,R,L,D\n;\n"
+        + "\n".join(rows)
+        + "\n",
+        encoding="utf-8",
+    )
+    with caplog.at_level("WARNING", logger="hapticdesk.canbus.logs"):
+        read = list(read_frames(path))
+    assert sum(len(chunk) for chunk in read) == 4
+    assert "disagree" not in caplog.text

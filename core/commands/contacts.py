@@ -48,14 +48,14 @@ def write_contacts_csv(out: TextIO, block: ContactBlock, profile: DeskProfile) -
         return [f"{v:.{decimals}f}" for v in values[rows].tolist()]
 
     # a surface's name quoted as the csv module quotes it (a comma in a name stays one cell)
-    names = [_csv_cell(s.name) for s in profile.surfaces]
+    names = [_csv_cell(s.name) for s in profile.surfaces] or [""]
     surfaces = [names[i] for i in np.where(block.located[rows], block.surface[rows], 0).tolist()]
     columns = [
         fixed(block.t, 6),
         where_located(block.x, fixed(block.x, 6)),
         where_located(block.y, fixed(block.y, 6)),
         where_located(block.z, fixed(block.z, 6)),
-        where_located(block.surface, surfaces) if names else [""] * len(rows),
+        where_located(block.surface, surfaces),
         fixed(block.force_n, 4),
         np.asarray(SOURCE_NAMES, dtype=object)[block.source[rows]].tolist(),
         np.asarray(PHASE_NAMES, dtype=object)[block.phase[rows]].tolist(),
@@ -66,9 +66,10 @@ def write_contacts_csv(out: TextIO, block: ContactBlock, profile: DeskProfile) -
 
 
 def _csv_cell(text: str) -> str:
+    # (with the writer's own line end: the csv module quotes the line ends it knows of)
     buffer = io.StringIO()
-    csv.writer(buffer, lineterminator="").writerow([text])
-    return buffer.getvalue()
+    csv.writer(buffer, lineterminator="\n").writerow([text])
+    return buffer.getvalue()[:-1]
 
 
 def summary(block: ContactBlock, seconds: float, method: str) -> dict[str, object]:

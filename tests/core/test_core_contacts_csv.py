@@ -37,8 +37,11 @@ def row_by_row(block: ContactBlock, names: list[str]) -> str:
 
 def test_the_columns_are_the_rows_a_csv_writer_writes() -> None:
     desk = load_profile("kitamura2017-shelf")
-    # a name with a comma and a quote stays one cell, quoted as the csv module quotes it
-    surfaces = (dataclasses.replace(desk.surfaces[0], name='top, "front"'), *desk.surfaces[1:])
+    # a name with a comma, a quote or a line end stays one cell, quoted as csv quotes it
+    named = ('top, "front"', "shelf\nboard")
+    surfaces = tuple(
+        dataclasses.replace(s, name=n) for s, n in zip(desk.surfaces, named, strict=True)
+    )
     desk = dataclasses.replace(desk, surfaces=surfaces)
     rng = np.random.default_rng(3)
     k = 500
@@ -55,4 +58,4 @@ def test_the_columns_are_the_rows_a_csv_writer_writes() -> None:
     assert out.getvalue() == row_by_row(block, [s.name for s in surfaces])
     rows = list(csv.reader(io.StringIO(out.getvalue())))
     assert rows[0] == HEADER and all(len(r) == len(HEADER) for r in rows)
-    assert {r[4] for r in rows[1:]} >= {'top, "front"', ""}
+    assert {r[4] for r in rows[1:]} == {'top, "front"', "shelf\nboard", ""}

@@ -95,6 +95,9 @@ MAX_FORCE_RATE_N_S = 100_000.0
 #: a finger's speed, m/s: slower is a hold, faster no hand moves (a speed of 1e-300 was
 #: refused as a swipe of 10^300 samples, written out digit by digit)
 MIN_SPEED_M_S, MAX_SPEED_M_S = 0.001, 10.0
+#: the heaviest object a scene puts on the desk, kg (its weight at most MAX_FORCE_N: a mass
+#: of 1e300 kg saturated every sensor)
+MAX_OBJECT_KG = 100.0
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 
 
@@ -224,7 +227,14 @@ def scene_from_mapping(doc: MarkedDict, path: Path) -> Scene:
             objects.append(
                 DeskObject(
                     field_text(m, "name", f"object {i + 1}"),
-                    number(m, "mass_kg", f"object {i + 1}", minimum=0.0, exclusive_minimum=True),
+                    number(
+                        m,
+                        "mass_kg",
+                        f"object {i + 1}",
+                        minimum=0.0,
+                        exclusive_minimum=True,
+                        maximum=MAX_OBJECT_KG,
+                    ),
                     field_point(m, "point", f"object {i + 1}", unit),
                     field_text(m, "surface", f"object {i + 1}", default="") or None,
                     where=m.where(),
@@ -349,8 +359,12 @@ def _build(
             )
         ]
     if kind == "ramp":
-        from_n = number(p, "from_n", what, default=3.0, minimum=0.0, exclusive_minimum=True)
-        to_n = number(p, "to_n", what, default=25.0, minimum=0.0, exclusive_minimum=True)
+        from_n, to_n = (
+            number(
+                p, key, what, default=d, minimum=0.0, exclusive_minimum=True, maximum=MAX_FORCE_N
+            )
+            for key, d in (("from_n", 3.0), ("to_n", 25.0))
+        )
         return [
             Ramp(
                 field_point(p, "point", what, unit),
@@ -396,7 +410,9 @@ def _build(
         return [
             PutObject(
                 name=field_text(p, "object", what),
-                mass_kg=number(p, "mass_kg", what, minimum=0.0, exclusive_minimum=True),
+                mass_kg=number(
+                    p, "mass_kg", what, minimum=0.0, exclusive_minimum=True, maximum=MAX_OBJECT_KG
+                ),
                 point=field_point(p, "point", what, unit),
                 duration_s=number(
                     p, "duration_s", what, default=0.3, minimum=0.0, maximum=MAX_SCENE_S

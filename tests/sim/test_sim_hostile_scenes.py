@@ -72,6 +72,12 @@ def test_a_time_beyond_a_day_is_refused_at_its_key(
          "(timeline item 1) must be <= 10"),
         ("  - stroke: {text: 一, force_n: 1e300}\n", "3:32", "`force_n` in `stroke` (timeline "
          "item 1) must be <= 1000"),
+        # a ramp to 1e300 N had been refused as a 300-digit number of samples
+        ("  - ramp: {point: [0, 0], to_n: 1e300}\n", "3:33", "`to_n` in `ramp` (timeline item "
+         "1) must be <= 1000"),
+        # an object of 1e300 kg saturated every sensor: no contact was seen
+        ("  - put: {object: mug, point: [0, 0], mass_kg: 1e300}\n", "3:48", "`mass_kg` in `put` "
+         "(timeline item 1) must be <= 100"),
     ],
 )  # fmt: skip
 def test_a_force_or_speed_no_person_makes_is_refused_at_its_key(

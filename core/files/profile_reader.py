@@ -259,13 +259,16 @@ def _check_against_rate(
             )
 
 
-def place(value: Any, where: Any, what: str, length: int) -> list[float]:
-    """A point of ``length`` coordinates (metres) within :data:`MAX_REACH_M` of P_o."""
+def place(value: Any, where: Any, what: str, length: int, origin: str = "P_o") -> list[float]:
+    """A point of ``length`` coordinates (metres), none farther than :data:`MAX_REACH_M`
+    from ``origin``."""
     out = vector(value, where, what, length)
     far = max(abs(v) for v in out)
     if far > MAX_REACH_M:
         raise ConfigError(
-            where, f"{what} lies {far:g} m from P_o; a desk's parts lie within {MAX_REACH_M:g} m"
+            where,
+            f"{what} has a coordinate of {far:g} m from {origin}; a desk's parts lie within "
+            f"{MAX_REACH_M:g} m of it",
         )
     return out
 
@@ -425,7 +428,7 @@ def _surface(item: Any, where: Any) -> Surface:
         )
     pts = np.array(
         [
-            place(p, poly_raw.where(i), f"polygon point {i + 1} of {what}", 2)  # type: ignore[attr-defined]
+            place(p, poly_raw.where(i), f"polygon point {i + 1} of {what}", 2, "its origin")  # type: ignore[attr-defined]
             for i, p in enumerate(poly_raw)
         ]
     )

@@ -144,6 +144,7 @@ class RegionReader:
         outline = self.scale * np.array(
             [vector(p, pts.where(i), f"point {i + 1} of {what}", 2) for i, p in enumerate(pts)]
         )
+        self._within_reach(outline, m.where("polygon"), what)  # (before its arithmetic)
         crossing = polygon_self_crossing(outline)
         if crossing is not None:
             i, j = crossing
@@ -169,6 +170,7 @@ class RegionReader:
                 np.array(vector(p, value.where(i), f"axis point {i + 1} of {what}", 2)) * self.scale
                 for i, p in enumerate(value)
             )
+            self._within_reach(np.array([a, b]), m.where("axis"), f"the `axis` of {what}")
             if np.hypot(*(b - a)) <= 0:
                 raise ConfigError(m.where("axis"), f"the two `axis` points of {what} are the same")
             return np.array([a, b])

@@ -90,6 +90,20 @@ HOSTILE: dict[str, tuple[bytes, tuple[int, int], str]] = {
         (2, 21),
         "region `a` reaches 1e+308 m from the desk's origin",
     ),
+    "a polygon at 1e200 (overflow warnings before its error)": (
+        (
+            "desk: kitamura2017\nregions:\n  a: {polygon: [[0, 0], [1e200, 0], [0, 1e200]]}\n" + TAP
+        ).encode(),
+        (3, 16),
+        "region `a` reaches 1e+200 m from the desk's origin",
+    ),
+    "a slider axis to 1e300": (
+        b"desk: kitamura2017\nregions:\n"
+        b"  a: {rect: [0, 0, 0.1, 0.1], axis: [[0, 0], [1e300, 0]]}\n"
+        b"bindings:\n  - {gesture: slide, region: a, do: log}\n",
+        (3, 37),
+        "the `axis` of region `a` reaches 1e+300 m",
+    ),
     "a long press repeating every 1e-300 s (an event every sample)": (
         (
             "desk: kitamura2017\n" + REGION_A + "bindings:\n  - {gesture: long_press, region: a, "

@@ -82,10 +82,14 @@ def read_logged_stroke(path: str | Path) -> LoggedStroke:
 
     parser.StartElementHandler = start
     try:
-        parser.Parse(path.read_bytes(), True)
-    except (OSError, expat.ExpatError) as err:
+        data = path.read_bytes()
+    except OSError as err:
+        raise ConfigError(str(path), f"cannot read the $1 gesture log: {err}") from None
+    try:
+        parser.Parse(data, True)
+    except expat.ExpatError as err:
         where = f"{path}:{parser.ErrorLineNumber}:{parser.ErrorColumnNumber + 1}"
-        message = expat.ErrorString(err.code) if isinstance(err, expat.ExpatError) else err
+        message = expat.ErrorString(err.code)
         raise ConfigError(where, f"not a readable $1 gesture log: {message}") from None
     tag, root, *root_at = elements[0]
     root_place = place(*root_at)

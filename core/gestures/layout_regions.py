@@ -92,11 +92,9 @@ class RegionReader:
             outline = self._rect(m, what)
         elif kind == "circle":
             center, radius = self._circle(m, what)
-            self._within_reach(np.append(np.abs(center), radius), m.where(kind), what)
             outline = circle_outline(center, radius)
         else:
             outline = self._polygon(m, what)
-        self._within_reach(outline, m.where(kind), what)
         axis = self._axis(m, what, outline) if "axis" in m else None
         region = Region(name, kind, surface, index, outline, center, radius, axis)
         self._check_on_surface(region, m.where(kind))
@@ -123,7 +121,9 @@ class RegionReader:
                 f"`rect` of {what} is [x0, y0, x1, y1] with x0 < x1 and y0 < y1, "
                 f"found {list(m['rect'])}",
             )
-        return np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
+        outline = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
+        self._within_reach(outline, m.where("rect"), what)
+        return outline
 
     def _circle(self, m: MarkedDict, what: str) -> tuple[np.ndarray, float]:
         c = require_mapping(
@@ -132,7 +132,10 @@ class RegionReader:
         check_keys(c, {"center", "radius"}, f"`circle` of {what}", required={"center", "radius"})
         center = np.array(vector(c["center"], c.where("center"), f"`center` of {what}", 2))
         radius = number(c, "radius", f"`circle` of {what}", minimum=0.0, exclusive_minimum=True)
-        return center * self.scale, radius * self.scale
+        center, radius = center * self.scale, radius * self.scale
+        # (before its outline's arithmetic: a radius of 1e200 had overflowed into a crash)
+        self._within_reach(np.append(np.abs(center), radius), m.where("circle"), what)
+        return center, radius
 
     def _polygon(self, m: MarkedDict, what: str) -> np.ndarray:
         pts = m["polygon"]
@@ -144,7 +147,7 @@ class RegionReader:
         outline = self.scale * np.array(
             [vector(p, pts.where(i), f"point {i + 1} of {what}", 2) for i, p in enumerate(pts)]
         )
-        self._within_reach(outline, m.where("polygon"), what)  # (before its arithmetic)
+        self._within_reach(outline, m.where("polygon"), what)  # (before the crossing's arithmetic)
         crossing = polygon_self_crossing(outline)
         if crossing is not None:
             i, j = crossing

@@ -41,7 +41,7 @@ def write_contacts_csv(out: TextIO, block: ContactBlock, profile: DeskProfile) -
     rows = np.flatnonzero(block.in_contact)
     located = block.located[rows].tolist()
 
-    def where_located(values: np.ndarray, cells: list[str]) -> list[str]:
+    def where_located(cells: list[str]) -> list[str]:
         return [c if ok else "" for c, ok in zip(cells, located, strict=True)]
 
     def fixed(values: np.ndarray, decimals: int) -> list[str]:
@@ -52,10 +52,10 @@ def write_contacts_csv(out: TextIO, block: ContactBlock, profile: DeskProfile) -
     surfaces = [names[i] for i in np.where(block.located[rows], block.surface[rows], 0).tolist()]
     columns = [
         fixed(block.t, 6),
-        where_located(block.x, fixed(block.x, 6)),
-        where_located(block.y, fixed(block.y, 6)),
-        where_located(block.z, fixed(block.z, 6)),
-        where_located(block.surface, surfaces),
+        where_located(fixed(block.x, 6)),
+        where_located(fixed(block.y, 6)),
+        where_located(fixed(block.z, 6)),
+        where_located(surfaces),
         fixed(block.force_n, 4),
         np.asarray(SOURCE_NAMES, dtype=object)[block.source[rows]].tolist(),
         np.asarray(PHASE_NAMES, dtype=object)[block.phase[rows]].tolist(),

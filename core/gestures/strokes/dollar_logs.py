@@ -88,7 +88,7 @@ def read_logged_stroke(path: str | Path) -> LoggedStroke:
     try:
         parser.Parse(data, True)
     except expat.ExpatError as err:
-        where = f"{path}:{parser.ErrorLineNumber}:{parser.ErrorColumnNumber + 1}"
+        where = place(parser.ErrorLineNumber, parser.ErrorColumnNumber)
         message = expat.ErrorString(err.code)
         raise ConfigError(where, f"not a readable $1 gesture log: {message}") from None
     tag, root, *root_at = elements[0]
@@ -99,20 +99,18 @@ def read_logged_stroke(path: str | Path) -> LoggedStroke:
         raise ConfigError(
             root_place, f'expected <Gesture Name="<shape><rep>"> of a $1 shape, found {name!r}'
         )
+    marks = [(attributes, at) for tag, attributes, *at in elements[1:] if tag == "Point"]
     rows = []
-    for tag, point, line, column in elements[1:]:
-        if tag != "Point":
-            continue
+    for point, at in marks:
         try:
             rows.append((float(point["X"]), float(point["Y"]), float(point["T"])))
         except (KeyError, ValueError) as err:
-            where = place(line, column)
-            raise ConfigError(where, f"a <Point> needs numeric X, Y and T: {err}") from None
+            raise ConfigError(place(*at), f"a <Point> needs numeric X, Y and T: {err}") from None
     xyt = np.array(rows).reshape(-1, 3)
     bad = np.flatnonzero(~np.isfinite(xyt).all(axis=1))
     if len(bad):
-        at = [e for e in elements[1:] if e[0] == "Point"][bad[0]]
-        raise ConfigError(place(*at[2:]), f"a <Point> needs finite X, Y and T, found {xyt[bad[0]]}")
+        at = marks[bad[0]][1]
+        raise ConfigError(place(*at), f"a <Point> needs finite X, Y and T, found {xyt[bad[0]]}")
     if len(xyt) < 2:
         raise ConfigError(root_place, f"a stroke needs 2 or more points, found {len(xyt)}")
     points = np.column_stack([xyt[:, 0], -xyt[:, 1]]) * METRES_PER_PIXEL  # y down -> y away

@@ -192,9 +192,12 @@ def settings_from_layout(
     client_id = str(m.get("client_id", own_prefix.strip("/").replace("/", "-")))
     if not client_id or len(client_id) > 128:
         raise ConfigError(m.where("client_id"), "`client_id` must be 1 to 128 characters")
+    flags: dict[str, bool] = {}
     for key_name in ("retain", "discovery"):
-        if key_name in m and not isinstance(as_flag(m[key_name]), bool):
+        value = as_flag(m.get(key_name, False))
+        if not isinstance(value, bool):
             raise ConfigError(m.where(key_name), f"`{key_name}` of `mqtt` must be true or false")
+        flags[key_name] = value
     return MqttSettings(
         host=host,
         port=port,
@@ -207,8 +210,8 @@ def settings_from_layout(
         client_id=client_id,
         keepalive=int(number(m, "keepalive", "`mqtt`", default=60, minimum=5, maximum=65535)),
         qos=qos_of(m, "`mqtt`", 2),
-        retain=bool(as_flag(m.get("retain", False))),
-        discovery=bool(as_flag(m.get("discovery", False))),
+        retain=flags["retain"],
+        discovery=flags["discovery"],
         discovery_prefix=str(m.get("discovery_prefix", "homeassistant")).strip("/"),
         base_topic=str(m.get("base_topic", "hapticdesk")).strip("/"),
         prefix=str(m["prefix"]).strip("/") if "prefix" in m else None,

@@ -83,6 +83,7 @@ MAX_BYTES = 1_000_000
 MAX_VALUES = 50_000
 #: the deepest nesting of lists and mappings (the loaders recurse once per level)
 MAX_DEPTH = 64
+_TOO_DEEP = f"lists and mappings nest more than {MAX_DEPTH} deep here; is a bracket left open?"
 #: the longest number, in characters: a longer one is a mistake, and a huge one is slow to read
 MAX_NUMBER_CHARS = 32
 # tags PyYAML would build into objects the validators do not expect (bytes, sets, pairs)
@@ -130,10 +131,7 @@ class _BoundedComposer(Composer):
             return super().compose_node(parent, index)
         self.depth += 1
         if self.depth > MAX_DEPTH:
-            raise ConfigError(
-                _pos(self.file, event),
-                f"lists and mappings nest more than {MAX_DEPTH} deep here; is a bracket left open?",
-            )
+            raise ConfigError(_pos(self.file, event), _TOO_DEEP)
         before = self.expanded
         self._count(1, event)
         anchor = getattr(event, "anchor", None)
@@ -317,6 +315,10 @@ def load_marked_yaml(path: str | Path, text: str | None = None, max_bytes: int =
     except yaml.MarkedYAMLError as err:
         mark = err.problem_mark or err.context_mark
         where = Position(file, mark.line + 1, mark.column + 1) if mark else file
+        if "nesting depth" in str(err.problem):
+            # libyaml from PyYAML 6.0.4 on stops at 1000 levels while it scans ahead on one
+            # line, before the composer has seen the 65th: the same mistake, the same words
+            raise ConfigError(where, _TOO_DEEP) from None
         raise ConfigError(where, f"not valid YAML: {err.problem or err}") from None
     except yaml.reader.ReaderError as err:
         # libyaml counts the offset in bytes of the UTF-8 text, PyYAML's reader in characters

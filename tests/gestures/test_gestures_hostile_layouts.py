@@ -59,7 +59,8 @@ HOSTILE: dict[str, tuple[bytes, tuple[int, int], str]] = {
     "control character": (b"desk: kitamura2017\nbindings: \x07\n", (2, 11), "not allowed"),
     "20 000 open brackets": (
         b"desk: kitamura2017\nbindings: " + b"[" * 20_000 + b"\n",
-        (2, 74),
+        # at the 65th bracket, or at libyaml's 1000th (from PyYAML 6.0.4 it scans a line ahead)
+        (2, (74, 1010)),
         "nest more than 64 deep",
     ),
     "a region given as a list": (
@@ -152,7 +153,10 @@ def test_check_ends_at_once_with_the_place_and_no_traceback(name, tmp_path, caps
     assert main(["check", str(layout)]) == 2
     elapsed = time.process_time() - started
     err = capsys.readouterr().err
-    assert err.startswith(f"hapticdesk check: error: {layout}:{line}:{column}: "), err[:300]
+    columns = column if isinstance(column, tuple) else (column,)
+    assert any(
+        err.startswith(f"hapticdesk check: error: {layout}:{line}:{at}: ") for at in columns
+    ), err[:300]
     assert words in err
     assert "Traceback" not in err and err.count("\n") == 1
     assert elapsed < 1.0, f"{name}: {elapsed:.2f} s"

@@ -28,7 +28,7 @@ from __future__ import annotations
 import argparse
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -384,6 +384,13 @@ def main() -> None:
     )
     add_sway_compensation_option(parser, "every desk")
     parser.add_argument(
+        "--rate",
+        type=float,
+        metavar="HZ",
+        help="every desk sampled at this rate (default: the profile's); the simulated "
+        "sensors keep their noise per reading, as a polled sensor does",
+    )
+    parser.add_argument(
         "--noise",
         type=float,
         metavar="N",
@@ -410,6 +417,9 @@ def main() -> None:
         if args.max_sigma is not None:
             desk = desk.with_estimation(max_sigma_m=args.max_sigma / 1000)
         desk = with_sway_compensation(desk, args.sway_compensation)
+        if args.rate is not None:
+            desk = replace(desk, sample_rate_hz=args.rate)
+            label += f", at {args.rate:g} Hz"
         started = time.monotonic()
         layout = buttons(desk, args.snap)
         sensors = None

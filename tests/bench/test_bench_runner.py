@@ -85,6 +85,11 @@ def test_paper_reproduction_findings_hold(capsys):
     for f in findings:
         assert f["holds"], f
     assert findings[0]["numbers"]["crossover_n"] == pytest.approx(3.8, abs=0.1)
+    # Fig. 8 is judged on a release's 2–3 N as much as on a touch's: with the paper's contact
+    # (the low-passed force, no predicted release) a release passes through it as a touch
+    # does; our fast release had left 5 samples of 1,549 and the finding held by chance
+    fig8 = findings[1]["numbers"]
+    assert fig8["release_samples"] >= 0.3 * fig8["touch_samples"] > 0
 
 
 def test_every_method_is_judged_on_the_same_samples_and_times(paper_desk, session):

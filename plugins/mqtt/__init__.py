@@ -48,7 +48,12 @@ from hapticdesk.hookspecs import hookimpl
 from hapticdesk.plugins.action_options import options_mapping, text, where
 from hapticdesk.plugins.mqtt.link import MqttLink
 from hapticdesk.plugins.mqtt.message import Message
-from hapticdesk.plugins.mqtt.settings import MqttSettings, qos_of, settings_from_layout
+from hapticdesk.plugins.mqtt.settings import (
+    DEFAULT_BASE_TOPIC,
+    MqttSettings,
+    qos_of,
+    settings_from_layout,
+)
 from hapticdesk.plugins.mqtt.z2m import Zigbee2MqttActions, style_from_section
 from hapticdesk.plugins.templating import (
     Template,
@@ -105,12 +110,15 @@ def desk_topic(settings: MqttSettings, desk: str, leaf: str) -> str:
 def ha_node(settings: MqttSettings, desk: str) -> str:
     """The desk's node id in Home Assistant (discovery topics, device identifier).
 
-    From the desk's name under the default ``<base_topic>/<desk>`` topics, as always; from the
-    whole ``prefix`` when one is set, so two desks of one name on two floors
-    (``hapticdesk/site1/floor2/study``, ``…/floor3/study``) are two devices, not one."""
+    From the desk's name under the default ``hapticdesk/<desk>`` topics, as always; from the
+    desk's whole topic prefix when ``prefix`` or another ``base_topic`` is set, so two desks
+    of one name on two floors (``hapticdesk/site1/floor2/study``, ``…/floor3/study``, given
+    either way) are two devices, not one."""
     from hapticdesk.plugins.mqtt.discovery import object_id
 
-    return object_id(settings.prefix if settings.prefix is not None else desk)
+    if settings.prefix is None and settings.base_topic == DEFAULT_BASE_TOPIC:
+        return object_id(desk)
+    return object_id(settings.desk_prefix(desk))
 
 
 def discovery_for(context: ActionContext, settings: MqttSettings) -> list[Any]:

@@ -24,6 +24,9 @@ from hapticdesk.files.yamlfile import (
 )
 
 DEFAULT_QUEUE_SIZE = 1000
+#: topics under ``<base_topic>/<desk>`` by default; a desk keeps its Home Assistant node id
+#: from its name alone there (see ``ha_node``)
+DEFAULT_BASE_TOPIC = "hapticdesk"
 #: the most messages a queue may hold (each a few hundred bytes: about 100 MB at most)
 MAX_QUEUE_SIZE = 1_000_000
 _MQTT_KEYS = {
@@ -70,7 +73,7 @@ class MqttSettings:
     retain: bool = False
     discovery: bool = False
     discovery_prefix: str = "homeassistant"
-    base_topic: str = "hapticdesk"
+    base_topic: str = DEFAULT_BASE_TOPIC
     #: the desk's whole topic prefix when given (``hapticdesk/site1/floor2/study``); else
     #: ``<base_topic>/<desk>``
     prefix: str | None = None
@@ -187,7 +190,7 @@ def settings_from_layout(
     # one client id per desk prefix (hapticdesk-site1-floor2-study): two desks of one name on
     # different floors must not push each other off the broker
     own_prefix = (
-        str(m["prefix"]) if "prefix" in m else f"{m.get('base_topic', 'hapticdesk')}/{desk}"
+        str(m["prefix"]) if "prefix" in m else f"{m.get('base_topic', DEFAULT_BASE_TOPIC)}/{desk}"
     )
     client_id = str(m.get("client_id", own_prefix.strip("/").replace("/", "-")))
     if not client_id or len(client_id) > 128:
@@ -213,7 +216,7 @@ def settings_from_layout(
         retain=flags["retain"],
         discovery=flags["discovery"],
         discovery_prefix=str(m.get("discovery_prefix", "homeassistant")).strip("/"),
-        base_topic=str(m.get("base_topic", "hapticdesk")).strip("/"),
+        base_topic=str(m.get("base_topic", DEFAULT_BASE_TOPIC)).strip("/"),
         prefix=str(m["prefix"]).strip("/") if "prefix" in m else None,
         queue_size=int(
             number(

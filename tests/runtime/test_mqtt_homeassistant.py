@@ -363,3 +363,9 @@ def test_two_desks_of_one_name_on_two_floors_are_two_devices():
     assert len(floor2[0]) == len(floor2[1]) == 1  # one device per desk, one node
     assert floor2[0].isdisjoint(floor3[0]) and floor2[1].isdisjoint(floor3[1])
     assert default == ({"study"}, {"hapticdesk_study"})  # unchanged for the default topics
+    # the same floors given as `base_topic` (the desk's name appended): two devices too, and
+    # the same ones as with the whole prefix (they had both been `study`)
+    by_base2 = devices(MqttSettings(base_topic="hapticdesk/site1/floor2"))
+    by_base3 = devices(MqttSettings(base_topic="hapticdesk/site1/floor3"))
+    assert by_base2 == floor2 and by_base3 == floor3
+    assert devices(MqttSettings(base_topic="hapticdesk")) == default

@@ -153,6 +153,11 @@ def main(argv: list[str] | None = None) -> int:
         return _main(argv, command, debug)
     except KeyboardInterrupt:
         return 130
+    except BrokenPipeError:
+        # the reader of our output went away (`hapticdesk check L | head -1`): stop quietly,
+        # as a shell tool does, and keep Python's exit from flushing into the closed pipe
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141  # 128 + SIGPIPE, what a shell reports for a tool the pipe stopped
     except Exception as err:  # the last safety net: a bug, or a failure nobody foresaw
         if debug:
             raise

@@ -91,7 +91,14 @@ class LayoutReader:
         self.profile = profile
         self.action_names = set(action_names) if action_names is not None else None
         self.validate_action = validate_action
-        self.specs: dict[str, dict[str, OptionSpec] | None] = dict(GESTURE_OPTIONS)
+        # the gestures a recognizer is installed for (all the built-ins when none are given):
+        # a layout binding a gesture whose plugin is blocked or missing is refused here, at
+        # its place, as `run` would refuse it
+        self.specs: dict[str, dict[str, OptionSpec] | None] = (
+            dict(GESTURE_OPTIONS)
+            if recognizer_types is None
+            else {g: spec for g, spec in GESTURE_OPTIONS.items() if g in recognizer_types}
+        )
         #: sections plugins claimed (a plugin cannot take over a layout's own key)
         self.sections = frozenset(plugin_sections) - LAYOUT_KEYS
         for name, entry in (recognizer_types or {}).items():
@@ -278,6 +285,14 @@ class LayoutReader:
         for i, item in enumerate(raw):
             what = f"binding {i + 1}"
             m = require_mapping(item, raw.where(i), what)
+            named = m.get("gesture")
+            if isinstance(named, str) and named in GESTURE_OPTIONS and named not in self.specs:
+                raise ConfigError(
+                    m.where("gesture"),
+                    f"no recognizer for gesture `{named}` is installed (is its plugin "
+                    "missing, or blocked by HAPTICDESK_BLOCK_PLUGINS?); installed: "
+                    f"{', '.join(sorted(self.specs)) or 'none'}",
+                )
             gesture = choice(m, "gesture", tuple(sorted(self.specs)), what)
             what = f"binding {i + 1} (`{gesture}`)"
             spec = self.specs[gesture]

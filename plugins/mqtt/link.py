@@ -35,7 +35,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 from hapticdesk.plugins.mqtt.message import Message, encode_payload
@@ -90,6 +90,8 @@ class MqttLink:
         self._connected = False
         self._resuming = False  # waiting for paho's resends before sending new commands
         self._closing = False
+        # set when close begins: nothing is taken after it, the goodbye is the last message
+        self._sealed = False
         self._ever_connected = threading.Event()
         self._outage_logged = False
         self.refused: str | None = None  # why the broker refused the login, if it did
@@ -115,7 +117,7 @@ class MqttLink:
             self.settings.retain if retain is None else retain,
         )
         with self._cond:
-            if self._closing:
+            if self._closing or self._sealed:
                 raise RuntimeError("the MQTT link is closed")
             if len(self._queue) >= self.settings.queue_size:
                 old = self._queue.popleft()
@@ -140,7 +142,7 @@ class MqttLink:
         answers in a row are both news), at most :data:`CONTROL_LIMIT` waiting."""
         message = Message(topic, encode_payload(payload), 1, retain, command=False)
         with self._cond:
-            if self._closing:
+            if self._closing or self._sealed:
                 return
             self._control.append(message)
             while len(self._control) > CONTROL_LIMIT:
@@ -190,10 +192,16 @@ class MqttLink:
         deadline = time.monotonic() + timeout
         if self._closing or (not self._sender.is_alive() and self.refused is None):
             return ""
+        with self._cond:
+            self._sealed = True  # (a call the dispatcher gave up on must not follow the goodbye)
         flushed = self.refused is None and self.flush(timeout)
         if self._will is not None and self._connected:
+            # at the commands' QoS when theirs is 2: a QoS 2 message reaches a subscriber only
+            # when it is released, so a QoS 1 "offline" right after the last event (both
+            # acknowledged by the broker) overtook it at mosquitto_sub once in a while
+            goodbye = replace(self._will, qos=max(self._will.qos, self.settings.qos))
             with self._cond:
-                self._control.append(self._will)
+                self._control.append(goodbye)
                 self._cond.notify_all()
             self.flush(min(1.0, max(0.0, deadline - time.monotonic())))
         with self._cond:

@@ -496,3 +496,42 @@ def test_a_desk_name_that_cannot_go_into_topics_is_refused(tmp_path, paper_desk,
     recording = taps_file(tmp_path, paper_desk, 1)
     with pytest.raises(ConfigError, match=r"layout.yaml:1:\d+: `desk_name` must be letters"):
         build_scene(path, f"replay:{recording}", load_registry(entry_points=False))
+
+
+def test_the_goodbye_goes_last_at_the_commands_qos(broker, subscribe):
+    """A QoS 2 message reaches a subscriber when it is released, a QoS 1 one at once: the
+    desk's last event (QoS 2) and a QoS 1 "offline" right after it arrived the wrong way round
+    once in a while. The goodbye now goes at the commands' QoS 2, after them; the last will
+    (the broker's, on a lost connection) keeps its QoS 1."""
+    sub = subscribe("d/#", extra=["-F", "%q %t %p"])  # QoS in place of the retained flag
+    will = Message("d/availability", b"offline", 1, True, command=False)
+    link = MqttLink(
+        MqttSettings(host="127.0.0.1", port=broker.port, client_id="bye"), will=will
+    ).start()
+    assert link.wait_connected(10)
+    for k in range(20):
+        link.publish("d/event", {"k": k})
+    link.close()
+    # (retained, topic, payload) as the subscriber parses them: the first field is the QoS here
+    messages = sub.wait_until(lambda got: ("d/availability", "offline") in [g[1:] for g in got])
+    lines = [line.split(" ", 2) for line in sub.lines]
+    assert len(messages) == 21 and lines[-1] == ["2", "d/availability", "offline"]
+    assert [p for _, t, p in lines if t == "d/event"] == [json.dumps({"k": k}) for k in range(20)]
+
+
+def test_nothing_is_taken_once_the_link_says_goodbye(mosquitto_available, tmp_path):
+    """While close waits for the queue (a broker that is not there), a late publish (a call
+    the dispatcher gave up on) is refused: it would follow the desk's "offline"."""
+    gone = Mosquitto(tmp_path)  # never started
+    link = MqttLink(
+        MqttSettings(host="127.0.0.1", port=gone.port, client_id="late"),
+        will=Message("a/availability", b"offline", 1, True, command=False),
+    ).start()
+    link.publish("lamp/set", "x")
+    closing = threading.Thread(target=link.close, kwargs={"timeout": 1.0})
+    closing.start()
+    time.sleep(0.2)
+    with pytest.raises(RuntimeError, match="closed"):
+        link.publish("lamp/set", "late")
+    closing.join(5)
+    assert link.stats.queued == 1

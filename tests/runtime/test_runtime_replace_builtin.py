@@ -3,6 +3,7 @@ names through the same hooks, and the run uses the replacement (STYLE.md 16)."""
 
 from __future__ import annotations
 
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -90,3 +91,45 @@ def test_the_environment_blocks_a_built_in_for_every_command(monkeypatch):
     assert "hapticdesk.plugins.log" not in registry.plugins
     assert registry.actions["log"].plugin == "my-taps"
     assert list(registry.recognizers) == ["tap"]
+
+
+@pytest.mark.parametrize("command", ["check", "run"])
+def test_a_gesture_whose_recognizer_is_blocked_is_refused_at_its_binding(
+    command, monkeypatch, tmp_path, capsys
+):
+    """`check` refuses what `run` would: with the built-in recognizers blocked and nothing in
+    their place, a `tap` binding is an error at its place (exit 2), not a valid layout that
+    `run` then fails on with an unexpected error."""
+    from hapticdesk.cli import main
+
+    monkeypatch.setenv(BLOCK_ENV, "hapticdesk.plugins.recognizers")
+    monkeypatch.setenv("HAPTICDESK_DISABLE_PLUGIN_AUTOLOAD", "1")
+    layout = tmp_path / "layout.yaml"
+    layout.write_text(LAYOUT)
+    scene = f"sim:{Path(__file__).resolve().parents[2] / 'examples/scenes/buttons.yaml'}"
+    argv = ["check", str(layout)] if command == "check" else ["run", "--layout", str(layout)]
+    argv += [] if command == "check" else ["--source", scene]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert f"{layout}:4:15: no recognizer for gesture `tap` is installed" in err
+    assert "HAPTICDESK_BLOCK_PLUGINS" in err and "unexpected" not in err
+
+
+def test_output_into_a_closed_pipe_ends_quietly(tmp_path):
+    """`hapticdesk check L | head -1`: the reader goes away, the command stops without a
+    message (it was an "unexpected BrokenPipeError")."""
+    import subprocess
+    import sys
+
+    layout = tmp_path / "layout.yaml"
+    layout.write_text(LAYOUT)
+    run = subprocess.run(
+        f"{sys.executable} -m hapticdesk check {layout} | head -c 1",
+        shell=True,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert run.stdout == "O"  # "OK: …", cut short by the reader
+    assert run.stderr == ""

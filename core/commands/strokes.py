@@ -155,10 +155,10 @@ def _next_index(folder: Path, name: str) -> int:
 def record(args: argparse.Namespace) -> int:
     from hapticdesk.estimator import ContactEstimator
     from hapticdesk.files.profile import load_profile
-    from hapticdesk.gestures.layout import load_layout
     from hapticdesk.gestures.strokes.capture import StrokeCapture
     from hapticdesk.gestures.strokes.unistroke import template_set
     from hapticdesk.registry import load_registry
+    from hapticdesk.runtime.assembly import load_scene_layout
     from hapticdesk.runtime.source_spec import open_source
 
     if not SHAPE_NAME.match(args.name):
@@ -170,7 +170,9 @@ def record(args: argparse.Namespace) -> int:
         raise ConfigError("--count", f"must be 0 (all) or more, found {args.count}")
     registry = load_registry()
     profile = load_profile(args.desk) if args.desk else None
-    layout = load_layout(args.layout, profile=profile, recognizer_types=registry.recognizer_types())
+    # as `check` and `run` load it: a layout with an `mqtt:` section or a plugin's actions
+    # records strokes too (it was refused for its `mqtt:` key)
+    layout, _ = load_scene_layout(args.layout, registry, profile)
     into = Path(args.into) if args.into else layout.template_dir
     folder = into / args.name
     options = layout.options_for("stroke", None)

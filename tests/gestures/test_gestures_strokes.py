@@ -194,8 +194,8 @@ def test_record_command_captures_strokes_from_a_simulated_scene(tmp_path, capsys
         "  - stroke: {path: [[-4, 4], [6, 4], [-4, -5], [6, -5]], speed: 12}\n"
     )
     layout = tmp_path / "layout.yaml"
-    layout.write_text(
-        "desk: kitamura2017\ntemplates: strokes\n"
+    layout.write_text(  # with a plugin's section, as `check` and `run` take it (README)
+        "desk: kitamura2017\ntemplates: strokes\nmqtt: {broker: mqtt://127.0.0.1:1883}\n"
         "bindings:\n  - {gesture: stroke, shape: circle, do: log}\n"
     )
     (tmp_path / "strokes").mkdir()

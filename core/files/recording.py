@@ -474,6 +474,11 @@ class _CsvReader:
 MAX_NPZ_MEMBERS = 1024
 
 
+#: what a damaged or unusual zip raises as a member is read: an encrypted member or one of an
+#: unsupported compression method is a RuntimeError (NotImplementedError), not an OSError
+_NPZ_ERRORS = (OSError, ValueError, EOFError, RuntimeError, zipfile.BadZipFile, zlib.error)
+
+
 class _NpzReader:
     """Each column's ``.npy`` member read in slices: no column is ever loaded whole."""
 
@@ -487,7 +492,7 @@ class _NpzReader:
             self._zip = zipfile.ZipFile(path)
             members = len(self._zip.infolist())
             columns = self._headers() if members <= MAX_NPZ_MEMBERS else {}
-        except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as err:
+        except _NPZ_ERRORS as err:
             self.close()
             raise ConfigError(self.where, f"not a readable NPZ recording: {err}") from None
         if members > MAX_NPZ_MEMBERS:  # (each opened member is a stream with its buffers)
@@ -528,7 +533,7 @@ class _NpzReader:
         try:
             for name in needed + self.extra:
                 self._members.append((name, self._open_data(name), columns[name][1]))
-        except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as err:
+        except _NPZ_ERRORS as err:
             self.close()
             raise ConfigError(self.where, f"not a readable NPZ recording: {err}") from None
 
@@ -563,7 +568,7 @@ class _NpzReader:
                         f"{self.length} rows (a truncated file?)",
                     )
                 table[:, j] = np.frombuffer(raw, dtype=dtype)
-        except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as err:
+        except _NPZ_ERRORS as err:
             raise ConfigError(self.where, f"not a readable NPZ recording: {err}") from None
         rec = _from_table(table, self.extra, self.sensor_names)
         bad = ~np.isfinite(rec.t)

@@ -8,6 +8,7 @@ import re
 import zipfile
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -147,3 +148,29 @@ def test_a_zip_bomb_member_is_read_in_bounded_blocks(tmp_path):
         for c in COLUMNS:
             zf.writestr(c + ".npy", header.getvalue() + np.zeros(8).tobytes())
     read_or_refuse(path)
+
+
+@pytest.mark.parametrize(
+    "flag_bit, method, message",
+    [(0x1, None, "encrypted"), (0x0, 99, "compression method")],
+    ids=["encrypted", "unknown-compression"],
+)
+def test_an_encrypted_or_oddly_compressed_npz_is_a_clear_error(
+    tmp_path, flag_bit, method, message
+):
+    """zipfile raises RuntimeError (NotImplementedError) for these, not OSError: it reached
+    the user as "an unexpected RuntimeError"."""
+    good = io.BytesIO()
+    np.savez(good, **{c: np.arange(20) / 1200 for c in COLUMNS})
+    data = bytearray(good.getvalue())
+    for signature, flags_at, method_at in ((b"PK\x03\x04", 6, 8), (b"PK\x01\x02", 8, 10)):
+        at = data.find(signature)
+        while at >= 0:
+            data[at + flags_at] |= flag_bit
+            if method is not None:
+                data[at + method_at : at + method_at + 2] = method.to_bytes(2, "little")
+            at = data.find(signature, at + 4)
+    path = tmp_path / "odd.npz"
+    path.write_bytes(bytes(data))
+    with pytest.raises(ConfigError, match=rf"odd\.npz: not a readable NPZ recording: .*{message}"):
+        read_recording(path, NAMES)

@@ -14,9 +14,11 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import functools
 import importlib
 import importlib.util
+import io
 import logging
 import os
 import sys
@@ -149,8 +151,12 @@ def main(argv: list[str] | None = None) -> int:
     given = "--debug" in argv[:options_end]
     debug = given or os.environ.get(DEBUG_VARIABLE, "").strip().lower() not in OFF_WORDS
     argv = [a for i, a in enumerate(argv) if i >= options_end or a != "--debug"]
+    if sys.stdout is None:  # started with standard output closed (`hapticdesk … >&-`)
+        sys.stdout = _ClosedOutput()
     try:
-        return _main(argv, command, debug)
+        code = _main(argv, command, debug)
+        sys.stdout.flush()  # a full disk shows here, not as Python's complaint at exit
+        return code
     except KeyboardInterrupt:
         return 130
     except BrokenPipeError:
@@ -158,11 +164,47 @@ def main(argv: list[str] | None = None) -> int:
         # as a shell tool does, and keep Python's exit from flushing into the closed pipe
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141  # 128 + SIGPIPE, what a shell reports for a tool the pipe stopped
+    except OSError as err:
+        if not _output_failed(err):
+            if debug:
+                raise
+            print(_unexpected(command, err), file=sys.stderr)
+            return 1
+        # `hapticdesk check L > /dev/full`: say so once, and drop what could not be written
+        # so that Python's exit does not try (and complain) again
+        print(
+            f"hapticdesk{f' {command}' if command else ''}: error: cannot write the standard "
+            f"output: {err.strerror or err}",
+            file=sys.stderr,
+        )
+        sys.stdout = _ClosedOutput()
+        return 2
     except Exception as err:  # the last safety net: a bug, or a failure nobody foresaw
         if debug:
             raise
         print(_unexpected(command, err), file=sys.stderr)
         return 1
+
+
+class _ClosedOutput(io.TextIOBase):
+    """Standard output that cannot be written (closed at start, or failed): each write is
+    an OSError, which :func:`main` reports as one line."""
+
+    def write(self, text: str) -> int:
+        raise OSError(errno.EBADF, "it is closed")
+
+
+#: an output that cannot take what is written: a full disk or quota, a device's failure
+_CANNOT_WRITE = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO}
+
+
+def _output_failed(err: OSError) -> bool:
+    """Whether ``err`` is the output failing (standard output closed, a full disk under
+    ``> /dev/full``) rather than a bug: the commands name the files they write themselves,
+    so an output error without a file name is standard output's."""
+    return isinstance(sys.stdout, _ClosedOutput) or (
+        err.errno in _CANNOT_WRITE and err.filename is None
+    )
 
 
 def _main(argv: list[str], command: str | None, debug: bool) -> int:

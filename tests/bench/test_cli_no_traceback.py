@@ -9,6 +9,7 @@ import subprocess
 import sys
 import threading
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -206,3 +207,33 @@ def test_a_file_that_is_no_recording_is_said_so(capsys, tmp_path):
     assert f"{array}: not a recording hapticdesk reads: expected .csv or .npz" in (
         capsys.readouterr().err
     )
+
+
+@pytest.mark.parametrize(
+    "redirect, code, said",
+    [
+        ("| head -c 1", None, ""),  # the reader went away: quiet (was an unexpected error)
+        ("> /dev/full", 2, "cannot write the standard output: No space left on device"),
+        (">&-", 2, "cannot write the standard output: it is closed"),
+    ],
+    ids=["closed-pipe", "full-disk", "closed"],
+)
+def test_standard_output_that_cannot_be_written_is_one_line_or_none(redirect, code, said):
+    """`hapticdesk check L | head -1`, `> /dev/full`, `>&-`: a shell tool's behaviour, not
+    "an unexpected BrokenPipeError / OSError / AttributeError"."""
+    if redirect == "> /dev/full" and not Path("/dev/full").exists():
+        pytest.skip("no /dev/full here")
+    layout = Path(__file__).resolve().parents[2] / "examples" / "layouts" / "buttons.yaml"
+    run = subprocess.run(
+        f'{sys.executable} -m hapticdesk check {layout} {redirect}; echo "exit $?" >&2',
+        shell=True,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    lines = run.stderr.splitlines()
+    if code is None:  # the pipeline's status is the reader's; ours must print nothing
+        assert run.stdout == "O" and lines[:-1] == []
+    else:
+        assert lines == [f"hapticdesk check: error: {said}", f"exit {code}"]

@@ -155,9 +155,7 @@ def test_a_zip_bomb_member_is_read_in_bounded_blocks(tmp_path):
     [(0x1, None, "encrypted"), (0x0, 99, "compression method")],
     ids=["encrypted", "unknown-compression"],
 )
-def test_an_encrypted_or_oddly_compressed_npz_is_a_clear_error(
-    tmp_path, flag_bit, method, message
-):
+def test_an_encrypted_or_oddly_compressed_npz_is_a_clear_error(tmp_path, flag_bit, method, message):
     """zipfile raises RuntimeError (NotImplementedError) for these, not OSError: it reached
     the user as "an unexpected RuntimeError"."""
     good = io.BytesIO()

@@ -34,13 +34,20 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
 
 
+#: the most simulated sessions pooled: 1000 had grown the process past 3 GB
+MAX_SEEDS = 20
+
+
 def run(args: argparse.Namespace) -> int:
     # before minutes of work: matplotlib would refuse a format only when it draws
     for flag, path in (("--plot", args.plot), ("--paper-png", args.paper_png)):
         if path is not None:
             check_output_path(path, flag, (".png",), "the plot")
-    if args.seeds is not None and args.seeds < 1:
-        raise ConfigError("--seeds", f"must be 1 or more simulated sessions, found {args.seeds}")
+    if args.seeds is not None and not 1 <= args.seeds <= MAX_SEEDS:
+        # each session's recording and contacts are held for the pooled figures (~80 MB)
+        raise ConfigError(
+            "--seeds", f"must be 1 to {MAX_SEEDS} simulated sessions, found {args.seeds}"
+        )
     profile = load_profile(args.desk)
     if args.paper:
         return _paper(args, profile)

@@ -19,11 +19,11 @@ import sys
 import time
 from typing import Any
 
-import numpy as np
-
+from hapticdesk.commands import seed_number
 from hapticdesk.files.profile import load_profile
 from hapticdesk.files.recording import read_recording
 from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.runtime.pacing import MAX_SPEED, MIN_SPEED
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -45,7 +45,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--loop", action="store_true", help="start over at the end, until Ctrl-C")
     parser.add_argument("--bitrate", type=int, help="CAN bit rate")
-    parser.add_argument("--seed", type=int, help="simulation seed")
+    parser.add_argument("--seed", type=seed_number, help="simulation seed")
     parser.add_argument("--json", action="store_true", help="print a JSON summary")
 
 
@@ -55,8 +55,13 @@ def run(args: argparse.Namespace) -> int:
     from hapticdesk.canbus.config import can_config
     from hapticdesk.canbus.emulator import CanEmulator, encoder_for
 
-    if not (args.speed >= 0 and np.isfinite(args.speed)):
-        raise ConfigError("--speed", f"must be 0 (as fast as possible) or more, found {args.speed}")
+    if not (args.speed == 0 or MIN_SPEED <= args.speed <= MAX_SPEED):  # (NaN too)
+        # as `run` paces a replay: 1e-300 overflowed the clock, 1e-9 would wait for ever
+        raise ConfigError(
+            "--speed",
+            f"must be 0 (as fast as possible) or {MIN_SPEED:g} to {MAX_SPEED:g} times real "
+            f"time, found {args.speed:g}",
+        )
     interface, sep, channel = args.bus.partition(":")
     if not sep or not interface:
         raise ConfigError(

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hapticdesk.commands import seed_number
 from hapticdesk.commands.output_path import cannot_write
 from hapticdesk.files.profile import load_profile
 from hapticdesk.files.recording import RECORDING_SUFFIXES, write_recording
@@ -35,7 +36,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("-o", "--output", required=True, help="recording to write (.csv or .npz)")
     parser.add_argument(
-        "--seed", type=int, help="random seed (default: the scene's `seed:`, else 0)"
+        "--seed", type=seed_number, help="random seed (default: the scene's `seed:`, else 0)"
     )
     parser.add_argument(
         "--no-noise", action="store_true", help="no sensor noise, zero offset or drift"
@@ -69,8 +70,6 @@ def run(args: argparse.Namespace) -> int:
     else:
         relative = scene.path.parent if scene.path is not None else None
         profile = load_profile(scene.desk or DEFAULT_DESK, relative_to=relative)
-    if args.seed is not None and args.seed < 0:
-        raise ConfigError("--seed", f"must be a whole number >= 0, found {args.seed}")
     effects = SimEffects.ideal() if args.ideal else SimEffects(dynamics=not args.static)
     sensors = None
     if args.noise_amplitude is not None:

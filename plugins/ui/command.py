@@ -46,6 +46,8 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(
             None, "the browser UI needs the `ui` extra: pip install 'hapticdesk[ui]'"
         ) from None
+    if not 0 <= args.port <= 65535:  # (uvicorn's bind failed with a traceback in its thread)
+        raise ConfigError("--port", f"expected a port 0..65535, found {args.port}")
     from hapticdesk.files.profile import load_profile
     from hapticdesk.plugins.mqtt.demo import examples_dir
     from hapticdesk.plugins.ui.server import UiServer

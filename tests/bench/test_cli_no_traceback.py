@@ -125,7 +125,21 @@ def test_outputs_are_checked_before_the_work(tmp_path, capsys):
         ),
         (
             ["bench", "--quick", "--seeds", "-1"],
-            "hapticdesk bench: error: --seeds: must be 1 or more simulated sessions, found -1",
+            "hapticdesk bench: error: --seeds: must be 1 to 20 simulated sessions, found -1",
+        ),
+        (  # each session is held for the pooled figures: 1000 grew the process past 3 GB
+            ["bench", "--quick", "--seeds", "1000"],
+            "hapticdesk bench: error: --seeds: must be 1 to 20 simulated sessions, found 1000",
+        ),
+        (  # uvicorn's bind had failed in its thread, with a traceback
+            ["ui", "--port", "70000"],
+            "hapticdesk ui: error: --port: expected a port 0..65535, found 70000",
+        ),
+        (  # as `run` paces a replay: 1e-300 overflowed the clock
+            ["emulate", "--desk", "kitamura2017-can", "--scene", "s.yaml", "--bus", "virtual:x"]
+            + ["--speed", "1e-300"],
+            "hapticdesk emulate: error: --speed: must be 0 (as fast as possible) or 0.001 to "
+            "1e+06 times real time, found 1e-300",
         ),
     ]
     for argv, message in cases:
@@ -237,3 +251,29 @@ def test_standard_output_that_cannot_be_written_is_one_line_or_none(redirect, co
         assert run.stdout == "O" and lines[:-1] == []
     else:
         assert lines == [f"hapticdesk check: error: {said}", f"exit {code}"]
+
+
+@pytest.mark.parametrize("command", ["simulate", "record", "emulate"])
+def test_a_negative_seed_is_refused_by_every_command_that_simulates(command, capsys):
+    """numpy refuses a negative seed: `record` and `emulate` let it through to an unexpected
+    ValueError; all three now refuse it as an argument."""
+    argv = {
+        "simulate": ["simulate", "scene.yaml", "-o", "x.csv"],
+        "record": ["record", "--source", "sim:scene.yaml", "--desk", "kitamura2017", "-o", "x.csv"],
+        "emulate": [
+            "emulate",
+            "--desk",
+            "kitamura2017-can",
+            "--scene",
+            "s.yaml",
+            "--bus",
+            "virtual:x",
+        ],
+    }[command]
+    with pytest.raises(SystemExit) as stop:
+        main([*argv, "--seed=-1"])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert err.splitlines()[-1] == (
+        f"hapticdesk {command}: error: argument --seed: must be a whole number >= 0, found -1"
+    )

@@ -64,6 +64,7 @@ class SampleState:
     live: int = 0  # samples since the last stuck one (at most the stage's live_n)
     stuck_since: float = math.nan  # the first stuck sample of the current (or last) spell
     last_stuck_t: float = math.nan  # the last stuck sample
+    time_back: int = 0  # samples whose time was not after an earlier one's, so far
 
 
 class SampleStage:
@@ -90,6 +91,8 @@ class SampleStage:
         flags = np.zeros(k, np.uint8)
         flat = wrench.reshape(k, -1)
         energy = np.empty(k)
+        # first, so that its notices come before the stuck check's, however the input is cut
+        back = self._time_back(t, flat)
         clean, near = self._in_range(flat, energy)
         if near is not None:  # (None: a noise-free input, see the module docstring)
             if len(near) == 0 and st.stuck_check and st.live >= self.live_n:
@@ -118,7 +121,7 @@ class SampleStage:
                 raw = self.resultant(flat)
             st.last_good = raw[:, -1].copy()
             return flags, raw
-        return self._process_slowly(t, flat, flags)
+        return self._process_slowly(t, flat, flags, back)
 
     def process_one(self, t: float, wrench: np.ndarray) -> np.ndarray | None:
         """:meth:`process` for one good sample that follows a good one within ``max_gap_s``
@@ -305,6 +308,25 @@ class SampleStage:
         st.live = min(n, int(live[-1]))
         st.last_stuck_t = float(t[last_stuck[-1]])  # (there is a stuck sample)
 
+    def _tell_time_back(self, t: np.ndarray, latest: np.ndarray, back: np.ndarray) -> None:
+        """A notice at the 1st, 10th, 100th… sample whose time is not after an earlier one's:
+        a recording whose time runs backwards or stands still had ended with no contact and
+        only "tare refused" to say why; a log with the odd repeated time stamp says it a few
+        times, not at every one."""
+        st = self.state
+        before, st.time_back = st.time_back, st.time_back + len(back)
+        for mark in (m for m in (10**e for e in range(19)) if before < m <= st.time_back):
+            i = int(back[mark - before - 1])  # (each at its own sample: however cut in blocks)
+            add_notice(
+                self.notices,
+                float(latest[i]),
+                "time_back",
+                f"time went back: a sample at t = {t[i]:.6g} s is not after t = "
+                f"{latest[i]:.6g} s ({mark} such so far); they are flagged and skipped "
+                "(samples out of order, or a clock that was reset?)",
+                logging.WARNING,
+            )
+
     def _live_again(self, t: float) -> None:
         st = self.state
         add_notice(
@@ -315,20 +337,34 @@ class SampleStage:
             f"{st.last_stuck_t:.3f} s",
         )
 
+    def _time_back(self, t: np.ndarray, flat: np.ndarray) -> np.ndarray | None:
+        """Which samples' times are not after an earlier finite sample's (said in notices);
+        None when every time is after the one before (the common case, one comparison)."""
+        st = self.state
+        if t[0] > st.last_t and (len(t) == 1 or bool((t[1:] > t[:-1]).all())):
+            return None
+        finite = np.isfinite(flat).all(axis=1) & np.isfinite(t)
+        # compare with the running maximum of earlier good times
+        t_clean = np.where(finite, t, -np.inf)
+        prev_max = np.maximum.accumulate(np.concatenate([[st.last_t], t_clean]))[:-1]
+        back = finite & (t <= prev_max)
+        if back.any():
+            self._tell_time_back(t, prev_max, np.flatnonzero(back))
+        return back
+
     def _process_slowly(
-        self, t: np.ndarray, flat: np.ndarray, flags: np.ndarray
+        self, t: np.ndarray, flat: np.ndarray, flags: np.ndarray, back: np.ndarray | None
     ) -> tuple[np.ndarray, np.ndarray]:
-        """The checks sample by sample (vectorised) for a block with something wrong in it."""
+        """The checks sample by sample (vectorised) for a block with something wrong in it;
+        ``back``: :meth:`_time_back`'s samples."""
         st = self.state
         finite = np.isfinite(flat).all(axis=1) & np.isfinite(t)
         flags[~finite] |= FLAG_NAN
         with np.errstate(invalid="ignore"):
             sat = (np.abs(flat) >= self.settings.range_flat).any(axis=1)
         flags[finite & sat] |= FLAG_SATURATED
-        # time must increase: compare with the running maximum of earlier good times
-        t_clean = np.where(finite, t, -np.inf)
-        prev_max = np.maximum.accumulate(np.concatenate([[st.last_t], t_clean]))[:-1]
-        flags[finite & (t <= prev_max)] |= FLAG_TIME_BACK
+        if back is not None:  # time must increase
+            flags[back] |= FLAG_TIME_BACK
         good = flags == 0
         if good.any():
             good_t = t[good]

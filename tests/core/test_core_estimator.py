@@ -226,10 +226,26 @@ def test_time_going_backwards_and_gaps(paper_desk, press_recording):
     assert block.flags[2000] & FLAG_TIME_BACK
     assert block.flags[2700] & FLAG_GAP
     assert any(n.kind == "gap" for n in est.notices)
+    [back] = [n for n in est.notices if n.kind == "time_back"]  # the one is said once
+    assert back.t == pytest.approx(t[1999]) and "(1 such so far)" in back.message
     assert all_finite(block)
     later = block.located & (t > t[2700])
     assert later.sum() > 300
     assert np.abs(block.x[later] - 0.2).max() < 1e-9
+
+
+def test_a_recording_whose_time_runs_backwards_says_so_a_few_times(paper_desk):
+    """Reversed time stamps had ended with no contact and only "tare refused" to say why; the
+    estimator now says time went back, at its 1st, 10th, 100th… such sample, block by block."""
+    fs = paper_desk.sample_rate_hz
+    t = (np.arange(30_000) / fs)[::-1].copy()
+    w = np.random.default_rng(0).normal(0, 0.05, (len(t), len(paper_desk.sensors), 6))
+    est = ContactEstimator(paper_desk)
+    for start in range(0, len(t), 7_000):
+        est.push(t[start : start + 7_000], w[start : start + 7_000])
+    said = [n.message for n in est.notices if n.kind == "time_back"]
+    assert [m.split("(")[1].split(" such")[0] for m in said] == ["1", "10", "100", "1000", "10000"]
+    assert said[0].startswith("time went back: a sample at t = ")
 
 
 def test_forces_at_and_beyond_the_rated_range(paper_desk):

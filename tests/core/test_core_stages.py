@@ -118,13 +118,15 @@ def test_the_sample_stage_is_chunk_invariant(desk, bad_input, split):
         [*range(7004, 7050), *range(7404, 7410), *range(8664, 8670)],
     )
     assert (want[0] & BAD_SAMPLE).sum() > 10 and np.isfinite(want[1]).all()
-    # a notice when a spell sticks, one when it has been live for a second (1200 samples)
+    # a notice when time first goes back (at the latest time before it), when a spell
+    # sticks, and when it has been live for a second (1200 samples)
     assert [(n.kind, n.t) for n in told] == [
+        ("time_back", t[4999]),
         ("stuck", t[7004]),
         ("live", t[7410 + 1199]),
         ("stuck", t[8664]),
     ]
-    assert f"to {t[7409]:.3f} s" in told[1].message
+    assert f"to {t[7409]:.3f} s" in told[2].message
     notices: list[Notice] = []
     stage = SampleStage(s, notices)
     _assert_same(_in_blocks(len(t), split, lambda b: list(stage.process(t[b], w[b]))), want)

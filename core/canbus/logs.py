@@ -52,6 +52,16 @@ MAX_LINES_BEFORE_A_FRAME = 10_000
 MAX_BLF_CONTAINER_BYTES = 64 * 1024 * 1024
 #: how much of a ``.log`` file is looked at to tell candump ``-l`` from candump's printed text
 SNIFF_CHARS = 65_536
+#: the widest identifiers CAN has (python-can's own ``Message`` check): 29 bits for an extended
+#: frame, 11 for a standard one; the readers take any number (an ``.asc`` line of 12 hex digits
+#: reached numpy's uint32 and ended the read with an OverflowError)
+MAX_EXTENDED_ID = 0x1FFF_FFFF
+MAX_STANDARD_ID = 0x7FF
+#: the latest time a CAN log holds, in seconds since 1970: 9999-12-31 00:00 UTC (a day short
+#: of the last date Python has, for the local time zone). python-can's .asc, .blf and .trc
+#: writers date a log by its first frame, so a later one cannot be written; read, a time beyond
+#: it (either way) is no clock's, and its gaps overflowed the assembler's integer sample counts
+MAX_LOG_TIME_S = 253_402_214_400.0
 # candump -l / python-can .log lines: "(1700000000.000000) can0 123#DEADBEEF"
 _CANUTILS_LINE = re.compile(r"^\s*\(\d+(\.\d+)?\)\s+\S+\s+[0-9A-Fa-f]+#")
 # ... and all of one, as python-can's reader parses it without raising: an optional CAN FD
@@ -59,6 +69,12 @@ _CANUTILS_LINE = re.compile(r"^\s*\(\d+(\.\d+)?\)\s+\S+\s+[0-9A-Fa-f]+#")
 _CANUTILS_FRAME = re.compile(
     r"^\s*\(\d+(\.\d+)?\)\s+\S+\s+[0-9A-Fa-f]{1,8}#(#[0-9A-Fa-f])?"
     r"([Rr]\d?|([0-9A-Fa-f]{2})*)(\s+[RTrt])?\s*$"
+)
+# an .asc frame line whatever its time: python-can's ASC_MESSAGE_REGEX with any first word for
+# the time (python-can skips a line whose time is not digits.digits, e.g. "-0.000000" or "nan",
+# without a word; those lines are counted and named)
+_ASC_FRAME_LIKE = re.compile(
+    r"\s*\S+\s+(\d+\s+(\w+\s+(Tx|Rx)|ErrorFrame)|CANFD)", re.ASCII | re.IGNORECASE
 )
 
 
@@ -143,28 +159,35 @@ def _python_can_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
     failure: ConfigError | None = None
     text: _BoundedLines | None = None  # (None also when opening the file fails)
     lines: _CanutilsLines | None = None
-    mismatched: list[int] = []  # the first few lines whose data disagree with their DLC
-    n_mismatched = 0
+    mismatched = _Skipped("frame(s) whose data bytes disagree with their DLC were")
+    bad_ids = _Skipped(_BAD_ID)
+    bad_times = _Skipped(_BAD_TIME)
     try:
         # we open the file so that it is closed whatever the reader raises
         opener = gzip.open if path.suffix.lower() == ".gz" else open
         with opener(path, mode) as fh:
             text = _BoundedLines(fh, path) if fmt != ".blf" else None
+            if text is not None and fmt == ".asc":
+                text.unread = (_ASC_FRAME_LIKE, bad_times)
             lines = _CanutilsLines(text) if fmt == ".log" and text is not None else None
             source = lines if lines is not None else text if text is not None else fh
             messages = (
                 _blf_messages(fh, path) if fmt == ".blf" else getattr(can, _READERS[fmt])(source)
             )
             for msg in messages:
+                number = text.frame_read() if text is not None else None
+                if not _ident_fits(msg.arbitration_id, msg.is_extended_id):
+                    bad_ids.add(number)
+                    continue
+                if not abs(msg.timestamp) <= MAX_LOG_TIME_S:  # (NaN too)
+                    bad_times.add(number)
+                    continue
                 if text is not None:
-                    text.framed = True
                     if not (_dlc_holds(msg) or msg.is_remote_frame or msg.is_error_frame):
                         # a line whose data bytes disagree with its DLC (cut short, or bytes
                         # too many): which of the two is wrong cannot be told, so neither is
                         # believed (python-can kept the bytes as found and said nothing)
-                        n_mismatched += 1
-                        if len(mismatched) < 3:
-                            mismatched.append(text.number)
+                        mismatched.add(number)
                         continue
                 batch.append(msg)
                 if len(batch) >= chunk_frames:
@@ -186,17 +209,54 @@ def _python_can_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
     # block near the end of a BLF file dropped every frame before it)
     if batch:
         yield FrameArray.from_messages(batch)
-    if n_mismatched:
-        log.warning(
-            "%d frame(s) whose data bytes disagree with their DLC were skipped (%s%s)",
-            n_mismatched,
-            ", ".join(f"{path}:{number}" for number in mismatched),
-            " …" if n_mismatched > len(mismatched) else "",
-        )
+    if failure is None and text is not None:
+        text.frame_read(end=True)  # the last line may have been a frame line python-can skipped
+    for skipped in (mismatched, bad_ids, bad_times):
+        skipped.warn(path)
     if failure is not None:
         raise failure
     if lines is not None:
-        _warn_skipped(path, lines.skipped, lines.n_skipped)
+        lines.skipped.warn(path)
+
+
+_BAD_ID = (
+    f"frame(s) whose identifier is out of range (up to 0x{MAX_EXTENDED_ID:X} extended, "
+    f"0x{MAX_STANDARD_ID:X} standard) were"
+)
+_BAD_TIME = (
+    f"frame(s) whose time cannot be read or is out of range (expected seconds within "
+    f"±{MAX_LOG_TIME_S:.0f} of 1970, up to year 9999) were"
+)
+
+
+def _ident_fits(ident: int, extended: bool) -> bool:
+    return 0 <= ident <= (MAX_EXTENDED_ID if extended else MAX_STANDARD_ID)
+
+
+class _Skipped:
+    """Frames or lines skipped for one reason: how many, the first few lines (for the
+    warning), the first reason given."""
+
+    def __init__(self, what: str) -> None:
+        self.what = what  # "<what> skipped (file:line, …)"
+        self.lines: list[int] = []
+        self.n = 0
+        self.why: str | None = None
+
+    def add(self, number: int | None, why: str | None = None) -> None:
+        self.n += 1
+        if number is not None and len(self.lines) < 3:
+            self.lines.append(number)
+        if self.why is None:
+            self.why = why
+
+    def warn(self, path: Path) -> None:
+        if not self.n:
+            return
+        shown = ", ".join(f"{path}:{number}" for number in self.lines) or str(path)
+        more = " …" if self.lines and self.n > len(self.lines) else ""
+        why = f": {self.why}" if self.why else ""
+        log.warning("%d %s skipped (%s%s)%s", self.n, self.what, shown, more, why)
 
 
 def _dlc_holds(msg: Any) -> bool:
@@ -257,6 +317,9 @@ class _BoundedLines:
         self._path = path
         self.number = 0
         self.framed = False  # a frame was read (set by the reader's loop)
+        # lines that look like frames, and where those the reader made no frame of are counted
+        self.unread: tuple[re.Pattern[str], _Skipped] | None = None
+        self._pending = 0  # the line last read, when it looks like a frame and none came of it
 
     def __iter__(self) -> Iterator[str]:
         return self
@@ -267,12 +330,27 @@ class _BoundedLines:
             raise StopIteration
         return line
 
+    def frame_read(self, end: bool = False) -> int:
+        """The reader made a frame of the line last read (or, ``end``, it read no more): its
+        number. A frame-like line before it that gave no frame is counted in ``unread``."""
+        if self._pending and end and self.unread is not None:
+            self.unread[1].add(self._pending)
+        if not end:
+            self.framed = True
+        self._pending = 0
+        return self.number
+
     def readline(self) -> str:
         limit = MAX_LINE_CHARS
+        if self._pending and self.unread is not None:  # the reader moved on without a frame
+            self.unread[1].add(self._pending)
+            self._pending = 0
         line: str = self._fh.readline(limit + 2)  # room for the line end ("\r\n")
         if not line:
             return line
         self.number += 1
+        if self.unread is not None and self.unread[0].match(line):
+            self._pending = self.number
         if self.number > MAX_LINES_BEFORE_A_FRAME and not self.framed:
             # (a file of blank or junk lines was read to its end, minutes for 100 MB, before
             # it said "no CAN frames found")
@@ -299,31 +377,20 @@ class _CanutilsLines:
 
     def __init__(self, lines: _BoundedLines) -> None:
         self._lines = lines
-        self.skipped: list[int] = []  # the first few, for the warning
-        self.n_skipped = 0
+        self.skipped = _Skipped(_NOT_FRAMES)
 
     def __iter__(self) -> Iterator[str]:
         for line in self._lines:
             if _CANUTILS_FRAME.match(line):
                 yield line
             elif line.strip() and not line.lstrip().startswith(("#", ";")):
-                self.n_skipped += 1
-                if len(self.skipped) < 3:
-                    self.skipped.append(self._lines.number)
+                self.skipped.add(self._lines.number)
 
     def close(self) -> None:
         """python-can closes its file when done; ours is closed by its ``with``."""
 
 
-def _warn_skipped(path: Path, shown_lines: list[int], n: int) -> None:
-    if n:
-        shown = ", ".join(f"{path}:{number}" for number in shown_lines[:3])
-        log.warning(
-            "%d line(s) are not CAN frames and were skipped (%s%s)",
-            n,
-            shown,
-            " …" if n > 3 else "",
-        )
+_NOT_FRAMES = "line(s) are not CAN frames and were"
 
 
 def _candump_text_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
@@ -333,8 +400,10 @@ def _candump_text_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
 
     deltas: bool | None = None  # candump -td prints the time since the previous frame
     clock = 0.0
-    unknown_lines: list[int] = []  # the first few, for the warning
-    n_unknown = 0
+    unknown = _Skipped(_NOT_FRAMES)
+    unreadable = _Skipped("frame line(s) that cannot be read were")
+    bad_ids = _Skipped(_BAD_ID)
+    bad_times = _Skipped(_BAD_TIME)
     t: list[float] = []
     idents: list[int] = []
     exts: list[bool] = []
@@ -359,23 +428,37 @@ def _candump_text_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
     try:
         with _open_text(path) as fh:
             lines = _BoundedLines(fh, path)
-            for line, frame in Parser(lines).iterlines(keep_unknowns=True):  # type: ignore[arg-type]
+            parser = Parser()
+            # line by line, not cantools' iterlines: a line whose time it cannot make a date of
+            # ("(2020-13-45 …)", "(99999999999999999999.0)") raises out of that loop, and ended
+            # the whole read with no line named
+            for line in lines:
                 number = lines.number
+                try:
+                    frame = parser.parse(line.strip("\r\n"))
+                    stamp = frame.timestamp if frame is not None else None
+                    if isinstance(stamp, datetime.timedelta):
+                        seconds = stamp.total_seconds()
+                    elif isinstance(stamp, datetime.datetime):
+                        seconds = stamp.timestamp()
+                    else:
+                        seconds = np.nan
+                except (ValueError, OverflowError) as err:
+                    unreadable.add(number, str(err))
+                    continue
                 if frame is None:
                     if line.strip() and not line.lstrip().startswith(("#", ";")):
-                        n_unknown += 1
-                        if len(unknown_lines) < 3:
-                            unknown_lines.append(number)
+                        unknown.add(number)
                     continue
                 lines.framed = True
-                stamp = frame.timestamp
-                if isinstance(stamp, datetime.timedelta):
-                    relative = True
-                    t.append(stamp.total_seconds())
-                elif isinstance(stamp, datetime.datetime):
-                    t.append(stamp.timestamp())
-                else:
-                    t.append(np.nan)
+                if not _ident_fits(frame.frame_id, frame.is_extended_frame):
+                    bad_ids.add(number)
+                    continue
+                if abs(seconds) > MAX_LOG_TIME_S:  # (NaN, no time, is kept)
+                    bad_times.add(number)
+                    continue
+                relative = relative or isinstance(stamp, datetime.timedelta)
+                t.append(seconds)
                 idents.append(frame.frame_id)
                 exts.append(frame.is_extended_frame)
                 datas.append(frame.data)
@@ -386,7 +469,8 @@ def _candump_text_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
         raise ConfigError(str(path), f"cannot read: {err}") from None
     if datas:
         yield chunk()
-    _warn_skipped(path, unknown_lines, n_unknown)
+    for skipped in (unknown, unreadable, bad_ids, bad_times):
+        skipped.warn(path)
 
 
 def write_frames(path: str | Path, frames: Iterable[FrameArray], channel: Any = None) -> int:
@@ -398,13 +482,39 @@ def write_frames(path: str | Path, frames: Iterable[FrameArray], channel: Any = 
         raise ConfigError(
             str(path), f"cannot write CAN logs as {path.suffix!r}; use {', '.join(WRITE_SUFFIXES)}"
         )
+    if isinstance(frames, (list, tuple)):  # all at hand: refused before the file is made
+        for chunk in frames:
+            if (failure := _unwritable(path, chunk)) is not None:
+                raise failure
     n = 0
+    failure = None
     with can.Logger(str(path)) as logger:
         for chunk in frames:
+            if (failure := _unwritable(path, chunk)) is not None:
+                break
             for msg in chunk.to_messages(channel=channel):
                 logger.on_message_received(msg)
             n += len(chunk)
+    if failure is not None:
+        path.unlink(missing_ok=True)  # no log cut short at the bad frame is left behind
+        raise failure
     return n
+
+
+def _unwritable(path: Path, chunk: FrameArray) -> ConfigError | None:
+    """Why ``chunk`` cannot go in the log at ``path``: a time out of its range (python-can
+    failed on it with an OverflowError or "year 11533 is out of range", or for ``.log`` wrote
+    times that read back all equal)."""
+    bad = ~np.isnan(chunk.t) & ~((chunk.t >= 0) & (chunk.t <= MAX_LOG_TIME_S))
+    if not bad.any():
+        return None
+    t = float(chunk.t[np.argmax(bad)])
+    return ConfigError(
+        str(path),
+        f"cannot write a frame at {t:.6g} s: a {_suffix(path)} CAN log's times are seconds "
+        f"since 1970 from 0 to {MAX_LOG_TIME_S:.0f} (year 9999); are the source's times in "
+        "seconds?",
+    )
 
 
 # --- samples ----------------------------------------------------------------------------------

@@ -141,6 +141,15 @@ class CanSource(Source):
                 self.spec,
                 f"cannot open CAN interface {self.interface!r} channel {self.channel!r}: {err}",
             ) from None
+        except Exception as err:
+            # an interface's own bug when its driver library is missing (python-can's kvaser
+            # raises NameError: canGetNumberOfChannels) is as much a bus that cannot be opened
+            raise CanSourceError(
+                self.spec,
+                f"cannot open CAN interface {self.interface!r} channel {self.channel!r}: "
+                f"python-can failed with {type(err).__name__}: {err} (is the interface's "
+                "driver library installed?)",
+            ) from None
 
     def _shutdown_bus(self) -> None:
         with self._lock:

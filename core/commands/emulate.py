@@ -97,6 +97,12 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(
             "--bus", f"cannot open CAN interface {interface!r} channel {channel!r}: {err}"
         ) from None
+    except Exception as err:  # an interface's own bug without its driver (kvaser: NameError)
+        raise ConfigError(
+            "--bus",
+            f"cannot open CAN interface {interface!r} channel {channel!r}: python-can failed "
+            f"with {type(err).__name__}: {err} (is the interface's driver library installed?)",
+        ) from None
     from hapticdesk.estimator.inertia import accelerometer_readings
 
     accel = accelerometer_readings(profile, rec.extra)  # None: the desk has no accelerometer

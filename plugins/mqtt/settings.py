@@ -110,7 +110,10 @@ def apply_login(client: Any, settings: MqttSettings) -> None:
 
 def parse_broker_url(url: str, where: Position | str) -> tuple[bool, str, int, str | None]:
     """``mqtt://[user@]host[:port]`` or ``mqtts://…`` -> (tls, host, port, username)."""
-    parts = urllib.parse.urlsplit(url if "://" in url else f"mqtt://{url}")
+    try:
+        parts = urllib.parse.urlsplit(url if "://" in url else f"mqtt://{url}")
+    except ValueError as err:  # "Invalid IPv6 URL" for mqtt://[::1
+        raise ConfigError(where, f"broker URL {url!r} cannot be read: {err}") from None
     if parts.scheme not in ("mqtt", "mqtts"):
         raise ConfigError(
             where, f"broker must be mqtt://host[:port] or mqtts://host[:port], found {url!r}"

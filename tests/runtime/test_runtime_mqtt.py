@@ -205,6 +205,8 @@ def test_username_and_password_from_a_file_or_the_environment(
         ("{broker: 'mqtt://localhost:0'}", "'mqtt", "has port 0; expected 1 to 65535"),
         ("{queue_size: 1.0e+18}", "1.0e", "`queue_size` in `mqtt` must be <= 1e+06"),
         ("{password_file: binary.pw}", "binary", "binary.pw is not text (UTF-8)"),
+        # urllib's ValueError had been "an action could not be set up"
+        ("{broker: 'mqtt://[::1'}", "'mqtt", "cannot be read: Invalid IPv6 URL"),
     ],
 )
 def test_mqtt_section_errors_point_at_the_layout(tmp_path, text, at, expected):
@@ -214,6 +216,19 @@ def test_mqtt_section_errors_point_at_the_layout(tmp_path, text, at, expected):
         settings_from_layout(load_marked_yaml("l.yaml", text), desk="d", relative_to=tmp_path)
     assert str(err.value).startswith(f"l.yaml:1:{text.index(at) + 1}: "), str(err.value)
     assert expected in str(err.value)
+
+
+def test_a_bad_mqtt_option_is_named_as_the_option(tmp_path, capsys):
+    """`run --mqtt 'mqtt://[::1'` was blamed on the layout's first MQTT action."""
+    from hapticdesk.cli import main
+
+    examples = Path(__file__).resolve().parents[2] / "examples"
+    argv = ["run", "--layout", str(examples / "layouts" / "demo.yaml"), "--speed", "0"]
+    argv += ["--source", f"sim:{examples / 'scenes' / 'demo.yaml'}", "--mqtt", "mqtt://[::1"]
+    assert main(argv) == 2
+    assert capsys.readouterr().err == (
+        "hapticdesk run: error: --mqtt: broker URL 'mqtt://[::1' cannot be read: Invalid IPv6 URL\n"
+    )
 
 
 def test_tls_with_a_ca_and_a_client_certificate(mosquitto_available, tmp_path, caplog):

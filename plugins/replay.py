@@ -112,7 +112,8 @@ def open_replay(
         raise ConfigError("--source", "replay needs a file: replay:FILE.csv, .npz or a CAN log")
     path = Path(argument).expanduser()
     if not path.is_file():
-        raise ConfigError("--source", f"replay: no such file {argument}")
+        what = "not a regular file" if path.exists() else "no such file"  # (a FIFO, a folder)
+        raise ConfigError("--source", f"replay: {what}: {argument}")
     if path.suffix.lower() in RECORDING_SUFFIXES:
         recording = open_recording_blocks(path, profile)
         if recording.is_empty():

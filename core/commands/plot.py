@@ -40,6 +40,8 @@ def run(args: argparse.Namespace) -> int:
         )
     profile = load_profile(args.desk)
     recording = read_any_recording(args.recording, profile)
+    if len(recording.t) == 0:  # (a header alone; the plot would not know the file's name)
+        raise ConfigError(str(args.recording), "the recording holds no samples")
     from hapticdesk.analysis.plotting import plot_recording  # matplotlib only when plotting
 
     summary = plot_recording(

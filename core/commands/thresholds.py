@@ -86,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
     if report.touch.triggered == 0 and report.release.triggered == 0:
         if not report.presses:
             print(
-                "hapticdesk thresholds: no presses found (the estimator needs "
+                f"hapticdesk thresholds: {args.recording}: no presses found (the estimator needs "
                 f"{profile.estimation.tare_s:g} s of a quiet desk at the start to tare)",
                 file=sys.stderr,
             )

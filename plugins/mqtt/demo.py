@@ -152,7 +152,10 @@ def run(args: argparse.Namespace) -> int:
     examples = examples_dir()
     layout = Path(args.layout) if args.layout else examples / "layouts" / "demo.yaml"
     scene_file = Path(args.scene) if args.scene else examples / "scenes" / "demo.yaml"
-    for path in (layout, scene_file):
+    for path, given in ((layout, args.layout), (scene_file, args.scene)):
+        if given and not path.is_file():
+            what = "not a regular file" if path.exists() else "no such file"
+            raise ConfigError(str(path), what)
         if not path.is_file():
             raise ConfigError(
                 str(path),

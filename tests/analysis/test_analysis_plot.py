@@ -132,3 +132,15 @@ def test_analysis_imports_no_matplotlib_until_a_plot_is_drawn() -> None:
         "assert 'matplotlib' not in sys.modules, 'matplotlib imported by plotting'\n"
     )
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_a_recording_of_a_header_alone_is_named(tmp_path, capsys):
+    """It was "recording: the recording has no samples": which file?"""
+    path = tmp_path / "header.csv"
+    axes = ("fx", "fy", "fz", "mx", "my", "mz")
+    columns = ["t"] + [f"{s}_{a}" for s in ("fl", "fr", "bl", "br") for a in axes]
+    path.write_text(",".join(columns) + "\n")
+    assert main(["plot", str(path), "--desk", "kitamura2017", "-o", str(tmp_path / "p.png")]) == 2
+    assert capsys.readouterr().err == (
+        f"hapticdesk plot: error: {path}: the recording holds no samples\n"
+    )

@@ -79,7 +79,9 @@ def test_status_line_shows_contact_force_and_last_gesture(tmp_path, recording, c
             "unknown source kind `serial`; installed: can, replay, sim",
         ),
         (["--source", "taps.csv"], "expected KIND:ARGUMENT"),
-        (["--source", "replay:nowhere.csv"], "replay: no such file nowhere.csv"),
+        (["--source", "replay:nowhere.csv"], "replay: no such file: nowhere.csv"),
+        # a folder (or a FIFO) is there, but not a recording: it was "no such file"
+        (["--source", "replay:TMP"], "replay: not a regular file: TMP"),
         (["--source", "replay:LAYOUT"], "cannot replay a .yaml file; expected a recording (.csv"),
         (["--desk", "no_such_desk"], "no such desk profile; shipped profiles:"),
         (["--speed", "-1"], "--speed must be 0 (as fast as possible) or 0.001 to"),
@@ -90,11 +92,11 @@ def test_status_line_shows_contact_force_and_last_gesture(tmp_path, recording, c
 def test_mistakes_give_a_clear_error_and_no_traceback(tmp_path, recording, capsys, args, expected):
     base = {"--source": f"replay:{recording}", "--layout": str(layout(tmp_path))}
     for flag, value in zip(args[::2], args[1::2], strict=True):
-        base[flag] = value.replace("LAYOUT", base["--layout"])
+        base[flag] = value.replace("LAYOUT", base["--layout"]).replace("TMP", str(tmp_path))
     argv = ["run", *[x for pair in base.items() for x in pair]]
     assert main(argv) == 2
     err = capsys.readouterr().err
-    assert expected in err
+    assert expected.replace("TMP", str(tmp_path)) in err
     assert "Traceback" not in err
     assert "secret" not in err
 
@@ -198,3 +200,10 @@ def test_the_demo_runs_the_whole_path_through_an_embedded_broker():
     sent, received = (int(w) for w in commands.replace(",", "").split() if w.isdigit())
     assert sent == received and sent >= 3
     assert "desk_lamp ends OFF" in out  # tapped on, dimmed, tapped off
+
+
+def test_a_demo_layout_that_is_not_there_is_said_so(tmp_path, capsys):
+    """`demo --layout L` with no L: it blamed the examples ("not installed?")."""
+    missing = tmp_path / "mine.yaml"
+    assert main(["demo", "--layout", str(missing)]) == 2
+    assert capsys.readouterr().err == f"hapticdesk demo: error: {missing}: no such file\n"

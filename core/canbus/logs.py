@@ -140,6 +140,22 @@ def _open_text(path: Path) -> Any:
     return path.open(encoding="utf-8", errors="replace")
 
 
+def _first_undecodable_line(path: Path) -> int:
+    """The number of the first line of ``path`` that is not UTF-8 (0: none found)."""
+    import gzip
+
+    opener: Any = gzip.open if path.suffix.lower() == ".gz" else open
+    with opener(path, "rb") as fh:
+        number = 0
+        while raw := fh.readline(MAX_LINE_CHARS + 2):
+            number += 1
+            try:
+                raw.decode("utf-8")
+            except UnicodeDecodeError:
+                return number
+    return 0
+
+
 _READERS = {
     ".asc": "ASCReader",
     ".blf": "BLFReader",
@@ -196,8 +212,13 @@ def _python_can_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
     except ConfigError as err:  # a line too long: already says where
         failure = err
     except (ValueError, OSError, EOFError, KeyError, IndexError, can.CanError) as err:
-        where = f"{path}:{text.number}" if text is not None else str(path)
-        failure = ConfigError(where, f"not a readable {fmt} CAN log: {err}")
+        number = text.number if text is not None else 0
+        why = str(err)
+        if isinstance(err, UnicodeDecodeError):  # raised for a whole buffer, lines ahead
+            number = _first_undecodable_line(path)
+            why = f"the line is not UTF-8 text (byte 0x{err.object[err.start]:02x}: {err.reason})"
+        where = f"{path}:{number}" if number else str(path)
+        failure = ConfigError(where, f"not a readable {fmt} CAN log: {why}")
     except MemoryError:
         where = f"{path}:{text.number}" if text is not None else str(path)
         failure = ConfigError(

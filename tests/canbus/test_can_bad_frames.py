@@ -219,3 +219,18 @@ def test_the_real_kvaser_interface_without_its_library_is_a_clean_error(command,
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert "cannot open CAN interface 'kvaser' channel '0'" in err and "unexpected" not in err
+
+
+@pytest.mark.parametrize("suffix", [".asc", ".trc"])
+def test_a_line_that_is_not_text_is_named_at_its_line(tmp_path, suffix):
+    """The decoder fails for a whole buffer: the line said had been 0, or the buffer's first."""
+    path = tmp_path / f"junk{suffix}"
+    head = {".asc": ASC_HEAD, ".trc": TRC_HEAD}[suffix].encode()
+    path.write_bytes(head + b"\xff junk\n")
+    line = head.count(b"\n") + 1
+    with pytest.raises(
+        ConfigError,
+        match=rf"junk\{suffix}:{line}: not a readable \{suffix} CAN log: the line "
+        r"is not UTF-8 text \(byte 0xff: invalid start byte\)",
+    ):
+        list(read_frames(path))

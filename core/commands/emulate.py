@@ -19,7 +19,7 @@ import sys
 import time
 from typing import Any
 
-from hapticdesk.commands import seed_number
+from hapticdesk.commands import bit_rate, seed_number
 from hapticdesk.files.profile import load_profile
 from hapticdesk.files.recording import read_recording
 from hapticdesk.files.yamlfile import ConfigError
@@ -44,7 +44,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--speed", type=float, default=1.0, help="1 real time (default), 0 as fast as possible"
     )
     parser.add_argument("--loop", action="store_true", help="start over at the end, until Ctrl-C")
-    parser.add_argument("--bitrate", type=int, help="CAN bit rate")
+    parser.add_argument("--bitrate", type=bit_rate, help="CAN bit rate")
     parser.add_argument("--seed", type=seed_number, help="simulation seed")
     parser.add_argument("--json", action="store_true", help="print a JSON summary")
 

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from hapticdesk.commands import seed_number
+from hapticdesk.commands import bit_rate, seed_number
 from hapticdesk.commands.output_path import cannot_write
 from hapticdesk.files.profile import DeskProfile, load_profile
 from hapticdesk.files.readers import open_recording_blocks
@@ -52,7 +52,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--seconds", type=float, help="stop after this long (default: a live bus until Ctrl-C)"
     )
-    parser.add_argument("--bitrate", type=int, help="CAN bit rate (overrides the profile's)")
+    parser.add_argument("--bitrate", type=bit_rate, help="CAN bit rate (overrides the profile's)")
     parser.add_argument("--seed", type=seed_number, help="simulation seed (sim: sources)")
     parser.add_argument("--json", action="store_true", help="print a JSON summary")
 

@@ -277,3 +277,20 @@ def test_a_negative_seed_is_refused_by_every_command_that_simulates(command, cap
     assert err.splitlines()[-1] == (
         f"hapticdesk {command}: error: argument --seed: must be a whole number >= 0, found -1"
     )
+
+
+@pytest.mark.parametrize("command", ["record", "emulate"])
+@pytest.mark.parametrize("rate", ["0", "-1", "9000000"])
+def test_a_bit_rate_no_bus_has_is_refused(command, rate, capsys):
+    """0 was taken for "the profile's" without a word, −1 passed to the interface."""
+    argv = {
+        "record": ["record", "--source", "sim:s.yaml", "--desk", "kitamura2017", "-o", "x.csv"],
+        "emulate": ["emulate", "--desk", "kitamura2017-can", "--scene", "s.yaml", "--bus", "v:x"],
+    }[command]
+    with pytest.raises(SystemExit) as stop:
+        main([*argv, f"--bitrate={rate}"])
+    assert stop.value.code == 2
+    assert capsys.readouterr().err.splitlines()[-1] == (
+        f"hapticdesk {command}: error: argument --bitrate: expected 1 to 8000000 bits per "
+        f"second, found {rate}"
+    )

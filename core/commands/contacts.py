@@ -125,7 +125,5 @@ def run(args: argparse.Namespace) -> int:
             f"({estimator.method})",
             file=sys.stderr,
         )
-    for notice in estimator.notices:
-        if notice.kind == "tare_refused":
-            print(f"warning: {notice.message}", file=sys.stderr)
+    # (a refused tare is said as the estimator logs it, once: it was printed twice)
     return 0

@@ -80,9 +80,7 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(info))
     else:
         print(format_report(report))
-    for notice in report.notices:
-        if notice["kind"] == "tare_refused":
-            print(f"warning: {notice['message']}", file=sys.stderr)
+    # (a refused tare is said as the estimator logs it, once: it was printed twice)
     if report.touch.triggered == 0 and report.release.triggered == 0:
         if not report.presses:
             print(

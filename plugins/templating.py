@@ -18,6 +18,7 @@ import json
 import math
 import re
 import time
+import warnings
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextvars import ContextVar
 from dataclasses import dataclass
@@ -26,6 +27,7 @@ from typing import Any
 
 from hapticdesk.files.yamlfile import ConfigError, MarkedDict, MarkedList, Position
 from hapticdesk.gestures.event import GestureEvent
+from hapticdesk.gestures.layout import LayoutWarning
 
 #: the GestureEvent fields a template sees under their own names
 EVENT_FIELDS = (
@@ -347,8 +349,32 @@ def compile_template(text: str, where: Position | str, what: str = "template") -
             f"{what} uses unknown variable(s) {', '.join(unknown)}; available: "
             f"{', '.join(VARIABLES)} (plugin fields as event.<name>)",
         )
+    _warn_filter_on_a_number(env.parse(text), where, what)
     _check_limits(compiled, where, what)
     return Template(text, compiled, str(where))
+
+
+def _warn_filter_on_a_number(tree: Any, where: Position | str, what: str) -> None:
+    """``value * 254 | round``: a filter binds tighter than arithmetic, so this rounds 254 and
+    sends the product unrounded (a brightness of 24.93). A filter on a lone number is never
+    meant: say so, as a layout warning (the layout reader collects ``warnings.warn``)."""
+    from jinja2 import nodes
+
+    for op in tree.find_all(nodes.BinExpr):
+        names, inner = [], op.right
+        while isinstance(inner, nodes.Filter):
+            names.append(inner.name)
+            inner = inner.node
+        if names and isinstance(inner, nodes.Const) and not isinstance(op.left, nodes.Const):
+            chain = " | ".join(reversed(names))
+            warnings.warn(
+                LayoutWarning(
+                    f"{where}: {what} applies `{chain}` to the number {inner.value} alone, not to "
+                    f"the result of `{op.operator}` (a filter binds tighter): write `(… "
+                    f"{op.operator} {inner.value}) | {chain}`"
+                ),
+                stacklevel=2,
+            )
 
 
 def _check_limits(compiled: Any, where: Position | str, what: str) -> None:

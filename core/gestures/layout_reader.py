@@ -10,6 +10,7 @@ binding. Regions are read by ``layout_regions``, stroke templates by ``layout_te
 from __future__ import annotations
 
 import re
+import warnings
 from collections.abc import Collection, Mapping
 from pathlib import Path
 from typing import Any
@@ -30,6 +31,7 @@ from hapticdesk.gestures.layout import (
     ActionUse,
     Binding,
     Layout,
+    LayoutWarning,
     ValidateAction,
     builtin_shape_names,
 )
@@ -380,7 +382,15 @@ class LayoutReader:
                 known = ", ".join(sorted(self.action_names)) or "none installed"
                 raise ConfigError(name_at, f"unknown action `{use.name}` in {what}; known: {known}")
             if self.validate_action is not None:
-                self.validate_action(use.name, use.options, use.position)
+                # a plugin's check may warn (warnings.warn(LayoutWarning)): a layout warning
+                with warnings.catch_warnings(record=True) as said:
+                    warnings.simplefilter("always", LayoutWarning)
+                    self.validate_action(use.name, use.options, use.position)
+                for w in said:
+                    if issubclass(w.category, LayoutWarning):
+                        self.warnings.append(str(w.message))
+                    else:  # (any other warning goes on as it came)
+                        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
         return [use for use, _ in uses]
 
     def _resolve(

@@ -82,3 +82,33 @@ def test_a_template_failing_on_an_event_says_which_template():
     tap = GestureEvent(1.0, "tap", "lamp", 0.0, 0.0)  # a tap has no value
     with pytest.raises(TemplateError, match="layout.yaml:5:7"):
         template.render(event_variables(tap, "d"))
+
+
+@pytest.mark.parametrize(
+    ("template", "said"),
+    [
+        # DESIGN.md's example: rounds 254 and sends 24.93 for a slide at 0.098
+        ("{{ value * 254 | round }}", "applies `round` to the number 254 alone"),
+        ("{{ value * 100 | round | int }}", "applies `round | int` to the number 100 alone"),
+        ("{{ (value * 254) | round | int }}", None),
+        ("{{ value | round(2) * 100 }}", None),
+        ("{{ 2 * 3 | int }}", None),  # numbers alone: nothing was meant otherwise
+    ],
+)
+def test_a_filter_on_a_lone_number_after_arithmetic_is_a_layout_warning(
+    tmp_path, capsys, template, said
+):
+    from hapticdesk.cli import main
+
+    layout = tmp_path / "l.yaml"
+    layout.write_text(
+        "desk: kitamura2017\nregions: {d: {rect: [-0.3, 0.1, 0.3, 0.2], axis: x}}\nbindings:\n"
+        "  - {gesture: slide, region: d, do: {log: {message: '" + template + "'}}}\n"
+    )
+    assert main(["check", str(layout)]) == 0
+    warned = [line for line in capsys.readouterr().out.splitlines() if "warning" in line]
+    if said is None:
+        assert warned == []
+    else:
+        assert len(warned) == 1 and warned[0].startswith(f"warning: {layout}:4:")
+        assert said in warned[0] and "write `(… " in warned[0]

@@ -7,7 +7,9 @@ with ruamel.yaml's round trip, so the user's comments, key order and flow style 
 
 from __future__ import annotations
 
+import collections
 import io
+import json
 import os
 import re
 import tempfile
@@ -50,29 +52,57 @@ def check_layout_text(
 
 
 def exec_added(layout_path: Path, text: str, registry: Any, desk: Any = None) -> list[dict]:
-    """Refuse a save that adds ``exec`` actions: a page may not make the desk run programs
-    (README, "Browser UI": no exec runs from the page). Exec uses already in the file stay."""
+    """Refuse a save that adds or changes ``exec`` actions, or names another layout file to
+    switch to: a page may not make the desk run programs (README, "Browser UI": no exec runs
+    from the page). An ``exec`` use already in the file may stay, as it is, on its gesture;
+    one whose argv was changed, or that moved to another binding, is a new one (counting the
+    uses let a save that edited the one there was run any program)."""
     from hapticdesk.runtime.assembly import load_scene_layout
 
-    def exec_uses(source: str | None) -> list[Position]:
+    def uses(source: str | None) -> tuple[list[tuple[str, Position]], set[Path]]:
         layout, _ = load_scene_layout(layout_path, registry, desk, text=source)
-        return [u.position for b in layout.bindings for u in b.actions if u.name == "exec"]
+        execs = [
+            (_exec_key(b, u.options), u.position)
+            for b in layout.bindings
+            for u in b.actions
+            if u.name == "exec"
+        ]
+        return execs, {p.resolve() for p in layout.named_layouts.values()}
 
     try:
-        before = len(exec_uses(None)) if layout_path.is_file() else 0
+        before, files_before = uses(None) if layout_path.is_file() else ([], set())
     except ConfigError:
-        before = 0
-    after = exec_uses(text)
-    if len(after) <= before:
-        return []
-    where = after[-1]
-    return [
-        {
-            "line": where.line,
-            "column": where.column,
-            "message": "the page may not add `exec` actions; add them to the file by hand",
-        }
-    ]
+        before, files_before = [], set()
+    after, files_after = uses(text)
+    kept = collections.Counter(key for key, _ in before)
+    for key, where in after:
+        if kept[key] > 0:
+            kept[key] -= 1
+            continue
+        return [
+            {
+                "line": where.line,
+                "column": where.column,
+                "message": "the page may not add or change `exec` actions; edit them in the "
+                "file by hand",
+            }
+        ]
+    if files_after - files_before:
+        return [
+            {
+                "line": 1,
+                "column": 1,
+                "message": "the page may not name other layout files under `layouts:` (they "
+                "may run programs); add them to the file by hand",
+            }
+        ]
+    return []
+
+
+def _exec_key(binding: Any, options: Any) -> str:
+    """An exec use as what it runs and on which gesture, comparable across two loads."""
+    trigger = {k: v for k, v in vars(binding).items() if k not in ("actions", "index", "position")}
+    return json.dumps([trigger, options], sort_keys=True, default=str)
 
 
 def save_layout_text(layout_path: Path, text: str) -> None:

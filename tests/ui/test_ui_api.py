@@ -95,6 +95,33 @@ def test_put_saves_keeping_comments(client: TestClient, layout: Path) -> None:
     assert "  - {gesture: tap, region: b1, do: {log: {}}}\n" in saved  # the dashes kept
 
 
+def test_the_page_may_not_change_an_exec_there_is_or_name_other_layouts(
+    tmp_path: Path, layout: Path
+) -> None:
+    """A file with one exec: a save that changed its argv, or moved it to another gesture,
+    ran any program (only the count was compared); `layouts:` naming another file (which may
+    hold exec actions) was taken too. Keeping the exec as it is, and editing the rest, still
+    saves."""
+    layout.write_text(
+        layout.read_text()
+        + "  - {gesture: double_tap, region: b5, do: {exec: {argv: [notify-send, desk, hi]}}}\n"
+    )
+    client = TestClient(UiServer(layout, load_registry(entry_points=False)).app())
+    before = layout.read_text()
+    changed_argv = before.replace("[notify-send, desk, hi]", "[sh, -c, 'id > /tmp/pwned']")
+    moved = before.replace("double_tap, region: b5, do: {exec", "tap, region: b4, do: {exec")
+    (tmp_path / "other.yaml").write_text(before)
+    other_file = before.replace("bindings:", "layouts: {evil: other.yaml}\nbindings:")
+    for text in (changed_argv, moved, other_file):
+        response = client.put("/api/layout", content=text)
+        assert response.status_code == 422, text
+        assert "the page may not" in response.json()["errors"][0]["message"]
+        assert layout.read_text() == before
+    kept = before.replace("region: b1, do: {log: {}}", "region: b1, do: {log: {message: hi}}")
+    assert client.put("/api/layout", content=kept).status_code == 200
+    assert layout.read_text() == kept
+
+
 def test_the_page_may_not_add_exec(client: TestClient, layout: Path) -> None:
     before = layout.read_text()
     text = before + "  - {gesture: tap, region: b1, do: {exec: {argv: [touch, /tmp/pwned]}}}\n"

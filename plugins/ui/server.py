@@ -62,6 +62,40 @@ def parse_listen(text: str) -> tuple[str, int]:
     return (host.strip("[]") or "127.0.0.1"), number
 
 
+#: the largest WebSocket message a client may send (the page sends none)
+WS_MAX_MESSAGE_BYTES = 4096
+#: the names a server bound to loopback answers to: another Host is a page of another site
+#: reaching it through DNS rebinding
+LOOPBACK_NAMES = {"127.0.0.1", "localhost", "::1"}
+
+
+def same_origin(headers: Any, bound: str) -> bool:
+    """Whether a request comes from the page itself: an ``Origin`` (sent by browsers on
+    cross-site requests and every WebSocket) naming the host it was sent to, and, on a server
+    bound to loopback, a ``Host`` that is a loopback name. Without this any web site the user
+    visited could read the live desk and save layouts through the user's browser."""
+    host = headers.get("host", "")
+    if bound in LOOPBACK_NAMES:
+        name = host[1:].split("]")[0] if host.startswith("[") else host.rsplit(":", 1)[0]
+        if name not in LOOPBACK_NAMES:
+            return False
+    origin = headers.get("origin")
+    if origin is None:
+        return True  # not from a browser's cross-site request (curl, a same-origin GET)
+    return origin.split("://", 1)[-1].rstrip("/") == host
+
+
+async def _close_on_message(socket: Any, client: Any) -> None:
+    """Read what a WebSocket client sends; anything at all ends its socket (see ``ws``)."""
+    try:
+        message = await socket.receive()
+        if message.get("type") != "websocket.disconnect":
+            await socket.close(code=1008)  # policy: the page sends nothing
+    except Exception:  # (the socket is gone already)
+        pass
+    client.wake.set()  # the sending loop finds the socket closed and ends
+
+
 class _Client:
     """One browser: its latest contact frame and a bounded queue of everything else."""
 
@@ -119,7 +153,12 @@ class UiServer:
         import uvicorn
 
         config = uvicorn.Config(
-            self.app(), host=self.host, port=self.port, log_level="warning", lifespan="on"
+            self.app(),
+            host=self.host,
+            port=self.port,
+            log_level="warning",
+            lifespan="on",
+            ws_max_size=WS_MAX_MESSAGE_BYTES,  # the page sends nothing; uvicorn's 16 MB each
         )
         self._server = uvicorn.Server(config)
         self._server.install_signal_handlers = lambda: None  # the run owns the signals
@@ -286,6 +325,8 @@ class UiServer:
         from hapticdesk.plugins.ui.layout_edit import apply_edit, exec_added, save_layout_text
 
         def allowed(request: Request | WebSocket) -> bool:
+            if not same_origin(request.headers, self.host):
+                return False
             if self.token is None:
                 return True
             given = request.query_params.get("token") or ""
@@ -295,7 +336,9 @@ class UiServer:
             return hmac.compare_digest(given.encode(), self.token.encode())
 
         def refused() -> Response:
-            return PlainTextResponse("a token is needed (?token=...)", status_code=401)
+            return PlainTextResponse(
+                "a token is needed (?token=...), from the page's own address", status_code=401
+            )
 
         async def page(request: Request) -> Response:
             if not allowed(request):
@@ -454,6 +497,9 @@ class UiServer:
                 return
             await socket.accept()
             client = _Client()
+            # the page sends nothing: whatever a client sends is read (not left for the server
+            # to buffer, 30 clients of 3 × 15 MB had taken it past 1 GB) and ends its socket
+            reader = asyncio.create_task(_close_on_message(socket, client))
             try:
                 first = await asyncio.to_thread(self._desk_message)
             except ConfigError as err:
@@ -479,6 +525,7 @@ class UiServer:
             except (WebSocketDisconnect, RuntimeError, OSError):
                 pass
             finally:
+                reader.cancel()
                 self._clients.discard(client)
 
         @contextlib.asynccontextmanager

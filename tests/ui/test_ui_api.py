@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import re
 import shutil
 import subprocess
@@ -21,6 +22,8 @@ from hapticdesk.plugins.ui.server import STATIC, UiServer, parse_listen  # noqa:
 from hapticdesk.registry import load_registry  # noqa: E402
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+#: where a page of the server itself sends from (the UI refuses other hosts and origins)
+LOCAL = "http://127.0.0.1:8765"
 
 
 @pytest.fixture
@@ -33,7 +36,7 @@ def layout(tmp_path: Path) -> Path:
 @pytest.fixture
 def client(layout: Path) -> TestClient:
     server = UiServer(layout, load_registry(entry_points=False))
-    return TestClient(server.app())
+    return TestClient(server.app(), base_url=LOCAL)
 
 
 def test_get_layout_and_page(client: TestClient, layout: Path) -> None:
@@ -106,7 +109,7 @@ def test_the_page_may_not_change_an_exec_there_is_or_name_other_layouts(
         layout.read_text()
         + "  - {gesture: double_tap, region: b5, do: {exec: {argv: [notify-send, desk, hi]}}}\n"
     )
-    client = TestClient(UiServer(layout, load_registry(entry_points=False)).app())
+    client = TestClient(UiServer(layout, load_registry(entry_points=False)).app(), base_url=LOCAL)
     before = layout.read_text()
     changed_argv = before.replace("[notify-send, desk, hi]", "[sh, -c, 'id > /tmp/pwned']")
     moved = before.replace("double_tap, region: b5, do: {exec", "tap, region: b4, do: {exec")
@@ -219,3 +222,43 @@ def test_a_body_over_a_megabyte_is_refused_before_it_is_read(
     response = getattr(client, method)(route, content=b"a: 1\n" * 250_000)
     assert response.status_code == 413
     assert "larger than 1,000,000 bytes" in response.json()["errors"][0]["message"]
+
+
+def test_another_site_cannot_reach_the_desk_through_the_browser(layout: Path) -> None:
+    """On loopback without a token, any web page the user visited could save a layout (an
+    Origin of its own) or read the live desk (a WebSocket), and through DNS rebinding (a Host
+    of its own) everything: both are refused; the page itself, and curl, are served."""
+    from starlette.websockets import WebSocketDisconnect
+
+    app = UiServer(layout, load_registry(entry_points=False)).app()
+    local = TestClient(app, base_url=LOCAL)
+    text = layout.read_text()
+    assert local.put("/api/layout", content=text, headers={"origin": LOCAL}).status_code == 200
+    assert local.get("/api/layout").status_code == 200  # no Origin: curl, a same-origin GET
+    evil = {"origin": "http://attacker.example"}
+    assert local.put("/api/layout", content=text, headers=evil).status_code == 401
+    assert local.post("/api/check", content=text, headers=evil).status_code == 401
+    assert local.put("/api/layout", content=text, headers={"origin": "null"}).status_code == 401
+    rebound = TestClient(app, base_url="http://attacker.example:8765")
+    assert rebound.get("/api/layout").status_code == 401
+    here = {"host": "127.0.0.1:8765"}  # (the test client's WebSocket says "testserver")
+    with pytest.raises(WebSocketDisconnect):
+        with local.websocket_connect("/ws", headers={**here, **evil}) as socket:
+            socket.receive_text()
+    with local.websocket_connect("/ws", headers={**here, "origin": LOCAL}) as socket:
+        assert json.loads(socket.receive_text())["type"] == "desk"
+
+
+def test_a_websocket_client_that_sends_is_closed(layout: Path) -> None:
+    """The page sends nothing: what a client sends was left for the server to buffer (30
+    clients of 3 × 15 MB took it past 1 GB). Now it is read and ends that client's socket."""
+    from starlette.websockets import WebSocketDisconnect
+
+    client = TestClient(UiServer(layout, load_registry(entry_points=False)).app(), base_url=LOCAL)
+    with client.websocket_connect("/ws", headers={"host": "127.0.0.1:8765"}) as socket:
+        assert json.loads(socket.receive_text())["type"] == "desk"
+        socket.send_text("x" * 1000)
+        with pytest.raises(WebSocketDisconnect) as closed:
+            while True:
+                socket.receive_text()
+        assert closed.value.code == 1008

@@ -24,6 +24,8 @@ from hapticdesk.sim import load_scene, simulate  # noqa: E402
 ROOT = Path(__file__).resolve().parents[2]
 POINTS = [[-0.25, -0.15], [0.25, -0.15], [0.25, 0.15], [-0.25, 0.15], [0.0, 0.0], [0.1, -0.05]]
 
+LOCAL = "http://127.0.0.1:8765"  # the UI answers its own address only
+
 
 def test_the_set_up_check_finds_a_wrong_sign_in_a_live_session(tmp_path: Path) -> None:
     desk = load_profile("kitamura2017")
@@ -50,7 +52,7 @@ def test_the_set_up_check_finds_a_wrong_sign_in_a_live_session(tmp_path: Path) -
         layout, f"replay:{recording}", registry, desk=str(wrong), speed=0, actions=False
     )
     server = UiServer(layout, registry)
-    client = TestClient(server.app())
+    client = TestClient(server.app(), base_url=LOCAL)
     runtime = Runtime(assembly)
     assert client.post("/api/setup/start", json={"points": POINTS}).status_code == 422  # no run
     server.attach(runtime)

@@ -16,7 +16,7 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from hapticdesk.files.yamlfile import ConfigError, Position
+from hapticdesk.files.yamlfile import ConfigError, Position, load_marked_yaml
 
 #: decimals kept when metres from the page are written in a layout's units
 DECIMALS = {"m": 4, "cm": 2, "mm": 1}
@@ -271,6 +271,10 @@ def apply_edit(text: str, edit: dict[str, Any]) -> str:
     from ruamel.yaml.comments import CommentedMap, CommentedSeq
     from ruamel.yaml.error import YAMLError
 
+    # first through the bounded reader `check` uses: ruamel recursed into 500 open brackets
+    # until Python's stack ran out (a 500 and a 3,000-line traceback)
+    if text.strip():
+        load_marked_yaml("layout", text)
     y = _yaml(text)
     try:
         doc = y.load(text) if text.strip() else CommentedMap()

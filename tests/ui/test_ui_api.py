@@ -262,3 +262,13 @@ def test_a_websocket_client_that_sends_is_closed(layout: Path) -> None:
             while True:
                 socket.receive_text()
         assert closed.value.code == 1008
+
+
+def test_an_edit_of_text_nested_too_deep_is_refused_at_its_place(client: TestClient) -> None:
+    """ruamel recursed into 500 open brackets until Python's stack ran out: a 500, and a
+    3,000-line traceback in the log."""
+    text = "[" * 500 + "]" * 500
+    response = client.post("/api/edit", json={"op": "remove_region", "name": "a", "text": text})
+    assert response.status_code == 422
+    [error] = response.json()["errors"]
+    assert (error["line"], error["column"]) == (1, 65) and "nest more than 64" in error["message"]

@@ -19,7 +19,9 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import re
+import time
 from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import dataclass
@@ -37,6 +39,12 @@ BUTTONS = {
     "reload": ("reload", "Reload layout", "mdi:reload"),
 }
 _OBJECT_ID = re.compile(r"[^A-Za-z0-9_-]")
+#: commands on ``<prefix>/set`` taken a second, and at once: a person or an automation sends
+#: a few; more is a fault or a flood
+SET_RATE = 20
+SET_BURST = 50
+#: a flood is said at most this often
+LOG_EVERY_S = 10.0
 
 
 class SetTopic:
@@ -49,9 +57,15 @@ class SetTopic:
         self.publish = publish
         self.topic = topic
         self.result_topic = f"{topic}/result"
+        self._budget = float(SET_BURST)  # commands that may come at once (a token bucket)
+        self._refilled = time.monotonic()
+        self._dropped = 0
+        self._dropped_said = -math.inf
 
     def __call__(self, payload: bytes) -> None:
         """One message (on paho's thread: only parses and queues, never waits)."""
+        if not self._take():
+            return
         try:
             command = parse_command(payload)
         except ControlError as err:
@@ -60,6 +74,27 @@ class SetTopic:
             return
         future = self.control.request(command)
         future.add_done_callback(lambda f: self._done(str(command), f))
+
+    def _take(self) -> bool:
+        """Whether this message is within SET_RATE a second (SET_BURST at once). Beyond, it is
+        dropped unread and unanswered, said once in LOG_EVERY_S: a flood of 10,000 was read,
+        logged and answered one by one, and its answers stopped the desk's own messages."""
+        now = time.monotonic()
+        self._budget = min(SET_BURST, self._budget + (now - self._refilled) * SET_RATE)
+        self._refilled = now
+        if self._budget >= 1.0:
+            self._budget -= 1.0
+            return True
+        self._dropped += 1
+        if now - self._dropped_said >= LOG_EVERY_S:
+            self._dropped_said = now
+            log.warning(
+                "MQTT: %s: more than %d commands a second; %d dropped so far, unanswered",
+                self.topic,
+                SET_RATE,
+                self._dropped,
+            )
+        return False
 
     def _done(self, command: str, future: Future[str]) -> None:
         error = future.exception()

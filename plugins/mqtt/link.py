@@ -30,7 +30,10 @@ Announcements (availability, discovery) are coalesced by topic and bounded, so a
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import math
+import socket
 import threading
 import time
 from collections import deque
@@ -45,6 +48,8 @@ from hapticdesk.plugins.mqtt.settings import MqttSettings, apply_login
 log = logging.getLogger(__name__)
 
 WINDOW = 20  # commands in flight at once (paho's default maximum)
+#: a message in flight this long on a live connection lost its acknowledgement: reconnect
+ACK_TIMEOUT_S = 10.0
 # retry a lost broker quickly: the issue's 30 s back-off left a returned broker unused
 RECONNECT_MIN_S, RECONNECT_MAX_S = 0.1, 0.5
 CONTROL_LIMIT = 1000  # announcements waiting at most (they are coalesced by topic first)
@@ -86,6 +91,8 @@ class MqttLink:
         self._queue: deque[Message] = deque()
         self._control: deque[Message] = deque()
         self._inflight: dict[int, Message] = {}
+        self._sent_at: dict[int, float] = {}  # when each message in flight was sent
+        self._unstalled_at = -math.inf
         self._early_acks: set[int] = set()
         self._connected = False
         self._resuming = False  # waiting for paho's resends before sending new commands
@@ -139,8 +146,10 @@ class MqttLink:
     def announce(self, topic: str, payload: Any, *, retain: bool = False) -> None:
         """Queue a message that is not a command (the answers on ``set/result``): not counted
         in what was delivered, sent while connected, each one (not coalesced by topic: two
-        answers in a row are both news), at most :data:`CONTROL_LIMIT` waiting."""
-        message = Message(topic, encode_payload(payload), 1, retain, command=False)
+        answers in a row are both news), at most :data:`CONTROL_LIMIT` waiting. At QoS 0: an
+        answer waits for no acknowledgement, so a flood of them cannot hold the commands'
+        window (10,000 answers in flight had stopped every gesture's message for good)."""
+        message = Message(topic, encode_payload(payload), 0, retain, command=False)
         with self._cond:
             if self._closing or self._sealed:
                 return
@@ -271,6 +280,7 @@ class MqttLink:
             # paho resends QoS 1/2 messages after reconnecting; a QoS 0 message that was not
             # yet written is gone (at most once), so stop waiting for it
             for mid in [mid for mid, m in self._inflight.items() if m.qos == 0]:
+                self._sent_at.pop(mid, None)
                 if self._inflight.pop(mid).command:
                     self.stats.dropped += 1
             waiting = len(self._queue) + len(self._inflight)
@@ -293,6 +303,7 @@ class MqttLink:
     def _on_publish(self, client: Any, userdata: Any, mid: int, reason: Any, props: Any) -> None:
         with self._cond:
             message = self._inflight.pop(mid, None)
+            self._sent_at.pop(mid, None)
             if message is None:  # acknowledged before _run registered it
                 self._early_acks.add(mid)
                 return
@@ -371,6 +382,7 @@ class MqttLink:
         while True:
             with self._cond:
                 message = None
+                stalled = 0
                 while message is None and not self._closing:
                     if self._connected and self._control:
                         message = self._control.popleft()
@@ -383,9 +395,43 @@ class MqttLink:
                         message = self._queue.popleft()
                     else:
                         self._cond.wait(0.5)
+                        stalled = self._stalled()
+                        if stalled:
+                            break
                 if message is None:
-                    return
+                    if self._closing:
+                        return
+                    self._reconnect(stalled)
+                    continue
             self._send(message)
+
+    def _stalled(self) -> int:
+        """(under self._cond) How many messages have waited over ACK_TIMEOUT_S for their
+        acknowledgement on a live connection, once in ACK_TIMEOUT_S; else 0. A broker may
+        drop an acknowledgement (mosquitto does, its queue to us full, under a flood): the
+        message then waits in flight for ever, and with the window full every gesture after
+        it waited too."""
+        now = time.monotonic()
+        if not self._connected or now - self._unstalled_at < ACK_TIMEOUT_S:
+            return 0
+        late = [mid for mid in self._inflight if now - self._sent_at.get(mid, now) > ACK_TIMEOUT_S]
+        if late:
+            self._unstalled_at = now
+        return len(late)
+
+    def _reconnect(self, stalled: int) -> None:
+        """Drop the connection under paho (it reconnects by itself): on the resumed session
+        it sends what is in flight again, as MQTT has a client do only then."""
+        log.warning(
+            "MQTT: %d message(s) to %s unacknowledged for %g s; reconnecting to send them again",
+            stalled,
+            self.settings.url,
+            ACK_TIMEOUT_S,
+        )
+        sock = self._client.socket()
+        if sock is not None:
+            with contextlib.suppress(OSError):
+                sock.shutdown(socket.SHUT_RDWR)
 
     def _send(self, message: Message) -> None:
         try:
@@ -410,6 +456,7 @@ class MqttLink:
                     self._acknowledged(message)
                 else:
                     self._inflight[info.mid] = message
+                    self._sent_at[info.mid] = time.monotonic()
                     if info.rc == mqtt.MQTT_ERR_NO_CONN:
                         self._resuming = True
             else:  # QoS 0 without a connection, or paho's own queue full: ours keeps it

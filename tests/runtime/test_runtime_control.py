@@ -340,3 +340,22 @@ def test_reload_says_when_a_plugin_section_changed_that_needs_a_restart(tmp_path
         "(`spy_section:` changed: its connection settings take effect at the next start)"
         in (answers[0])
     )
+
+
+def test_a_flood_on_the_set_topic_is_dropped_beyond_its_rate_and_said_once(caplog):
+    """10,000 messages on /set were each read, logged and answered (QoS 1 answers that filled
+    the link's window and stopped every gesture's message): now at most SET_BURST at once and
+    SET_RATE a second are taken; the rest are dropped unanswered, said in one line."""
+    from hapticdesk.plugins.mqtt.control import SET_BURST, SetTopic
+    from hapticdesk.runtime.control import ControlQueue
+
+    queue, answers = ControlQueue(), []
+    topic = SetTopic(queue, lambda t, payload: answers.append(payload), "hapticdesk/d/set")
+    with caplog.at_level("WARNING"):
+        for _ in range(10_000):
+            topic(b"garbage")
+    assert SET_BURST <= len(answers) <= SET_BURST + 5  # (a few more for the time it took)
+    assert all(a["ok"] is False for a in answers)
+    flood = [r for r in caplog.records if "commands a second" in r.getMessage()]
+    assert len(flood) == 1 and "dropped so far, unanswered" in flood[0].getMessage()
+    assert queue.take() == []  # garbage is never queued

@@ -550,3 +550,35 @@ def test_nothing_is_taken_once_the_link_says_goodbye(mosquitto_available, tmp_pa
         link.publish("lamp/set", "late")
     closing.join(5)
     assert link.stats.queued == 1
+
+
+def test_a_lost_acknowledgement_is_recovered_by_reconnecting(broker, subscribe, monkeypatch):
+    """mosquitto drops packets to a client whose queue is full, acknowledgements too (a /set
+    flood did it): the message waited in flight for ever, and with the window full every
+    gesture after it. Now, unacknowledged for ACK_TIMEOUT_S on a live connection, the link
+    reconnects and paho sends it again on the resumed session."""
+    from hapticdesk.plugins.mqtt import link as link_module
+
+    monkeypatch.setattr(link_module, "ACK_TIMEOUT_S", 0.5)
+    sub = subscribe("lamp/#")
+    link = MqttLink(MqttSettings(host="127.0.0.1", port=broker.port, client_id="lost-ack"))
+    paho_client, lost = link._client, []
+    real_pubrec = paho_client._handle_pubrec  # (paho's own: the ack is lost before paho)
+
+    def lose_the_first():
+        if not lost:
+            lost.append(True)  # as if the broker's PUBREC never came
+            return 0
+        return real_pubrec()
+
+    paho_client._handle_pubrec = lose_the_first
+    link.start()
+    assert link.wait_connected(10)
+    link.publish("lamp/set", "first")
+    link.publish("lamp/set", "second")
+    assert link.flush(10), "the message whose acknowledgement was lost never went again"
+    link.close()
+    # each once (the resumed session sends it again as a duplicate the broker knows); the
+    # second came first, being released before the first's lost acknowledgement was resent
+    assert lost and sorted(m[2] for m in sub.wait_for(3, timeout=2)) == ["first", "second"]
+    assert link.stats.delivered == 2

@@ -121,6 +121,12 @@ def ha_node(settings: MqttSettings, desk: str) -> str:
     return object_id(settings.desk_prefix(desk))
 
 
+def _section(context: Any) -> Any:
+    """The layout's ``mqtt:`` section as written (None without one)."""
+    settings = getattr(context, "settings", None)
+    return settings.get(SECTION) if settings is not None else None
+
+
 def discovery_for(context: ActionContext, settings: MqttSettings) -> list[Any]:
     """The run's Home Assistant discovery configs: the gestures, sensors and connectivity
     (:mod:`.homeassistant`) and the desk's controls (:mod:`.control`); each has ``topic``
@@ -146,6 +152,8 @@ def discovery_for(context: ActionContext, settings: MqttSettings) -> list[Any]:
         qos=min(settings.qos, 1),
         regions=list(getattr(context.layout, "regions", {}) or {}),
         node=node,
+        # with Zigbee2MQTT's action strings the triggers match the desk's own in the event
+        match_event_topic=style_from_section(_section(context))[0] == "zigbee2mqtt",
     )
     named = getattr(context.layout, "named_layouts", {})
     controls = control_entities(
@@ -274,8 +282,7 @@ class DeskPublisher:
         self.state_topic = settings.desk_prefix(context.desk_name)
         self.action_topic = desk_topic(settings, context.desk_name, "action")
         self.event_topic = desk_topic(settings, context.desk_name, "event")
-        raw = context.settings.get(SECTION) if context.settings is not None else None
-        style, slide = style_from_section(raw)
+        style, slide = style_from_section(_section(context))
         self.z2m = Zigbee2MqttActions(slide) if style == "zigbee2mqtt" else None
         self.state = desk_state(context)
         self.sweep = None

@@ -39,6 +39,8 @@ _DETAIL_KEYS = ("shape", "direction", "level")
 _OBJECT_ID = re.compile(r"[^A-Za-z0-9_-]")
 # renders the tier of a long press as its trigger payload: lamp_long_press_1.5s
 TIER_TEMPLATE = "{{ value_json.action }}_{{ value_json.hold_s }}s"
+# the desk's own action string in the event's JSON (when the action topic carries another)
+ACTION_TEMPLATE = "{{ value_json.action }}"
 
 
 def object_id(text: str) -> str:
@@ -148,11 +150,15 @@ def device_triggers(
     node: str,
     prefix: str = "homeassistant",
     qos: int = 1,
+    match_event_topic: bool = False,
 ) -> list[DeviceTrigger]:
     """The device-trigger discovery configs of a layout's bindings.
 
     Device triggers take no ``availability`` (Home Assistant's schema has none); the desk's
-    connectivity is its own binary sensor (:mod:`.homeassistant`)."""
+    connectivity is its own binary sensor (:mod:`.homeassistant`). ``match_event_topic``:
+    the action topic carries other strings (``action_style: zigbee2mqtt`` sends
+    ``lamp_single`` for a tap), so every trigger matches the desk's own action string in the
+    event's JSON instead (they had matched ``lamp_tap`` on the action topic, and never fired)."""
     out = []
     for spec in trigger_specs(bindings):
         config: dict[str, Any] = {
@@ -168,6 +174,9 @@ def device_triggers(
         if spec.hold_s is not None:
             config["topic"] = event_topic
             config["value_template"] = TIER_TEMPLATE
+        elif match_event_topic:
+            config["topic"] = event_topic
+            config["value_template"] = ACTION_TEMPLATE
         out.append(
             DeviceTrigger(
                 f"{prefix}/device_automation/{node}/{object_id(spec.payload)}/config", config

@@ -168,6 +168,7 @@ def discovery_configs(
     sensors: bool = True,
     regions: Iterable[str] = (),
     node: str | None = None,
+    match_event_topic: bool = False,
 ) -> list[DeviceTrigger]:
     """Every discovery config of the desk (device triggers, event entity, sensors,
     connectivity), as (topic, config) pairs. ``node``: the desk's node id in the topics and
@@ -184,6 +185,7 @@ def discovery_configs(
         node=node,
         prefix=prefix,
         qos=qos,
+        match_event_topic=match_event_topic,
     )
 
     def entity(component: str, name: str, config: dict[str, Any]) -> DeviceTrigger:

@@ -122,7 +122,9 @@ def test_zigbee2mqtt_style_over_mosquitto(broker, subscribe, tmp_path, paper_des
         {"gesture": "tap", "region": "lamp", "do": {"log": {}}},
         {"gesture": "long_press", "region": "lamp", "hold_s": 0.8, "do": {"log": {}}},
     ]
-    layout = write_layout(tmp_path, bindings, {"action_style": "zigbee2mqtt"}, desk_name="study")
+    triggers = subscribe("homeassistant/device_automation/#")
+    section = {"action_style": "zigbee2mqtt", "discovery": True}
+    layout = write_layout(tmp_path, bindings, section, desk_name="study")
     report, events = run_layout(layout, hold_file(tmp_path, paper_desk), broker.url)
     assert report.error is None
     assert [e["gesture"] for e in events] == ["tap", "long_press", "long_press"]
@@ -130,8 +132,21 @@ def test_zigbee2mqtt_style_over_mosquitto(broker, subscribe, tmp_path, paper_des
     actions = [p for _, t, p in messages if t == "hapticdesk/study/action"]
     assert actions == ["lamp_single", "lamp_hold", "lamp_release"]
     states = [json.loads(p) for _, t, p in messages if t == "hapticdesk/study"]
+    states = [s for s in states if "action" in s]  # (discovery's sensors share the topic)
     assert [s["action"] for s in states] == actions  # the state JSON carries the action
     assert states[2]["action_duration"] > 0.8
     # the full event keeps the desk's own action strings (the event entity's types)
     full = [json.loads(p)["action"] for _, t, p in messages if t == "hapticdesk/study/event"]
     assert full == ["lamp_tap", "lamp_long_press", "lamp_long_press_end"]
+    # Home Assistant's device triggers fire on what the desk sent: they had matched
+    # `lamp_tap` on the action topic, where this style sends `lamp_single` (never fired)
+    import jinja2
+
+    configs = [json.loads(p) for _, _, p in triggers.wait_for(2)]
+    assert {c["payload"] for c in configs} == {"lamp_tap", "lamp_long_press"}
+    sent = [(t, p) for _, t, p in messages]
+    for config in configs:
+        assert config["topic"] == "hapticdesk/study/event"
+        render = jinja2.Template(config["value_template"]).render
+        fired = [p for t, p in sent if t == config["topic"]]
+        assert any(render(value_json=json.loads(p)) == config["payload"] for p in fired)

@@ -90,7 +90,8 @@ def parse_command(payload: bytes | str) -> ControlCommand:
 def command(name: str, argument: Any = None) -> ControlCommand:
     """A checked :class:`ControlCommand` (ControlError if ``name`` is not a command)."""
     if name not in COMMANDS:
-        raise ControlError(f"unknown command {name!r}; known: {', '.join(COMMANDS)}")
+        shown = name if len(name) <= 60 else f"{name[:60]}…"  # (a 4 kB word was echoed whole)
+        raise ControlError(f"unknown command {shown!r}; known: {', '.join(COMMANDS)}")
     if name == "layout":
         if not isinstance(argument, str) or not argument:
             raise ControlError('`layout` needs the name of a layout: {"layout": "evening"}')

@@ -258,6 +258,7 @@ def test_commands_read_from_json(payload, expected):
     ("payload", "message"),
     [
         (b'{"command": "explode"}', "unknown command 'explode'; known: tare, pause"),
+        (b"x" * 4000, f"unknown command '{'x' * 60}…'; known: tare"),  # not echoed whole
         (b'{"layout": 3}', "`layout` needs the name of a layout"),
         (b"{nope", "expected JSON such as"),
         (b"[1, 2]", "expected a JSON object or a command name"),

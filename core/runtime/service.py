@@ -284,13 +284,16 @@ class Runtime:
         started = time.monotonic()
         try:
             self._events_out = self._open_events()
-            scene.registry.notify(
-                "control_channel",
-                control=scene.control,
-                desk=scene.profile,
-                layout=scene.layout,
-                context=scene.context,
-            )
+            if scene.actions:  # a preview sends nothing: no plugin listens for commands either
+                # (the MQTT one had said the desk online, announced it to Home Assistant and
+                # said it offline at the end: a design session impersonated the real desk)
+                scene.registry.notify(
+                    "control_channel",
+                    control=scene.control,
+                    desk=scene.profile,
+                    layout=scene.layout,
+                    context=scene.context,
+                )
             scene.registry.notify("startup", desk=scene.profile, layout=scene.layout, runtime=self)
         except BaseException:  # an unwritable events file, or --strict and a plugin failed
             if self._events_out is not None:

@@ -582,3 +582,24 @@ def test_a_lost_acknowledgement_is_recovered_by_reconnecting(broker, subscribe, 
     # second came first, being released before the first's lost acknowledgement was resent
     assert lost and sorted(m[2] for m in sub.wait_for(3, timeout=2)) == ["first", "second"]
     assert link.stats.delivered == 2
+
+
+def test_a_preview_sends_nothing_to_the_broker(broker, subscribe, tmp_path, paper_desk):
+    """`hapticdesk ui` without --actions (build_scene(actions=False)) recognises gestures and
+    sends nothing: the MQTT plugin's control channel had said the desk online, announced it
+    to Home Assistant and said it offline at the end, as if it were the real desk."""
+    everything = subscribe("#")
+    layout = write_layout(tmp_path, [TOGGLE], {"discovery": True}, desk_name="study")
+    recording = taps_file(tmp_path, paper_desk, 2)
+    scene = build_scene(
+        layout,
+        f"replay:{recording}",
+        load_registry(entry_points=False),
+        speed=0,
+        overrides={"mqtt": {"broker": broker.url}},
+        actions=False,
+    )
+    report = Runtime(scene).run(handle_signals=False)
+    assert report.error is None and report.gestures["tap"] == 2
+    time.sleep(1.0)  # (what would have come, had anything been sent)
+    assert everything.messages() == []

@@ -7,10 +7,12 @@ loads YAML into ordinary dicts and lists that also carry the position of each ke
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import stat
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextvars import ContextVar
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -358,6 +360,37 @@ def file_kind(mode: int) -> str:
     return next((name for test, name in _FILE_KINDS if test(mode)), "not a regular file")
 
 
+#: while set (:func:`reads_confined_to`), the only folders files are read from
+_READ_ROOTS: ContextVar[tuple[Path, ...] | None] = ContextVar("read_roots", default=None)
+
+
+@contextlib.contextmanager
+def reads_confined_to(*roots: str | Path) -> Iterator[None]:
+    """Within it, a file outside ``roots`` (after symlinks and ``..``) is not read: the
+    browser UI checks a layout a page sent, and its `desk: /etc/passwd` had been read and
+    quoted back in the error."""
+    token = _READ_ROOTS.set(tuple(Path(r).resolve() for r in roots))
+    try:
+        yield
+    finally:
+        _READ_ROOTS.reset(token)
+
+
+def check_confined(path: str | Path, what: str) -> None:
+    """ConfigError when reads are confined (:func:`reads_confined_to`) and ``path`` lies
+    outside every root."""
+    roots = _READ_ROOTS.get()
+    if roots is None:
+        return
+    real = Path(path).resolve()
+    if not any(real.is_relative_to(root) for root in roots):
+        raise ConfigError(
+            str(path),
+            f"{what} lies outside the layout's folder: a layout edited in the browser reads "
+            "files there only (and the shipped profiles and examples)",
+        )
+
+
 def regular_file_size(path: str | Path, what: str) -> int:
     """The size in bytes of ``path``, which must be a regular file (after symlinks).
 
@@ -365,6 +398,7 @@ def regular_file_size(path: str | Path, what: str) -> int:
     such as /dev/zero never ends, a directory cannot be read. ``what`` names the file in the
     message (``the file``, ``the stroke file`` …).
     """
+    check_confined(path, what)
     try:
         info = os.stat(path)
     except OSError as err:

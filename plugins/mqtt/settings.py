@@ -18,6 +18,7 @@ from hapticdesk.files.yamlfile import (
     MarkedDict,
     Position,
     as_flag,
+    check_confined,
     check_keys,
     number,
     require_mapping,
@@ -302,6 +303,7 @@ def _file(m: MarkedDict, key: str, relative_to: Path | None) -> Path | None:
     path = Path(m[key]).expanduser()
     if not path.is_absolute() and relative_to is not None:
         path = relative_to / path
+    check_confined(path, f"`{key}`")
     if not path.is_file():
         raise ConfigError(m.where(key), f"`{key}`: no such file {path}")
     return path

@@ -65,7 +65,7 @@ def exec_added(layout_path: Path, text: str, registry: Any, desk: Any = None) ->
             (_exec_key(b, u.options), u.position)
             for b in layout.bindings
             for u in b.actions
-            if u.name == "exec"
+            if u.name == "exec" or _reads_a_file(u.options)
         ]
         return execs, {p.resolve() for p in layout.named_layouts.values()}
 
@@ -83,8 +83,8 @@ def exec_added(layout_path: Path, text: str, registry: Any, desk: Any = None) ->
             {
                 "line": where.line,
                 "column": where.column,
-                "message": "the page may not add or change `exec` actions; edit them in the "
-                "file by hand",
+                "message": "the page may not add or change `exec` actions, or actions that read "
+                "a file (an http header's `file:`); edit them in the file by hand",
             }
         ]
     if files_after - files_before:
@@ -97,6 +97,16 @@ def exec_added(layout_path: Path, text: str, registry: Any, desk: Any = None) ->
             }
         ]
     return []
+
+
+def _reads_a_file(options: Any) -> bool:
+    """Whether an action's options name a file it reads when it runs (an http header's
+    ``{file: PATH}``, sent with each request: a page could send any file anywhere)."""
+    if isinstance(options, dict):
+        return "file" in options or any(_reads_a_file(v) for v in options.values())
+    if isinstance(options, list):
+        return any(_reads_a_file(v) for v in options)
+    return False
 
 
 def _exec_key(binding: Any, options: Any) -> str:

@@ -24,7 +24,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.files.yamlfile import ConfigError, reads_confined_to
 from hapticdesk.plugins.ui.layout_edit import check_layout_text, desk_message, message_error
 from hapticdesk.plugins.ui.layout_edit import error_dict as error_of
 
@@ -131,6 +131,7 @@ class UiServer:
         self.layout_path = Path(layout_path)
         self._registry = registry
         self.host, self.port = host, port
+        self._read_roots: list[Path] | None = None  # (see _confined)
         self.token = token
         self.desk = desk  # a DeskProfile overriding the layout's desk:, or None
         self.read_only = read_only  # the shipped demo layout: shown, never written
@@ -322,7 +323,7 @@ class UiServer:
         from starlette.websockets import WebSocket, WebSocketDisconnect
 
         from hapticdesk.plugins.ui import strokes_api
-        from hapticdesk.plugins.ui.layout_edit import apply_edit, exec_added, save_layout_text
+        from hapticdesk.plugins.ui.layout_edit import apply_edit, save_layout_text
 
         def allowed(request: Request | WebSocket) -> bool:
             if not same_origin(request.headers, self.host):
@@ -401,8 +402,6 @@ class UiServer:
                 )
             text = await body_text(request)
             errors = await asyncio.to_thread(self._check, text)
-            if not errors:
-                errors = exec_added(self.layout_path, text, self.registry, self.desk)
             if errors:
                 return JSONResponse({"ok": False, "errors": errors}, status_code=422)
             await asyncio.to_thread(save_layout_text, self.layout_path, text)
@@ -570,15 +569,42 @@ class UiServer:
         from hapticdesk.runtime.assembly import load_scene_layout
 
         try:
-            layout, profile = load_scene_layout(
-                self.layout_path, self.registry, self.desk, text=text
-            )
+            with self._confined():
+                layout, profile = load_scene_layout(
+                    self.layout_path, self.registry, self.desk, text=text
+                )
         except ConfigError as err:
             return [error_of(err)], None
         return [], desk_message(profile, layout, live=False)["regions"]
 
     def _check(self, text: str) -> list[dict[str, Any]]:
-        return check_layout_text(self.layout_path, text, self.registry, self.desk)
+        """What `check` says of ``text``, then whether it adds or changes an exec action."""
+        from hapticdesk.plugins.ui.layout_edit import exec_added
+
+        with self._confined():
+            errors = check_layout_text(self.layout_path, text, self.registry, self.desk)
+            return errors or exec_added(self.layout_path, text, self.registry, self.desk)
+
+    def _confined(self) -> Any:
+        """Reads confined to the folders a layout from the page may use: the layout's, its
+        desk profile's when the server started, the shipped profiles and examples (a page's
+        `desk: /etc/passwd` had been read and quoted back in the error)."""
+        if self._read_roots is None:
+            from importlib import resources
+
+            from hapticdesk.plugins.mqtt.demo import examples_dir
+            from hapticdesk.runtime.assembly import load_scene_layout
+
+            roots = [self.layout_path.parent, examples_dir()]
+            roots.append(Path(str(resources.files("hapticdesk.profiles"))))
+            try:  # (the file as it was given, before any page touched it)
+                _, profile = load_scene_layout(self.layout_path, self.registry, self.desk)
+                if profile.path is not None:
+                    roots.append(Path(profile.path).parent)
+            except ConfigError:
+                pass
+            self._read_roots = roots
+        return reads_confined_to(*self._read_roots)
 
     @property
     def clients(self) -> int:

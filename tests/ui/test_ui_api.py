@@ -115,7 +115,13 @@ def test_the_page_may_not_change_an_exec_there_is_or_name_other_layouts(
     moved = before.replace("double_tap, region: b5, do: {exec", "tap, region: b4, do: {exec")
     (tmp_path / "other.yaml").write_text(before)
     other_file = before.replace("bindings:", "layouts: {evil: other.yaml}\nbindings:")
-    for text in (changed_argv, moved, other_file):
+    header_file = before.replace(
+        "region: b1, do: {log: {}}",
+        "region: b1, do: {http: {url: 'http://127.0.0.1:9/x', headers: "
+        "{Authorization: {file: secret.txt}}}}",
+    )
+    (tmp_path / "secret.txt").write_text("s3cret\n")
+    for text in (changed_argv, moved, other_file, header_file):
         response = client.put("/api/layout", content=text)
         assert response.status_code == 422, text
         assert "the page may not" in response.json()["errors"][0]["message"]
@@ -272,3 +278,25 @@ def test_an_edit_of_text_nested_too_deep_is_refused_at_its_place(client: TestCli
     assert response.status_code == 422
     [error] = response.json()["errors"]
     assert (error["line"], error["column"]) == (1, 65) and "nest more than 64" in error["message"]
+
+
+def test_a_layout_from_the_page_reads_no_file_outside_its_folder(
+    client: TestClient, layout: Path, tmp_path: Path
+) -> None:
+    """`desk: /etc/passwd` in a checked layout was read and quoted back whole in the error
+    (and `../../etc/shadow` a line of it); a page's layout now reads files only in the
+    layout's folder, its desk's, the shipped profiles and examples."""
+    secret = tmp_path.parent / "secret.yaml"
+    secret.write_text("root:x:0:0:root:/root:/bin/bash\n")
+    text = layout.read_text()
+    for desk in (str(secret), "../secret.yaml"):
+        sent = text.replace("desk: kitamura2017", f"desk: {desk}")
+        for answer in (
+            client.post("/api/check", content=sent),
+            client.put("/api/layout", content=sent),
+        ):
+            [error] = answer.json()["errors"]
+            assert "outside the layout's folder" in error["message"], error
+            assert "root:x" not in answer.text
+    assert layout.read_text() == text
+    assert client.post("/api/check", content=text).json()["ok"]  # the shipped desk still reads

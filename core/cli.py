@@ -171,10 +171,12 @@ def main(argv: list[str] | None = None) -> int:
             print(_unexpected(command, err), file=sys.stderr)
             return 1
         # `hapticdesk check L > /dev/full`: say so once, and drop what could not be written
-        # so that Python's exit does not try (and complain) again
+        # so that Python's exit does not try (and complain) again. (A full disk under a file
+        # a command writes without naming it would read the same: "its output", not stdout.)
+        what = "the standard output" if isinstance(sys.stdout, _ClosedOutput) else "its output"
         print(
-            f"hapticdesk{f' {command}' if command else ''}: error: cannot write the standard "
-            f"output: {err.strerror or err}",
+            f"hapticdesk{f' {command}' if command else ''}: error: cannot write {what}: "
+            f"{err.strerror or err}",
             file=sys.stderr,
         )
         sys.stdout = _ClosedOutput()

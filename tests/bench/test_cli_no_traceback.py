@@ -227,7 +227,7 @@ def test_a_file_that_is_no_recording_is_said_so(capsys, tmp_path):
     "redirect, code, said",
     [
         ("| head -c 1", None, ""),  # the reader went away: quiet (was an unexpected error)
-        ("> /dev/full", 2, "cannot write the standard output: No space left on device"),
+        ("> /dev/full", 2, "cannot write its output: No space left on device"),
         (">&-", 2, "cannot write the standard output: it is closed"),
     ],
     ids=["closed-pipe", "full-disk", "closed"],

@@ -175,3 +175,23 @@ def test_the_set_up_panel_marks_points_and_reports_a_session(page: Any, ui_servi
     page.click("#setup-finish")
     page.wait_for_function("document.getElementById('setup-error').textContent.length > 0")
     assert re.search(r"expected 6 presses .* found \d", page.text_content("#setup-error") or "")
+
+
+def test_a_polygon_is_drawn_corner_by_corner_and_ended_by_a_double_click(
+    page: Any, to_screen: Any
+) -> None:
+    """The draft drawn under the pointer at each corner had taken the double click: no
+    polygon was ever finished. Three corners, a double click on the last: one region of three."""
+    page.click("#tab-designer")
+    page.check("#tool-polygon")
+    page.fill("#region-name", "tri")
+    corners = [(0.0, -0.18), (0.05, -0.12), (-0.05, -0.12)]
+    for x, y in corners[:-1]:
+        page.mouse.click(*to_screen(page, x, y))
+    page.mouse.click(*to_screen(page, *corners[-1]))
+    page.mouse.dblclick(*to_screen(page, *corners[-1]))
+    page.wait_for_selector("#region-tri")
+    drawn = re.search(r"\n  tri: \{polygon: (\[\[.*\]\])\}\n", page.input_value("#yaml"))
+    assert drawn, page.input_value("#yaml")
+    points = [v for point in json.loads(drawn.group(1)) for v in point]  # cm, the layout's
+    assert points == pytest.approx([100 * v for point in corners for v in point], abs=0.5)

@@ -350,7 +350,9 @@ $("desk").addEventListener("click", (e) => {
 
 $("desk").addEventListener("dblclick", async () => {
   if (tab !== "designer" || tool() !== "polygon") return;
-  const pts = polygon.slice(0, -1);  // the double click's second click repeats the last corner
+  // the double click's two clicks repeat the last corner (a click before it may too): a
+  // corner within 1 mm of the one before is the same corner
+  const pts = polygon.filter((p, i) => i === 0 || Math.hypot(p[0] - polygon[i - 1][0], p[1] - polygon[i - 1][1]) > 0.001);
   polygon = [];
   $("drawing").replaceChildren();
   if (pts.length >= 3) await edit({ op: "set_region", name: $("region-name").value.trim(), shape: "polygon", points: pts });

@@ -25,9 +25,8 @@ from dataclasses import dataclass
 from functools import cache
 from typing import Any
 
-from hapticdesk.files.yamlfile import ConfigError, MarkedDict, MarkedList, Position
+from hapticdesk.files.yamlfile import ConfigError, LayoutWarning, MarkedDict, MarkedList, Position
 from hapticdesk.gestures.event import GestureEvent
-from hapticdesk.gestures.layout import LayoutWarning
 
 #: the GestureEvent fields a template sees under their own names
 EVENT_FIELDS = (

@@ -11,6 +11,7 @@ import contextlib
 import os
 import re
 import stat
+import warnings
 from collections.abc import Callable, Iterator
 from contextvars import ContextVar
 from dataclasses import dataclass
@@ -48,6 +49,16 @@ class ConfigError(ValueError):
         self.where = where
         self.message = message
         super().__init__(f"{where}: {message}" if where is not None else message)
+
+
+class LayoutWarning(UserWarning):
+    """A layout that works, but likely not as its author meant. A plugin's check of its
+    options says it with ``warnings.warn(LayoutWarning(...))``; the layout reader collects it
+    into :attr:`Layout.warnings` (``check`` shows them, ``run`` logs them). Anywhere else,
+    e.g. when a run builds the actions again, it is not shown a second time."""
+
+
+warnings.filterwarnings("ignore", category=LayoutWarning)
 
 
 class MarkedDict(dict[str, Any]):

@@ -15,7 +15,6 @@ plugin's validator while loading, so ``check`` refuses what ``run`` would.
 from __future__ import annotations
 
 import re
-import warnings
 from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,16 +37,6 @@ DEFAULT_TEMPLATE_DIR = "strokes"
 ValidateAction = Callable[[str, Any, Position], None]
 #: ``validate_section(name, value, position, layout_path)``: a plugin's section
 ValidateSection = Callable[[str, Any, Position, Path], None]
-
-
-class LayoutWarning(UserWarning):
-    """A layout that works, but likely not as its author meant. A plugin's check of its
-    options says it with ``warnings.warn(LayoutWarning(...))``; the layout reader collects it
-    into :attr:`Layout.warnings` (``check`` shows them, ``run`` logs them). Anywhere else,
-    e.g. when a run builds the actions again, it is not shown a second time."""
-
-
-warnings.filterwarnings("ignore", category=LayoutWarning)
 
 
 @dataclass(frozen=True)

@@ -18,6 +18,7 @@ from typing import Any
 from hapticdesk.files.profile import DeskProfile, load_profile
 from hapticdesk.files.yamlfile import (
     ConfigError,
+    LayoutWarning,
     MarkedDict,
     MarkedList,
     Position,
@@ -31,7 +32,6 @@ from hapticdesk.gestures.layout import (
     ActionUse,
     Binding,
     Layout,
-    LayoutWarning,
     ValidateAction,
     builtin_shape_names,
 )

@@ -16,12 +16,18 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+from hapticdesk.files.strokefile import SHAPE_NAME
 from hapticdesk.files.yamlfile import ConfigError, Position, load_marked_yaml
+from hapticdesk.gestures.layout_regions import REGION_NAME
 
 #: decimals kept when metres from the page are written in a layout's units
 DECIMALS = {"m": 4, "cm": 2, "mm": 1}
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 SHAPE_KEYS = ("rect", "circle", "polygon")
+
+# the names the layout's reader takes, so the designer refuses no name `check` accepts (it had
+# refused `desk-lamp`) and takes none it refuses (`ẞtaste` passed Python's isidentifier)
+_REGION_RULE = "a region name starts with a letter and holds only letters, digits, _ and -"
 
 
 def error_dict(err: ConfigError) -> dict[str, Any]:
@@ -312,8 +318,8 @@ def apply_edit(text: str, edit: dict[str, Any]) -> str:
         regions = doc["regions"] = CommentedMap()
     name = edit.get("name")
     if op == "set_region":
-        if not isinstance(name, str) or not name.isidentifier():
-            raise ConfigError(None, f"a region name is letters, digits and _; found {name!r}")
+        if not isinstance(name, str) or not REGION_NAME.match(name):
+            raise ConfigError(None, f"{_REGION_RULE}; found {name!r}")
         shape = edit.get("shape")
         if shape == "rect":
             r = edit.get("rect") or []
@@ -348,8 +354,8 @@ def apply_edit(text: str, edit: dict[str, Any]) -> str:
         new = edit.get("new_name")
         if name not in regions:
             raise ConfigError(None, f"no region {name!r}")
-        if not isinstance(new, str) or not new.isidentifier():
-            raise ConfigError(None, f"a region name is letters, digits and _; found {new!r}")
+        if not isinstance(new, str) or not REGION_NAME.match(new):
+            raise ConfigError(None, f"{_REGION_RULE}; found {new!r}")
         if new in regions:
             raise ConfigError(None, f"there is already a region {new!r}")
         position = list(regions).index(name)
@@ -385,7 +391,7 @@ def apply_edit(text: str, edit: dict[str, Any]) -> str:
         del bindings[index]
     elif op == "add_template":
         shape = edit.get("shape")
-        if not isinstance(shape, str) or not shape.isidentifier():
+        if not isinstance(shape, str) or not SHAPE_NAME.match(shape):
             raise ConfigError(None, f"a shape name is letters, digits and _; found {shape!r}")
         pts = [point(p, "template point") for p in edit.get("points") or []]
         if len(pts) < 2:

@@ -195,3 +195,24 @@ def test_a_polygon_is_drawn_corner_by_corner_and_ended_by_a_double_click(
     assert drawn, page.input_value("#yaml")
     points = [v for point in json.loads(drawn.group(1)) for v in point]  # cm, the layout's
     assert points == pytest.approx([100 * v for point in corners for v in point], abs=0.5)
+
+
+def test_a_refused_drawing_says_why_beside_the_tools(page: Any, to_screen: Any) -> None:
+    """A region drawn under a name no layout takes was refused without a word (the drawing
+    gone, nothing said); a name the checker takes, with a dash, is now taken by the designer."""
+    page.click("#tab-designer")
+    page.check("#tool-rect")
+    for name, refused in (("9lives", True), ("desk-lamp", False)):
+        page.fill("#region-name", name)
+        x0, y0 = to_screen(page, -0.30, 0.20)
+        x1, y1 = to_screen(page, -0.25, 0.15)
+        page.mouse.move(x0, y0)
+        page.mouse.down()
+        page.mouse.move(x1, y1)
+        page.mouse.up()
+        if refused:
+            page.wait_for_function("document.getElementById('draw-error').textContent !== ''")
+            assert "starts with a letter" in page.text_content("#draw-error")
+        else:
+            page.wait_for_selector(f"#region-{name}")
+            assert page.text_content("#draw-error") == ""

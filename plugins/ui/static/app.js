@@ -269,6 +269,14 @@ async function edit(op) {
   return result;
 }
 
+// an edit drawn on the desk: a refused one says why beside the tools (it had failed silently,
+// the drawing gone and nothing said)
+async function drawEdit(op) {
+  const result = await edit(op);
+  $("draw-error").textContent = result.ok ? "" : result.errors.map((e) => e.message).join("\n");
+  return result;
+}
+
 $("save").addEventListener("click", async () => {
   const r = await api("api/layout", { method: "PUT", body: $("yaml").value });
   const result = await r.json();
@@ -324,10 +332,10 @@ $("desk").addEventListener("mouseup", async () => {
   $("drawing").replaceChildren();
   const name = $("region-name").value.trim();
   if (d.kind === "rect") {
-    await edit({ op: "set_region", name, shape: "rect", rect: [d.start[0], d.start[1], d.end[0], d.end[1]] });
+    await drawEdit({ op: "set_region", name, shape: "rect", rect: [d.start[0], d.start[1], d.end[0], d.end[1]] });
   } else if (d.kind === "circle") {
     const radius = Math.hypot(d.end[0] - d.start[0], d.end[1] - d.start[1]);
-    await edit({ op: "set_region", name, shape: "circle", center: d.start, radius });
+    await drawEdit({ op: "set_region", name, shape: "circle", center: d.start, radius });
   } else if (d.kind === "move") {
     const dx = d.end[0] - d.start[0], dy = d.end[1] - d.start[1];
     if (Math.abs(dx) + Math.abs(dy) < 1e-4) return;
@@ -338,7 +346,7 @@ $("desk").addEventListener("mouseup", async () => {
       const xs = r.outline.map((p) => p[0]), ys = r.outline.map((p) => p[1]);
       op = { shape: "rect", rect: [Math.min(...xs) + dx, Math.min(...ys) + dy, Math.max(...xs) + dx, Math.max(...ys) + dy] };
     } else op = { shape: "polygon", points: r.outline.map(([x, y]) => [x + dx, y + dy]) };
-    await edit(Object.assign({ op: "set_region", name: r.name }, op));
+    await drawEdit(Object.assign({ op: "set_region", name: r.name }, op));
   }
 });
 
@@ -355,7 +363,7 @@ $("desk").addEventListener("dblclick", async () => {
   const pts = polygon.filter((p, i) => i === 0 || Math.hypot(p[0] - polygon[i - 1][0], p[1] - polygon[i - 1][1]) > 0.001);
   polygon = [];
   $("drawing").replaceChildren();
-  if (pts.length >= 3) await edit({ op: "set_region", name: $("region-name").value.trim(), shape: "polygon", points: pts });
+  if (pts.length >= 3) await drawEdit({ op: "set_region", name: $("region-name").value.trim(), shape: "polygon", points: pts });
 });
 
 function drawDraft(kind, pts) {

@@ -338,7 +338,9 @@ def compile_template(text: str, where: Position | str, what: str = "template") -
     from jinja2 import TemplateSyntaxError, meta
 
     try:
-        unknown = sorted(meta.find_undeclared_variables(env.parse(text)) - set(VARIABLES))
+        tree = env.parse(text)
+        misread = _filters_on_a_number(tree)  # (first: the analysis below folds constants)
+        unknown = sorted(meta.find_undeclared_variables(tree) - set(VARIABLES))
         compiled = env.from_string(text)
     except TemplateSyntaxError as err:
         raise ConfigError(where, f"{what} is not a valid template: {err.message}") from None
@@ -348,32 +350,35 @@ def compile_template(text: str, where: Position | str, what: str = "template") -
             f"{what} uses unknown variable(s) {', '.join(unknown)}; available: "
             f"{', '.join(VARIABLES)} (plugin fields as event.<name>)",
         )
-    _warn_filter_on_a_number(env.parse(text), where, what)
+    for chain, number, operator in misread:
+        warnings.warn(
+            LayoutWarning(
+                f"{where}: {what} applies `{chain}` to the number {number} alone, not to the "
+                f"result of `{operator}` (a filter binds tighter): write `(… {operator} "
+                f"{number}) | {chain}`"
+            ),
+            stacklevel=2,
+        )
     _check_limits(compiled, where, what)
     return Template(text, compiled, str(where))
 
 
-def _warn_filter_on_a_number(tree: Any, where: Position | str, what: str) -> None:
-    """``value * 254 | round``: a filter binds tighter than arithmetic, so this rounds 254 and
-    sends the product unrounded (a brightness of 24.93). A filter on a lone number is never
-    meant: say so, as a layout warning (the layout reader collects ``warnings.warn``)."""
+def _filters_on_a_number(tree: Any) -> list[tuple[str, Any, str]]:
+    """(filters, number, operator) of each ``value * 254 | round``: a filter binds tighter
+    than arithmetic, so this rounds 254 and sends the product unrounded (a brightness of
+    24.93). A filter on a lone number is never meant: :func:`compile_template` says so as a
+    layout warning (the layout reader collects ``warnings.warn``)."""
     from jinja2 import nodes
 
+    found = []
     for op in tree.find_all(nodes.BinExpr):
         names, inner = [], op.right
         while isinstance(inner, nodes.Filter):
             names.append(inner.name)
             inner = inner.node
         if names and isinstance(inner, nodes.Const) and not isinstance(op.left, nodes.Const):
-            chain = " | ".join(reversed(names))
-            warnings.warn(
-                LayoutWarning(
-                    f"{where}: {what} applies `{chain}` to the number {inner.value} alone, not to "
-                    f"the result of `{op.operator}` (a filter binds tighter): write `(… "
-                    f"{op.operator} {inner.value}) | {chain}`"
-                ),
-                stacklevel=2,
-            )
+            found.append((" | ".join(reversed(names)), inner.value, op.operator))
+    return found
 
 
 def _check_limits(compiled: Any, where: Position | str, what: str) -> None:

@@ -20,6 +20,19 @@ MIN_SPEED, MAX_SPEED = 1e-3, 1e6
 LONGEST_WAIT_S = 60.0
 
 
+def check_speed(speed: float) -> float:
+    """``--speed``: 0 (as fast as possible) or :data:`MIN_SPEED` to :data:`MAX_SPEED` times
+    real time (ConfigError otherwise, NaN too): 1e-300 overflowed the clock, 1e-9 would wait
+    for ever. Every command that paces samples takes it through here."""
+    if not (speed == 0 or MIN_SPEED <= speed <= MAX_SPEED):
+        raise ConfigError(
+            "--speed",
+            f"must be 0 (as fast as possible) or {MIN_SPEED:g} to {MAX_SPEED:g} times real "
+            f"time, found {speed:g}",
+        )
+    return speed
+
+
 class Pacer:
     """Holds blocks back until their sample time has come: wall = start + (t - t0) / speed.
 
@@ -28,13 +41,7 @@ class Pacer:
     """
 
     def __init__(self, speed: float, stop: threading.Event) -> None:
-        if not (speed == 0 or MIN_SPEED <= speed <= MAX_SPEED):  # (NaN too)
-            raise ConfigError(
-                "--speed",
-                f"--speed must be 0 (as fast as possible) or {MIN_SPEED:g} to {MAX_SPEED:g} "
-                f"times real time, found {speed:g}",
-            )
-        self.speed = speed
+        self.speed = check_speed(speed)
         self._stop = stop
         self.t0: float | None = None
         self.started_at: float | None = None

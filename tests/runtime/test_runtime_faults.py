@@ -217,7 +217,7 @@ def test_a_replay_speed_no_one_asks_for_is_refused(speed):
     (a traceback), NaN acted as 0 (as fast as possible)."""
     from hapticdesk.runtime.pacing import Pacer
 
-    with pytest.raises(ConfigError, match="--speed must be 0"):
+    with pytest.raises(ConfigError, match="--speed: must be 0"):
         Pacer(speed, threading.Event())
 
 

@@ -84,7 +84,7 @@ def test_status_line_shows_contact_force_and_last_gesture(tmp_path, recording, c
         (["--source", "replay:TMP"], "replay: not a regular file: TMP"),
         (["--source", "replay:LAYOUT"], "cannot replay a .yaml file; expected a recording (.csv"),
         (["--desk", "no_such_desk"], "no such desk profile; shipped profiles:"),
-        (["--speed", "-1"], "--speed must be 0 (as fast as possible) or 0.001 to"),
+        (["--speed", "-1"], "--speed: must be 0 (as fast as possible) or 0.001 to"),
         (["--mqtt", "mqtt://u:secret@host"], "do not put a password in the broker URL"),
         (["--events", "/no/such/folder/e.jsonl"], "--events: cannot write /no/such/folder/e.jsonl"),
     ],

@@ -39,6 +39,22 @@ BLOCK_S = 0.01  # gather frames this long before assembling them
 CAN_ERR_BUSOFF = 0x40  # SocketCAN error class bit in an error frame's identifier
 
 
+def bus_cannot_open(interface: str, channel: str | None, err: Exception) -> str:
+    """Why python-can could not open ``interface`` ``channel``, for a message (a live source
+    and ``emulate`` say it alike). An interface's own bug when its driver library is missing
+    (python-can's kvaser raises NameError: canGetNumberOfChannels) is as much a bus that
+    cannot be opened, said as such."""
+    import can
+
+    said = f"cannot open CAN interface {interface!r} channel {channel!r}: "
+    if isinstance(err, (can.CanError, OSError, ValueError, ImportError, TypeError)):
+        return said + str(err)
+    return (
+        said + f"python-can failed with {type(err).__name__}: {err} (is the interface's driver "
+        "library installed?)"
+    )
+
+
 class CanSourceError(ConfigError):
     """The bus could not be opened, or was lost and did not come back."""
 
@@ -136,19 +152,9 @@ class CanSource(Source):
         factory = self._bus_factory or can.Bus
         try:
             return factory(interface=self.interface, channel=self.channel, **self.bus_kwargs)
-        except (can.CanError, OSError, ValueError, ImportError, TypeError) as err:
-            raise CanSourceError(
-                self.spec,
-                f"cannot open CAN interface {self.interface!r} channel {self.channel!r}: {err}",
-            ) from None
         except Exception as err:
-            # an interface's own bug when its driver library is missing (python-can's kvaser
-            # raises NameError: canGetNumberOfChannels) is as much a bus that cannot be opened
             raise CanSourceError(
-                self.spec,
-                f"cannot open CAN interface {self.interface!r} channel {self.channel!r}: "
-                f"python-can failed with {type(err).__name__}: {err} (is the interface's "
-                "driver library installed?)",
+                self.spec, bus_cannot_open(self.interface, self.channel, err)
             ) from None
 
     def _shutdown_bus(self) -> None:

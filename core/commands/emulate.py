@@ -54,6 +54,7 @@ def run(args: argparse.Namespace) -> int:
 
     from hapticdesk.canbus.config import can_config
     from hapticdesk.canbus.emulator import CanEmulator, encoder_for
+    from hapticdesk.canbus.source import bus_cannot_open
 
     check_speed(args.speed)  # as `run` paces a replay
     interface, sep, channel = args.bus.partition(":")
@@ -87,16 +88,8 @@ def run(args: argparse.Namespace) -> int:
         kwargs["bitrate"] = args.bitrate
     try:
         bus = can.Bus(**kwargs)
-    except (can.CanError, OSError, ValueError, ImportError) as err:
-        raise ConfigError(
-            "--bus", f"cannot open CAN interface {interface!r} channel {channel!r}: {err}"
-        ) from None
-    except Exception as err:  # an interface's own bug without its driver (kvaser: NameError)
-        raise ConfigError(
-            "--bus",
-            f"cannot open CAN interface {interface!r} channel {channel!r}: python-can failed "
-            f"with {type(err).__name__}: {err} (is the interface's driver library installed?)",
-        ) from None
+    except Exception as err:
+        raise ConfigError("--bus", bus_cannot_open(interface, channel, err)) from None
     from hapticdesk.estimator.inertia import accelerometer_readings
 
     accel = accelerometer_readings(profile, rec.extra)  # None: the desk has no accelerometer

@@ -43,30 +43,16 @@ def message_error(message: str) -> dict[str, Any]:
     return {"line": 0, "column": 0, "message": message}
 
 
-def check_layout_text(
-    layout_path: Path, text: str, registry: Any, desk: Any = None
-) -> list[dict[str, Any]]:
-    """The errors ``hapticdesk check`` would report for ``text`` saved as ``layout_path``
-    (empty when it is valid). The loader stops at the first error, so there is one at most."""
+def exec_added(layout_path: Path, new: Any, registry: Any, desk: Any = None) -> list[dict]:
+    """Refuse a save (``new``, the layout it loads as) that adds or changes ``exec`` actions,
+    or names another layout file to switch to: a page may not make the desk run programs
+    (README, "Browser UI": no exec runs from the page). An ``exec`` use already in the file
+    may stay, as it is, on its gesture; one whose argv was changed, or that moved to another
+    binding, is a new one (counting the uses let a save that edited the one there was run any
+    program)."""
     from hapticdesk.runtime.assembly import load_scene_layout
 
-    try:
-        load_scene_layout(layout_path, registry, desk, text=text)
-    except ConfigError as err:
-        return [error_dict(err)]
-    return []
-
-
-def exec_added(layout_path: Path, text: str, registry: Any, desk: Any = None) -> list[dict]:
-    """Refuse a save that adds or changes ``exec`` actions, or names another layout file to
-    switch to: a page may not make the desk run programs (README, "Browser UI": no exec runs
-    from the page). An ``exec`` use already in the file may stay, as it is, on its gesture;
-    one whose argv was changed, or that moved to another binding, is a new one (counting the
-    uses let a save that edited the one there was run any program)."""
-    from hapticdesk.runtime.assembly import load_scene_layout
-
-    def uses(source: str | None) -> tuple[list[tuple[str, Position]], set[Path]]:
-        layout, _ = load_scene_layout(layout_path, registry, desk, text=source)
+    def uses(layout: Any) -> tuple[list[tuple[str, Position]], set[Path]]:
         execs = [
             (_exec_key(b, u.options), u.position)
             for b in layout.bindings
@@ -76,10 +62,13 @@ def exec_added(layout_path: Path, text: str, registry: Any, desk: Any = None) ->
         return execs, {p.resolve() for p in layout.named_layouts.values()}
 
     try:
-        before, files_before = uses(None) if layout_path.is_file() else ([], set())
+        on_disk = (
+            load_scene_layout(layout_path, registry, desk)[0] if layout_path.is_file() else None
+        )
+        before, files_before = uses(on_disk) if on_disk is not None else ([], set())
     except ConfigError:
         before, files_before = [], set()
-    after, files_after = uses(text)
+    after, files_after = uses(new)
     kept = collections.Counter(key for key, _ in before)
     for key, where in after:
         if kept[key] > 0:

@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from hapticdesk.files.yamlfile import ConfigError, reads_confined_to
-from hapticdesk.plugins.ui.layout_edit import check_layout_text, desk_message, message_error
+from hapticdesk.plugins.ui.layout_edit import desk_message, message_error
 from hapticdesk.plugins.ui.layout_edit import error_dict as error_of
 
 log = logging.getLogger(__name__)
@@ -580,10 +580,14 @@ class UiServer:
     def _check(self, text: str) -> list[dict[str, Any]]:
         """What `check` says of ``text``, then whether it adds or changes an exec action."""
         from hapticdesk.plugins.ui.layout_edit import exec_added
+        from hapticdesk.runtime.assembly import load_scene_layout
 
         with self._confined():
-            errors = check_layout_text(self.layout_path, text, self.registry, self.desk)
-            return errors or exec_added(self.layout_path, text, self.registry, self.desk)
+            try:  # (loaded once, for both)
+                layout, _ = load_scene_layout(self.layout_path, self.registry, self.desk, text=text)
+            except ConfigError as err:
+                return [error_of(err)]
+            return exec_added(self.layout_path, layout, self.registry, self.desk)
 
     def _confined(self) -> Any:
         """Reads confined to the folders a layout from the page may use: the layout's, its

@@ -36,6 +36,7 @@ from hapticdesk.gestures.regions import (
 REGION_KINDS = ("rect", "circle", "polygon")
 REGION_KEYS = frozenset({*REGION_KINDS, "surface", "axis", "description"})
 REGION_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_-]*$")
+REGION_RULE = "must start with a letter and hold only letters, digits, _ and -"
 #: enough for any outline drawn by hand; the self-crossing check compares every pair of edges
 MAX_POLYGON_POINTS = 500
 
@@ -60,8 +61,7 @@ class RegionReader:
             if not REGION_NAME.match(name):
                 raise ConfigError(
                     raw.where(name, of_key=True),
-                    f"region name {name!r} must start with a letter and hold only letters, "
-                    "digits, _ and -",
+                    f"region name {name!r} {REGION_RULE}",
                 )
             out[name] = self._region(name, raw[name], raw.where(name))
         return out

@@ -18,16 +18,15 @@ from typing import Any
 
 from hapticdesk.files.strokefile import SHAPE_NAME
 from hapticdesk.files.yamlfile import ConfigError, Position, load_marked_yaml
-from hapticdesk.gestures.layout_regions import REGION_NAME
+
+# the names the layout's reader takes: the designer refuses none `check` accepts (it had
+# refused `desk-lamp`) and takes none it refuses (`ẞtaste` passed Python's isidentifier)
+from hapticdesk.gestures.layout_regions import REGION_NAME, REGION_RULE
 
 #: decimals kept when metres from the page are written in a layout's units
 DECIMALS = {"m": 4, "cm": 2, "mm": 1}
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 SHAPE_KEYS = ("rect", "circle", "polygon")
-
-# the names the layout's reader takes, so the designer refuses no name `check` accepts (it had
-# refused `desk-lamp`) and takes none it refuses (`ẞtaste` passed Python's isidentifier)
-_REGION_RULE = "a region name starts with a letter and holds only letters, digits, _ and -"
 
 
 def error_dict(err: ConfigError) -> dict[str, Any]:
@@ -308,7 +307,7 @@ def apply_edit(text: str, edit: dict[str, Any]) -> str:
     name = edit.get("name")
     if op == "set_region":
         if not isinstance(name, str) or not REGION_NAME.match(name):
-            raise ConfigError(None, f"{_REGION_RULE}; found {name!r}")
+            raise ConfigError(None, f"region name {name!r} {REGION_RULE}")
         shape = edit.get("shape")
         if shape == "rect":
             r = edit.get("rect") or []
@@ -344,7 +343,7 @@ def apply_edit(text: str, edit: dict[str, Any]) -> str:
         if name not in regions:
             raise ConfigError(None, f"no region {name!r}")
         if not isinstance(new, str) or not REGION_NAME.match(new):
-            raise ConfigError(None, f"{_REGION_RULE}; found {new!r}")
+            raise ConfigError(None, f"region name {new!r} {REGION_RULE}")
         if new in regions:
             raise ConfigError(None, f"there is already a region {new!r}")
         position = list(regions).index(name)

@@ -212,7 +212,7 @@ def test_a_refused_drawing_says_why_beside_the_tools(page: Any, to_screen: Any) 
         page.mouse.up()
         if refused:
             page.wait_for_function("document.getElementById('draw-error').textContent !== ''")
-            assert "starts with a letter" in page.text_content("#draw-error")
+            assert "must start with a letter" in page.text_content("#draw-error")
         else:
             page.wait_for_selector(f"#region-{name}")
             assert page.text_content("#draw-error") == ""

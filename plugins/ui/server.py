@@ -566,13 +566,8 @@ class UiServer:
 
     def _describe(self, text: str) -> tuple[list[dict[str, Any]], list[dict[str, Any]] | None]:
         """The errors of ``text``, and its regions (to draw the edit) when it is valid."""
-        from hapticdesk.runtime.assembly import load_scene_layout
-
         try:
-            with self._confined():
-                layout, profile = load_scene_layout(
-                    self.layout_path, self.registry, self.desk, text=text
-                )
+            layout, profile = self._load_sent(text)
         except ConfigError as err:
             return [error_of(err)], None
         return [], desk_message(profile, layout, live=False)["regions"]
@@ -580,14 +575,21 @@ class UiServer:
     def _check(self, text: str) -> list[dict[str, Any]]:
         """What `check` says of ``text``, then whether it adds or changes an exec action."""
         from hapticdesk.plugins.ui.layout_edit import exec_added
+
+        try:  # (loaded once, for both)
+            layout, _ = self._load_sent(text)
+        except ConfigError as err:
+            return [error_of(err)]
+        with self._confined():
+            return exec_added(self.layout_path, layout, self.registry, self.desk)
+
+    def _load_sent(self, text: str) -> Any:
+        """``text``, a layout the page sent, loaded as `check` would as the layout file (its
+        reads confined); ConfigError at its first problem."""
         from hapticdesk.runtime.assembly import load_scene_layout
 
         with self._confined():
-            try:  # (loaded once, for both)
-                layout, _ = load_scene_layout(self.layout_path, self.registry, self.desk, text=text)
-            except ConfigError as err:
-                return [error_of(err)]
-            return exec_added(self.layout_path, layout, self.registry, self.desk)
+            return load_scene_layout(self.layout_path, self.registry, self.desk, text=text)
 
     def _confined(self) -> Any:
         """Reads confined to the folders a layout from the page may use: the layout's, its

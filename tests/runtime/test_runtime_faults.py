@@ -25,7 +25,7 @@ from hapticdesk.runtime.service import Runtime
 
 from .conftest import Mosquitto, Subscriber, wait_subscribed
 from .taps import tap_recording
-from .test_runtime_mqtt import TOGGLE, taps_file, write_layout
+from .test_runtime_mqtt import TOGGLE, link_to_nowhere, taps_file, write_layout
 
 RUN = [sys.executable, "-m", "hapticdesk", "run"]
 
@@ -197,12 +197,7 @@ def test_announcements_again_are_sent_once_each_on_a_live_broker(broker):
 
 
 def test_closing_a_link_is_bounded_by_its_timeout(mosquitto_available, tmp_path, caplog):
-    broker = Mosquitto(tmp_path)  # never started
-    link = MqttLink(
-        MqttSettings(host="127.0.0.1", port=broker.port, client_id="gone"),
-        will=Message("a/availability", b"offline", 1, True, command=False),
-    ).start()
-    link.publish("lamp/set", "x")
+    link = link_to_nowhere(tmp_path, "gone")
     started = time.monotonic()
     with caplog.at_level(logging.WARNING):
         line = link.close(timeout=0.3)

@@ -534,15 +534,22 @@ def test_the_goodbye_goes_last_at_the_commands_qos(broker, subscribe):
     assert [p for _, t, p in lines if t == "d/event"] == [json.dumps({"k": k}) for k in range(20)]
 
 
-def test_nothing_is_taken_once_the_link_says_goodbye(mosquitto_available, tmp_path):
-    """While close waits for the queue (a broker that is not there), a late publish (a call
-    the dispatcher gave up on) is refused: it would follow the desk's "offline"."""
-    gone = Mosquitto(tmp_path)  # never started
+def link_to_nowhere(tmp_path: Path, client_id: str) -> MqttLink:
+    """A started link, with a last will, to a broker that is never started, and one command
+    queued that can never be delivered."""
+    gone = Mosquitto(tmp_path)  # never started: only its free port is used
     link = MqttLink(
-        MqttSettings(host="127.0.0.1", port=gone.port, client_id="late"),
+        MqttSettings(host="127.0.0.1", port=gone.port, client_id=client_id),
         will=Message("a/availability", b"offline", 1, True, command=False),
     ).start()
     link.publish("lamp/set", "x")
+    return link
+
+
+def test_nothing_is_taken_once_the_link_says_goodbye(mosquitto_available, tmp_path):
+    """While close waits for the queue (a broker that is not there), a late publish (a call
+    the dispatcher gave up on) is refused: it would follow the desk's "offline"."""
+    link = link_to_nowhere(tmp_path, "late")
     closing = threading.Thread(target=link.close, kwargs={"timeout": 1.0})
     closing.start()
     time.sleep(0.2)

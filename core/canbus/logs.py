@@ -503,7 +503,8 @@ def write_frames(path: str | Path, frames: Iterable[FrameArray], channel: Any = 
         raise ConfigError(
             str(path), f"cannot write CAN logs as {path.suffix!r}; use {', '.join(WRITE_SUFFIXES)}"
         )
-    if isinstance(frames, (list, tuple)):  # all at hand: refused before the file is made
+    checked = isinstance(frames, (list, tuple))
+    if checked:  # all at hand: refused before the file is made (or an old one overwritten)
         for chunk in frames:
             if (failure := _unwritable(path, chunk)) is not None:
                 raise failure
@@ -511,7 +512,7 @@ def write_frames(path: str | Path, frames: Iterable[FrameArray], channel: Any = 
     failure = None
     with can.Logger(str(path)) as logger:
         for chunk in frames:
-            if (failure := _unwritable(path, chunk)) is not None:
+            if not checked and (failure := _unwritable(path, chunk)) is not None:
                 break
             for msg in chunk.to_messages(channel=channel):
                 logger.on_message_received(msg)

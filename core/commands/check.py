@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from hapticdesk.commands.output_path import check_output_path
+from hapticdesk.files.sensing import sensing_of
 from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.gestures.layout import Binding, Layout
 from hapticdesk.gestures.options import GESTURE_OPTIONS, describe_value
@@ -55,6 +56,7 @@ def explain(layout: Layout) -> str:
     lines = [
         f"OK: {layout.path} is a valid layout",
         f"desk      {desk.name} ({len(desk.sensors)} sensors; {surfaces})",
+        *(f"sensing   {line}" for line in sensing_of(desk).lines()),
         f"units     {units}",
         f"regions   {len(layout.regions)}",
     ]

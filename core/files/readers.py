@@ -62,7 +62,7 @@ def open_recording_blocks(path: str | Path, profile: DeskProfile) -> RecordingBl
     """A CSV or NPZ recording to stream in blocks (``replay:``, ``record``), its first block
     read and checked to come at the profile's rate (:func:`check_sample_rate`); the file is
     closed when it is refused."""
-    recording = RecordingBlocks(path, profile.sensor_names)
+    recording = RecordingBlocks(path, profile.sensor_names, channel_names=profile.channel_names())
     try:
         check_sample_rate(recording.first_times(), profile, str(path))
     except ConfigError:
@@ -89,7 +89,8 @@ def read_any_recording(
 
 def _read(path: str | Path, profile: DeskProfile) -> Recording:
     if Path(path).suffix.lower() in RECORDING_SUFFIXES:
-        return read_recording(path, profile.sensor_names)  # (it checks the file itself)
+        # (it checks the file itself)
+        return read_recording(path, profile.sensor_names, channel_names=profile.channel_names())
     # before the CAN log's own checks: a missing file is said so, not taken for a CAN log
     # the profile cannot decode
     regular_file_size(path, "the recording")

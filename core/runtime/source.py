@@ -17,7 +17,9 @@ if TYPE_CHECKING:  # plugin hook modules import this for every command, even `--
 
 @dataclass
 class WrenchBlock:
-    """``t`` (k,) sample times in seconds on the sensor clock; ``wrench`` (k, S, 6)."""
+    """``t`` (k,) sample times in seconds on the sensor clock; ``wrench`` the sensors' raw
+    readings: (k, S, 6) for a desk of six-axis sensors, else (k, C), the profile's channels
+    in order (:meth:`DeskProfile.channel_names`; the estimator takes either)."""
 
     t: np.ndarray
     wrench: np.ndarray

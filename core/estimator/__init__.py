@@ -195,12 +195,11 @@ class ContactEstimator:
         used only when the profile has an accelerometer; without them such a desk's samples
         are estimated uncompensated and flagged ``FLAG_NO_ACCEL``."""
         t = np.asarray(t, dtype=float).reshape(-1)
-        wrench = np.asarray(wrench, dtype=float)
-        n_sensors = len(self.profile.sensors)
-        if wrench.shape != (len(t), n_sensors, 6):
+        # (k, C) raw channels; (k, S, 6) for a desk of six-axis sensors
+        wrench = self.profile.flat_channels(wrench)
+        if len(wrench) != len(t):
             raise ValueError(
-                f"wrench must have shape (k, S, 6) = ({len(t)}, {n_sensors}, 6) for desk "
-                f"{self.profile.name!r}, found {wrench.shape}"
+                f"{len(t)} sample times but {len(wrench)} samples for desk {self.profile.name!r}"
             )
         k = len(t)
         if self.inertia is not None:

@@ -43,6 +43,7 @@ class EstimatorSettings:
     trace: bool  # keep every candidate (CandidateTrace): all three are computed
     sample_rate_hz: float
     n_sensors: int
+    moment_channels: np.ndarray  # (C,) bool: the raw channels that measure a moment
     wrench_map: np.ndarray  # (6, 6S): paper eqs. (1)–(4)
     wrench_map_t: np.ndarray  # (6S, 6): its transpose, contiguous (the batch path's layout)
     range_flat: np.ndarray  # (6S,) each channel's rating
@@ -79,12 +80,12 @@ class EstimatorSettings:
         """Derive the settings for ``profile`` and the (method-resolved) ``user`` settings."""
         s = user
         fs = profile.sample_rate_hz
-        limits = profile.saturation_limits()
+        limits = profile.channel_limits()
         if limits is None:
-            limits = np.full((len(profile.sensors), 6), np.inf)
+            limits = np.full(profile.channel_count, np.inf)
         # an unrated channel counts as rated at UNRATED_LIMIT, so that no finite reading
         # can overflow the resultant wrench (and put infinity into the filters)
-        range_flat = np.where(np.isfinite(limits), limits, UNRATED_LIMIT).reshape(-1)
+        range_flat = np.where(np.isfinite(limits), limits, UNRATED_LIMIT)
         normals = (
             np.array([surf.normal for surf in profile.surfaces])
             if profile.surfaces
@@ -113,6 +114,7 @@ class EstimatorSettings:
             trace=trace,
             sample_rate_hz=fs,
             n_sensors=len(profile.sensors),
+            moment_channels=profile.moment_channels(),
             wrench_map=np.ascontiguousarray(mapping),
             wrench_map_t=np.ascontiguousarray(mapping.T),
             range_flat=range_flat,

@@ -406,6 +406,14 @@ class DeskProfile:
             blocks.append(block @ s.own_wrench_matrix())
         return np.hstack(blocks)
 
+    def moment_channels(self) -> np.ndarray:
+        """(C,) True for a raw channel that measures a moment (N·m: its nominal noise and
+        drift are a moment's), False for a force (a calibrated channel counts as a moment
+        only when its calibration column has no force in it)."""
+        return np.concatenate(
+            [np.abs(s.own_wrench_matrix()[:3]).sum(axis=0) == 0 for s in self.sensors]
+        )
+
     def channel_limits(self) -> np.ndarray | None:
         """(C,) each raw channel's saturation limit (inf where unknown), or None when no
         sensor gives one."""

@@ -1,4 +1,5 @@
-"""Stage 3, the zero: tare, drift and objects.
+"""Stage 3, the zero: tare, drift and objects (none of them for readings that come zeroed,
+``estimation.zeroed``: the zero is 0 from the first sample on).
 
 An automatic tare over the first ``tare_s`` of a quiet desk (refused with a notice and
 retried while the desk is not quiet); the zero then follows sensor drift whenever the idle
@@ -165,11 +166,15 @@ class ZeroStage:
         self.window_s = settings.window / settings.sample_rate_hz
         # the idle desk's wander is measured over as many windows as an object waits
         self.wander_windows = max(2, settings.n_object)
+        # `zeroed`: the readings come zeroed, the zero is 0 from the first sample on and stays
+        self.fixed = settings.user.zeroed
 
     def process_one(self, t: float, lp_force: list[float], raw: list[float]) -> None:
         """:meth:`process` for one good sample once tared: remembered, and where it ends a
         window, the window judged by the same code as a block's (so a zero it sets takes
         effect from the next sample on, as in a block) — one window's work, not a block's."""
+        if self.fixed:
+            return
         st, w = self.state, self.settings.window
         m = st.win_fill
         st.win_lp[:, m] = lp_force
@@ -205,6 +210,11 @@ class ZeroStage:
         where a zero (or whether the load rests) takes effect and ``zeros`` (8, n), [F; M],
         the time it was set (NaN before the tare) and the load resting (0 or 1)."""
         st, w = self.state, self.settings.window
+        if self.fixed:
+            if st.zero is None:  # (the noise is the profile's: see Covariances.of)
+                st.set_zero(np.zeros(6), float(t[0]))
+                st.noise = np.zeros((6, 6))
+            return st.segment
         m, k = st.win_fill, len(t)
         bad = (flags & (BAD_SAMPLE | FLAG_GAP)) != 0
         if m + k < w:  # the block ends inside the current window: only remember it

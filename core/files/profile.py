@@ -242,6 +242,11 @@ class EstimationSettings:
     max_gap_s: float = 0.05  # a gap in sample times longer than this restarts the filters
     noise_force_n: float = 0.0  # per-channel noise σ if known; 0 = measure during the tare
     noise_moment_nm: float = 0.0
+    # the readings come zeroed (a force plate's ZERO frames taken off by its reader, a board
+    # that tares itself): no tare, the zero is 0 from the first sample and stays (no drift
+    # followed, no object absorbed: a person standing still on a plate is no object); the
+    # covariances take noise_force_n / noise_moment_nm, which must then be given
+    zeroed: bool = False
     # the legs as the accelerometer: the desk's inertial force from the measured force's
     # curvature and `desk.natural_frequency_hz` (see hapticdesk.estimator.sway); None (auto,
     # the default): on for `fused` on a desk without an accelerometer

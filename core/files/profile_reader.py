@@ -603,6 +603,8 @@ def _estimation(item: Any, where: Any) -> EstimationSettings:
             values[key] = flag_or_auto(m, key, "`estimation`")
         elif key == "second_finger":
             values[key] = flag(m, key, "`estimation`", default=defaults.second_finger)
+        elif key == "zeroed":
+            values[key] = flag(m, key, "`estimation`", default=defaults.zeroed)
         elif key in m:
             strict = key not in (
                 "noise_force_n",
@@ -627,6 +629,12 @@ def _estimation(item: Any, where: Any) -> EstimationSettings:
     settings = EstimationSettings(**values)
     if settings.min_normal_cos >= 1.0:
         raise ConfigError(m.where("min_normal_cos"), "`min_normal_cos` must be below 1")
+    if settings.zeroed and not (settings.noise_force_n > 0 or settings.noise_moment_nm > 0):
+        raise ConfigError(
+            m.where("zeroed"),
+            "`zeroed: true` (the readings come zeroed: no tare) needs the channels' noise, "
+            "which a tare would have measured: give `noise_force_n` and `noise_moment_nm`",
+        )
     if settings.release_hysteresis_n >= settings.contact_force_n:
         raise ConfigError(
             m.where("release_hysteresis_n"),

@@ -45,7 +45,8 @@ class Assembly:
     context: ActionContext
     #: the layout file the run started with (``default`` among its named layouts)
     layout_path: Path | None = None
-    desk_override: str | None = None  # ``--desk``: a reloaded layout is read with it too
+    # ``--desk`` (or a C3D replay's plate): a reloaded layout is read with it too
+    desk_override: str | DeskProfile | None = None
     action_timeout_s: float | None = None
     #: commands for the running desk (re-tare, pause, reload …), applied between blocks
     control: ControlQueue = field(default_factory=ControlQueue)
@@ -99,7 +100,7 @@ def build_scene(
     source_spec: str,
     registry: Registry,
     *,
-    desk: str | None = None,
+    desk: str | DeskProfile | None = None,
     speed: float = 1.0,
     overrides: Mapping[str, Mapping[str, Any]] | None = None,
     action_timeout_s: float | None = None,

@@ -14,12 +14,12 @@ from typing import Any
 
 import pytest
 
-from .conftest import DOCS
+from .conftest import DESKTOP, DOCS
 
 
 @pytest.fixture(scope="module")
 def page(browser: Any, ui_service: Any) -> Any:
-    context = browser.new_context(viewport={"width": 1280, "height": 860})
+    context = browser.new_context(viewport=DESKTOP)
     p = context.new_page()
     errors: list[str] = []
     p.on("pageerror", lambda err: errors.append(str(err)))

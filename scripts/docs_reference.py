@@ -87,6 +87,16 @@ def _described(keys: list[str], words: dict[str, str], out: Generated) -> list[t
     return rows
 
 
+def key_table(
+    keys: Any, words: dict[str, str], header: tuple[str, str] = ("key", "what"), note: str = ""
+) -> Generated:
+    """A table of ``keys`` (from the code) with their ``words`` (from here), and ``note``."""
+    out = Generated("")
+    rows = [[code(k), w] for k, w in _described(list(keys), words, out)]
+    out.markdown = table(list(header), rows) + note
+    return out
+
+
 @contextlib.contextmanager
 def _only_hapticdesk_plugins() -> Iterator[None]:
     """The built-in plugins alone: the reference is of hapticdesk, not of what else happens
@@ -173,28 +183,19 @@ def layout_keys() -> Generated:
 def region_keys() -> Generated:
     from hapticdesk.gestures.layout_regions import REGION_KEYS, REGION_RULE
 
-    out = Generated("")
     order = ["rect", "circle", "polygon", "axis", "surface", "description"]
     keys = [k for k in order if k in REGION_KEYS] + sorted(set(REGION_KEYS) - set(order))
-    rows = [[code(k), words] for k, words in _described(keys, REGION_KEY_WORDS, out)]
-    out.markdown = (
-        table(["key", "what"], rows)
-        + f"\n\nA region's name {REGION_RULE}. Give exactly one of `rect`, `circle`, `polygon`."
-    )
-    return out
+    note = f"\n\nA region's name {REGION_RULE}. Give exactly one of `rect`, `circle`, `polygon`."
+    return key_table(keys, REGION_KEY_WORDS, note=note)
 
 
 def binding_keys() -> Generated:
     from hapticdesk.gestures.layout_reader import BINDING_KEYS
 
-    out = Generated("")
     keys = [k for k in ("gesture", "region", "do", "description") if k in BINDING_KEYS]
     keys += sorted(set(BINDING_KEYS) - set(keys))
-    rows = [[code(k), words] for k, words in _described(keys, BINDING_KEY_WORDS, out)]
-    out.markdown = table(["key", "what"], rows) + (
-        "\n\nAny other key of a binding is one of its gesture's options (below, Gestures)."
-    )
-    return out
+    note = "\n\nAny other key of a binding is one of its gesture's options (see Gestures)."
+    return key_table(keys, BINDING_KEY_WORDS, note=note)
 
 
 def units() -> Generated:
@@ -343,10 +344,7 @@ def phases() -> Generated:
         "stream, `run` stopped, a recording that ends mid-press), or it left its region with "
         "`leave: cancel`; nothing that fires on a release fires then",
     }
-    out = Generated("")
-    rows = [[code(p), w] for p, w in _described(list(PHASES), words, out)]
-    out.markdown = table(["phase", "when"], rows)
-    return out
+    return key_table(PHASES, words, ("phase", "when"))
 
 
 def event_fields() -> Generated:
@@ -369,15 +367,12 @@ def event_fields() -> Generated:
         "extra": "not a key itself: what a recognizer adds (`x2`, `y2` of a two-finger tap) is "
         "merged into the event",
     }
-    out = Generated("")
     names = [f.name for f in dataclasses.fields(GestureEvent)]
-    rows = [[code(k), w] for k, w in _described(names, words, out)]
-    out.markdown = (
-        table(["key", "what"], rows)
-        + "\n\nOptional keys are left out when the gesture has no such value. Lengths are "
+    note = (
+        "\n\nOptional keys are left out when the gesture has no such value. Lengths are "
         "metres whatever the layout's `units`."
     )
-    return out
+    return key_table(names, words, note=note)
 
 
 # --- actions --------------------------------------------------------------------------------
@@ -493,10 +488,7 @@ def mqtt_section() -> Generated:
     reg = registry()
     section = reg.layout_sections["mqtt"]
     keys = allowed_keys(lambda v: section.check(v, "mqtt", _Path("layout.yaml")))
-    out = Generated("")
-    rows = [[code(k), w] for k, w in _described(keys, MQTT_KEY_WORDS, out)]
-    out.markdown = table(["key", "what"], rows)
-    return out
+    return key_table(keys, MQTT_KEY_WORDS)
 
 
 def control_commands() -> Generated:
@@ -510,10 +502,7 @@ def control_commands() -> Generated:
         "layout": "switch to one of the layout's `layouts:` (`default`: the one the run "
         'started with): `{"layout": "evening"}`',
     }
-    out = Generated("")
-    rows = [[code(k), w] for k, w in _described(list(COMMANDS), words, out)]
-    out.markdown = table(["command", "what"], rows)
-    return out
+    return key_table(COMMANDS, words, ("command", "what"))
 
 
 def desk_state() -> Generated:
@@ -526,10 +515,7 @@ def desk_state() -> Generated:
         "resting_load_n": "what came to rest on the desk since the tare (a cup, a book), newtons",
         "occupancy": "true while the desk is in use (touched within the last 30 s)",
     }
-    out = Generated("")
-    rows = [[code(k), w] for k, w in _described(list(DeskState().snapshot()), words, out)]
-    out.markdown = table(["key", "what"], rows)
-    return out
+    return key_table(DeskState().snapshot(), words)
 
 
 def zigbee2mqtt_actions() -> Generated:
@@ -797,12 +783,11 @@ def contacts_columns() -> Generated:
         "not located)",
         "phase": "`touch`, `hold` or `release`",
     }
-    out = Generated("")
-    rows = [[code(k), w] for k, w in _described(list(HEADER), words, out)]
-    out.markdown = f"Header `{','.join(HEADER)}`, one row per sample in contact.\n\n" + table(
-        ["column", "what"], rows
+    made = key_table(HEADER, words, ("column", "what"))
+    made.markdown = f"Header `{','.join(HEADER)}`, one row per sample in contact.\n\n" + (
+        made.markdown
     )
-    return out
+    return made
 
 
 # --- the browser UI -------------------------------------------------------------------------
@@ -837,10 +822,7 @@ def http_routes() -> Generated:
             keys.append(f"WS {route.path}")
         elif isinstance(route, Mount):
             keys.append(f"GET {route.path}")
-    out = Generated("")
-    rows = [[code(k), w] for k, w in _described(keys, ROUTE_WORDS, out)]
-    out.markdown = table(["request", "what"], rows)
-    return out
+    return key_table(keys, ROUTE_WORDS, ("request", "what"))
 
 
 # --- plugins --------------------------------------------------------------------------------

@@ -160,6 +160,22 @@ def desk_to_screen(page: Any, x: float, y: float) -> tuple[float, float]:
     )
 
 
+def draw_rectangle(page: Any, name: str, a: tuple[float, float], b: tuple[float, float]) -> None:
+    """Draw the region ``name`` with the designer's rectangle tool from desk point ``a`` to
+    ``b`` (metres), as a person drags, and wait until it is drawn."""
+    page.click("#tab-designer")
+    page.check("#tool-rect")
+    page.fill("#region-name", name)
+    x0, y0 = desk_to_screen(page, *a)
+    x1, y1 = desk_to_screen(page, *b)
+    page.mouse.move(x0, y0)
+    page.mouse.down()
+    page.mouse.move((x0 + x1) / 2, (y0 + y1) / 2)
+    page.mouse.move(x1, y1)
+    page.mouse.up()
+    page.wait_for_selector(f"#region-{name}")
+
+
 @pytest.fixture
 def to_screen() -> Any:
     """desk_to_screen(page, x, y), for tests that draw on the desk."""

@@ -15,11 +15,11 @@ from typing import Any
 
 import pytest
 
-from .conftest import DESKTOP, IMAGES, PHONE, SCENE, UiProcess
+from .conftest import DESKTOP, IMAGES, PHONE, SCENE, UiProcess, draw_rectangle
 
 
 def test_a_layout_from_init_gets_a_drawn_region_whose_tap_fires(
-    browser: Any, tmp_path: Any, to_screen: Any
+    browser: Any, tmp_path: Any
 ) -> None:
     layout = tmp_path / "my-desk.yaml"
     made = subprocess.run(
@@ -43,16 +43,7 @@ def test_a_layout_from_init_gets_a_drawn_region_whose_tap_fires(
         # draw `pad` where the simulated finger also taps, and bind a tap there to `log`
         page.click("#tab-designer")
         page.wait_for_function("document.getElementById('yaml').value.includes('button')")
-        page.check("#tool-rect")
-        page.fill("#region-name", "pad")
-        x0, y0 = to_screen(page, 0.15, -0.05)
-        x1, y1 = to_screen(page, 0.25, -0.15)
-        page.mouse.move(x0, y0)
-        page.mouse.down()
-        page.mouse.move((x0 + x1) / 2, (y0 + y1) / 2)
-        page.mouse.move(x1, y1)
-        page.mouse.up()
-        page.wait_for_selector("#region-pad")
+        draw_rectangle(page, "pad", (0.15, -0.05), (0.25, -0.15))
         page.select_option("#bind-region", "pad")
         page.select_option("#bind-gesture", "tap")
         page.select_option("#bind-action", "log")

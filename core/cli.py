@@ -41,6 +41,7 @@ BLAS_THREAD_VARIABLES = (
 
 # name -> (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
+    "init": ("hapticdesk.commands.init", "start a layout for a desk"),
     "contacts": ("hapticdesk.commands.contacts", "estimate contacts from a recording"),
     "simulate": ("hapticdesk.commands.simulate", "simulate a scene on a desk into a recording"),
     "bench": ("hapticdesk.commands.bench", "error against run time for every method"),
@@ -245,6 +246,12 @@ def _unexpected(command: str | None, err: BaseException) -> str:
     if not what:
         what = "out of memory" if isinstance(err, MemoryError) else "no message"
     name = f"hapticdesk {command}" if command else "hapticdesk"
+    if isinstance(err, ModuleNotFoundError):  # an optional part not installed: say which extra
+        from hapticdesk.extras import install_hint
+
+        hint = install_hint(err.name)
+        if hint is not None:
+            return f"{name}: error: {hint}"
     return (
         f"{name}: error: {what} (an unexpected {type(err).__name__}; run with --debug or "
         f"{DEBUG_VARIABLE}=1 for the traceback)"

@@ -59,7 +59,8 @@ def register_actions(register: Any) -> None:
       before anything starts. ``position`` is where the action stands in the layout.
 
     - ``options``: a form's schema of the options, ``{name: {"kind": "text" | "number" |
-      "integer" | "bool" | "mapping", "help": str, "required": bool, "choices": [...]}}``
+      "integer" | "bool" | "mapping" | "list", "help": str, "required": bool, "choices":
+      [...]}}``
       (the browser UI's designer builds its forms from it; ``validate`` still decides).
 
     ``factory`` and ``validate`` may be lazy ``"module:attr"`` strings.

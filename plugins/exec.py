@@ -32,6 +32,22 @@ log = logging.getLogger(__name__)
 
 DEFAULT_TIMEOUT_S = 10.0
 
+#: the options `exec` takes (what the validator allows; the reference lists them from here)
+OPTIONS: dict[str, dict[str, Any]] = {
+    "argv": {
+        "kind": "list",
+        "required": True,
+        "help": "[program, argument, ...]: each item a template rendered on its own and passed "
+        "as one argument, never through a shell",
+    },
+    "timeout_s": {
+        "kind": "number",
+        "help": f"seconds the program may run before its whole process group is killed "
+        f"(default {DEFAULT_TIMEOUT_S:g})",
+    },
+    "cwd": {"kind": "text", "help": "the folder it runs in, relative to the layout"},
+}
+
 
 class ExecFailed(RuntimeError):
     """The program exited with an error or ran too long."""
@@ -45,7 +61,7 @@ class ExecOptions:
 
 
 def parse_options(options: Any, position: Position | str) -> ExecOptions:
-    m = options_mapping(options, position, "`exec`", {"argv", "timeout_s", "cwd"}, {"argv"})
+    m = options_mapping(options, position, "`exec`", OPTIONS, {"argv"})
     raw = m["argv"]
     if not isinstance(raw, list) or not raw:
         raise ConfigError(
@@ -129,5 +145,9 @@ def _kill_group(pgid: int) -> None:
 @hookimpl
 def register_actions(register: Any) -> None:
     register(
-        "exec", ExecAction, "run a program with templated arguments (no shell)", validate=validate
+        "exec",
+        ExecAction,
+        "run a program with templated arguments (no shell)",
+        validate=validate,
+        options=OPTIONS,
     )

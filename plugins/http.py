@@ -49,6 +49,25 @@ SECRET_HEADERS = ("authorization", "proxy-authorization", "cookie")
 SECRET_WORDS = ("token", "secret", "password", "key", "auth")
 
 
+#: the options `http` takes (what the validator allows; the designer's form and the reference
+#: are made from it)
+OPTIONS: dict[str, dict[str, Any]] = {
+    "url": {"kind": "text", "required": True, "help": "http(s)://host/path, no password"},
+    "method": {"kind": "text", "choices": list(METHODS), "help": "POST by default"},
+    "json": {"kind": "mapping", "help": "a JSON body (templated); the event itself by default"},
+    "body": {"kind": "text", "help": "a text body (templated), instead of `json`"},
+    "headers": {
+        "kind": "mapping",
+        "help": "{name: text}; one carrying credentials comes from {env: VARIABLE} or "
+        '{file: PATH}, with an optional prefix ("Bearer ")',
+    },
+    "timeout_s": {
+        "kind": "number",
+        "help": f"seconds for the whole call (default {DEFAULT_TIMEOUT_S:g})",
+    },
+}
+
+
 class HttpFailed(RuntimeError):
     """The request failed or the server answered with an error status."""
 
@@ -106,13 +125,7 @@ def redact_url(url: str) -> str:
 
 
 def parse_options(options: Any, position: Position | str) -> HttpOptions:
-    m = options_mapping(
-        options,
-        position,
-        "`http`",
-        {"url", "method", "json", "body", "headers", "timeout_s"},
-        {"url"},
-    )
+    m = options_mapping(options, position, "`http`", OPTIONS, {"url"})
     url = text(m, "url", "`http`")
     if "@" in urllib.parse.urlsplit(url).netloc:
         raise ConfigError(
@@ -267,10 +280,5 @@ def register_actions(register: Any) -> None:
         HttpAction,
         "call a webhook (standard library, no extra package)",
         validate=validate,
-        options={
-            "url": {"kind": "text", "required": True, "help": "http(s)://host/path, no password"},
-            "method": {"kind": "text", "choices": list(METHODS), "help": "POST by default"},
-            "json": {"kind": "mapping", "help": "a JSON body (templated)"},
-            "timeout_s": {"kind": "number", "help": "seconds for the whole call"},
-        },
+        options=OPTIONS,
     )

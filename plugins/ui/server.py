@@ -227,7 +227,8 @@ class UiServer:
         try:
             if layout is not None:
                 profile = self.runtime.scene.profile if self.runtime else layout.desk
-                self.publish(desk_message(profile, layout, live=self.runtime is not None))
+                message = desk_message(profile, layout, live=self.runtime is not None)
+                self.publish(self._with_actions(message))
                 return
             self.publish(self._desk_message())
         except ConfigError as err:
@@ -236,11 +237,20 @@ class UiServer:
     def _desk_message(self) -> dict[str, Any]:
         runtime = self.runtime
         if runtime is not None:
-            return desk_message(runtime.scene.profile, runtime.scene.layout, live=True)
+            message = desk_message(runtime.scene.profile, runtime.scene.layout, live=True)
+            return self._with_actions(message)
         from hapticdesk.runtime.assembly import load_scene_layout
 
         layout, profile = load_scene_layout(self.layout_path, self.registry, self.desk)
-        return desk_message(profile, layout, live=False)
+        return self._with_actions(desk_message(profile, layout, live=False))
+
+    def _with_actions(self, message: dict[str, Any]) -> dict[str, Any]:
+        """The desk message with ``actions``: whether the running desk runs its layout's
+        actions (false for `hapticdesk ui` without --actions: the page says so), null when
+        nothing runs."""
+        runtime = self.runtime
+        message["actions"] = None if runtime is None else bool(runtime.scene.actions)
+        return message
 
     def on_gesture(self, event: Any) -> None:
         """The event sink: one gesture event, on a dispatcher lane's thread."""

@@ -850,6 +850,7 @@ EXTRA_WORDS = {
     "demo": "`hapticdesk demo`'s own MQTT broker",
     "ui": "the browser page: `hapticdesk ui`, `run --ui`",
     "docs": "this site: `mkdocs serve`, `mkdocs build --strict`",
+    "c3d": "force plates from C3D files: `contacts`, `plot`, `run --source replay:FILE.c3d` (ezc3d)",
     "test": "the test suite and its linters (all of the above)",
 }
 

@@ -37,7 +37,8 @@ JUMP_PERIODS = 1.5
 @dataclass(frozen=True)
 class ClockEvent:
     """Something the clock saw: ``kind`` ``lost`` (``count`` samples before ``t``), ``gap``
-    (``seconds`` without samples before ``t``) or ``reset`` (a new epoch at ``t``);
+    (``seconds`` without samples before ``t``), ``reset`` (the board restarted: a new epoch
+    at ``t``) or ``resume`` (a new epoch after the port was opened again);
     ``line`` the line number it was seen at, ``detail`` the stamps involved."""
 
     kind: str
@@ -81,6 +82,7 @@ class BoardClock:
         self._epoch_board = 0
         self._epoch_t = 0.0
         self._restart: str | None = "start"  # the next sample begins an epoch, and why
+        self._restart_kind = "reset"  # ... as a ClockEvent kind: "reset" or "resume"
         self.epochs = 0
 
     @property
@@ -88,10 +90,12 @@ class BoardClock:
         """The last sample time given out (None before the first)."""
         return self._t if self.epochs else None
 
-    def restart(self, why: str) -> None:
-        """The next sample begins a new epoch (a hello nobody asked for, a reconnect)."""
+    def restart(self, why: str, *, board_restarted: bool = True) -> None:
+        """The next sample begins a new epoch: the board restarted (a hello nobody asked
+        for), or not (the port was opened again: a ``resume``)."""
         if self.epochs:
             self._restart = why
+            self._restart_kind = "reset" if board_restarted else "resume"
 
     def place(
         self, stamps: np.ndarray, host_t: np.ndarray, lines: np.ndarray, *, final: bool = False
@@ -150,6 +154,7 @@ class BoardClock:
                 continue
             if i + 1 == m or self._follows(int(stamps[i]), host_t[i], stamps[i + 1], host_t[i + 1]):
                 self._restart = f"the stamp jumped from {self._stamp} to {int(stamps[i])}"
+                self._restart_kind = "reset"
                 continue
             dropped[i] = OUT_OF_SEQUENCE
             i += 1
@@ -168,7 +173,8 @@ class BoardClock:
         if self.epochs:
             away = max(host - self._host, self.min_epoch_gap_s)
             t = self._t + away
-            events.append(ClockEvent("reset", t, line, seconds=away, detail=str(why)))
+            kind = self._restart_kind
+            events.append(ClockEvent(kind, t, line, seconds=away, detail=str(why)))
         else:
             t = 0.0
         self.epochs += 1

@@ -107,7 +107,7 @@ class BoardDecoder:
         self._lines_before += self._splitter.lines
         self._splitter = LineSplitter()  # half a line from before is garbage
         if self._clock is not None:
-            self._clock.restart("the port was opened again")
+            self._clock.restart("the port was opened again", board_restarted=False)
 
     @property
     def last_t(self) -> float | None:
@@ -271,26 +271,22 @@ class BoardDecoder:
         )
 
     def _event(self, event: ClockEvent) -> None:
-        at = f"{self.where} line {event.line}"
         if event.kind == "lost":
             self.stats.loss_runs += 1
-            self._notice(
-                "lost", f"{at}: {event.count} samples lost before t={event.t:.4f} s (the stamp "
-                "jumped)"
-            )  # fmt: skip
+            text = f"{event.count} samples lost before t={event.t:.4f} s (the stamp jumped)"
         elif event.kind == "gap":
-            self.stats.gaps += 1
-            self._notice(
-                "gap", f"{at}: no samples for {event.seconds:.3f} s before t={event.t:.4f} s; "
-                "the estimator restarts its filters there"
-            )  # fmt: skip
-        else:
-            self.stats.resets += event.detail != "the port was opened again"
-            self.stats.gaps += 1
-            self._notice(
-                "reset", f"{at}: {event.detail}; carrying on at t={event.t:.4f} s after a gap "
-                f"of {event.seconds:.3f} s"
-            )  # fmt: skip
+            text = (
+                f"no samples for {event.seconds:.3f} s before t={event.t:.4f} s; the "
+                "estimator restarts its filters there"
+            )
+        else:  # a new epoch: "reset" (the board restarted) or "resume" (the port reopened)
+            text = (
+                f"{event.detail}; carrying on at t={event.t:.4f} s after a gap of "
+                f"{event.seconds:.3f} s"
+            )
+        self.stats.gaps += event.kind != "lost"
+        self.stats.resets += event.kind == "reset"
+        self._notice(event.kind, f"{self.where} line {event.line}: {text}")
 
     def _notice(self, kind: str, message: str) -> None:
         self.stats.notice(kind, self.last_t, message)

@@ -58,10 +58,6 @@ class BoardHello:
         n = len(self.channels)
         return 1 + n + (n if self.offsets_per_line else 0)
 
-    def same_board(self, other: BoardHello) -> bool:
-        """True when ``other`` describes the same stream (a board that restarted)."""
-        return self == other
-
     def text(self) -> str:
         """The hello line (without checksum or newline) that says this."""
         words = [MAGIC, f"rate={self.rate_hz:g}", "channels=" + ",".join(self.channels)]

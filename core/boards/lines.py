@@ -203,7 +203,7 @@ def parse_lines(batch: LineBatch, hello: BoardHello | None) -> ParsedLines:
     n_values = len(hello.channels) if hello else 0
     if hello is None:
         kind[kind == SAMPLE] = BEFORE_HELLO
-        return _parsed(kind, np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 0)), None)
+        return ParsedLines(kind, np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 0)), None)
     buf, starts = batch.buf, batch.starts
     n_fields = hello.fields
     commas = np.flatnonzero(buf == 44)
@@ -247,19 +247,9 @@ def parse_lines(batch: LineBatch, hello: BoardHello | None) -> ParsedLines:
         kind[rows[wrong]] = OFFSET
         bad |= wrong
         offsets = offsets[~bad]
-    return _parsed(
+    return ParsedLines(
         kind, rows[~bad], stamps[~bad].astype(np.int64), values[~bad, :n_values], offsets
     )
-
-
-def _parsed(
-    kind: np.ndarray,
-    rows: np.ndarray,
-    stamps: np.ndarray,
-    values: np.ndarray,
-    offsets: np.ndarray | None,
-) -> ParsedLines:
-    return ParsedLines(kind, rows, stamps, values, offsets)
 
 
 def _field_table(buf: np.ndarray, f_start: np.ndarray, width: np.ndarray) -> np.ndarray:

@@ -166,7 +166,7 @@ class SerialSource(LiveSource):
             now = time.monotonic()
             if now - started > self.settings.hello_timeout_s:
                 stats = self.decoder.stats
-                last = self.decoder.last_line
+                last = self.decoder.last_line.decode("ascii", "backslashreplace")
                 raise SerialSourceError(
                     f"--source serial:{self.port_name}",
                     f"no hello from the board within {self.settings.hello_timeout_s:g} s "

@@ -58,7 +58,9 @@ def decode(desk, hello: BoardHello, lines: list[str]) -> np.ndarray:
 
 def cop_errors(desk, cells, channels: np.ndarray) -> np.ndarray:
     at_once = (counts(cells.fz[:, :, 0]) - ZERO) * SCALE  # every cell read at the stamp
-    pressed = (at_once @ desk.wrench_map().T)[:, 2] - (at_once @ desk.wrench_map().T)[:500, 2].mean()
+    pressed = (at_once @ desk.wrench_map().T)[:, 2] - (at_once @ desk.wrench_map().T)[
+        :500, 2
+    ].mean()
     err = centre_of_pressure(desk, channels) - centre_of_pressure(desk, at_once)
     return np.hypot(*err[pressed > 2.0].T)
 

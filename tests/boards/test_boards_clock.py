@@ -62,7 +62,10 @@ def test_a_reset_is_survived_after_a_real_gap(desk):
     assert step == pytest.approx(2.5)  # the host's clock measured the reboot
     np.testing.assert_allclose(np.diff(after.t), 0.001)
     notice = next(n for n in dec.stats.notices if n.kind == "reset")
-    assert "the stamp jumped from 5499 to 0" in notice.message and "after a gap of 2.500 s" in notice.message
+    assert (
+        "the stamp jumped from 5499 to 0" in notice.message
+        and "after a gap of 2.500 s" in notice.message
+    )
     assert "1 board resets" in " ".join(dec.stats.summary())
 
 
@@ -98,7 +101,9 @@ def test_a_garbled_stamp_without_checksum_is_dropped_not_a_reset(desk):
     stamps = np.arange(1000, 1100)
     stamps[40] = 9040  # a digit hit: 8 s ahead of what the host saw pass
     stamps[70] = stamps[69]  # printed twice (and 1070 never)
-    block = feed(dec, [hello_line(hello, checksum=False), *sample_lines(stamps, ones(100), checksum=False)])
+    block = feed(
+        dec, [hello_line(hello, checksum=False), *sample_lines(stamps, ones(100), checksum=False)]
+    )
     assert dec.stats.resets == 0 and len(block.t) == 98
     assert dec.stats.garbled == {OUT_OF_SEQUENCE: 1, REPEAT: 1}
     assert dec.stats.lost == 2  # the garbled line's sample, and 1070
@@ -118,7 +123,9 @@ def test_another_board_after_a_reset_stops_the_source(desk):
     dec = BoardDecoder(desk, serial_settings(desk, "/dev/null"))
     feed(dec, [hello_line(hello), *sample_lines(np.arange(10), ones(10))])
     other = BoardHello(500, CHANNELS, checksum_required=True)
-    with pytest.raises(ConfigError, match="the board changed: it said .* rate=1000 .* now .* rate=500"):
+    with pytest.raises(
+        ConfigError, match="the board changed: it said .* rate=1000 .* now .* rate=500"
+    ):
         feed(dec, [hello_line(other)])
 
 

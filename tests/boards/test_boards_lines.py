@@ -38,7 +38,10 @@ HELLO = BoardHello(1000, CHANNELS, offsets_us=(0, 0, 0, 0), checksum_required=Tr
 def test_checksum_is_nmea_xor():
     # NMEA's own example sentence: $GPGLL,5300.97914,N,00259.98174,E,125926,A*28
     assert checksum(b"GPGLL,5300.97914,N,00259.98174,E,125926,A") == 0x28
-    assert with_checksum("12,1,2") == f"12,1,2*{ord('1') ^ ord('2') ^ ord(',') ^ ord('1') ^ ord(',') ^ ord('2'):02X}"
+    assert (
+        with_checksum("12,1,2")
+        == f"12,1,2*{ord('1') ^ ord('2') ^ ord(',') ^ ord('1') ^ ord(',') ^ ord('2'):02X}"
+    )
 
 
 def test_hello_round_trip_and_errors():
@@ -104,7 +107,12 @@ def test_each_garbled_line_is_named_and_counted(desk, line, reason):
 
 
 def test_comments_and_lines_before_the_hello_are_not_samples(desk):
-    lines = ["1,2,3,4,5", "# booting", hello_line(HELLO), *sample_lines([1], counts(np.ones((1, 4))))]
+    lines = [
+        "1,2,3,4,5",
+        "# booting",
+        hello_line(HELLO),
+        *sample_lines([1], counts(np.ones((1, 4)))),
+    ]
     dec = decoder(desk)
     assert len(dec.push([(0.0, stream(lines))]).t) == 1
     assert (dec.stats.before_hello, dec.stats.comments, dec.stats.garbled_lines) == (1, 1, 0)

@@ -4,8 +4,10 @@ garbled and lost lines counted, a reset survived, a port that is gone said plain
 
 from __future__ import annotations
 
+import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -65,6 +67,21 @@ def test_missing_pyserial_is_named_with_its_install_command(desk, registry, monk
         open_source("serial:/dev/ttyUSB0", desk, registry)
 
 
+def test_pyserial_and_the_boards_are_imported_only_for_the_serial_source():
+    probe = (
+        "import sys; from hapticdesk.registry import load_registry; "
+        "from hapticdesk.files.profile import load_profile; "
+        "from hapticdesk.runtime.source_spec import open_source; "
+        "r = load_registry(entry_points=False); "
+        "open_source('sim:examples/scenes/buttons.yaml', load_profile('kitamura2017'), r).close(); "
+        "print(sorted(m for m in ('serial', 'hapticdesk.boards') if m in sys.modules))"
+    )
+    root = Path(__file__).resolve().parents[2]
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, cwd=root,
+                          timeout=120, check=True)  # fmt: skip
+    assert done.stdout.strip() == "[]"
+
+
 def test_a_port_that_cannot_be_opened(desk, registry, tmp_path):
     with pytest.raises(ConfigError, match=f"cannot open serial port {tmp_path}/nope"):
         open_source(f"serial:{tmp_path}/nope", desk, registry)
@@ -73,7 +90,10 @@ def test_a_port_that_cannot_be_opened(desk, registry, tmp_path):
 @pytest.mark.parametrize(
     ("channels", "needle"),
     [
-        (("fr_fz", "fl_fz", "bl_fz", "br_fz"), "the board sends the desk's channels in another order"),
+        (
+            ("fr_fz", "fl_fz", "bl_fz", "br_fz"),
+            "the board sends the desk's channels in another order",
+        ),
         (("a", "b", "c", "d"), "the board is not for desk `cells-1k`"),
     ],
 )
@@ -89,7 +109,9 @@ def test_a_board_that_never_says_hello(desk, registry, boards):
     board = boards(sample_lines(np.arange(2000), counts(np.ones((2000, 4)))), "", rate=1000,
                    answer_hello=False, wait_for_ask=False)  # fmt: skip
     started = time.monotonic()
-    with pytest.raises(ConfigError, match=r"no hello from the board within 0.5 s \(\d+ bytes") as info:
+    with pytest.raises(
+        ConfigError, match=r"no hello from the board within 0.5 s \(\d+ bytes"
+    ) as info:
         open_source(f"serial:{board.path}?hello_timeout_s=0.5", desk, registry)
     assert time.monotonic() - started < 3
     assert "the last: '" in str(info.value) and board.asked >= 1
@@ -137,18 +159,24 @@ def test_samples_through_a_pty_with_garbled_lost_and_a_reset(desk, registry, boa
 
 def test_a_port_that_is_gone_for_good_ends_with_a_clear_error(desk, registry, boards):
     n = 300
-    board = boards(sample_lines(np.arange(n), counts(np.ones((n, 4)))), hello_line(HELLO), rate=1000)
+    board = boards(
+        sample_lines(np.arange(n), counts(np.ones((n, 4)))), hello_line(HELLO), rate=1000
+    )
     source = open_source(f"serial:{board.path}?reconnect_timeout_s=0.3", desk, registry)
     got = sum(len(b.t) for b in read_all_until_done(source, board, n))
     assert got == n
     board.close()  # unplugged
     started = time.monotonic()
-    with pytest.raises(ConfigError, match="the serial port was lost .* did not come back within 0.3 s"):
+    with pytest.raises(
+        ConfigError, match="the serial port was lost .* did not come back within 0.3 s"
+    ):
         for _ in source.blocks():
             pass
     assert time.monotonic() - started < 5
     source.close()
-    assert any("failed" in x.message and "reopening" in x.message for x in source.decoder.stats.notices)
+    assert any(
+        "failed" in x.message and "reopening" in x.message for x in source.decoder.stats.notices
+    )
 
 
 def read_all_until_done(source, board, n):

@@ -62,9 +62,9 @@ class SerialSource(LiveSource):
     """Samples of a desk read from a board on a serial port (module docstring)."""
 
     def __init__(self, spec: str, profile: DeskProfile) -> None:
-        super().__init__(profile)
-        self.serial = import_pyserial()
+        self.serial = import_pyserial()  # (before the base: nothing to close if it fails)
         self.settings = serial_settings(profile, spec)
+        super().__init__(profile)
         self.port_name = self.settings.port
         self.decoder = BoardDecoder(profile, self.settings, where=self.port_name)
         self._queue: collections.deque[tuple[float, bytes]] = collections.deque()

@@ -83,8 +83,7 @@ class BoardDecoder:
         self.stats.lines = self._lines_before + self._splitter.lines
         if len(batch):
             self.last_line = batch.text(len(batch) - 1)
-        kinds, _ = line_kinds(batch, bool(self.hello and self.hello.checksum_required))
-        hellos = np.flatnonzero(kinds == HELLO)
+        hellos = np.flatnonzero(batch.first_bytes() == ord("@"))  # (checked by _hello)
         parts: list[DecodedBlock] = []
         start = 0
         for h in [*hellos.tolist(), len(batch)]:
@@ -116,8 +115,12 @@ class BoardDecoder:
     # --- hello --------------------------------------------------------------------------
 
     def _hello(self, batch: LineBatch, i: int) -> None:
-        text = batch.text(i).decode("ascii", "replace").split("*")[0].strip()
+        kind, _ = line_kinds(batch.take(slice(i, i + 1)), False)
         number = int(batch.numbers[i])
+        if kind[0] != HELLO:  # a hello whose checksum does not match, or not text
+            self._garbled(int(kind[0]), number, batch.text(i))
+            return
+        text = batch.text(i).decode("ascii").rsplit("*", 1)[0].strip()
         where = f"{self.where} line {number}"
         self.stats.hellos += 1
         try:

@@ -89,6 +89,13 @@ class LineBatch:
     def text(self, i: int) -> bytes:
         return self.buf[self.starts[i] : self.ends[i]].tobytes()
 
+    def first_bytes(self) -> np.ndarray:
+        """Each line's first byte (0 for an empty line)."""
+        if not len(self.starts):
+            return np.zeros(0, np.uint8)
+        first = self.buf[np.minimum(self.starts, len(self.buf) - 1)]
+        return np.where(self.ends > self.starts, first, 0)
+
     def take(self, index: slice) -> LineBatch:
         return LineBatch(
             self.buf, self.starts[index], self.ends[index], self.numbers[index], self.host_t[index]

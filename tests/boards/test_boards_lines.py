@@ -171,3 +171,15 @@ def test_line_numbers_and_arrival_times_follow_the_reads():
     assert batch.numbers.tolist() == [1, 2, 3] and batch.host_t.tolist() == [1.0, 2.0, 3.0]
     batch = splitter.feed([(4.0, b"\n")])
     assert batch.text(0) == b"ccc" and batch.numbers.tolist() == [4]
+
+
+def test_a_hello_whose_checksum_fails_is_garbled_not_taken(desk):
+    text = hello_line(HELLO)
+    dec = decoder(desk)
+    block = dec.push(
+        [(0.0, stream([text[:-2] + "00", *sample_lines([1], counts(np.ones((1, 4))))]))]
+    )
+    assert dec.hello is None and len(block.t) == 0
+    assert dec.stats.garbled_lines == 1 and dec.stats.before_hello == 1
+    dec.push([(0.0, stream([text]))])
+    assert dec.hello == HELLO

@@ -119,24 +119,26 @@ class BoardClock:
                 i += 1
                 continue
             # the common case, vectorised: every step forward and plausible
-            prev = np.concatenate([[self._stamp], stamps[i : m - 1]]).astype(np.int64)
-            step = np.mod(stamps[i:] - prev, wrap)
-            board = self._board + np.cumsum(step)
-            host_steps = np.diff(np.concatenate([[self._host], host_t[i:]]))
-            ok = (step > 0) & (step / self.units <= host_steps + SLACK_S)
+            assert self._stamp is not None  # (an epoch has begun)
+            step = np.diff(stamps[i:], prepend=self._stamp) % wrap
+            host_steps = np.diff(host_t[i:], prepend=self._host)
+            ok = (step > 0) & (step <= (host_steps + SLACK_S) * self.units)
             n_ok = m - i if ok.all() else int(np.argmin(ok))
             if n_ok:
                 run = slice(i, i + n_ok)
-                t = self._epoch_t + (board[:n_ok] - self._epoch_board) / self.units
-                steps_s = np.diff(np.concatenate([[self._t], t]))
-                lost += self._losses(step[:n_ok], t, lines[run], events)
-                gaps = steps_s > self.max_gap_s
-                for k in np.flatnonzero(gaps):
-                    events.append(
-                        ClockEvent("gap", float(t[k]), int(lines[i + k]), seconds=float(steps_s[k]))
-                    )
-                times[run], kept[run], fresh[run] = t, True, gaps
-                self._stamp, self._board = int(stamps[i + n_ok - 1]), int(board[n_ok - 1])
+                step = step[:n_ok]
+                board = self._board + np.cumsum(step)
+                t = self._epoch_t + (board - self._epoch_board) / self.units
+                times[run], kept[run] = t, True
+                if step.max() > self.period_units:  # (rare) samples lost, maybe a gap
+                    lost += self._losses(step, t, lines[run], events)
+                    steps_s = np.diff(t, prepend=self._t)
+                    gaps = steps_s > self.max_gap_s
+                    for k in np.flatnonzero(gaps):
+                        at = int(lines[i + k])
+                        events.append(ClockEvent("gap", float(t[k]), at, seconds=steps_s[k]))
+                    fresh[run] = gaps
+                self._stamp, self._board = int(stamps[i + n_ok - 1]), int(board[-1])
                 self._host, self._t = float(host_t[i + n_ok - 1]), float(t[-1])
                 i += n_ok
                 continue

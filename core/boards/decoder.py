@@ -115,7 +115,7 @@ class BoardDecoder:
     # --- hello --------------------------------------------------------------------------
 
     def _hello(self, batch: LineBatch, i: int) -> None:
-        kind, _ = line_kinds(batch.take(slice(i, i + 1)), False)
+        kind, _, _ = line_kinds(batch.take(slice(i, i + 1)), False)
         number = int(batch.numbers[i])
         if kind[0] != HELLO:  # a hello whose checksum does not match, or not text
             self._garbled(int(kind[0]), number, batch.text(i))

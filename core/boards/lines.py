@@ -56,13 +56,16 @@ REASONS = {
     OUT_OF_SEQUENCE: "a stamp that fits neither the line before nor the line after",
 }
 
-_TEXT = np.zeros(256, bool)  # printable ASCII and tab
-_TEXT[32:127] = True
-_TEXT[9] = True
-_NUMBER_CHARS = np.zeros(256, bool)  # what a sample line's content may hold
-_NUMBER_CHARS[[ord(c) for c in "0123456789+-.eE,"]] = True
 _DIGIT = np.zeros(256, bool)
 _DIGIT[ord("0") : ord("9") + 1] = True
+#: per byte: not text (printable ASCII and tab are), not a sample's character, a comma,
+#: not a digit; summed along a line by running counts (:func:`_prefix_counts`)
+_FLAGS = np.ones((256, 4), np.int32)
+_FLAGS[32:127, 0] = _FLAGS[9, 0] = 0
+_FLAGS[[ord(c) for c in "0123456789+-.eE,"], 1] = 0
+_FLAGS[:, 2] = 0
+_FLAGS[ord(","), 2] = 1
+_FLAGS[_DIGIT, 3] = 0
 _HEX = np.full(256, -1, np.int16)
 for _i, _c in enumerate("0123456789ABCDEF"):
     _HEX[ord(_c)] = _i
@@ -167,86 +170,108 @@ class ParsedLines:
     offsets: np.ndarray | None  # (m, C)
 
 
-def line_kinds(batch: LineBatch, checksum_required: bool) -> tuple[np.ndarray, np.ndarray]:
+def _prefix_counts(buf: np.ndarray) -> np.ndarray:
+    """(len(buf) + 1, 4) running counts of the bytes that are not text, not a sample's
+    character, commas, and not digits (:data:`_FLAGS`): a line's counts are two rows apart."""
+    counts = np.zeros((len(buf) + 1, _FLAGS.shape[1]), np.int32)
+    np.cumsum(_FLAGS[buf], axis=0, out=counts[1:])
+    return counts
+
+
+def line_kinds(
+    batch: LineBatch, checksum_required: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Each line's kind before its fields are read (EMPTY, SAMPLE for a digit first, HELLO,
-    COMMENT, or a garbled reason) and where its content ends (before ``*HH``)."""
+    COMMENT, or a garbled reason), where its content ends (before ``*HH``), and the batch's
+    running counts (:func:`_prefix_counts`)."""
     buf, starts, ends = batch.buf, batch.starts, batch.ends
-    n = len(starts)
-    kind = np.full(n, SAMPLE, np.int8)
-    if n == 0:
-        return kind, ends
+    counts = _prefix_counts(buf)
+    if len(starts) == 0:
+        return np.zeros(0, np.int8), ends, counts
+    last = len(buf) - 1
     length = ends - starts
-    safe = np.minimum(starts, max(len(buf) - 1, 0))
-    first = np.where(length > 0, buf[safe], 0)
-    # a checksum: the last `*` of the line
-    stars = np.flatnonzero(buf == 42)
-    last_star = np.searchsorted(stars, ends) - 1
-    star = np.where(last_star >= 0, stars[np.maximum(last_star, 0)] if len(stars) else 0, -1)
-    has_star = (star >= starts) & (last_star >= 0)
-    content_end = np.where(has_star, star, ends)
-    xor = np.concatenate([[0], np.bitwise_xor.accumulate(buf)]) if len(buf) else np.zeros(1)
-    computed = xor[content_end] ^ xor[starts]
-    hi = _HEX[buf[np.minimum(star + 1, len(buf) - 1)]]
-    lo = _HEX[buf[np.minimum(star + 2, len(buf) - 1)]]
-    well_formed = has_star & (ends - star == 3) & (hi >= 0) & (lo >= 0)
-    not_text = np.concatenate([[0], np.cumsum(~_TEXT[buf])]) if len(buf) else np.zeros(1)
-    kind[first == ord("@")] = HELLO
-    kind[first == ord("#")] = COMMENT
-    kind[~_DIGIT[first] & (first != ord("@")) & (first != ord("#"))] = UNKNOWN
-    if checksum_required:
-        kind[~has_star & (kind != COMMENT)] = CHECKSUM_MISSING
-    kind[well_formed & (computed != hi * 16 + lo)] = CHECKSUM
-    kind[has_star & ~well_formed & (kind != COMMENT)] = CHECKSUM_FORM
-    kind[(not_text[ends] - not_text[starts]) > 0] = NOT_TEXT
-    kind[length > MAX_LINE_BYTES] = OVERLONG
-    kind[length == 0] = EMPTY
-    return kind, content_end
+    first = np.where(length > 0, buf[np.minimum(starts, last)], 0)
+    # a checksum is the line's last three bytes: `*`, two hex digits
+    tail = buf[np.clip(ends[:, None] - np.arange(3, 0, -1), 0, last)]  # (n, 3)
+    tail[length < 3] = 0
+    well_formed = (tail[:, 0] == 42) & (_HEX[tail[:, 1]] >= 0) & (_HEX[tail[:, 2]] >= 0)
+    content_end = np.where(well_formed, ends - 3, ends)
+    xor = np.zeros(len(buf) + 1, np.uint8)
+    np.bitwise_xor.accumulate(buf, out=xor[1:])
+    given = _HEX[tail[:, 1]] * 16 + _HEX[tail[:, 2]]
+    not_text = counts[ends, 0] - counts[starts, 0] > 0
+    matches = (xor[content_end] ^ xor[starts]) == given
+    checked = np.where(well_formed, matches, not checksum_required)
+    usual = checked & ~not_text & _DIGIT[first] & (length <= MAX_LINE_BYTES)
+    if usual.all():  # the common read: sample lines, checksums right, nothing odd
+        return np.full(len(starts), SAMPLE, np.int8), content_end, counts
+    comment = first == ord("#")
+    near_star = (tail[:, 1] == 42) | (tail[:, 2] == 42)  # `*` and fewer than two digits
+    kind = np.select(
+        [
+            length == 0,
+            length > MAX_LINE_BYTES,
+            not_text,
+            near_star & ~comment,
+            well_formed & ~matches,
+            ~well_formed & ~comment & checksum_required,
+            comment,
+            first == ord("@"),
+            ~_DIGIT[first],
+        ],
+        [EMPTY, OVERLONG, NOT_TEXT, CHECKSUM_FORM, CHECKSUM, CHECKSUM_MISSING, COMMENT, HELLO,
+         UNKNOWN],
+        SAMPLE,
+    ).astype(np.int8)  # fmt: skip
+    return kind, content_end, counts
 
 
 def parse_lines(batch: LineBatch, hello: BoardHello | None) -> ParsedLines:
     """Classify every line of ``batch`` and read its samples' fields (module docstring);
     ``hello`` None: no hello yet, so sample lines are :data:`BEFORE_HELLO`."""
-    kind, content_end = line_kinds(batch, bool(hello and hello.checksum_required))
-    n_values = len(hello.channels) if hello else 0
+    kind, content_end, counts = line_kinds(batch, bool(hello and hello.checksum_required))
     if hello is None:
         kind[kind == SAMPLE] = BEFORE_HELLO
         return ParsedLines(kind, np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 0)), None)
     buf, starts = batch.buf, batch.starts
-    n_fields = hello.fields
-    commas = np.flatnonzero(buf == 44)
-    count = np.concatenate([[0], np.cumsum(buf == 44)])
-    odd = np.concatenate([[0], np.cumsum(~_NUMBER_CHARS[buf])])
-    sample = kind == SAMPLE
-    kind[sample & (odd[content_end] - odd[starts] > 0)] = CHARACTER
-    sample = kind == SAMPLE
-    kind[sample & (count[content_end] - count[starts] != n_fields - 1)] = FIELDS
+    n_values, n_fields = len(hello.channels), hello.fields
     rows = np.flatnonzero(kind == SAMPLE)
+    within = counts[content_end[rows]] - counts[starts[rows]]  # (m, 4) per line
+    odd, fields = within[:, 1] > 0, within[:, 2] != n_fields - 1
+    kind[rows[odd]] = CHARACTER
+    kind[rows[~odd & fields]] = FIELDS
+    rows = rows[~odd & ~fields]
     # the fields of every sample line: (m, F) starts and ends
-    first_comma = np.searchsorted(commas, starts[rows])
-    at = commas[first_comma[:, None] + np.arange(n_fields - 1)] if n_fields > 1 else None
-    f_start = np.column_stack([starts[rows]] + ([at + 1] if at is not None else []))
-    f_end = np.column_stack(([at] if at is not None else []) + [content_end[rows]])
+    commas = np.flatnonzero(buf == 44)
+    at = commas[np.searchsorted(commas, starts[rows])[:, None] + np.arange(n_fields - 1)]
+    f_start = np.concatenate([starts[rows, None], at + 1], axis=1)
+    f_end = np.concatenate([at, content_end[rows, None]], axis=1)
     width = f_end - f_start
+    stamp_width = width[:, 0]
+    stamp_ok = (stamp_width > 0) & (stamp_width <= MAX_STAMP_DIGITS)
+    stamp_ok &= counts[f_end[:, 0], 3] == counts[f_start[:, 0], 3]  # digits only
     too_wide = (width > MAX_FIELD_CHARS).any(axis=1)
-    digits = np.concatenate([[0], np.cumsum(~_DIGIT[buf])])
-    stamp_ok = (width[:, 0] > 0) & (width[:, 0] <= MAX_STAMP_DIGITS)
-    stamp_ok &= digits[f_end[:, 0]] - digits[f_start[:, 0]] == 0
     kind[rows[too_wide]] = NUMBER
     kind[rows[~too_wide & ~stamp_ok]] = STAMP
     keep = ~too_wide & stamp_ok
     rows, f_start, width = rows[keep], f_start[keep], width[keep]
     table = _field_table(buf, f_start, width)
     stamps = table[:, 0].astype(np.float64)
-    values = np.full((len(rows), n_fields - 1), np.nan)
     filled = width[:, 1:] > 0
-    try:
-        values[filled] = table[:, 1:][filled].astype(np.float64)
-    except ValueError:  # a field that only looks like a number (1-2, e): find it (rare)
+    if filled.all():
+        try:
+            values = table[:, 1:].astype(np.float64)
+        except ValueError:  # a field that only looks like a number (1-2, e): find it (rare)
+            values = np.array([_number(v) for v in table[:, 1:].ravel().tolist()])
+            values = values.reshape(len(rows), n_fields - 1)
+    else:  # an empty field is a channel the board could not read: NaN
+        values = np.full((len(rows), n_fields - 1), np.nan)
         values[filled] = [_number(v) for v in table[:, 1:][filled].tolist()]
     bad = (np.isnan(values) & filled).any(axis=1) | np.isinf(values).any(axis=1)
-    bad |= stamps >= hello.wrap
-    kind[rows[bad & (stamps >= hello.wrap)]] = STAMP
-    kind[rows[bad & (stamps < hello.wrap)]] = NUMBER
+    beyond = stamps >= hello.wrap
+    kind[rows[beyond]] = STAMP
+    kind[rows[bad & ~beyond]] = NUMBER
+    bad |= beyond
     offsets = None
     if hello.offsets_per_line:
         offsets = values[:, n_values:]
@@ -254,9 +279,9 @@ def parse_lines(batch: LineBatch, hello: BoardHello | None) -> ParsedLines:
         kind[rows[wrong]] = OFFSET
         bad |= wrong
         offsets = offsets[~bad]
-    return ParsedLines(
-        kind, rows[~bad], stamps[~bad].astype(np.int64), values[~bad, :n_values], offsets
-    )
+    if bad.any():
+        rows, stamps, values = rows[~bad], stamps[~bad], values[~bad]
+    return ParsedLines(kind, rows, stamps.astype(np.int64), values[:, :n_values], offsets)
 
 
 def _field_table(buf: np.ndarray, f_start: np.ndarray, width: np.ndarray) -> np.ndarray:

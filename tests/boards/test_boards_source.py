@@ -4,8 +4,10 @@ garbled and lost lines counted, a reset survived, a port that is gone said plain
 
 from __future__ import annotations
 
+import socket
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -188,3 +190,54 @@ def read_all_until_done(source, board, n):
             blocks.append(block)
             got += len(block.t)
     return blocks
+
+
+class NetworkBoard:
+    """A board on the network (an ESP32 serving its lines over TCP, pyserial's socket://):
+    each connection waits for the host's `?`, says hello and sends its share of lines, then
+    the first one drops (Wi-Fi lost) and the next one serves the rest."""
+
+    def __init__(self, shares: list[list[str]]) -> None:
+        self.server = socket.create_server(("127.0.0.1", 0))
+        self.port = self.server.getsockname()[1]
+        self.shares = shares
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self._serve, daemon=True)
+        self.thread.start()
+
+    def _serve(self) -> None:
+        self.server.settimeout(10)
+        for i, share in enumerate(self.shares):
+            conn, _ = self.server.accept()
+            with conn:
+                conn.settimeout(5)
+                while b"?" not in conn.recv(64):
+                    pass
+                conn.sendall(("\n".join([hello_line(HELLO), *share]) + "\n").encode())
+                last = i == len(self.shares) - 1
+                self.stop.wait(10 if last else 0.3)  # then the link drops (the last stays)
+
+    def close(self) -> None:
+        self.stop.set()
+        self.server.close()
+        self.thread.join(5)
+
+
+def test_a_board_on_the_network_that_drops_is_reconnected(desk, registry):
+    values = counts(np.full((1000, 4), 80.0))
+    lines = sample_lines(np.arange(1000), values)
+    board = NetworkBoard([lines[:500], lines[700:]])  # 200 sent while the link was down
+    source = open_source(f"serial:socket://127.0.0.1:{board.port}", desk, registry)
+    try:
+        blocks = read_all(source, 800, timeout_s=20)
+    finally:
+        board.close()
+    t = np.concatenate([b.t for b in blocks])
+    stats = source.decoder.stats
+    assert len(t) == 800 and stats.reconnects == 1 and stats.resets == 0
+    # a new epoch after the time the link was away, never bridged
+    away = t[500] - t[499]
+    assert away > desk.estimation.max_gap_s and (np.diff(t) > 0).all()
+    told = [n.message for n in stats.notices if n.kind in ("port", "resume")]
+    assert any("failed" in m for m in told) and any("is back" in m for m in told)
+    assert any("the port was opened again" in m for m in told)

@@ -41,6 +41,7 @@ DEFAULT_PLUGINS: tuple[str, ...] = (
     "hapticdesk.plugins.sim",
     "hapticdesk.plugins.replay",
     "hapticdesk.plugins.can",
+    "hapticdesk.plugins.serial",
     "hapticdesk.plugins.log",
     "hapticdesk.plugins.exec",
     "hapticdesk.plugins.http",

@@ -65,7 +65,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--source",
         required=True,
-        help="sim:SCENE.yaml, replay:FILE (recording or CAN log), can:INTERFACE:CHANNEL",
+        help="sim:SCENE.yaml, replay:FILE (recording or CAN log), can:INTERFACE:CHANNEL, "
+        "serial:PORT[?baud=N] (a board on a serial line)",
     )
     parser.add_argument(
         "--speed",

@@ -258,7 +258,8 @@ class EstimationSettings:
 
 @dataclass(frozen=True)
 class DeskProfile:
-    """A desk: sensors, surfaces, estimation settings, and the optional CAN section."""
+    """A desk: sensors, surfaces, estimation settings, and the optional CAN and serial
+    sections."""
 
     name: str
     sample_rate_hz: float
@@ -266,6 +267,8 @@ class DeskProfile:
     surfaces: tuple[Surface, ...]
     estimation: EstimationSettings = field(default_factory=EstimationSettings)
     can: dict[str, Any] | None = None
+    #: a board on a serial line: port, baud, scales (see hapticdesk.boards.settings)
+    serial: dict[str, Any] | None = None
     path: Path | None = None
     mass_kg: float | None = None  # optional, used by the simulator
     natural_frequency_hz: float | None = None  # optional, used by the simulator

@@ -90,6 +90,7 @@ _TOP_KEYS = {
     "surfaces",
     "estimation",
     "can",
+    "serial",
     "desk",
     "accelerometer",
     "accelerometers",
@@ -159,6 +160,9 @@ def read_profile(doc: MarkedDict, path: Path) -> DeskProfile:
     can = doc.get("can")
     if can is not None:
         can = require_mapping(can, doc.where("can"), "`can`")
+    serial = doc.get("serial")  # read by hapticdesk.boards.settings, when a run uses it
+    if serial is not None:
+        serial = require_mapping(serial, doc.where("serial"), "`serial`")
     mass = natural = com = inertia = None
     if "desk" in doc:
         desk = require_mapping(doc["desk"], doc.where("desk"), "`desk`")
@@ -230,6 +234,7 @@ def read_profile(doc: MarkedDict, path: Path) -> DeskProfile:
         surfaces=surfaces,
         estimation=estimation,
         can=can,
+        serial=serial,
         path=path,
         mass_kg=mass,
         natural_frequency_hz=natural,

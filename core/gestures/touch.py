@@ -71,6 +71,9 @@ class Touch:
         self._ema_w = self._ema_wx = self._ema_wy = 0.0
         self._outliers_since: float | None = None  # start of the current run of outliers
         self.outliers = 0  # samples left out by the gate
+        #: the touch was already down when the stream came back from a gap: its start was
+        #: not seen, so a short rest of it is no tap (:class:`TouchTracker` sets it)
+        self.began_unseen = False
         #: a second finger landed during the touch (the estimator's ``FLAG_MULTI``); the
         #: samples from then on place the fingers' centre of pressure, not a finger, so the
         #: touch's position stays the first finger's
@@ -317,6 +320,8 @@ class TouchTracker:
         self.pressed_n = desk.estimation.contact_force_n  # see Touch.pressed_n
         self._in_contact = False
         self._local_surfaces = [(i, s) for i, s in enumerate(desk.surfaces) if not s.is_desk_xy]
+        self._after_break = False  # the stream broke off (abort): the next block resumes it
+        self._unseen_down = False  # the next down is a contact that was there at the resume
 
     def events(self, block: ContactBlock) -> list[ContactEvent]:
         """The block's contact events (built only from the samples in or just after contact,
@@ -324,6 +329,9 @@ class TouchTracker:
         if len(block) == 0:
             return []
         inc = block.in_contact
+        if self._after_break:
+            self._after_break = False
+            self._unseen_down = bool(inc[0])
         previous = np.concatenate([[self._in_contact], inc[:-1]])
         sub = block.take(np.flatnonzero(inc | previous))
         if self._local_surfaces and len(sub):  # (sub's arrays are copies: taken by index)
@@ -341,6 +349,7 @@ class TouchTracker:
         After an ``up`` the returned touch is complete and no touch is current."""
         if event.kind == "down":
             self.touch = Touch(event.t, self.position_delay_s, self.pressed_n)
+            self.touch.began_unseen, self._unseen_down = self._unseen_down, False
         touch = self.touch
         if touch is not None:
             touch.add(event)
@@ -359,7 +368,9 @@ class TouchTracker:
 
     def abort(self) -> Touch | None:
         """The stream broke off: forget the contact state; returns the touch that was open
-        (without an ``up``: its release was not seen), or None."""
+        (without an ``up``: its release was not seen), or None. A contact already there when
+        the stream resumes starts a touch marked :attr:`Touch.began_unseen`."""
         self._in_contact = False
+        self._after_break = True
         touch, self.touch = self.touch, None
         return touch

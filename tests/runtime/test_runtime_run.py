@@ -75,8 +75,8 @@ def test_status_line_shows_contact_force_and_last_gesture(tmp_path, recording, c
     ("args", "expected"),
     [
         (
-            ["--source", "serial:/dev/ttyUSB0"],
-            "unknown source kind `serial`; installed: can, replay, sim",
+            ["--source", "usb:/dev/ttyUSB0"],
+            "unknown source kind `usb`; installed: can, replay, serial, sim",
         ),
         (["--source", "taps.csv"], "expected KIND:ARGUMENT"),
         (["--source", "replay:nowhere.csv"], "replay: no such file: nowhere.csv"),

@@ -111,8 +111,9 @@ class TapRecognizer(Recognizer):
         return self._single(first, t) if first is not None else []
 
     def _judge(self, touch: Touch, t: float) -> list[GestureEvent]:
-        """A released touch on its own: a tap now, a tap waiting for its double, or nothing."""
-        if not touch.located:
+        """A released touch on its own: a tap now, a tap waiting for its double, or nothing.
+        A touch whose start a gap hid is nothing: its short rest is no tap."""
+        if not touch.located or touch.began_unseen:
             return []
         x, y, _ = touch.best()
         tap_found, tap_region = self.taps.find(x, y, touch.surface, snap=True)

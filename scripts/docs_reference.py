@@ -622,7 +622,8 @@ PROFILE_WORDS = {
         "surfaces": "the planes a finger can touch, each with an outline",
         "estimation": "how contacts are estimated (below); defaults are the paper's",
         "can": "how the sensors' CAN frames are decoded (see Sensors over CAN)",
-        "serial": "a board on a serial line: its channels' timing and scales (see Boards on a serial line)",
+        "serial": "a board on a serial line: its channels' timing and scales "
+        "(see Boards on a serial line)",
         "desk": "the desk itself: `{mass_kg, natural_frequency_hz, center_of_mass_m, "
         "inertia_kg_m2, note}`",
         "accelerometer": "one accelerometer on the desk top (its inertial force is taken out)",
@@ -852,7 +853,8 @@ EXTRA_WORDS = {
     "ui": "the browser page: `hapticdesk ui`, `run --ui`",
     "docs": "this site: `mkdocs serve`, `mkdocs build --strict`",
     "serial": "boards on a serial line: `run --source serial:PORT` (pyserial)",
-    "c3d": "force plates from C3D files: `contacts`, `plot`, `run --source replay:FILE.c3d` (ezc3d)",
+    "c3d": "force plates from C3D files: `contacts`, `plot`, "
+    "`run --source replay:FILE.c3d` (ezc3d)",
     "test": "the test suite and its linters (all of the above)",
 }
 

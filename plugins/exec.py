@@ -25,7 +25,12 @@ from hapticdesk.files.yamlfile import ConfigError, MarkedList, Position
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.plugins.action_options import options_mapping, seconds, text, where
-from hapticdesk.plugins.templating import Template, compile_template, event_variables
+from hapticdesk.plugins.templating import (
+    CHECK_EVENTS,
+    Template,
+    compile_template,
+    event_variables,
+)
 from hapticdesk.runtime.dispatcher import ActionContext
 
 log = logging.getLogger(__name__)
@@ -129,5 +134,10 @@ def _kill_group(pgid: int) -> None:
 @hookimpl
 def register_actions(register: Any) -> None:
     register(
-        "exec", ExecAction, "run a program with templated arguments (no shell)", validate=validate
+        "exec",
+        ExecAction,
+        "run a program with templated arguments (no shell)",
+        validate=validate,
+        check_events=CHECK_EVENTS,
+        operator_only=True,  # a program may read anything: only whoever starts the desk adds one
     )

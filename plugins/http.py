@@ -35,6 +35,7 @@ from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.plugins.action_options import options_mapping, seconds, text, where
 from hapticdesk.plugins.templating import (
+    CHECK_EVENTS,
     Template,
     TemplatedValue,
     compile_template,
@@ -267,6 +268,7 @@ def register_actions(register: Any) -> None:
         HttpAction,
         "call a webhook (standard library, no extra package)",
         validate=validate,
+        check_events=CHECK_EVENTS,
         options={
             "url": {"kind": "text", "required": True, "help": "http(s)://host/path, no password"},
             "method": {"kind": "text", "choices": list(METHODS), "help": "POST by default"},

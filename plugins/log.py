@@ -15,7 +15,12 @@ from hapticdesk.files.yamlfile import Position
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.plugins.action_options import options_mapping, text, where
-from hapticdesk.plugins.templating import Template, compile_template, event_variables
+from hapticdesk.plugins.templating import (
+    CHECK_EVENTS,
+    Template,
+    compile_template,
+    event_variables,
+)
 from hapticdesk.runtime.dispatcher import ActionContext
 
 _print_lock = threading.Lock()  # lines from several action threads must not interleave
@@ -63,6 +68,7 @@ def register_actions(register: Any) -> None:
         LogAction,
         "print a line for each gesture",
         validate=validate,
+        check_events=CHECK_EVENTS,
         options={
             "message": {
                 "kind": "text",

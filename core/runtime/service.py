@@ -34,6 +34,7 @@ from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.runtime.assembly import Assembly, build_routes, build_scene, load_scene_layout
 from hapticdesk.runtime.control import ControlCommand, ControlError
 from hapticdesk.runtime.dispatcher import DispatchReport
+from hapticdesk.runtime.operator_secrets import OperatorSecrets
 
 __all__ = [
     "Assembly",
@@ -151,6 +152,11 @@ class Runtime:
             "default": Path(self.layout_path),
             **getattr(scene.layout, "named_layouts", {}),
         }
+        #: what the layouts the run started with read from the environment and files, run
+        #: and connect to: a reload may not add or change any of it
+        self.operator_secrets = OperatorSecrets.from_start(
+            scene.layout.raw, Path(self.layout_path), scene.registry, self.named_layouts
+        )
 
     # --- control: what the desk can be told while it runs ------------------------------------
 
@@ -218,6 +224,15 @@ class Runtime:
 
         scene, context = self.scene, self.scene.context
         layout, profile = load_scene_layout(path, scene.registry, scene.desk_override)
+        refused = self.operator_secrets.refusal(
+            layout.raw,
+            Path(path),
+            scene.registry,
+            "a reload (SIGHUP, `reload` or `layout` on MQTT, a save from the browser UI)",
+            "restart the desk to use it",
+        )
+        if refused is not None:
+            raise refused
         if _desk_key(profile) != _desk_key(scene.profile):
             raise ConfigError(
                 str(path),

@@ -24,7 +24,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from hapticdesk.files.yamlfile import ConfigError, reads_confined_to
+from hapticdesk.files.yamlfile import ConfigError, load_marked_yaml, reads_confined_to
 from hapticdesk.plugins.ui.layout_edit import desk_message, message_error
 from hapticdesk.plugins.ui.layout_edit import error_dict as error_of
 
@@ -132,6 +132,13 @@ class UiServer:
         self._registry = registry
         self.host, self.port = host, port
         self._read_roots: list[Path] | None = None  # (see _confined)
+        # the layout as the operator started with it: what a page may not add to or change
+        # (read now; its held parts are made once the run's registry is known)
+        try:
+            self._started_doc: Any = load_marked_yaml(self.layout_path)
+        except ConfigError:
+            self._started_doc = None
+        self._secrets: Any = None
         self.token = token
         self.desk = desk  # a DeskProfile overriding the layout's desk:, or None
         self.read_only = read_only  # the shipped demo layout: shown, never written
@@ -573,15 +580,36 @@ class UiServer:
         return [], desk_message(profile, layout, live=False)["regions"]
 
     def _check(self, text: str) -> list[dict[str, Any]]:
-        """What `check` says of ``text``, then whether it adds or changes an exec action."""
-        from hapticdesk.plugins.ui.layout_edit import exec_added
-
+        """What `check` says of ``text``, then whether it adds or changes what only the
+        operator may (:mod:`hapticdesk.runtime.operator_secrets`): compared with the layout
+        file as it was when this server started, not as the last save left it."""
         try:  # (loaded once, for both)
             layout, _ = self._load_sent(text)
         except ConfigError as err:
             return [error_of(err)]
-        with self._confined():
-            return exec_added(self.layout_path, layout, self.registry, self.desk)
+        refused = self._operator_secrets().refusal(
+            layout.raw,
+            self.layout_path,
+            self.registry,
+            "the page",
+            "edit the layout file by hand and restart the desk",
+        )
+        return [] if refused is None else [error_of(refused)]
+
+    def _operator_secrets(self) -> Any:
+        from hapticdesk.runtime.operator_secrets import OperatorSecrets
+
+        if self._secrets is None:
+            doc = self._started_doc if isinstance(self._started_doc, dict) else {}
+            named = {}
+            layouts = doc.get("layouts")
+            if isinstance(layouts, dict):
+                named = {
+                    str(k): self.layout_path.parent / Path(str(v)).expanduser()
+                    for k, v in layouts.items()
+                }
+            self._secrets = OperatorSecrets.from_start(doc, self.layout_path, self.registry, named)
+        return self._secrets
 
     def _load_sent(self, text: str) -> Any:
         """``text``, a layout the page sent, loaded as `check` would as the layout file (its

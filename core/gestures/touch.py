@@ -318,6 +318,16 @@ class TouchTracker:
         self._in_contact = False
         self._local_surfaces = [(i, s) for i, s in enumerate(desk.surfaces) if not s.is_desk_xy]
 
+    @property
+    def in_contact(self) -> bool:
+        """Whether the last sample seen was in contact."""
+        return self._in_contact
+
+    def join_contact(self) -> None:
+        """Take the stream as in contact already: the contact going on makes no ``down``, so
+        no touch, until it ends and a new one begins."""
+        self._in_contact = True
+
     def events(self, block: ContactBlock) -> list[ContactEvent]:
         """The block's contact events (built only from the samples in or just after contact,
         so long quiet stretches cost one vectorised pass)."""

@@ -50,6 +50,8 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 STATUS_INTERVAL_S = 0.1
+#: the longest a reloaded layout waits (sample time) for the touch in progress to end
+MAX_SWAP_WAIT_S = 30.0
 
 
 @dataclass
@@ -146,6 +148,8 @@ class Runtime:
         #: gestures are recognised but not sent while paused (``pause`` / ``resume``)
         self.paused = False
         self._t_last: float | None = None  # the last sample time sensed (to flush an engine)
+        #: a reloaded layout built and waiting for the touch in progress to end
+        self._waiting: _WaitingLayout | None = None
         self.layout_path = scene.layout_path or scene.layout.path
         #: the layouts ``layout NAME`` switches among (from the layout the run started with)
         self.named_layouts: dict[str, Path] = {
@@ -260,16 +264,9 @@ class Runtime:
                 recognizer_types=scene.registry.recognizer_types(),
                 position_delay_s=scene.estimator.position_delay_s,
             )
-            scene.estimator.use_second_finger(
-                scene.profile.estimation.second_finger or engine.needs_second_finger
-            )
         except BaseException:
             context.layout, context.settings, context.layout_path = before
             raise
-        if self._t_last is not None:  # what the old layout was deciding (a tap) is decided
-            self._emit(scene.engine.flush(self._t_last))
-        scene.dispatcher.replace_routes(routes, self.drain_timeout_s)
-        scene.engine, scene.layout = engine, layout
         what = f"layout `{name}` ({path})" if name else f"reloaded {path}"
         line = f"{what}: {len(layout.bindings)} bindings; the zero and connections are kept"
         # shared connections were opened from the first layout's sections and are kept
@@ -283,7 +280,43 @@ class Runtime:
                 f" ({', '.join(changed)} changed: its connection settings take effect at the "
                 "next start)"
             )
+        if self._waiting is not None:  # a newer layout replaces one still waiting
+            _close_routes(self._waiting.routes)
+        self._waiting = _WaitingLayout(layout, engine, routes, self._t_last)
+        if not self._take_waiting_layout():
+            line += "; it takes over when the touch in progress ends"
         return line
+
+    def _take_waiting_layout(self) -> bool:
+        """Swap in the layout a reload built, if any, once the running engine is idle: a
+        touch finishes under the layout it began in (a reload during a 3 s hold had fired a
+        second long press, and a toggle bound to it twice). A touch still held
+        :data:`MAX_SWAP_WAIT_S` of sample time after the reload is cancelled (phase
+        `cancel`, never a release) and the new layout taken. True when swapped (or nothing
+        waited)."""
+        waiting, scene = self._waiting, self.scene
+        if waiting is None:
+            return True
+        if not scene.engine.idle:
+            asked, now = waiting.asked_t, self._t_last
+            if asked is None or now is None or now - asked < MAX_SWAP_WAIT_S:
+                return False
+            log.warning(
+                "control: a touch was still held %g s after the reload; it is cancelled and "
+                "the new layout taken",
+                MAX_SWAP_WAIT_S,
+            )
+            self._emit(scene.engine.cancel(now))
+            waiting.engine.join_contact()  # (the held finger is nobody's new touch)
+        if self._t_last is not None:  # what the old layout was deciding is decided
+            self._emit(scene.engine.flush(self._t_last))
+        scene.estimator.use_second_finger(
+            scene.profile.estimation.second_finger or waiting.engine.needs_second_finger
+        )
+        scene.dispatcher.replace_routes(waiting.routes, self.drain_timeout_s)
+        scene.engine, scene.layout = waiting.engine, waiting.layout
+        self._waiting = None
+        return True
 
     def stop(self, reason: str = "request", *, force: bool = False) -> None:
         """Ask the run to end; ``force`` skips waiting for queued commands."""
@@ -375,6 +408,9 @@ class Runtime:
                 # (it logs its own notices)
                 contacts = scene.estimator.push(block.t, block.wrench, block.accel)
                 self._emit(scene.engine.feed(contacts))
+                if self._waiting is not None:  # (at block ends only: never half a touch)
+                    self._t_last = float(block.t[-1])
+                    self._take_waiting_layout()
                 self._update_live(contacts)
                 if scene.observers:
                     scene.observers(contacts, scene.estimator.zero)
@@ -395,7 +431,11 @@ class Runtime:
         self._end_sensing(t_first, t_last)
 
     def _end_sensing(self, t_first: float | None, t_last: float | None) -> None:
-        """The samples' time span into the report, and the engine flushed at the last one."""
+        """The samples' time span into the report, and the engine flushed at the last one
+        (a reloaded layout still waiting for a touch to end is dropped)."""
+        if self._waiting is not None:
+            _close_routes(self._waiting.routes)
+            self._waiting = None
         if t_first is not None and t_last is not None:
             self.report.sample_time_s = t_last - t_first
             self._emit(self.scene.engine.flush(t_last))
@@ -491,6 +531,22 @@ class Runtime:
         finally:
             for s, handler in previous.items():
                 signal.signal(s, handler)
+
+
+@dataclass
+class _WaitingLayout:
+    """A reloaded layout, built and checked, waiting for the running engine to be idle."""
+
+    layout: Any
+    engine: Any
+    routes: list[Any]
+    asked_t: float | None  # the sample time of the reload
+
+
+def _close_routes(routes: list[Any]) -> None:
+    for route in routes:
+        for lane in route.lanes:
+            lane.close(0.0)
 
 
 def _desk_key(profile: DeskProfile) -> tuple[Any, ...]:

@@ -408,18 +408,17 @@ class UiServer:
                     status_code=403,
                 )
             text = await body_text(request)
-            errors = await asyncio.to_thread(self._check, text)
+            errors, new_layout = await asyncio.to_thread(self._check, text)
             if errors:
                 return JSONResponse({"ok": False, "errors": errors}, status_code=422)
             await asyncio.to_thread(save_layout_text, self.layout_path, text)
             reloaded = False
-            new_layout = None
             runtime = self.runtime
             if runtime is not None:
-                try:  # the sensing thread swaps it in between two blocks, then answers
+                try:  # the sensing thread builds it between two blocks, then answers; it
+                    # takes over once no touch is in progress
                     await asyncio.to_thread(runtime.reload, 10.0)
                     reloaded = True
-                    new_layout = runtime.scene.layout
                 except ConfigError as err:  # e.g. an action that cannot be set up now
                     return JSONResponse(
                         {"ok": False, "errors": [error_of(err)], "saved": True}, status_code=422
@@ -579,14 +578,15 @@ class UiServer:
             return [error_of(err)], None
         return [], desk_message(profile, layout, live=False)["regions"]
 
-    def _check(self, text: str) -> list[dict[str, Any]]:
+    def _check(self, text: str) -> tuple[list[dict[str, Any]], Any]:
         """What `check` says of ``text``, then whether it adds or changes what only the
         operator may (:mod:`hapticdesk.runtime.operator_secrets`): compared with the layout
-        file as it was when this server started, not as the last save left it."""
+        file as it was when this server started, not as the last save left it. The errors,
+        and the layout when there are none."""
         try:  # (loaded once, for both)
             layout, _ = self._load_sent(text)
         except ConfigError as err:
-            return [error_of(err)]
+            return [error_of(err)], None
         refused = self._operator_secrets().refusal(
             layout.raw,
             self.layout_path,
@@ -594,7 +594,7 @@ class UiServer:
             "the page",
             "edit the layout file by hand and restart the desk",
         )
-        return [] if refused is None else [error_of(refused)]
+        return ([], layout) if refused is None else ([error_of(refused)], None)
 
     def _operator_secrets(self) -> Any:
         from hapticdesk.runtime.operator_secrets import OperatorSecrets

@@ -32,7 +32,7 @@ from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.runtime.assembly import Assembly, build_routes, build_scene, load_scene_layout
-from hapticdesk.runtime.control import ControlCommand, ControlError
+from hapticdesk.runtime.control import MAX_PAUSE_S, ControlCommand, ControlError, pause_seconds
 from hapticdesk.runtime.dispatcher import DispatchReport
 from hapticdesk.runtime.operator_secrets import OperatorSecrets
 
@@ -145,8 +145,10 @@ class Runtime:
         #: estimator (a set-up check recording raw samples); each must be O(1): keep a
         #: reference, never copy or wait. Replaced whole (a tuple), never changed in place.
         self.block_taps: tuple[Any, ...] = ()
-        #: gestures are recognised but not sent while paused (``pause`` / ``resume``)
+        #: gestures are recognised but not sent while paused (``pause`` / ``resume``), until
+        #: ``_paused_until`` (monotonic time) at the latest
         self.paused = False
+        self._paused_until: float | None = None
         self._t_last: float | None = None  # the last sample time sensed (to flush an engine)
         #: a reloaded layout built and waiting for the touch in progress to end
         self._waiting: _WaitingLayout | None = None
@@ -204,10 +206,16 @@ class Runtime:
             self.live.tared = False
             return f"re-taring: keep the desk still for {scene.profile.estimation.tare_s:g} s"
         if cmd.name == "pause":
+            seconds = pause_seconds(cmd.argument) if cmd.argument is not None else MAX_PAUSE_S
             self.paused = self.live.paused = True
-            return "paused: gestures are recognised but not sent (sensing and the zero go on)"
+            self._paused_until = time.monotonic() + seconds
+            return (
+                f"paused for {seconds:g} s: gestures are recognised but not sent (sensing and "
+                "the zero go on); `resume` ends it sooner"
+            )
         if cmd.name == "resume":
             self.paused = self.live.paused = False
+            self._paused_until = None
             return "resumed: gestures are sent again"
         if cmd.name == "reload":
             return self._use_layout(Path(scene.context.layout_path or self.layout_path))
@@ -318,6 +326,12 @@ class Runtime:
         self._waiting = None
         return True
 
+    def _end_pause(self) -> None:
+        """A pause that reached its length ends by itself (the log says so)."""
+        self.paused = self.live.paused = False
+        self._paused_until = None
+        log.warning("control: the pause ended by itself; gestures are sent again")
+
     def stop(self, reason: str = "request", *, force: bool = False) -> None:
         """Ask the run to end; ``force`` skips waiting for queued commands."""
         if self.report.stopped_by is None:
@@ -401,6 +415,8 @@ class Runtime:
                 if self._stop.is_set():
                     break
                 self.apply_control()  # between blocks: a command never sees half a block
+                if self._paused_until is not None and time.monotonic() >= self._paused_until:
+                    self._end_pause()
                 if len(block.t) == 0:
                     continue
                 if t_first is None:
@@ -413,7 +429,7 @@ class Runtime:
                     self._take_waiting_layout()
                 self._update_live(contacts)
                 if scene.observers:
-                    scene.observers(contacts, scene.estimator.zero)
+                    scene.observers(contacts, scene.estimator.zero, paused=self.paused)
                 for tap in self.block_taps:
                     tap(block.t, block.wrench)
                 self.report.samples += len(block.t)

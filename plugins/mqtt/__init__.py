@@ -328,17 +328,18 @@ def desk_state(context: ActionContext) -> Any:
 @hookimpl
 def contact_sink(layout: Any, context: ActionContext) -> Any:
     """With ``discovery: true``: force, touch position, resting load and occupancy on the
-    desk's state topic, throttled (:mod:`.sensors`), for Home Assistant's sensors."""
+    desk's state topic, throttled (:mod:`.sensors`), for Home Assistant's sensors; with or
+    without it, ``paused`` there when the desk is paused or resumed."""
     if not uses_mqtt(layout.raw, layout.bindings, broker_override(context)):
         return None
     link = link_for(context)
-    if not link.settings.discovery:
-        return None
     from hapticdesk.plugins.mqtt.sensors import SensorPublisher
 
     topic = link.settings.desk_prefix(context.desk_name)
     return SensorPublisher(
-        desk_state(context), lambda payload: link.publish(topic, payload, qos=0, retain=False)
+        desk_state(context),
+        lambda payload: link.publish(topic, payload, qos=0, retain=False),
+        sensors=link.settings.discovery,
     )
 
 

@@ -57,7 +57,9 @@ class ActionContext:
     command-line values over a section, by section name (``run --mqtt URL`` gives
     ``{"mqtt": {"broker": URL}}``). :meth:`shared` lets all actions of a run share one
     resource (one MQTT connection); resources are closed at the end, newest first, each with
-    ``close(timeout)``: how long it may still take to deliver what it holds.
+    ``close(timeout)``: how long it may still take to deliver what it holds; after closing,
+    its ``failure`` (text) says what went wrong and ``undelivered`` (int) how many messages
+    it was handed but never delivered.
     """
 
     def __init__(
@@ -80,6 +82,9 @@ class ActionContext:
         self._lock = threading.Lock()
         # what shared resources said went wrong when they closed (a run then exits non-zero)
         self.failures: list[str] = []
+        #: messages the shared resources were handed but could not deliver (a connection's
+        #: ``undelivered`` after closing: the broker was never there)
+        self.undelivered = 0
 
     def resolve_path(self, path: str | Path) -> Path:
         """A path from the layout, relative to the layout file's folder."""
@@ -126,6 +131,9 @@ class ActionContext:
             failure = getattr(resource, "failure", None)  # e.g. commands not delivered
             if isinstance(failure, str) and failure:
                 self.failures.append(failure)
+            undelivered = getattr(resource, "undelivered", 0)
+            if isinstance(undelivered, int) and not isinstance(undelivered, bool):
+                self.undelivered += max(0, undelivered)
         self._resources.clear()
         return notes
 

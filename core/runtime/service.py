@@ -16,6 +16,7 @@ import collections
 import contextlib
 import json
 import logging
+import os
 import signal
 import sys
 import threading
@@ -94,12 +95,26 @@ class RunReport:
     gestures: collections.Counter[str] = field(default_factory=collections.Counter)
     dispatch: DispatchReport = field(default_factory=DispatchReport)
     notes: list[str] = field(default_factory=list)
+    #: optional outputs that could not be written (``--events`` on a full disk), one line each
+    output_failures: list[str] = field(default_factory=list)
+    #: messages the actions handed to a connection that never delivered them
+    undelivered: int = 0
     stopped_by: str | None = None  # a signal's name, or None when the source ended
     error: str | None = None
 
     @property
     def gesture_count(self) -> int:
         return sum(self.gestures.values())
+
+    def _done(self, ok: int) -> str:
+        """The calls that returned: "done" only when their connection delivered everything
+        (without a broker the summary had said "57 done" with nothing delivered)."""
+        if not self.undelivered:
+            return f"{ok} done"
+        return (
+            f"{ok} handed to their connection, which did NOT deliver {self.undelivered} "
+            "message(s) (see below)"
+        )
 
     def summary(self) -> list[str]:
         d = self.dispatch.totals
@@ -115,7 +130,7 @@ class RunReport:
                 if self.gestures
                 else ""
             ),
-            f"actions: {d.ok} done, {d.failed} failed, {d.timed_out} timed out, "
+            f"actions: {self._done(d.ok)}, {d.failed} failed, {d.timed_out} timed out, "
             f"{d.dropped} dropped, {d.not_run} not run",
         ]
         return lines + self.notes + ([f"error: {self.error}"] if self.error else [])
@@ -141,6 +156,8 @@ class Runtime:
         self._stop = threading.Event()
         self._force = False
         self._events_out: IO[str] | None = None
+        self._events_error: str | None = None  # why --events could not be written, once
+        self._events_written = self._events_unwritten = self._events_bytes = 0
         #: callables given every block's ``(t, wrench)`` on the sensing thread, after the
         #: estimator (a set-up check recording raw samples); each must be O(1): keep a
         #: reference, never copy or wait. Replaced whole (a tuple), never changed in place.
@@ -372,14 +389,19 @@ class Runtime:
             if self._events_out is not None:
                 try:
                     self._events_out.close()
-                except OSError as err:  # (what was left in its buffer: the disk is still full)
-                    self.report.error = self.report.error or str(self._events_failed(err))
+                except OSError as err:  # (what was left in its buffer: the disk is full)
+                    self._events_lost(err)
+                self._events_out = None
+            if self._events_error is not None:
+                self.report.output_failures.append(self._events_summary())
+                self.report.notes.append(self.report.output_failures[-1])
             # queued commands get drain_timeout_s in all: first the actions' own queues, then
             # the shared connections they handed their messages to
             deadline = time.monotonic() + (0.0 if self._force else self.drain_timeout_s)
             self.report.dispatch = scene.dispatcher.close(max(0.0, deadline - time.monotonic()))
             remaining = 0.0 if self._force else max(0.0, deadline - time.monotonic())
             self.report.notes.extend(scene.context.close_resources(remaining))
+            self.report.undelivered = scene.context.undelivered
         scene.source.close()
         for cmd, future in scene.control.take():  # asked for after the last block
             future.set_exception(ControlError(f"`{cmd}`: the run has ended"))
@@ -396,7 +418,7 @@ class Runtime:
             self._sense()
         except ConfigError as err:  # e.g. a bad line in a replayed file
             self.report.error = str(err)
-        except OSError as err:  # e.g. the events file's disk is full
+        except OSError as err:  # e.g. a source's device went away
             where = f"{err.filename}: " if err.filename else ""
             self.report.error = f"{where}{err.strerror or err}"
         except Exception as err:  # a bug: one line for the user, still shut down cleanly
@@ -460,20 +482,59 @@ class Runtime:
         if self.paused:  # recognised (the engine's state stays right) but not sent
             return
         for event in events:
-            if self._events_out is not None:
-                try:
-                    self._events_out.write(event.to_json() + "\n")
-                    self._events_out.flush()
-                except OSError as err:  # (a full disk: /dev/full, a quota)
-                    raise self._events_failed(err) from None
+            self._write_event(event)
             self.scene.dispatcher.submit(event)
             self.report.gestures[event.gesture] += 1
             self.live.last_gesture = f"{event.action_name} at {event.t:.2f} s"
             self.live.gestures += 1
 
-    def _events_failed(self, err: OSError) -> ConfigError:
-        """The error for an events file that could not be written (``--events``)."""
-        return ConfigError(str(self.events_path), f"cannot write the events: {err.strerror or err}")
+    def _write_event(self, event: GestureEvent) -> None:
+        """One line of ``--events``. The file is optional: when it cannot be written (a full
+        disk, a quota) it is said once, cut back to its last whole line and dropped, and the
+        events not written are counted; sensing and the actions go on (a full disk had
+        stopped the desk)."""
+        if self._events_out is None:
+            if self._events_error is not None:
+                self._events_unwritten += 1
+            return
+        line = event.to_json() + "\n"
+        try:
+            self._events_out.write(line)
+            self._events_out.flush()
+        except OSError as err:  # (a full disk: /dev/full, a quota)
+            self._events_lost(err)
+            self._events_unwritten += 1
+            return
+        self._events_written += 1
+        self._events_bytes += len(line.encode("utf-8"))
+
+    def _events_lost(self, err: OSError) -> None:
+        """``--events`` failed: said once, its last half line cut off, the file dropped."""
+        if self._events_error is None:
+            self._events_error = err.strerror or str(err)
+            log.error(
+                "%s: cannot write the events (%s); sensing and the actions go on, the "
+                "events from now on are not written",
+                self.events_path,
+                self._events_error,
+            )
+        out, self._events_out = self._events_out, None
+        if out is not None:
+            try:
+                out.close()
+            except OSError:
+                pass  # (its buffer could not be written either)
+        try:  # a reader finds whole events only
+            if self.events_path is not None and self.events_path.is_file():
+                os.truncate(self.events_path, self._events_bytes)
+        except OSError:
+            pass
+
+    def _events_summary(self) -> str:
+        return (
+            f"{self.events_path}: cannot write the events ({self._events_error}): "
+            f"{self._events_written} written (whole lines), {self._events_unwritten} not"
+        )
 
     def _update_live(self, contacts: ContactBlock) -> None:
         live = self.live
@@ -585,6 +646,7 @@ def report_json(report: RunReport) -> str:
                 "timed_out": d.timed_out,
                 "dropped": d.dropped,
                 "not_run": d.not_run,
+                "undelivered": report.undelivered,
             },
             "notes": report.notes,
             "stopped_by": report.stopped_by,

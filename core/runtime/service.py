@@ -169,6 +169,7 @@ class Runtime:
         self._t_last: float | None = None  # the last sample time sensed (to flush an engine)
         #: a reloaded layout built and waiting for the touch in progress to end
         self._waiting: _WaitingLayout | None = None
+        self._tared_once = False  # the zero was taken at some block (else the run says so)
         self.layout_path = scene.layout_path or scene.layout.path
         #: the layouts ``layout NAME`` switches among (from the layout the run started with)
         self.named_layouts: dict[str, Path] = {
@@ -470,7 +471,15 @@ class Runtime:
 
     def _end_sensing(self, t_first: float | None, t_last: float | None) -> None:
         """The samples' time span into the report, and the engine flushed at the last one
-        (a reloaded layout still waiting for a touch to end is dropped)."""
+        (a reloaded layout still waiting for a touch to end is dropped). A run whose zero
+        was never taken says so: no gesture could be recognised (a damaged CAN log had ended
+        with 0 taps and nothing said)."""
+        if t_first is not None and t_last is not None and not self._tared_once:
+            self.report.notes.append(
+                f"the desk was never tared in {t_last - t_first:.1f} s of samples: no gesture "
+                "could be recognised (the tare needs a still desk and whole samples; see the "
+                "warnings above)"
+            )
         if self._waiting is not None:
             _close_routes(self._waiting.routes)
             self._waiting = None
@@ -544,6 +553,7 @@ class Runtime:
         if contacts.located[-1]:
             live.x, live.y = float(contacts.x[-1]), float(contacts.y[-1])
         live.tared = not bool(contacts.flags[-1] & FLAG_NOT_TARED)
+        self._tared_once = self._tared_once or live.tared
         located = bool(contacts.located[-1])
         live.sample = (
             live.t,

@@ -131,38 +131,26 @@ class ActionType(Registered):
 
     def check(self, options: Any, position: Position | str) -> None:
         """Run the plugin's validation; a crash in it is reported as the plugin's fault."""
-        if self.validate is None:
-            return
-        try:
-            validator = resolve(self.validate)
-        except (ImportError, AttributeError) as err:
-            raise PluginError(
-                f"the validator of action `{self.name}` from plugin `{self.plugin}` cannot be "
-                f"loaded: {type(err).__name__}: {err}"
-            ) from err
-        _judged_by_plugin(
-            lambda: validator(options, position), position, self.plugin, f"action `{self.name}`"
-        )
+        self._judge(self.validate, "validator", position, options, position)
 
     def check_for_events(
         self, options: Any, position: Position | str, events: list[Any], desk: str
     ) -> None:
         """Run the plugin's ``check_events`` for the events a binding can make (if any)."""
-        if self.check_events is None:
+        self._judge(self.check_events, "event check", position, options, position, events, desk)
+
+    def _judge(self, ref: Any, what: str, position: Position | str, *args: Any) -> None:
+        """Call the plugin's ``ref`` (None: nothing to do) with ``args``, as its judgement."""
+        if ref is None:
             return
         try:
-            checker = resolve(self.check_events)
+            judge = resolve(ref)
         except (ImportError, AttributeError) as err:
             raise PluginError(
-                f"the event check of action `{self.name}` from plugin `{self.plugin}` cannot "
-                f"be loaded: {type(err).__name__}: {err}"
+                f"the {what} of action `{self.name}` from plugin `{self.plugin}` cannot be "
+                f"loaded: {type(err).__name__}: {err}"
             ) from err
-        _judged_by_plugin(
-            lambda: checker(options, position, events, desk),
-            position,
-            self.plugin,
-            f"action `{self.name}`",
-        )
+        _judged_by_plugin(lambda: judge(*args), position, self.plugin, f"action `{self.name}`")
 
 
 @dataclass(frozen=True)

@@ -325,16 +325,23 @@ class WorkerPool:
 
     def _start_spare(self) -> None:
         try:
-            worker = _Worker()
+            worker = self._new_worker()
+        except OSError:
+            return
+        with self._cond:
+            self._idle.append(worker)
+            self._cond.notify_all()
+
+    def _new_worker(self) -> _Worker:
+        """A started worker (already counted); OSError, said in :attr:`unavailable`."""
+        try:
+            return _Worker()
         except OSError as err:
             with self._cond:
                 self._count -= 1
                 self.unavailable = str(err)
                 self._cond.notify_all()
-            return
-        with self._cond:
-            self._idle.append(worker)
-            self._cond.notify_all()
+            raise
 
     def _take(self) -> _Worker:
         with self._cond:
@@ -349,14 +356,7 @@ class WorkerPool:
                     self._count += 1
                     break
                 self._cond.wait(0.5)
-        try:
-            return _Worker()
-        except OSError as err:
-            with self._cond:
-                self._count -= 1
-                self.unavailable = str(err)
-                self._cond.notify_all()
-            raise
+        return self._new_worker()
 
     def _give_back(self, worker: _Worker) -> None:
         with self._cond:

@@ -15,18 +15,18 @@ import subprocess
 import sys
 import time
 from pathlib import Path
-from types import SimpleNamespace
 
 import pytest
 
 from hapticdesk.files.recording import write_recording
 from hapticdesk.files.yamlfile import ConfigError, load_marked_yaml
-from hapticdesk.hookspecs import hookimpl
 from hapticdesk.registry import load_registry
 from hapticdesk.runtime.operator_secrets import OperatorSecrets, held_parts, reads_of
+from hapticdesk.runtime.service import Runtime
 
+from .scripted import answer_into, scripted_run
 from .taps import Tap, tap_recording
-from .test_runtime_control import ScriptedSource, write_layout
+from .test_runtime_control import write_layout
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 LOCAL = "http://127.0.0.1:8765"
@@ -144,37 +144,15 @@ def _run_with_reload(
     """A desk tapping on `lamp` for 4 s; at 2.0 s `change(layout_path)` rewrites a layout
     file and a reload is asked for (the control queue SIGHUP and MQTT's /set use). Returns
     the tapped regions and the reload's answers."""
-    from hapticdesk.runtime.assembly import build_scene
-    from hapticdesk.runtime.service import Runtime
-
     path = write_layout(tmp_path / "a.yaml", "lamp", extra)
     recording = tap_recording(paper_desk, [Tap(1.5 + 0.5 * k, 0.0, 0.0) for k in range(5)], 4.5)
     answers: list[str] = []
-    holder: dict[str, Runtime] = {}
 
-    def reload() -> None:
-        command = change(path)
-        future = holder["rt"].request(*command)
-        future.add_done_callback(
-            lambda f: answers.append(str(f.exception()) if f.exception() else f.result())
-        )
+    def reload(runtime: Runtime) -> None:
+        runtime.request(*change(path)).add_done_callback(answer_into(answers))
 
-    source = ScriptedSource(recording, {2.0: reload})
-    plugin = SimpleNamespace(
-        register_sources=hookimpl(
-            lambda register: register("scripted", lambda argument, profile, **o: source)
-        )
-    )
-    registry = load_registry(entry_points=False, plugins=[("scripted", plugin)])
-    events = tmp_path / "events.jsonl"
-    runtime = holder["rt"] = Runtime(
-        build_scene(path, "scripted:", registry, speed=0), events_path=events
-    )
-    assert runtime.run(handle_signals=False).error is None
-    import json
-
-    regions = [json.loads(line)["region"] for line in events.read_text().splitlines()]
-    return regions, answers
+    _, events = scripted_run(path, recording, {2.0: reload}, tmp_path / "events.jsonl")
+    return [e["region"] for e in events], answers
 
 
 def test_a_reload_may_not_add_what_reads_the_environment(tmp_path: Path, paper_desk) -> None:

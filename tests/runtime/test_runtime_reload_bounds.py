@@ -8,7 +8,6 @@ every reload kept its replaced lanes for good: 751 reloads, +16 MB."""
 from __future__ import annotations
 
 import gc
-import json
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -21,8 +20,8 @@ from hapticdesk.runtime.dispatcher import MAX_RETIRED_LABELS
 from hapticdesk.runtime.service import MAX_SWAP_WAIT_S, Runtime
 from hapticdesk.runtime.source import Source, WrenchBlock
 
+from .scripted import answer_into, rss_kb, scripted_run
 from .taps import Tap, tap_recording
-from .test_runtime_control import ScriptedSource
 
 HOLD_LAYOUT = """\
 desk: kitamura2017
@@ -39,27 +38,16 @@ bindings:
 def _events(tmp_path: Path, paper_desk, taps: list[Tap], script: dict, seconds: float):
     path = tmp_path / "hold.yaml"
     path.write_text(HOLD_LAYOUT)
-    recording = tap_recording(paper_desk, taps, seconds)
-    holder: dict[str, Runtime] = {}
     answers: list[str] = []
-
-    def ask(command: str) -> None:
-        future = holder["rt"].request(command)
-        future.add_done_callback(lambda f: answers.append(f.result()))
-
-    source = ScriptedSource(recording, {t: (lambda c=c: ask(c)) for t, c in script.items()})
-    plugin = SimpleNamespace(
-        register_sources=hookimpl(
-            lambda register: register("scripted", lambda argument, profile, **o: source)
-        )
+    runtime, events = scripted_run(
+        path,
+        tap_recording(paper_desk, taps, seconds),
+        {
+            t: (lambda rt, c=c: rt.request(c).add_done_callback(answer_into(answers)))
+            for t, c in script.items()
+        },
+        tmp_path / "events.jsonl",
     )
-    registry = load_registry(entry_points=False, plugins=[("scripted", plugin)])
-    events_path = tmp_path / "events.jsonl"
-    runtime = holder["rt"] = Runtime(
-        build_scene(path, "scripted:", registry, speed=0), events_path=events_path
-    )
-    assert runtime.run(handle_signals=False).error is None
-    events = [json.loads(line) for line in events_path.read_text().splitlines()]
     return [(e["gesture"], e.get("phase"), e.get("level")) for e in events], answers, runtime
 
 
@@ -126,7 +114,7 @@ class _Reloading(Source):
                 self.runtime.request("reload")
             if k in (70, self.count + 19):
                 gc.collect()
-                self.rss_kb[k] = _rss_kb()
+                self.rss_kb[k] = rss_kb()
             yield WrenchBlock(t, wrench.copy())
 
 
@@ -154,11 +142,3 @@ def test_751_reloads_do_not_grow_memory(tmp_path):
     assert last - first < 4_000, (first, last)
     assert len(scene.dispatcher.retired) == 0
     assert len(scene.dispatcher.retired_stats) <= MAX_RETIRED_LABELS
-
-
-def _rss_kb() -> int:
-    with open("/proc/self/status", encoding="ascii") as fh:
-        for line in fh:
-            if line.startswith("VmRSS:"):
-                return int(line.split()[1])
-    return 0

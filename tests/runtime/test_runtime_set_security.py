@@ -8,20 +8,28 @@ import json
 import subprocess
 import time
 from pathlib import Path
-from types import SimpleNamespace
 
 import pytest
 
-from hapticdesk.hookspecs import hookimpl
-from hapticdesk.registry import load_registry
-from hapticdesk.runtime.assembly import build_scene
 from hapticdesk.runtime.control import MAX_PAUSE_S, ControlError, parse_command
 from hapticdesk.runtime.service import Runtime
 
+from .scripted import answer_into, scripted_run
 from .taps import Tap, tap_recording
-from .test_runtime_control import ScriptedSource, write_layout
+from .test_runtime_control import write_layout
 from .test_runtime_mqtt_control import RUN, publish, results, taps
 from .test_runtime_mqtt_control import write_layout as write_mqtt_layout
+
+
+def _start_desk(layout: Path, tmp_path: Path, paper_desk) -> subprocess.Popen[str]:
+    """`hapticdesk run` on ``layout``, a tap every 0.5 s for 20 s, as a service would."""
+    recording = taps(tmp_path, paper_desk, 20)
+    return subprocess.Popen(
+        [*RUN, "--layout", str(layout), "--source", f"replay:{recording}"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 def test_pause_takes_a_length_within_bounds() -> None:
@@ -42,21 +50,14 @@ def test_a_pause_ends_by_itself_after_its_length(tmp_path: Path, paper_desk) -> 
     (b5a43bd: paused until a `resume`)."""
     path = write_layout(tmp_path / "a.yaml", "lamp")
     recording = tap_recording(paper_desk, [Tap(1.5, 0.0, 0.0), Tap(3.5, 0.0, 0.0)], 4.5)
-    holder: dict[str, Runtime] = {}
     answers: list[str] = []
 
-    def pause() -> None:
-        holder["rt"].request("pause", "1").add_done_callback(lambda f: answers.append(f.result()))
+    def pause(runtime: Runtime) -> None:
+        runtime.request("pause", "1").add_done_callback(answer_into(answers))
 
-    source = ScriptedSource(recording, {1.0: pause, 2.5: lambda: time.sleep(1.2)})
-    plugin = SimpleNamespace(
-        register_sources=hookimpl(lambda register: register("s", lambda a, p, **o: source))
-    )
-    registry = load_registry(entry_points=False, plugins=[("s", plugin)])
-    events = tmp_path / "events.jsonl"
-    runtime = holder["rt"] = Runtime(build_scene(path, "s:", registry, speed=0), events_path=events)
-    assert runtime.run(handle_signals=False).error is None
-    times = [round(json.loads(line)["t"]) for line in events.read_text().splitlines()]
+    script = {1.0: pause, 2.5: lambda runtime: time.sleep(1.2)}  # (the pause is wall time)
+    runtime, events = scripted_run(path, recording, script, tmp_path / "events.jsonl")
+    times = [round(e["t"]) for e in events]
     assert times == [4]  # the tap during the pause is not sent, the one after it is
     assert answers == [
         "paused for 1 s: gestures are recognised but not sent (sensing and the zero go on); "
@@ -71,10 +72,7 @@ def test_a_paused_desk_says_so_on_its_state_topic(broker, subscribe, tmp_path, p
     resumed, also without Home Assistant discovery (b5a43bd: nothing said it)."""
     layout = write_mqtt_layout(tmp_path / "day.yaml", "lamp", broker)
     sub = subscribe("hapticdesk/study/#")
-    process = subprocess.Popen(
-        [*RUN, "--layout", str(layout), "--source", f"replay:{taps(tmp_path, paper_desk, 20)}"],
-        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-    )  # fmt: skip
+    process = _start_desk(layout, tmp_path, paper_desk)
 
     def states(messages):
         return [json.loads(p) for _, t, p in messages if t == "hapticdesk/study"]
@@ -105,10 +103,7 @@ def test_a_reload_over_mqtt_may_not_add_what_reads_the_environment(
     the desk goes on with its layout (b5a43bd: reloaded; taps then sent the variable)."""
     layout = write_mqtt_layout(tmp_path / "day.yaml", "lamp", broker)
     sub = subscribe("hapticdesk/study/#")
-    process = subprocess.Popen(
-        [*RUN, "--layout", str(layout), "--source", f"replay:{taps(tmp_path, paper_desk, 20)}"],
-        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-    )  # fmt: skip
+    process = _start_desk(layout, tmp_path, paper_desk)
     try:
         sub.wait_until(lambda m: any(t == "hapticdesk/study/event" for _, t, _ in m))
         text = (

@@ -32,6 +32,8 @@ from hapticdesk.plugins.templating import (
     event_variables,
 )
 
+from .scripted import rss_kb
+
 LAYOUT = """\
 desk: kitamura2017
 units: cm
@@ -116,12 +118,12 @@ def test_one_long_c_call_is_stopped_by_the_workers_deadline_and_the_desk_goes_on
     template = templating.Template(ONE_LONG_C_CALL, True, "layout.yaml:3:5")
     quick = templating.Template("{{ region }}", True, "layout.yaml:4:5")
     quick.render(SAMPLE_VARIABLES)  # a worker is up
-    before = _rss_kb()
+    before = rss_kb()
     started = time.monotonic()
     with pytest.raises(TemplateLimitError, match=r"layout.yaml:3:5\) failed: .*longer than 1 s"):
         template.render(SAMPLE_VARIABLES)
     assert time.monotonic() - started <= MAX_RENDER_S + 0.1
-    assert _rss_kb() - before < 20_000
+    assert rss_kb() - before < 20_000
     started = time.monotonic()
     assert quick.render(SAMPLE_VARIABLES) == "region"
     assert time.monotonic() - started < MAX_RENDER_S
@@ -135,10 +137,10 @@ def test_a_worker_past_its_memory_bound_is_replaced(monkeypatch: pytest.MonkeyPa
     hungry = templating.Template(
         "{{ ([range(10000)|list]*16000)|map('list')|list|length }}", True, "l.yaml:1:1"
     )
-    before = _rss_kb()
+    before = rss_kb()
     with pytest.raises(TemplateLimitError, match="more than 100 MB"):
         hungry.render(SAMPLE_VARIABLES)
-    assert _rss_kb() - before < 20_000
+    assert rss_kb() - before < 20_000
     assert templating.Template("{{ 1 + 1 }}", True, "x").render({}) == "2"
 
 
@@ -277,7 +279,7 @@ def test_fuzz_each_render_ends_within_1_s_and_100_mb_or_check_refuses_it(text: s
         return
     event("passed check")
     workers = template_worker.pool()
-    before = _rss_kb()
+    before = rss_kb()
     for gesture in _EVENTS:
         started = time.monotonic()
         try:
@@ -291,15 +293,7 @@ def test_fuzz_each_render_ends_within_1_s_and_100_mb_or_check_refuses_it(text: s
         RENDERS.append(elapsed)
         assert elapsed <= MAX_RENDER_S + 0.1, (text, elapsed)
     assert workers.peak_growth_kb <= template_worker.MEMORY_BOUND_MB * 1024 + 1024, text
-    assert _rss_kb() - before < 30_000, text
-
-
-def _rss_kb() -> int:
-    with open("/proc/self/status", encoding="ascii") as fh:
-        for line in fh:
-            if line.startswith("VmRSS:"):
-                return int(line.split()[1])
-    return 0
+    assert rss_kb() - before < 30_000, text
 
 
 def test_the_worker_keeps_none_of_the_desks_environment(monkeypatch: pytest.MonkeyPatch) -> None:

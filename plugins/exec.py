@@ -25,7 +25,12 @@ from hapticdesk.files.yamlfile import ConfigError, MarkedList, Position
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.plugins.action_options import options_mapping, seconds, text, where
-from hapticdesk.plugins.templating import Template, compile_template, event_variables
+from hapticdesk.plugins.templating import (
+    CHECK_EVENTS,
+    Template,
+    compile_template,
+    event_variables,
+)
 from hapticdesk.runtime.dispatcher import ActionContext
 
 log = logging.getLogger(__name__)
@@ -150,4 +155,6 @@ def register_actions(register: Any) -> None:
         "run a program with templated arguments (no shell)",
         validate=validate,
         options=OPTIONS,
+        check_events=CHECK_EVENTS,
+        operator_only=True,  # a program may read anything: only whoever starts the desk adds one
     )

@@ -35,6 +35,7 @@ from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.plugins.action_options import options_mapping, seconds, text, where
 from hapticdesk.plugins.templating import (
+    CHECK_EVENTS,
     Template,
     TemplatedValue,
     compile_template,
@@ -281,4 +282,5 @@ def register_actions(register: Any) -> None:
         "call a webhook (standard library, no extra package)",
         validate=validate,
         options=OPTIONS,
+        check_events=CHECK_EVENTS,
     )

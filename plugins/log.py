@@ -23,7 +23,12 @@ from hapticdesk.files.yamlfile import Position, choice
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.plugins.action_options import options_mapping, text, where
-from hapticdesk.plugins.templating import Template, compile_template, event_variables
+from hapticdesk.plugins.templating import (
+    CHECK_EVENTS,
+    Template,
+    compile_template,
+    event_variables,
+)
 from hapticdesk.runtime.dispatcher import ActionContext
 
 _print_lock = threading.Lock()  # lines from several action threads must not interleave
@@ -131,4 +136,5 @@ def register_actions(register: Any) -> None:
         "print a line for each gesture (a slide's updates counted on its end line)",
         validate=validate,
         options=OPTIONS,
+        check_events=CHECK_EVENTS,
     )

@@ -135,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
         print(report_json(report))
     if report.error:
         return 1
-    problems = undelivered(report, scene.context.failures)
+    problems = undelivered(report, scene.context.failures) + report.output_failures
     if problems:
         print(f"error: not everything was delivered: {'; '.join(problems)}", file=sys.stderr)
         return UNDELIVERED_EXIT

@@ -21,6 +21,7 @@ import numpy as np
 from hapticdesk.files.yamlfile import (
     ConfigError,
     MarkedDict,
+    check_confined,
     file_kind,
     load_marked_yaml,
     require_mapping,
@@ -458,6 +459,7 @@ def resolve_profile_path(name_or_path: str | Path, relative_to: Path | None = No
     path = Path(text)
     if not path.is_absolute() and relative_to is not None:
         path = relative_to / path
+    check_confined(path, "the desk profile", str(name_or_path))  # (before it is looked at)
     if not path.is_file():
         try:
             mode: int | None = os.stat(path).st_mode

@@ -82,6 +82,24 @@ class GestureEngine:
             gesture in getattr(cls, "needs_second_finger", ()) for gesture, cls in classes.items()
         )
 
+    @property
+    def idle(self) -> bool:
+        """No touch is open and no recognizer waits for a deadline (a tap for its double):
+        another engine can take over now without a touch seen twice or a decision lost
+        (a layout reload swaps engines only then)."""
+        tracker = self._tracker
+        return (
+            tracker.touch is None
+            and not tracker.in_contact
+            and all(r.next_deadline() is None for r in self._active)
+        )
+
+    def join_contact(self) -> None:
+        """Start in the middle of a contact that began before this engine (a reloaded layout
+        taking over while a finger is held): that touch is not recognised, the next one is.
+        Nothing is fired for a touch whose start was not seen."""
+        self._tracker.join_contact()
+
     def feed(self, block: ContactBlock) -> list[GestureEvent]:
         """Recognise gestures in the next block (any length, including 0).
 

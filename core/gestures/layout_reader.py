@@ -23,6 +23,7 @@ from hapticdesk.files.yamlfile import (
     MarkedList,
     Position,
     as_flag,
+    check_confined,
     check_keys,
     choice,
     require_mapping,
@@ -198,6 +199,7 @@ class LayoutReader:
             path = Path(value).expanduser()
             if not path.is_absolute():
                 path = self.path.parent / path
+            check_confined(path, f"`layouts.{name}`", m.where(name))  # (before it is looked at)
             if not path.is_file():
                 raise ConfigError(m.where(name), f"`layouts.{name}`: no such file {path}")
 

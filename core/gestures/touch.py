@@ -323,6 +323,16 @@ class TouchTracker:
         self._after_break = False  # the stream broke off (abort): the next block resumes it
         self._unseen_down = False  # the next down is a contact that was there at the resume
 
+    @property
+    def in_contact(self) -> bool:
+        """Whether the last sample seen was in contact."""
+        return self._in_contact
+
+    def join_contact(self) -> None:
+        """Take the stream as in contact already: the contact going on makes no ``down``, so
+        no touch, until it ends and a new one begins."""
+        self._in_contact = True
+
     def events(self, block: ContactBlock) -> list[ContactEvent]:
         """The block's contact events (built only from the samples in or just after contact,
         so long quiet stretches cost one vectorised pass)."""

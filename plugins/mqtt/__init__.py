@@ -56,6 +56,7 @@ from hapticdesk.plugins.mqtt.settings import (
 )
 from hapticdesk.plugins.mqtt.z2m import Zigbee2MqttActions, style_from_section
 from hapticdesk.plugins.templating import (
+    CHECK_EVENTS,
     Template,
     TemplatedValue,
     compile_template,
@@ -327,17 +328,18 @@ def desk_state(context: ActionContext) -> Any:
 @hookimpl
 def contact_sink(layout: Any, context: ActionContext) -> Any:
     """With ``discovery: true``: force, touch position, resting load and occupancy on the
-    desk's state topic, throttled (:mod:`.sensors`), for Home Assistant's sensors."""
+    desk's state topic, throttled (:mod:`.sensors`), for Home Assistant's sensors; with or
+    without it, ``paused`` there when the desk is paused or resumed."""
     if not uses_mqtt(layout.raw, layout.bindings, broker_override(context)):
         return None
     link = link_for(context)
-    if not link.settings.discovery:
-        return None
     from hapticdesk.plugins.mqtt.sensors import SensorPublisher
 
     topic = link.settings.desk_prefix(context.desk_name)
     return SensorPublisher(
-        desk_state(context), lambda payload: link.publish(topic, payload, qos=0, retain=False)
+        desk_state(context),
+        lambda payload: link.publish(topic, payload, qos=0, retain=False),
+        sensors=link.settings.discovery,
     )
 
 
@@ -355,7 +357,14 @@ def control_channel(control: Any, layout: Any, context: ActionContext) -> None:
 
 @hookimpl
 def register_layout_sections(register: Any) -> None:
-    register(SECTION, validate_section, "the MQTT broker, credentials, TLS, QoS and topics")
+    # the broker's address, credentials and TLS files: the operator's alone (a page that
+    # could change the broker would send the password there at the next start)
+    register(
+        SECTION,
+        validate_section,
+        "the MQTT broker, credentials, TLS, QoS and topics",
+        operator_only=True,
+    )
 
 
 @hookimpl
@@ -374,6 +383,7 @@ def register_actions(register: Any) -> None:
         MqttAction,
         "publish to an MQTT broker (templated topic and payload, QoS 0/1/2, TLS)",
         validate=validate,
+        check_events=CHECK_EVENTS,
         options={
             "topic": {"kind": "text", "required": True, "help": "e.g. zigbee2mqtt/lamp/set"},
             "payload": {"kind": "mapping", "help": 'JSON, e.g. {"state": "TOGGLE"}'},

@@ -185,6 +185,12 @@ class MqttLink:
             return f"{s.pending + s.dropped} MQTT command(s) not delivered to {self.settings.url}"
         return None
 
+    @property
+    def undelivered(self) -> int:
+        """After :meth:`close`: commands queued but never delivered (dropped from the full
+        queue, or still waiting at the end); the run's summary says so."""
+        return self.stats.pending + self.stats.dropped
+
     def flush(self, timeout: float) -> bool:
         """Wait until every queued command is acknowledged; False after ``timeout``."""
         deadline = time.monotonic() + timeout

@@ -156,7 +156,8 @@ function onContact(m) {
   stats.contacts += 1;
   if (lastT !== null && m.t < lastT) { trail.length = 0; forces.length = 0; }  // a new run
   lastT = m.t;
-  $("tare").textContent = m.tared ? "" : "taring: keep the desk still";
+  $("tare").textContent = (m.tared ? "" : "taring: keep the desk still ") +
+    (m.paused ? "paused: gestures are not sent" : "");
   forces.push([m.t, m.force_n]);
   while (forces.length && forces[0][0] < m.t - FORCE_S) forces.shift();
   const touching = m.phase === "touch" || m.phase === "hold" || m.phase === "release";

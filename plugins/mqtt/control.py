@@ -10,9 +10,11 @@ sensing thread between two blocks. What was done, or why not, is published (not 
 ``<prefix>/set/result`` as ``{"command": ..., "ok": bool, "message": ...}``, so a script or
 Home Assistant can see a refused layout name.
 
-With ``discovery: true`` the controls appear in Home Assistant beside the gestures: a
+With ``discovery`` the controls appear in Home Assistant beside the gestures: a
 *button* per command (Re-tare, Pause, Resume, Reload layout) and, when the layout names
-``layouts:``, a *select* of them; both publish to ``<prefix>/set``.
+``layouts:``, a *select* of them; both publish to ``<prefix>/set``. The select shows the
+layout the desk runs, from ``layout`` in the desk's state JSON (``<prefix>``), whoever
+switched it (the select, ``/set``, SIGHUP, the page) and after a restart.
 """
 
 from __future__ import annotations
@@ -122,13 +124,15 @@ def control_entities(
     set_topic: str,
     availability_topic: str,
     layouts: list[str],
+    state_topic: str | None = None,
     device: dict[str, Any],
     prefix: str = "homeassistant",
     node: str | None = None,
     origin: dict[str, Any] | None = None,
 ) -> list[ControlEntity]:
     """Discovery configs of the desk's controls: a button per command, a select of layouts
-    (``node``: as for the desk's other configs; default from its name)."""
+    (``node``: as for the desk's other configs; default from its name) that reads the running
+    one from ``state_topic`` (without it the select only says what it sent)."""
     node = node or _OBJECT_ID.sub("_", desk)
     common: dict[str, Any] = {"command_topic": set_topic, "availability_topic": availability_topic}
     if origin is not None:  # Home Assistant's `origin`: this software, on every config
@@ -160,6 +164,16 @@ def control_entities(
                     "options": layouts,
                     "command_template": '{"command": "layout", "layout": "{{ value }}"}',
                     "device": device,
+                    **(
+                        {
+                            "state_topic": state_topic,
+                            # a state message without it (none so far) changes nothing
+                            "value_template": "{{ value_json.layout if value_json.layout is"
+                            " defined else '' }}",
+                        }
+                        if state_topic
+                        else {}
+                    ),
                 },
             )
         )

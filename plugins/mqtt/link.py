@@ -85,6 +85,7 @@ class MqttLink:
         self.stats = LinkStats()
         self._will = will
         self._birth = list(birth)
+        self._kept: list[Message] = []  # announcements added while running (discovery)
         self._birth_again_on = birth_again_on
         self._subscriptions: dict[str, tuple[int, Callable[[bytes], None]]] = {}
         self._cond = threading.Condition()
@@ -157,6 +158,15 @@ class MqttLink:
             while len(self._control) > CONTROL_LIMIT:
                 self._control.popleft()
             self._cond.notify_all()
+
+    def keep_announcing(self, messages: Sequence[Message], *, now: bool = False) -> None:
+        """Send ``messages`` (retained announcements: Home Assistant's discovery configs) with
+        the birth on every (re)connect and when ``birth_again_on`` comes, in place of those
+        kept before; ``now``: also queue them at once (when nothing else has sent them)."""
+        with self._cond:
+            self._kept = list(messages)
+            if now and self._connected:
+                self._announce(self._kept)
 
     def subscribe(self, topic: str, on_message: Callable[[bytes], None], *, qos: int = 0) -> None:
         """Call ``on_message(payload)`` (on paho's thread: it must not block) for every
@@ -264,7 +274,7 @@ class MqttLink:
         with self._cond:
             self._connected = True
             self._resuming = bool(self._inflight)
-            self._announce(self._birth)
+            self._announce(self._birth + self._kept)
         if self._outage_logged:
             log.warning("MQTT: connected to %s again", self.settings.url)
             self._outage_logged = False
@@ -319,7 +329,7 @@ class MqttLink:
             return
         if self._birth_again_on and message.payload == self._birth_again_on[1]:
             with self._cond:
-                self._announce(self._birth)
+                self._announce(self._birth + self._kept)
 
     def _announce(self, messages: Sequence[Message]) -> None:
         """Queue announcements (under ``self._cond``): one per topic, the newest, bounded."""

@@ -30,6 +30,7 @@ class DeskState:
             "y": None,
             "resting_load_n": 0.0,
             "occupancy": False,
+            "layout": None,  # the running layout's name (the select of layouts reads it)
         }
 
     def update(self, **values: Any) -> None:

@@ -306,15 +306,15 @@ def test_a_removed_binding_has_its_config_cleared(broker, tmp_path, paper_desk):
     assert other in after
 
 
-def test_without_a_broker_the_sweep_gives_up_quietly(caplog):
+def test_without_a_broker_the_announcement_gives_up_quietly(caplog):
+    from hapticdesk.plugins.mqtt.announce import publish_steps
     from hapticdesk.plugins.mqtt.settings import MqttSettings
-    from hapticdesk.plugins.mqtt.stale import sweep_stale
 
     from .conftest import free_port
 
     settings = MqttSettings(host="127.0.0.1", port=free_port(), client_id="t")
-    assert sweep_stale(settings, "homeassistant", "study", []) == []
-    assert "stale discovery configs not checked" in caplog.text
+    assert publish_steps(settings, "homeassistant", "study", lambda found: []) is None
+    assert "Home Assistant discovery not announced" in caplog.text
 
 
 @pytest.mark.parametrize(

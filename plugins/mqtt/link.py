@@ -174,7 +174,8 @@ class MqttLink:
         sent while the desk was away is not kept by the broker to arrive late."""
         with self._cond:
             self._subscriptions[topic] = (qos, on_message)
-        if self._connected:
+            connected = self._connected
+        if connected:
             self._client.subscribe(topic, qos=qos)
 
     def wait_connected(self, timeout: float) -> bool:
@@ -265,16 +266,18 @@ class MqttLink:
                 log.error("MQTT: %s refused the connection: %s", self.settings.url, reason)
                 self._outage_logged = True
             return
-        if self._birth_again_on is not None:
-            client.subscribe(self._birth_again_on[0], qos=1)
         with self._cond:
-            subscriptions = list(self._subscriptions.items())
-        for topic, (qos, _) in subscriptions:
-            client.subscribe(topic, qos=qos)
-        with self._cond:
+            # connected before the subscriptions are read, under one lock: a subscribe() from
+            # now on subscribes itself, one before is in the list (the `set` topic, subscribed
+            # in between, had been in neither, and the desk deaf to its commands)
             self._connected = True
             self._resuming = bool(self._inflight)
+            subscriptions = list(self._subscriptions.items())
             self._announce(self._birth + self._kept)
+        if self._birth_again_on is not None:
+            client.subscribe(self._birth_again_on[0], qos=1)
+        for topic, (qos, _) in subscriptions:
+            client.subscribe(topic, qos=qos)
         if self._outage_logged:
             log.warning("MQTT: connected to %s again", self.settings.url)
             self._outage_logged = False

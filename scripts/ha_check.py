@@ -639,13 +639,28 @@ def desk_configs(layout: Path) -> list[Any]:
 
 def switch_phase(c: Checks, ha: HomeAssistantSocket, folder: Path, mode: str, broker: int) -> None:
     layout = write_desk(folder, mode, BINDINGS_A)
+    sub = shutil.which("mosquitto_sub") or "mosquitto_sub"
+    watch = subprocess.Popen([sub, "-p", str(broker), "-t", "hapticdesk/#", "-v"],
+                             stdout=(folder / "topics.log").open("w"))  # fmt: skip
+    changes = ha.call("subscribe_events", event_type="state_changed")
     desk = Desk(layout, SCENE_SWITCH, broker, speed=1.0)
     device = wait_for(lambda: device_id(ha), 20)
     select = f"select.{DESK}_layout"
-    # sensing has begun (the force sensor reads): the desk listens to its `set` topic
+    # sensing has begun (the force sensor reads anew, not back from unavailable): the desk
+    # listens to its `set` topic
     force = f"sensor.{DESK}_force"
-    reading = ("unknown", "unavailable", None)
-    wait_for(lambda: states(ha).get(force, {}).get("state") not in reading, 15)
+    seen: list[Any] = []
+
+    def sensing() -> bool:
+        seen.extend(drain(ha.events[changes]))
+        return any(
+            e["data"]["entity_id"] == force
+            and (e["data"].get("old_state") or {}).get("state") not in ("unavailable", None)
+            for e in seen
+        )
+
+    wait_for(sensing, 15)
+    ha.call("unsubscribe_events", subscription=changes)
     ok = wait_for(lambda: states(ha).get(select, {}).get("state") == "default", 15)
     c.check(bool(ok), f"{mode}: the select shows the running layout (default)",
             str(states(ha).get(select)))  # fmt: skip
@@ -653,6 +668,7 @@ def switch_phase(c: Checks, ha: HomeAssistantSocket, folder: Path, mode: str, br
             service_data={"option": "b"}, target={"entity_id": select})  # fmt: skip
     ok = wait_for(lambda: states(ha).get(select, {}).get("state") == "b", 10)
     c.check(bool(ok), f"{mode}: the select shows layout b after the switch")
+    watch.terminate()
     now = wait_for(lambda: set(triggers(ha, device)) == {("button_short_press", "knob")}, 10)
     c.check(bool(now), f"{mode}: after the switch only layout b's trigger is there",
             str(sorted(triggers(ha, device))))  # fmt: skip

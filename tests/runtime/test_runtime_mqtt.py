@@ -331,7 +331,7 @@ def test_home_assistant_discovery_and_availability(broker, subscribe, tmp_path, 
     assert by_topic[0] == ("hapticdesk/study/availability", "online")
     assert ("hapticdesk/study/action", "lamp_tap") in by_topic
     event = next(json.loads(p) for t, p in by_topic if t == "hapticdesk/study/event")
-    assert event == {**events[0], "action": "lamp_tap"}
+    assert event == {**events[0], "action": "lamp_tap", "seq": 1}  # the run's count
     assert by_topic[-1] == offline
 
 

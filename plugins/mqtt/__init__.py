@@ -194,12 +194,20 @@ def open_link(context: ActionContext) -> MqttLink:
         # the discovery configs join the birth once announced (:mod:`.announce`); Home
         # Assistant forgets non-retained state when it restarts, and says so here
         birth_again_on = (f"{settings.discovery_prefix}/status", b"online")
-    return MqttLink(
+    link = MqttLink(
         settings,
         will=Message(availability, b"offline", 1, True, command=False),
         birth=birth,
         birth_again_on=birth_again_on,
-    ).start()
+    )
+    # `set` before the link connects: it is granted before the desk says `online` (Home
+    # Assistant's select sends at once; subscribed when the run began, a second later, the
+    # desk had missed it). The run's control queue joins in the control_channel hook.
+    from hapticdesk.plugins.mqtt.control import SetTopic
+
+    topic = desk_topic(settings, context.desk_name, "set")
+    link.subscribe(topic, SetTopic(None, link.announce, topic))
+    return link.start()
 
 
 def refuse_a_second_desk(settings: MqttSettings, desk: str, availability: str) -> None:
@@ -319,6 +327,7 @@ def start_announcer(context: ActionContext, link: MqttLink, state: Any) -> Any:
         configs=lambda: discovery_for(context, settings, names),
         keep=keep,
         announced=announced,
+        ready=link.wait_ready,
     ).start()
 
 
@@ -415,8 +424,9 @@ def control_channel(control: Any, layout: Any, context: ActionContext) -> None:
     from hapticdesk.plugins.mqtt.control import SetTopic
 
     link = link_for(context)
-    topic = desk_topic(link.settings, context.desk_name, "set")
-    link.subscribe(topic, SetTopic(control, link.announce, topic))
+    commands = link.handler(desk_topic(link.settings, context.desk_name, "set"))
+    if isinstance(commands, SetTopic):  # subscribed when the link opened (open_link)
+        commands.attach(control)
 
 
 @hookimpl

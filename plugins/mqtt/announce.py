@@ -190,7 +190,9 @@ class Announcer:
 
     ``configs()`` gives the running layout's per-entity configs; ``keep(messages)`` hands the
     final configs to the link to send again on reconnects; ``announced()`` runs after each
-    announcement (the desk's state with its layout name)."""
+    announcement (the desk's state with its layout name); ``ready(timeout)`` says whether the
+    desk's link is connected with its ``set`` subscription granted: nothing is announced
+    before (Home Assistant would offer controls whose commands reach no one)."""
 
     def __init__(
         self,
@@ -201,6 +203,7 @@ class Announcer:
         configs: Callable[[], Sequence[Any]],
         keep: Callable[[Step], None],
         announced: Callable[[], None] = lambda: None,
+        ready: Callable[[float], bool] = lambda timeout: True,
     ) -> None:
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, found {mode!r}")
@@ -210,6 +213,7 @@ class Announcer:
         self._configs = configs
         self._keep = keep
         self._announced = announced
+        self._ready = ready
         self._wake = threading.Event()
         self._pending = False  # an announcement is asked for
         self._closing = False
@@ -238,7 +242,7 @@ class Announcer:
         while True:
             self._wake.wait()
             self._wake.clear()
-            if self._pending:
+            if self._pending and self._wait_ready():
                 self._pending = False
                 try:
                     self._announce()
@@ -246,6 +250,14 @@ class Announcer:
                     log.exception("MQTT: announcing the desk to Home Assistant failed")
             if self._closing:
                 return
+
+    def _wait_ready(self) -> bool:
+        """Wait until the link is ready; when the run closes first, SWEEP_TIMEOUT_S more at
+        most (a run that never reached its broker announces nothing)."""
+        while not self._ready(0.1):
+            if self._closing:
+                return self._ready(SWEEP_TIMEOUT_S)
+        return True
 
     def _announce(self) -> None:
         prefix = self.settings.discovery_prefix

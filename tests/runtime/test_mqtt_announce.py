@@ -6,6 +6,8 @@ real Home Assistant over the same paths.)"""
 from __future__ import annotations
 
 import json
+import shutil
+import subprocess
 from pathlib import Path
 
 import jinja2
@@ -53,6 +55,25 @@ def test_old_triggers_are_cleared_before_their_successors_arrive(
     assert f"{NODE}/lamp_long_press/config" not in retained(broker, "homeassistant/#")
 
 
+def layouts_default_and_b(folder: Path) -> Path:
+    """A layout with discovery and ``layouts: {b: b.yaml}``; b has one tap on the knob."""
+    (folder / "b.yaml").write_text(
+        json.dumps(
+            {
+                "desk": "kitamura2017",
+                "units": "cm",
+                "desk_name": "study",
+                "regions": {"knob": {"rect": [-5, -5, 5, 5]}},
+                "bindings": [{"gesture": "tap", "region": "knob", "do": {"log": {}}}],
+                "mqtt": {"discovery": True},
+            }
+        )
+    )
+    return write_layout(
+        folder, BINDINGS_A, {"discovery": True}, desk_name="study", layouts={"b": "b.yaml"}
+    )
+
+
 def run_switching(layout: Path, recording: Path, url: str, to: str):
     """A run that is told to switch its layout (as the select does) before its first block."""
     scene = build_scene(
@@ -71,21 +92,7 @@ def test_a_layout_switch_announces_the_new_layout_and_the_select_shows_it(
     """Items 4 and 5: after a switch Home Assistant gets the new layout's triggers (the old
     ones cleared) and event types, and the select reads the running layout from the desk's
     state (it had no state_topic and never learnt a switch made elsewhere)."""
-    (tmp_path / "b.yaml").write_text(
-        json.dumps(
-            {
-                "desk": "kitamura2017",
-                "units": "cm",
-                "desk_name": "study",
-                "regions": {"knob": {"rect": [-5, -5, 5, 5]}},
-                "bindings": [{"gesture": "tap", "region": "knob", "do": {"log": {}}}],
-                "mqtt": {"discovery": True},
-            }
-        )  # fmt: skip
-    )
-    layout = write_layout(
-        tmp_path, BINDINGS_A, {"discovery": True}, desk_name="study", layouts={"b": "b.yaml"}
-    )
+    layout = layouts_default_and_b(tmp_path)
     live = subscribe("hapticdesk/study")
     report, line = run_switching(layout, hold_file(tmp_path, paper_desk), broker.url, "b")
     assert report.error is None and "layout `b`" in line
@@ -168,3 +175,71 @@ def test_a_component_left_out_of_the_device_config_is_removed_first(
     emptied, final = payloads[1]["components"], payloads[2]["components"]
     assert emptied["lamp_double_tap"] == {"platform": "device_automation"}
     assert "lamp_double_tap" not in final and "lamp_tap" in final
+
+
+def test_a_command_sent_on_seeing_the_desk_online_is_taken(broker, subscribe, tmp_path, paper_desk):
+    """Home Assistant offers the select the moment the desk is ``online`` and sends at once.
+    The desk said ``online`` (and announced itself) when its connection opened, while the
+    scene was still being built, and subscribed to ``set`` only when the run began, a second
+    later under load: Home Assistant's ``{"command": "layout", "layout": "b"}`` (QoS 0, not
+    retained: scripts/ha_check.py saw it on the broker) reached no one. Now ``set`` is granted
+    before anything is announced, and a command that comes before sensing waits for it."""
+    layout = layouts_default_and_b(tmp_path)
+    answers = subscribe("hapticdesk/study/set/result")
+    online = subscribe("hapticdesk/study/availability")
+    scene = build_scene(
+        layout, f"replay:{hold_file(tmp_path, paper_desk)}", load_registry(entry_points=False),
+        speed=0, overrides={"mqtt": {"broker": broker.url}},
+    )  # fmt: skip
+    online.wait_until(lambda m: any(p == "online" for _, _, p in m))
+    subprocess.run(
+        [shutil.which("mosquitto_pub") or "mosquitto_pub", "-p", str(broker.port), "-q", "0",
+         "-t", "hapticdesk/study/set", "-m", '{"command": "layout", "layout": "b"}'],
+        check=True, timeout=10,
+    )  # fmt: skip
+    report = Runtime(scene).run(handle_signals=False)
+    assert report.error is None
+    said = [json.loads(p) for _, _, p in answers.wait_until(lambda m: bool(m), timeout=10)]
+    assert said[0]["command"] == "layout b" and said[0]["ok"] is True
+    triggers = {t for t in retained(broker, "homeassistant/#") if "/device_automation/" in t}
+    assert triggers == {f"{NODE}/knob_tap/config"}
+    # in the broker's order: `set` subscribed before `online` and before any discovery config
+    log = broker.log_text()
+    subscribed = log.index("\thapticdesk/study/set (QoS")
+    assert subscribed < log.index("'hapticdesk/study/availability'")
+    assert subscribed < log.index("Received PUBLISH from hapticdesk-study-discovery")
+
+
+def test_nothing_is_announced_before_the_link_is_ready(broker, tmp_path):
+    """The discovery goes out on a connection of its own: it waits until the desk's link says
+    its ``set`` subscription is granted (Home Assistant would otherwise offer buttons and a
+    select whose commands reach no one)."""
+    import threading
+    import time
+
+    from hapticdesk.files.yamlfile import load_marked_yaml
+    from hapticdesk.plugins.mqtt.announce import Announcer
+    from hapticdesk.plugins.mqtt.control import control_entities
+    from hapticdesk.plugins.mqtt.settings import settings_from_layout
+
+    settings = settings_from_layout(
+        load_marked_yaml("l.yaml", json.dumps({"broker": broker.url, "discovery": True})),
+        desk="study",
+    )
+    configs = control_entities(
+        desk="study", set_topic="hapticdesk/study/set", availability_topic="a", layouts=[],
+        device={"identifiers": ["hapticdesk_study"]},
+    )  # fmt: skip
+    ready = threading.Event()
+    announcer = Announcer(
+        settings, node="study", mode="entity", configs=lambda: configs, keep=lambda step: None,
+        ready=ready.wait,
+    ).start()  # fmt: skip
+    time.sleep(1.0)
+    assert retained(broker, "homeassistant/#") == {}
+    ready.set()
+    deadline = time.monotonic() + 10
+    while announcer.rounds == 0 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    announcer.close()
+    assert set(retained(broker, "homeassistant/#")) == {c.topic for c in configs}

@@ -328,6 +328,7 @@ def start_announcer(context: ActionContext, link: MqttLink, state: Any) -> Any:
         keep=keep,
         announced=announced,
         ready=link.wait_ready,
+        mqtt5=lambda: link.mqtt5,
     ).start()
 
 

@@ -25,6 +25,14 @@ rediscover), then the configs of the new shape under the same ids (the entities 
 their ``unique_id``). A component that left a device config is first sent as ``{"platform":
 ...}`` alone (Home Assistant removes it), then left out.
 
+Back from the device config to one config each, Home Assistant (2025.4.4, checked) warns of
+either order of clearing the device config: emptied before the new configs, "No device
+components to cleanup"; after them (as its log advises), "Received a conflicting MQTT
+discovery message" for every entity, as the emptied device config names them all. So on an
+MQTT 5 broker the migration message is itself the clearing: retained with an expiry of
+:data:`MIGRATE_EXPIRY_S`, Home Assistant gets it at once and the broker then drops it, and no
+empty payload is sent. On MQTT 3.1.1 it is emptied before the new configs (one warning).
+
 :class:`Announcer` runs this on its own thread at the start and whenever the contact sink
 sees another layout in the run's context; the link keeps the last configs to send again when
 it reconnects or Home Assistant comes back (``homeassistant/status``).
@@ -50,6 +58,9 @@ SWEEP_TIMEOUT_S = 5.0
 STEP_PAUSE_S = 0.5
 MODES = ("entity", "device")
 MIGRATE = json.dumps({"migrate_discovery": True}).encode()
+#: how long the broker keeps a migration message (MQTT 5): Home Assistant gets it at once;
+#: a Home Assistant that restarts later must not find it beside the new configs
+MIGRATE_EXPIRY_S = 5
 
 Step = list[tuple[str, bytes]]  # (topic, payload) published retained, acknowledged together
 
@@ -75,17 +86,27 @@ def device_payload(configs: Sequence[Any], *, prefix: str, node: str) -> dict[st
 
 
 def plan(
-    found: dict[str, bytes], configs: Sequence[Any], *, mode: str, prefix: str, node: str
+    found: dict[str, bytes],
+    configs: Sequence[Any],
+    *,
+    mode: str,
+    prefix: str,
+    node: str,
+    mqtt5: bool = False,
 ) -> list[Step]:
     """The steps that take what the broker retains for this desk (``found``: topic ->
-    payload) to ``configs`` (per-entity ``topic``/``payload``/``config``) in ``mode``."""
+    payload) to ``configs`` (per-entity ``topic``/``payload``/``config``) in ``mode``.
+    ``mqtt5``: migration messages expire (:func:`publish_steps` with ``mqtt5``), so the
+    device config is not emptied after its migration message."""
     own_device = device_topic(prefix, node)
     entity_found = sorted(t for t in found if t != own_device)
     steps: list[Step] = []
     if mode == "entity":
         wanted = {c.topic: c.payload for c in configs}
         if own_device in found:  # from device-based discovery back to one config each
-            steps += [[(own_device, MIGRATE)], [(own_device, b"")]]
+            steps.append([(own_device, MIGRATE)])
+            if not mqtt5:  # (Home Assistant warns; see the module docstring)
+                steps.append([(own_device, b"")])
         stale = [t for t in entity_found if t not in wanted]
         if stale:
             steps.append([(t, b"") for t in stale])
@@ -121,11 +142,14 @@ def publish_steps(
     prefix: str,
     node: str,
     make_steps: Callable[[dict[str, bytes]], list[Step]],
+    *,
+    mqtt5: bool = False,
 ) -> list[Step] | None:
     """Read what the broker retains for this desk, and publish ``make_steps(found)`` one step
     after another (each acknowledged, then :data:`STEP_PAUSE_S` when another follows); the
     steps sent, or None when the broker could not be reached or did not answer (said in the
-    log: the run goes on, and the link announces its configs when it connects)."""
+    log: the run goes on, and the link announces its configs when it connects). ``mqtt5``:
+    in MQTT 5, a migration message retained for :data:`MIGRATE_EXPIRY_S` only."""
     import paho.mqtt.client as mqtt
 
     patterns = [f"{prefix}/+/{node}/+/config", device_topic(prefix, node)]
@@ -136,8 +160,8 @@ def publish_steps(
     client = mqtt.Client(
         mqtt.CallbackAPIVersion.VERSION2,
         client_id=f"{settings.client_id}-discovery"[:128],
-        clean_session=True,
-        protocol=mqtt.MQTTv311,
+        clean_session=None if mqtt5 else True,  # (MQTT 5: a clean start, connect's default)
+        protocol=mqtt.MQTTv5 if mqtt5 else mqtt.MQTTv311,
     )
     apply_login(client, settings)
 
@@ -154,6 +178,13 @@ def publish_steps(
         elif message.retain and message.payload and not done.is_set():
             found[message.topic] = bytes(message.payload)
 
+    expiring = None
+    if mqtt5:
+        from paho.mqtt.packettypes import PacketTypes
+        from paho.mqtt.properties import Properties
+
+        expiring = Properties(PacketTypes.PUBLISH)
+        expiring.MessageExpiryInterval = MIGRATE_EXPIRY_S
     client.on_connect = on_connect
     client.on_subscribe = on_subscribe
     client.on_message = on_message
@@ -170,7 +201,11 @@ def publish_steps(
         client.unsubscribe(patterns)  # our own messages must not come back as found
         steps = make_steps(dict(found))
         for i, step in enumerate(steps):
-            infos = [client.publish(topic, payload, qos=1, retain=True) for topic, payload in step]
+            infos = [
+                client.publish(topic, payload, qos=1, retain=True,
+                               properties=expiring if payload == MIGRATE else None)
+                for topic, payload in step
+            ]  # fmt: skip
             for info in infos:
                 info.wait_for_publish(SWEEP_TIMEOUT_S)
             if i + 1 < len(steps):
@@ -192,7 +227,8 @@ class Announcer:
     final configs to the link to send again on reconnects; ``announced()`` runs after each
     announcement (the desk's state with its layout name); ``ready(timeout)`` says whether the
     desk's link is connected with its ``set`` subscription granted: nothing is announced
-    before (Home Assistant would offer controls whose commands reach no one)."""
+    before (Home Assistant would offer controls whose commands reach no one); ``mqtt5()``
+    whether the broker speaks MQTT 5 (the link's connection found out)."""
 
     def __init__(
         self,
@@ -204,6 +240,7 @@ class Announcer:
         keep: Callable[[Step], None],
         announced: Callable[[], None] = lambda: None,
         ready: Callable[[float], bool] = lambda timeout: True,
+        mqtt5: Callable[[], bool] = lambda: False,
     ) -> None:
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, found {mode!r}")
@@ -214,6 +251,7 @@ class Announcer:
         self._keep = keep
         self._announced = announced
         self._ready = ready
+        self._mqtt5 = mqtt5
         self._wake = threading.Event()
         self._pending = False  # an announcement is asked for
         self._closing = False
@@ -263,10 +301,12 @@ class Announcer:
         prefix = self.settings.discovery_prefix
         configs = list(self._configs())
 
-        def steps(found: dict[str, bytes]) -> list[Step]:
-            return plan(found, configs, mode=self.mode, prefix=prefix, node=self.node)
+        mqtt5 = self._mqtt5()
 
-        sent = publish_steps(self.settings, prefix, self.node, steps)
+        def steps(found: dict[str, bytes]) -> list[Step]:
+            return plan(found, configs, mode=self.mode, prefix=prefix, node=self.node, mqtt5=mqtt5)
+
+        sent = publish_steps(self.settings, prefix, self.node, steps, mqtt5=mqtt5)
         final = sent[-1] if sent else steps({})[-1]
         self._keep(final)
         self.rounds += 1

@@ -206,6 +206,11 @@ class MqttLink:
         return self._connected
 
     @property
+    def mqtt5(self) -> bool:
+        """Whether the link speaks MQTT 5 (``protocol: auto`` finds out when it connects)."""
+        return bool(self.protocol == self._mqtt.MQTTv5)
+
+    @property
     def failure(self) -> str | None:
         """After :meth:`close`: why commands were not delivered (None when all were)."""
         s = self.stats

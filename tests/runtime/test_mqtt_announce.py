@@ -243,3 +243,32 @@ def test_nothing_is_announced_before_the_link_is_ready(broker, tmp_path):
         time.sleep(0.05)
     announcer.close()
     assert set(retained(broker, "homeassistant/#")) == {c.topic for c in configs}
+
+
+def test_back_from_the_device_config_it_is_migrated_and_expires_unemptied(
+    broker, subscribe, tmp_path, paper_desk
+):
+    """From ``discovery: device`` back to ``entity``: the device config gets the migration
+    message, retained with an MQTT 5 expiry, and no empty payload (Home Assistant 2025.4.4
+    warned "No device components to cleanup" when it was emptied before the new configs, and
+    "conflicting MQTT discovery message" for every entity when after them); then the broker
+    holds only the per-entity configs."""
+    import time
+
+    from hapticdesk.plugins.mqtt.announce import MIGRATE_EXPIRY_S
+
+    recording = hold_file(tmp_path, paper_desk)
+    run_layout(write_layout(tmp_path, BINDINGS_A, {"discovery": "device"}, desk_name="study"),
+               recording, broker.url)  # fmt: skip
+    device = "homeassistant/device/study/config"
+    live = subscribe(device)
+    run_layout(write_layout(tmp_path, BINDINGS_A, {"discovery": True}, desk_name="study"),
+               recording, broker.url)  # fmt: skip
+    gone = time.monotonic()
+    seen = [(was_retained, p) for was_retained, _, p in live.wait_until(
+        lambda m: any("migrate_discovery" in p for _, _, p in m))]  # fmt: skip
+    assert seen[0][0] and '"components"' in seen[0][1]  # the device config, retained
+    assert [p for _, p in seen[1:]] == ['{"migrate_discovery": true}']  # nothing emptied
+    assert f"{NODE}/lamp_tap/config" in retained(broker, "homeassistant/#")
+    time.sleep(max(0.0, gone + MIGRATE_EXPIRY_S + 1.0 - time.monotonic()))
+    assert device not in retained(broker, "homeassistant/#")

@@ -19,16 +19,21 @@ fail on anything it does not accept.
      levels, slide, swipe, stroke, two-finger tap) twice in a row: every device trigger
      (``subscribe_trigger``) and the event entity (``state_changed``) must see each one as
      often as the desk sent it, the event with the gesture's data (x, y, value, seq);
-   - a layout switch from the select (``select.select_option``): the new layout's triggers
-     there, the old one's gone, the select showing it; a gesture of the new layout fires;
-     a reload (the Reload button); the desk stopping: every entity unavailable;
+   - a layout switch from the select (``select.select_option``), pressed the moment Home
+     Assistant offers it (the desk ``online``): the new layout's triggers there, the old
+     one's gone, the select showing it; a gesture of the new layout fires; a reload (the
+     Reload button); the desk stopping: every entity unavailable, "connected" off;
    - a restart with a changed layout (a trigger removed, a tier moved): triggers follow, no
      conflict, and the moved tier fires.
+
+   With both modes, a last run moves back from device-based to per-entity discovery: the same
+   device, every entity under its id, the triggers listed and firing.
 
    Every WARNING or ERROR that Home Assistant's MQTT, template or device-automation code logs
    naming the desk fails the check.
 
-Prints one line per check and ``N passed, N failed``; exit status 1 when any failed.
+Prints one line per check, then a summary (checks passed and failed, and seconds, per mode)
+and ``N passed, N failed``; exit status 1 when any failed.
 """
 
 from __future__ import annotations
@@ -642,33 +647,25 @@ def switch_phase(c: Checks, ha: HomeAssistantSocket, folder: Path, mode: str, br
     sub = shutil.which("mosquitto_sub") or "mosquitto_sub"
     watch = subprocess.Popen([sub, "-p", str(broker), "-t", "hapticdesk/#", "-v"],
                              stdout=(folder / "topics.log").open("w"))  # fmt: skip
-    changes = ha.call("subscribe_events", event_type="state_changed")
+    try:
+        switch_and_reload(c, ha, layout, mode, broker)
+    finally:
+        watch.terminate()
+
+
+def switch_and_reload(c: Checks, ha: HomeAssistantSocket, layout: Path, mode: str, broker: int):
     desk = Desk(layout, SCENE_SWITCH, broker, speed=1.0)
     device = wait_for(lambda: device_id(ha), 20)
     select = f"select.{DESK}_layout"
-    # sensing has begun (the force sensor reads anew, not back from unavailable): the desk
-    # listens to its `set` topic
-    force = f"sensor.{DESK}_force"
-    seen: list[Any] = []
-
-    def sensing() -> bool:
-        seen.extend(drain(ha.events[changes]))
-        return any(
-            e["data"]["entity_id"] == force
-            and (e["data"].get("old_state") or {}).get("state") not in ("unavailable", None)
-            for e in seen
-        )
-
-    wait_for(sensing, 15)
-    ha.call("unsubscribe_events", subscription=changes)
-    ok = wait_for(lambda: states(ha).get(select, {}).get("state") == "default", 15)
+    # as a person would: the select is pressed the moment Home Assistant offers it (the desk
+    # is `online`), whether or not the desk has begun to sense
+    ok = wait_for(lambda: states(ha).get(select, {}).get("state") == "default", 15, step=0.05)
     c.check(bool(ok), f"{mode}: the select shows the running layout (default)",
             str(states(ha).get(select)))  # fmt: skip
     ha.call("call_service", domain="select", service="select_option",
             service_data={"option": "b"}, target={"entity_id": select})  # fmt: skip
     ok = wait_for(lambda: states(ha).get(select, {}).get("state") == "b", 10)
     c.check(bool(ok), f"{mode}: the select shows layout b after the switch")
-    watch.terminate()
     now = wait_for(lambda: set(triggers(ha, device)) == {("button_short_press", "knob")}, 10)
     c.check(bool(now), f"{mode}: after the switch only layout b's trigger is there",
             str(sorted(triggers(ha, device))))  # fmt: skip
@@ -691,15 +688,19 @@ def switch_phase(c: Checks, ha: HomeAssistantSocket, folder: Path, mode: str, br
     ha.call("unsubscribe_events", subscription=number)
     code = desk.wait()
     c.check(code == 0, f"{mode}: the desk ran the switch scene", desk.out.read_text()[-400:])
+    # every entity unavailable, but the connectivity sensor (the availability itself): off
     ids = entities(ha, device)
-    gone = wait_for(
-        lambda: all(
-            states(ha).get(e, {}).get("state") in ("unavailable", "off") for e in ids.values()
-        ),
-        10,
-    )
+    connected = ids.get(f"hapticdesk_{DESK}_connectivity")
+    wanted = {e: "off" if e == connected else "unavailable" for e in ids.values()}
+
+    def stopped() -> bool:
+        now = states(ha)
+        return all(now.get(e, {}).get("state") == state for e, state in wanted.items())
+
+    gone = wait_for(stopped, 10)
     detail = {e: states(ha).get(e, {}).get("state") for e in ids.values()}
-    c.check(bool(gone), f"{mode}: the desk stopped: every entity unavailable (connected: off)",
+    c.check(bool(gone) and connected is not None and len(ids) > 1,
+            f"{mode}: the desk stopped: its {len(ids) - 1} entities unavailable, connected off",
             str(detail))  # fmt: skip
 
 
@@ -721,6 +722,38 @@ def restart_phase(c: Checks, ha: HomeAssistantSocket, folder: Path, mode: str, b
     desk.wait()
     got = wait_for(lambda: ha.events[number].qsize() >= 2, 10)
     c.check(bool(got), f"{mode}: the moved tier (2.4 s) fires, twice",
+            f"{ha.events[number].qsize()}")  # fmt: skip
+    ha.call("unsubscribe_events", subscription=number)
+
+
+def back_phase(
+    c: Checks, ha: HomeAssistantSocket, folder: Path, broker: int, known: dict[str, Any]
+) -> None:
+    """From device-based discovery back to one config each: the same device, every entity
+    under its id, the triggers there and firing."""
+    layout = write_desk(folder, "entity", BINDINGS_A)
+    desk = Desk(layout, SCENE_RESTART, broker, speed=1.0)  # (the migration takes a while)
+    device = wait_for(lambda: device_id(ha), 20)
+    wanted = set(discovery_payloads(layout))
+    listed = wait_for(lambda: set(triggers(ha, device)) == wanted and triggers(ha, device), 20)
+    c.check(bool(listed), "device→entity: the triggers are listed",
+            f"missing {wanted - set(triggers(ha, device))}")  # fmt: skip
+    c.check(device == known.get("device"), "device→entity: the same device",
+            f"{known.get('device')} -> {device}")  # fmt: skip
+    ids = wait_for(lambda: entities(ha, device) == known.get("entities") and entities(ha, device),
+                   10)  # fmt: skip
+    c.check(bool(ids), "device→entity: every entity kept its id",
+            f"{known.get('entities')} -> {entities(ha, device)}")  # fmt: skip
+    tier = (listed or {}).get(("button_long_press_1.6s", "knob"))
+    if tier is None:
+        desk.process.kill()
+        return
+    number = ha.call("subscribe_trigger", trigger={k: v for k, v in tier.items()
+                                                   if k != "metadata"})  # fmt: skip
+    code = desk.wait()
+    c.check(code == 0, "device→entity: the desk ran its scene", desk.out.read_text()[-400:])
+    got = wait_for(lambda: ha.events[number].qsize() >= 2, 10)
+    c.check(bool(got), "device→entity: the 1.6 s tier fires, twice",
             f"{ha.events[number].qsize()}")  # fmt: skip
     ha.call("unsubscribe_events", subscription=number)
 
@@ -747,17 +780,37 @@ def main(argv: list[str] | None = None) -> int:
         ha = HomeAssistantSocket(port, token)
         at = 0
         known: dict[str, Any] = {}
-        for mode in modes:
-            t0 = time.monotonic()
-            gestures_phase(c, ha, folder / f"{mode}-all", mode, broker, known)
-            switch_phase(c, ha, folder / f"{mode}-switch", mode, broker)
-            restart_phase(c, ha, folder / f"{mode}-restart", mode, broker)
+        summary: list[tuple[str, int, int, float]] = []  # part, passed, failed, seconds
+
+        @contextmanager
+        def part(name: str) -> Iterator[None]:
+            """The phases run under it, then the log's warnings; their counts and time."""
+            nonlocal at
+            t0, passed, failed = time.monotonic(), c.passed, len(c.failed)
+            yield
             bad, at = warnings_about_desk(log, at)
-            c.check(not bad, f"{mode}: no warning or error about the desk in Home Assistant's log",
+            c.check(not bad, f"{name}: no warning or error about the desk in Home Assistant's log",
                     "\n" + "\n".join(bad[:20]))  # fmt: skip
-            print(f"{mode}: {time.monotonic() - t0:.0f} s")
+            seconds = time.monotonic() - t0
+            summary.append((name, c.passed - passed, len(c.failed) - failed, seconds))
+            print(f"{name}: {seconds:.0f} s")
+
+        for mode in modes:
+            with part(mode):
+                gestures_phase(c, ha, folder / f"{mode}-all", mode, broker, known)
+                switch_phase(c, ha, folder / f"{mode}-switch", mode, broker)
+                restart_phase(c, ha, folder / f"{mode}-restart", mode, broker)
+        if modes == ["entity", "device"]:  # and back, keeping every entity
+            with part("device→entity"):
+                back_phase(c, ha, folder / "back", broker, known)
         ha.close()
-    print(f"ha_check: {time.monotonic() - began:.0f} s in all; files in {folder}")
+    print(f"\nha_check summary (Home Assistant {HA_VERSION}, {how}, started in {start_s:.1f} s)")
+    for name, passed, failed, seconds in summary:
+        print(f"  {name:<14} {passed:3d} passed {failed:3d} failed {seconds:6.0f} s")
+    print(f"  {'in all':<14} {c.passed:3d} passed {len(c.failed):3d} failed "
+          f"{time.monotonic() - began:6.0f} s; files in {folder}")  # fmt: skip
+    for what in c.failed:
+        print(f"  FAILED: {what}")
     print(f"{c.passed} passed, {len(c.failed)} failed")
     if not args.keep and not c.failed:
         shutil.rmtree(folder, ignore_errors=True)

@@ -475,6 +475,13 @@ def entities(ha: HomeAssistantSocket, device: str) -> dict[str, str]:
     }
 
 
+def listen(ha: HomeAssistantSocket, trigger: dict[str, Any]) -> int:
+    """Subscribe to a device trigger as listed; the subscription's number (its events in
+    ``ha.events``)."""
+    return int(ha.call("subscribe_trigger", trigger={k: v for k, v in trigger.items()
+                                                     if k != "metadata"}))  # fmt: skip
+
+
 def states(ha: HomeAssistantSocket) -> dict[str, dict[str, Any]]:
     return {s["entity_id"]: s for s in ha.call("get_states")}
 
@@ -545,10 +552,7 @@ def gestures_phase(
     listed = wait_for(lambda: set(triggers(ha, device)) == want and triggers(ha, device), 20)
     c.check(bool(listed), f"{mode}: its {len(want)} device triggers are listed",
             f"missing {want - set(triggers(ha, device))}")  # fmt: skip
-    subscriptions = {
-        key: ha.call("subscribe_trigger", trigger={k: v for k, v in t.items() if k != "metadata"})
-        for key, t in (listed or {}).items()
-    }
+    subscriptions = {key: listen(ha, t) for key, t in (listed or {}).items()}
     ids = wait_for(lambda: entities(ha, device), 10)
     event_entity = ids.get(f"hapticdesk_{DESK}_gesture")
     events = ha.call("subscribe_events", event_type="state_changed")
@@ -673,8 +677,7 @@ def switch_and_reload(c: Checks, ha: HomeAssistantSocket, layout: Path, mode: st
     if knob is None:
         desk.process.kill()
         return
-    number = ha.call("subscribe_trigger", trigger={k: v for k, v in knob.items()
-                                                   if k != "metadata"})  # fmt: skip
+    number = listen(ha, knob)
     got = wait_for(lambda: ha.events[number].qsize() >= 2, 25)
     c.check(bool(got), f"{mode}: layout b's tap fires its trigger, twice in a row",
             f"{ha.events[number].qsize()}")  # fmt: skip
@@ -717,8 +720,7 @@ def restart_phase(c: Checks, ha: HomeAssistantSocket, folder: Path, mode: str, b
     if tier is None:
         desk.process.kill()
         return
-    number = ha.call("subscribe_trigger", trigger={k: v for k, v in tier.items()
-                                                   if k != "metadata"})  # fmt: skip
+    number = listen(ha, tier)
     desk.wait()
     got = wait_for(lambda: ha.events[number].qsize() >= 2, 10)
     c.check(bool(got), f"{mode}: the moved tier (2.4 s) fires, twice",
@@ -748,8 +750,7 @@ def back_phase(
     if tier is None:
         desk.process.kill()
         return
-    number = ha.call("subscribe_trigger", trigger={k: v for k, v in tier.items()
-                                                   if k != "metadata"})  # fmt: skip
+    number = listen(ha, tier)
     code = desk.wait()
     c.check(code == 0, "device→entity: the desk ran its scene", desk.out.read_text()[-400:])
     got = wait_for(lambda: ha.events[number].qsize() >= 2, 10)

@@ -31,6 +31,7 @@ class DeskState:
             "resting_load_n": 0.0,
             "occupancy": False,
             "paused": False,  # gestures not sent (a pause from `set`): said, not hidden
+            "layout": None,  # the running layout's name (the select of layouts reads it)
         }
 
     def update(self, **values: Any) -> None:

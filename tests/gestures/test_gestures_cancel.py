@@ -214,7 +214,6 @@ def test_home_assistant_is_told_of_the_repeats_of_a_long_press(make_layout):
         make_layout(REPEAT).bindings,
         device={"identifiers": ["d"]},
         origin={"name": "hapticdesk"},
-        action_topic="a",
         event_topic="e",
         node="study",
     )

@@ -8,9 +8,6 @@ from typing import Any
 import numpy as np
 
 from hapticdesk.bench.runner import pareto_front
-from hapticdesk.estimator.contacts import SOURCE_DIFF, SOURCE_FORCE, SOURCE_FUSED, ContactBlock
-from hapticdesk.files.profile import DeskProfile
-from hapticdesk.files.recording import Recording
 
 COLUMNS = [
     ("label", "configuration", "{}"),
@@ -241,36 +238,3 @@ def place_labels(
                 taken.append(box)
                 break
             label.remove()
-
-
-def plot_trace_comparison(
-    profile: DeskProfile, rec: Recording, blocks: dict[str, ContactBlock], path: Path
-) -> None:
-    """The traced character with each method (paper Fig. 16), truth as a line."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, len(blocks), figsize=(6 * len(blocks), 6), constrained_layout=True)
-    axes = np.atleast_1d(axes)
-    tx, ty = rec.extra["true_x"], rec.extra["true_y"]
-    for ax, (method, block) in zip(axes, blocks.items(), strict=True):
-        ax.plot(tx, ty, color="black", lw=1, label="true path")
-        for source, colour, name in (
-            (SOURCE_FORCE, "tab:blue", "from force"),
-            (SOURCE_DIFF, "tab:orange", "from differentiated force"),
-            (SOURCE_FUSED, "tab:red", "fused"),
-        ):
-            sel = block.located & (block.source == source)
-            if sel.any():
-                ax.scatter(block.x[sel], block.y[sel], s=2, color=colour, label=name)
-        ax.set_aspect("equal")
-        ax.set_title(method)
-        ax.set_xlabel("x (m)")
-        ax.set_ylabel("y (m)")
-        ax.legend(fontsize=8, markerscale=4)
-        ax.grid(alpha=0.3)
-    fig.suptitle("kita (the character in the paper's Fig. 15) traced at 3.4 cm/s, simulated")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)

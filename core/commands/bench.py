@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from hapticdesk.commands.output_path import check_output_path
+from hapticdesk.commands.output_path import cannot_write, check_output_path
 from hapticdesk.files.profile import DeskProfile, load_profile
 from hapticdesk.files.yamlfile import ConfigError
 
@@ -32,6 +32,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="with --paper: where to draw the traced 北 (Fig. 16)",
     )
+    parser.add_argument(
+        "--figures",
+        type=Path,
+        default=None,
+        metavar="FOLDER",
+        help="with --paper: draw Figs. 2, 8, 14 and 16 into FOLDER (fig2.png, fig8.png, "
+        "fig14.png, fig16.png; the folder is made if its parent exists)",
+    )
 
 
 #: the most simulated sessions pooled: 1000 had grown the process past 3 GB
@@ -43,6 +51,15 @@ def run(args: argparse.Namespace) -> int:
     for flag, path in (("--plot", args.plot), ("--paper-png", args.paper_png)):
         if path is not None:
             check_output_path(path, flag, (".png",), "the plot")
+    if args.figures is not None:
+        if not args.paper:
+            raise ConfigError("--figures", "draws the paper's figures: give it with --paper")
+        if args.figures.exists() and not args.figures.is_dir():
+            raise ConfigError("--figures", f"{args.figures} is a file; expected a folder")
+        if not args.figures.parent.is_dir():
+            raise ConfigError(
+                "--figures", f"cannot make {args.figures}: {args.figures.parent} does not exist"
+            )
     if args.seeds is not None and not 1 <= args.seeds <= MAX_SEEDS:
         # each session's recording and contacts are held for the pooled figures (~80 MB)
         raise ConfigError(
@@ -115,14 +132,21 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _paper(args: argparse.Namespace, profile: DeskProfile) -> int:
-    from hapticdesk.bench.paper import reproduce
+    from hapticdesk.bench.paper import FIGURE_FILES, reproduce
 
     seeds = tuple(range(args.seeds or 3))
-    findings = reproduce(profile, seeds, args.paper_png)
+    if args.figures is not None:
+        try:
+            args.figures.mkdir(exist_ok=True)
+        except OSError as err:
+            raise cannot_write(args.figures, err) from None
+    findings = reproduce(profile, seeds, args.paper_png, args.figures)
     if args.json:
         print(json.dumps([f.__dict__ for f in findings], indent=1, default=float))
         return 0
     for f in findings:
         mark = "holds" if f.holds else "DOES NOT HOLD"
         print(f"{f.figure}  [{mark}]\n  paper: {f.paper}\n  ours:  {f.ours}\n")
+    if args.figures is not None:
+        print(f"figures: {', '.join(str(args.figures / n) for n in FIGURE_FILES.values())}")
     return 0

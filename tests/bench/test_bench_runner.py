@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from hapticdesk.bench.accuracy import find_presses, measure_accuracy
+from hapticdesk.bench.paper import FIGURE_FILES
 from hapticdesk.bench.runner import Config, pareto_front, run_config, run_configs
 from hapticdesk.bench.scenes import paper_experiment
 from hapticdesk.cli import main
@@ -114,18 +115,38 @@ def test_pareto_front_takes_costs_within_each_other_s_range_as_a_tie():
     assert pareto_front(plain, "e", "c") == [0, 1, 2]
 
 
-def test_paper_reproduction_findings_hold(capsys):
-    assert main(["bench", "--paper", "--seeds", "2", "--json"]) == 0
+def test_paper_reproduction_findings_hold_and_are_drawn(capsys, tmp_path):
+    figures = tmp_path / "figures"  # (made by the command: its parent exists)
+    assert main(["bench", "--paper", "--seeds", "2", "--json", "--figures", str(figures)]) == 0
     findings = json.loads(capsys.readouterr().out)
     assert [f["figure"] for f in findings] == ["Fig. 2", "Fig. 8", "Fig. 14", "Fig. 16"]
     for f in findings:
         assert f["holds"], f
+        png = figures / FIGURE_FILES[f["figure"]]
+        assert f["numbers"]["png"] == str(png)
+        data = png.read_bytes()
+        assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 20_000
+    # Fig. 2's simulated panel: the bands it draws, with enough samples in each
+    bands = findings[0]["numbers"]["release_bands"]
+    assert [b["from_n"] for b in bands] == [2.0, 3.0, 4.0, 5.0, 6.0, 8.0]
+    assert all(b["samples"] > 20 and b["p95_ed_mm"] < b["p95_er_mm"] for b in bands)
     assert findings[0]["numbers"]["crossover_n"] == pytest.approx(3.8, abs=0.1)
     # Fig. 8 is judged on a release's 2–3 N as much as on a touch's: with the paper's contact
     # (the low-passed force, no predicted release) a release passes through it as a touch
     # does; our fast release had left 5 samples of 1,549 and the finding held by chance
     fig8 = findings[1]["numbers"]
     assert fig8["release_samples"] >= 0.3 * fig8["touch_samples"] > 0
+
+
+def test_figures_need_the_paper_and_a_folder(tmp_path, capsys):
+    assert main(["bench", "--figures", str(tmp_path)]) == 2
+    assert "--figures: draws the paper's figures: give it with --paper" in capsys.readouterr().err
+    file = tmp_path / "a.png"
+    file.write_bytes(b"")
+    assert main(["bench", "--paper", "--figures", str(file)]) == 2
+    assert "is a file; expected a folder" in capsys.readouterr().err
+    assert main(["bench", "--paper", "--figures", str(tmp_path / "no" / "such")]) == 2
+    assert "does not exist" in capsys.readouterr().err
 
 
 def test_every_method_is_judged_on_the_same_samples_and_times(paper_desk, session):

@@ -12,7 +12,7 @@ import sys
 import time
 from dataclasses import replace
 from pathlib import Path
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
 
 import numpy as np
 
@@ -21,8 +21,10 @@ from hapticdesk.commands.recording_input import add_recording_arguments, load_in
 from hapticdesk.estimator import ContactEstimator
 from hapticdesk.estimator.contacts import FLAG_NAMES, PHASE_NAMES, SOURCE_NAMES, ContactBlock
 from hapticdesk.estimator.inertia import accelerometer_readings
-from hapticdesk.files.forceplate import PlateDesk
 from hapticdesk.files.profile import METHODS, DeskProfile
+
+if TYPE_CHECKING:
+    from hapticdesk.files.forceplate import PlateDesk
 
 HEADER = ["t", "x", "y", "z", "surface", "force_n", "source", "phase"]
 

@@ -60,10 +60,11 @@ def run(args: argparse.Namespace) -> int:
         info["bytes"] = output.stat().st_size
         print(json.dumps(info))
     else:
-        located = ", ".join(f"{n} {c}" for n, c in summary.located.items() if c) or "none"
+        by_source = ", ".join(f"{n} {c}" for n, c in summary.located.items() if c)
         print(
             f"wrote {output} ({size_kb:.0f} kB): {summary.start_s:.2f}–{summary.end_s:.2f} s, "
-            f"{summary.samples} samples, {summary.contact_samples} in contact, located: "
-            f"{located}{', with truth' if summary.truth else ''} ({summary.method})"
+            f"{summary.samples} samples, {summary.contact_samples} in contact, "
+            f"{summary.located_samples} located{f' ({by_source})' if by_source else ''}"
+            f"{', with truth' if summary.truth else ''} ({summary.method})"
         )
     return 0

@@ -8,14 +8,16 @@ from __future__ import annotations
 import argparse
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from hapticdesk.files.c3d import is_c3d, open_c3d
-from hapticdesk.files.forceplate import PlateDesk, plate_desk, read_plate_recording
 from hapticdesk.files.profile import DeskProfile, load_profile
 from hapticdesk.files.readers import read_any_recording
 from hapticdesk.files.recording import Recording
 from hapticdesk.files.yamlfile import ConfigError
-from hapticdesk.runtime.source_spec import parse_source_spec
+
+if TYPE_CHECKING:  # (imported where a C3D plate is read: a CSV's contacts need neither)
+    from hapticdesk.files.forceplate import PlateDesk
 
 
 def plate_number(text: str) -> int:
@@ -77,6 +79,8 @@ def load_input(args: argparse.Namespace) -> RecordingInput:
             f"reading {Path(args.recording).name} needs the desk it was recorded on: give "
             "--desk NAME_OR_PATH (only a .c3d file brings its own, its force plate)",
         )
+    from hapticdesk.files.forceplate import plate_desk, read_plate_recording
+
     file = open_c3d(args.recording)
     desk = plate_desk(file, args.plate or 1)
     recording = read_plate_recording(args.recording, desk.profile, file)
@@ -87,6 +91,10 @@ def source_desk(source: str, plate: int | None, given: str | None = None) -> Des
     """For ``run``: the desk a C3D replay (``replay:FILE.c3d``) brings, its plate ``plate``
     (default 1), when no desk is ``given`` (--desk); None for any other source (its desk
     comes from --desk or the layout)."""
+    # (here, not at the top: it loads the plugin registry, which contacts and plot never use)
+    from hapticdesk.files.forceplate import plate_desk
+    from hapticdesk.runtime.source_spec import parse_source_spec
+
     kind, argument = parse_source_spec(source)
     c3d = kind == "replay" and is_c3d(argument)
     if plate is not None and (not c3d or given is not None):

@@ -289,6 +289,7 @@ class _CsvReader:
         self._pending: list[str] = []
         self._pending_chars = 0
         self._tail = b""  # the start of a line whose end is not read yet
+        self._quoted = False  # a quote seen: the plain parse reads quoted cells too
         self._started = False  # (a UTF-8 byte order mark is dropped from the first bytes)
         self._eof = False
         # a bad line found: raised once the good samples before it are handed out (so a
@@ -343,17 +344,44 @@ class _CsvReader:
                 data = data.removeprefix(b"\xef\xbb\xbf")
             if not data:
                 self._eof = True
-                parts, self._tail = [self._tail] if self._tail else [], b""
+                complete, self._tail = self._tail, b""  # (the last line, without its end)
             else:
-                # (a CR LF split between two reads meets again here)
-                parts = (self._tail + data).replace(b"\r\n", b"\n").split(b"\n")
-                self._tail = parts.pop()
-            self._add_lines(parts)
+                # complete lines, each with its end; a CR LF split between two reads meets
+                # again in the tail
+                data = self._tail + data
+                cut = data.rfind(b"\n") + 1
+                complete, self._tail = data[:cut], data[cut:]
+            if not self._add_plain_lines(complete):
+                parts = complete.replace(b"\r\n", b"\n").split(b"\n") if complete else []
+                if complete.endswith(b"\n"):
+                    parts.pop()  # (after the last line's end)
+                self._add_lines(parts)
         lines = self._pending[:rows]
         del self._pending[:rows]
         self._pending_chars -= sum(map(len, lines))
         self.line += len(lines)
         return lines
+
+    def _add_plain_lines(self, data: bytes) -> bool:
+        """Add the lines of ``data`` when it is ASCII and no line (nor the tail) is too long,
+        the usual case: decoded and split once (about twice as fast as splitting the bytes
+        first). False, adding nothing, otherwise: :meth:`_add_lines` then finds where."""
+        if not data.isascii() or len(self._tail) > MAX_LINE_CHARS:
+            return False
+        if not data:
+            return True
+        text = data.decode("ascii")
+        self._quoted = self._quoted or '"' in text
+        if "\r" in text:
+            text = text.replace("\r\n", "\n")
+        lines = text.split("\n")
+        if text.endswith("\n"):
+            lines.pop()  # (after the last line's end)
+        if max(map(len, lines), default=0) > MAX_LINE_CHARS:
+            return False
+        self._pending.extend(lines)
+        self._pending_chars += sum(map(len, lines))  # (as taken off: line ends not counted)
+        return True
 
     def _add_lines(self, parts: list[bytes]) -> None:
         """Decode complete lines read ahead; stop at one too long or not UTF-8."""
@@ -382,8 +410,10 @@ class _CsvReader:
             parts = parts[:index]
             text = b"\n".join(parts).decode("utf-8")
         if parts:
-            self._pending.extend(text.split("\n"))
-            self._pending_chars += len(text)
+            self._quoted = self._quoted or '"' in text
+            lines = text.split("\n")
+            self._pending.extend(lines)
+            self._pending_chars += sum(map(len, lines))
         if bad is not None:
             if first + len(parts) == 1:
                 raise bad  # (the header)
@@ -445,6 +475,56 @@ class _CsvReader:
     def _parse(self, lines: list[str], first_line: int) -> Recording:
         """The samples of ``lines`` (file lines from ``first_line`` on); ConfigError at the
         first bad one."""
+        table = self._parse_plain(lines)
+        if table is None:
+            table = self._parse_careful(lines, first_line)
+        rec = _from_table(table, [n for n, _ in self.extra], self.sensor_names, self.channel_names)
+        if not np.isfinite(rec.t).all():
+            i = int(np.argmax(~np.isfinite(rec.t)))
+            offset = _data_line_offsets(lines)[i]
+            column = self.needed_index[0]
+            cells = self._cells(lines[offset], first_line + offset)
+            cell = cells[column].strip() if column < len(cells) else ""
+            raise ConfigError(
+                f"{self.where}:{first_line + offset}:{column + 1}",
+                f"`t` is {cell or 'empty'!r}; every sample needs a finite time in seconds",
+            )
+        return rec
+
+    def _parse_plain(self, lines: list[str]) -> np.ndarray | None:
+        """The block's table (:func:`_from_table` order) when every line is plainly numeric
+        and as wide as the header: one ``np.loadtxt`` of every column, which itself refuses
+        an empty or blank cell, a word and a row of another width. None otherwise, for
+        :meth:`_parse_careful` to read the block again and name any fault at its
+        file:line:column. (A recording as ``write_recording`` and the simulator write it,
+        the paper scene's 105,617 lines of 34 columns: 0.40 s against 0.64 s through the
+        careful path, which scans each block for empty cells and reads the columns by name;
+        medians of 7, alternating in one process, on a loaded 2-core machine.)"""
+        # (blank lines only: numpy would warn of no data; the first line is almost always
+        # the one that shows it is not)
+        if not any(line.strip("\r") for line in lines):
+            return None
+        try:
+            table = np.loadtxt(
+                lines,
+                delimiter=",",
+                ndmin=2,
+                dtype=float,
+                comments=None,
+                # (numpy's parser is 10-15 % faster without looking for quotes)
+                quotechar='"' if self._quoted else None,
+            )
+        except ValueError:
+            return None
+        width = len(self.header)
+        if table.shape[1] != width:  # (a trailing comma on every line: read carefully)
+            return None
+        usecols = self.needed_index + [i for _, i in self.extra]
+        return table if usecols == list(range(width)) else table[:, usecols]
+
+    def _parse_careful(self, lines: list[str], first_line: int) -> np.ndarray:
+        """The block's table read column by name, empty cells as NaN, text extra columns
+        dropped; ConfigError at the first bad value or row."""
         text = _empty_cells_as_nan("\n".join(lines))
         self._check_widths(text, lines, first_line)
         table = np.zeros((0, len(self.needed_index) + len(self.extra)))  # blank lines only
@@ -463,18 +543,7 @@ class _CsvReader:
                 break
             except ValueError as err:  # a bad value is raised; a text extra column dropped
                 self._explain(err, first_line, usecols, lines)
-        rec = _from_table(table, [n for n, _ in self.extra], self.sensor_names, self.channel_names)
-        if not np.isfinite(rec.t).all():
-            i = int(np.argmax(~np.isfinite(rec.t)))
-            offset = _data_line_offsets(lines)[i]
-            column = self.needed_index[0]
-            cells = self._cells(lines[offset], first_line + offset)
-            cell = cells[column].strip() if column < len(cells) else ""
-            raise ConfigError(
-                f"{self.where}:{first_line + offset}:{column + 1}",
-                f"`t` is {cell or 'empty'!r}; every sample needs a finite time in seconds",
-            )
-        return rec
+        return table
 
     def _explain(
         self, err: ValueError, first_line: int, usecols: list[int], lines: list[str]

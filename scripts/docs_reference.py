@@ -514,6 +514,8 @@ def desk_state() -> Generated:
         "y": "where the finger is, metres (null while not located)",
         "resting_load_n": "what came to rest on the desk since the tare (a cup, a book), newtons",
         "occupancy": "true while the desk is in use (touched within the last 30 s)",
+        "paused": "true while a `pause` command holds the desk's gestures back (at most 1 h)",
+        "layout": "the running layout's name (the Home Assistant select of layouts reads it)",
     }
     return key_table(DeskState().snapshot(), words)
 
@@ -806,7 +808,7 @@ ROUTE_WORDS = {
     "POST /api/setup/start": "`{points: [[x, y], ...]}` metres: start a set-up check",
     "POST /api/setup/finish": "end it: what was found, each press's residual, a profile snippet",
     "WS /ws": "JSON messages, one per frame (below)",
-    "GET /static": "the page's script and style",
+    "GET /static/{path:path}": "the page's script and style (behind the token when one is set)",
 }
 
 

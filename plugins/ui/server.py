@@ -140,6 +140,11 @@ class _OneLineErrors:
     def __init__(self, app: Any) -> None:
         self.app = app
 
+    @property
+    def routes(self) -> Any:
+        """The wrapped app's routes (the reference of the HTTP contract is made from them)."""
+        return self.app.routes
+
     async def __call__(self, scope: Any, receive: Any, send: Any) -> None:
         try:
             await self.app(scope, receive, send)

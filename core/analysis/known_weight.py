@@ -46,21 +46,26 @@ GAIN_SD = 0.1
 POSITION_SD_M = 0.03
 #: how far from its mark a person sets a weight down, metres (a bag of sugar on a cross)
 PLACEMENT_SD_M = 0.003
-#: a weight's mass is known to this share (a kitchen scale, a label)
-MASS_SD = 0.01
+#: a rest's mean reads the weight to this share (noise, creep, what putting it down left
+#: ringing); the weight's own mass error only scales every gain alike, which moves no point
+READING_SD = 0.002
 #: a check spot placed further than this from its mark says the set-up should be redone
 CHECK_TOLERANCE_M = 0.005
 #: a spot's rest: the part of its bump that the first and last share of are trimmed from
 TRIM_SHARE = 0.2
-#: the empty desk read on either side of a rest: this long, this far from the weight's edges
+#: the empty desk read on either side of a rest over this long
 BASELINE_S = 1.5
+#: still stretches: readings smoothed over SMOOTH_S changing slower than this share of the
+#: weight a second (putting it down changes them by all of it in well under a second), this
+#: far from any change, at least MIN_STILL_S long
+STILL_SHARE_PER_S = 0.2
+SMOOTH_S = 0.1
 BASELINE_MARGIN_S = 0.3
-#: the desk counts as empty below this share of the weight
-EMPTY_SHARE = 0.15
+MIN_STILL_S = 0.4
 #: spots are suggested this far from the cells' centroid towards each cell
 SUGGESTED_REACH = 0.6
 #: the largest weight that makes sense on a desk top, and the smallest a cell resolves
-MIN_MASS_KG, MAX_MASS_KG = 0.05, 100.0
+MIN_MASS_KG, MAX_MASS_KG = 0.2, 100.0
 
 
 @dataclass(frozen=True)
@@ -203,8 +208,11 @@ def fit_cells(
     gain_sd: float = GAIN_SD,
     position_sd_m: float = POSITION_SD_M,
     placement_sd_m: float = PLACEMENT_SD_M,
+    reading_sd: float = READING_SD,
 ) -> CellFit:
-    """Fit each cell's gain and position to ``spots`` (see the module docstring)."""
+    """Fit each cell's gain and position to ``spots`` (see the module docstring): the spreads
+    weigh the spots against the profile (``gain_sd``, ``position_sd_m`` of the prior;
+    ``placement_sd_m`` of where the weight sat, ``reading_sd`` of how much it read)."""
     load_cell_channels(profile)
     _check_mass(mass_kg)
     if not spots:
@@ -224,7 +232,7 @@ def fit_cells(
     sd_alpha = gain_sd * np.abs(alpha0)
     sd_beta = np.hypot(sd_alpha * pos0[:, 0], np.abs(alpha0) * position_sd_m)
     sd_gamma = np.hypot(sd_alpha * pos0[:, 1], np.abs(alpha0) * position_sd_m)
-    alpha = _map_solve(readings, np.full(len(spots), weight), weight * MASS_SD, alpha0, sd_alpha)
+    alpha = _map_solve(readings, np.full(len(spots), weight), weight * reading_sd, alpha0, sd_alpha)
     placement = weight * placement_sd_m
     beta = _map_solve(readings, weight * points[:, 0], placement, beta0, sd_beta)
     gamma = _map_solve(readings, weight * points[:, 1], placement, gamma0, sd_gamma)
@@ -310,11 +318,15 @@ def spots_from_recording(
     points: np.ndarray,
     mass_kg: float,
 ) -> list[WeightSpot]:
-    """The weight's rests in a recording (t (n,), raw channels (n, C)), one per spot of
-    ``points`` (K, 2) in order: each rest's mean readings less the empty desk's on either
-    side (:data:`BASELINE_S` of it, :data:`BASELINE_MARGIN_S` away from the weight)."""
-    from hapticdesk.analysis.setup_check import press_windows
+    """The weight's rests in a recording (t (n,), raw channels (n, C)) that starts with an
+    empty desk, one rest per spot of ``points`` (K, 2) in order: each rest's mean readings
+    less the empty desk's, read on either side of it and taken at the rest's time (a zero
+    drifting linearly between them cancels).
 
+    The recording is cut where the readings change (the weight put down or lifted: it
+    changes the readings by W in a fraction of a second, a zero drifts by far less), into
+    still stretches; a still stretch reading at least half the weight more than the empty
+    one before it is a rest."""
     load_cell_channels(profile)
     _check_mass(mass_kg)
     t = np.asarray(t, dtype=float)
@@ -323,50 +335,91 @@ def spots_from_recording(
     if len(t) < 10 or len(t) != len(channels):
         raise ConfigError(None, "the recording is too short for a set-up with a weight")
     weight = mass_kg * STANDARD_GRAVITY
-    alpha0 = nominal_terms(profile)[0]
-    start = channels[: max(1, int(np.searchsorted(t, t[0] + 0.5)))].mean(axis=0)
-    # sign-blind, so a cell read the wrong way round still counts towards the weight
-    magnitude = np.abs((channels - start) * alpha0).sum(axis=1)
-    try:
-        holds = press_windows(magnitude, t, len(points), 0.5 * weight)
-    except ConfigError:
-        found = _count_rests(magnitude, 0.5 * weight)
+    alpha = np.abs(nominal_terms(profile)[0])  # sign-blind: a cell read upside down counts
+    rate = 1.0 / float(np.median(np.diff(t)))
+    stretches = _still_stretches(channels * alpha, rate, weight)
+    if not stretches:
+        raise ConfigError(None, "the desk was never still: nothing to read the weight from")
+    rests: list[tuple[int, int, int]] = []  # (stretch index, start, stop)
+    kinds = []
+    for i, (a, b) in enumerate(stretches):
+        level = channels[a:b].mean(axis=0)
+        if i == 0:
+            kinds.append("empty")
+            continue
+        ref = _nearest_empty(channels, stretches, kinds)
+        loaded = float(np.abs((level - ref) * alpha).sum()) >= 0.5 * weight
+        kinds.append("rest" if loaded else "empty")
+        if loaded:
+            rests.append((i, a, b))
+    if len(rests) != len(points):
         raise ConfigError(
             None,
             f"expected the {mass_kg:g} kg weight on {len(points)} spots one after another, "
-            f"found it {found} times: put it on each marked spot in turn and lift it off "
-            "between them",
-        ) from None
-    rate = 1.0 / float(np.median(np.diff(t)))
-    margin = max(1, int(round(BASELINE_MARGIN_S * rate)))
+            f"found it {len(rests)} times: start with the desk empty, put the weight on each "
+            "marked spot in turn and lift it off between them",
+        )
     width = max(1, int(round(BASELINE_S * rate)))
-    loaded = magnitude >= EMPTY_SHARE * weight
-    near = np.convolve(loaded.astype(float), np.ones(2 * margin + 1), mode="same") > 0
-    empty = ~near
     out = []
-    for k, hold in enumerate(holds):
-        a, b = hold.start, hold.stop
+    for k, (i, a, b) in enumerate(rests):
         trim = int((b - a) * TRIM_SHARE)
         rest = channels[a + trim : max(b - trim, a + trim + 1)].mean(axis=0)
-        before = np.flatnonzero(empty[max(0, a - 3 * width) : a]) + max(0, a - 3 * width)
-        after = np.flatnonzero(empty[b : b + 3 * width]) + b
-        sides = [channels[before[-width:]].mean(axis=0)] if len(before) else []
-        sides += [channels[after[:width]].mean(axis=0)] if len(after) else []
+        sides = []
+        if i > 0 and kinds[i - 1] == "empty":
+            pa, pb = stretches[i - 1]
+            sides.append((t[max(pa, pb - width) : pb].mean(), channels[max(pa, pb - width) : pb]))
+        if i + 1 < len(stretches) and kinds[i + 1] == "empty":
+            na, nb = stretches[i + 1]
+            sides.append((t[na : min(nb, na + width)].mean(), channels[na : min(nb, na + width)]))
         if not sides:
             raise ConfigError(
                 None,
-                f"spot {k + 1}: the desk was never empty around the weight's rest at "
+                f"spot {k + 1}: the desk was not still and empty around the weight's rest at "
                 f"t = {t[a]:.2f} s: lift the weight off for a second or two between spots",
             )
-        out.append(
-            WeightSpot((float(points[k, 0]), float(points[k, 1])), rest - np.mean(sides, axis=0))
-        )
+        times = np.array([when for when, _ in sides])
+        means = np.array([values.mean(axis=0) for _, values in sides])
+        if len(sides) == 2 and times[1] > times[0]:
+            share = (t[a:b].mean() - times[0]) / (times[1] - times[0])
+            baseline = means[0] + share * (means[1] - means[0])
+        else:
+            baseline = means.mean(axis=0)
+        out.append(WeightSpot((float(points[k, 0]), float(points[k, 1])), rest - baseline))
     return out
 
 
-def _count_rests(magnitude: np.ndarray, level: float) -> int:
-    above = np.concatenate([[False], magnitude > level, [False]])
-    return int(np.count_nonzero(np.diff(above.astype(np.int8)) == 1))
+def _still_stretches(forces: np.ndarray, rate: float, weight: float) -> list[tuple[int, int]]:
+    """(start, stop) of the stretches where the channels (as newtons) change slower than
+    :data:`STILL_SHARE_PER_S` of the weight a second, at least :data:`MIN_STILL_S` long and
+    :data:`BASELINE_MARGIN_S` clear of any change."""
+    width = max(1, int(round(SMOOTH_S * rate)))
+    kernel = np.ones(width) / width
+    smooth = np.column_stack(
+        [np.convolve(forces[:, j], kernel, mode="same") for j in range(forces.shape[1])]
+    )
+    change = np.abs(np.gradient(smooth, axis=0)).sum(axis=1) * rate  # N/s, sign-blind
+    moving = change > STILL_SHARE_PER_S * weight
+    margin = max(1, int(round(BASELINE_MARGIN_S * rate)))
+    near = np.convolve(moving.astype(float), np.ones(2 * margin + 1), mode="same") > 0
+    # (the smoothing's own edges are not a change)
+    near[:width] = near[width] if len(near) > width else near[:width]
+    near[-width:] = near[-width - 1] if len(near) > width else near[-width:]
+    still = np.concatenate([[False], ~near, [False]])
+    edges = np.flatnonzero(np.diff(still.astype(np.int8)))
+    shortest = max(1, int(round(MIN_STILL_S * rate)))
+    return [
+        (int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True) if b - a >= shortest
+    ]
+
+
+def _nearest_empty(
+    channels: np.ndarray, stretches: list[tuple[int, int]], kinds: list[str]
+) -> np.ndarray:
+    """The readings of the last empty stretch so far (its end: the nearest in time)."""
+    for (a, b), kind in zip(reversed(stretches[: len(kinds)]), reversed(kinds), strict=True):
+        if kind == "empty":
+            return channels[max(a, b - 10) : b].mean(axis=0)
+    raise AssertionError("the first stretch is empty by definition")
 
 
 def _check_mass(mass_kg: float) -> None:
@@ -453,7 +506,7 @@ def _calibrate_item(
     for key in ("kind", "axes", "channels", "calibration", "range"):
         if key in item:
             del item[key]
-    item["position"] = seq([_round(x), _round(y), _round(z)])
+    item["position"] = seq([_round(x, 6), _round(y, 6), _round(z, 6)])  # to a micrometre
     item["channels"] = seq(["fz"])
     item["calibration"] = seq([seq([v]) for v in (0, 0, _round(number, 6), 0, 0, 0)])
     if limit is not None:

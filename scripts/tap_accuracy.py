@@ -25,7 +25,8 @@ true force reached it; the others are counted apart ("under 2 N").
 
 The load-cell desks (profiles kitamura2017-loadcells-80hz, -1khz and balance-board) are
 simulated with their converters' own noise (hapticdesk.sim.loadcells: HX711s at 80 Hz, an
-ADS1256 at 1 kHz); ``--noise`` and ``--resolution`` set the six-axis sensors only.
+ADS1256 at 1 kHz); ``--noise`` sets the same amplitude on their total F_z, shared by the
+cells, ``--resolution`` the six-axis sensors only.
 scripts/loadcell_accuracy.py varies them (clocks, gains, mounting, other desks).
 """
 
@@ -57,7 +58,7 @@ from hapticdesk.sim import (
     Tap,
     simulate,
 )
-from hapticdesk.sim.loadcells import LoadCellParameters
+from hapticdesk.sim.loadcells import LoadCellParameters, with_total_amplitude
 from hapticdesk.sim.sensors import SensorParameters
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -434,7 +435,7 @@ def main() -> None:
         type=float,
         metavar="SHARE",
         help="the simulated sensors' resolution step as a share of each channel's rating "
-        "(default: the paper's 1/2000; 0: unrounded)",
+        "(default: the paper's 1/2000; 0: unrounded; six-axis sensors only)",
     )
     parser.add_argument(
         "--desk",
@@ -461,11 +462,13 @@ def main() -> None:
             label += f", at {args.rate:g} Hz"
         started = time.monotonic()
         layout = buttons(desk, args.snap)
-        sensors = None
-        if (args.noise is not None or args.resolution is not None) and desk.six_axis_only:
+        sensors = cells = None
+        if not desk.six_axis_only:  # load cells: the same amplitude, shared by the cells
+            cells = None if args.noise is None else with_total_amplitude(desk, args.noise)
+        elif args.noise is not None or args.resolution is not None:
             given = {"noise_amplitude_n": args.noise, "resolution": args.resolution}
             sensors = SensorParameters(**{k: v for k, v in given.items() if v is not None})
-        tally = measure(desk, layout, args.taps, args.seed, sensors=sensors)
+        tally = measure(desk, layout, args.taps, args.seed, sensors=sensors, cells=cells)
         print(tally.line(label) + f"  <!-- {time.monotonic() - started:.0f} s -->")
 
 

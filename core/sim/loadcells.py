@@ -37,7 +37,7 @@ hobby board's supply and wiring (module docstrings of the presets say how much).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.signal
@@ -167,9 +167,23 @@ class LoadCellParameters:
         return cls.ads1256(**changes)
 
 
-def _with(preset: LoadCellParameters, changes: dict[str, object]) -> LoadCellParameters:
-    from dataclasses import replace
+def with_total_amplitude(
+    profile: DeskProfile, amplitude_n: float, params: LoadCellParameters | None = None
+) -> LoadCellParameters:
+    """``params`` (default: the rate's converter) with the noise that makes 3σ of the desk's
+    total F_z at rest ``amplitude_n`` (the six-axis sensors' measure, SensorParameters's
+    ``noise_amplitude_n``), each cell's share scaled by its rating as usual."""
+    if not (math.isfinite(amplitude_n) and amplitude_n >= 0):
+        raise ValueError(f"the noise amplitude must be a number >= 0, found {amplitude_n}")
+    params = params or LoadCellParameters.for_rate(profile.sample_rate_hz)
+    unit = replace(params, noise_n=1.0)
+    zero = np.zeros(profile.channel_count)
+    sigma = LoadCellModel(profile, unit, Conversions(1, zero, zero, zero, zero, False)).noise_sigma
+    per_unit = float(np.sqrt(np.sum((profile.wrench_map()[2] * sigma) ** 2)))
+    return replace(params, noise_n=amplitude_n / 3.0 / per_unit)
 
+
+def _with(preset: LoadCellParameters, changes: dict[str, object]) -> LoadCellParameters:
     return replace(preset, **changes) if changes else preset  # type: ignore[arg-type]
 
 

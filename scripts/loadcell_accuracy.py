@@ -151,7 +151,7 @@ surfaces:
     origin: [0.0, 0.0, {top:.4f}]
     normal: [0, 0, 1]
     polygon: {outline}
-estimation: {{method: fused, sway_compensation: false}}
+estimation: {{method: fused, sway_compensation: false, force_lowpass_hz: 8, diff_lowpass_hz: 8}}
 """
     path = Path(f"unseen-loadcells-{index + 1}.yaml")
     return profile_from_mapping(load_marked_yaml(path, text), path)

@@ -11,6 +11,9 @@ way. The cases, on each shipped load-cell profile:
 - as profiled: the converter the rate implies (HX711s converting in step at 80 Hz, an
   ADS1256 taking the cells in turn at 1 kHz; hapticdesk.sim.loadcells);
 - own clocks: every HX711 on its own oscillator (its readings up to a period old, drifting);
+- … aligned: the same readings, each channel interpolated to t − T at its own conversion
+  times (which a board that stamps each conversion would send) before the estimator: what
+  an alignment stage would give;
 - gains 5 % off, cells 2 cm off: the desk as built differs from its profile, uncalibrated;
 - … calibrated: the same desk after the set-up with a 1 kg weight on four spots
   (hapticdesk.analysis.known_weight, fitted on a simulated set-up on the built desk);
@@ -36,7 +39,16 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from tap_accuracy import LOADCELL_DESKS, Tally, buttons, measure  # (beside this)
+from tap_accuracy import (  # (beside this)
+    LOADCELL_DESKS,
+    Tally,
+    buttons,
+    edge_taps,
+    gesture_events,
+    judge_taps,
+    measure,
+    true_touches,
+)
 
 from hapticdesk.analysis.known_weight import (
     calibrate,
@@ -44,9 +56,11 @@ from hapticdesk.analysis.known_weight import (
     spots_from_recording,
     suggested_spots,
 )
+from hapticdesk.estimator import estimate
 from hapticdesk.files.profile import DeskProfile, load_profile, profile_from_mapping
+from hapticdesk.files.recording import Recording
 from hapticdesk.files.yamlfile import load_marked_yaml
-from hapticdesk.sim import Idle, LiftObject, PutObject, Scene, simulate
+from hapticdesk.sim import Idle, LiftObject, PutObject, Scene, SimulationRun, Tap, simulate
 from hapticdesk.sim.loadcells import LoadCellParameters
 
 SETUP_MASS_KG = 1.0  # a bag of sugar
@@ -86,6 +100,36 @@ def setup_with_weight(
     result = calibrate(desk, found, SETUP_MASS_KG, check_index=None)
     worst = max(c.error_m for c in result.leave_one_out)
     return calibrated_profile(result.fit), f"leave-one-out ≤ {worst * 1000:.1f} mm"
+
+
+def aligned(desk: DeskProfile, rec: Recording, run: SimulationRun) -> Recording:
+    """``rec`` with each channel interpolated to t − T from its own conversion times (the
+    latest conversion of every channel ends within the period before t, so t − T lies
+    between each one's last two)."""
+    assert run.cells is not None
+    k = np.arange(len(rec.t))
+    times = run.cells.conversions.times(k, desk.sample_rate_hz)
+    out = rec.channels.copy()
+    for c in range(out.shape[1]):
+        when, first = np.unique(times[:, c], return_index=True)  # a conversion read twice
+        out[:, c] = np.interp(rec.t - 1.0 / desk.sample_rate_hz, when, rec.channels[first, c])
+    return replace(rec, wrench=out)
+
+
+def aligned_taps(desk: DeskProfile, n: int, seed: int, cells: LoadCellParameters) -> Tally:
+    """tap_accuracy's test with the readings :func:`aligned` before the estimator."""
+    layout = buttons(desk)
+    total = Tally()
+    for k, start in enumerate(range(0, n, 250)):
+        scene, which, peak = edge_taps(np.random.default_rng(seed + k), min(250, n - start))
+        rec = simulate(desk, scene, seed=seed + k, cells=cells)
+        rec = aligned(desk, rec, SimulationRun(desk, scene, seed + k, cells=cells))
+        contacts = estimate(desk, rec)
+        taps = [i for i, a in enumerate(scene.actions) if isinstance(a, Tap)]
+        touches = [t for t in true_touches(rec) if t[2] in taps]
+        events = [e for e in gesture_events(desk, layout, contacts) if e.gesture == "tap"]
+        total.add(judge_taps(desk, contacts, touches, which, peak, events).tally)
+    return total
 
 
 def under_the_legs(desk: DeskProfile) -> DeskProfile:

@@ -248,6 +248,12 @@ class Conversions:
         n = np.floor((now - self.phase[None, :]) / self.period[None, :] + 1e-9)
         return np.floor(self.phase[None, :] + n * self.period[None, :] + 1e-9).astype(np.int64)
 
+    def times(self, k: np.ndarray, rate_hz: float) -> np.ndarray:
+        """(len(k), C) the time each channel's reading ``k`` stands for, seconds: the middle
+        of its conversion (what a board that stamps each conversion would send)."""
+        middle = self.ends(k) - (self.lengths[None, :] - 1) / 2.0
+        return middle / (rate_hz * self.points)
+
 
 class LoadCellModel:
     """Turns a desk's sensor wrenches on the fine grid into raw channel readings (module

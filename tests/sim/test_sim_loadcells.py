@@ -163,6 +163,7 @@ def test_conversions_average_their_own_period() -> None:
         out = LoadCellModel.convert(model, fine, 0, history, k)
         middle = conv.ends(k) - (conv.lengths - 1) / 2
         np.testing.assert_allclose(out, middle, atol=1e-9)
+        np.testing.assert_allclose(conv.times(k, 80.0), middle / (80.0 * points))
         lag = k[:, None] * points - middle  # fine points behind the reading's time
         if sampling == "simultaneous":
             np.testing.assert_allclose(lag, (points - 1) / 2)

@@ -254,3 +254,24 @@ def test_presets_follow_the_datasheets() -> None:
     ads = LoadCellParameters.for_rate(1000)
     assert ads.sampling == "multiplexed" and ads.lsb_n > hx.lsb_n
     assert replace(ads, sampling="independent").sampling == "independent"
+
+
+def test_a_total_noise_amplitude_is_shared_by_the_cells(tmp_path: Path) -> None:
+    """`with_total_amplitude` and `simulate --noise-amplitude` on a load-cell desk: 3σ of the
+    total F_z at rest is the amplitude asked, the cells' shares scaled by their ratings."""
+    from hapticdesk.cli import main
+    from hapticdesk.sim.loadcells import with_total_amplitude
+
+    desk = load_profile("kitamura2017-loadcells-80hz")
+    quiet = SimEffects(dynamics=False, drift=False, quantisation=False)
+    cells = with_total_amplitude(desk, 0.3)
+    rec = simulate(desk, Scene([Idle(duration_s=60.0)]), seed=5, effects=quiet, cells=cells)
+    assert 3 * np.std(rec.channels @ desk.wrench_map()[2]) == pytest.approx(0.3, rel=0.05)
+    scene = tmp_path / "idle.yaml"
+    scene.write_text("timeline:\n  - idle: 30\n")
+    out = tmp_path / "idle.csv"
+    argv = ["simulate", str(scene), "--desk", desk.name, "-o", str(out)]
+    assert main([*argv, "--noise-amplitude", "0.3"]) == 0
+    got = read_recording(out, desk.sensor_names, channel_names=desk.channel_names())
+    spread = np.std(np.diff(got.channels @ desk.wrench_map()[2])) / np.sqrt(2)  # drift aside
+    assert 3 * spread == pytest.approx(0.3, rel=0.1)

@@ -62,6 +62,9 @@ STILL_SHARE_PER_S = 0.2
 SMOOTH_S = 0.1
 BASELINE_MARGIN_S = 0.3
 MIN_STILL_S = 0.4
+#: still stretches in a row whose readings differ by less than this share of the weight are
+#: one rest (cut by the desk ringing), more: the weight was slid to the next spot
+SAME_REST_SHARE = 0.05
 #: spots are suggested this far from the cells' centroid towards each cell
 SUGGESTED_REACH = 0.6
 #: the largest weight that makes sense on a desk top, and the smallest a cell resolves
@@ -340,8 +343,10 @@ def spots_from_recording(
     stretches = _still_stretches(channels * alpha, rate, weight)
     if not stretches:
         raise ConfigError(None, "the desk was never still: nothing to read the weight from")
-    rests: list[tuple[int, int, int]] = []  # (stretch index, start, stop)
-    kinds = []
+    # each rest: the stretches it spans (a knock or the desk ringing can cut one in two:
+    # still stretches reading the same load in a row are one rest), first to last
+    rests: list[list[int]] = []
+    kinds: list[str] = []
     for i, (a, b) in enumerate(stretches):
         level = channels[a:b].mean(axis=0)
         if i == 0:
@@ -350,8 +355,15 @@ def spots_from_recording(
         ref = _nearest_empty(channels, stretches, kinds)
         loaded = float(np.abs((level - ref) * alpha).sum()) >= 0.5 * weight
         kinds.append("rest" if loaded else "empty")
-        if loaded:
-            rests.append((i, a, b))
+        if not loaded:
+            continue
+        if kinds[i - 1] == "rest":
+            pa, pb = stretches[i - 1]
+            before = channels[pa:pb].mean(axis=0)
+            if float(np.abs((level - before) * alpha).sum()) < SAME_REST_SHARE * weight:
+                rests[-1].append(i)
+                continue
+        rests.append([i])
     if len(rests) != len(points):
         raise ConfigError(
             None,
@@ -361,26 +373,32 @@ def spots_from_recording(
         )
     width = max(1, int(round(BASELINE_S * rate)))
     out = []
-    for k, (i, a, b) in enumerate(rests):
-        trim = int((b - a) * TRIM_SHARE)
-        rest = channels[a + trim : max(b - trim, a + trim + 1)].mean(axis=0)
+    for k, members in enumerate(rests):
+        parts = []
+        for i in members:
+            a, b = stretches[i]
+            trim = int((b - a) * TRIM_SHARE)
+            parts.append(np.arange(a + trim, max(b - trim, a + trim + 1)))
+        held = np.concatenate(parts)
+        rest = channels[held].mean(axis=0)
+        first, last = members[0], members[-1]
         sides = []
-        if i > 0 and kinds[i - 1] == "empty":
-            pa, pb = stretches[i - 1]
+        if kinds[first - 1] == "empty":
+            pa, pb = stretches[first - 1]
             sides.append((t[max(pa, pb - width) : pb].mean(), channels[max(pa, pb - width) : pb]))
-        if i + 1 < len(stretches) and kinds[i + 1] == "empty":
-            na, nb = stretches[i + 1]
+        if last + 1 < len(stretches) and kinds[last + 1] == "empty":
+            na, nb = stretches[last + 1]
             sides.append((t[na : min(nb, na + width)].mean(), channels[na : min(nb, na + width)]))
         if not sides:
             raise ConfigError(
                 None,
                 f"spot {k + 1}: the desk was not still and empty around the weight's rest at "
-                f"t = {t[a]:.2f} s: lift the weight off for a second or two between spots",
+                f"t = {t[held[0]]:.2f} s: lift the weight off for a second or two between spots",
             )
         times = np.array([when for when, _ in sides])
         means = np.array([values.mean(axis=0) for _, values in sides])
         if len(sides) == 2 and times[1] > times[0]:
-            share = (t[a:b].mean() - times[0]) / (times[1] - times[0])
+            share = (t[held].mean() - times[0]) / (times[1] - times[0])
             baseline = means[0] + share * (means[1] - means[0])
         else:
             baseline = means.mean(axis=0)

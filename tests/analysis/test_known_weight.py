@@ -293,3 +293,29 @@ def test_the_command_writes_the_profile(setup_recording: Recording, tmp_path: Pa
     )
     assert bad.returncode == 2 and "give 3 to 5 spots" in bad.stderr
     assert "Traceback" not in bad.stderr
+
+
+def test_a_rest_cut_by_a_knock_is_one_rest(nominal: DeskProfile) -> None:
+    """The desk knocked (or ringing) while the weight rests cuts the rest into two still
+    stretches reading the same: they are one spot; the weight slid on to the next spot
+    without being lifted makes two."""
+    rate = 80.0
+    t = np.arange(0, 30, 1 / rate)
+    shares = np.array([[4.0, 2.0, 2.0, 1.8], [2.0, 4.0, 1.8, 2.0], [2.0, 1.8, 4.0, 2.0]])
+    channels = np.tile([15.0, 17.0, 16.0, 16.5], (len(t), 1))
+    for (a, b), share in zip([(3, 8), (11, 16), (19, 24)], shares, strict=True):
+        channels[(t >= a) & (t < b)] += share
+    knock = (t >= 13.0) & (t < 13.15)
+    channels[knock] += np.array([1.5, -1.0, 0.5, -0.8])
+    spots = spots_from_recording(nominal, t, channels, np.zeros((3, 2)), 1.0)
+    np.testing.assert_allclose([s.readings for s in spots], shares, atol=1e-9)
+    slid = np.tile([15.0, 17.0, 16.0, 16.5], (len(t), 1))
+    moved = np.array([3.0, 1.0, 1.0, 2.8])
+    for (a, b), share in zip(
+        [(3, 8), (11, 15.5), (15.5, 19), (21, 26)],
+        [shares[0], shares[1], moved, shares[2]],
+        strict=True,
+    ):
+        slid[(t >= a) & (t < b)] += share
+    found = spots_from_recording(nominal, t, slid, np.zeros((4, 2)), 1.0)
+    np.testing.assert_allclose(found[2].readings, moved, atol=1e-9)

@@ -415,7 +415,12 @@ def _still_stretches(forces: np.ndarray, rate: float, weight: float) -> list[tup
     smooth = np.column_stack(
         [np.convolve(forces[:, j], kernel, mode="same") for j in range(forces.shape[1])]
     )
-    change = np.abs(np.gradient(smooth, axis=0)).sum(axis=1) * rate  # N/s, sign-blind
+    # the change over one smoothing width (N/s, sign-blind): its noise does not grow with the
+    # rate, as a sample-to-sample difference's would (1 kHz cells read "never still")
+    step = np.zeros_like(smooth)
+    step[width:] = smooth[width:] - smooth[:-width]
+    step[:width] = step[width] if len(step) > width else 0.0
+    change = np.abs(step).sum(axis=1) * rate / width
     moving = change > STILL_SHARE_PER_S * weight
     margin = max(1, int(round(BASELINE_MARGIN_S * rate)))
     near = np.convolve(moving.astype(float), np.ones(2 * margin + 1), mode="same") > 0

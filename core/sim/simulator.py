@@ -146,19 +146,8 @@ class SimulationRun:
         state = None
         for c, k0 in enumerate(range(0, self.n_samples, CHUNK)):
             k1 = min(k0 + CHUNK, self.n_samples)
-            loads, truth = self.timeline.render(k0, k1)
-            loads += self._base
+            loads, truth, true, motion, state = self._desk(k0, k1, state)
             t = np.arange(k0, k1) / self.fs
-            motion = None
-            if self._discrete is not None:
-                if state is None:
-                    state = self._discrete.initial_state(loads[0])
-                if self.accelerometer is not None:
-                    true, motion, state = self._discrete.run_moving(loads, state)
-                else:
-                    true, state = self._discrete.run(loads, state)
-            else:
-                true = self.model.static_readings(loads)
             if self.accelerometer is not None:
                 truth.update(self._accelerometer(loads, motion, c))
             wrench = self.sensor_model.apply(
@@ -170,6 +159,26 @@ class SimulationRun:
                 saturation=self.effects.saturation,
             )
             yield t, wrench, truth
+
+    def _desk(
+        self, k0: int, k1: int, state: np.ndarray | None
+    ) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """The timeline's samples k0 … k1-1 on the desk: (loads (k, 6) with the desk's
+        weight, truth, the sensors' true readings (k, S, 6), the desk's motion where an
+        accelerometer needs it, the state to carry; ``state`` None: at rest under the first
+        load)."""
+        loads, truth = self.timeline.render(k0, k1)
+        loads += self._base
+        if self._discrete is None:
+            return loads, truth, self.model.static_readings(loads), None, state
+        if state is None:
+            state = self._discrete.initial_state(loads[0])
+        motion = None
+        if self.accelerometer is not None:
+            true, motion, state = self._discrete.run_moving(loads, state)
+        else:
+            true, state = self._discrete.run(loads, state)
+        return loads, truth, true, motion, state
 
     def _cell_chunks(
         self, cells: LoadCellModel
@@ -183,18 +192,7 @@ class SimulationRun:
         for c, k0 in enumerate(range(0, self.n_samples, CHUNK)):
             k1 = min(k0 + CHUNK, self.n_samples)
             a, b = k0 * points, min(k1 * points, n_fine)
-            loads, truth = self.timeline.render(a, b)
-            loads += self._base
-            motion = None
-            if self._discrete is not None:
-                if state is None:
-                    state = self._discrete.initial_state(loads[0])
-                if self.accelerometer is not None:
-                    true, motion, state = self._discrete.run_moving(loads, state)
-                else:
-                    true, state = self._discrete.run(loads, state)
-            else:
-                true = self.model.static_readings(loads)
+            loads, truth, true, motion, state = self._desk(a, b, state)
             fine = cells.channels(true)
             if history is None:  # the desk stood still under its first load before
                 history = np.repeat(fine[:1], cells.conversions.history, axis=0)

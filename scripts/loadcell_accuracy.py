@@ -19,7 +19,10 @@ way. The cases, on each shipped load-cell profile:
   (hapticdesk.analysis.known_weight, fitted on a simulated set-up on the built desk);
 - cells under the legs: the same top, its cells on the floor under the legs (a 0.73 m
   lever for the finger's sideways push, which the cells cannot see);
-- 3 × noise.
+- 3 × noise (``--noise-scale``).
+
+``--set KEY=VALUE`` changes an estimation setting on every desk (the low-passes compared in
+docs/loadcells.md: ``--set force_lowpass_hz=4.77 --set diff_lowpass_hz=4.77``).
 
 Then ``--unseen N`` desks drawn at random (seeded): 0.5–1.6 m wide, 0.4–0.9 m deep, three to
 six cells (turned, some upside down or reporting the load), the top 2–6 cm above them, 80 Hz
@@ -205,9 +208,13 @@ def describe(desk: DeskProfile) -> str:
     """A desk's shape in a few words, for the table."""
     span = np.ptp(desk.surfaces[0].polygon, axis=0)
     height = desk.surfaces[0].origin[2] - np.mean([s.position[2] for s in desk.sensors])
+    rated = desk.sensors[0].channel_limits()[0]
+    cells = LoadCellParameters.for_rate(desk.sample_rate_hz)
+    noise = 3 * cells.noise_n * rated / cells.rated_n * math.sqrt(len(desk.sensors))
     return (
-        f"{span[0]:.2f} × {span[1]:.2f} m, {len(desk.sensors)} cells, top {height * 100:.0f} cm "
-        f"above them, {desk.sample_rate_hz:g} Hz"
+        f"{span[0]:.2f} × {span[1]:.2f} m, {len(desk.sensors)} cells of {rated:g} N, top "
+        f"{height * 100:.0f} cm above them, {desk.sample_rate_hz:g} Hz, noise {noise:.2f} N "
+        "(3σ on F_z)"
     )
 
 
@@ -215,8 +222,9 @@ def row(label: str, tally: Tally, seconds: float, note: str = "") -> None:
     print(tally.line(label + (f" ({note})" if note else "")) + f" {seconds:.0f} s |")
 
 
-def cases(desk: DeskProfile, n: int, seed: int, full: bool) -> None:
-    """The rows of one desk (``full``: every case; else as profiled and calibrated)."""
+def cases(desk: DeskProfile, n: int, seed: int, full: bool, loudness: float = 3.0) -> None:
+    """The rows of one desk (``full``: every case, the noise row ``loudness`` times the
+    converter's; else as profiled and calibrated)."""
     layout = buttons(desk)
     cells = LoadCellParameters.for_rate(desk.sample_rate_hz)
     started = time.monotonic()
@@ -233,6 +241,8 @@ def cases(desk: DeskProfile, n: int, seed: int, full: bool) -> None:
             measure(desk, layout, n, seed, cells=own),
             time.monotonic() - started,
         )
+        started = time.monotonic()
+        row(f"{desk.name}: … aligned", aligned_taps(desk, n, seed, own), time.monotonic() - started)
     built, gains = built_off(desk, np.random.default_rng(seed))
     off = replace(cells, gains=gains)
     if full:
@@ -254,9 +264,9 @@ def cases(desk: DeskProfile, n: int, seed: int, full: bool) -> None:
         )
     if full:
         started = time.monotonic()
-        loud = replace(cells, noise_n=3 * cells.noise_n)
+        loud = replace(cells, noise_n=loudness * cells.noise_n)
         row(
-            f"{desk.name}: 3 × noise",
+            f"{desk.name}: {loudness:g} × noise",
             measure(desk, layout, n, seed, cells=loud),
             time.monotonic() - started,
         )
@@ -270,7 +280,21 @@ def main() -> None:
         "--desk", choices=(*LOADCELL_DESKS, "all", "none"), default="all", help="shipped desks"
     )
     parser.add_argument("--unseen", type=int, default=6, help="random unseen desks (default 6)")
+    parser.add_argument(
+        "--noise-scale", type=float, default=3.0, help="the noise row's factor (default 3)"
+    )
+    parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="an estimation setting (a number) on every desk, e.g. force_lowpass_hz=4.77",
+    )
     args = parser.parse_args()
+    settings = {}
+    for item in args.set:
+        key, _, value = item.partition("=")
+        settings[key] = float(value)
     print(
         "| desk, case | taps | under 2 N | right | wrong | missed | phantom "
         "| light 2–3 N right | time |"
@@ -278,10 +302,11 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|---|---|")
     names = LOADCELL_DESKS if args.desk == "all" else () if args.desk == "none" else (args.desk,)
     for name in names:
-        cases(load_profile(name), args.taps, args.seed, full=True)
+        desk = load_profile(name).with_estimation(**settings)
+        cases(desk, args.taps, args.seed, full=True, loudness=args.noise_scale)
     rng = np.random.default_rng(args.seed + 1000)
     for index in range(args.unseen):
-        desk = random_desk(rng, index)
+        desk = random_desk(rng, index).with_estimation(**settings)
         print(f"| *{desk.name}: {describe(desk)}* | | | | | | | | |")
         cases(desk, args.taps, args.seed, full=False)
 

@@ -29,9 +29,10 @@ constant ``creep_time_s``, and back when it is taken off: a first-order response
 settled under the desk's weight), zero offset and linear drift, white noise per reading,
 rounding to the converter's step in newtons (``lsb_n``) and clipping at the channel's range.
 
-The defaults are an HX711 at 80 Hz reading a 20 kg bar cell (see :meth:`hx711`):
-noise and step from the datasheets through the cell's sensitivity, times a margin for a
-hobby board's supply and wiring (module docstrings of the presets say how much).
+The defaults are about an HX711 at 80 Hz reading a 20 kg bar cell; the presets
+(:meth:`LoadCellParameters.hx711`, :meth:`~LoadCellParameters.ads1256`) derive noise and step
+from the datasheets through the cell's sensitivity, times a margin for a hobby board's supply
+and wiring (their docstrings say how).
 """
 
 from __future__ import annotations
@@ -257,8 +258,8 @@ class Conversions:
 
 class LoadCellModel:
     """Turns a desk's sensor wrenches on the fine grid into raw channel readings (module
-    docstring). State (the last fine points, creep) carries from chunk to chunk, so any split
-    gives the same readings."""
+    docstring). It holds no state: the simulator hands it the last fine points and the
+    creep's state from chunk to chunk, so any split gives the same readings."""
 
     def __init__(
         self,

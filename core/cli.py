@@ -47,6 +47,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "bench": ("hapticdesk.commands.bench", "error against run time for every method"),
     "thresholds": ("hapticdesk.commands.thresholds", "derive F_tth and F_rth from presses"),
     "characterize": ("hapticdesk.commands.characterize", "measure a desk's noise, modes, drift"),
+    "calibrate": ("hapticdesk.commands.calibrate", "fit load cells' gains and places to a weight"),
     "plot": ("hapticdesk.commands.plot", "plot a recording and its contacts"),
     "check": ("hapticdesk.commands.check", "validate and explain a layout"),
     "strokes": ("hapticdesk.commands.strokes", "classify or record stroke templates"),

@@ -38,7 +38,7 @@ def register_sources(register: Any) -> None:
     ``argument`` the text after ``KIND:``, ``profile`` the
     :class:`~hapticdesk.files.profile.DeskProfile`, and ``options`` keyword options the
     factory may ignore (``speed``: replay speed, 1 = real time, 0 = as fast as possible). Bad
-    arguments raise :class:`~hapticdesk.files.yamlfile.ConfigError`.
+    arguments raise :class:`~hapticdesk.errors.ConfigError`.
     """
 
 
@@ -54,7 +54,7 @@ def register_actions(register: Any) -> None:
       callable taking one :class:`~hapticdesk.gestures.event.GestureEvent`; it may have a
       ``close()`` method (called once at the end) and a ``timeout_s`` attribute (how long one
       call may take before the dispatcher gives up on it).
-    - ``validate(options, position)``: raise :class:`~hapticdesk.files.yamlfile.ConfigError` naming
+    - ``validate(options, position)``: raise :class:`~hapticdesk.errors.ConfigError` naming
       ``file:line:column`` when the options are wrong, so ``hapticdesk check`` and ``run`` stop
       before anything starts. ``position`` is where the action stands in the layout.
 
@@ -128,9 +128,9 @@ def register_layout_sections(register: Any) -> None:
     ``run`` refuse the same sections). ``operator_only=True`` (a keyword of ``register``)
     makes the section the operator's alone: a layout from the browser UI, ``/set`` or a reload
     may not change it (a connection's address and credentials). ``value`` is the section (a
-    :class:`~hapticdesk.files.yamlfile.MarkedDict` for a mapping, with positions),
+    :class:`~hapticdesk.files.marked_values.MarkedDict` for a mapping, with positions),
     ``position`` where it stands, ``layout_path`` the layout file (paths in the section are
-    relative to its folder). Raise :class:`~hapticdesk.files.yamlfile.ConfigError` naming
+    relative to its folder). Raise :class:`~hapticdesk.errors.ConfigError` naming
     ``file:line:column``. ``validate`` may be a lazy ``"module:attr"`` string.
     """
 
@@ -159,7 +159,7 @@ def event_sink(desk: Any, layout: Any, context: Any) -> Any:
     :class:`~hapticdesk.gestures.event.GestureEvent` and runs in its own dispatcher lane
     (off the sensing thread, with ``timeout_s`` and ``close()`` as for actions); the MQTT
     plugin publishes the desk's own topics from here. A
-    :class:`~hapticdesk.files.yamlfile.ConfigError` raised here stops the run before it starts.
+    :class:`~hapticdesk.errors.ConfigError` raised here stops the run before it starts.
     """
 
 

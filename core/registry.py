@@ -25,7 +25,7 @@ from typing import Any
 import pluggy
 
 from hapticdesk import __version__, hookspecs
-from hapticdesk.files.yamlfile import ConfigError, Position
+from hapticdesk.errors import ConfigError, Position
 
 log = logging.getLogger(__name__)
 

@@ -21,7 +21,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.runtime.pacing import PacedSource, Pacer
 from hapticdesk.runtime.source import Source, WrenchBlock

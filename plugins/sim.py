@@ -11,7 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 from hapticdesk.hookspecs import hookimpl
 
 if TYPE_CHECKING:  # the hooks are loaded for every command, even `--help`: no numpy here

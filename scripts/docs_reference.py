@@ -469,7 +469,8 @@ def allowed_keys(validate: Callable[[Any], Any]) -> list[str]:
     """The keys a validator accepts, read from its own refusal of a key nobody would use
     (check_keys says ``unknown key `…` in …; allowed: a, b, c``): the code's behaviour, not a
     copy of its table."""
-    from hapticdesk.files.yamlfile import ConfigError, load_marked_yaml
+    from hapticdesk.errors import ConfigError
+    from hapticdesk.files.yamlfile import load_marked_yaml
 
     probe = load_marked_yaml(Path("probe.yaml"), "__no_such_key__: 1\n")  # as a layout gives it
     try:

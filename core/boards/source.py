@@ -24,8 +24,8 @@ from typing import Any
 
 from hapticdesk.boards.decoder import BoardDecoder, DecodedBlock
 from hapticdesk.boards.settings import serial_settings
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile
-from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.runtime.source import LiveSource, WrenchBlock
 
 BLOCK_WAIT_S = 0.01  # a block gathers what came within this long

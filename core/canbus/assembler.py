@@ -42,7 +42,7 @@ from hapticdesk.canbus.decoding import (
 )
 from hapticdesk.canbus.frames import FrameArray
 from hapticdesk.canbus.stats import CanNotice, CanStats, SensorSilentError, silence_message
-from hapticdesk.files.yamlfile import Position
+from hapticdesk.errors import Position
 
 log = logging.getLogger("hapticdesk.canbus")
 

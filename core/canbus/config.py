@@ -1,7 +1,7 @@
 """The desk profile's ``can:`` section: which bus, and how each sensor's frames are decoded.
 
 Validated here with ``file:line:column`` positions (the profile keeps the section as a raw
-:class:`~hapticdesk.files.yamlfile.MarkedDict`). Two decodings, chosen per sensor:
+:class:`~hapticdesk.files.marked_values.MarkedDict`). Two decodings, chosen per sensor:
 
 - signals of a CAN database (DBC, KCD, SYM, ARXML, loaded by cantools; the path is relative
   to the profile): ``fl: {fx: FL_FORCE.Fx, …, counter: [FL_FORCE.Seq, FL_MOMENT.Seq]}``;
@@ -31,19 +31,10 @@ from hapticdesk.canbus.ati_netcanoem import (
     TORQUE_UNITS,
     AtiCalibration,
 )
+from hapticdesk.errors import ConfigError, Position
+from hapticdesk.files.marked_values import MarkedDict, MarkedList, as_flag
 from hapticdesk.files.profile import AXES, DeskProfile
-from hapticdesk.files.yamlfile import (
-    ConfigError,
-    MarkedDict,
-    MarkedList,
-    Position,
-    as_flag,
-    check_keys,
-    choice,
-    number,
-    require_mapping,
-    vector,
-)
+from hapticdesk.files.validators import check_keys, choice, number, require_mapping, vector
 
 ASSEMBLE_MODES = ("counter", "time")
 #: the (first) accelerometer's name among the groups of channels the frames are assembled

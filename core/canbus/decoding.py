@@ -18,8 +18,8 @@ from hapticdesk.canbus import ati_netcanoem as ati
 from hapticdesk.canbus.config import AtiSensor, CanConfig, SignalSensor
 from hapticdesk.canbus.dbc_signals import SignalLayout, frame_words
 from hapticdesk.canbus.frames import ERROR, EXTENDED, REMOTE, FrameArray
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import AXES, DeskProfile
-from hapticdesk.files.yamlfile import ConfigError
 
 # classification codes (kind indices are >= 0)
 FOREIGN = -1  # an identifier the desk does not use (CANopen traffic, other devices)

@@ -378,7 +378,7 @@ def encoder_for(
     ``ati`` on a profile whose sensors are not ATI boards gives them bases 0x20, 0x21, … with
     example calibrations (the returned config says so, to decode the frames with).
     """
-    from hapticdesk.files.yamlfile import ConfigError
+    from hapticdesk.errors import ConfigError
 
     where = str(profile.path) if profile.path else profile.name
     if encoding == "ati" and (

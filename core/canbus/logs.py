@@ -28,9 +28,9 @@ from hapticdesk.canbus.config import CanConfig, can_config
 from hapticdesk.canbus.decoding import build_decoding
 from hapticdesk.canbus.frames import FrameArray
 from hapticdesk.canbus.stats import CanNotice, CanStats
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.recording import Recording
-from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.runtime.source import Source, WrenchBlock
 
 log = logging.getLogger("hapticdesk.canbus.logs")

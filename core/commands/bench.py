@@ -9,8 +9,8 @@ import time
 from pathlib import Path
 
 from hapticdesk.commands.output_path import cannot_write, check_output_path
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile, load_profile
-from hapticdesk.files.yamlfile import ConfigError
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

@@ -13,8 +13,8 @@ from pathlib import Path
 from typing import Any
 
 from hapticdesk.commands.output_path import check_output_path
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.sensing import sensing_of
-from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.gestures.layout import Binding, Layout
 from hapticdesk.gestures.options import GESTURE_OPTIONS, describe_value
 

@@ -15,7 +15,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 
 DEFAULT_FILE = "layout.yaml"
 DEFAULT_DESK = "kitamura2017"

@@ -24,6 +24,7 @@ import numpy as np
 
 from hapticdesk.commands import bit_rate, seed_number
 from hapticdesk.commands.output_path import cannot_write
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile, load_profile
 from hapticdesk.files.readers import open_recording_blocks
 from hapticdesk.files.recording import (
@@ -32,7 +33,6 @@ from hapticdesk.files.recording import (
     concat_recordings,
     write_recording,
 )
-from hapticdesk.files.yamlfile import ConfigError
 
 LOG_SUFFIXES = (".asc", ".blf", ".log", ".trc")
 

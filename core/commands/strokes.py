@@ -23,6 +23,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.strokefile import (
     SHAPE_NAME,
     STROKE_SUFFIXES,
@@ -30,7 +31,6 @@ from hapticdesk.files.strokefile import (
     read_template_dir,
     write_stroke,
 )
-from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.gestures.options import GESTURE_OPTIONS
 
 _STROKE = GESTURE_OPTIONS["stroke"]

@@ -55,6 +55,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.c3d import (
     C3DFile,
     force_factor,
@@ -63,7 +64,6 @@ from hapticdesk.files.c3d import (
 )
 from hapticdesk.files.profile import AXES, DeskProfile, EstimationSettings, SensorSpec, Surface
 from hapticdesk.files.recording import Recording
-from hapticdesk.files.yamlfile import ConfigError
 
 #: the channels each TYPE delivers, in FORCE_PLATFORM:CHANNEL order (recording columns
 #: ``plate<N>_<channel>``)

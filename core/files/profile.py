@@ -18,14 +18,11 @@ from typing import Any
 
 import numpy as np
 
-from hapticdesk.files.yamlfile import (
-    ConfigError,
-    MarkedDict,
-    check_confined,
-    file_kind,
-    load_marked_yaml,
-    require_mapping,
-)
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.file_safety import check_confined, file_kind
+from hapticdesk.files.marked_values import MarkedDict
+from hapticdesk.files.validators import require_mapping
+from hapticdesk.files.yamlfile import load_marked_yaml
 
 METHODS = ("force", "diff", "switched", "fused")
 LOWPASS_PER_NATURAL_FREQUENCY = 4.77 / 5.9  # the paper's cut-off for its desk's lowest mode

@@ -10,6 +10,8 @@ from typing import Any
 
 import numpy as np
 
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.marked_values import MarkedDict, MarkedList, as_number
 from hapticdesk.files.profile import (
     ACCEL_AXES,
     AXES,
@@ -25,11 +27,7 @@ from hapticdesk.files.profile import (
     rotation_matrix,
 )
 from hapticdesk.files.sensing import surface_locatable
-from hapticdesk.files.yamlfile import (
-    ConfigError,
-    MarkedDict,
-    MarkedList,
-    as_number,
+from hapticdesk.files.validators import (
     check_keys,
     choice,
     flag,

@@ -8,7 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.c3d import is_c3d
+from hapticdesk.files.file_safety import regular_file_size
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.recording import (
     RECORDING_SUFFIXES,
@@ -16,7 +18,6 @@ from hapticdesk.files.recording import (
     RecordingBlocks,
     read_recording,
 )
-from hapticdesk.files.yamlfile import ConfigError, regular_file_size
 
 # a recording's sample interval may differ from its profile's by this share (a sensor's clock,
 # the jitter of CAN timestamps); beyond it the filters and windows, made for the profile's

@@ -25,8 +25,9 @@ from typing import IO, BinaryIO
 
 import numpy as np
 
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.file_safety import regular_file_size
 from hapticdesk.files.profile import ACCEL_COLUMN, AXES
-from hapticdesk.files.yamlfile import ConfigError, regular_file_size
 
 RECORDING_SUFFIXES = (".csv", ".npz")
 BLOCK_ROWS = 16_384  # samples per block read: ~14 s at 1.2 kHz; ~25 MB to parse a CSV block

@@ -22,8 +22,11 @@ from typing import Any
 
 import numpy as np
 
+from hapticdesk.errors import Position
+from hapticdesk.files.marked_values import MarkedDict
 from hapticdesk.files.profile import DeskProfile
-from hapticdesk.files.yamlfile import MarkedDict, Position, load_marked_yaml, require_mapping
+from hapticdesk.files.validators import require_mapping
+from hapticdesk.files.yamlfile import load_marked_yaml
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.options import GESTURE_OPTIONS, defaults
 from hapticdesk.gestures.regions import Region

@@ -15,19 +15,11 @@ from collections.abc import Collection, Mapping
 from pathlib import Path
 from typing import Any
 
+from hapticdesk.errors import ConfigError, LayoutWarning, Position
+from hapticdesk.files.file_safety import check_confined
+from hapticdesk.files.marked_values import MarkedDict, MarkedList, as_flag
 from hapticdesk.files.profile import DeskProfile, load_profile
-from hapticdesk.files.yamlfile import (
-    ConfigError,
-    LayoutWarning,
-    MarkedDict,
-    MarkedList,
-    Position,
-    as_flag,
-    check_confined,
-    check_keys,
-    choice,
-    require_mapping,
-)
+from hapticdesk.files.validators import check_keys, choice, require_mapping
 from hapticdesk.gestures.layout import (
     UNITS,
     ActionUse,

@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile, load_profile
-from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.registry import Registry
 from hapticdesk.runtime.binding_events import check_bindings
 from hapticdesk.runtime.control import ControlQueue

@@ -34,7 +34,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from hapticdesk.files.yamlfile import ConfigError, MarkedDict, Position, number
+from hapticdesk.errors import ConfigError, Position
+from hapticdesk.files.marked_values import MarkedDict
+from hapticdesk.files.validators import number
 from hapticdesk.gestures.event import GestureEvent
 
 log = logging.getLogger(__name__)

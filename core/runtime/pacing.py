@@ -11,7 +11,7 @@ import threading
 import time
 from collections.abc import Iterator
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 from hapticdesk.runtime.source import Source, WrenchBlock
 
 #: replay speeds (times real time) a person would ask for; beyond them a typing mistake

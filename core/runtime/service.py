@@ -28,9 +28,9 @@ from pathlib import Path
 from types import FrameType
 from typing import IO, Any
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.estimator.contacts import FLAG_NOT_TARED, ContactBlock
 from hapticdesk.files.profile import DeskProfile
-from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.runtime.assembly import Assembly, build_routes, build_scene, load_scene_layout
 from hapticdesk.runtime.control import MAX_PAUSE_S, ControlCommand, ControlError, pause_seconds

@@ -17,9 +17,9 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.recording import Recording, accel_table
-from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.runtime.source import Source, WrenchBlock
 from hapticdesk.sim.desk import DeskModel, DeskParameters
 from hapticdesk.sim.loadcells import Conversions, LoadCellModel, LoadCellParameters, oversampling

@@ -20,7 +20,7 @@ import sys
 import threading
 from pathlib import Path
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 
 TOKEN_ENV = "HAPTICDESK_UI_TOKEN"
 

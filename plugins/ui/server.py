@@ -24,7 +24,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-from hapticdesk.files.yamlfile import ConfigError, load_marked_yaml, reads_confined_to
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.file_safety import reads_confined_to
+from hapticdesk.files.yamlfile import load_marked_yaml
 from hapticdesk.plugins.ui.layout_edit import desk_message, message_error
 from hapticdesk.plugins.ui.layout_edit import error_dict as error_of
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import collections
 from typing import Any
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 
 #: the longest session kept (seconds of samples); older blocks are dropped
 MAX_SESSION_S = 180.0

@@ -11,9 +11,9 @@ import yaml
 
 from hapticdesk.analysis.characterize import CUTOFF_RATIO, characterize
 from hapticdesk.cli import main
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile, load_profile
 from hapticdesk.files.recording import Recording, write_recording
-from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.sim import (
     DeskParameters,
     Idle,

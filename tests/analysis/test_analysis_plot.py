@@ -10,9 +10,9 @@ import pytest
 
 from hapticdesk.analysis.plotting import plot_recording
 from hapticdesk.cli import main
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.recording import Recording, write_recording
-from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.sim import Idle, Scene, simulate
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"

@@ -11,9 +11,9 @@ import yaml
 
 from hapticdesk.analysis.thresholds import ThresholdSummary, derive_thresholds, local_slope
 from hapticdesk.cli import main
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.recording import Recording, write_recording
-from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.sim import Idle, Scene, SensorParameters, load_scene, simulate
 
 from .conftest import SCENES

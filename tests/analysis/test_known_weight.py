@@ -24,10 +24,10 @@ from hapticdesk.analysis.known_weight import (
     suggested_spots,
     write_calibrated_profile,
 )
+from hapticdesk.errors import ConfigError
 from hapticdesk.estimator import estimate
 from hapticdesk.files.profile import DeskProfile, builtin_profile_path, load_profile
 from hapticdesk.files.recording import Recording, write_recording
-from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.sim import Idle, LiftObject, Press, PutObject, Scene, SimEffects, simulate
 from hapticdesk.sim.desk import DeskModel, point_load
 from hapticdesk.sim.loadcells import LoadCellParameters

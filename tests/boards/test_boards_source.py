@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from hapticdesk.boards.hello import BoardHello
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 from hapticdesk.registry import load_registry
 from hapticdesk.runtime.source_spec import open_source
 

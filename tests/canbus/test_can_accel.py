@@ -12,12 +12,12 @@ import pytest
 from hapticdesk.canbus.config import can_config
 from hapticdesk.canbus.emulator import FrameEncoder
 from hapticdesk.canbus.logs import open_can_log, read_can_log, write_frames
+from hapticdesk.errors import ConfigError
 from hapticdesk.estimator import ContactEstimator, estimate
 from hapticdesk.estimator.contacts import FLAG_NO_ACCEL
 from hapticdesk.estimator.inertia import accelerometer_readings
 from hapticdesk.files.profile import load_profile
 from hapticdesk.files.recording import Recording
-from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.sim import simulate
 from hapticdesk.sim.scene import load_scene
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from hapticdesk.canbus.config import AtiSensor, SignalSensor, can_config
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import load_profile
-from hapticdesk.files.yamlfile import ConfigError
 
 from .can_profiles import HEAD, error_at, full_can, line_of
 

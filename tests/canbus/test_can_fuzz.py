@@ -15,7 +15,7 @@ from hapticdesk.canbus.decoding import build_decoding
 from hapticdesk.canbus.emulator import FrameEncoder
 from hapticdesk.canbus.frames import FrameArray
 from hapticdesk.canbus.logs import read_frames
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 
 FUZZ = settings(
     max_examples=40,

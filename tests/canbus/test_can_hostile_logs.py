@@ -14,7 +14,7 @@ from hapticdesk.canbus import config as can_config_module
 from hapticdesk.canbus import logs
 from hapticdesk.canbus.config import can_config
 from hapticdesk.canbus.logs import read_frames, write_frames
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 
 from .can_profiles import error_at, full_can, line_of
 

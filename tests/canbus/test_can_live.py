@@ -232,7 +232,7 @@ def test_clear_errors_when_opening(can_desk, bench, virtual_channel):
 def can_desk_without_interface(profile):
     from dataclasses import replace
 
-    from hapticdesk.files.yamlfile import MarkedDict
+    from hapticdesk.files.marked_values import MarkedDict
 
     section = MarkedDict(profile.can)
     section.position = profile.can.position

@@ -18,7 +18,7 @@ from hapticdesk.canbus.logs import (
     read_frames,
     write_frames,
 )
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 
 T0 = 1_700_000_000.0  # logs carry absolute times
 

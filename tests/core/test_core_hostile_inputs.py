@@ -14,11 +14,13 @@ from typing import Any
 import numpy as np
 import pytest
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.files import recording, strokefile
 from hapticdesk.files.profile import builtin_profile_path, load_profile, resolve_profile_path
 from hapticdesk.files.recording import read_recording
 from hapticdesk.files.strokefile import read_stroke
-from hapticdesk.files.yamlfile import ConfigError, load_marked_yaml, number, vector
+from hapticdesk.files.validators import number, vector
+from hapticdesk.files.yamlfile import load_marked_yaml
 
 NAMES = ["fl", "fr", "bl", "br"]
 HEADER = ",".join(["t"] + [f"{s}_{a}" for s in NAMES for a in ("fx", "fy", "fz", "mx", "my", "mz")])
@@ -304,7 +306,7 @@ def test_words_and_numbers_read_as_yaml_1_2_reads_them(tmp_path: Path) -> None:
     "ON", "1:30" and 10. Now both read it alike; a true-or-false setting still takes `on`."""
     import json
 
-    from hapticdesk.files.yamlfile import flag
+    from hapticdesk.files.validators import flag
     from hapticdesk.gestures.event import GestureEvent
     from hapticdesk.plugins.mqtt.message import encode_payload
     from hapticdesk.plugins.templating import compile_value, event_variables

@@ -5,8 +5,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import load_profile, rotation_matrix
-from hapticdesk.files.yamlfile import ConfigError
 
 GOOD = """\
 name: bench

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.recording import Recording, read_recording, write_recording
-from hapticdesk.files.yamlfile import ConfigError
 
 NAMES = ["fl", "fr", "bl", "br"]
 

@@ -11,9 +11,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.files import recording
 from hapticdesk.files.recording import Recording, read_recording, write_recording
-from hapticdesk.files.yamlfile import ConfigError
 
 from .test_core_recording_fuzz import NAMES, csv_texts
 

@@ -11,8 +11,9 @@ from pathlib import Path
 import pytest
 
 from hapticdesk.cli import main
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import load_profile
-from hapticdesk.files.yamlfile import ConfigError, load_marked_yaml
+from hapticdesk.files.yamlfile import load_marked_yaml
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.sim.scene import load_scene
 

@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import load_profile
-from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.layout import load_layout
 from hapticdesk.gestures.regions import regions_overlap

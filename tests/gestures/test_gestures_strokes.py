@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from hapticdesk.cli import main
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.strokefile import read_stroke, read_template_dir, write_stroke
-from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.gestures.options import GESTURE_OPTIONS
 from hapticdesk.gestures.strokes.shapes import SHAPES, hand_drawn, template_document
 from hapticdesk.gestures.strokes.unistroke import TemplateSet, builtin_templates, template_set

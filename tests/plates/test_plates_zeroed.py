@@ -6,10 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.estimator import ContactEstimator
 from hapticdesk.files.profile import DeskProfile, EstimationSettings, SensorSpec, Surface
 from hapticdesk.files.profile_reader import read_profile
-from hapticdesk.files.yamlfile import ConfigError, load_marked_yaml
+from hapticdesk.files.yamlfile import load_marked_yaml
 
 RATE = 1000.0
 

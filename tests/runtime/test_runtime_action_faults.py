@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 from hapticdesk.registry import load_registry
 from hapticdesk.runtime.dispatcher import Lane
 

@@ -18,8 +18,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.recording import Recording, write_recording
-from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.registry import load_registry
 from hapticdesk.runtime.assembly import build_scene

@@ -12,8 +12,9 @@ from types import SimpleNamespace
 
 import pytest
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.recording import write_recording
-from hapticdesk.files.yamlfile import ConfigError, load_marked_yaml
+from hapticdesk.files.yamlfile import load_marked_yaml
 from hapticdesk.plugins.mqtt import link_for
 from hapticdesk.plugins.mqtt.link import MqttLink
 from hapticdesk.plugins.mqtt.message import Message

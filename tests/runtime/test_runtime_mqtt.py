@@ -14,8 +14,9 @@ from types import SimpleNamespace
 
 import pytest
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.recording import write_recording
-from hapticdesk.files.yamlfile import ConfigError, load_marked_yaml
+from hapticdesk.files.yamlfile import load_marked_yaml
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.plugins.mqtt.link import MqttLink
 from hapticdesk.plugins.mqtt.message import Message

@@ -198,7 +198,7 @@ def test_desks_on_one_broker_under_site_and_floor_prefixes(broker, subscribe, tm
 )
 def test_bad_prefixes_are_refused_where_they_stand(broker, tmp_path, mqtt, message):
     from hapticdesk.cli import main
-    from hapticdesk.files.yamlfile import ConfigError
+    from hapticdesk.errors import ConfigError
     from hapticdesk.registry import load_registry
     from hapticdesk.runtime.assembly import load_scene_layout
 
@@ -314,7 +314,7 @@ def test_a_broker_that_does_not_speak_mqtt5_gets_311(broker, subscribe, caplog):
     ],
 )
 def test_bad_protocol_options_are_refused(broker, options, message):
-    from hapticdesk.files.yamlfile import ConfigError
+    from hapticdesk.errors import ConfigError
 
     with pytest.raises(ConfigError, match=re.escape(message)):
         link_settings(broker, "x", **options)

@@ -8,7 +8,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.registry import DEFAULT_PLUGINS, load_registry
 from hapticdesk.runtime.assembly import build_scene

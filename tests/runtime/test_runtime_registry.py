@@ -15,7 +15,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.registry import DEFAULT_PLUGINS, DISABLE_AUTOLOAD_ENV, PluginError, load_registry
 

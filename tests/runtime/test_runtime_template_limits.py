@@ -20,7 +20,7 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.plugins import template_worker, templating
 from hapticdesk.plugins.templating import (
@@ -262,7 +262,7 @@ _EVENTS = [
 RENDERS: list[float] = []
 
 
-@pytest.mark.filterwarnings("ignore::hapticdesk.files.yamlfile.LayoutWarning")
+@pytest.mark.filterwarnings("ignore::hapticdesk.errors.LayoutWarning")
 @settings(
     max_examples=120,
     deadline=None,

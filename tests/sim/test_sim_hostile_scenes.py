@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile, load_profile
-from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.sim import human, simulator, timeline
 from hapticdesk.sim.scene import load_scene
 from hapticdesk.sim.simulator import SimSource, simulate

@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile, load_profile
-from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.sim import (
     GLYPHS,
     Idle,

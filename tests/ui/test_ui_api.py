@@ -16,7 +16,7 @@ pytest.importorskip("httpx")
 
 from starlette.testclient import TestClient  # noqa: E402
 
-from hapticdesk.files.yamlfile import ConfigError  # noqa: E402
+from hapticdesk.errors import ConfigError  # noqa: E402
 from hapticdesk.plugins.ui.layout_edit import apply_edit  # noqa: E402
 from hapticdesk.plugins.ui.server import STATIC, UiServer, parse_listen  # noqa: E402
 from hapticdesk.registry import load_registry  # noqa: E402

@@ -1,7 +1,7 @@
 """Reading an action's options from a layout, with errors that point at the layout.
 
-Options arrive as the :class:`~hapticdesk.files.marked_values.MarkedDict` of the layout (or a plain dict
-when a program builds them); both are read the same way here.
+Options arrive as the :class:`~hapticdesk.files.marked_values.MarkedDict` of the layout (or a
+plain dict when a program builds them); both are read the same way here.
 """
 
 from __future__ import annotations

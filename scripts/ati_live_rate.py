@@ -48,7 +48,7 @@ def main() -> int:
     from hapticdesk.canbus.config import can_config
     from hapticdesk.canbus.emulator import CanEmulator, FrameEncoder
     from hapticdesk.canbus.source import CanSource
-    from hapticdesk.files.profile import load_profile
+    from hapticdesk.files.profile_reader import load_profile
     from hapticdesk.files.recording import Recording, write_recording
 
     names = ["fl", "fr", "bl", "br"][: args.boards]

@@ -698,22 +698,24 @@ def _estimation_comments() -> dict[str, str]:
 
 
 def profile_keys() -> Generated:
-    from hapticdesk.files import profile_reader as pr
+    from hapticdesk.files.profile_reader import DESK_KEYS, PROFILE_KEYS
+    from hapticdesk.files.profile_sensors import ACCELEROMETER_KEYS, SENSOR_KEYS, SENSOR_KINDS
+    from hapticdesk.files.profile_surfaces import SURFACE_KEYS
 
     out = Generated("")
     parts = []
     for title, keys, words in (
-        ("The profile", pr._TOP_KEYS, PROFILE_WORDS["top"]),
-        ("A sensor (`sensors:`)", pr._SENSOR_KEYS, PROFILE_WORDS["sensor"]),
-        ("A surface (`surfaces:`)", pr._SURFACE_KEYS, PROFILE_WORDS["surface"]),
-        ("The desk (`desk:`)", pr._DESK_KEYS, PROFILE_WORDS["desk"]),
-        ("An accelerometer", pr._ACCEL_KEYS, PROFILE_WORDS["accelerometer"]),
+        ("The profile", PROFILE_KEYS, PROFILE_WORDS["top"]),
+        ("A sensor (`sensors:`)", SENSOR_KEYS, PROFILE_WORDS["sensor"]),
+        ("A surface (`surfaces:`)", SURFACE_KEYS, PROFILE_WORDS["surface"]),
+        ("The desk (`desk:`)", DESK_KEYS, PROFILE_WORDS["desk"]),
+        ("An accelerometer", ACCELEROMETER_KEYS, PROFILE_WORDS["accelerometer"]),
     ):
         ordered = [k for k in words if k in keys] + sorted(set(keys) - set(words))
         rows = [[code(k), w] for k, w in _described(ordered, words, out)]
         parts += [f"#### {title}", "", table(["key", "what"], rows), ""]
-    kinds = [[code(k), ", ".join(v)] for k, v in pr.SENSOR_KINDS.items()]
-    out.keys += list(pr.SENSOR_KINDS)
+    kinds = [[code(k), ", ".join(v)] for k, v in SENSOR_KINDS.items()]
+    out.keys += list(SENSOR_KINDS)
     parts += ["#### Sensor kinds (`kind:`)", "", table(["kind", "channels"], kinds), ""]
     out.markdown = "\n".join(parts)
     return out
@@ -756,7 +758,7 @@ def estimation_settings() -> Generated:
 
 
 def recording_columns() -> Generated:
-    from hapticdesk.files.profile import load_profile
+    from hapticdesk.files.profile_reader import load_profile
 
     out = Generated("")
     rows = []

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hapticdesk.files.profile import load_profile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.files.recording import write_recording
 from hapticdesk.registry import load_registry
 from hapticdesk.runtime.assembly import build_scene

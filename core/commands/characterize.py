@@ -19,7 +19,7 @@ from hapticdesk.analysis.characterize import (
     Characterization,
     characterize,
 )
-from hapticdesk.files.profile import load_profile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.files.readers import read_any_recording
 
 

@@ -122,7 +122,7 @@ def write_starter(
 ) -> str:
     """Write the starter layout to ``path`` (checked as ``check`` would, first); the desk's
     name."""
-    from hapticdesk.files.profile import load_profile
+    from hapticdesk.files.profile_reader import load_profile
     from hapticdesk.registry import load_registry
     from hapticdesk.runtime.assembly import load_scene_layout
 

@@ -25,7 +25,8 @@ import numpy as np
 from hapticdesk.commands import bit_rate, seed_number
 from hapticdesk.commands.output_path import cannot_write
 from hapticdesk.errors import ConfigError
-from hapticdesk.files.profile import DeskProfile, load_profile
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.files.readers import open_recording_blocks
 from hapticdesk.files.recording import (
     RECORDING_SUFFIXES,

@@ -12,7 +12,8 @@ from typing import TYPE_CHECKING
 
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.c3d import is_c3d, open_c3d
-from hapticdesk.files.profile import DeskProfile, load_profile
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.files.readers import read_any_recording
 from hapticdesk.files.recording import Recording
 

@@ -172,7 +172,7 @@ def _next_index(folder: Path, name: str) -> int:
 
 def record(args: argparse.Namespace) -> int:
     from hapticdesk.estimator import ContactEstimator
-    from hapticdesk.files.profile import load_profile
+    from hapticdesk.files.profile_reader import load_profile
     from hapticdesk.gestures.strokes.capture import StrokeCapture
     from hapticdesk.gestures.strokes.unistroke import template_set
     from hapticdesk.registry import load_registry

@@ -21,7 +21,7 @@ from hapticdesk.analysis.thresholds import (
     derive_thresholds,
 )
 from hapticdesk.errors import ConfigError
-from hapticdesk.files.profile import load_profile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.files.readers import read_any_recording
 
 

@@ -17,7 +17,6 @@ from hapticdesk.files.marked_values import MarkedDict, MarkedList, as_flag, as_n
 MAX_REACH_M = 100.0
 
 
-
 def require_mapping(value: Any, where: Position | str, what: str) -> MarkedDict:
     """``value`` must be a mapping; otherwise a ConfigError naming ``what``."""
     if not isinstance(value, MarkedDict):

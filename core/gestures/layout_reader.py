@@ -18,7 +18,8 @@ from typing import Any
 from hapticdesk.errors import ConfigError, LayoutWarning, Position
 from hapticdesk.files.file_safety import check_confined
 from hapticdesk.files.marked_values import MarkedDict, MarkedList, as_flag
-from hapticdesk.files.profile import DeskProfile, load_profile
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.files.validators import check_keys, choice, require_mapping
 from hapticdesk.gestures.layout import (
     UNITS,

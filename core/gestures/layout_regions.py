@@ -15,8 +15,14 @@ import numpy as np
 from hapticdesk.errors import ConfigError, Position
 from hapticdesk.files.marked_values import MarkedDict, MarkedList
 from hapticdesk.files.profile import DeskProfile
-from hapticdesk.files.profile_reader import MAX_REACH_M  # (a radius of 1e200 had crashed)
-from hapticdesk.files.validators import check_keys, choice, number, require_mapping, vector
+from hapticdesk.files.validators import (
+    MAX_REACH_M,  # (a radius of 1e200 had crashed)
+    check_keys,
+    choice,
+    number,
+    require_mapping,
+    vector,
+)
 from hapticdesk.gestures.regions import (
     Region,
     circle_outline,

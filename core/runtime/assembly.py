@@ -14,7 +14,8 @@ from pathlib import Path
 from typing import Any
 
 from hapticdesk.errors import ConfigError
-from hapticdesk.files.profile import DeskProfile, load_profile
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.registry import Registry
 from hapticdesk.runtime.binding_events import check_bindings
 from hapticdesk.runtime.control import ControlQueue

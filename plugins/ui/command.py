@@ -48,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     require("starlette", "uvicorn", "ruamel.yaml", needed_by="the browser UI")
     if not 0 <= args.port <= 65535:  # (uvicorn's bind failed with a traceback in its thread)
         raise ConfigError("--port", f"expected a port 0..65535, found {args.port}")
-    from hapticdesk.files.profile import load_profile
+    from hapticdesk.files.profile_reader import load_profile
     from hapticdesk.plugins.mqtt.demo import examples_dir
     from hapticdesk.plugins.ui.server import UiServer
     from hapticdesk.registry import load_registry

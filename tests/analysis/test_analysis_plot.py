@@ -152,7 +152,7 @@ def test_plot_and_contacts_count_the_same_points(tmp_path, capsys, desk_name) ->
     that was one candidate's count (the force's 56,431 were drawn under it); and on a desk
     with an accelerometer the plot estimated without its readings. Now both count the same
     samples, in contact and located, and the legend's counts add up to that."""
-    from hapticdesk.files.profile import load_profile
+    from hapticdesk.files.profile_reader import load_profile
     from hapticdesk.sim import Press, Swipe
 
     desk = load_profile(desk_name)

@@ -26,7 +26,8 @@ from hapticdesk.analysis.known_weight import (
 )
 from hapticdesk.errors import ConfigError
 from hapticdesk.estimator import estimate
-from hapticdesk.files.profile import DeskProfile, builtin_profile_path, load_profile
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import builtin_profile_path, load_profile
 from hapticdesk.files.recording import Recording, write_recording
 from hapticdesk.sim import Idle, LiftObject, Press, PutObject, Scene, SimEffects, simulate
 from hapticdesk.sim.desk import DeskModel, point_load

@@ -13,7 +13,8 @@ from hapticdesk.canbus.config import CanConfig, can_config
 from hapticdesk.canbus.decoding import build_decoding
 from hapticdesk.canbus.emulator import FrameEncoder
 from hapticdesk.canbus.frames import FrameArray
-from hapticdesk.files.profile import DeskProfile, load_profile, profile_from_mapping
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile, profile_from_mapping
 from hapticdesk.files.yamlfile import load_marked_yaml
 
 

@@ -16,7 +16,7 @@ from hapticdesk.errors import ConfigError
 from hapticdesk.estimator import ContactEstimator, estimate
 from hapticdesk.estimator.contacts import FLAG_NO_ACCEL
 from hapticdesk.estimator.inertia import accelerometer_readings
-from hapticdesk.files.profile import load_profile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.files.recording import Recording
 from hapticdesk.sim import simulate
 from hapticdesk.sim.scene import load_scene

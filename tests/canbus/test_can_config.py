@@ -9,7 +9,7 @@ import pytest
 
 from hapticdesk.canbus.config import AtiSensor, SignalSensor, can_config
 from hapticdesk.errors import ConfigError
-from hapticdesk.files.profile import load_profile
+from hapticdesk.files.profile_reader import load_profile
 
 from .can_profiles import HEAD, error_at, full_can, line_of
 

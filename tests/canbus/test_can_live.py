@@ -17,7 +17,7 @@ from hapticdesk.canbus.emulator import CanEmulator, FrameEncoder
 from hapticdesk.canbus.source import CanSourceError, open_can_source
 from hapticdesk.estimator import ContactEstimator, estimate
 from hapticdesk.estimator.contacts import ContactBlock, contact_events
-from hapticdesk.files.profile import load_profile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.files.recording import Recording
 from hapticdesk.sim import load_scene, simulate
 

@@ -16,7 +16,7 @@ import pytest
 
 from hapticdesk.errors import ConfigError
 from hapticdesk.files import recording, strokefile
-from hapticdesk.files.profile import builtin_profile_path, load_profile, resolve_profile_path
+from hapticdesk.files.profile_reader import builtin_profile_path, load_profile, resolve_profile_path
 from hapticdesk.files.recording import read_recording
 from hapticdesk.files.strokefile import read_stroke
 from hapticdesk.files.validators import number, vector

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from hapticdesk.errors import ConfigError
-from hapticdesk.files.profile import load_profile, rotation_matrix
+from hapticdesk.files.profile_reader import load_profile
+from hapticdesk.files.rigid_body import rotation_matrix
 
 GOOD = """\
 name: bench

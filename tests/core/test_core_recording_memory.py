@@ -20,7 +20,7 @@ HEADER = "t," + ",".join(f"{s}_{a}" for s in NAMES for a in ("fx", "fy", "fz", "
 REPLAY = textwrap.dedent(
     """
     import sys
-    from hapticdesk.files.profile import load_profile
+    from hapticdesk.files.profile_reader import load_profile
     from hapticdesk.plugins.replay import open_replay
 
     source = open_replay(sys.argv[1], load_profile("kitamura2017"), speed=0)

@@ -142,17 +142,17 @@ def test_every_command_and_argument(pages: dict[str, str]) -> None:
 
 
 def test_every_profile_key_sensor_kind_and_estimation_setting(pages: dict[str, str]) -> None:
-    from hapticdesk.files import profile_reader
+    from hapticdesk.files import profile_reader, profile_sensors, profile_surfaces
     from hapticdesk.files.profile import EstimationSettings
 
     text = pages["profile.md"]
     for keys in (
-        profile_reader._TOP_KEYS,
-        profile_reader._SENSOR_KEYS,
-        profile_reader._SURFACE_KEYS,
-        profile_reader._DESK_KEYS,
-        profile_reader._ACCEL_KEYS,
-        profile_reader.SENSOR_KINDS,
+        profile_reader.PROFILE_KEYS,
+        profile_sensors.SENSOR_KEYS,
+        profile_surfaces.SURFACE_KEYS,
+        profile_reader.DESK_KEYS,
+        profile_sensors.ACCELEROMETER_KEYS,
+        profile_sensors.SENSOR_KINDS,
     ):
         assert missing(keys, text) == []
     assert missing([f.name for f in dataclasses.fields(EstimationSettings)], text) == []

@@ -12,7 +12,7 @@ import pytest
 
 from hapticdesk.cli import main
 from hapticdesk.errors import ConfigError
-from hapticdesk.files.profile import load_profile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.files.yamlfile import load_marked_yaml
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.sim.scene import load_scene

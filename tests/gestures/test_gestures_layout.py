@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from hapticdesk.errors import ConfigError
-from hapticdesk.files.profile import load_profile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.layout import load_layout
 from hapticdesk.gestures.regions import regions_overlap

@@ -237,7 +237,7 @@ def test_a_compensated_desks_strokes_keep_their_corners():
     sway to the wobble test and the heavy σ rounded them."""
     from dataclasses import replace
 
-    from hapticdesk.files.profile import load_profile
+    from hapticdesk.files.profile_reader import load_profile
     from hapticdesk.gestures.recognizers.stroke import (
         calm_smoothing_s,
         smoothing_s,

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from hapticdesk.errors import ConfigError
-from hapticdesk.files.profile import DeskProfile, load_profile
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.sim import (
     GLYPHS,
     Idle,

@@ -18,7 +18,7 @@ import pytest
 from hapticdesk.bench.accuracy import find_presses
 from hapticdesk.estimator import ContactEstimator, estimate
 from hapticdesk.estimator.detector import ring_guard
-from hapticdesk.files.profile import load_profile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.gestures.engine import GestureEngine
 from hapticdesk.gestures.layout import load_layout
 from hapticdesk.sim import LongPress, Scene, Tap, simulate

@@ -8,7 +8,7 @@ back on their own clock.
 
 Blocks of ~12 samples (10 ms at 1.2 kHz) are handed out when their last sample's time has
 come on the wall clock (scaled by ``speed``), as a live source would deliver them. Files are
-read in blocks of :data:`~hapticdesk.files.recording.BLOCK_ROWS` samples as they are played,
+read in blocks of :data:`~hapticdesk.files.recording_io.BLOCK_ROWS` samples as they are played,
 so memory stays flat whatever the file's size. CAN logs are read by
 :mod:`hapticdesk.canbus.logs`, imported only for them; a C3D file (read whole by ezc3d) by
 :mod:`hapticdesk.files.forceplate`, its plates the desk's sensors ``plate<N>`` (without
@@ -30,7 +30,8 @@ if TYPE_CHECKING:  # the hooks are loaded for every command, even `--help`: no n
     import numpy as np
 
     from hapticdesk.files.profile import DeskProfile
-    from hapticdesk.files.recording import Recording, RecordingBlocks
+    from hapticdesk.files.recording import Recording
+    from hapticdesk.files.recording_io import RecordingBlocks
 
 __all__ = ["BLOCK_SIZE", "PacedSource", "Pacer", "RecordingSource", "open_replay"]
 
@@ -110,7 +111,7 @@ def open_replay(
 ) -> Source:
     """``replay:FILE``: a CSV/NPZ recording, a C3D file, or a CAN log by any other suffix."""
     from hapticdesk.files.readers import open_recording_blocks
-    from hapticdesk.files.recording import RECORDING_SUFFIXES
+    from hapticdesk.files.recording_io import RECORDING_SUFFIXES
 
     if not argument:
         raise ConfigError(

@@ -49,7 +49,8 @@ def main() -> int:
     from hapticdesk.canbus.emulator import CanEmulator, FrameEncoder
     from hapticdesk.canbus.source import CanSource
     from hapticdesk.files.profile_reader import load_profile
-    from hapticdesk.files.recording import Recording, write_recording
+    from hapticdesk.files.recording import Recording
+    from hapticdesk.files.recording_io import write_recording
 
     names = ["fl", "fr", "bl", "br"][: args.boards]
     tmp = Path(tempfile.mkdtemp(prefix="ati-rate-"))

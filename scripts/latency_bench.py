@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from hapticdesk.files.profile_reader import load_profile
-from hapticdesk.files.recording import write_recording
+from hapticdesk.files.recording_io import write_recording
 from hapticdesk.registry import load_registry
 from hapticdesk.runtime.assembly import build_scene
 from hapticdesk.runtime.pacing import PacedSource

@@ -22,7 +22,7 @@ from typing import Any
 from hapticdesk.commands import bit_rate, seed_number
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile_reader import load_profile
-from hapticdesk.files.recording import read_recording
+from hapticdesk.files.recording_io import read_recording
 from hapticdesk.runtime.pacing import check_speed
 
 

@@ -28,12 +28,8 @@ from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.files.readers import open_recording_blocks
-from hapticdesk.files.recording import (
-    RECORDING_SUFFIXES,
-    Recording,
-    concat_recordings,
-    write_recording,
-)
+from hapticdesk.files.recording import Recording, concat_recordings
+from hapticdesk.files.recording_io import RECORDING_SUFFIXES, write_recording
 
 LOG_SUFFIXES = (".asc", ".blf", ".log", ".trc")
 

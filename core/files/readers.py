@@ -12,12 +12,8 @@ from hapticdesk.errors import ConfigError
 from hapticdesk.files.c3d import is_c3d
 from hapticdesk.files.file_safety import regular_file_size
 from hapticdesk.files.profile import DeskProfile
-from hapticdesk.files.recording import (
-    RECORDING_SUFFIXES,
-    Recording,
-    RecordingBlocks,
-    read_recording,
-)
+from hapticdesk.files.recording import Recording
+from hapticdesk.files.recording_io import RECORDING_SUFFIXES, RecordingBlocks, read_recording
 
 # a recording's sample interval may differ from its profile's by this share (a sensor's clock,
 # the jitter of CAN timestamps); beyond it the filters and windows, made for the profile's

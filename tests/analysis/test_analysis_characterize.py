@@ -14,7 +14,8 @@ from hapticdesk.cli import main
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.profile_reader import load_profile
-from hapticdesk.files.recording import Recording, write_recording
+from hapticdesk.files.recording import Recording
+from hapticdesk.files.recording_io import write_recording
 from hapticdesk.sim import (
     DeskParameters,
     Idle,

@@ -13,7 +13,8 @@ from hapticdesk.analysis.thresholds import MAX_SLOPE_WINDOW_S, derive_thresholds
 from hapticdesk.cli import main
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile
-from hapticdesk.files.recording import Recording, write_recording
+from hapticdesk.files.recording import Recording
+from hapticdesk.files.recording_io import write_recording
 
 
 def quiet_recording(desk: DeskProfile, seconds: float = 2.0, step_s: float | None = None):

@@ -12,7 +12,8 @@ from hapticdesk.analysis.plotting import plot_recording
 from hapticdesk.cli import main
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile
-from hapticdesk.files.recording import Recording, write_recording
+from hapticdesk.files.recording import Recording
+from hapticdesk.files.recording_io import write_recording
 from hapticdesk.sim import Idle, Scene, simulate
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"

@@ -28,7 +28,8 @@ from hapticdesk.errors import ConfigError
 from hapticdesk.estimator import estimate
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.profile_reader import builtin_profile_path, load_profile
-from hapticdesk.files.recording import Recording, write_recording
+from hapticdesk.files.recording import Recording
+from hapticdesk.files.recording_io import write_recording
 from hapticdesk.sim import Idle, LiftObject, Press, PutObject, Scene, SimEffects, simulate
 from hapticdesk.sim.desk import DeskModel, point_load
 from hapticdesk.sim.loadcells import LoadCellParameters

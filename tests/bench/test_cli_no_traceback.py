@@ -151,7 +151,7 @@ def test_contacts_that_cannot_be_written_after_all(tmp_path, capsys, monkeypatch
     from pathlib import Path
 
     from hapticdesk.files.profile_reader import load_profile
-    from hapticdesk.files.recording import write_recording
+    from hapticdesk.files.recording_io import write_recording
     from hapticdesk.sim import Idle, Scene, simulate
 
     recording = tmp_path / "rec.csv"

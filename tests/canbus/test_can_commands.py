@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from hapticdesk.cli import main
-from hapticdesk.files.recording import Recording, read_recording, write_recording
+from hapticdesk.files.recording import Recording
+from hapticdesk.files.recording_io import read_recording, write_recording
 
 
 @pytest.fixture

@@ -15,7 +15,7 @@ from hapticdesk.estimator.contacts import FLAG_NO_ACCEL
 from hapticdesk.estimator.filters import butter_lowpass_sos
 from hapticdesk.estimator.inertia import InertiaSettings, InertiaStage, accelerometer_readings
 from hapticdesk.files.profile_reader import load_profile
-from hapticdesk.files.recording import read_recording, write_recording
+from hapticdesk.files.recording_io import read_recording, write_recording
 from hapticdesk.sim import SimEffects, simulate
 from hapticdesk.sim.desk import DeskModel
 from hapticdesk.sim.scene import load_scene

@@ -253,7 +253,8 @@ def test_two_six_axis_sensors_locate_a_touch(tmp_path):
 
 
 def test_a_load_cell_recording_has_one_column_per_cell(tmp_path):
-    from hapticdesk.files.recording import Recording, read_recording, write_recording
+    from hapticdesk.files.recording import Recording
+    from hapticdesk.files.recording_io import read_recording, write_recording
 
     desk = load_profile(write(tmp_path, LOAD_CELLS))
     k = 5

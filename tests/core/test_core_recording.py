@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from hapticdesk.errors import ConfigError
-from hapticdesk.files.recording import Recording, read_recording, write_recording
+from hapticdesk.files.recording import Recording
+from hapticdesk.files.recording_io import read_recording, write_recording
 
 NAMES = ["fl", "fr", "bl", "br"]
 
@@ -186,7 +187,7 @@ def test_npz_extra_columns_of_other_kinds_are_ignored(tmp_path):
 
 @pytest.mark.parametrize("suffix", [".csv", ".npz"])
 def test_blocks_join_to_the_whole_file(tmp_path, suffix):
-    from hapticdesk.files.recording import RecordingBlocks
+    from hapticdesk.files.recording_io import RecordingBlocks
 
     rec = sample_recording(50)
     path = tmp_path / f"rec{suffix}"

@@ -13,7 +13,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from hapticdesk.errors import ConfigError
-from hapticdesk.files.recording import read_recording
+from hapticdesk.files.recording_io import read_recording
 
 NAMES = ["fl", "fr", "bl", "br"]
 COLUMNS = ["t"] + [f"{s}_{a}" for s in NAMES for a in ("fx", "fy", "fz", "mx", "my", "mz")]

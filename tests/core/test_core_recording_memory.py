@@ -77,7 +77,8 @@ def test_an_npz_of_thousands_of_members_is_refused_before_they_are_opened(tmp_pa
     """The fuzzing pass: a 12 MB NPZ of 60,000 tiny extra columns took 3.4 GB and 32 s,
     each member opened as a stream of its own. More than 1,024 members are refused at once."""
     from hapticdesk.errors import ConfigError
-    from hapticdesk.files.recording import MAX_NPZ_MEMBERS, read_recording
+    from hapticdesk.files.recording_io import read_recording
+    from hapticdesk.files.recording_npz import MAX_NPZ_MEMBERS
 
     sensors = ["fl", "fr", "bl", "br"]
     columns = {"t": np.arange(10.0)}

@@ -14,7 +14,7 @@ from typing import Any
 import jinja2
 import pytest
 
-from hapticdesk.files.recording import write_recording
+from hapticdesk.files.recording_io import write_recording
 from hapticdesk.plugins.mqtt.homeassistant import DeskTopics, discovery_configs, event_types
 
 from .taps import Tap, tap_recording

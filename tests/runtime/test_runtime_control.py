@@ -19,7 +19,8 @@ import numpy as np
 import pytest
 
 from hapticdesk.errors import ConfigError
-from hapticdesk.files.recording import Recording, write_recording
+from hapticdesk.files.recording import Recording
+from hapticdesk.files.recording_io import write_recording
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.registry import load_registry
 from hapticdesk.runtime.assembly import build_scene

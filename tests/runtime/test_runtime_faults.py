@@ -13,7 +13,7 @@ from types import SimpleNamespace
 import pytest
 
 from hapticdesk.errors import ConfigError
-from hapticdesk.files.recording import write_recording
+from hapticdesk.files.recording_io import write_recording
 from hapticdesk.files.yamlfile import load_marked_yaml
 from hapticdesk.plugins.mqtt import link_for
 from hapticdesk.plugins.mqtt.link import MqttLink

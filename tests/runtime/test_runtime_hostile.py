@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from hapticdesk.errors import ConfigError
-from hapticdesk.files.recording import write_recording
+from hapticdesk.files.recording_io import write_recording
 from hapticdesk.plugins import templating
 from hapticdesk.plugins.templating import SAMPLE_VARIABLES, TemplateError, compile_template
 from hapticdesk.registry import load_registry

@@ -13,7 +13,7 @@ from types import SimpleNamespace
 import pytest
 
 from hapticdesk.errors import ConfigError
-from hapticdesk.files.recording import write_recording
+from hapticdesk.files.recording_io import write_recording
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.registry import load_registry

@@ -15,7 +15,7 @@ from types import SimpleNamespace
 import pytest
 
 from hapticdesk.errors import ConfigError
-from hapticdesk.files.recording import write_recording
+from hapticdesk.files.recording_io import write_recording
 from hapticdesk.files.yamlfile import load_marked_yaml
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.plugins.mqtt.link import MqttLink

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from hapticdesk.files.recording import write_recording
+from hapticdesk.files.recording_io import write_recording
 
 from .conftest import Mosquitto, Subscriber, _program, wait_subscribed
 from .taps import Tap, tap_recording

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from hapticdesk.estimator.contacts import ContactEvent
-from hapticdesk.files.recording import write_recording
+from hapticdesk.files.recording_io import write_recording
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.recognizer import Recognizer
 from hapticdesk.gestures.touch import Touch

@@ -11,7 +11,7 @@ import pytest
 
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.profile_reader import load_profile, profile_from_mapping
-from hapticdesk.files.recording import read_recording, write_recording
+from hapticdesk.files.recording_io import read_recording, write_recording
 from hapticdesk.files.yamlfile import load_marked_yaml
 from hapticdesk.sim import (
     DeskModel,

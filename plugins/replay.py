@@ -137,16 +137,17 @@ def open_replay(
             recording, profile.sample_rate_hz, accel_columns=profile.accelerometer_columns()
         )
         return PacedSource(source, speed)
-    from hapticdesk.canbus import logs
+    from hapticdesk.canbus.logs.desk_samples import open_can_log
+    from hapticdesk.canbus.logs.formats import FRAME_READERS, is_can_log
 
-    if not logs.is_can_log(path):
-        kinds = ", ".join(logs.PYTHON_CAN_SUFFIXES + logs.CANDUMP_TEXT_SUFFIXES)
+    if not is_can_log(path):
+        kinds = ", ".join(FRAME_READERS)
         raise ConfigError(
             str(path),
             f"cannot replay a {path.suffix or 'suffix-less'} file; expected a recording "
             f"({', '.join(RECORDING_SUFFIXES)}) or a CAN log ({kinds})",
         )
-    return PacedSource(logs.open_can_log(path, profile), speed)
+    return PacedSource(open_can_log(path, profile), speed)
 
 
 @hookimpl

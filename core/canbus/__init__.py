@@ -7,6 +7,6 @@
 :mod:`~hapticdesk.canbus.decoding` frame kinds and sensor readings of a desk;
 :mod:`~hapticdesk.canbus.assembler` frames into samples;
 :mod:`~hapticdesk.canbus.source` the live CAN source;
-:mod:`~hapticdesk.canbus.logs` CAN logs (read, replay, write);
+:mod:`~hapticdesk.canbus.logs` CAN logs, one module per format (read, replay, write);
 :mod:`~hapticdesk.canbus.emulator` a desk's sensors as frames on a bus. See docs/can.md.
 """

@@ -205,7 +205,9 @@ def _record_file(
         raise ConfigError("--source", f"{kind}: no such file {argument}")
     raw = output.suffix.lower() in LOG_SUFFIXES
     if kind == "replay" and path.suffix.lower() not in RECORDING_SUFFIXES:
-        from hapticdesk.canbus.logs import decode_can_log, read_frames, write_frames
+        from hapticdesk.canbus.logs.desk_samples import decode_can_log
+        from hapticdesk.canbus.logs.formats import read_frames
+        from hapticdesk.canbus.logs.writer import write_frames
 
         if raw:  # a CAN log into another format: frames as they are
             limit = args.seconds
@@ -248,7 +250,7 @@ def _record_file(
         return _stopped(_summary(rec.t, problems), stopped_by, len(rec))
     from hapticdesk.canbus.config import can_config
     from hapticdesk.canbus.emulator import FrameEncoder
-    from hapticdesk.canbus.logs import write_frames
+    from hapticdesk.canbus.logs.writer import write_frames
     from hapticdesk.estimator.inertia import accelerometer_readings
 
     encoder = FrameEncoder(can_config(profile), profile)

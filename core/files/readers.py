@@ -98,7 +98,8 @@ def _read(path: str | Path, profile: DeskProfile) -> Recording:
     # before the CAN log's own checks: a missing file is said so, not taken for a CAN log
     # the profile cannot decode
     regular_file_size(path, "the recording")
-    from hapticdesk.canbus.logs import is_can_log, read_can_log  # (python-can: lazily)
+    from hapticdesk.canbus.logs.desk_samples import read_can_log
+    from hapticdesk.canbus.logs.formats import is_can_log  # (python-can: lazily)
 
     if profile.can is None and not is_can_log(path):
         raise ConfigError(

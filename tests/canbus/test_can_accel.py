@@ -11,7 +11,8 @@ import pytest
 
 from hapticdesk.canbus.config import can_config
 from hapticdesk.canbus.emulator import FrameEncoder
-from hapticdesk.canbus.logs import open_can_log, read_can_log, write_frames
+from hapticdesk.canbus.logs.desk_samples import open_can_log, read_can_log
+from hapticdesk.canbus.logs.writer import write_frames
 from hapticdesk.errors import ConfigError
 from hapticdesk.estimator import ContactEstimator, estimate
 from hapticdesk.estimator.contacts import FLAG_NO_ACCEL

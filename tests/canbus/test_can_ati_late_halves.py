@@ -22,7 +22,7 @@ from hapticdesk.canbus.config import can_config
 from hapticdesk.canbus.decoding import build_decoding
 from hapticdesk.canbus.emulator import CanEmulator, FrameEncoder
 from hapticdesk.canbus.frames import FrameArray
-from hapticdesk.canbus.logs import decode_can_log
+from hapticdesk.canbus.logs.desk_samples import decode_can_log
 from hapticdesk.canbus.source import open_can_source
 
 T0 = 1_700_000_000.0

@@ -11,7 +11,9 @@ import numpy as np
 import pytest
 
 from hapticdesk.canbus.frames import FrameArray
-from hapticdesk.canbus.logs import decode_can_log, read_frames, write_frames
+from hapticdesk.canbus.logs.desk_samples import decode_can_log
+from hapticdesk.canbus.logs.formats import read_frames
+from hapticdesk.canbus.logs.writer import write_frames
 from hapticdesk.canbus.source import CanSourceError, open_can_source
 from hapticdesk.cli import main
 from hapticdesk.errors import ConfigError

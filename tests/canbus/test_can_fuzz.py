@@ -14,7 +14,7 @@ from hapticdesk.canbus.config import can_config
 from hapticdesk.canbus.decoding import build_decoding
 from hapticdesk.canbus.emulator import FrameEncoder
 from hapticdesk.canbus.frames import FrameArray
-from hapticdesk.canbus.logs import read_frames
+from hapticdesk.canbus.logs.formats import read_frames
 from hapticdesk.errors import ConfigError
 
 FUZZ = settings(

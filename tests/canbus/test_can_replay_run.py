@@ -13,7 +13,7 @@ import pytest
 
 from hapticdesk.canbus.config import can_config
 from hapticdesk.canbus.emulator import FrameEncoder
-from hapticdesk.canbus.logs import write_frames
+from hapticdesk.canbus.logs.writer import write_frames
 from hapticdesk.cli import main
 
 T0 = 1_700_000_000.0

@@ -45,7 +45,7 @@ def main() -> int:
     parser.add_argument("--bus", choices=["virtual", "udp_multicast"], default="virtual")
     args = parser.parse_args()
 
-    from hapticdesk.canbus.config import can_config
+    from hapticdesk.canbus.config_reader import can_config
     from hapticdesk.canbus.emulator import CanEmulator, FrameEncoder
     from hapticdesk.canbus.source import CanSource
     from hapticdesk.files.profile_reader import load_profile

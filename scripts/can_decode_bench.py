@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 from hapticdesk.canbus.assembler import FrameAssembler
-from hapticdesk.canbus.config import can_config
+from hapticdesk.canbus.config_reader import can_config
 from hapticdesk.canbus.decoding import DeskDecoding, build_decoding
 from hapticdesk.canbus.emulator import FrameEncoder, encoder_for
 from hapticdesk.canbus.frames import FrameArray

@@ -1,6 +1,8 @@
 """Force/torque sensors over CAN (python-can, cantools), imported only by desks that use it.
 
-:mod:`~hapticdesk.canbus.config` the profile's ``can:`` section;
+:mod:`~hapticdesk.canbus.config` the profile's ``can:`` section (read by
+:mod:`~hapticdesk.canbus.config_reader`, with :mod:`~hapticdesk.canbus.config_sensors` and
+:mod:`~hapticdesk.canbus.can_database`);
 :mod:`~hapticdesk.canbus.frames` frames as numpy arrays;
 :mod:`~hapticdesk.canbus.dbc_signals` database signals as vectorised bit extraction;
 :mod:`~hapticdesk.canbus.ati_netcanoem` the ATI NETCANOEM protocol;

@@ -24,7 +24,8 @@ from typing import Any
 
 from hapticdesk.canbus import ati_netcanoem as ati
 from hapticdesk.canbus.assembler import NOTICES_KEPT, AssembledBlock, FrameAssembler
-from hapticdesk.canbus.config import CanConfig, can_config
+from hapticdesk.canbus.config import CanConfig
+from hapticdesk.canbus.config_reader import can_config
 from hapticdesk.canbus.decoding import build_decoding
 from hapticdesk.canbus.frames import FrameArray
 from hapticdesk.canbus.stats import CanNotice, CanStats

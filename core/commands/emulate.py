@@ -52,7 +52,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import can
 
-    from hapticdesk.canbus.config import can_config
+    from hapticdesk.canbus.config_reader import can_config
     from hapticdesk.canbus.emulator import CanEmulator, encoder_for
     from hapticdesk.canbus.source import bus_cannot_open
 

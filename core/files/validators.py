@@ -136,6 +136,21 @@ def place(value: Any, where: Any, what: str, length: int, origin: str = "P_o") -
     return out
 
 
+def whole_number(
+    m: MarkedDict, key: str, what: str, minimum: int = 0, maximum: int | None = None
+) -> int:
+    """A whole number at ``key`` from ``minimum`` (to ``maximum``: shown in hex too)."""
+    value = m[key]
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ConfigError(
+            m.where(key), f"`{key}` in {what} must be a whole number, found {value!r}"
+        )
+    if value < minimum or (maximum is not None and value > maximum):
+        bound = f"{minimum}…{maximum} (0x{minimum:X}…0x{maximum:X})" if maximum else f">= {minimum}"
+        raise ConfigError(m.where(key), f"`{key}` in {what} must be {bound}, found {value}")
+    return value
+
+
 def choice(
     mapping: MarkedDict, key: str, allowed: tuple[str, ...], what: str, default: str | None = None
 ) -> str:

@@ -6,7 +6,7 @@ import re
 
 import pytest
 
-from hapticdesk.canbus.config import can_config
+from hapticdesk.canbus.config_reader import can_config
 from hapticdesk.errors import ConfigError
 
 HEAD = """name: t

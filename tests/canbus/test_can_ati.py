@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from hapticdesk.canbus import ati_netcanoem as ati
-from hapticdesk.canbus.config import AtiSensor, can_config
+from hapticdesk.canbus.config import AtiSensor
+from hapticdesk.canbus.config_reader import can_config
 from hapticdesk.canbus.emulator import FrameEncoder
 
 

@@ -18,7 +18,7 @@ from can.interfaces.virtual import VirtualBus
 
 from hapticdesk.canbus.assembler import FrameAssembler
 from hapticdesk.canbus.ati_netcanoem import SAMPLE_BITS, max_poll_rate
-from hapticdesk.canbus.config import can_config
+from hapticdesk.canbus.config_reader import can_config
 from hapticdesk.canbus.decoding import build_decoding
 from hapticdesk.canbus.emulator import CanEmulator, FrameEncoder
 from hapticdesk.canbus.frames import FrameArray

@@ -7,7 +7,8 @@ import re
 import numpy as np
 import pytest
 
-from hapticdesk.canbus.config import AtiSensor, SignalSensor, can_config
+from hapticdesk.canbus.config import AtiSensor, SignalSensor
+from hapticdesk.canbus.config_reader import can_config
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile_reader import load_profile
 

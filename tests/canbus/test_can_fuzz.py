@@ -10,7 +10,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from hapticdesk.canbus.assembler import FrameAssembler
-from hapticdesk.canbus.config import can_config
+from hapticdesk.canbus.config_reader import can_config
 from hapticdesk.canbus.decoding import build_decoding
 from hapticdesk.canbus.emulator import FrameEncoder
 from hapticdesk.canbus.frames import FrameArray

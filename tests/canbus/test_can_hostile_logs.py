@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from hapticdesk.canbus import config as can_config_module
-from hapticdesk.canbus.config import can_config
+from hapticdesk.canbus import can_database
+from hapticdesk.canbus.config_reader import can_config
 from hapticdesk.canbus.logs import log_files, python_can_logs
 from hapticdesk.canbus.logs.formats import read_frames
 from hapticdesk.canbus.logs.writer import write_frames
@@ -95,7 +95,7 @@ def test_sniffing_reads_a_bounded_prefix(tmp_path, monkeypatch):
 
 
 def test_a_database_too_big_is_refused_before_it_is_parsed(profile_text, monkeypatch):
-    monkeypatch.setattr(can_config_module, "MAX_DATABASE_BYTES", 1000)
+    monkeypatch.setattr(can_database, "MAX_DATABASE_BYTES", 1000)
 
     def never(*args, **kwargs):
         raise AssertionError("parsed")

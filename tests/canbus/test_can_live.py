@@ -12,7 +12,7 @@ import pytest
 from can.interfaces.virtual import VirtualBus
 
 from hapticdesk.canbus.assembler import SensorSilentError
-from hapticdesk.canbus.config import can_config
+from hapticdesk.canbus.config_reader import can_config
 from hapticdesk.canbus.emulator import CanEmulator, FrameEncoder
 from hapticdesk.canbus.source import CanSourceError, open_can_source
 from hapticdesk.estimator import ContactEstimator, estimate

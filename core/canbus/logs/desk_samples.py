@@ -15,7 +15,8 @@ import numpy as np
 
 from hapticdesk.canbus.assembler import AssembledBlock, FrameAssembler
 from hapticdesk.canbus.ati_netcanoem import AtiCalibration, CalibrationCollector, ati_frame_ids
-from hapticdesk.canbus.config import CanConfig, can_config
+from hapticdesk.canbus.config import CanConfig
+from hapticdesk.canbus.config_reader import can_config
 from hapticdesk.canbus.decoding import build_decoding
 from hapticdesk.canbus.logs.formats import read_frames
 from hapticdesk.canbus.stats import CanNotice, CanStats

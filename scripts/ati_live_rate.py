@@ -46,7 +46,8 @@ def main() -> int:
     args = parser.parse_args()
 
     from hapticdesk.canbus.config_reader import can_config
-    from hapticdesk.canbus.emulator import CanEmulator, FrameEncoder
+    from hapticdesk.canbus.emulator import CanEmulator
+    from hapticdesk.canbus.frame_encoder import FrameEncoder
     from hapticdesk.canbus.source import CanSource
     from hapticdesk.files.profile_reader import load_profile
     from hapticdesk.files.recording import Recording

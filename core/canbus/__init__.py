@@ -10,5 +10,6 @@
 :mod:`~hapticdesk.canbus.assembler` frames into samples;
 :mod:`~hapticdesk.canbus.source` the live CAN source;
 :mod:`~hapticdesk.canbus.logs` CAN logs, one module per format (read, replay, write);
-:mod:`~hapticdesk.canbus.emulator` a desk's sensors as frames on a bus. See docs/can.md.
+:mod:`~hapticdesk.canbus.frame_encoder` a desk's samples as frames;
+:mod:`~hapticdesk.canbus.emulator` those frames on a bus. See docs/can.md.
 """

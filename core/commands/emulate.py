@@ -53,7 +53,8 @@ def run(args: argparse.Namespace) -> int:
     import can
 
     from hapticdesk.canbus.config_reader import can_config
-    from hapticdesk.canbus.emulator import CanEmulator, encoder_for
+    from hapticdesk.canbus.emulator import CanEmulator
+    from hapticdesk.canbus.frame_encoder import encoder_for
     from hapticdesk.canbus.source import bus_cannot_open
 
     check_speed(args.speed)  # as `run` paces a replay

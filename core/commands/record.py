@@ -249,7 +249,7 @@ def _record_file(
         _write(output, rec)
         return _stopped(_summary(rec.t, problems), stopped_by, len(rec))
     from hapticdesk.canbus.config_reader import can_config
-    from hapticdesk.canbus.emulator import FrameEncoder
+    from hapticdesk.canbus.frame_encoder import FrameEncoder
     from hapticdesk.canbus.logs.writer import write_frames
     from hapticdesk.estimator.inertia import accelerometer_readings
 

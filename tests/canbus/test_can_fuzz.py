@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from hapticdesk.canbus.assembler import FrameAssembler
 from hapticdesk.canbus.config_reader import can_config
 from hapticdesk.canbus.decoding import build_decoding
-from hapticdesk.canbus.emulator import FrameEncoder
+from hapticdesk.canbus.frame_encoder import FrameEncoder
 from hapticdesk.canbus.frames import FrameArray
 from hapticdesk.canbus.logs.formats import read_frames
 from hapticdesk.errors import ConfigError

@@ -13,7 +13,8 @@ from can.interfaces.virtual import VirtualBus
 
 from hapticdesk.canbus.assembler import SensorSilentError
 from hapticdesk.canbus.config_reader import can_config
-from hapticdesk.canbus.emulator import CanEmulator, FrameEncoder
+from hapticdesk.canbus.emulator import CanEmulator
+from hapticdesk.canbus.frame_encoder import FrameEncoder
 from hapticdesk.canbus.source import CanSourceError, open_can_source
 from hapticdesk.estimator import ContactEstimator, estimate
 from hapticdesk.estimator.contacts import ContactBlock, contact_events

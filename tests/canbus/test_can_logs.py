@@ -8,7 +8,7 @@ import logging
 import numpy as np
 import pytest
 
-from hapticdesk.canbus.emulator import FrameEncoder
+from hapticdesk.canbus.frame_encoder import FrameEncoder
 from hapticdesk.canbus.frames import FrameArray
 from hapticdesk.canbus.logs.desk_samples import decode_can_log, open_can_log, read_can_log
 from hapticdesk.canbus.logs.formats import is_can_log, read_frames

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from hapticdesk.canbus.config_reader import can_config
-from hapticdesk.canbus.emulator import FrameEncoder
+from hapticdesk.canbus.frame_encoder import FrameEncoder
 from hapticdesk.canbus.logs.writer import write_frames
 from hapticdesk.cli import main
 

@@ -28,8 +28,8 @@ from hapticdesk.runtime.source import Source, WrenchBlock
 log = logging.getLogger(__name__)
 
 #: in a log assembled by counter, a channel whose frame is missing holds its value this many
-#: samples at most (:attr:`FrameAssembler.hold_samples`): a corrupt line loses one frame, not
-#: the sample
+#: samples at most (:class:`~hapticdesk.canbus.field_hold.FieldHold`): a corrupt line loses
+#: one frame, not the sample
 HOLD_SAMPLES = 2
 
 

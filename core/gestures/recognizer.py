@@ -42,7 +42,17 @@ class Recognizer:
         self.bindings = list(bindings)
 
     def on_contact(self, event: ContactEvent, touch: Touch) -> list[GestureEvent]:
-        """One contact event (down, move, up) of ``touch``, already added to it."""
+        """One contact event (down, move, up) of ``touch``, already added to it. Its events
+        belong to ``touch``; ``touch.claimed_by`` names the gesture that holds it when a more
+        specific one claimed it (arbitration): a gesture of ``arbitration.ORDER`` that is
+        not that one is dropped by the engine, and need not be decided."""
+        return []
+
+    def decided_earlier(self) -> list[GestureEvent]:
+        """Events the last :meth:`on_contact` decided for an earlier touch (a tap that waited
+        for a double tap and turned out single), taken once. The engine reads them apart
+        from that call's events, which belong to the current touch: a gesture that claimed
+        the current touch drops the others' events of it (arbitration), not these."""
         return []
 
     def next_deadline(self) -> float | None:

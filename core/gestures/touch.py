@@ -77,6 +77,9 @@ class Touch:
         self.multi = False
         #: where the second finger landed (x, y), once the estimator placed it
         self.second: tuple[float, float] | None = None
+        #: the gesture that holds this touch (arbitration: the first of ``arbitration.ORDER``
+        #: that fired an event a binding reacts to), None while none did; set by the engine
+        self.claimed_by: str | None = None
         #: the load is as still as an object put down and the estimator has not yet decided
         #: (the latest event's ``resting``): a hold waits for the verdict
         self.resting = False

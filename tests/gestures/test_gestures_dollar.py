@@ -176,8 +176,10 @@ def test_a_bad_log_is_named_at_its_line_and_column(tmp_path, monkeypatch):
 
 def test_a_stroke_nearest_a_built_in_template_asks_more():
     """Built-in templates are not compared by form, so a stroke nearest one asks min_score +
-    BUILTIN_EXTRA_SCORE (non-shapes taken for a built-in shape: 18 % -> 5 % at 0.8)."""
-    from hapticdesk.gestures.strokes.unistroke import BUILTIN_EXTRA_SCORE
+    builtin_extra (chosen so that at most 5 % of strokes that are no shape are taken)."""
+    from hapticdesk.gestures.strokes.unistroke import DEFAULT_CHOICES
+
+    BUILTIN_EXTRA_SCORE = DEFAULT_CHOICES.builtin_extra
 
     u = np.linspace(0.0, 2 * np.pi, 120)
     circle = np.column_stack([np.cos(u), np.sin(u)])

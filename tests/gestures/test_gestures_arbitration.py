@@ -2,11 +2,18 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
+import pytest
 
 from hapticdesk.cli import main
+from hapticdesk.estimator.contacts import ContactBlock
+from hapticdesk.files.profile import profile_from_mapping
+from hapticdesk.files.yamlfile import load_marked_yaml
 from hapticdesk.gestures.arbitration import ORDER, describe
 from hapticdesk.gestures.engine import GestureEngine
+from hapticdesk.gestures.layout import load_layout
 
 #: a tap may move 3 cm here and a swipe be 4 cm long: a quick 5 cm flick is both
 TAP_AND_SWIPE = """
@@ -23,8 +30,8 @@ bindings:
 FLICK = np.array([[-0.025, 0.0], [0.025, 0.0]])  # 5 cm to the right
 
 
-def run(layout, block):
-    engine = GestureEngine(layout)
+def run(layout, block, position_delay_s=0.0):
+    engine = GestureEngine(layout, position_delay_s=position_delay_s)
     return engine.feed(block) + engine.flush(float(block.t[-1]))
 
 
@@ -162,3 +169,38 @@ def test_check_prints_the_order_for_a_layout(make_layout, capsys, write_layout):
     assert main(["check", str(layout.path)]) == 0
     out = capsys.readouterr().out
     assert "\n".join(lines) in out
+
+
+DATA = Path(__file__).resolve().parent / "data"
+BUTTONS = Path(__file__).resolve().parents[2] / "examples" / "layouts" / "buttons.yaml"
+
+
+@pytest.mark.parametrize(("desk", "button", "direction"), [(74, "b3", "left"), (92, "b5", "up")])
+def test_the_sweeps_taps_that_also_swiped_fire_one_gesture(tmp_path, desk, button, direction):
+    """Two of the 3 touches in 36,000 of the 120-desk sweep (scripts/desk_sweep.py --seed 1,
+    desks 74 and 92, 250 taps at seeds 1741 and 1921) that fired a tap and a swipe: the
+    estimator's contacts around them, cut from that run (t ± 0.5 s), on the sweep's layout
+    (buttons.yaml, a 0.8 s long press on every button, swipes anywhere)."""
+    data = np.load(DATA / f"sweep_tap_and_swipe_{desk}.npz")
+    profile_path = tmp_path / f"sweep-1-{desk}.yaml"
+    profile_path.write_text(str(data["profile"]))
+    desk_profile = profile_from_mapping(load_marked_yaml(profile_path), profile_path)
+    fields = {k: data[k] for k in data.files if k in ContactBlock.__dataclass_fields__}
+    block = ContactBlock(**fields)
+    delay = float(data["position_delay_s"])  # ContactEstimator.position_delay_s of the desk
+    text = BUTTONS.read_text()
+    taps_only = tmp_path / "buttons.yaml"
+    taps_only.write_text(text)
+    swipes_too = tmp_path / "full.yaml"
+    swipes_too.write_text(
+        text
+        + "".join(
+            f"  - {{gesture: long_press, region: b{k}, hold_s: 0.8, do: log}}\n"
+            for k in range(1, 10)
+        )
+        + "  - {gesture: swipe, direction: [right, up, left, down], do: log}\n"
+    )
+    alone = run(load_layout(taps_only, profile=desk_profile), block, delay)
+    assert [(e.gesture, e.region) for e in alone] == [("tap", button)]  # the tap was seen
+    events = run(load_layout(swipes_too, profile=desk_profile), block, delay)
+    assert [(e.gesture, e.direction) for e in events] == [("swipe", direction)]

@@ -124,9 +124,10 @@ class TapRecognizer(Recognizer):
         if not touch.located:
             return []
         x, y, _ = touch.best()
-        tap_found, tap_region = self.taps.find(x, y, touch.surface, snap=True)
+        sigma = touch.place_sigma()  # (a tap whose uncertainty reaches two buttons: neither)
+        tap_found, tap_region = self.taps.find(x, y, touch.surface, snap=True, sigma=sigma)
         is_single = tap_found and _is_tap(touch, x, y, self.taps.options(tap_region))
-        double_found, double_region = self.doubles.find(x, y, touch.surface, snap=True)
+        double_found, double_region = self.doubles.find(x, y, touch.surface, True, sigma)
         if double_found:
             options = self.doubles.options(double_region)
             if _is_tap(touch, x, y, options):
@@ -145,7 +146,8 @@ class TapRecognizer(Recognizer):
         if not touch.located:
             return None
         x, y, _ = touch.best()
-        found, region = self.two_finger.find(x, y, touch.surface, snap=True)
+        sigma = touch.place_sigma()
+        found, region = self.two_finger.find(x, y, touch.surface, snap=True, sigma=sigma)
         if not found or not _is_tap(touch, x, y, self.two_finger.options(region)):
             return None
         second = touch.second
@@ -159,7 +161,8 @@ class TapRecognizer(Recognizer):
         if not touch.located:
             return None
         x, y, _ = touch.best()
-        found, region = self.doubles.find(x, y, touch.surface, snap=True)
+        sigma = touch.place_sigma()
+        found, region = self.doubles.find(x, y, touch.surface, snap=True, sigma=sigma)
         options = first.double_options
         if (
             not found

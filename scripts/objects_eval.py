@@ -151,7 +151,7 @@ def long_presses(desk: DeskProfile, folder: Path, seeds: range) -> tuple[dict, d
     """On a button bound to a 0.8 s long press: per finger force the delay (s) of the tier
     after it was due (inf: never fired), per object mass whether a tier fired."""
     from hapticdesk.gestures.engine import GestureEngine
-    from hapticdesk.gestures.layout import load_layout
+    from hapticdesk.gestures.layout_reader import load_layout
 
     path = folder / f"long-press-{desk.name}.yaml"
     path.write_text(LONG_PRESS_LAYOUT.format(desk=desk.name))

@@ -1,4 +1,5 @@
-"""Reading and validating a layout's YAML into the model of ``layout.py``.
+"""Loading a layout: its YAML read and validated into the model of ``layout.py``
+(:func:`load_layout`; the model imports no reader).
 
 Loading validates everything a person can get wrong and reports ``file:line:column``, what
 was found and what is allowed: unknown keys, unknown region, gesture, action or shape names,
@@ -11,7 +12,7 @@ from __future__ import annotations
 
 import re
 import warnings
-from collections.abc import Collection, Mapping
+from collections.abc import Callable, Collection, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -21,14 +22,8 @@ from hapticdesk.files.marked_values import MarkedDict, MarkedList, as_flag
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.files.validators import check_keys, choice, require_mapping
-from hapticdesk.gestures.layout import (
-    UNITS,
-    ActionUse,
-    Binding,
-    Layout,
-    ValidateAction,
-    builtin_shape_names,
-)
+from hapticdesk.files.yamlfile import load_marked_yaml
+from hapticdesk.gestures.layout import UNITS, ActionUse, Binding, Layout, builtin_shape_names
 from hapticdesk.gestures.layout_regions import RegionReader
 from hapticdesk.gestures.layout_templates import TemplateReader
 from hapticdesk.gestures.options import (
@@ -61,6 +56,11 @@ LAYOUT_KEYS = frozenset(
 #: a desk name goes into topics, URLs and file names: no spaces, slashes or wildcards
 DESK_NAME = re.compile(r"[A-Za-z0-9_-]+")
 BINDING_KEYS = frozenset({"gesture", "region", "do", "description"})
+
+#: ``validate_action(name, options, position)``: raises ConfigError when the options are wrong
+ValidateAction = Callable[[str, Any, Position], None]
+#: ``validate_section(name, value, position, layout_path)``: a plugin's section
+ValidateSection = Callable[[str, Any, Position, Path], None]
 
 
 def allowed_top_keys(plugin_sections: Collection[str] = ()) -> frozenset[str]:
@@ -496,3 +496,38 @@ class LayoutReader:
 
 def _region_text(region: str | None) -> str:
     return f"region `{region}`" if region is not None else "anywhere"
+
+
+def load_layout(
+    path: str | Path,
+    profile: DeskProfile | None = None,
+    action_names: Collection[str] | None = None,
+    validate_action: ValidateAction | None = None,
+    recognizer_types: Mapping[str, Any] | None = None,
+    validate_section: ValidateSection | None = None,
+    section_names: Collection[str] = (),
+    text: str | None = None,
+) -> Layout:
+    """Load and validate a layout; raises :class:`ConfigError` on any problem.
+
+    ``text``: the layout's YAML when it is not (yet) in the file, e.g. an edit being checked
+    before it is saved; errors and relative paths still name ``path``.
+
+    ``profile`` overrides the layout's ``desk:``. ``action_names``: the known actions (an
+    unknown one is an error); ``validate_action(name, options, position)`` is called for
+    every action use and may raise ConfigError. ``recognizer_types``: plugin gestures (name
+    -> recognizer class, registry record or ``"module:Class"``, whose optional
+    ``option_specs`` describe its options; a built-in gesture's options are its own whichever
+    class recognizes it, so built-ins are not imported here). ``section_names``: top-level
+    sections plugins claimed; each one present goes to ``validate_section``.
+    """
+    path = Path(path)
+    doc = require_mapping(load_marked_yaml(path, text), str(path), "a layout")
+    reader = LayoutReader(
+        doc, path, profile, action_names, validate_action, recognizer_types, section_names
+    )
+    layout = reader.read()
+    if validate_section is not None:
+        for name in sorted(reader.sections & set(doc)):
+            validate_section(name, doc[name], doc.where(name), path)
+    return layout

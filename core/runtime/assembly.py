@@ -82,7 +82,7 @@ def load_scene_layout(
     plugins claim, each action use checked against the events its binding can make
     (``hapticdesk check`` and ``run`` both load through here), and its desk.
     ``text``: the layout's YAML when it is not the file's (an edit checked before saving)."""
-    from hapticdesk.gestures.layout import load_layout
+    from hapticdesk.gestures.layout_reader import load_layout
 
     profile = load_profile(desk) if isinstance(desk, str) else desk
     layout = load_layout(

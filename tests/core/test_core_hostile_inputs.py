@@ -329,7 +329,7 @@ def test_words_and_numbers_read_as_yaml_1_2_reads_them(tmp_path: Path) -> None:
         flag(doc, "c", "x", default=False)  # quoted: text, in 1.1 as in 1.2
     assert doc["d"] == 31
     # and the settings that are true or false read them as before
-    from hapticdesk.gestures.layout import load_layout
+    from hapticdesk.gestures.layout_reader import load_layout
     from hapticdesk.plugins.mqtt.settings import settings_from_layout
 
     mqtt = load_marked_yaml("x.yaml", text="mqtt: {discovery: off, retain: yes}\n")["mqtt"]

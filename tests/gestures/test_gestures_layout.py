@@ -10,7 +10,7 @@ import pytest
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.gestures.event import GestureEvent
-from hapticdesk.gestures.layout import load_layout
+from hapticdesk.gestures.layout_reader import load_layout
 from hapticdesk.gestures.regions import regions_overlap
 from hapticdesk.registry import load_registry
 from hapticdesk.runtime.assembly import load_scene_layout

@@ -15,7 +15,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from hapticdesk.errors import ConfigError
-from hapticdesk.gestures.layout import load_layout
+from hapticdesk.gestures.layout_reader import load_layout
 from hapticdesk.registry import load_registry
 
 VALID = """\

@@ -179,7 +179,7 @@ def test_the_cost_of_a_call_through_a_process(capsys):
     ],
 )
 def test_isolation_options_are_checked_in_the_layout(tmp_path, options, expected):
-    from hapticdesk.gestures.layout import load_layout
+    from hapticdesk.gestures.layout_reader import load_layout
 
     registry = load_registry(entry_points=False, plugins=[("misbehaving", spin_plugin)])
     path = tmp_path / "layout.yaml"

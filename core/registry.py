@@ -19,13 +19,13 @@ import logging
 import os
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from types import ModuleType
 from typing import Any
 
 import pluggy
 
 from hapticdesk import __version__, hookspecs
 from hapticdesk.files.yamlfile import ConfigError, Position
+from hapticdesk.lazy_ref import is_loadable, resolve
 
 log = logging.getLogger(__name__)
 
@@ -57,17 +57,6 @@ class PluginError(ConfigError):
 
     def __init__(self, message: str) -> None:
         super().__init__(None, message)
-
-
-def resolve(ref: Any) -> Any:
-    """A lazy ``"module:attr"`` reference imported, or ``ref`` itself when it is not text."""
-    if not isinstance(ref, str):
-        return ref
-    module_name, _, attr = ref.partition(":")
-    obj: Any = importlib.import_module(module_name)
-    for part in attr.split(".") if attr else ():
-        obj = getattr(obj, part)
-    return obj
 
 
 @dataclass(frozen=True)
@@ -347,8 +336,7 @@ class Registry:
                     f"plugin `{plugin}` registered {what} name {name!r}; "
                     "names must be identifiers (letters, digits, _)"
                 )
-            loadable = callable(factory) or isinstance(factory, str | ModuleType)
-            if factory is None or not loadable:
+            if not is_loadable(factory):
                 raise PluginError(
                     f"plugin `{plugin}` registered {what} `{name}` with factory {factory!r}; "
                     "expected a callable or a 'module:attr' string"
@@ -385,22 +373,17 @@ class Registry:
         return sorted(self.actions)
 
     def validate_action(self, name: str, options: Any, position: Position | str) -> None:
-        """Validate one action use of a layout (unknown name or bad options: ConfigError)."""
-        from hapticdesk.runtime.isolation import split_isolation
-
-        # `isolation:` is for the runtime, not for the action's own options
-        own, _ = split_isolation(options, position)
-        self.action(name, position).check(own, position)
+        """Validate one action use of a layout: ``options`` the action's own (unknown name or
+        bad options: ConfigError)."""
+        self.action(name, position).check(options, position)
 
     def check_action_events(
         self, name: str, options: Any, position: Position | str, events: list[Any], desk: str
     ) -> None:
         """Check one action use against the events its binding can make (ConfigError if one
-        would break a limit: a template too costly for one of them)."""
-        from hapticdesk.runtime.isolation import split_isolation
-
-        own, _ = split_isolation(options, position)
-        self.action(name, position).check_for_events(own, position, events, desk)
+        would break a limit: a template too costly for one of them); ``options`` the
+        action's own."""
+        self.action(name, position).check_for_events(options, position, events, desk)
 
     def recognizer_types(self) -> dict[str, RecognizerType]:
         """Recognizers by gesture name, not imported: the gesture engine and the layout load

@@ -32,7 +32,7 @@ def _default_recognizers() -> Mapping[str, Any]:
 
 def _load(entry: Any) -> type:
     """A recognizer class from a registry record, a ``"module:Class"`` string or a class."""
-    from hapticdesk.registry import resolve
+    from hapticdesk.lazy_ref import resolve
 
     load = getattr(entry, "load", None)
     cls: type = load() if callable(load) else resolve(entry)

@@ -30,7 +30,7 @@ import numpy as np
 
 from hapticdesk.files.profile import load_profile
 from hapticdesk.files.recording import write_recording
-from hapticdesk.registry import load_registry
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.runtime.assembly import build_scene
 from hapticdesk.runtime.pacing import PacedSource
 from hapticdesk.runtime.service import Runtime

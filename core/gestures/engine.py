@@ -25,7 +25,7 @@ from hapticdesk.gestures.touch import TouchTracker
 
 def _default_recognizers() -> Mapping[str, Any]:
     """The built-in recognizers, from the registry like any plugin's (no entry points)."""
-    from hapticdesk.registry import load_registry
+    from hapticdesk.plugin_loading import load_registry
 
     return load_registry(entry_points=False).recognizer_types()
 

@@ -21,7 +21,7 @@ import pytest
 from hapticdesk.files.recording import Recording, write_recording
 from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.hookspecs import hookimpl
-from hapticdesk.registry import load_registry
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.runtime.assembly import build_scene
 from hapticdesk.runtime.control import ControlError, command, parse_command
 from hapticdesk.runtime.service import Runtime

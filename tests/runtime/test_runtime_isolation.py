@@ -16,7 +16,7 @@ from hapticdesk.files.recording import write_recording
 from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.hookspecs import hookimpl
-from hapticdesk.registry import load_registry
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.runtime.assembly import build_scene
 from hapticdesk.runtime.isolation import IsolationSettings, ProcessAction, action_use_validator
 from hapticdesk.runtime.service import Runtime

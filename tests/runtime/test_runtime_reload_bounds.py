@@ -14,7 +14,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from hapticdesk.hookspecs import hookimpl
-from hapticdesk.registry import load_registry
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.runtime.assembly import build_scene
 from hapticdesk.runtime.dispatcher import MAX_RETIRED_LABELS
 from hapticdesk.runtime.service import MAX_SWAP_WAIT_S, Runtime

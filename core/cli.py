@@ -72,7 +72,7 @@ def _available(with_plugins: bool = True) -> dict[str, tuple[Any, str]]:
 @functools.cache
 def _plugin_commands() -> dict[str, tuple[Any, str]]:
     from hapticdesk.errors import ConfigError
-    from hapticdesk.registry import load_registry
+    from hapticdesk.plugin_loading import load_registry
 
     try:
         registry = load_registry()

@@ -118,7 +118,7 @@ def _only_hapticdesk_plugins() -> Iterator[None]:
 
 
 def registry() -> Any:
-    from hapticdesk.registry import load_registry
+    from hapticdesk.plugin_loading import load_registry
 
     return load_registry(entry_points=False)
 
@@ -837,7 +837,7 @@ def http_routes() -> Generated:
 
 def hooks() -> Generated:
     from hapticdesk import hookspecs
-    from hapticdesk.registry import hookspec_names
+    from hapticdesk.hookspecs import hookspec_names
 
     out = Generated("")
     parts = []

@@ -309,8 +309,8 @@ def run_ui(folder: Path, tally: Tally) -> None:
     from starlette.testclient import TestClient
 
     from hapticdesk.files.profile_reader import load_profile
+    from hapticdesk.plugin_loading import load_registry
     from hapticdesk.plugins.ui.server import UiServer
-    from hapticdesk.registry import load_registry
 
     layout = folder / "buttons.yaml"
     registry = load_registry(entry_points=False)

@@ -26,7 +26,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hapticdesk.registry import load_registry
+    from hapticdesk.plugin_loading import load_registry
     from hapticdesk.runtime.assembly import load_scene_layout
 
     if args.png:  # before the work: matplotlib would refuse the format only after it

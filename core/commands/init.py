@@ -123,7 +123,7 @@ def write_starter(
     """Write the starter layout to ``path`` (checked as ``check`` would, first); the desk's
     name."""
     from hapticdesk.files.profile_reader import load_profile
-    from hapticdesk.registry import load_registry
+    from hapticdesk.plugin_loading import load_registry
     from hapticdesk.runtime.assembly import load_scene_layout
 
     reference = desk_reference(desk, path)

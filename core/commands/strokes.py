@@ -175,7 +175,7 @@ def record(args: argparse.Namespace) -> int:
     from hapticdesk.files.profile_reader import load_profile
     from hapticdesk.gestures.strokes.capture import StrokeCapture
     from hapticdesk.gestures.strokes.unistroke import template_set
-    from hapticdesk.registry import load_registry
+    from hapticdesk.plugin_loading import load_registry
     from hapticdesk.runtime.assembly import load_scene_layout
     from hapticdesk.runtime.source_spec import open_source
 

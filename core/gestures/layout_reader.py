@@ -104,7 +104,7 @@ class LayoutReader:
             if callable(load):
                 cls = load()
             else:
-                from hapticdesk.registry import resolve
+                from hapticdesk.lazy_ref import resolve
 
                 cls = resolve(entry)
             self.specs[name] = getattr(cls, "option_specs", None)

@@ -20,7 +20,7 @@ from hapticdesk.registry import Registry
 from hapticdesk.runtime.binding_events import check_bindings
 from hapticdesk.runtime.control import ControlQueue
 from hapticdesk.runtime.dispatcher import ActionContext, Dispatcher, Lane, Route
-from hapticdesk.runtime.isolation import ProcessAction, split_isolation
+from hapticdesk.runtime.isolation import ProcessAction, action_use_validator, split_isolation
 from hapticdesk.runtime.observe import ContactObservers
 from hapticdesk.runtime.source import Source
 from hapticdesk.runtime.source_spec import open_source
@@ -89,7 +89,7 @@ def load_scene_layout(
         layout_path,
         profile=profile,
         action_names=registry.action_names,
-        validate_action=registry.validate_action,
+        validate_action=action_use_validator(registry),
         recognizer_types=registry.recognizer_types(),
         validate_section=registry.validate_section,
         section_names=list(registry.layout_sections),

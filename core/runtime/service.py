@@ -6,15 +6,13 @@ it draws the status line and turns SIGINT/SIGTERM into a clean stop. At the end 
 engine is flushed (a pending tap is decided), queued commands get a bounded time to go out,
 and what did not is reported.
 
-What runs is built by :func:`~hapticdesk.runtime.assembly.build_scene` (re-exported here, as
-are ``Assembly``, ``build_routes`` and ``load_scene_layout``); this module names no plugin.
+What runs is built by :func:`~hapticdesk.runtime.assembly.build_scene`; this module names no
+plugin.
 """
 
 from __future__ import annotations
 
-import collections
 import contextlib
-import json
 import logging
 import os
 import signal
@@ -23,117 +21,26 @@ import threading
 import time
 from collections.abc import Iterator
 from concurrent.futures import Future
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType
 from typing import IO, Any
 
 from hapticdesk.errors import ConfigError
-from hapticdesk.estimator.contacts import FLAG_NOT_TARED, ContactBlock
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.gestures.event import GestureEvent
-from hapticdesk.runtime.assembly import Assembly, build_routes, build_scene, load_scene_layout
+from hapticdesk.hookspecs import RunView
+from hapticdesk.runtime.assembly import Assembly, build_routes, load_scene_layout
 from hapticdesk.runtime.control import MAX_PAUSE_S, ControlCommand, ControlError, pause_seconds
-from hapticdesk.runtime.dispatcher import DispatchReport
+from hapticdesk.runtime.live_status import LiveStatus
 from hapticdesk.runtime.operator_secrets import OperatorSecrets
-
-__all__ = [
-    "Assembly",
-    "LiveStatus",
-    "RunReport",
-    "Runtime",
-    "build_routes",
-    "build_scene",
-    "load_scene_layout",
-    "report_json",
-]
+from hapticdesk.runtime.run_report import RunReport
 
 log = logging.getLogger(__name__)
 
 STATUS_INTERVAL_S = 0.1
 #: the longest a reloaded layout waits (sample time) for the touch in progress to end
 MAX_SWAP_WAIT_S = 30.0
-
-
-@dataclass
-class LiveStatus:
-    """What the status line shows; written by the sensing thread, read by the watcher."""
-
-    t: float = 0.0
-    in_contact: bool = False
-    x: float = 0.0
-    y: float = 0.0
-    force_n: float = 0.0
-    last_gesture: str = ""
-    gestures: int = 0
-    tared: bool = False
-    paused: bool = False
-    #: the block's last sample, replaced whole (one assignment, so a reader on another thread
-    #: never sees half of one): (t, x or None, y or None, force_n, phase, surface index or -1)
-    sample: tuple[float, float | None, float | None, float, int, int] | None = None
-    #: how many blocks have been sensed; a reader sees whether ``sample`` is new
-    blocks: int = 0
-
-    def line(self) -> str:
-        where = f"x {self.x:+.3f} y {self.y:+.3f} m" if self.in_contact else "—"
-        tare = "" if self.tared else " (taring: keep the desk still)"
-        tare += " (paused: gestures not sent)" if self.paused else ""
-        last = self.last_gesture or "none yet"
-        return (
-            f"t {self.t:7.2f} s  {'●' if self.in_contact else '○'} {where}  "
-            f"F {self.force_n:5.1f} N  gestures {self.gestures}  last: {last}{tare}"
-        )
-
-
-@dataclass
-class RunReport:
-    """What happened in a run."""
-
-    samples: int = 0
-    sample_time_s: float = 0.0
-    wall_s: float = 0.0
-    gestures: collections.Counter[str] = field(default_factory=collections.Counter)
-    dispatch: DispatchReport = field(default_factory=DispatchReport)
-    notes: list[str] = field(default_factory=list)
-    #: optional outputs that could not be written (``--events`` on a full disk), one line each
-    output_failures: list[str] = field(default_factory=list)
-    #: messages the actions handed to a connection that never delivered them
-    undelivered: int = 0
-    stopped_by: str | None = None  # a signal's name, or None when the source ended
-    error: str | None = None
-
-    @property
-    def gesture_count(self) -> int:
-        return sum(self.gestures.values())
-
-    def _done(self, ok: int) -> str:
-        """The calls that returned: "done" only when their connection delivered everything
-        (without a broker the summary had said "57 done" with nothing delivered)."""
-        if not self.undelivered:
-            return f"{ok} done"
-        return (
-            f"{ok} handed to their connection, which did NOT deliver {self.undelivered} "
-            "message(s) (see below)"
-        )
-
-    def summary(self) -> list[str]:
-        d = self.dispatch.totals
-        if self.stopped_by:
-            how = f"stopped by {self.stopped_by}"
-        else:  # the error, as the summary's last line, says what failed
-            how = "sensing failed" if self.error else "the source ended"  # (source or stage)
-        lines = [
-            f"{how}: {self.samples} samples ({self.sample_time_s:.2f} s of sensor time) in "
-            f"{self.wall_s:.2f} s; {self.gesture_count} gestures"
-            + (
-                " (" + ", ".join(f"{n} {g}" for g, n in self.gestures.most_common()) + ")"
-                if self.gestures
-                else ""
-            ),
-            f"actions: {self._done(d.ok)}, {d.failed} failed, {d.timed_out} timed out, "
-            f"{d.dropped} dropped, {d.not_run} not run",
-        ]
-        return lines + self.notes + ([f"error: {self.error}"] if self.error else [])
 
 
 class Runtime:
@@ -374,7 +281,11 @@ class Runtime:
                     layout=scene.layout,
                     context=scene.context,
                 )
-            scene.registry.notify("startup", desk=scene.profile, layout=scene.layout, runtime=self)
+            # (typed: the type checker holds the Runtime to what the hook promises plugins)
+            watched: RunView = self
+            scene.registry.notify(
+                "startup", desk=scene.profile, layout=scene.layout, runtime=watched
+            )
         except BaseException:  # an unwritable events file, or --strict and a plugin failed
             if self._events_out is not None:
                 self._events_out.close()
@@ -450,7 +361,8 @@ class Runtime:
                 if self._waiting is not None:  # (at block ends only: never half a touch)
                     self._t_last = float(block.t[-1])
                     self._take_waiting_layout()
-                self._update_live(contacts)
+                self.live.update(contacts)
+                self._tared_once = self._tared_once or self.live.tared
                 if scene.observers:
                     scene.observers(contacts, scene.estimator.zero, paused=self.paused)
                 for tap in self.block_taps:
@@ -545,26 +457,6 @@ class Runtime:
             f"{self._events_written} written (whole lines), {self._events_unwritten} not"
         )
 
-    def _update_live(self, contacts: ContactBlock) -> None:
-        live = self.live
-        live.t = float(contacts.t[-1])
-        live.in_contact = bool(contacts.in_contact[-1])
-        live.force_n = float(contacts.force_n[-1])
-        if contacts.located[-1]:
-            live.x, live.y = float(contacts.x[-1]), float(contacts.y[-1])
-        live.tared = not bool(contacts.flags[-1] & FLAG_NOT_TARED)
-        self._tared_once = self._tared_once or live.tared
-        located = bool(contacts.located[-1])
-        live.sample = (
-            live.t,
-            float(contacts.x[-1]) if located else None,
-            float(contacts.y[-1]) if located else None,
-            live.force_n,
-            int(contacts.phase[-1]),
-            int(contacts.surface[-1]),
-        )
-        live.blocks += 1
-
     # --- the watcher --------------------------------------------------------------------------
 
     def _draw_status(self, final: bool = False) -> None:
@@ -639,27 +531,3 @@ def _close_routes(routes: list[Any]) -> None:
 def _desk_key(profile: DeskProfile) -> tuple[Any, ...]:
     """What makes two profiles the same desk for a running estimator."""
     return (profile.name, profile.sample_rate_hz, tuple(s.name for s in profile.sensors))
-
-
-def report_json(report: RunReport) -> str:
-    """The report as one JSON object (for scripts)."""
-    d = report.dispatch.totals
-    return json.dumps(
-        {
-            "samples": report.samples,
-            "sample_time_s": round(report.sample_time_s, 6),
-            "wall_s": round(report.wall_s, 3),
-            "gestures": dict(report.gestures),
-            "actions": {
-                "ok": d.ok,
-                "failed": d.failed,
-                "timed_out": d.timed_out,
-                "dropped": d.dropped,
-                "not_run": d.not_run,
-                "undelivered": report.undelivered,
-            },
-            "notes": report.notes,
-            "stopped_by": report.stopped_by,
-            "error": report.error,
-        }
-    )

@@ -674,7 +674,7 @@ class UiServer:
     @property
     def registry(self) -> Any:
         if self._registry is None:
-            from hapticdesk.registry import load_registry
+            from hapticdesk.plugin_loading import load_registry
 
             self._registry = load_registry()
         return self._registry

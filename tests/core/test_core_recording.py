@@ -227,4 +227,4 @@ def test_a_replay_closed_from_another_thread_ends_cleanly(tmp_path, paper_desk):
     thread.join(5)
     assert not thread.is_alive() and errors == []
     assert 0 < sum(got) < 40_000
-    assert source.inner.recording._reader._fh is None  # the file was closed
+    assert source.recording._reader._fh is None  # the file was closed

@@ -47,7 +47,7 @@ def pages() -> dict[str, str]:
 
 @pytest.fixture(scope="module")
 def registry() -> Any:
-    from hapticdesk.registry import load_registry
+    from hapticdesk.plugin_loading import load_registry
 
     return load_registry(entry_points=False)
 
@@ -163,8 +163,8 @@ def test_every_file_column_event_key_route_and_hook(pages: dict[str, str]) -> No
 
     from hapticdesk.commands.contacts import HEADER
     from hapticdesk.gestures.event import GestureEvent
+    from hapticdesk.hookspecs import hookspec_names
     from hapticdesk.plugins.ui.server import UiServer
-    from hapticdesk.registry import hookspec_names
 
     files = pages["files.md"]
     assert missing(HEADER, files) == []
@@ -247,7 +247,7 @@ def test_users_are_not_sent_where_they_cannot_go() -> None:
 
 
 def test_the_plugin_example_names_every_hook_and_where_they_are() -> None:
-    from hapticdesk.registry import hookspec_names
+    from hapticdesk.hookspecs import hookspec_names
 
     text = (ROOT / "examples" / "plugin-example" / "README.md").read_text("utf-8")
     assert missing(hookspec_names(), text) == []

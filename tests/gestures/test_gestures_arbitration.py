@@ -9,7 +9,7 @@ import pytest
 
 from hapticdesk.cli import main
 from hapticdesk.estimator.contacts import ContactBlock
-from hapticdesk.files.profile import profile_from_mapping
+from hapticdesk.files.profile_reader import profile_from_mapping
 from hapticdesk.files.yamlfile import load_marked_yaml
 from hapticdesk.gestures.arbitration import ORDER, describe
 from hapticdesk.gestures.engine import GestureEngine

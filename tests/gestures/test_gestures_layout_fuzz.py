@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 from hapticdesk.errors import ConfigError
 from hapticdesk.gestures.layout_reader import load_layout
-from hapticdesk.registry import load_registry
+from hapticdesk.plugin_loading import load_registry
 
 VALID = """\
 desk: kitamura2017

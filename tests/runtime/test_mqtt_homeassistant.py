@@ -380,7 +380,7 @@ def test_without_a_broker_the_announcement_gives_up_quietly(caplog):
 )
 def test_a_bad_style_names_its_place(tmp_path, section, message):
     from hapticdesk.errors import ConfigError
-    from hapticdesk.registry import load_registry
+    from hapticdesk.plugin_loading import load_registry
     from hapticdesk.runtime.assembly import load_scene_layout
 
     path = tmp_path / "layout.yaml"

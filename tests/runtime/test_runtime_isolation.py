@@ -16,9 +16,9 @@ from hapticdesk.errors import ConfigError
 from hapticdesk.files.recording_io import write_recording
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.hookspecs import hookimpl
-from hapticdesk.registry import load_registry
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.runtime.assembly import build_scene
-from hapticdesk.runtime.isolation import IsolationSettings, ProcessAction
+from hapticdesk.runtime.isolation import IsolationSettings, ProcessAction, action_use_validator
 from hapticdesk.runtime.service import Runtime
 
 from . import spin_plugin
@@ -189,7 +189,9 @@ def test_isolation_options_are_checked_in_the_layout(tmp_path, options, expected
     )
     with pytest.raises(ConfigError, match=expected) as err:
         load_layout(
-            path, action_names=registry.action_names, validate_action=registry.validate_action
+            path,
+            action_names=registry.action_names,
+            validate_action=action_use_validator(registry),
         )
     assert "layout.yaml:8:" in str(err.value)
 

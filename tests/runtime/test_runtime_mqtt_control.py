@@ -199,7 +199,7 @@ def test_desks_on_one_broker_under_site_and_floor_prefixes(broker, subscribe, tm
 def test_bad_prefixes_are_refused_where_they_stand(broker, tmp_path, mqtt, message):
     from hapticdesk.cli import main
     from hapticdesk.errors import ConfigError
-    from hapticdesk.registry import load_registry
+    from hapticdesk.plugin_loading import load_registry
     from hapticdesk.runtime.assembly import load_scene_layout
 
     layout = write_layout(tmp_path / "l.yaml", "lamp", broker, mqtt=mqtt)

@@ -19,7 +19,7 @@ import pytest
 
 from hapticdesk.cli import main
 from hapticdesk.hookspecs import hookimpl
-from hapticdesk.registry import load_registry
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.runtime.assembly import build_scene
 from hapticdesk.runtime.service import Runtime
 

@@ -14,7 +14,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from hapticdesk.hookspecs import hookimpl
-from hapticdesk.registry import load_registry
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.runtime.assembly import build_scene
 from hapticdesk.runtime.dispatcher import MAX_RETIRED_LABELS
 from hapticdesk.runtime.service import MAX_SWAP_WAIT_S, Runtime
@@ -96,26 +96,28 @@ def test_a_touch_held_past_the_wait_is_cancelled_never_released(tmp_path, paper_
 class _Reloading(Source):
     """Quiet blocks; from block 20 on, a reload asked before each of ``count`` blocks."""
 
-    sensor_names = ["fl", "fr", "bl", "br"]
-    sample_rate_hz = 1200.0
-
     def __init__(self, count: int) -> None:
+        super().__init__(["fl", "fr", "bl", "br"], 1200.0)
         self.count = count
         self.runtime: Runtime | None = None
         self.rss_kb: dict[int, int] = {}
+        self.k = 0
 
-    def blocks(self):
+    def read_block(self) -> WrenchBlock | None:
+        k = self.k
+        if k >= self.count + 40:
+            return None
+        self.k += 1
         wrench = np.zeros((60, 4, 6))
         wrench[:, :, 2] = -33.6  # the desk's weight on its legs
-        for k in range(self.count + 40):
-            t = (k * 60 + np.arange(60)) / 1200.0
-            if 20 <= k < self.count + 20:
-                assert self.runtime is not None
-                self.runtime.request("reload")
-            if k in (70, self.count + 19):
-                gc.collect()
-                self.rss_kb[k] = rss_kb()
-            yield WrenchBlock(t, wrench.copy())
+        t = (k * 60 + np.arange(60)) / 1200.0
+        if 20 <= k < self.count + 20:
+            assert self.runtime is not None
+            self.runtime.request("reload")
+        if k in (70, self.count + 19):
+            gc.collect()
+            self.rss_kb[k] = rss_kb()
+        return WrenchBlock(t, wrench)
 
 
 def test_751_reloads_do_not_grow_memory(tmp_path):

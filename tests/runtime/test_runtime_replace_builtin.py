@@ -15,7 +15,9 @@ from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.recognizer import Recognizer
 from hapticdesk.gestures.touch import Touch
 from hapticdesk.hookspecs import hookimpl
-from hapticdesk.registry import BLOCK_ENV, PluginError, load_registry
+from hapticdesk.plugin_loading import load_registry
+from hapticdesk.registered import PluginError
+from hapticdesk.registry import BLOCK_ENV
 from hapticdesk.runtime.assembly import build_scene
 from hapticdesk.runtime.service import Runtime
 

@@ -151,7 +151,7 @@ def test_check_renders_a_template_for_the_events_its_gesture_can_make(tmp_path: 
     """Guards item 2 ("check renders each template against the fields its gesture can
     carry"): a press's `level`, a slide's `value` and `phase`, a long press's tiers reach
     the template at check; a template costly only for one of them is refused, naming it."""
-    from hapticdesk.registry import load_registry
+    from hapticdesk.plugin_loading import load_registry
     from hapticdesk.runtime.assembly import load_scene_layout
 
     costly = "{{ range(9000)|join('x'*1000) }}"

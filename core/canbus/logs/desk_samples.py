@@ -153,11 +153,12 @@ class CanLogSource(Source):
 
     def __init__(self, path: str | Path, profile: DeskProfile) -> None:
         self.path = Path(path)
-        self.sensor_names = profile.sensor_names
-        self.sample_rate_hz = profile.sample_rate_hz
         self.profile_name = profile.name
         self.assembler = _assembler(path, profile)
-        self._closed = False
+        super().__init__(
+            profile.sensor_names, profile.sample_rate_hz, channel_count=profile.channel_count
+        )
+        self._assembled: Iterator[AssembledBlock] | None = None
         #: lines and frames the reader skipped, by reason (see :func:`read_frames`)
         self.skipped: dict[str, int] = {}
 
@@ -170,17 +171,21 @@ class CanLogSource(Source):
         lines[1:1] = [f"{n} {what} skipped" for what, n in self.skipped.items()]
         return [f"CAN log {self.path.name}: {line}" for line in lines]
 
-    def blocks(self) -> Iterator[WrenchBlock]:
-        for block in _blocks(self.path, self.assembler, self.skipped):
-            if self._closed:
-                return
-            if len(block.t):
-                yield WrenchBlock(block.t, block.wrench, accel=block.accel)
-        if not self.stats.samples:
-            raise _nothing_decoded(self.path, self.profile_name, self.stats)
+    def read_block(self) -> WrenchBlock | None:
+        """The samples of the log's next chunk of frames; None at its end."""
+        if self._assembled is None:
+            self._assembled = _blocks(self.path, self.assembler, self.skipped)
+        block = next(self._assembled, None)
+        if block is None:
+            if not self.stats.samples:
+                raise _nothing_decoded(self.path, self.profile_name, self.stats)
+            return None
+        return WrenchBlock(block.t, block.wrench, accel=block.accel)
 
-    def close(self) -> None:
-        self._closed = True
+    def release(self) -> None:
+        close = getattr(self._assembled, "close", None)  # the log file's reader
+        if close is not None:
+            close()
 
 
 def open_can_log(path: str | Path, profile: DeskProfile) -> Source:

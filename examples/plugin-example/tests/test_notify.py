@@ -11,7 +11,7 @@ import pytest
 from hapticdesk.errors import ConfigError
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.layout_reader import load_layout
-from hapticdesk.registry import load_registry
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.runtime.dispatcher import ActionContext
 
 LAYOUT = """\

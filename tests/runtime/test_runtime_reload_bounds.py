@@ -17,7 +17,8 @@ from hapticdesk.hookspecs import hookimpl
 from hapticdesk.plugin_loading import load_registry
 from hapticdesk.runtime.assembly import build_scene
 from hapticdesk.runtime.dispatcher import MAX_RETIRED_LABELS
-from hapticdesk.runtime.service import MAX_SWAP_WAIT_S, Runtime
+from hapticdesk.runtime.layout_reload import MAX_SWAP_WAIT_S
+from hapticdesk.runtime.service import Runtime
 from hapticdesk.runtime.source import Source, WrenchBlock
 
 from .scripted import answer_into, rss_kb, scripted_run
@@ -65,7 +66,7 @@ def test_a_reload_during_a_3_s_hold_fires_exactly_one_long_press(tmp_path, paper
     assert reloaded == alone
     [answer] = answers
     assert answer.endswith("it takes over when the touch in progress ends")
-    assert runtime._waiting is None  # taken over once the hold ended
+    assert runtime.reloads.waiting is None  # taken over once the hold ended
 
 
 def test_a_reload_between_touches_takes_over_at_once(tmp_path, paper_desk):
@@ -90,7 +91,7 @@ def test_a_touch_held_past_the_wait_is_cancelled_never_released(tmp_path, paper_
     assert long_presses.count(("long_press", None, None)) == 1  # (none by the new layout)
     assert ("long_press", "cancel", None) in long_presses
     assert ("tap", None, None) not in events and ("long_press", "end", None) not in events
-    assert runtime._waiting is None
+    assert runtime.reloads.waiting is None
 
 
 class _Reloading(Source):

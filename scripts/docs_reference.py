@@ -190,7 +190,7 @@ def region_keys() -> Generated:
 
 
 def binding_keys() -> Generated:
-    from hapticdesk.gestures.layout_reader import BINDING_KEYS
+    from hapticdesk.gestures.layout_bindings import BINDING_KEYS
 
     keys = [k for k in ("gesture", "region", "do", "description") if k in BINDING_KEYS]
     keys += sorted(set(BINDING_KEYS) - set(keys))

@@ -59,7 +59,8 @@ def missing(keys: Any, text: str) -> list[str]:
 
 def test_every_layout_key_region_key_binding_key_and_unit(pages: dict[str, str], registry: Any):
     from hapticdesk.gestures.layout import UNITS
-    from hapticdesk.gestures.layout_reader import BINDING_KEYS, allowed_top_keys
+    from hapticdesk.gestures.layout_bindings import BINDING_KEYS
+    from hapticdesk.gestures.layout_reader import allowed_top_keys
     from hapticdesk.gestures.layout_regions import REGION_KEYS
 
     layout = pages["layout.md"]

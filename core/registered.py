@@ -12,7 +12,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from hapticdesk.files.yamlfile import ConfigError, Position
+from hapticdesk.errors import ConfigError, Position
 from hapticdesk.lazy_ref import resolve
 
 #: the kinds of things a plugin registers, one registration hook each (``register_<kind>``)

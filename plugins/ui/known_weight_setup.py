@@ -139,7 +139,7 @@ class WeightSession(BlockRecorder):
             alpha, beta, gamma = nominal_terms(profile)
             before = CellFit(profile, alpha, np.column_stack([beta / alpha, gamma / alpha]), 0)
             error = check_spot(before, spots[-1], self.mass_kg).error_m
-            out["check_before_m"] = round(error, 5) if math.isfinite(error) else None
+            out["check_before_m"] = round(error, 5)
         if profile.path is None:
             out["note"] = "not written: the desk was not read from a profile file"
         elif output is None:
@@ -151,7 +151,19 @@ class WeightSession(BlockRecorder):
             except OSError as err:
                 raise cannot_write(output, err) from None
             out["profile_path"] = str(output)
-        return out
+        return _finite(out)
+
+
+def _finite(value: Any) -> Any:
+    """``value`` with every NaN or infinity (a spot the fit cannot place) made None: JSON
+    has no such numbers."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite(v) for v in value]
+    return value
 
 
 class WeightSetup:

@@ -19,14 +19,13 @@ pytest.importorskip("httpx")
 from starlette.testclient import TestClient  # noqa: E402
 
 from hapticdesk.analysis.known_weight import suggested_spots  # noqa: E402
-from hapticdesk.estimator import estimate  # noqa: E402
 from hapticdesk.files.profile import DeskProfile, builtin_profile_path, load_profile  # noqa: E402
 from hapticdesk.files.recording import write_recording  # noqa: E402
 from hapticdesk.plugins.ui.server import UiServer  # noqa: E402
 from hapticdesk.registry import load_registry  # noqa: E402
 from hapticdesk.runtime.assembly import build_scene  # noqa: E402
 from hapticdesk.runtime.service import Runtime  # noqa: E402
-from hapticdesk.sim import Idle, LiftObject, Press, PutObject, Scene, simulate  # noqa: E402
+from hapticdesk.sim import Idle, LiftObject, PutObject, Scene, simulate  # noqa: E402
 from hapticdesk.sim.loadcells import LoadCellParameters  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -55,22 +54,6 @@ def weight_scene(points: Any, mass_kg: float = 1.0) -> Scene:
             LiftObject("weight", duration_s=0.3, wait_s=2.0),
         ]
     return Scene([*actions, Idle(duration_s=1.0)], seed=5)
-
-
-def press_errors(profile: DeskProfile, built: DeskProfile, cells: LoadCellParameters) -> Any:
-    """Each press's distance from where it was made (medians over its hold), metres."""
-    scene = Scene([Press(p, peak_n=10.0, hold_s=1.0) for p in PRESSES], seed=4)
-    rec = simulate(built, scene, cells=cells)
-    contacts = estimate(profile, rec)
-    action = rec.extra["true_action"]
-    errors = []
-    for k in range(len(PRESSES)):
-        held = (action == k) & contacts.located & (contacts.force_n > 5.0)
-        assert held.sum() > 100
-        dx = np.median(contacts.x[held]) - np.median(rec.extra["true_x"][held])
-        dy = np.median(contacts.y[held]) - np.median(rec.extra["true_y"][held])
-        errors.append(float(np.hypot(dx, dy)))
-    return np.array(errors)
 
 
 @pytest.fixture(scope="module")
@@ -112,7 +95,9 @@ def serve(files: dict[str, Any], **options: Any) -> tuple[UiServer, TestClient, 
     return server, client, runtime
 
 
-def test_a_known_weight_on_four_spots_calibrates_the_desk(setup_files: dict[str, Any]) -> None:
+def test_a_known_weight_on_four_spots_calibrates_the_desk(
+    setup_files: dict[str, Any], press_errors: Any
+) -> None:
     files = setup_files
     server, client, runtime = serve(files)
     spots = client.get("/api/setup/weight/spots?count=4").json()
@@ -136,8 +121,8 @@ def test_a_known_weight_on_four_spots_calibrates_the_desk(setup_files: dict[str,
     assert written == files["folder"] / f"{DESK}-calibrated.yaml"
     assert "the page's set-up" in written.read_text().splitlines()[0]
     calibrated = load_profile(written)
-    before = press_errors(files["nominal"], files["built"], files["cells"])
-    after = press_errors(calibrated, files["built"], files["cells"])
+    before = press_errors(files["nominal"], files["built"], files["cells"], PRESSES)
+    after = press_errors(calibrated, files["built"], files["cells"], PRESSES)
     assert before.max() > 0.01, before  # uncalibrated: centimetres off
     assert after.max() < 0.005, after  # the issue's floor: within 5 mm
     assert client.post("/api/setup/weight/finish").status_code == 422  # nothing to finish

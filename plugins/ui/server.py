@@ -405,6 +405,7 @@ class UiServer:
         from starlette.websockets import WebSocket, WebSocketDisconnect
 
         from hapticdesk.plugins.ui import strokes_api
+        from hapticdesk.plugins.ui.known_weight_setup import weight_setup_routes
 
         static_files = StaticFiles(directory=STATIC)
         from hapticdesk.plugins.ui.layout_edit import apply_edit, save_layout_text
@@ -656,6 +657,7 @@ class UiServer:
             Route("/api/strokes", strokes, methods=["POST"]),
             Route("/api/setup/start", setup_start, methods=["POST"]),
             Route("/api/setup/finish", setup_finish, methods=["POST"]),
+            *weight_setup_routes(self, allowed, refused, json_object),
             WebSocketRoute("/ws", ws),
             Route("/static/{path:path}", static, methods=["GET", "HEAD"]),
         ]

@@ -129,6 +129,11 @@ class CanSource(Source):
             silent_sensor=self.config.silent_sensor,
             where=spec,
         )
+        self._plan_polls()
+        self._check_bus_capacity()
+
+    def _plan_polls(self) -> None:
+        """The ATI boards' poll frames, and the frame that ends a round of their replies."""
         self._poll_ids = [
             ati.frame_id(s.base, ati.OP_GAUGES_A) for s in self.config.ati_sensors.values()
         ]
@@ -141,7 +146,6 @@ class CanSource(Source):
         )
         self._round_answered = threading.Event()
         self._poll_id_set = frozenset(self._poll_ids)
-        self._check_bus_capacity()
 
     @property
     def stats(self) -> CanStats:

@@ -133,25 +133,10 @@ def build_scene(
     try:
         observers = ContactObservers([])
         if actions:  # a preview (actions=False) sends nothing: no actions, no plugins' sinks
-            for route in build_routes(layout, registry, context, action_timeout_s):
-                dispatcher.add_route(route)
-            sinks = registry.event_sinks(desk=profile, layout=layout, context=context)
-            for plugin, sink in sinks:
-                lane = Lane(f"every event → {plugin}", sink, timeout_s=action_timeout_s)
-                dispatcher.add_sink(lane)
-            observers = ContactObservers(
-                registry.contact_sinks(desk=profile, layout=layout, context=context)
+            observers = _wire_actions(
+                dispatcher, profile, layout, registry, context, action_timeout_s
             )
-        from hapticdesk.estimator import ContactEstimator
-        from hapticdesk.gestures.engine import GestureEngine
-
-        estimator = ContactEstimator(profile)
-        engine = GestureEngine(
-            layout,
-            recognizer_types=registry.recognizer_types(),
-            position_delay_s=estimator.position_delay_s,
-        )
-        estimator.use_second_finger(profile.estimation.second_finger or engine.needs_second_finger)
+        estimator, engine = _estimator_and_engine(profile, layout, registry)
     except BaseException:
         _release(source, dispatcher, context)
         raise
@@ -170,6 +155,39 @@ def build_scene(
         actions=actions,
         observers=observers,
     )
+
+
+def _estimator_and_engine(desk: DeskProfile, layout: Any, registry: Registry) -> tuple[Any, Any]:
+    """The desk's contact estimator and the layout's gesture engine (the estimator tracks a
+    second finger when the desk or a bound gesture needs one)."""
+    from hapticdesk.estimator import ContactEstimator  # (numba and the recognizers: a run only)
+    from hapticdesk.gestures.engine import GestureEngine
+
+    estimator = ContactEstimator(desk)
+    engine = GestureEngine(
+        layout,
+        recognizer_types=registry.recognizer_types(),
+        position_delay_s=estimator.position_delay_s,
+    )
+    estimator.use_second_finger(desk.estimation.second_finger or engine.needs_second_finger)
+    return estimator, engine
+
+
+def _wire_actions(
+    dispatcher: Dispatcher,
+    desk: DeskProfile,
+    layout: Any,
+    registry: Registry,
+    context: ActionContext,
+    action_timeout_s: float | None,
+) -> ContactObservers:
+    """The layout's actions and every plugin's event sink into ``dispatcher``; the plugins'
+    contact sinks returned."""
+    for route in build_routes(layout, registry, context, action_timeout_s):
+        dispatcher.add_route(route)
+    for plugin, sink in registry.event_sinks(desk=desk, layout=layout, context=context):
+        dispatcher.add_sink(Lane(f"every event → {plugin}", sink, timeout_s=action_timeout_s))
+    return ContactObservers(registry.contact_sinks(desk=desk, layout=layout, context=context))
 
 
 def build_routes(

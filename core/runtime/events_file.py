@@ -30,10 +30,13 @@ class EventsFile:
 
     def open(self) -> None:
         """Create the file; a ConfigError naming ``--events`` when it cannot be."""
-        if self.path is None:
-            return
+        if self.path is not None:
+            self._out = self._open_file()
+
+    def _open_file(self) -> IO[str]:
+        assert self.path is not None
         try:
-            self._out = self.path.open("w", encoding="utf-8")
+            return self.path.open("w", encoding="utf-8")
         except OSError as err:
             raise ConfigError("--events", f"cannot write {self.path}: {err.strerror}") from None
 

@@ -111,8 +111,8 @@ def open_replay(
     argument: str, profile: DeskProfile, *, speed: float = 1.0, **options: Any
 ) -> Source:
     """``replay:FILE``: a CSV/NPZ recording, a C3D file, or a CAN log by any other suffix."""
-    from hapticdesk.files.readers import open_recording_blocks
     from hapticdesk.files.recording_io import RECORDING_SUFFIXES
+    from hapticdesk.recordings import open_recording_blocks
 
     if not argument:
         raise ConfigError(
@@ -123,7 +123,7 @@ def open_replay(
         what = "not a regular file" if path.exists() else "no such file"  # (a FIFO, a folder)
         raise ConfigError("--source", f"replay: {what}: {argument}")
     if path.suffix.lower() == ".c3d":
-        from hapticdesk.files.readers import read_any_recording
+        from hapticdesk.recordings import read_any_recording
 
         plates = read_any_recording(path, profile)  # (checked to come at the desk's rate)
         if len(plates) == 0:

@@ -150,7 +150,7 @@ def reference_contacts(
 
 def main() -> None:
     from hapticdesk.files.profile_reader import load_profile
-    from hapticdesk.files.readers import read_any_recording
+    from hapticdesk.recordings import read_any_recording
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("recording")

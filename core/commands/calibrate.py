@@ -29,7 +29,7 @@ from hapticdesk.analysis.known_weight import (
 from hapticdesk.commands.output_path import cannot_write, check_output_path
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile_reader import load_profile, resolve_profile_path
-from hapticdesk.files.readers import read_any_recording
+from hapticdesk.recordings import read_any_recording
 
 MIN_SPOTS, MAX_SPOTS = 3, 5
 

@@ -20,7 +20,7 @@ from hapticdesk.analysis.characterize import (
     characterize,
 )
 from hapticdesk.files.profile_reader import load_profile
-from hapticdesk.files.readers import read_any_recording
+from hapticdesk.recordings import read_any_recording
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

@@ -27,9 +27,9 @@ from hapticdesk.commands.output_path import cannot_write
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.profile_reader import load_profile
-from hapticdesk.files.readers import open_recording_blocks
 from hapticdesk.files.recording import Recording, concat_recordings
 from hapticdesk.files.recording_io import RECORDING_SUFFIXES, write_recording
+from hapticdesk.recordings import open_recording_blocks
 
 LOG_SUFFIXES = (".asc", ".blf", ".log", ".trc")
 

@@ -22,7 +22,7 @@ from hapticdesk.analysis.thresholds import (
 )
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile_reader import load_profile
-from hapticdesk.files.readers import read_any_recording
+from hapticdesk.recordings import read_any_recording
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

@@ -13,10 +13,10 @@ import pytest
 from hapticdesk.cli import main
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile_reader import load_profile
-from hapticdesk.files.readers import check_sample_rate, read_any_recording
 from hapticdesk.files.recording import Recording
 from hapticdesk.files.recording_io import read_recording, write_recording
 from hapticdesk.plugins.replay import open_replay
+from hapticdesk.recordings import check_sample_rate, read_any_recording
 
 
 @pytest.fixture(scope="module")

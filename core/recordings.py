@@ -1,5 +1,8 @@
 """Read any recording a user hands us: CSV, NPZ, a CAN log decoded through the profile, or a
-C3D file's force plates (:mod:`.forceplate`)."""
+C3D file's force plates (:mod:`hapticdesk.files.forceplate`).
+
+It stands above :mod:`hapticdesk.files` and :mod:`hapticdesk.canbus` because it picks between
+them by the file's kind; the files layer itself reads no CAN log."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """Desk profiles: where the sensors stand, which surfaces can be touched, and how to estimate.
 
-The YAML format is a contract (../shared/DESIGN.md, "Desk profile"). Loading validates every
+The YAML format is a contract (docs/reference/profile.md). Loading validates every
 field and reports ``file:line:column: what was expected``. The profile also owns the one
 linear map from the stacked sensor channels to the resultant wrench about P_o (paper eqs. 1–4),
 which every consumer of sensor data uses.

@@ -1,4 +1,4 @@
-"""Recordings: sample times and every sensor's raw channels, as CSV or NPZ (DESIGN.md).
+"""Recordings: sample times and every sensor's raw channels, as CSV or NPZ (docs: File formats).
 
 Header ``t`` then each sensor's channels, ``<sensor>_<channel>``, in the profile's order:
 ``<sensor>_fx … <sensor>_mz`` for a six-axis sensor, ``<sensor>_fz`` for a load cell, a
@@ -561,7 +561,7 @@ class _CsvReader:
         if bad_value:
             row, col = int(bad_value.group(2)), usecols[int(bad_value.group(3)) - 1]
             extra = [e for e in self.extra if e[1] == col]
-            # other columns are ignored (DESIGN.md): a text column is not an error; but an
+            # other columns are ignored (docs: File formats): a text column is not an error; but an
             # accelerometer's columns are readings, whose silent loss would turn its
             # compensation off
             if extra and not ACCEL_COLUMN.fullmatch(extra[0][0]):

@@ -240,6 +240,8 @@ def test_users_are_not_sent_where_they_cannot_go() -> None:
     """The team's DESIGN.md and ../shared/ are not in the project: no page may send a user
     there (their contracts are stated in the docs' reference)."""
     pages = [ROOT / "README.md", *DOCS.rglob("*.md"), *(ROOT / "examples").rglob("*.md")]
+    # the package's own docstrings too: `help()` and an editor show them to a plugin's author
+    pages += [*(ROOT / "core").rglob("*.py"), *(ROOT / "plugins").rglob("*.py")]
     for page in pages:
         text = page.read_text("utf-8")
         assert "DESIGN.md" not in text, page

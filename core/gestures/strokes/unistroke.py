@@ -249,17 +249,42 @@ def nearest(
     templates of shapes ``names`` (T,), ``ideal`` (T,) those drawn by program, ``own`` the
     :func:`agreement` of the shapes that have one."""
     shapes = list(dict.fromkeys(names.tolist()))
+    ideal = np.asarray(ideal, dtype=bool)
     per_shape = np.column_stack([scores[:, names == s].max(axis=1) for s in shapes])
-    best = np.argmax(per_shape, axis=1)
+    best = np.argmax(neighbourhood(scores, names, ideal, shapes), axis=1)
     agreed = np.asarray([own.get(s, -np.inf) for s in shapes])
+    rows = np.arange(len(best))
+    chosen = np.asarray(shapes, dtype=object)[best]
+    mine = np.where(names[None, :] == chosen[:, None], scores, -np.inf)
     return Nearest(
         shapes,
         per_shape,
-        np.asarray(shapes, dtype=object)[best],
-        per_shape[np.arange(len(best)), best],
+        chosen,
+        per_shape[rows, best],
         agreed[best],
-        np.asarray(ideal, dtype=bool)[np.argmax(scores, axis=1)],
+        ideal[np.argmax(mine, axis=1)],
     )
+
+
+def neighbourhood(
+    scores: np.ndarray, names: np.ndarray, ideal: np.ndarray, shapes: list[str]
+) -> np.ndarray:
+    """How near each of k strokes is to each shape (k, S), what :func:`nearest` ranks by: the
+    mean of the stroke's k_s best scores against the shape's templates as people drew them,
+    k_s = ⌊√n_s⌋ of its n_s such templates (k-nearest neighbours with k growing as √n, the
+    usual consistent choice: 1 for the three a person records, so their best; 10 for 120
+    strokes of other writers, so one of them drawn like another shape does not decide), or
+    its best built-in template's score where that is higher."""
+    out = np.empty((len(scores), len(shapes)))
+    for j, shape in enumerate(shapes):
+        of_shape = names == shape
+        out[:, j] = scores[:, of_shape & ideal].max(axis=1, initial=-np.inf)
+        drawn = scores[:, of_shape & ~ideal]
+        k = math.isqrt(drawn.shape[1])
+        if k >= 1:
+            top = -np.partition(-drawn, k - 1, axis=1)[:, :k]
+            out[:, j] = np.maximum(out[:, j], top.mean(axis=1))
+    return out
 
 
 def judge(

@@ -87,9 +87,10 @@ class ScoreChoices:
     #: agreement less this
     margin: float = 0.065
     #: a stroke whose nearest template is a built-in one (drawn by program, so not compared
-    #: by form) needs ``min_score`` plus this. Chosen on strokes that are none of the shapes
-    #: (S, Z, spiral, figure eight, scribble: ``stroke_accuracy.others``), not on people
-    builtin_extra: float = 0.02
+    #: by form) needs ``min_score`` plus this: the least that takes at most 1 % of strokes
+    #: that are none of the shapes (S, Z, spiral, figure eight, scribble:
+    #: ``stroke_accuracy.others``), chosen on no person
+    builtin_extra: float = 0.03
 
 
 DEFAULT_CHOICES = ScoreChoices()

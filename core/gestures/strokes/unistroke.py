@@ -28,12 +28,14 @@ about twice as much as a bracket) and in the share of the turning in the sharpes
 turns (corners against curves: rectangle against circle); the built-in templates, drawn by
 program with exact corners, are not compared by form. The score is clipped to 0..1.
 
-The verdict (:func:`judge`): the nearest shape is the one of highest score; it is accepted
-when its score reaches ``min_score`` (plus ``builtin_extra`` when its nearest template is a
-built-in one, not compared by form) and, for a shape with two or more templates as drawn,
-their own agreement (the lowest, over them, of the best score of each against another) less
-the ``margin``: a shape its writer draws the same way each time asks more of a stroke than
-one drawn loosely, so a stroke of another shape near it is rejected.
+The verdict (:func:`judge`): the nearest shape is the one whose ⌊√n⌋ best of its n templates
+as people drew them score highest on average, or whose built-in template scores higher
+(:func:`neighbourhood`: k-nearest neighbours, the best one for a person's three templates);
+it is accepted when its best score reaches ``min_score`` (plus ``builtin_extra`` when that
+template is a built-in one, not compared by form) and, for a shape with two or more
+templates as drawn, their own agreement (the lowest, over them, of the best score of each
+against another) less the ``margin``: a shape its writer draws the same way each time asks
+more of a stroke than one drawn loosely, so a stroke of another shape near it is rejected.
 
 Every choice in :class:`ScoreChoices` (the mix, whether form counts, the margin, what a
 built-in template asks) was made by leave-one-writer-out on the $1 logs of five people:

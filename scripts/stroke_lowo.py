@@ -10,9 +10,11 @@ The choices (``unistroke.ScoreChoices``) and how each is made on the four traini
   (a writer's own 3 templates; writer-independent, templates from three of them tested on
   the fourth; the built-in templates), rejection left out;
 - ``margin`` (how far below its own templates' agreement a shape still takes a stroke): the
-  largest of the grid that accepts at most 5 % of unknown shapes, pooled over the four:
-  with a writer's own 3 templates a shape, a shape left out (leave-one-shape-out) must be
-  rejected;
+  largest of the grid that accepts at most a target share of unknown shapes, pooled over the
+  four (with a writer's own 3 templates a shape, a shape left out, leave-one-shape-out,
+  must be rejected); the target is the largest (5 % down to 1 %) at which a margin made on
+  three of the four accepts at most 5 % of the fourth's, on their mean (nested: a margin
+  made on some writers accepts more of a new writer's unknown shapes);
 - ``builtin_extra`` (what a stroke nearest a built-in template asks beyond ``min_score``):
   the smallest of the grid that accepts at most 1 % of strokes that are none of the shapes
   (S, Z, spiral, figure eight, scribble; ``stroke_accuracy.others``, drawn differently each
@@ -78,6 +80,7 @@ BUILTIN_EXTRAS = tuple(round(0.01 * k, 2) for k in range(13))  # 0 .. 0.12
 #: bracket, a dragged tap's few turns a v or a zigzag)
 NON_SHAPES = ("S", "Z", "spiral", "figure_eight", "scribble")
 UNKNOWN_TARGET = 0.05  # unknown shapes accepted, at most
+TARGETS = tuple(round(UNKNOWN_TARGET - 0.0025 * k, 4) for k in range(17))  # 5 % .. 1 %
 #: strokes that are none of the shapes accepted, at most: about none (a gesture nobody made
 #: is worse than a missed one; a person's unknown shape is at least a shape they meant)
 NON_SHAPE_TARGET = 0.01
@@ -236,6 +239,7 @@ class Protocols:
     unknown: Found
     independent: Found
     builtin: Found
+    unknown_writer: np.ndarray  # (the writer of each stroke of ``unknown``)
 
     @classmethod
     def on(
@@ -245,9 +249,12 @@ class Protocols:
         ``template_writers`` that are not the tested writer."""
         scores = logs.parts.score(choices)
         own, unknown, independent = [], [], []
-        for _, _, te, tm in own_splits(logs, test_writers):
+        unknown_writer = []
+        for w, _, te, tm in own_splits(logs, test_writers):
             own += drawn_by_people(logs, scores, te, tm)
-            unknown += drawn_by_people(logs, scores, te, tm, loso=True)
+            left_out = drawn_by_people(logs, scores, te, tm, loso=True)
+            unknown += left_out
+            unknown_writer += [np.full(len(truth), w, dtype=object) for _, truth in left_out]
         for w in test_writers:
             te = np.flatnonzero(logs.writer == w)
             tm = np.flatnonzero(np.isin(logs.writer, template_writers) & (logs.writer != w))
@@ -261,6 +268,7 @@ class Protocols:
             Found.gather(unknown),
             Found.gather(independent),
             Found.gather([(builtin, logs.shape[tested])]),
+            np.concatenate(unknown_writer),
         )
 
 
@@ -302,12 +310,7 @@ def choose(logs: Logs, writers: list[str], non_shape_parts: Similarity) -> Score
         choices = replace(DEFAULT_CHOICES, direction_weight=dw, form_weight=fw)
         choices = replace(choices, builtin_extra=builtin_extra(non_shape_parts, choices))
         found = Protocols.on(logs, choices, writers, writers)
-        margin = MARGINS[0]
-        for m in MARGINS:
-            if found.unknown.accepted(replace(choices, margin=m)).mean() > UNKNOWN_TARGET:
-                break
-            margin = m
-        choices = replace(choices, margin=margin)
+        choices = replace(choices, margin=margin(found, writers, choices))
         right = np.mean(
             [f.right(choices).mean() for f in (found.own, found.independent, found.builtin)]
         )
@@ -315,6 +318,36 @@ def choose(logs: Logs, writers: list[str], non_shape_parts: Similarity) -> Score
             best = (float(right), choices)
     assert best is not None
     return best[1]
+
+
+def margin(found: Protocols, writers: list[str], choices: ScoreChoices) -> float:
+    """The margin made on ``writers``: the largest of MARGINS before the first whose unknown
+    shapes accepted (the mean over the writers) exceed a target, the target the largest of
+    TARGETS that keeps UNKNOWN_TARGET on a writer left out of them: with each of ``writers``
+    left out in turn, the margin made on the others at that target accepts at most
+    UNKNOWN_TARGET of the left-out writer's unknown shapes on their mean (nested
+    leave-one-writer-out: a margin made on some writers accepts more on a new one)."""
+    rates = {
+        w: np.asarray(
+            [
+                found.unknown.accepted(replace(choices, margin=m))[found.unknown_writer == w].mean()
+                for m in MARGINS
+            ]
+        )
+        for w in writers
+    }
+
+    def made_on(some: list[str], target: float) -> int:
+        over = np.flatnonzero(np.mean([rates[w] for w in some], axis=0) > target)
+        return max(int(over[0]) - 1, 0) if len(over) else len(MARGINS) - 1
+
+    chosen = TARGETS[-1]
+    for target in TARGETS:
+        left_out = [rates[w][made_on([v for v in writers if v != w], target)] for w in writers]
+        if np.mean(left_out) <= UNKNOWN_TARGET:
+            chosen = target
+            break
+    return MARGINS[made_on(writers, chosen)]
 
 
 # --- measuring a held-out writer ---------------------------------------------------------------

@@ -298,3 +298,47 @@ def test_other_writers_best_few_templates_outvote_one_odd_check():
     best = [max(m.scores, key=m.scores.__getitem__) for m in got]
     wrong_by_best = sum(b != s.shape for b, s in zip(best, mine, strict=True))
     assert wrong <= 1 < wrong_by_best, (wrong, wrong_by_best)
+
+
+def test_the_margin_made_on_four_writers_expects_a_new_one_to_differ():
+    """scripts/stroke_lowo.py makes the margin on four writers for a fifth: the target on the
+    four is the largest at which a margin made on three keeps unknown shapes accepted at 5 %
+    on the one left out (nested). Four writers alike: the plain target, 5 %. One of them
+    who draws two shapes alike (unknowns accepted at four times the rate): a smaller margin
+    than pooling the four at 5 % gives, as a new writer may be that one."""
+    import sys
+    from dataclasses import replace
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "scripts"))
+    import stroke_lowo
+
+    from hapticdesk.gestures.strokes.unistroke import DEFAULT_CHOICES, Nearest
+
+    def protocols(distances: dict[str, np.ndarray]) -> stroke_lowo.Protocols:
+        """Unknown shapes whose nearest shape asks 1 - margin: each is accepted when its
+        distance (1 - its score) is at most the margin."""
+        d = np.concatenate(list(distances.values()))
+        n = len(d)
+        found = stroke_lowo.Found(
+            Nearest([], np.zeros((n, 0)), np.full(n, "v", dtype=object), 1.0 - d,
+                    np.ones(n), np.zeros(n, bool)),
+            np.full(n, "check", dtype=object),
+        )  # fmt: skip
+        writer = np.concatenate([np.full(len(v), w, dtype=object) for w, v in distances.items()])
+        return stroke_lowo.Protocols(found, found, found, found, writer)
+
+    def pooled(p: stroke_lowo.Protocols) -> float:
+        out = stroke_lowo.MARGINS[0]
+        for m in stroke_lowo.MARGINS:
+            if p.unknown.accepted(replace(DEFAULT_CHOICES, margin=m)).mean() > 0.05:
+                break
+            out = m
+        return out
+
+    neat = np.linspace(0.04, 1.0, 200)  # 4 % accepted at a margin of 0.08
+    loose = np.linspace(0.0, 0.5, 200)  # 16 %
+    alike = protocols({w: neat for w in "abcd"})
+    assert stroke_lowo.margin(alike, list("abcd"), DEFAULT_CHOICES) == pooled(alike) == 0.085
+    mixed = protocols({"a": neat, "b": neat, "c": neat, "d": loose})
+    nested = stroke_lowo.margin(mixed, list("abcd"), DEFAULT_CHOICES)
+    assert nested < pooled(mixed) == 0.06

@@ -40,7 +40,7 @@ more of a stroke than one drawn loosely, so a stroke of another shape near it is
 Every choice in :class:`ScoreChoices` (the mix, whether form counts, the margin, what a
 built-in template asks) was made by leave-one-writer-out on the $1 logs of five people:
 made on four, measured on the fifth, all five ways; every fold made the same but for the
-margin (0.06-0.08), and the shipped ones are the same procedure on all five
+margin (0.055-0.08), and the shipped ones are the same procedure on all five
 (``python scripts/stroke_lowo.py DIR``; docs/strokes.md). The built-in templates are our own
 drawings (shapes.py), taken from nobody's strokes. Matching is a few array operations over
 all templates; the warping loops over the band's cells, not over templates or samples.

@@ -279,7 +279,7 @@ def test_a_desk_whose_mass_sits_on_its_sensors_keeps_the_calm_smoothing():
     under a tall frame, or the paper's desk, keep the heavy σ."""
     from dataclasses import replace
 
-    from hapticdesk.files.profile import load_profile
+    from hapticdesk.files.profile_reader import load_profile
     from hapticdesk.gestures.recognizers.stroke import (
         calm_smoothing_s,
         smoothing_s,

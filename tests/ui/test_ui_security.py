@@ -250,6 +250,11 @@ def test_a_paused_desk_says_so_to_the_page(layout: Path, paper_desk) -> None:
     try:
         url = f"ws://127.0.0.1:{server.port}/ws"
         with websockets.connect(url, origin=f"http://127.0.0.1:{server.port}") as socket:
+            # the run goes on once the page is fed (its first contact frame came): let go at
+            # connecting, the run had often paused before the page's first frame
+            while (first := json.loads(socket.recv(timeout=10)))["type"] != "contact":
+                pass
+            seen.append(first["paused"])
             go_on.set()
             deadline = time.monotonic() + 30
             while time.monotonic() < deadline and not (seen and seen[-1] is False and True in seen):

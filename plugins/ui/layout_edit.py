@@ -1,8 +1,8 @@
-"""The layout as the page sees it: checked like ``hapticdesk check``, edited keeping comments.
+"""The designer's edits of a layout's text, keeping comments, and saving it atomically.
 
-Checking goes through the loader ``check`` and ``run`` use (``load_scene_layout``), so the
-page refuses what they would, at the same line and column. Edits are applied to the YAML text
-with ruamel.yaml's round trip, so the user's comments, key order and flow style survive.
+Edits are applied to the YAML text with ruamel.yaml's round trip, so the user's comments, key
+order and flow style survive; lengths from the page (metres) are written in the layout's
+units. Checking what the edits make is the loader's (``check``'s) job: :mod:`.layout_api`.
 """
 
 from __future__ import annotations
@@ -27,19 +27,6 @@ UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 SHAPE_KEYS = ("rect", "circle", "polygon")
 
 
-def error_dict(err: ConfigError) -> dict[str, Any]:
-    """A ConfigError as ``{line, column, message}`` (0, 0 when it has no place in the file)."""
-    where = err.where
-    if isinstance(where, Position):
-        return {"line": where.line, "column": where.column, "message": err.message}
-    return message_error(err.message if where is None else f"{where}: {err.message}")
-
-
-def message_error(message: str) -> dict[str, Any]:
-    """An error with no place in the layout file, as :func:`error_dict` gives one."""
-    return {"line": 0, "column": 0, "message": message}
-
-
 def save_layout_text(layout_path: Path, text: str) -> None:
     """Write ``text`` to the layout file atomically (a reader never sees half a file)."""
     folder = layout_path.parent
@@ -53,101 +40,6 @@ def save_layout_text(layout_path: Path, text: str) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
-
-
-# --- what the page draws ----------------------------------------------------------------------
-
-
-def desk_message(profile: Any, layout: Any, *, live: bool) -> dict[str, Any]:
-    """The WebSocket's first message: the desk's outline, surfaces and regions in metres."""
-    import numpy as np
-
-    surfaces = []
-    for s in profile.surfaces:
-        horizontal = abs(float(np.dot(s.normal, [0.0, 0.0, 1.0]))) > 0.99
-        surfaces.append(
-            {
-                "name": s.name,
-                "horizontal": horizontal,
-                "height": float(s.origin[2]),
-                "polygon": np.round(s.polygon, 5).tolist(),
-            }
-        )
-    regions = []
-    for name, r in layout.regions.items():
-        regions.append(
-            {
-                "name": name,
-                "kind": r.kind,
-                "surface": r.surface,
-                "outline": np.round(r.outline, 5).tolist(),
-                "center": None if r.center is None else np.round(r.center, 5).tolist(),
-                "radius": float(r.radius),
-                "axis": None if r.axis is None else np.round(r.axis, 5).tolist(),
-            }
-        )
-    bindings = [
-        {
-            "gesture": b.gesture,
-            "region": b.region,
-            "actions": [u.name for u in b.actions],
-            "line": b.position.line,
-        }
-        for b in layout.bindings
-    ]
-    top = profile.surfaces[0].polygon if profile.surfaces else np.zeros((0, 2))
-    return {
-        "type": "desk",
-        "name": profile.name,
-        "live": live,
-        "units": layout.units,
-        "layout": str(layout.path),
-        "outline": np.round(top, 5).tolist(),
-        "surfaces": surfaces,
-        "sensors": [
-            {"name": s.name, "x": float(s.position[0]), "y": float(s.position[1])}
-            for s in profile.sensors
-        ],
-        "regions": regions,
-        "bindings": bindings,
-        "templates": sorted(layout.templates),
-    }
-
-
-def schemas(registry: Any) -> dict[str, Any]:
-    """Forms for the designer: each gesture's options (its recognizer's ``option_specs``, or
-    the built-in table) and each action's options (the schema its plugin registered)."""
-    from hapticdesk.gestures.options import GESTURE_OPTIONS
-
-    gestures: dict[str, Any] = {}
-    types = registry.recognizer_types()
-    for name in sorted(set(GESTURE_OPTIONS) | set(types)):
-        specs = GESTURE_OPTIONS.get(name)
-        if specs is None:
-            try:
-                specs = getattr(types[name].load(), "option_specs", None) or {}
-            except ConfigError:
-                specs = {}
-        gestures[name] = {
-            key: {
-                "kind": spec.kind,
-                "default": spec.default,
-                "help": spec.help,
-                "choices": list(spec.choices),
-                "role": spec.role,
-            }
-            for key, spec in specs.items()
-        }
-    actions = {
-        name: {
-            "description": record.description,
-            "options": getattr(record, "options", None),
-            "plugin": record.plugin,
-        }
-        for name, record in sorted(registry.actions.items())
-        if name != "exec"  # the page never adds a program to run
-    }
-    return {"gestures": gestures, "actions": actions}
 
 
 # --- edits ------------------------------------------------------------------------------------

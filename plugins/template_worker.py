@@ -114,11 +114,8 @@ def _limit_cpu(limit_s: float) -> None:
 
 def serve(stdin: Any = None, stdout: Any = None) -> None:
     """The worker's loop: one JSON request a line in, one JSON answer a line out."""
-    from hapticdesk.plugins.template_sandbox import (
-        TemplateLimitError,
-        environment,
-        render_bounded,
-    )
+    from hapticdesk.plugins.template_limits import TemplateLimitError
+    from hapticdesk.plugins.template_sandbox import environment, render_bounded
 
     stdin = stdin or sys.stdin
     stdout = stdout or sys.stdout

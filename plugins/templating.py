@@ -13,9 +13,9 @@ Costs are bounded three times over, in ``check`` and ``run`` alike:
    are refused at compile time, whichever branch they stand in;
 2. while rendering (:mod:`.template_sandbox`): every operation that makes something large
    checks its size before, loop turns and calls spend a budget;
-3. every rendering runs in a worker process (:mod:`.template_worker`) killed at
-   :data:`MAX_RENDER_S`, with its memory limited: a single C call nobody foresaw cannot hold
-   the desk.
+3. every rendering runs in a worker process (:mod:`.template_worker`, from the pool of
+   :mod:`.template_pool`) killed at :data:`MAX_RENDER_S`, with its memory limited: a single
+   C call nobody foresaw cannot hold the desk.
 
 ``check`` renders each template for sample events, for the constants the template compares
 variables with (``{% if region == 'b5' %}``), and (:func:`check_for_events`) for every event
@@ -39,7 +39,7 @@ from typing import Any
 
 from hapticdesk.files.yamlfile import ConfigError, LayoutWarning, MarkedDict, MarkedList, Position
 from hapticdesk.gestures.event import GestureEvent
-from hapticdesk.plugins import template_sandbox, template_worker
+from hapticdesk.plugins import template_pool, template_sandbox
 from hapticdesk.plugins.template_limits import (
     MAX_EXPONENT,
     MAX_FORMAT_WIDTH,
@@ -140,14 +140,10 @@ def render_text(text: str, variables: Mapping[str, Any]) -> str:
     :data:`MAX_RENDER_S` and the worker's memory bound; TemplateLimitError past them,
     TemplateError when the template fails for these variables."""
     global _said_in_process
-    workers = template_worker.pool()
+    workers = template_pool.pool()
     if workers.unavailable is None:
         try:
             return workers.render(text, variables, max_steps=MAX_STEPS, limit_s=MAX_RENDER_S)
-        except template_worker.WorkerLimit as err:
-            raise TemplateLimitError(str(err)) from None
-        except template_worker.WorkerFailed as err:
-            raise TemplateError(str(err)) from None
         except OSError:
             pass  # no worker could start: said below, rendered here
     if not _said_in_process:
@@ -224,7 +220,7 @@ def compile_template(text: str, where: Position | str, what: str = "template") -
     if not is_template(text):
         return Template(text, None, str(where))
     env = _environment()
-    template_worker.pool().warm()  # (the first rendering then finds a worker started)
+    template_pool.pool().warm()  # (the first rendering then finds a worker started)
     from jinja2 import TemplateSyntaxError, meta
 
     from hapticdesk.plugins import template_text  # (jinja2 only when a layout has a template)

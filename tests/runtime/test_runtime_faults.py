@@ -14,7 +14,7 @@ import pytest
 
 from hapticdesk.files.recording import write_recording
 from hapticdesk.files.yamlfile import ConfigError, load_marked_yaml
-from hapticdesk.plugins.mqtt import link_for
+from hapticdesk.plugins.mqtt.desk_link import link_for
 from hapticdesk.plugins.mqtt.link import MqttLink
 from hapticdesk.plugins.mqtt.message import Message
 from hapticdesk.plugins.mqtt.settings import MqttSettings, settings_from_layout

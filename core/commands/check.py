@@ -71,6 +71,9 @@ def explain(layout: Layout) -> str:
     for b in layout.bindings:
         actions = ", ".join(a.name for a in b.actions)
         lines.append(f"  {b.index + 1:>2}. {_binding_text(b, layout)} → {actions}")
+    from hapticdesk.gestures.arbitration import describe  # (numpy: loaded with the layout)
+
+    lines += describe(layout)
     tuned = _tuned(layout)
     if tuned:
         lines.append("settings (differing from the built-in defaults)")

@@ -259,6 +259,9 @@ def test_a_paused_desk_says_so_to_the_page(layout: Path, paper_desk) -> None:
         go_on.wait(20)
 
     script = {1.0: pace, 2.0: lambda: holder["rt"].request("pause")}
+    # wall time before the pause too, so the page is sent a frame of the unpaused desk
+    # (replayed as fast as possible, a second of samples passed between two frames)
+    script.update({1.0 + 0.05 * k: (lambda: time.sleep(0.01)) for k in range(1, 20)})
     script.update({2.0 + 0.05 * k: (lambda: time.sleep(0.01)) for k in range(1, 100)})
     script[7.0] = lambda: holder["rt"].request("resume")
     script.update({7.0 + 0.05 * k: (lambda: time.sleep(0.01)) for k in range(1, 100)})

@@ -19,6 +19,7 @@ from collections.abc import AsyncIterator
 from typing import TYPE_CHECKING, Any
 
 from starlette.applications import Starlette
+from starlette.routing import BaseRoute, WebSocketRoute
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from hapticdesk.plugins.ui.shown_desk import ShownDesk
@@ -174,3 +175,7 @@ async def ws(socket: WebSocket) -> None:
     hub: Hub = socket.app.state.hub
     await socket.accept()
     await hub.serve(socket, socket.app.state.shown)
+
+
+#: this module's part of the HTTP contract (gathered in :data:`.server.ROUTES`)
+ROUTES: list[BaseRoute] = [WebSocketRoute("/ws", ws)]

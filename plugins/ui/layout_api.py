@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 from starlette.requests import Request
 from starlette.responses import JSONResponse, PlainTextResponse, Response
+from starlette.routing import BaseRoute, Route
 
 from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.gestures.options import GESTURE_OPTIONS
@@ -96,6 +97,16 @@ async def schema(request: Request) -> Response:
     """``GET /api/schema``: the designer's forms."""
     shown: ShownDesk = request.app.state.shown
     return JSONResponse(schemas(shown.registry))
+
+
+#: this module's part of the HTTP contract (gathered in :data:`.server.ROUTES`)
+ROUTES: list[BaseRoute] = [
+    Route("/api/layout", get_layout, methods=["GET"]),
+    Route("/api/layout", put_layout, methods=["PUT"]),
+    Route("/api/check", check, methods=["POST"]),
+    Route("/api/edit", edit, methods=["POST"]),
+    Route("/api/schema", schema, methods=["GET"]),
+]
 
 
 def schemas(registry: Registry) -> dict[str, Any]:

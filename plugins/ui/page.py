@@ -9,6 +9,7 @@ from pathlib import Path
 
 from starlette.requests import Request
 from starlette.responses import FileResponse, Response
+from starlette.routing import BaseRoute, Route
 from starlette.staticfiles import StaticFiles
 
 from hapticdesk.plugins.ui.guard import TOKEN_COOKIE
@@ -30,3 +31,10 @@ async def static(request: Request) -> Response:
     """``GET /static/{path}``: the page's script and style (behind the token: the page's
     scripts say which API it has)."""
     return await _FILES.get_response(request.path_params["path"], request.scope)
+
+
+#: this module's part of the HTTP contract (gathered in :data:`.server.ROUTES`)
+ROUTES: list[BaseRoute] = [
+    Route("/", index),
+    Route("/static/{path:path}", static, methods=["GET", "HEAD"]),
+]

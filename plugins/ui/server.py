@@ -24,14 +24,14 @@ from typing import TYPE_CHECKING
 import uvicorn
 from starlette.applications import Starlette
 from starlette.middleware import Middleware
-from starlette.routing import BaseRoute, Route, WebSocketRoute
+from starlette.routing import BaseRoute
 
 from hapticdesk.files.yamlfile import ConfigError
-from hapticdesk.plugins.ui import layout_api, page, setup_api, strokes_api
+from hapticdesk.plugins.ui import hub, layout_api, page, setup_api, strokes_api
 from hapticdesk.plugins.ui.answers import EXCEPTION_HANDLERS, OneLineErrors
 from hapticdesk.plugins.ui.feed import Feed
 from hapticdesk.plugins.ui.guard import LOOPBACK_NAMES, PageGuard, host_names
-from hapticdesk.plugins.ui.hub import MAX_WS_CLIENTS, WS_MAX_MESSAGE_BYTES, Hub, ws
+from hapticdesk.plugins.ui.hub import MAX_WS_CLIENTS, WS_MAX_MESSAGE_BYTES, Hub
 from hapticdesk.plugins.ui.shown_desk import ShownDesk
 
 if TYPE_CHECKING:
@@ -44,20 +44,18 @@ if TYPE_CHECKING:
 #: connections uvicorn serves at once (pages and API calls); beyond, it answers 503
 MAX_CONNECTIONS = MAX_WS_CLIENTS + 32
 
-#: the HTTP contract (README, "Browser UI"; docs/reference from these routes)
-ROUTES: list[BaseRoute] = [
-    Route("/", page.index),
-    Route("/api/layout", layout_api.get_layout, methods=["GET"]),
-    Route("/api/layout", layout_api.put_layout, methods=["PUT"]),
-    Route("/api/check", layout_api.check, methods=["POST"]),
-    Route("/api/edit", layout_api.edit, methods=["POST"]),
-    Route("/api/schema", layout_api.schema, methods=["GET"]),
-    Route("/api/strokes", strokes_api.strokes, methods=["POST"]),
-    Route("/api/setup/start", setup_api.setup_start, methods=["POST"]),
-    Route("/api/setup/finish", setup_api.setup_finish, methods=["POST"]),
-    WebSocketRoute("/ws", ws),
-    Route("/static/{path:path}", page.static, methods=["GET", "HEAD"]),
+#: the modules whose ``ROUTES`` the page's server serves, one a job (a new group of endpoints
+#: is a module with its ``ROUTES``, named here)
+ROUTE_MODULES = [
+    page,
+    layout_api,
+    strokes_api,
+    setup_api,
+    hub,
 ]
+
+#: the HTTP contract (README, "Browser UI"; docs/reference from these routes)
+ROUTES: list[BaseRoute] = [route for module in ROUTE_MODULES for route in module.ROUTES]
 
 
 def parse_listen(text: str) -> tuple[str, int]:

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 from starlette.requests import Request
 from starlette.responses import JSONResponse, Response
+from starlette.routing import BaseRoute, Route
 
 from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.plugins.ui.answers import error_dict, json_object, message_error, refusal
@@ -61,6 +62,13 @@ async def setup_finish(request: Request) -> Response:
     except ConfigError as err:
         return refusal(422, error_dict(err))
     return JSONResponse(result)
+
+
+#: this module's part of the HTTP contract (gathered in :data:`.server.ROUTES`)
+ROUTES: list[BaseRoute] = [
+    Route("/api/setup/start", setup_start, methods=["POST"]),
+    Route("/api/setup/finish", setup_finish, methods=["POST"]),
+]
 
 
 def read_points(payload: dict[str, Any], profile: DeskProfile) -> list[list[float]]:

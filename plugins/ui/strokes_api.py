@@ -8,6 +8,7 @@ from typing import Any
 
 from starlette.requests import Request
 from starlette.responses import JSONResponse, Response
+from starlette.routing import BaseRoute, Route
 
 from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.plugins.ui.answers import error_dict, json_object, refusal
@@ -27,6 +28,10 @@ async def strokes(request: Request) -> Response:
     except ConfigError as err:
         return refusal(422, error_dict(err))
     return JSONResponse(result)
+
+
+#: this module's part of the HTTP contract (gathered in :data:`.server.ROUTES`)
+ROUTES: list[BaseRoute] = [Route("/api/strokes", strokes, methods=["POST"])]
 
 
 def score(payload: dict[str, Any], shown: ShownDesk) -> dict[str, Any]:

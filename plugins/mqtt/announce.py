@@ -49,7 +49,8 @@ import uuid
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from hapticdesk.plugins.mqtt.settings import MqttSettings, apply_login
+from hapticdesk.plugins.mqtt.paho_clients import message_expiry, new_client
+from hapticdesk.plugins.mqtt.settings import MqttSettings
 
 log = logging.getLogger(__name__)
 
@@ -164,7 +165,7 @@ def publish_steps(
             return None
         client.unsubscribe(sweep.patterns)  # our own messages must not come back as found
         steps = make_steps(dict(sweep.found))
-        _publish(client, steps, _migration_expiry() if mqtt5 else None)
+        _publish(client, steps, message_expiry(MIGRATE_EXPIRY_S) if mqtt5 else None)
         cleared = [t for step in steps for t, p in step if not p]
         if cleared:
             log.info("MQTT: cleared %d old discovery config(s): %s", len(cleared), cleared)
@@ -201,29 +202,13 @@ class _Sweep:
 
 def _sweep_client(settings: MqttSettings, mqtt5: bool, sweep: _Sweep) -> Any:
     """A paho client of its own for the announcement, with ``sweep``'s callbacks."""
-    import paho.mqtt.client as mqtt
-
-    client = mqtt.Client(
-        mqtt.CallbackAPIVersion.VERSION2,
-        client_id=f"{settings.client_id}-discovery"[:128],
-        clean_session=None if mqtt5 else True,  # (MQTT 5: a clean start, connect's default)
-        protocol=mqtt.MQTTv5 if mqtt5 else mqtt.MQTTv311,
+    client = new_client(  # (MQTT 5: a clean start, connect's default)
+        settings, mqtt5=mqtt5, clean_session=True, client_id=f"{settings.client_id}-discovery"[:128]
     )
-    apply_login(client, settings)
     client.on_connect = sweep.on_connect
     client.on_subscribe = sweep.on_subscribe
     client.on_message = sweep.on_message
     return client
-
-
-def _migration_expiry() -> Any:
-    """MQTT 5 publish properties: retained for :data:`MIGRATE_EXPIRY_S` only."""
-    from paho.mqtt.packettypes import PacketTypes
-    from paho.mqtt.properties import Properties
-
-    expiring = Properties(PacketTypes.PUBLISH)
-    expiring.MessageExpiryInterval = MIGRATE_EXPIRY_S
-    return expiring
 
 
 def _publish(client: Any, steps: list[Step], expiring: Any) -> None:

@@ -45,8 +45,9 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from hapticdesk.plugins.mqtt.message import Message, encode_payload
-from hapticdesk.plugins.mqtt.oneshot import Refused, clean_connect, login_refused
-from hapticdesk.plugins.mqtt.settings import MqttSettings, apply_login
+from hapticdesk.plugins.mqtt.oneshot import Refused, first_clean_connect, login_refused
+from hapticdesk.plugins.mqtt.paho_clients import lasting_session, message_expiry, new_client
+from hapticdesk.plugins.mqtt.settings import MqttSettings
 
 log = logging.getLogger(__name__)
 
@@ -56,7 +57,6 @@ ACK_TIMEOUT_S = 10.0
 # retry a lost broker quickly: the issue's 30 s back-off left a returned broker unused
 RECONNECT_MIN_S, RECONNECT_MAX_S = 0.1, 0.5
 CONTROL_LIMIT = 1000  # announcements waiting at most (they are coalesced by topic first)
-SESSION_NEVER_EXPIRES = 0xFFFFFFFF  # MQTT 5: keep the session as 3.1.1's clean_session=False
 
 
 @dataclass
@@ -426,7 +426,8 @@ class MqttLink:
     # --- the sender thread --------------------------------------------------------------------
 
     def _persistent_client(self) -> Any:
-        client = self._new_client(clean_session=False)
+        mqtt5 = self.protocol == self._mqtt.MQTTv5
+        client = new_client(self.settings, mqtt5=mqtt5, clean_session=False, will=self._will)
         client.on_connect = self._on_connect
         client.on_disconnect = self._on_disconnect
         client.on_publish = self._on_publish
@@ -442,13 +443,8 @@ class MqttLink:
             return
         s = self.settings
         if self.protocol == self._mqtt.MQTTv5:
-            from paho.mqtt.packettypes import PacketTypes
-            from paho.mqtt.properties import Properties
-
-            session = Properties(PacketTypes.CONNECT)
-            session.SessionExpiryInterval = SESSION_NEVER_EXPIRES
             self._client.connect_async(
-                s.host, s.port, s.keepalive, clean_start=False, properties=session
+                s.host, s.port, s.keepalive, clean_start=False, properties=lasting_session()
             )
         else:
             self._client.connect_async(s.host, s.port, s.keepalive)
@@ -580,55 +576,14 @@ class MqttLink:
         """MQTT 5 publish properties of a command: its expiry (None on 3.1.1 or without)."""
         if self.protocol != self._mqtt.MQTTv5 or not self.settings.expiry_s:
             return None
-        from paho.mqtt.packettypes import PacketTypes
-        from paho.mqtt.properties import Properties
-
-        properties = Properties(PacketTypes.PUBLISH)
-        properties.MessageExpiryInterval = self.settings.expiry_s
-        return properties
+        return message_expiry(self.settings.expiry_s)
 
     def _try_clean_connect(self) -> str | Refused | None:
-        """A clean connection, in MQTT 5 first under ``protocol: auto``: a broker that turns
-        MQTT 5 down (CONNACK 1, unacceptable protocol version) is asked again in 3.1.1, which
-        is then used."""
+        """The clean first connection (:func:`.oneshot.first_clean_connect`); under
+        ``protocol: auto`` the link speaks 3.1.1 from then on if the broker does not speak 5."""
         mqtt = self._mqtt
-        first = self._try_clean_connect_in(self.protocol)
-        if (
-            self.settings.protocol == "auto"
-            and self.protocol == mqtt.MQTTv5
-            and isinstance(first, str)
-            and "Unsupported protocol version" in first  # paho's reading of a 3.1.1 refusal
-        ):
-            if self._try_clean_connect_in(mqtt.MQTTv311) is None:
-                log.warning(
-                    "MQTT: %s does not speak MQTT 5 (%s); using 3.1.1 (no message expiry)",
-                    self.settings.url,
-                    first,
-                )
-                self.protocol = mqtt.MQTTv311
-                self._client = self._persistent_client()
-                return None
-        return first
-
-    def _try_clean_connect_in(self, protocol: int) -> str | Refused | None:
-        client = self._new_client(clean_session=True, with_will=False, protocol=protocol)
-        return clean_connect(client, self.settings, protocol == self._mqtt.MQTTv5)
-
-    def _new_client(
-        self, *, clean_session: bool, with_will: bool = True, protocol: int | None = None
-    ) -> Any:
-        """A paho client; in MQTT 5 the session's start is given to ``connect`` instead."""
-        mqtt = self._mqtt
-        s = self.settings
-        protocol = self.protocol if protocol is None else protocol
-        client = mqtt.Client(
-            mqtt.CallbackAPIVersion.VERSION2,
-            client_id=s.client_id,
-            clean_session=None if protocol == mqtt.MQTTv5 else clean_session,
-            protocol=protocol,
-        )
-        apply_login(client, s)
-        if with_will and self._will is not None:
-            w = self._will
-            client.will_set(w.topic, w.payload, qos=w.qos, retain=w.retain)
-        return client
+        first = first_clean_connect(self.settings, self.protocol == mqtt.MQTTv5)
+        if not first.mqtt5 and self.protocol == mqtt.MQTTv5:
+            self.protocol = mqtt.MQTTv311
+            self._client = self._persistent_client()
+        return first.error

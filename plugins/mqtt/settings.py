@@ -1,13 +1,12 @@
 """The MQTT plugin's settings: the layout's ``mqtt:`` section checked into :class:`MqttSettings`
-(broker URL, login from the environment or a file, TLS, QoS, topics, queue, protocol), and
-:func:`apply_login` that puts the login on a paho client. No connection is made here; that is
-:mod:`hapticdesk.plugins.mqtt.link`.
+(broker URL, login from the environment or a file, TLS, QoS, topics, queue, protocol), and the
+desk's own topics (:class:`DeskTopics`). No connection is made here: clients are made by
+:mod:`.paho_clients`, the desk's connection is :mod:`.link`.
 """
 
 from __future__ import annotations
 
 import os
-import ssl
 import urllib.parse
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -124,20 +123,6 @@ class DeskTopics:
     def set(self) -> str:
         """Commands for the running desk (:mod:`.control`)."""
         return f"{self.prefix}/set"
-
-
-def apply_login(client: Any, settings: MqttSettings) -> None:
-    """The layout's user name, password and TLS files on a paho client (every connection the
-    plugin opens: the desk's, the duplicate-desk probe, the stale-config sweep)."""
-    if settings.username is not None:
-        client.username_pw_set(settings.username, settings.password)
-    if settings.tls:
-        client.tls_set(
-            ca_certs=str(settings.ca) if settings.ca else None,
-            certfile=str(settings.cert) if settings.cert else None,
-            keyfile=str(settings.key) if settings.key else None,
-            cert_reqs=ssl.CERT_REQUIRED,
-        )
 
 
 def parse_broker_url(url: str, where: Position | str) -> tuple[bool, str, int, str | None]:

@@ -2,7 +2,7 @@
 
 Commands (a TOGGLE, a brightness) go through :meth:`MqttLink.publish`, which never blocks:
 the message joins a bounded queue and a sender thread hands it to paho when the broker is
-there. Delivery is tracked by message id in ``on_publish``:
+there. Delivery is tracked by message id in ``on_publish`` (the ledger: :mod:`.outbox`):
 
 - While the broker is away, commands wait in *our* queue. paho's ``publish`` returns
   ``MQTT_ERR_NO_CONN`` when the connection is gone; for QoS 1 and 2 paho then keeps the message
@@ -35,36 +35,25 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import math
 import socket
 import threading
 import time
-from collections import deque
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 from hapticdesk.plugins.mqtt.message import Message, encode_payload
 from hapticdesk.plugins.mqtt.oneshot import Refused, first_clean_connect, login_refused
+from hapticdesk.plugins.mqtt.outbox import LinkStats, Outbox
 from hapticdesk.plugins.mqtt.paho_clients import lasting_session, message_expiry, new_client
 from hapticdesk.plugins.mqtt.settings import MqttSettings
 
 log = logging.getLogger(__name__)
 
-WINDOW = 20  # commands in flight at once (paho's default maximum)
 #: a message in flight this long on a live connection lost its acknowledgement: reconnect
 ACK_TIMEOUT_S = 10.0
 # retry a lost broker quickly: the issue's 30 s back-off left a returned broker unused
 RECONNECT_MIN_S, RECONNECT_MAX_S = 0.1, 0.5
-CONTROL_LIMIT = 1000  # announcements waiting at most (they are coalesced by topic first)
-
-
-@dataclass
-class LinkStats:
-    queued: int = 0  # commands handed to publish()
-    delivered: int = 0  # acknowledged by the broker (QoS 0: written to the socket)
-    dropped: int = 0  # pushed out of a full queue
-    pending: int = 0  # queued or in flight when the link closed
 
 
 class MqttLink:
@@ -85,21 +74,16 @@ class MqttLink:
 
         self._mqtt = mqtt
         self.settings = settings
-        self.stats = LinkStats()
+        #: what waits and what is in flight; its condition guards the link's state too
+        self._outbox = Outbox(settings.queue_size, settings.url)
+        self._cond = self._outbox.cond
+        self.stats: LinkStats = self._outbox.stats
         self._will = will
         self._birth = list(birth)
         self._kept: list[Message] = []  # announcements added while running (discovery)
         self._birth_again_on = birth_again_on
         self._subscriptions: dict[str, tuple[int, Callable[[bytes], None]]] = {}
-        self._cond = threading.Condition()
-        self._queue: deque[Message] = deque()
-        self._control: deque[Message] = deque()
-        self._inflight: dict[int, Message] = {}
-        self._sent_at: dict[int, float] = {}  # when each message in flight was sent
-        self._unstalled_at = -math.inf
-        self._early_acks: set[int] = set()
         self._connected = False
-        self._resuming = False  # waiting for paho's resends before sending new commands
         self._closing = False
         # set when close begins: nothing is taken after it, the goodbye is the last message
         self._sealed = False
@@ -134,37 +118,20 @@ class MqttLink:
         with self._cond:
             if self._closing or self._sealed:
                 raise RuntimeError("the MQTT link is closed")
-            if len(self._queue) >= self.settings.queue_size:
-                old = self._queue.popleft()
-                self.stats.dropped += 1
-                n = self.stats.dropped
-                if n in (1, 10, 100) or n % 1000 == 0:
-                    log.warning(
-                        "MQTT: %d commands are waiting for %s (the queue is full); the oldest "
-                        "is dropped (%s), %d dropped so far",
-                        len(self._queue) + 1,
-                        self.settings.url,
-                        old.topic,
-                        n,
-                    )
-            self._queue.append(message)
-            self.stats.queued += 1
-            self._cond.notify_all()
+            self._outbox.add_command(message)
 
     def announce(self, topic: str, payload: Any, *, retain: bool = False) -> None:
         """Queue a message that is not a command (the answers on ``set/result``): not counted
         in what was delivered, sent while connected, each one (not coalesced by topic: two
-        answers in a row are both news), at most :data:`CONTROL_LIMIT` waiting. At QoS 0: an
-        answer waits for no acknowledgement, so a flood of them cannot hold the commands'
-        window (10,000 answers in flight had stopped every gesture's message for good)."""
+        answers in a row are both news), at most :data:`.outbox.CONTROL_LIMIT` waiting. At
+        QoS 0: an answer waits for no acknowledgement, so a flood of them cannot hold the
+        commands' window (10,000 answers in flight had stopped every gesture's message for
+        good)."""
         message = Message(topic, encode_payload(payload), 0, retain, command=False)
         with self._cond:
             if self._closing or self._sealed:
                 return
-            self._control.append(message)
-            while len(self._control) > CONTROL_LIMIT:
-                self._control.popleft()
-            self._cond.notify_all()
+            self._outbox.add_answer(message)
 
     def keep_announcing(self, messages: Sequence[Message], *, now: bool = False) -> None:
         """Send ``messages`` (retained announcements: Home Assistant's discovery configs) with
@@ -173,7 +140,7 @@ class MqttLink:
         with self._cond:
             self._kept = list(messages)
             if now and self._ready.is_set():
-                self._announce(self._kept)
+                self._outbox.add_announcements(self._kept)
 
     def subscribe(self, topic: str, on_message: Callable[[bytes], None], *, qos: int = 0) -> None:
         """Call ``on_message(payload)`` (on paho's thread: it must not block) for every
@@ -230,7 +197,7 @@ class MqttLink:
         """Wait until every queued command is acknowledged; False after ``timeout``."""
         deadline = time.monotonic() + timeout
         with self._cond:
-            while self._queue or self._control or self._inflight:
+            while not self._outbox.empty:
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:
                     return False
@@ -251,12 +218,11 @@ class MqttLink:
             # acknowledged by the broker) overtook it at mosquitto_sub once in a while
             goodbye = replace(self._will, qos=max(self._will.qos, self.settings.qos))
             with self._cond:
-                self._control.append(goodbye)
-                self._cond.notify_all()
+                self._outbox.add_last(goodbye)
             self.flush(min(1.0, max(0.0, deadline - time.monotonic())))
         with self._cond:
             self._closing = True
-            lost = [m for m in list(self._inflight.values()) + list(self._queue) if m.command]
+            lost = self._outbox.lost_commands()
             self.stats.pending = len(lost)
             self._cond.notify_all()
         self._sender.join(max(0.1, min(2.0, deadline - time.monotonic())))
@@ -301,7 +267,7 @@ class MqttLink:
             # now on subscribes itself, one before is in the list (the `set` topic, subscribed
             # in between, had been in neither, and the desk deaf to its commands)
             self._connected = True
-            self._resuming = bool(self._inflight)
+            self._outbox.reconnected()
             wanted = [(topic, qos) for topic, (qos, _) in self._subscriptions.items()]
             if self._birth_again_on is not None:
                 wanted.append((self._birth_again_on[0], 1))
@@ -328,14 +294,7 @@ class MqttLink:
         with self._cond:
             self._connected = False
             self._birth_after = None
-            # paho resends QoS 1/2 messages after reconnecting; a QoS 0 message that was not
-            # yet written is gone (at most once), so stop waiting for it
-            for mid in [mid for mid, m in self._inflight.items() if m.qos == 0]:
-                self._sent_at.pop(mid, None)
-                if self._inflight.pop(mid).command:
-                    self.stats.dropped += 1
-            waiting = len(self._queue) + len(self._inflight)
-            self._cond.notify_all()
+            waiting = self._outbox.disconnected()
         if not self._closing and not self._outage_logged:
             log.warning(
                 "MQTT: lost the connection to %s (%s); reconnecting, %d command(s) are kept "
@@ -370,17 +329,12 @@ class MqttLink:
 
     def _born(self) -> None:
         """(under self._cond) Send the birth and the kept announcements: the desk is ready."""
-        self._announce(self._birth + self._kept)
+        self._outbox.add_announcements(self._birth + self._kept)
         self._ready.set()
 
     def _on_publish(self, client: Any, userdata: Any, mid: int, reason: Any, props: Any) -> None:
         with self._cond:
-            message = self._inflight.pop(mid, None)
-            self._sent_at.pop(mid, None)
-            if message is None:  # acknowledged before _run registered it
-                self._early_acks.add(mid)
-                return
-            self._acknowledged(message)
+            self._outbox.acknowledge(mid)
 
     def _on_message(self, client: Any, userdata: Any, message: Any) -> None:
         handler = self._subscriptions.get(message.topic)
@@ -392,22 +346,7 @@ class MqttLink:
             return
         if self._birth_again_on and message.payload == self._birth_again_on[1]:
             with self._cond:
-                self._announce(self._birth + self._kept)
-
-    def _announce(self, messages: Sequence[Message]) -> None:
-        """Queue announcements (under ``self._cond``): one per topic, the newest, bounded."""
-        topics = {m.topic for m in messages}
-        kept = [m for m in self._control if m.topic not in topics]
-        kept.extend(messages)
-        if len(kept) > CONTROL_LIMIT:
-            log.warning(
-                "MQTT: %d announcements waiting; the oldest %d are dropped",
-                len(kept),
-                len(kept) - CONTROL_LIMIT,
-            )
-            kept = kept[-CONTROL_LIMIT:]
-        self._control = deque(kept)
-        self._cond.notify_all()
+                self._outbox.add_announcements(self._birth + self._kept)
 
     def _refuse(self, reason: str) -> None:
         """The broker refused the login: say it once, stop trying, keep nothing waiting."""
@@ -435,7 +374,7 @@ class MqttLink:
         client.on_message = self._on_message
         client.on_connect_fail = self._on_connect_fail
         client.reconnect_delay_set(RECONNECT_MIN_S, RECONNECT_MAX_S)
-        client.max_inflight_messages_set(0)  # our WINDOW limits commands; control adds a few
+        client.max_inflight_messages_set(0)  # outbox.WINDOW limits commands; control adds a few
         return client
 
     def _run(self) -> None:
@@ -454,16 +393,8 @@ class MqttLink:
                 message = None
                 stalled = 0
                 while message is None and not self._closing:
-                    if self._connected and self._control:
-                        message = self._control.popleft()
-                    elif (
-                        self._connected
-                        and not self._resuming
-                        and self._queue
-                        and len(self._inflight) < WINDOW
-                    ):
-                        message = self._queue.popleft()
-                    else:
+                    message = self._outbox.next_message(self._connected)
+                    if message is None:
                         self._cond.wait(0.5)
                         stalled = self._stalled()
                         if stalled:
@@ -481,13 +412,7 @@ class MqttLink:
         drop an acknowledgement (mosquitto does, its queue to us full, under a flood): the
         message then waits in flight for ever, and with the window full every gesture after
         it waited too."""
-        now = time.monotonic()
-        if not self._connected or now - self._unstalled_at < ACK_TIMEOUT_S:
-            return 0
-        late = [mid for mid in self._inflight if now - self._sent_at.get(mid, now) > ACK_TIMEOUT_S]
-        if late:
-            self._unstalled_at = now
-        return len(late)
+        return self._outbox.late(ACK_TIMEOUT_S) if self._connected else 0
 
     def _reconnect(self, stalled: int) -> None:
         """Drop the connection under paho (it reconnects by itself): on the resumed session
@@ -521,26 +446,11 @@ class MqttLink:
                 info.rc == mqtt.MQTT_ERR_NO_CONN and message.qos > 0
             ):
                 # in flight; with NO_CONN paho keeps a QoS 1/2 message and sends it on reconnect
-                if info.mid in self._early_acks:
-                    self._early_acks.discard(info.mid)
-                    self._acknowledged(message)
-                else:
-                    self._inflight[info.mid] = message
-                    self._sent_at[info.mid] = time.monotonic()
-                    if info.rc == mqtt.MQTT_ERR_NO_CONN:
-                        self._resuming = True
+                self._outbox.sent(message, info.mid, resent_later=info.rc == mqtt.MQTT_ERR_NO_CONN)
             else:  # QoS 0 without a connection, or paho's own queue full: ours keeps it
-                (self._queue if message.command else self._control).appendleft(message)
+                self._outbox.put_back(message)
                 self._connected = self._connected and info.rc != mqtt.MQTT_ERR_NO_CONN
                 self._cond.wait(0.05)
-
-    def _acknowledged(self, message: Message) -> None:
-        # under self._cond
-        if message.command:
-            self.stats.delivered += 1
-        if not self._inflight:
-            self._resuming = False
-        self._cond.notify_all()
 
     def _clean_start(self) -> bool:
         """Connect once with a clean session (see the module docstring), retrying with back-off."""

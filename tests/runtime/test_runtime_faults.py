@@ -167,7 +167,7 @@ def test_home_assistant_coming_online_again_and_again_does_not_pile_up_announcem
     online = SimpleNamespace(topic="homeassistant/status", payload=b"online")
     for _ in range(1000):
         link._on_message(None, None, online)
-    assert list(link._control) == birth  # coalesced: each announcement once, the newest
+    assert list(link._outbox.control) == birth  # coalesced: each announcement once, the newest
 
 
 def test_announcements_again_are_sent_once_each_on_a_live_broker(broker):

@@ -44,7 +44,7 @@ from typing import Any
 
 from hapticdesk.plugins.mqtt.message import Message, encode_payload
 from hapticdesk.plugins.mqtt.oneshot import Refused, first_clean_connect, login_refused
-from hapticdesk.plugins.mqtt.outbox import LinkStats, Outbox
+from hapticdesk.plugins.mqtt.outbox import LinkStats, Outbox, delivery_report
 from hapticdesk.plugins.mqtt.paho_clients import lasting_session, message_expiry, new_client
 from hapticdesk.plugins.mqtt.settings import MqttSettings
 
@@ -228,27 +228,7 @@ class MqttLink:
         self._sender.join(max(0.1, min(2.0, deadline - time.monotonic())))
         self._client.disconnect()  # a clean disconnect: the broker does not send the will
         self._client.loop_stop()
-        s = self.stats
-        line = f"MQTT {self.settings.url}: {s.delivered} of {s.queued} messages delivered" + (
-            f", {s.dropped} dropped from the full queue" if s.dropped else ""
-        )
-        if self.refused is not None:
-            line += f", {len(lost)} NOT delivered: the broker refused the login ({self.refused})"
-        elif not flushed and lost:
-            # one entry per topic (the first payload and how many more): a light's command
-            # is not hidden behind the desk's own state and event messages
-            by_topic: dict[str, list[Message]] = {}
-            for m in lost:
-                by_topic.setdefault(m.topic, []).append(m)
-            shown = "; ".join(
-                f"{topic} {group[0].payload[:60].decode('utf-8', 'replace')}"
-                + (f" (and {len(group) - 1} more)" if len(group) > 1 else "")
-                for topic, group in list(by_topic.items())[:5]
-            )
-            line += f", {len(lost)} NOT delivered (broker away): {shown}" + (
-                " …" if len(by_topic) > 5 else ""
-            )
-        return line
+        return delivery_report(self.settings.url, self.stats, lost, self.refused, flushed)
 
     # --- paho callbacks (paho's network thread) ------------------------------------------------
 

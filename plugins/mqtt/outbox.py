@@ -180,3 +180,30 @@ class Outbox:
     def lost_commands(self) -> list[Message]:
         """The commands in flight or waiting (when the link closes)."""
         return [m for m in list(self.inflight.values()) + list(self.queue) if m.command]
+
+
+def delivery_report(
+    url: str, stats: LinkStats, lost: list[Message], refused: str | None, flushed: bool
+) -> str:
+    """The run's line about a closed link: how many messages were delivered, dropped, and
+    which commands were not (``lost``), and why (the login ``refused``, or the broker away
+    when it could not be ``flushed``)."""
+    line = f"MQTT {url}: {stats.delivered} of {stats.queued} messages delivered" + (
+        f", {stats.dropped} dropped from the full queue" if stats.dropped else ""
+    )
+    if refused is not None:
+        return line + f", {len(lost)} NOT delivered: the broker refused the login ({refused})"
+    if flushed or not lost:
+        return line
+    # one entry per topic (the first payload and how many more): a light's command is not
+    # hidden behind the desk's own state and event messages
+    by_topic: dict[str, list[Message]] = {}
+    for m in lost:
+        by_topic.setdefault(m.topic, []).append(m)
+    shown = "; ".join(
+        f"{topic} {group[0].payload[:60].decode('utf-8', 'replace')}"
+        + (f" (and {len(group) - 1} more)" if len(group) > 1 else "")
+        for topic, group in list(by_topic.items())[:5]
+    )
+    more = " …" if len(by_topic) > 5 else ""
+    return line + f", {len(lost)} NOT delivered (broker away): {shown}{more}"

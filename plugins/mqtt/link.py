@@ -27,7 +27,8 @@ configuration error, said once, and every command is reported as not delivered.
 Announcements (availability, discovery) are coalesced by topic and bounded, so a chatty
 ``homeassistant/status`` cannot grow them. On every connect the subscriptions go first and the
 birth (``online``, the discovery configs kept) only once the broker has granted them: whoever
-acts on seeing the desk ``online`` (Home Assistant's select) reaches it. The password never
+acts on seeing the desk ``online`` (Home Assistant's select) reaches it (:mod:`.presence`).
+The password never
 appears in ``repr`` or the log.
 """
 
@@ -46,6 +47,7 @@ from hapticdesk.plugins.mqtt.message import Message, encode_payload
 from hapticdesk.plugins.mqtt.oneshot import Refused, first_clean_connect, login_refused
 from hapticdesk.plugins.mqtt.outbox import LinkStats, Outbox, delivery_report
 from hapticdesk.plugins.mqtt.paho_clients import lasting_session, message_expiry, new_client
+from hapticdesk.plugins.mqtt.presence import Presence
 from hapticdesk.plugins.mqtt.settings import MqttSettings
 
 log = logging.getLogger(__name__)
@@ -79,19 +81,13 @@ class MqttLink:
         self._cond = self._outbox.cond
         self.stats: LinkStats = self._outbox.stats
         self._will = will
-        self._birth = list(birth)
-        self._kept: list[Message] = []  # announcements added while running (discovery)
-        self._birth_again_on = birth_again_on
-        self._subscriptions: dict[str, tuple[int, Callable[[bytes], None]]] = {}
+        #: what the desk listens to, and its birth on every connect
+        self._presence = Presence(self._outbox, birth, birth_again_on)
         self._connected = False
         self._closing = False
         # set when close begins: nothing is taken after it, the goodbye is the last message
         self._sealed = False
         self._ever_connected = threading.Event()
-        #: connected, the subscriptions granted and the birth queued (cleared on a disconnect)
-        self._ready = threading.Event()
-        #: the SUBSCRIBE (message id, topics) whose SUBACK lets the birth go
-        self._birth_after: tuple[int, list[tuple[str, int]]] | None = None
         self._outage_logged = False
         self.refused: str | None = None  # why the broker refused the login, if it did
         #: paho's protocol constant in use: MQTT 5 until the broker turns it down (``auto``)
@@ -138,9 +134,7 @@ class MqttLink:
         the birth on every (re)connect and when ``birth_again_on`` comes, in place of those
         kept before; ``now``: also queue them at once (when nothing else has sent them)."""
         with self._cond:
-            self._kept = list(messages)
-            if now and self._ready.is_set():
-                self._outbox.add_announcements(self._kept)
+            self._presence.keep(messages, now=now)
 
     def subscribe(self, topic: str, on_message: Callable[[bytes], None], *, qos: int = 0) -> None:
         """Call ``on_message(payload)`` (on paho's thread: it must not block) for every
@@ -148,7 +142,7 @@ class MqttLink:
         sent while the desk was away is not kept by the broker to arrive late. Made before
         :meth:`start`, the subscription is granted before the birth is sent."""
         with self._cond:
-            self._subscriptions[topic] = (qos, on_message)
+            self._presence.subscribe(topic, qos, on_message)
             connected = self._connected
         if connected:
             self._client.subscribe(topic, qos=qos)
@@ -156,8 +150,7 @@ class MqttLink:
     def handler(self, topic: str) -> Callable[[bytes], None] | None:
         """What :meth:`subscribe` calls for ``topic`` (None when not subscribed)."""
         with self._cond:
-            subscribed = self._subscriptions.get(topic)
-        return None if subscribed is None else subscribed[1]
+            return self._presence.handler(topic)
 
     def wait_connected(self, timeout: float) -> bool:
         """True once the first connection is up (for the demo and tests)."""
@@ -166,7 +159,7 @@ class MqttLink:
     def wait_ready(self, timeout: float) -> bool:
         """True once connected with every subscription granted and the birth queued: what is
         announced after this finds the desk listening."""
-        return self._ready.wait(timeout)
+        return self._presence.ready.wait(timeout)
 
     @property
     def connected(self) -> bool:
@@ -248,18 +241,14 @@ class MqttLink:
             # in between, had been in neither, and the desk deaf to its commands)
             self._connected = True
             self._outbox.reconnected()
-            wanted = [(topic, qos) for topic, (qos, _) in self._subscriptions.items()]
-            if self._birth_again_on is not None:
-                wanted.append((self._birth_again_on[0], 1))
-            if not wanted:
-                self._born()
+            wanted = self._presence.connected()
         if wanted:
             # the birth waits for the SUBACK (_on_subscribe): said `online` while `set` was
             # not yet subscribed, the desk lost the command Home Assistant sent on seeing it.
-            # (The SUBACK is read on this thread, so it cannot come before _birth_after is set.)
+            # (The SUBACK is read on this thread, so it cannot come before it is expected.)
             _, mid = client.subscribe(wanted)
             with self._cond:
-                self._birth_after = (mid, wanted)
+                self._presence.subscribing(mid, wanted)
         if self._outage_logged:
             log.warning("MQTT: connected to %s again", self.settings.url)
             self._outage_logged = False
@@ -270,10 +259,9 @@ class MqttLink:
     def _on_disconnect(
         self, client: Any, userdata: Any, flags: Any, reason: Any, props: Any
     ) -> None:
-        self._ready.clear()
         with self._cond:
             self._connected = False
-            self._birth_after = None
+            self._presence.disconnected()
             waiting = self._outbox.disconnected()
         if not self._closing and not self._outage_logged:
             log.warning(
@@ -292,11 +280,9 @@ class MqttLink:
 
     def _on_subscribe(self, client: Any, userdata: Any, mid: int, reasons: Any, props: Any) -> None:
         with self._cond:
-            if self._birth_after is None or self._birth_after[0] != mid:
-                return  # a subscribe() made later, while connected
-            wanted = self._birth_after[1]
-            self._birth_after = None
-            self._born()
+            wanted = self._presence.granted(mid)
+        if wanted is None:
+            return  # a subscribe() made later, while connected
         for (topic, _), reason in zip(wanted, reasons, strict=False):
             if getattr(reason, "is_failure", False):  # e.g. an ACL that denies the topic
                 log.warning(
@@ -307,26 +293,12 @@ class MqttLink:
                     reason,
                 )
 
-    def _born(self) -> None:
-        """(under self._cond) Send the birth and the kept announcements: the desk is ready."""
-        self._outbox.add_announcements(self._birth + self._kept)
-        self._ready.set()
-
     def _on_publish(self, client: Any, userdata: Any, mid: int, reason: Any, props: Any) -> None:
         with self._cond:
             self._outbox.acknowledge(mid)
 
     def _on_message(self, client: Any, userdata: Any, message: Any) -> None:
-        handler = self._subscriptions.get(message.topic)
-        if handler is not None:
-            try:
-                handler[1](message.payload)
-            except Exception:  # a subscriber's bug must not take paho's thread down
-                log.exception("MQTT: handling a message on %s failed", message.topic)
-            return
-        if self._birth_again_on and message.payload == self._birth_again_on[1]:
-            with self._cond:
-                self._outbox.add_announcements(self._birth + self._kept)
+        self._presence.deliver(message.topic, message.payload)
 
     def _refuse(self, reason: str) -> None:
         """The broker refused the login: say it once, stop trying, keep nothing waiting."""

@@ -807,6 +807,13 @@ ROUTE_WORDS = {
     "POST /api/strokes": "`{points: [[x, y], ...]}` → the stroke's score against every shape",
     "POST /api/setup/start": "`{points: [[x, y], ...]}` metres: start a set-up check",
     "POST /api/setup/finish": "end it: what was found, each press's residual, a profile snippet",
+    "GET /api/setup/weight/spots": "`?count=N` (3 to 5) → `{ok, spots_m}`: the spots to mark for "
+    "the set-up with a known weight (a load-cell desk)",
+    "POST /api/setup/weight/start": "`{mass_kg, count}`: start recording the weight put on each "
+    "spot in turn → `{ok, mass_kg, spots_m}`",
+    "POST /api/setup/weight/finish": "end it: each cell's `gain` and `position_m`, the `check` on "
+    "the spot the fit did not use (`error_m`, and `check_before_m` with the profile as it "
+    "was), `leave_one_out`, `passed`, `profile_path` (written beside the layout) or `note`",
     "WS /ws": "JSON messages, one per frame (below)",
     "GET /static/{path:path}": "the page's script and style (behind the token when one is set)",
 }

@@ -332,11 +332,15 @@ class DeskProfile:
         )
 
     def top_height_m(self) -> float:
-        """Height of the first surface above the sensors (0.7 m when there is none)."""
+        """Height of the first surface above the sensors, however close (a board's top 4 cm
+        over its cells, a desk's top 3 cm over cells under it); 0.7 m when there is no
+        surface, or it is not above the sensors (nothing says how tall the desk is then)."""
         positions = np.array([s.position for s in self.sensors], dtype=float)
         if self.surfaces:
             h = float(self.surfaces[0].origin[2] - positions[:, 2].mean())
-            if h > 0.05:
+            # (a floor of 5 cm here had taken every top close to its cells for none: the
+            # balance board's was 0.7 m tall, its default inertia a 0.7 m box)
+            if h > 0:
                 return h
         return DEFAULT_TOP_HEIGHT_M
 

@@ -10,8 +10,8 @@ thread. The run reaches the page through three doors, none of which can slow sen
 
 Every request passes one guard first (:mod:`.guard`: Host and Origin, the token, the body's
 size, confined reads); the handlers are grouped by job: the page (:mod:`.page`), the layout
-(:mod:`.layout_api`), strokes (:mod:`.strokes_api`), the set-up check (:mod:`.setup_api`)
-and the WebSocket hub (:mod:`.hub`).
+(:mod:`.layout_api`), strokes (:mod:`.strokes_api`), the set-up check (:mod:`.setup_api`),
+the set-up with a known weight (:mod:`.known_weight_setup`) and the WebSocket hub (:mod:`.hub`).
 """
 
 from __future__ import annotations
@@ -27,7 +27,14 @@ from starlette.middleware import Middleware
 from starlette.routing import BaseRoute
 
 from hapticdesk.files.yamlfile import ConfigError
-from hapticdesk.plugins.ui import hub, layout_api, page, setup_api, strokes_api
+from hapticdesk.plugins.ui import (
+    hub,
+    known_weight_setup,
+    layout_api,
+    page,
+    setup_api,
+    strokes_api,
+)
 from hapticdesk.plugins.ui.answers import EXCEPTION_HANDLERS, OneLineErrors
 from hapticdesk.plugins.ui.feed import Feed
 from hapticdesk.plugins.ui.guard import LOOPBACK_NAMES, PageGuard, host_names
@@ -51,6 +58,7 @@ ROUTE_MODULES = [
     layout_api,
     strokes_api,
     setup_api,
+    known_weight_setup,
     hub,
 ]
 

@@ -61,7 +61,8 @@ from hapticdesk.estimator import BATCH_CHUNK, ContactEstimator  # noqa: E402
 from hapticdesk.estimator.filter_bank import FilterBank  # noqa: E402
 from hapticdesk.estimator.samples import SampleStage  # noqa: E402
 from hapticdesk.estimator.settings import EstimatorSettings  # noqa: E402
-from hapticdesk.files.profile import METHODS, DeskProfile, load_profile  # noqa: E402
+from hapticdesk.files.profile import METHODS, DeskProfile
+from hapticdesk.files.profile_reader import load_profile  # noqa: E402
 from hapticdesk.sim import simulate  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))

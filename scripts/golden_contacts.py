@@ -23,7 +23,8 @@ import numpy as np
 from hapticdesk.bench.scenes import desk_day, paper_experiment
 from hapticdesk.estimator import ContactEstimator
 from hapticdesk.estimator.inertia import accelerometer_readings
-from hapticdesk.files.profile import METHODS, DeskProfile, load_profile
+from hapticdesk.files.profile import METHODS, DeskProfile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.files.recording import Recording
 from hapticdesk.sim import Press, Scene, Swipe, simulate
 

@@ -60,7 +60,8 @@ from hapticdesk.analysis.known_weight import (
     suggested_spots,
 )
 from hapticdesk.estimator import estimate
-from hapticdesk.files.profile import DeskProfile, load_profile, profile_from_mapping
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile, profile_from_mapping
 from hapticdesk.files.recording import Recording
 from hapticdesk.files.yamlfile import load_marked_yaml
 from hapticdesk.sim import Idle, LiftObject, PutObject, Scene, SimulationRun, Tap, simulate

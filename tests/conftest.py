@@ -7,7 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from hapticdesk.files.profile import DeskProfile, load_profile
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile
 
 
 @pytest.fixture(autouse=True)

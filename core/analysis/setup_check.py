@@ -25,8 +25,8 @@ from typing import Any
 
 import numpy as np
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile
-from hapticdesk.files.yamlfile import ConfigError
 
 #: a sensor placed further than this from where the presses put it is reported
 POSITION_TOLERANCE_M = 0.01

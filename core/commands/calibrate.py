@@ -27,9 +27,9 @@ from hapticdesk.analysis.known_weight import (
     write_calibrated_profile,
 )
 from hapticdesk.commands.output_path import cannot_write, check_output_path
-from hapticdesk.files.profile import load_profile, resolve_profile_path
-from hapticdesk.files.readers import read_any_recording
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.profile_reader import load_profile, resolve_profile_path
+from hapticdesk.recordings import read_any_recording
 
 MIN_SPOTS, MAX_SPOTS = 3, 5
 

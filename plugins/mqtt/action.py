@@ -5,7 +5,8 @@ from __future__ import annotations
 
 from typing import Any, NamedTuple
 
-from hapticdesk.files.yamlfile import ConfigError, Position, as_flag
+from hapticdesk.errors import ConfigError, Position
+from hapticdesk.files.marked_values import as_flag
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.plugins.action_options import options_mapping, text, where
 from hapticdesk.plugins.mqtt.desk_link import link_for

@@ -22,12 +22,13 @@ from pathlib import Path
 from typing import Any, NamedTuple, TextIO
 
 import hapticdesk
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.plugins.mqtt.settings import parse_broker_url
-from hapticdesk.registry import load_registry
 from hapticdesk.runtime.assembly import build_scene
 from hapticdesk.runtime.dispatcher import Lane
-from hapticdesk.runtime.service import RunReport, Runtime
+from hapticdesk.runtime.run_report import RunReport
+from hapticdesk.runtime.service import Runtime
 
 LAMP_TOPIC = "zigbee2mqtt/+/set"
 ACTION_TOPIC = "hapticdesk/+/action"  # the desk's own gesture stream

@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from hapticdesk.files.yamlfile import ConfigError, Position
+from hapticdesk.errors import ConfigError, Position
 from hapticdesk.plugins.mqtt.control import SetTopic
 from hapticdesk.plugins.mqtt.link import MqttLink
 from hapticdesk.plugins.mqtt.message import Message

@@ -17,7 +17,7 @@ from starlette.responses import JSONResponse, Response
 from starlette.routing import BaseRoute
 from starlette.types import ASGIApp, Receive, Scope, Send
 
-from hapticdesk.files.yamlfile import ConfigError, Position
+from hapticdesk.errors import ConfigError, Position
 
 log = logging.getLogger(__name__)
 

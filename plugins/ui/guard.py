@@ -31,7 +31,7 @@ from starlette.responses import PlainTextResponse
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from starlette.websockets import WebSocket
 
-from hapticdesk.files.yamlfile import reads_confined_to
+from hapticdesk.files.file_safety import reads_confined_to
 from hapticdesk.plugins.ui.answers import BadRequest, message_error, refusal
 
 T = TypeVar("T")

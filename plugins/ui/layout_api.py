@@ -15,7 +15,7 @@ from starlette.requests import Request
 from starlette.responses import JSONResponse, PlainTextResponse, Response
 from starlette.routing import BaseRoute, Route
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 from hapticdesk.gestures.options import GESTURE_OPTIONS
 from hapticdesk.plugins.ui.answers import (
     BadRequest,

@@ -26,7 +26,7 @@ from starlette.applications import Starlette
 from starlette.middleware import Middleware
 from starlette.routing import BaseRoute
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 from hapticdesk.plugins.ui import (
     hub,
     known_weight_setup,

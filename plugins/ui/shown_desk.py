@@ -14,10 +14,12 @@ from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from hapticdesk.files.yamlfile import ConfigError, load_marked_yaml
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.yamlfile import load_marked_yaml
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.plugins.mqtt.demo import examples_dir
 from hapticdesk.plugins.ui.guard import operator_reads
-from hapticdesk.registry import Registry, load_registry
+from hapticdesk.registry import Registry
 from hapticdesk.runtime.assembly import load_scene_layout
 from hapticdesk.runtime.operator_secrets import OperatorSecrets
 

@@ -10,7 +10,7 @@ from starlette.requests import Request
 from starlette.responses import JSONResponse, Response
 from starlette.routing import BaseRoute, Route
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 from hapticdesk.plugins.ui.answers import error_dict, json_object, refusal
 from hapticdesk.plugins.ui.shown_desk import ShownDesk
 

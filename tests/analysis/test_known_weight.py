@@ -25,9 +25,11 @@ from hapticdesk.analysis.known_weight import (
     suggested_spots,
     write_calibrated_profile,
 )
-from hapticdesk.files.profile import DeskProfile, builtin_profile_path, load_profile
-from hapticdesk.files.recording import Recording, write_recording
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import builtin_profile_path, load_profile
+from hapticdesk.files.recording import Recording
+from hapticdesk.files.recording_io import write_recording
 from hapticdesk.sim import Idle, LiftObject, PutObject, Scene, SimEffects, simulate
 from hapticdesk.sim.desk import DeskModel, point_load
 from hapticdesk.sim.loadcells import LoadCellParameters

@@ -20,7 +20,8 @@ from hapticdesk.estimator.contacts import (
     ContactBlock,
     contact_events,
 )
-from hapticdesk.files.profile import METHODS, load_profile
+from hapticdesk.files.profile import METHODS
+from hapticdesk.files.profile_reader import load_profile
 
 README = Path(__file__).resolve().parents[2] / "README.md"
 POINTS = [(0.2, 0.1, 0.733), (-0.3, -0.2, 0.733), (0.0, 0.0, 0.733)]

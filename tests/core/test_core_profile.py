@@ -5,8 +5,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hapticdesk.files.profile import load_profile, rotation_matrix
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.profile_reader import load_profile
+from hapticdesk.files.rigid_body import rotation_matrix
 
 GOOD = """\
 name: bench
@@ -252,7 +253,8 @@ def test_two_six_axis_sensors_locate_a_touch(tmp_path):
 
 
 def test_a_load_cell_recording_has_one_column_per_cell(tmp_path):
-    from hapticdesk.files.recording import Recording, read_recording, write_recording
+    from hapticdesk.files.recording import Recording
+    from hapticdesk.files.recording_io import read_recording, write_recording
 
     desk = load_profile(write(tmp_path, LOAD_CELLS))
     k = 5

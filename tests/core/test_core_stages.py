@@ -17,7 +17,8 @@ from hapticdesk.estimator.notices import Notice
 from hapticdesk.estimator.samples import BAD_SAMPLE, SampleStage
 from hapticdesk.estimator.settings import EstimatorSettings
 from hapticdesk.estimator.zero import ZeroStage, subtract_zero
-from hapticdesk.files.profile import METHODS, load_profile
+from hapticdesk.files.profile import METHODS
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.sim import Press, Scene, SimEffects, simulate
 
 SPLITS = ("one", "ones", "sevens", "random")

@@ -19,10 +19,11 @@ pytest.importorskip("httpx")
 from starlette.testclient import TestClient  # noqa: E402
 
 from hapticdesk.analysis.known_weight import suggested_spots  # noqa: E402
-from hapticdesk.files.profile import DeskProfile, builtin_profile_path, load_profile  # noqa: E402
-from hapticdesk.files.recording import write_recording  # noqa: E402
+from hapticdesk.files.profile import DeskProfile  # noqa: E402
+from hapticdesk.files.profile_reader import builtin_profile_path, load_profile  # noqa: E402
+from hapticdesk.files.recording_io import write_recording  # noqa: E402
+from hapticdesk.plugin_loading import load_registry  # noqa: E402
 from hapticdesk.plugins.ui.server import UiServer  # noqa: E402
-from hapticdesk.registry import load_registry  # noqa: E402
 from hapticdesk.runtime.assembly import build_scene  # noqa: E402
 from hapticdesk.runtime.service import Runtime  # noqa: E402
 from hapticdesk.sim import Idle, LiftObject, PutObject, Scene, simulate  # noqa: E402

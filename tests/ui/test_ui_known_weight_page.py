@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 
 from hapticdesk.analysis.known_weight import suggested_spots
-from hapticdesk.files.profile import load_profile
+from hapticdesk.files.profile_reader import load_profile
 
 from .conftest import DESKTOP, EXAMPLES, IMAGES, UiProcess
 

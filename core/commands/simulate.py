@@ -1,5 +1,5 @@
 """``hapticdesk simulate SCENE --desk DESK -o REC.csv|npz [--seed N]``: a scene on a simulated
-desk into a recording (DESIGN.md format) with ground-truth columns ``true_x, true_y, true_fn``
+desk into a recording (docs: File formats) with ground-truth columns ``true_x, true_y, true_fn``
 (and ``true_z, true_fx, true_fy, true_fz, true_surface, true_action``)."""
 
 from __future__ import annotations

@@ -4,7 +4,7 @@
     hapticdesk strokes record NAME --layout L --source SPEC [--desk D] [--into DIR] [--count N]
 
 ``classify`` prints, per stroke, the file, the recognised shape (null when nothing matches
-well enough) and the score; with ``--json`` one JSON object a line (DESIGN.md, "Strokes").
+well enough) and the score; with ``--json`` one JSON object a line (docs/reference/files.md).
 A file that cannot be read is reported and the others are still classified (exit code 1).
 
 ``record`` runs a source (``sim:SCENE.yaml``, ``replay:REC.csv``, a live CAN bus …) through

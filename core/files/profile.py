@@ -1,6 +1,6 @@
 """Desk profiles: where the sensors stand, which surfaces can be touched, and how to estimate.
 
-The YAML format is a contract (../shared/DESIGN.md, "Desk profile"); this module is the
+The YAML format is a contract (docs/reference/profile.md); this module is the
 model it fills, and knows nothing of YAML: :mod:`.profile_reader` loads and checks a profile
 (``load_profile``), every error at ``file:line:column``. The profile also owns the one
 linear map from the stacked sensor channels to the resultant wrench about P_o (paper eqs. 1–4),

@@ -1,4 +1,4 @@
-"""Recordings: sample times and every sensor's raw channels, as CSV or NPZ (DESIGN.md).
+"""Recordings: sample times and every sensor's raw channels, as CSV or NPZ (docs: File formats).
 
 Header ``t`` then each sensor's channels, ``<sensor>_<channel>``, in the profile's order:
 ``<sensor>_fx … <sensor>_mz`` for a six-axis sensor, ``<sensor>_fz`` for a load cell, a

@@ -250,7 +250,7 @@ class CsvRecordingReader:
         if bad_value:
             row, col = int(bad_value.group(2)), usecols[int(bad_value.group(3)) - 1]
             extra = [e for e in self.extra if e[1] == col]
-            # other columns are ignored (DESIGN.md): a text column is not an error; but an
+            # other columns are ignored (docs: File formats): a text column is not an error; but an
             # accelerometer's columns are readings, whose silent loss would turn its
             # compensation off
             if extra and not ACCEL_COLUMN.fullmatch(extra[0][0]):

@@ -1,4 +1,4 @@
-"""Stroke files (DESIGN.md, "Strokes"): CSV ``x,y[,t]`` with a header, or JSON
+"""Stroke files (docs/reference/files.md): CSV ``x,y[,t]`` with a header, or JSON
 ``{"points": [[x, y], ...]}``, in desk coordinates (metres, y away from the user).
 
 A template folder holds one sub-folder per shape name with one or more stroke files.

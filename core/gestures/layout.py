@@ -1,5 +1,5 @@
 """Layouts: which parts of the desk are buttons, sliders and drawing areas, and what each
-gesture there does (DESIGN.md, "Layout").
+gesture there does (docs/reference/layout.md).
 
 This module is the model: :class:`Layout`, its :class:`Binding` and :class:`ActionUse`
 records; it reads no file. Loading (``layout_reader.load_layout``, the one entry point, with

@@ -511,7 +511,7 @@ def _strokes(
                 raise ConfigError(p.where("file"), f"`file` of {what} must be a path")
             target = Path(file) if Path(file).is_absolute() else path.parent / file
             try:
-                pts = read_stroke(target)  # metres, as the stroke file format says (DESIGN.md)
+                pts = read_stroke(target)  # metres, as the stroke file format says
             except ConfigError as err:
                 raise ConfigError(p.where("file"), f"{what}: {err}") from None
         if size is not None or center is not None:

@@ -97,7 +97,7 @@ class MqttSettings:
 
 @dataclass(frozen=True)
 class DeskTopics:
-    """The desk's own topics (DESIGN.md, "The desk as an MQTT device")."""
+    """The desk's own topics (docs/reference/mqtt.md)."""
 
     prefix: str  # <base>/<desk>: the state JSON
 

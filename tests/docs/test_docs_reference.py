@@ -240,11 +240,13 @@ def test_the_docs_found_whole_layouts_to_check() -> None:
 def test_users_are_not_sent_where_they_cannot_go() -> None:
     """The team's DESIGN.md and ../shared/ are not in the project: no page may send a user
     there (their contracts are stated in the docs' reference)."""
-    for folder in (DOCS, ROOT / "examples"):
-        for page in folder.rglob("*.md"):
-            text = page.read_text("utf-8")
-            assert "DESIGN.md" not in text, page
-            assert "../shared" not in text, page
+    pages = [ROOT / "README.md", *DOCS.rglob("*.md"), *(ROOT / "examples").rglob("*.md")]
+    # the package's own docstrings too: `help()` and an editor show them to a plugin's author
+    pages += [*(ROOT / "core").rglob("*.py"), *(ROOT / "plugins").rglob("*.py")]
+    for page in pages:
+        text = page.read_text("utf-8")
+        assert "DESIGN.md" not in text, page
+        assert "../shared" not in text, page
 
 
 def test_the_plugin_example_names_every_hook_and_where_they_are() -> None:

@@ -1,8 +1,8 @@
 """The sandbox a template renders in: Jinja2's immutable sandbox with every cost bounded.
 
 This is the part of :mod:`hapticdesk.plugins.templating` that runs inside the template
-worker (:mod:`hapticdesk.plugins.template_worker`), so it imports nothing of hapticdesk: the
-worker starts fast and holds nothing but Jinja2.
+worker (:mod:`hapticdesk.plugins.template_worker`), so it imports nothing of hapticdesk but
+the limits (:mod:`.template_limits`): the worker starts fast and holds nothing but Jinja2.
 
 Every operation that can make something large checks the size *before* making it: ``*``
 (a repeated text or list, a product of integers), ``**`` (an integer power), ``%`` (a
@@ -20,38 +20,25 @@ from __future__ import annotations
 
 import functools
 import json
-import math
-import re
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextvars import ContextVar
-from string import Formatter
 from typing import Any
 
-#: the longest text a template may render in all (a payload is a few hundred characters)
-MAX_RENDERED_CHARS = 65_536
-#: the longest text or list one operation may make: a repetition (``'x' * n``), a join, a
-#: padded field (``'%999d'``, ``'{:>999}'``), a filter's result
-MAX_PIECE_CHARS = 16_384
-#: the widest field a format may ask for (width or precision): a payload's numbers need a few
-MAX_FORMAT_WIDTH = 1_024
-#: the largest exponent of ``**``
-MAX_EXPONENT = 1000
-#: the largest integer an operation may make, in bits: 2**1100 is beyond any float already,
-#: and no payload needs a number larger than a double
-MAX_NUMBER_BITS = 1_100
-#: the most items ``range`` may give (Jinja's own sandbox allows 100,000)
-MAX_RANGE = 10_000
-#: the most loop turns and calls one rendering may take (text or lists made on the way count
-#: a step per kB): a payload loops over a few dozen items
-MAX_STEPS = 100_000
-#: how long one rendering may take, seconds (the worker's own check, at every loop turn and
-#: call; the process that asked kills the worker a little later if a single C call holds on)
-MAX_RENDER_S = 1.0
-
-
-class TemplateLimitError(ValueError):
-    """A template would render (or build on its way) more than the limits allow."""
+from hapticdesk.plugins.template_limits import (
+    MAX_PIECE_CHARS,
+    MAX_RANGE,
+    MAX_RENDER_S,
+    MAX_RENDERED_CHARS,
+    MAX_STEPS,
+    TemplateLimitError,
+    check_power,
+    check_product,
+    check_size,
+    check_widths,
+    percent_widths,
+    spec_widths,
+)
 
 
 class _Budget:
@@ -95,120 +82,6 @@ def _counted(iterable: Iterable[Any]) -> Iterator[Any]:
     for item in iterable:
         _spend()
         yield item
-
-
-def _limit(size: int, what: str, limit: int = MAX_PIECE_CHARS) -> None:
-    if size > limit:
-        raise TemplateLimitError(f"{what} would make {size} characters; the limit is {limit}")
-
-
-def int_bits(value: Any) -> float:
-    """About how many bits a number's integer part takes (0 for what is not a number)."""
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        return 0.0
-    if isinstance(value, int):
-        return float(abs(value).bit_length())
-    return math.log2(abs(value) + 1.0) if math.isfinite(value) else 0.0
-
-
-def check_power(base: Any, exponent: Any) -> None:
-    """Refuse ``base ** exponent`` when it would be a huge integer (before it is computed)."""
-    if isinstance(exponent, bool) or not isinstance(exponent, int | float):
-        return
-    if abs(exponent) > MAX_EXPONENT:
-        raise TemplateLimitError(f"an exponent over {MAX_EXPONENT} ({exponent})")
-    if isinstance(base, int) and isinstance(exponent, int) and exponent > 0:
-        bits = int_bits(base) * exponent
-        if bits > MAX_NUMBER_BITS:
-            raise TemplateLimitError(
-                f"a power of about {bits * math.log10(2):.0f} digits; numbers are limited to "
-                f"{MAX_NUMBER_BITS} bits (about {MAX_NUMBER_BITS * math.log10(2):.0f} digits)"
-            )
-
-
-def check_product(left: Any, right: Any) -> None:
-    """Refuse ``left * right`` when it would be a long text or list, or a huge integer."""
-    for seq, n in ((left, right), (right, left)):
-        if isinstance(seq, str | list | tuple) and isinstance(n, int):
-            _limit(len(seq) * n, "repeating")
-    if isinstance(left, int) and isinstance(right, int):
-        bits = int_bits(left) + int_bits(right)
-        if bits > MAX_NUMBER_BITS:
-            raise TemplateLimitError(
-                f"a product of about {bits * math.log10(2):.0f} digits; numbers are limited "
-                f"to {MAX_NUMBER_BITS} bits"
-            )
-
-
-def _digits(part: str) -> int:
-    """A width or precision written in a format (digits; a thousand of them is not turned
-    into an int: Python refuses that itself)."""
-    return int(part) if len(part) <= 18 else 10**18
-
-
-#: a %-conversion: an optional (key), flags, a width and a precision, each digits or `*`
-_CONVERSION = re.compile(r"%(?:\([^)]*\))?[-+ #0]*(\d+|\*)?(?:\.(\d+|\*))?")
-
-
-def percent_widths(text: str, args: Any = ()) -> list[int]:
-    """The widths and precisions a %-format string asks for (``*`` takes the integers of
-    ``args``), in order."""
-    out: list[int] = []
-    star = False
-    for width, precision in _CONVERSION.findall(text):
-        for part in (width, precision):
-            if part == "*":
-                star = True
-            elif part:
-                out.append(_digits(part))
-    if star:
-        items = args if isinstance(args, tuple | list) else (args,)
-        out += [abs(a) for a in items if isinstance(a, int) and not isinstance(a, bool)]
-    return out
-
-
-_FORMAT_SPEC = re.compile(r"^(?:.?[<>=^])?[-+ ]?[z]?#?0?(\d*)[,_]?(?:\.(\d+))?")
-
-
-def spec_widths(spec: str) -> list[int]:
-    """The width and precision of one ``str.format`` field's spec (``>999``, ``.5f``)."""
-    m = _FORMAT_SPEC.match(spec)
-    if m is None:
-        return []
-    return [_digits(part) for part in m.groups() if part]
-
-
-def format_string_widths(text: str) -> list[int]:
-    """Every literal width and precision in a ``str.format`` string (nested fields too)."""
-    out: list[int] = []
-    try:
-        parsed = list(Formatter().parse(text))
-    except ValueError:  # not a valid format string: it fails when called, making nothing
-        return out
-    for _, _, spec, _ in parsed:
-        if spec:
-            out += spec_widths(spec)
-            if "{" in spec:
-                out += format_string_widths(spec)
-    return out
-
-
-def wide_field(widths: list[int], what: str) -> str | None:
-    """What is wrong with the widest of ``widths``, if it is over MAX_FORMAT_WIDTH."""
-    too_wide = [w for w in widths if w > MAX_FORMAT_WIDTH]
-    if not too_wide:
-        return None
-    shown = f"{too_wide[0]}" if too_wide[0] < 10**18 else "more than 10**18"
-    return (
-        f"{what} asks for a field {shown} characters wide (or with that many decimals); "
-        f"the limit is {MAX_FORMAT_WIDTH}"
-    )
-
-
-def check_widths(widths: list[int], what: str) -> None:
-    problem = wide_field(widths, what)
-    if problem is not None:
-        raise TemplateLimitError(problem)
 
 
 def _width(value: Any) -> int:
@@ -269,7 +142,7 @@ def _bounded_join(eval_ctx: Any, value: Any, d: str = "", attribute: Any = None)
         _spend()
         items.append(item)
         size += len(str(item)) + len(str(d))
-        _limit(size, "the `join` filter")
+        check_size(size, "the `join` filter")
     return do_join(eval_ctx, items, d, attribute)
 
 
@@ -282,7 +155,7 @@ def _both_sequences(left: Any, right: Any) -> bool:
 def _bounded_concat(*parts: Any) -> str:
     """``a ~ b ~ …`` (text joined), refused before it passes MAX_RENDERED_CHARS."""
     texts = [str(p) for p in parts]
-    _limit(sum(len(t) for t in texts), "joining text with `~`", MAX_RENDERED_CHARS)
+    check_size(sum(len(t) for t in texts), "joining text with `~`", MAX_RENDERED_CHARS)
     return _made("".join(texts))
 
 
@@ -316,7 +189,7 @@ def _context_filter(name: str, original: Any, size: Callable[..., int] | None) -
         else:
             first = ()
         if size is not None:
-            _limit(size(*first, *args, **kwargs), f"the `{name}` filter")
+            check_size(size(*first, *args, **kwargs), f"the `{name}` filter")
         if count_at is not None and len(args) > count_at and isinstance(args[count_at], int):
             if args[count_at] > MAX_PIECE_CHARS:
                 raise TemplateLimitError(
@@ -346,26 +219,49 @@ class _BoundedFormatter:
         return Bounded(env)
 
 
-def make_environment() -> Any:
-    """The bounded sandbox (see the module docstring); jinja2 is imported here."""
-    from jinja2 import StrictUndefined, nodes
+def _check_binop(operator: str, left: Any, right: Any) -> None:
+    """Refuse ``left <operator> right`` when it would make something over the limits."""
+    if operator == "*":
+        check_product(left, right)
+    elif operator == "**":
+        check_power(left, right)
+    elif operator == "%" and isinstance(left, str):
+        check_widths(percent_widths(left, right), "a `%` format")
+        check_size(len(left) + sum(percent_widths(left, right)), "a `%` format")
+    elif operator == "+" and _both_sequences(left, right):
+        check_size(len(left) + len(right), "joining with `+`", MAX_RENDERED_CHARS)
+
+
+def _bounded_str_format(env: Any, value: Any) -> Callable[..., str]:
+    """``text.format`` / ``text.format_map`` (``value``, a bound method of a text), each
+    field's width checked once filled in, the result's length too."""
+    text = value.__self__
+    is_map = value.__name__ == "format_map"
+    formatter = _BoundedFormatter.make(env)
+
+    def bounded(*args: Any, **kwargs: Any) -> str:
+        if is_map:
+            if kwargs or len(args) != 1:
+                raise TypeError("format_map() takes exactly one mapping")
+            args, kwargs = (), args[0]
+        out = formatter.vformat(text, args, kwargs)
+        check_size(len(out), "`format`", MAX_RENDERED_CHARS)
+        return type(text)(out)
+
+    return bounded
+
+
+@functools.cache
+def _environment_class() -> type:
+    """Jinja2's immutable sandbox, every cost checked (jinja2 is imported here)."""
     from jinja2.sandbox import ImmutableSandboxedEnvironment
-    from jinja2.visitor import NodeTransformer
 
     class BoundedEnvironment(ImmutableSandboxedEnvironment):
         # an intercepted operator is also never folded into a constant when compiling
         intercepted_binops = frozenset({"*", "**", "+", "-", "/", "//", "%"})
 
         def call_binop(self, context: Any, operator: str, left: Any, right: Any) -> Any:
-            if operator == "*":
-                check_product(left, right)
-            elif operator == "**":
-                check_power(left, right)
-            elif operator == "%" and isinstance(left, str):
-                check_widths(percent_widths(left, right), "a `%` format")
-                _limit(len(left) + sum(percent_widths(left, right)), "a `%` format")
-            elif operator == "+" and _both_sequences(left, right):
-                _limit(len(left) + len(right), "joining with `+`", MAX_RENDERED_CHARS)
+            _check_binop(operator, left, right)
             _spend()
             return _made(super().call_binop(context, operator, left, right))
 
@@ -380,33 +276,26 @@ def make_environment() -> Any:
             return _made(super().call_filter(*args, **kwargs))
 
         def wrap_str_format(self, value: Any) -> Any:
-            wrapped = super().wrap_str_format(value)
-            if wrapped is None:
+            if super().wrap_str_format(value) is None:
                 return None
-            text = value.__self__
-            is_map = value.__name__ == "format_map"
-            formatter = _BoundedFormatter.make(self)
-
-            def bounded(*args: Any, **kwargs: Any) -> str:
-                if is_map:
-                    if kwargs or len(args) != 1:
-                        raise TypeError("format_map() takes exactly one mapping")
-                    args, kwargs = (), args[0]
-                out = formatter.vformat(text, args, kwargs)
-                _limit(len(out), "`format`", MAX_RENDERED_CHARS)
-                return type(text)(out)
-
-            return bounded
+            return _bounded_str_format(self, value)
 
         def _parse(self, source: str, name: str | None, filename: str | None) -> Any:
-            return _CostsCounted().visit(super()._parse(source, name, filename))
+            return _costs_counted()().visit(super()._parse(source, name, filename))
 
-    class _CostsCounted(NodeTransformer):
-        """Every `for` loop iterates through _counted (an empty loop body has no call and
-        no output to count otherwise), and `a ~ b` joins text through a bounded call (it has
-        no operator hook: a namespace doubling itself with `~` in a loop had no bound but
-        the memory)."""
+    return BoundedEnvironment
 
+
+@functools.cache
+def _costs_counted() -> type:
+    """The transformer every parsed template passes: each `for` loop iterates through
+    _counted (an empty loop body has no call and no output to count otherwise), and `a ~ b`
+    joins text through a bounded call (it has no operator hook: a namespace doubling itself
+    with `~` in a loop had no bound but the memory)."""
+    from jinja2 import nodes
+    from jinja2.visitor import NodeTransformer
+
+    class CostsCounted(NodeTransformer):
         def visit_For(self, node: Any) -> Any:
             node = self.generic_visit(node)
             counter = nodes.EnvironmentAttribute("count_steps", lineno=node.lineno)
@@ -418,13 +307,19 @@ def make_environment() -> Any:
             joined = nodes.EnvironmentAttribute("bounded_concat", lineno=node.lineno)
             return nodes.Call(joined, list(node.nodes), [], None, None, lineno=node.lineno)
 
-    env = BoundedEnvironment(undefined=StrictUndefined, autoescape=False, optimized=False)
-    env.count_steps = _counted  # type: ignore[attr-defined]
-    env.bounded_concat = _bounded_concat  # type: ignore[attr-defined]
-    del env.globals["lipsum"]  # random text of any length: no use in a payload
-    env.globals["range"] = _bounded_range
+    return CostsCounted
+
+
+def make_environment() -> Any:
+    """The bounded sandbox (see the module docstring); jinja2 is imported here."""
+    from jinja2 import StrictUndefined
     from jinja2.utils import pass_eval_context
 
+    env = _environment_class()(undefined=StrictUndefined, autoescape=False, optimized=False)
+    env.count_steps = _counted
+    env.bounded_concat = _bounded_concat
+    del env.globals["lipsum"]  # random text of any length: no use in a payload
+    env.globals["range"] = _bounded_range
     env.filters["join"] = pass_eval_context(_bounded_join)
     for name in list(env.filters):
         env.filters[name] = _context_filter(name, env.filters[name], _FILTER_SIZES.get(name))
@@ -463,129 +358,3 @@ def render_bounded(
     finally:
         _BUDGET.reset(token)
     return "".join(parts)
-
-
-# --- before anything runs: what the text itself asks for -------------------------------------
-
-#: the variables that always hold text (a repetition of one of them is a repetition of text)
-TEXT_VARIABLES = frozenset(
-    {"gesture", "region", "shape", "direction", "level", "phase", "action", "desk"}
-)
-#: filters whose numeric argument (after the value) is a size or a count of parts
-_SIZE_ARGUMENT_FILTERS = frozenset({"center", "indent", "truncate", "wordwrap", "batch", "slice"})
-
-
-def static_problems(tree: Any) -> list[str]:
-    """What a parsed template asks for beyond the limits in its text alone, whatever event
-    it is rendered for: literal arithmetic making a huge number (``9**999``, powers of
-    powers), a literal format's widths (``'%999999999d'``, ``'{:>999999999}'``), a literal
-    repetition (``'x' * 60000``), a ``range`` or a filter's size over the limits. Each a
-    sentence; empty when none. (What depends on the event is bounded while rendering.)"""
-    from jinja2 import nodes
-
-    problems: list[str] = []
-
-    def number(node: Any) -> float | None:
-        if isinstance(node, nodes.Const) and isinstance(node.value, int | float):
-            return None if isinstance(node.value, bool) else float(node.value)
-        if isinstance(node, nodes.Neg):
-            inner = number(node.node)
-            return None if inner is None else -inner
-        return None
-
-    def bits(node: Any) -> float | None:
-        """The size of a constant arithmetic expression's result in bits (None: unknown)."""
-        value = number(node)
-        if value is not None:
-            return int_bits(value)
-        if isinstance(node, nodes.Neg | nodes.Pos):
-            return bits(node.node)
-        if isinstance(node, nodes.Pow):
-            base, exponent = bits(node.left), number(node.right)
-            if exponent is None:
-                exponent_bits = bits(node.right)  # a power of a power: 9 ** (9 ** 9)
-                if base is None or exponent_bits is None:
-                    return None
-                return math.inf if exponent_bits > 64 else base * 2.0**exponent_bits
-            return None if base is None else base * max(exponent, 0.0)
-        if isinstance(node, nodes.Mul):
-            left, right = bits(node.left), bits(node.right)
-            return None if left is None or right is None else left + right
-        if isinstance(node, nodes.Add | nodes.Sub):
-            left, right = bits(node.left), bits(node.right)
-            return None if left is None or right is None else max(left, right) + 1
-        if isinstance(node, nodes.Div | nodes.FloorDiv | nodes.Mod):
-            return bits(node.left)
-        return None
-
-    def length(node: Any) -> int | None:
-        """The least length of what ``node`` makes when it is text or a list."""
-        if isinstance(node, nodes.Const) and isinstance(node.value, str | list | tuple):
-            return len(node.value)
-        if isinstance(node, nodes.List | nodes.Tuple):
-            return len(node.items)
-        if isinstance(node, nodes.Name) and node.name in TEXT_VARIABLES:
-            return 1  # (an empty region name is not possible, a gesture's never empty)
-        if isinstance(node, nodes.Mul):
-            for seq, count in ((node.left, node.right), (node.right, node.left)):
-                inner, n = length(seq), number(count)
-                if inner is not None and n is not None:
-                    return int(inner * max(n, 0))
-        return None
-
-    for node in tree.find_all((nodes.Pow, nodes.Mul)):
-        if isinstance(node, nodes.Pow):
-            exponent = number(node.right)
-            if exponent is not None and abs(exponent) > MAX_EXPONENT:
-                problems.append(f"an exponent over {MAX_EXPONENT} ({exponent:g})")
-        size = bits(node)
-        if size is not None and size > MAX_NUMBER_BITS:
-            digits = "more than a billion" if size > 3e9 else f"about {size * math.log10(2):.0f}"
-            problems.append(
-                f"literal arithmetic making a number of {digits} digits; numbers are limited "
-                f"to {MAX_NUMBER_BITS} bits (about {MAX_NUMBER_BITS * math.log10(2):.0f} digits)"
-            )
-        made = length(node) if isinstance(node, nodes.Mul) else None
-        if made is not None and made > MAX_PIECE_CHARS:
-            problems.append(
-                f"a repetition making {made} characters or items; the limit is {MAX_PIECE_CHARS}"
-            )
-    for node in tree.find_all((nodes.Mod, nodes.Call, nodes.Filter)):
-        widths: list[int] = []
-        if isinstance(node, nodes.Mod) and isinstance(node.left, nodes.Const):
-            if isinstance(node.left.value, str):
-                widths = percent_widths(node.left.value)
-        elif isinstance(node, nodes.Call):
-            callee = node.node
-            if isinstance(callee, nodes.Name) and callee.name == "range":
-                counts = [number(a) for a in node.args]
-                if counts and all(c is not None and c == int(c) for c in counts):
-                    try:
-                        items = len(range(*(int(c) for c in counts if c is not None)))
-                    except (ValueError, OverflowError):
-                        items = 0
-                    if items > MAX_RANGE:
-                        problems.append(f"a range of {items} items; the limit is {MAX_RANGE}")
-            elif (
-                isinstance(callee, nodes.Getattr)
-                and callee.attr in ("format", "format_map")
-                and isinstance(callee.node, nodes.Const)
-                and isinstance(callee.node.value, str)
-            ):
-                widths = format_string_widths(callee.node.value)
-        elif isinstance(node, nodes.Filter):
-            if node.name == "format" and isinstance(node.node, nodes.Const):
-                if isinstance(node.node.value, str):
-                    widths = percent_widths(node.node.value)
-            elif node.name in _SIZE_ARGUMENT_FILTERS:
-                for arg in node.args:
-                    n = number(arg)
-                    if n is not None and n > MAX_PIECE_CHARS:
-                        problems.append(
-                            f"the `{node.name}` filter asked for {n:g} (characters or parts); "
-                            f"the limit is {MAX_PIECE_CHARS}"
-                        )
-        problem = wide_field(widths, "a format")
-        if problem is not None:
-            problems.append(problem)
-    return problems

@@ -8,14 +8,14 @@ layout's ``file:line:column`` before anything runs.
 
 Costs are bounded three times over, in ``check`` and ``run`` alike:
 
-1. the text itself (:func:`~.template_sandbox.static_problems`): literal arithmetic making a
+1. the text itself (:func:`~.template_text.static_problems`): literal arithmetic making a
    huge number, a literal format's widths, a literal repetition, a ``range`` over the limits
    are refused at compile time, whichever branch they stand in;
 2. while rendering (:mod:`.template_sandbox`): every operation that makes something large
    checks its size before, loop turns and calls spend a budget;
-3. every rendering runs in a worker process (:mod:`.template_worker`) killed at
-   :data:`MAX_RENDER_S`, with its memory limited: a single C call nobody foresaw cannot hold
-   the desk.
+3. every rendering runs in a worker process (:mod:`.template_worker`, from the pool of
+   :mod:`.template_pool`) killed at :data:`MAX_RENDER_S`, with its memory limited: a single
+   C call nobody foresaw cannot hold the desk.
 
 ``check`` renders each template for sample events, for the constants the template compares
 variables with (``{% if region == 'b5' %}``), and (:func:`check_for_events`) for every event
@@ -40,15 +40,18 @@ from typing import Any
 from hapticdesk.errors import ConfigError, LayoutWarning, Position
 from hapticdesk.files.marked_values import MarkedDict, MarkedList
 from hapticdesk.gestures.event import GestureEvent
-from hapticdesk.plugins import template_sandbox, template_worker
-from hapticdesk.plugins.template_sandbox import (
+from hapticdesk.plugins import template_pool, template_sandbox
+from hapticdesk.plugins.template_limits import (
     MAX_EXPONENT,
     MAX_FORMAT_WIDTH,
     MAX_NUMBER_BITS,
     MAX_PIECE_CHARS,
     MAX_RANGE,
+    MAX_RENDER_S,
     MAX_RENDERED_CHARS,
-    static_problems,
+    MAX_STEPS,
+    TemplateError,
+    TemplateLimitError,
 )
 
 __all__ = [
@@ -94,10 +97,6 @@ EVENT_FIELDS = (
 #: extras), ``action`` its Zigbee2MQTT-style action string, ``desk`` the desk's name
 VARIABLES = (*EVENT_FIELDS, "action", "desk", "event")
 
-#: the most loop turns and calls one rendering may take (see :mod:`.template_sandbox`)
-MAX_STEPS = template_sandbox.MAX_STEPS
-#: the longest one rendering may take, seconds: the worker rendering it is killed then
-MAX_RENDER_S = template_sandbox.MAX_RENDER_S
 #: the longest `check` spends rendering one template for every event its gesture can make
 MAX_CHECK_S = 3.0
 #: the variables of the sample event a template is rendered with once when it is checked
@@ -126,14 +125,6 @@ _INT = re.compile(r"[+-]?\d+")
 _FLOAT = re.compile(r"[+-]?(\d+\.\d*|\.\d+|\d+)([eE][+-]?\d+)?|[+-]?(nan|inf|infinity)", re.I)
 
 
-class TemplateError(ValueError):
-    """A template failed while rendering for one event (reported by the dispatcher)."""
-
-
-class TemplateLimitError(TemplateError):
-    """A template would render (or build on its way) more than the limits allow."""
-
-
 def is_template(text: str) -> bool:
     return "{{" in text or "{%" in text
 
@@ -150,14 +141,10 @@ def render_text(text: str, variables: Mapping[str, Any]) -> str:
     :data:`MAX_RENDER_S` and the worker's memory bound; TemplateLimitError past them,
     TemplateError when the template fails for these variables."""
     global _said_in_process
-    workers = template_worker.pool()
+    workers = template_pool.pool()
     if workers.unavailable is None:
         try:
             return workers.render(text, variables, max_steps=MAX_STEPS, limit_s=MAX_RENDER_S)
-        except template_worker.WorkerLimit as err:
-            raise TemplateLimitError(str(err)) from None
-        except template_worker.WorkerFailed as err:
-            raise TemplateError(str(err)) from None
         except OSError:
             pass  # no worker could start: said below, rendered here
     if not _said_in_process:
@@ -172,8 +159,8 @@ def render_text(text: str, variables: Mapping[str, Any]) -> str:
         return template_sandbox.render_bounded(
             compiled, variables, max_steps=MAX_STEPS, limit_s=MAX_RENDER_S
         )
-    except template_sandbox.TemplateLimitError as err:
-        raise TemplateLimitError(str(err)) from None
+    except TemplateLimitError:
+        raise
     except MemoryError:
         raise TemplateLimitError("it needs more memory than there is") from None
     except Exception as err:
@@ -234,15 +221,17 @@ def compile_template(text: str, where: Position | str, what: str = "template") -
     if not is_template(text):
         return Template(text, None, str(where))
     env = _environment()
-    template_worker.pool().warm()  # (the first rendering then finds a worker started)
+    template_pool.pool().warm()  # (the first rendering then finds a worker started)
     from jinja2 import TemplateSyntaxError, meta
+
+    from hapticdesk.plugins import template_text  # (jinja2 only when a layout has a template)
 
     try:
         tree = env.parse(text)
-        too_costly = static_problems(tree)
-        misread = _filters_on_a_number(tree)
+        too_costly = template_text.static_problems(tree)
+        misread = template_text.filters_on_a_number(tree)
         unknown = sorted(meta.find_undeclared_variables(tree) - set(VARIABLES))
-        compared = _compared_constants(tree)
+        compared = template_text.compared_constants(tree, VARIABLES, EVENT_FIELDS)
         compiled = env.from_string(text)
     except TemplateSyntaxError as err:
         raise ConfigError(where, f"{what} is not a valid template: {err.message}") from None
@@ -269,59 +258,6 @@ def compile_template(text: str, where: Position | str, what: str = "template") -
     samples = [(v, "an event") for v in _sample_variables(compared)]
     _check_renders(template, samples, where, what)
     return template
-
-
-def _filters_on_a_number(tree: Any) -> list[tuple[str, Any, str]]:
-    """(filters, number, operator) of each ``value * 254 | round``: a filter binds tighter
-    than arithmetic, so this rounds 254 and sends the product unrounded (a brightness of
-    24.93). A filter on a lone number is never meant: :func:`compile_template` says so as a
-    layout warning (the layout reader collects ``warnings.warn``)."""
-    from jinja2 import nodes
-
-    found = []
-    for op in tree.find_all(nodes.BinExpr):
-        names, inner = [], op.right
-        while isinstance(inner, nodes.Filter):
-            names.append(inner.name)
-            inner = inner.node
-        if names and isinstance(inner, nodes.Const) and not isinstance(op.left, nodes.Const):
-            found.append((" | ".join(reversed(names)), inner.value, op.operator))
-    return found
-
-
-def _compared_constants(tree: Any) -> dict[str, set[Any]]:
-    """Variable -> the constants the template compares it with (``region == 'b5'``,
-    ``direction in ['up', 'down']``, ``event.level == 'hard'``): the values a check renders
-    it with besides the sample's, so the branch they guard is rendered too."""
-    from jinja2 import nodes
-
-    def variable(node: Any) -> str | None:
-        if isinstance(node, nodes.Name) and node.name in VARIABLES:
-            return str(node.name)
-        if isinstance(node, nodes.Getattr | nodes.Getitem) and isinstance(node.node, nodes.Name):
-            if node.node.name == "event":
-                key = node.attr if isinstance(node, nodes.Getattr) else None
-                if isinstance(node, nodes.Getitem) and isinstance(node.arg, nodes.Const):
-                    key = node.arg.value
-                return key if key in EVENT_FIELDS else None
-        return None
-
-    def constants(node: Any) -> list[Any]:
-        if isinstance(node, nodes.Const) and isinstance(node.value, str | int | float):
-            return [node.value]
-        if isinstance(node, nodes.List | nodes.Tuple):
-            return [c for item in node.items for c in constants(item)]
-        return []
-
-    found: dict[str, set[Any]] = {}
-    for compare in tree.find_all(nodes.Compare):
-        operands = [compare.expr, *(op.expr for op in compare.ops)]
-        for a, b in zip(operands, operands[1:], strict=False):
-            for name_node, value_node in ((a, b), (b, a)):
-                name = variable(name_node)
-                if name is not None:
-                    found.setdefault(name, set()).update(constants(value_node))
-    return found
 
 
 def _sample_variables(compared: Mapping[str, set[Any]]) -> list[dict[str, Any]]:

@@ -122,16 +122,16 @@ def main() -> int:
                         pages.append(pg)
                     time.sleep(0.5)
                 counts0 = [pg.evaluate("window.hapticdeskStats.contacts") for pg in pages]
-                published0, dropped0 = server.contacts_published, server.contacts_dropped
+                published0, dropped0 = server.hub.contacts_published, server.hub.contacts_dropped
                 phase[0] = label
                 t0 = time.monotonic()
                 time.sleep(args.phase_s)
                 elapsed = time.monotonic() - t0
                 phase[0] = "between"
                 published.setdefault(label, []).append(
-                    (server.contacts_published - published0) / elapsed
+                    (server.hub.contacts_published - published0) / elapsed
                 )
-                dropped.setdefault(label, []).append(server.contacts_dropped - dropped0)
+                dropped.setdefault(label, []).append(server.hub.contacts_dropped - dropped0)
                 for pg, c0 in zip(pages, counts0, strict=True):
                     n = pg.evaluate("window.hapticdeskStats.contacts") - c0
                     received.setdefault(label, []).append(n / elapsed)

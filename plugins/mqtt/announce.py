@@ -49,7 +49,8 @@ import uuid
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from hapticdesk.plugins.mqtt.settings import MqttSettings, apply_login
+from hapticdesk.plugins.mqtt.paho_clients import message_expiry, new_client
+from hapticdesk.plugins.mqtt.settings import MqttSettings
 
 log = logging.getLogger(__name__)
 
@@ -150,44 +151,8 @@ def publish_steps(
     steps sent, or None when the broker could not be reached or did not answer (said in the
     log: the run goes on, and the link announces its configs when it connects). ``mqtt5``:
     in MQTT 5, a migration message retained for :data:`MIGRATE_EXPIRY_S` only."""
-    import paho.mqtt.client as mqtt
-
-    patterns = [f"{prefix}/+/{node}/+/config", device_topic(prefix, node)]
-    # a root of its own: subscribers to the desk's topics (hapticdesk/#) never see the probe
-    probe = f"hapticdesk-sweep/{node}/{uuid.uuid4().hex}"
-    found: dict[str, bytes] = {}
-    done = threading.Event()
-    client = mqtt.Client(
-        mqtt.CallbackAPIVersion.VERSION2,
-        client_id=f"{settings.client_id}-discovery"[:128],
-        clean_session=None if mqtt5 else True,  # (MQTT 5: a clean start, connect's default)
-        protocol=mqtt.MQTTv5 if mqtt5 else mqtt.MQTTv311,
-    )
-    apply_login(client, settings)
-
-    def on_connect(c: Any, u: Any, flags: Any, reason: Any, props: Any) -> None:
-        if not reason.is_failure:
-            c.subscribe([*((p, 1) for p in patterns), (probe, 1)])
-
-    def on_subscribe(c: Any, u: Any, mid: Any, reasons: Any, props: Any) -> None:
-        c.publish(probe, b"", qos=1)
-
-    def on_message(c: Any, u: Any, message: Any) -> None:
-        if message.topic == probe:
-            done.set()
-        elif message.retain and message.payload and not done.is_set():
-            found[message.topic] = bytes(message.payload)
-
-    expiring = None
-    if mqtt5:
-        from paho.mqtt.packettypes import PacketTypes
-        from paho.mqtt.properties import Properties
-
-        expiring = Properties(PacketTypes.PUBLISH)
-        expiring.MessageExpiryInterval = MIGRATE_EXPIRY_S
-    client.on_connect = on_connect
-    client.on_subscribe = on_subscribe
-    client.on_message = on_message
+    sweep = _Sweep([f"{prefix}/+/{node}/+/config", device_topic(prefix, node)], node)
+    client = _sweep_client(settings, mqtt5, sweep)
     try:
         client.connect(settings.host, settings.port, settings.keepalive)
     except (OSError, ssl.SSLError, ValueError) as err:
@@ -195,21 +160,12 @@ def publish_steps(
         return None
     client.loop_start()
     try:
-        if not done.wait(SWEEP_TIMEOUT_S):
+        if not sweep.done.wait(SWEEP_TIMEOUT_S):
             log.warning("MQTT: Home Assistant discovery not announced (no answer in time)")
             return None
-        client.unsubscribe(patterns)  # our own messages must not come back as found
-        steps = make_steps(dict(found))
-        for i, step in enumerate(steps):
-            infos = [
-                client.publish(topic, payload, qos=1, retain=True,
-                               properties=expiring if payload == MIGRATE else None)
-                for topic, payload in step
-            ]  # fmt: skip
-            for info in infos:
-                info.wait_for_publish(SWEEP_TIMEOUT_S)
-            if i + 1 < len(steps):
-                time.sleep(STEP_PAUSE_S)
+        client.unsubscribe(sweep.patterns)  # our own messages must not come back as found
+        steps = make_steps(dict(sweep.found))
+        _publish(client, steps, message_expiry(MIGRATE_EXPIRY_S) if mqtt5 else None)
         cleared = [t for step in steps for t, p in step if not p]
         if cleared:
             log.info("MQTT: cleared %d old discovery config(s): %s", len(cleared), cleared)
@@ -217,6 +173,57 @@ def publish_steps(
     finally:
         client.disconnect()
         client.loop_stop()
+
+
+class _Sweep:
+    """What the broker retains on ``patterns``: subscribed, then a probe of our own sent
+    after them; when the probe comes back, every retained message has come before it."""
+
+    def __init__(self, patterns: list[str], node: str) -> None:
+        self.patterns = patterns
+        # a root of its own: subscribers to the desk's topics (hapticdesk/#) never see it
+        self.probe = f"hapticdesk-sweep/{node}/{uuid.uuid4().hex}"
+        self.found: dict[str, bytes] = {}
+        self.done = threading.Event()
+
+    def on_connect(self, c: Any, u: Any, flags: Any, reason: Any, props: Any) -> None:
+        if not reason.is_failure:
+            c.subscribe([*((p, 1) for p in self.patterns), (self.probe, 1)])
+
+    def on_subscribe(self, c: Any, u: Any, mid: Any, reasons: Any, props: Any) -> None:
+        c.publish(self.probe, b"", qos=1)
+
+    def on_message(self, c: Any, u: Any, message: Any) -> None:
+        if message.topic == self.probe:
+            self.done.set()
+        elif message.retain and message.payload and not self.done.is_set():
+            self.found[message.topic] = bytes(message.payload)
+
+
+def _sweep_client(settings: MqttSettings, mqtt5: bool, sweep: _Sweep) -> Any:
+    """A paho client of its own for the announcement, with ``sweep``'s callbacks."""
+    client = new_client(  # (MQTT 5: a clean start, connect's default)
+        settings, mqtt5=mqtt5, clean_session=True, client_id=f"{settings.client_id}-discovery"[:128]
+    )
+    client.on_connect = sweep.on_connect
+    client.on_subscribe = sweep.on_subscribe
+    client.on_message = sweep.on_message
+    return client
+
+
+def _publish(client: Any, steps: list[Step], expiring: Any) -> None:
+    """Each step retained and acknowledged, then :data:`STEP_PAUSE_S` before the next; a
+    migration message with ``expiring`` (MQTT 5 properties, or None)."""
+    for i, step in enumerate(steps):
+        infos = [
+            client.publish(topic, payload, qos=1, retain=True,
+                           properties=expiring if payload == MIGRATE else None)
+            for topic, payload in step
+        ]  # fmt: skip
+        for info in infos:
+            info.wait_for_publish(SWEEP_TIMEOUT_S)
+        if i + 1 < len(steps):
+            time.sleep(STEP_PAUSE_S)
 
 
 class Announcer:

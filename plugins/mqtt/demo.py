@@ -19,7 +19,7 @@ import threading
 import time
 from collections import Counter
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple, TextIO
 
 import hapticdesk
 from hapticdesk.errors import ConfigError
@@ -27,6 +27,7 @@ from hapticdesk.plugin_loading import load_registry
 from hapticdesk.plugins.mqtt.settings import parse_broker_url
 from hapticdesk.runtime.assembly import build_scene
 from hapticdesk.runtime.dispatcher import Lane
+from hapticdesk.runtime.run_report import RunReport
 from hapticdesk.runtime.service import Runtime
 
 LAMP_TOPIC = "zigbee2mqtt/+/set"
@@ -183,18 +184,7 @@ class _ExpectedFallback(logging.Filter):
 
 def run(args: argparse.Namespace) -> int:
     out = sys.stdout
-    examples = examples_dir()
-    layout = Path(args.layout) if args.layout else examples / "layouts" / "demo.yaml"
-    scene_file = Path(args.scene) if args.scene else examples / "scenes" / "demo.yaml"
-    for path, given in ((layout, args.layout), (scene_file, args.scene)):
-        if given and not path.is_file():
-            what = "not a regular file" if path.exists() else "no such file"
-            raise ConfigError(str(path), what)
-        if not path.is_file():
-            raise ConfigError(
-                str(path),
-                "the demo's file is missing (examples/ not installed?); give --layout, --scene",
-            )
+    layout, scene_file = _demo_files(args)
     broker = None
     url = args.mqtt
     if url is None:
@@ -211,25 +201,9 @@ def run(args: argparse.Namespace) -> int:
     counted = GestureCount()
     try:
         lamp = Lamp(url, out).start()
-        registry = load_registry()
-        scene = build_scene(
-            layout,
-            f"sim:{scene_file}",
-            registry,
-            speed=args.speed,
-            overrides={"mqtt": {"broker": url}},
-        )
-        scene.dispatcher.add_sink(Lane("the demo's count of gestures", counted))
-        print(
-            f"simulated desk `{scene.profile.name}` playing {scene_file.name} with layout "
-            f"{layout.name}; the lamp listens on {LAMP_TOPIC}",
-            file=out,
-            flush=True,
-        )
-        report = Runtime(scene, status=sys.stderr if sys.stderr.isatty() else None).run()
-        sent = sum(lane.stats.ok for route in scene.dispatcher.routes for lane in route.lanes)
+        played = _play(layout, scene_file, url, args.speed, counted, out)
         deadline = time.monotonic() + 5.0
-        while lamp.received < sent and time.monotonic() < deadline:
+        while lamp.received < played.commands_sent and time.monotonic() < deadline:
             time.sleep(0.02)
         lamp.final()
     finally:
@@ -239,13 +213,64 @@ def run(args: argparse.Namespace) -> int:
             lamp.stop()
         if broker is not None:
             broker.stop()
+    _summary(out, counted, played, lamp)
+    return 0 if lamp.received == played.commands_sent and not played.report.error else 1
+
+
+def _demo_files(args: argparse.Namespace) -> tuple[Path, Path]:
+    """(the layout, the scene): the demo's own or those given; ConfigError when missing."""
+    examples = examples_dir()
+    layout = Path(args.layout) if args.layout else examples / "layouts" / "demo.yaml"
+    scene_file = Path(args.scene) if args.scene else examples / "scenes" / "demo.yaml"
+    for path, given in ((layout, args.layout), (scene_file, args.scene)):
+        if given and not path.is_file():
+            what = "not a regular file" if path.exists() else "no such file"
+            raise ConfigError(str(path), what)
+        if not path.is_file():
+            raise ConfigError(
+                str(path),
+                "the demo's file is missing (examples/ not installed?); give --layout, --scene",
+            )
+    return layout, scene_file
+
+
+class _Played(NamedTuple):
+    """What the simulated desk did: the run's report and the commands its actions sent."""
+
+    report: RunReport
+    commands_sent: int
+
+
+def _play(
+    layout: Path, scene_file: Path, url: str, speed: float, counted: GestureCount, out: TextIO
+) -> _Played:
+    """The scene played on the simulated desk, its actions publishing to ``url``."""
+    scene = build_scene(
+        layout,
+        f"sim:{scene_file}",
+        load_registry(),
+        speed=speed,
+        overrides={"mqtt": {"broker": url}},
+    )
+    scene.dispatcher.add_sink(Lane("the demo's count of gestures", counted))
+    print(
+        f"simulated desk `{scene.profile.name}` playing {scene_file.name} with layout "
+        f"{layout.name}; the lamp listens on {LAMP_TOPIC}",
+        file=out,
+        flush=True,
+    )
+    report = Runtime(scene, status=sys.stderr if sys.stderr.isatty() else None).run()
+    sent = sum(lane.stats.ok for route in scene.dispatcher.routes for lane in route.lanes)
+    return _Played(report, sent)
+
+
+def _summary(out: TextIO, counted: GestureCount, played: _Played, lamp: Lamp) -> None:
     print(f"gestures: {counted.text()}", file=out)
-    print(f"commands: {sent} sent, {lamp.received} received by the lamp", file=out)
-    for line in report.notes:
+    print(f"commands: {played.commands_sent} sent, {lamp.received} received by the lamp", file=out)
+    for line in played.report.notes:
         print(line, file=out)
     for device, state in lamp.state.items():
         percent = round(100 * state["brightness"] / 254)
         print(f"{device} ends {state['state']} at brightness {percent} %", file=out)
-    if report.error:
-        print(f"error: {report.error}", file=out)
-    return 0 if lamp.received == sent and not report.error else 1
+    if played.report.error:
+        print(f"error: {played.report.error}", file=out)

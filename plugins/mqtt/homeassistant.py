@@ -14,7 +14,8 @@ config with ``origin`` (this software) and ``device`` (the desk):
   topic as their ``availability_topic``; device triggers have no availability in Home
   Assistant's schema.
 
-Stale configs (a binding removed since the last run) are cleared by :mod:`.stale`.
+:func:`discovery_for` gathers a run's configs, the desk's controls (:mod:`.control`) with
+them; stale configs (a binding removed since the last run) are cleared by :mod:`.announce`.
 Keys follow Home Assistant's MQTT integration docs (event, sensor, binary_sensor, device
 trigger, "MQTT Discovery"); tests/runtime/test_mqtt_homeassistant.py checks every payload
 against a table of the documented keys.
@@ -29,12 +30,15 @@ from typing import Any
 
 from hapticdesk import __version__
 from hapticdesk.gestures.event import GestureEvent
+from hapticdesk.plugins.mqtt.control import control_entities
 from hapticdesk.plugins.mqtt.discovery import (
     DeviceTrigger,
     details_of,
     device_triggers,
     object_id,
 )
+from hapticdesk.plugins.mqtt.settings import DEFAULT_BASE_TOPIC, DeskTopics, MqttSettings
+from hapticdesk.runtime.dispatcher import ActionContext
 
 ORIGIN = {"name": "hapticdesk", "sw_version": __version__}
 
@@ -101,23 +105,57 @@ SENSORS: list[tuple[str, str, dict[str, Any]]] = [
 ]
 
 
-@dataclass(frozen=True)
-class DeskTopics:
-    """The desk's own topics (docs/reference/mqtt.md)."""
+def discovery_for(
+    context: ActionContext, settings: MqttSettings, layouts: list[str] | None = None
+) -> list[Any]:
+    """The run's Home Assistant discovery configs, one per trigger and entity: the gestures,
+    sensors and connectivity (:func:`discovery_configs`) and the desk's controls
+    (:mod:`.control`); each has ``topic``, ``config`` and ``payload``. ``layouts``: the
+    select's options (default: the current layout's names; a run keeps those it started
+    with, as the runtime does)."""
+    desk = context.desk_name
+    node = ha_node(settings, desk)
+    model = f"hapticdesk on {getattr(context.profile, 'name', 'a desk')}"
+    topics = settings.topics(desk)
+    configs: list[Any] = discovery_configs(
+        getattr(context.layout, "bindings", []),
+        desk=desk,
+        model=model,
+        topics=topics,
+        prefix=settings.discovery_prefix,
+        qos=min(settings.qos, 1),
+        node=node,
+    )
+    controls = control_entities(
+        desk=desk,
+        set_topic=topics.set,
+        state_topic=topics.prefix,
+        availability_topic=topics.availability,
+        layouts=layout_names(context.layout) if layouts is None else layouts,
+        device=device_info(desk, model, node),
+        prefix=settings.discovery_prefix,
+        node=node,
+        origin=ORIGIN,
+    )
+    return configs + controls
 
-    prefix: str  # <base>/<desk>: the state JSON
 
-    @property
-    def action(self) -> str:
-        return f"{self.prefix}/action"
+def ha_node(settings: MqttSettings, desk: str) -> str:
+    """The desk's node id in Home Assistant (discovery topics, device identifier).
 
-    @property
-    def event(self) -> str:
-        return f"{self.prefix}/event"
+    From the desk's name under the default ``hapticdesk/<desk>`` topics, as always; from the
+    desk's whole topic prefix when ``prefix`` or another ``base_topic`` is set, so two desks
+    of one name on two floors (``hapticdesk/site1/floor2/study``, ``…/floor3/study``, given
+    either way) are two devices, not one."""
+    if settings.prefix is None and settings.base_topic == DEFAULT_BASE_TOPIC:
+        return object_id(desk)
+    return object_id(settings.desk_prefix(desk))
 
-    @property
-    def availability(self) -> str:
-        return f"{self.prefix}/availability"
+
+def layout_names(layout: Any) -> list[str]:
+    """The names a run can switch among (``default`` and the layout's ``layouts:``), or none."""
+    named = getattr(layout, "named_layouts", {}) or {}
+    return ["default", *named] if named else []
 
 
 def device_info(desk: str, model: str, node: str | None = None) -> dict[str, Any]:
@@ -187,7 +225,7 @@ def discovery_configs(
 ) -> list[DeviceTrigger]:
     """Every discovery config of the desk (device triggers, event entity, sensors,
     connectivity), as (topic, config) pairs. ``node``: the desk's node id in the topics and
-    identifiers (default: from its name; see ``plugins/mqtt/__init__.py`` ``ha_node``)."""
+    identifiers (default: from its name; see :func:`ha_node`)."""
     bindings = list(bindings)
     node = node or object_id(desk)
     device = device_info(desk, model, node)
@@ -200,57 +238,59 @@ def discovery_configs(
         prefix=prefix,
         qos=qos,
     )
-
-    def entity(component: str, name: str, config: dict[str, Any]) -> DeviceTrigger:
-        common = {
-            "unique_id": f"hapticdesk_{node}_{name}",
-            "device": device,
-            "origin": ORIGIN,
-            "qos": qos,
-        }
-        return DeviceTrigger(f"{prefix}/{component}/{node}/{name}/config", {**common, **config})
-
+    entities = _Entities(node, device, prefix, qos)
     types = event_types(bindings)
     if types:
-        out.append(
-            entity(
-                "event",
-                "gesture",
-                {
-                    "name": "Gesture",
-                    "state_topic": topics.event,
-                    "event_types": types,
-                    "value_template": event_template(types),
-                    "availability_topic": topics.availability,
-                },
-            )
-        )
+        out.append(entities.config("event", "gesture", _gesture_event(types, topics)))
     if sensors:
         for component, name, config in SENSORS:
-            out.append(
-                entity(
-                    component,
-                    name,
-                    {
-                        **config,
-                        "state_topic": topics.prefix,
-                        "availability_topic": topics.availability,
-                    },
-                )
-            )
-    out.append(
-        entity(
-            "binary_sensor",
-            "connectivity",
-            {
-                # no availability of its own: offline must show as "disconnected", not unknown
-                "name": "Connected",
-                "state_topic": topics.availability,
-                "payload_on": "online",
-                "payload_off": "offline",
-                "device_class": "connectivity",
-                "entity_category": "diagnostic",
-            },
-        )
-    )
+            read = {"state_topic": topics.prefix, "availability_topic": topics.availability}
+            out.append(entities.config(component, name, {**config, **read}))
+    out.append(entities.config("binary_sensor", "connectivity", _connectivity(topics)))
     return out
+
+
+@dataclass(frozen=True)
+class _Entities:
+    """What every entity config of one desk shares: its node id, device, discovery prefix
+    and QoS."""
+
+    node: str
+    device: dict[str, Any]
+    prefix: str
+    qos: int
+
+    def config(self, component: str, name: str, config: dict[str, Any]) -> DeviceTrigger:
+        """The entity ``name`` of ``component`` with ``config`` and the common keys."""
+        common = {
+            "unique_id": f"hapticdesk_{self.node}_{name}",
+            "device": self.device,
+            "origin": ORIGIN,
+            "qos": self.qos,
+        }
+        topic = f"{self.prefix}/{component}/{self.node}/{name}/config"
+        return DeviceTrigger(topic, {**common, **config})
+
+
+def _gesture_event(types: list[str], topics: DeskTopics) -> dict[str, Any]:
+    """The event entity every gesture of the layout reaches Home Assistant through."""
+    return {
+        "name": "Gesture",
+        "state_topic": topics.event,
+        "event_types": types,
+        "value_template": event_template(types),
+        "availability_topic": topics.availability,
+    }
+
+
+def _connectivity(topics: DeskTopics) -> dict[str, Any]:
+    """The binary sensor of the retained availability (online, or the last will's offline)."""
+    return {
+        # no availability of its own: offline must show as "disconnected", not unknown
+        "name": "Connected",
+        "state_topic": topics.availability,
+        "payload_on": "online",
+        "payload_off": "offline",
+        "device_class": "connectivity",
+        "entity_category": "diagnostic",
+    }

@@ -1,18 +1,23 @@
 """Short connections beside the desk's own: the clean first connection that clears a session
-an earlier process left half-finished (see :mod:`.link`), and the probe that asks the broker
+an earlier process left half-finished (see :mod:`.link`) and finds which MQTT the broker
+speaks, and the probe that asks the broker
 for a retained message (the duplicate-desk check, the stale discovery sweep). Each connects,
 waits for one answer, and disconnects."""
 
 from __future__ import annotations
 
+import logging
 import os
 import ssl
 import threading
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
-from hapticdesk.plugins.mqtt.settings import MqttSettings, apply_login
+from hapticdesk.plugins.mqtt.paho_clients import new_client
+from hapticdesk.plugins.mqtt.settings import MqttSettings
+
+log = logging.getLogger(__name__)
 
 # CONNACK reason codes of a refused login: MQTT 3.1.1 return codes 4 and 5, MQTT 5 134 and 135
 LOGIN_REFUSED = {4, 5, 134, 135}
@@ -30,9 +35,40 @@ def login_refused(reason: Any) -> bool:
     return getattr(reason, "value", reason) in LOGIN_REFUSED
 
 
-def clean_connect(client: Any, s: MqttSettings, mqtt5: bool) -> str | Refused | None:
-    """Connect ``client`` (a new paho client, clean session) and disconnect again: None when
-    the broker accepted, :class:`Refused` for a refused login, else what went wrong."""
+class FirstConnect(NamedTuple):
+    """How the clean first connection went: ``error`` None when the broker accepted (else
+    :class:`Refused` or what went wrong), and whether it speaks MQTT 5."""
+
+    error: str | Refused | None
+    mqtt5: bool
+
+
+def first_clean_connect(settings: MqttSettings, mqtt5: bool) -> FirstConnect:
+    """The clean first connection of a desk, under its own client id, in MQTT 5 first when
+    ``mqtt5``; under ``protocol: auto`` a broker that turns MQTT 5 down (CONNACK 1,
+    unacceptable protocol version) is asked again in 3.1.1, which is then used."""
+    first = clean_connect(settings, mqtt5)
+    if (
+        settings.protocol == "auto"
+        and mqtt5
+        and isinstance(first, str)
+        and "Unsupported protocol version" in first  # paho's reading of a 3.1.1 refusal
+        and clean_connect(settings, False) is None
+    ):
+        log.warning(
+            "MQTT: %s does not speak MQTT 5 (%s); using 3.1.1 (no message expiry)",
+            settings.url,
+            first,
+        )
+        return FirstConnect(None, False)
+    return FirstConnect(first, mqtt5)
+
+
+def clean_connect(s: MqttSettings, mqtt5: bool) -> str | Refused | None:
+    """Connect a new client (the desk's id, a clean session, no last will) and disconnect
+    again: None when the broker accepted, :class:`Refused` for a refused login, else what
+    went wrong."""
+    client = new_client(s, mqtt5=mqtt5, clean_session=True)
     answered = threading.Event()
     outcome: list[Any] = []
 
@@ -74,15 +110,8 @@ def retained_payload(settings: MqttSettings, topic: str, timeout_s: float = 3.0)
     """The retained message on ``topic`` (None when there is none, or the broker cannot be
     asked within ``timeout_s``). Asked under a client id of its own: connecting with the
     desk's would push a running desk of the same name off the broker."""
-    import paho.mqtt.client as mqtt
-
-    client = mqtt.Client(
-        mqtt.CallbackAPIVersion.VERSION2,
-        client_id=f"{settings.client_id[:100]}-probe-{os.getpid()}",
-        clean_session=True,
-        protocol=mqtt.MQTTv311,
-    )
-    apply_login(client, settings)
+    probe_id = f"{settings.client_id[:100]}-probe-{os.getpid()}"
+    client = new_client(settings, mqtt5=False, clean_session=True, client_id=probe_id)
     subscribed, answered = threading.Event(), threading.Event()
     found: list[bytes] = []
 

@@ -1,13 +1,12 @@
 """The MQTT plugin's settings: the layout's ``mqtt:`` section checked into :class:`MqttSettings`
-(broker URL, login from the environment or a file, TLS, QoS, topics, queue, protocol), and
-:func:`apply_login` that puts the login on a paho client. No connection is made here; that is
-:mod:`hapticdesk.plugins.mqtt.link`.
+(broker URL, login from the environment or a file, TLS, QoS, topics, queue, protocol), and the
+desk's own topics (:class:`DeskTopics`). No connection is made here: clients are made by
+:mod:`.paho_clients`, the desk's connection is :mod:`.link`.
 """
 
 from __future__ import annotations
 
 import os
-import ssl
 import urllib.parse
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -85,6 +84,10 @@ class MqttSettings:
         """The topic prefix of this desk's own topics (``action``, ``event``, ``set`` …)."""
         return self.prefix if self.prefix is not None else f"{self.base_topic}/{desk}"
 
+    def topics(self, desk: str) -> DeskTopics:
+        """The desk's own topics."""
+        return DeskTopics(self.desk_prefix(desk))
+
     @property
     def url(self) -> str:
         """The broker as a URL, without any secret."""
@@ -92,18 +95,28 @@ class MqttSettings:
         return f"{'mqtts' if self.tls else 'mqtt'}://{user}{self.host}:{self.port}"
 
 
-def apply_login(client: Any, settings: MqttSettings) -> None:
-    """The layout's user name, password and TLS files on a paho client (every connection the
-    plugin opens: the desk's, the duplicate-desk probe, the stale-config sweep)."""
-    if settings.username is not None:
-        client.username_pw_set(settings.username, settings.password)
-    if settings.tls:
-        client.tls_set(
-            ca_certs=str(settings.ca) if settings.ca else None,
-            certfile=str(settings.cert) if settings.cert else None,
-            keyfile=str(settings.key) if settings.key else None,
-            cert_reqs=ssl.CERT_REQUIRED,
-        )
+@dataclass(frozen=True)
+class DeskTopics:
+    """The desk's own topics (docs/reference/mqtt.md)."""
+
+    prefix: str  # <base>/<desk>: the state JSON
+
+    @property
+    def action(self) -> str:
+        return f"{self.prefix}/action"
+
+    @property
+    def event(self) -> str:
+        return f"{self.prefix}/event"
+
+    @property
+    def availability(self) -> str:
+        return f"{self.prefix}/availability"
+
+    @property
+    def set(self) -> str:
+        """Commands for the running desk (:mod:`.control`)."""
+        return f"{self.prefix}/set"
 
 
 def parse_broker_url(url: str, where: Position | str) -> tuple[bool, str, int, str | None]:
@@ -143,59 +156,12 @@ def settings_from_layout(
     where: Position | str = "the layout",
 ) -> MqttSettings:
     """Check the ``mqtt:`` section (may be None) and apply ``--mqtt URL``."""
-    if section is None:
-        section = MarkedDict()
-        section.position = where if isinstance(where, Position) else Position(str(where), 0, 0)
-        section.key_positions, section.value_positions = {}, {}
-    m = require_mapping(section, where, "`mqtt`")
-    check_keys(m, _MQTT_KEYS, "`mqtt`")
-    url = str(m.get("broker", "mqtt://localhost:1883"))
-    tls, host, port, username = parse_broker_url(url, m.where("broker"))
-    if url_override is not None:
-        layout_tls = tls or "tls" in m
-        tls, host, port, url_user = parse_broker_url(url_override, "--mqtt")
-        username = url_user or username
-        if layout_tls and not tls:  # never downgrade: the password would go in plaintext
-            raise ConfigError(
-                "--mqtt",
-                f"{url_override!r} is plain MQTT but the layout's `mqtt:` ({_where_text(m)}) "
-                "uses TLS; give an mqtts:// URL (the layout's `tls:` files are kept)",
-            )
-    if "username" in m:
-        if not isinstance(m["username"], str):
-            raise ConfigError(m.where("username"), "`username` of `mqtt` must be text")
-        username = m["username"]
+    m = _section(section, where)
+    tls, host, port, username = _broker(m, url_override)
     password = _password(m, relative_to)
-    ca = cert = key = None
-    if "tls" in m:
-        t = require_mapping(m["tls"], m.where("tls"), "`tls` of `mqtt`")
-        check_keys(t, {"ca", "cert", "key"}, "`tls` of `mqtt`")
-        ca, cert, key = (_file(t, name, relative_to) for name in ("ca", "cert", "key"))
-        if (cert is None) != (key is None):
-            raise ConfigError(
-                t.where(), "`tls` needs both `cert` and `key` for a client certificate"
-            )
-        tls = True
-    if "prefix" in m and "base_topic" in m:
-        raise ConfigError(
-            m.where("prefix", of_key=True),
-            "give `prefix` (the desk's whole topic prefix) or `base_topic` (the desk's name is "
-            "appended), not both",
-        )
-    for key_name in ("base_topic", "discovery_prefix", "prefix"):
-        value = m.get(key_name, "x")
-        if not isinstance(value, str) or not value or any(c in value for c in "+#"):
-            raise ConfigError(
-                m.where(key_name), f"`{key_name}` must be a topic without + or #, found {value!r}"
-            )
-    # one client id per desk prefix (hapticdesk-site1-floor2-study): two desks of one name on
-    # different floors must not push each other off the broker
-    own_prefix = (
-        str(m["prefix"]) if "prefix" in m else f"{m.get('base_topic', DEFAULT_BASE_TOPIC)}/{desk}"
-    )
-    client_id = str(m.get("client_id", own_prefix.strip("/").replace("/", "-")))
-    if not client_id or len(client_id) > 128:
-        raise ConfigError(m.where("client_id"), "`client_id` must be 1 to 128 characters")
+    ca, cert, key = _tls_files(m, relative_to)
+    _check_topics(m)
+    client_id = _client_id(m, desk)
     retain = as_flag(m.get("retain", False))
     if not isinstance(retain, bool):
         raise ConfigError(m.where("retain"), "`retain` of `mqtt` must be true or false")
@@ -203,7 +169,7 @@ def settings_from_layout(
     return MqttSettings(
         host=host,
         port=port,
-        tls=tls,
+        tls=tls or "tls" in m,
         username=username,
         password=password,
         ca=ca,
@@ -233,6 +199,79 @@ def settings_from_layout(
             number(m, "expiry_s", "`mqtt`", default=DEFAULT_EXPIRY_S, minimum=0, maximum=2**32 - 1)
         ),
     )
+
+
+def _section(section: Any, where: Position | str) -> MarkedDict:
+    """The ``mqtt:`` section as a checked mapping (an empty one where there is none)."""
+    if section is None:
+        section = MarkedDict()
+        section.position = where if isinstance(where, Position) else Position(str(where), 0, 0)
+        section.key_positions, section.value_positions = {}, {}
+    m = require_mapping(section, where, "`mqtt`")
+    check_keys(m, _MQTT_KEYS, "`mqtt`")
+    return m
+
+
+def _broker(m: MarkedDict, url_override: str | None) -> tuple[bool, str, int, str | None]:
+    """(tls, host, port, username) of ``broker:``, or of ``--mqtt URL`` over it (which may
+    not drop the layout's TLS), with the layout's ``username:`` over the URL's."""
+    url = str(m.get("broker", "mqtt://localhost:1883"))
+    tls, host, port, username = parse_broker_url(url, m.where("broker"))
+    if url_override is not None:
+        layout_tls = tls or "tls" in m
+        tls, host, port, url_user = parse_broker_url(url_override, "--mqtt")
+        username = url_user or username
+        if layout_tls and not tls:  # never downgrade: the password would go in plaintext
+            raise ConfigError(
+                "--mqtt",
+                f"{url_override!r} is plain MQTT but the layout's `mqtt:` ({_where_text(m)}) "
+                "uses TLS; give an mqtts:// URL (the layout's `tls:` files are kept)",
+            )
+    if "username" in m:
+        if not isinstance(m["username"], str):
+            raise ConfigError(m.where("username"), "`username` of `mqtt` must be text")
+        username = m["username"]
+    return tls, host, port, username
+
+
+def _tls_files(m: MarkedDict, relative_to: Path | None) -> tuple[Path | None, ...]:
+    """(ca, cert, key) of ``tls:`` (each None when not given; all None without ``tls:``)."""
+    if "tls" not in m:
+        return None, None, None
+    t = require_mapping(m["tls"], m.where("tls"), "`tls` of `mqtt`")
+    check_keys(t, {"ca", "cert", "key"}, "`tls` of `mqtt`")
+    ca, cert, key = (_file(t, name, relative_to) for name in ("ca", "cert", "key"))
+    if (cert is None) != (key is None):
+        raise ConfigError(t.where(), "`tls` needs both `cert` and `key` for a client certificate")
+    return ca, cert, key
+
+
+def _check_topics(m: MarkedDict) -> None:
+    """``prefix`` or ``base_topic`` (not both), and topics without wildcards."""
+    if "prefix" in m and "base_topic" in m:
+        raise ConfigError(
+            m.where("prefix", of_key=True),
+            "give `prefix` (the desk's whole topic prefix) or `base_topic` (the desk's name is "
+            "appended), not both",
+        )
+    for key_name in ("base_topic", "discovery_prefix", "prefix"):
+        value = m.get(key_name, "x")
+        if not isinstance(value, str) or not value or any(c in value for c in "+#"):
+            raise ConfigError(
+                m.where(key_name), f"`{key_name}` must be a topic without + or #, found {value!r}"
+            )
+
+
+def _client_id(m: MarkedDict, desk: str) -> str:
+    """``client_id``, by default one per desk prefix (hapticdesk-site1-floor2-study): two
+    desks of one name on different floors must not push each other off the broker."""
+    own_prefix = (
+        str(m["prefix"]) if "prefix" in m else f"{m.get('base_topic', DEFAULT_BASE_TOPIC)}/{desk}"
+    )
+    client_id = str(m.get("client_id", own_prefix.strip("/").replace("/", "-")))
+    if not client_id or len(client_id) > 128:
+        raise ConfigError(m.where("client_id"), "`client_id` must be 1 to 128 characters")
+    return client_id
 
 
 #: ``discovery:`` values: off, or the shape of Home Assistant's discovery (``true``: entity)
@@ -322,6 +361,3 @@ def _file(m: MarkedDict, key: str, relative_to: Path | None) -> Path | None:
     if not path.is_file():
         raise ConfigError(m.where(key), f"`{key}`: no such file {path}")
     return path
-
-
-# --- the connection ---------------------------------------------------------------------------

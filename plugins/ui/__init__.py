@@ -17,9 +17,18 @@ module only registers hooks and imports nothing heavy (``hapticdesk --help`` loa
 from __future__ import annotations
 
 import os
-from typing import Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from hapticdesk.hookspecs import hookimpl
+from hapticdesk.runtime.dispatcher import ActionContext
+
+if TYPE_CHECKING:  # (numpy with them: the hooks load for `hapticdesk --help`)
+    from hapticdesk.files.profile import DeskProfile
+    from hapticdesk.gestures.event import GestureEvent
+    from hapticdesk.gestures.layout import Layout
+    from hapticdesk.plugins.ui.server import UiServer
+    from hapticdesk.runtime.service import Runtime
 
 SECTION = "ui"  # the override key `run --ui` sets
 SHARED = "ui server"  # the ActionContext.shared key of a run's server
@@ -27,7 +36,7 @@ TOKEN_ENV = "HAPTICDESK_UI_TOKEN"
 
 
 @hookimpl
-def register_commands(register: Any) -> None:
+def register_commands(register: Callable[..., None]) -> None:
     register(
         "ui",
         "hapticdesk.plugins.ui.command",
@@ -36,7 +45,9 @@ def register_commands(register: Any) -> None:
 
 
 @hookimpl
-def event_sink(desk: Any, layout: Any, context: Any) -> Any:
+def event_sink(
+    desk: DeskProfile, layout: Layout, context: ActionContext
+) -> Callable[[GestureEvent], None] | None:
     wanted = context.overrides.get(SECTION)
     if not wanted:
         return None
@@ -45,7 +56,7 @@ def event_sink(desk: Any, layout: Any, context: Any) -> Any:
 
     require("starlette", "uvicorn", "ruamel.yaml", needed_by="the browser UI (`--ui`)")
 
-    def open_server() -> Any:
+    def open_server() -> UiServer:
         from hapticdesk.plugins.ui.server import UiServer, parse_listen
 
         host, port = parse_listen(str(wanted["listen"]))
@@ -63,12 +74,12 @@ def event_sink(desk: Any, layout: Any, context: Any) -> Any:
         print(f"hapticdesk ui: {server.url}", file=sys.stderr, flush=True)
         return server
 
-    server = context.shared(SHARED, open_server)  # closed with the run's shared resources
+    server: UiServer = context.shared(SHARED, open_server)  # closed with the run's resources
     return server.on_gesture
 
 
 @hookimpl
-def startup(runtime: Any) -> None:
+def startup(runtime: Runtime) -> None:
     server = runtime.scene.context.resource(SHARED) if runtime is not None else None
     if server is not None:
         server.registry = runtime.scene.registry

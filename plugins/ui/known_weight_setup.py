@@ -11,7 +11,7 @@ recording and fits as ``hapticdesk calibrate`` does, through the same functions
 :func:`~hapticdesk.analysis.known_weight.calibrate`,
 :func:`~hapticdesk.analysis.known_weight.write_calibrated_profile`): no second fit here.
 
-Routes (behind the same token and origin guards as the rest of the API)::
+Routes (behind the guard like the rest of the API: :mod:`.guard`)::
 
     GET  /api/setup/weight/spots?count=N       the N spots to mark, metres
     POST /api/setup/weight/start  {mass_kg, count}
@@ -23,12 +23,18 @@ from __future__ import annotations
 import asyncio
 import math
 import re
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from starlette.requests import Request
+from starlette.responses import JSONResponse, Response
+from starlette.routing import BaseRoute, Route
+
 from hapticdesk.errors import ConfigError
-from hapticdesk.plugins.ui.layout_edit import error_dict, message_error
+from hapticdesk.plugins.ui.answers import error_dict, json_object, message_error, refusal
 from hapticdesk.plugins.ui.setup_api import BlockRecorder
+from hapticdesk.plugins.ui.shown_desk import ShownDesk
 
 MIN_SPOTS, MAX_SPOTS = 3, 5
 #: the written profile's file name, next to the layout: ``<desk name>-calibrated.yaml``
@@ -167,14 +173,15 @@ def _finite(value: Any) -> Any:
 
 
 class WeightSetup:
-    """The routes' state: the set-up in progress (one at a time), for one :class:`UiServer`."""
+    """The routes' state: the set-up in progress (one at a time), for the desk one page's
+    server shows."""
 
-    def __init__(self, server: Any) -> None:
-        self.server = server
+    def __init__(self, shown: ShownDesk) -> None:
+        self.shown = shown
         self.session: WeightSession | None = None
 
     def runtime_profile(self) -> Any:
-        runtime = self.server.runtime
+        runtime = self.shown.runtime
         if runtime is None:
             raise ConfigError(
                 None,
@@ -191,52 +198,54 @@ class WeightSetup:
         points = spots_for(self.runtime_profile(), read_count(payload.get("count", 4)))
         if self.session is not None:
             self.session.finish_quietly()
-        self.session = WeightSession(self.server.runtime, mass, points)
+        self.session = WeightSession(self.shown.runtime, mass, points)
         return {"ok": True, "mass_kg": mass, "spots_m": points}
 
     def finish(self) -> dict[str, Any]:
         session, self.session = self.session, None
         if session is None:
             raise ConfigError(None, "no set-up with a known weight was started")
-        server = self.server
-        output = None if server.read_only else output_path(server.layout_path, session.profile.name)
+        shown = self.shown
+        output = None if shown.read_only else output_path(shown.layout_path, session.profile.name)
         return session.finish(output)
 
 
-def weight_setup_routes(server: Any, allowed: Any, refused: Any, json_object: Any) -> list[Any]:
-    """The set-up's routes for ``server``'s app, guarded by its ``allowed``/``refused`` (the
-    token and origin) and reading bodies with its ``json_object`` (size-capped)."""
-    from starlette.requests import Request
-    from starlette.responses import JSONResponse, Response
-    from starlette.routing import Route
+def _state(request: Request) -> WeightSetup:
+    """The app's :class:`WeightSetup`, made at its first request."""
+    state = request.app.state
+    if getattr(state, "weight_setup", None) is None:
+        state.weight_setup = WeightSetup(state.shown)
+    setup: WeightSetup = state.weight_setup
+    return setup
 
-    state = WeightSetup(server)
 
-    async def answer(work: Any, *args: Any) -> Response:
-        try:
-            return JSONResponse(await asyncio.to_thread(work, *args))
-        except ConfigError as err:
-            return JSONResponse({"ok": False, "errors": [error_dict(err)]}, status_code=422)
-        except ValueError as err:  # (readings of a shape the desk does not have)
-            return JSONResponse({"ok": False, "errors": [message_error(str(err))]}, 422)
+async def _answer(work: Callable[..., dict[str, Any]], *args: Any) -> Response:
+    try:
+        return JSONResponse(await asyncio.to_thread(work, *args))
+    except ConfigError as err:
+        return refusal(422, error_dict(err))
+    except ValueError as err:  # (readings of a shape the desk does not have)
+        return refusal(422, message_error(str(err)))
 
-    async def spots(request: Request) -> Response:
-        if not allowed(request):
-            return refused()
-        return await answer(state.spots, request.query_params.get("count", "4"))
 
-    async def start(request: Request) -> Response:
-        if not allowed(request):
-            return refused()
-        return await answer(state.start, await json_object(request))
+async def weight_spots(request: Request) -> Response:
+    """``GET /api/setup/weight/spots?count=N``: the N spots to mark, metres."""
+    return await _answer(_state(request).spots, request.query_params.get("count", "4"))
 
-    async def finish(request: Request) -> Response:
-        if not allowed(request):
-            return refused()
-        return await answer(state.finish)
 
-    return [
-        Route("/api/setup/weight/spots", spots, methods=["GET"]),
-        Route("/api/setup/weight/start", start, methods=["POST"]),
-        Route("/api/setup/weight/finish", finish, methods=["POST"]),
-    ]
+async def weight_start(request: Request) -> Response:
+    """``POST /api/setup/weight/start``: ``{mass_kg, count}``: start recording."""
+    return await _answer(_state(request).start, await json_object(request))
+
+
+async def weight_finish(request: Request) -> Response:
+    """``POST /api/setup/weight/finish``: the fit, its check, the profile written."""
+    return await _answer(_state(request).finish)
+
+
+#: this module's part of the HTTP contract (gathered in :data:`.server.ROUTES`)
+ROUTES: list[BaseRoute] = [
+    Route("/api/setup/weight/spots", weight_spots, methods=["GET"]),
+    Route("/api/setup/weight/start", weight_start, methods=["POST"]),
+    Route("/api/setup/weight/finish", weight_finish, methods=["POST"]),
+]

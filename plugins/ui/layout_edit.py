@@ -1,8 +1,8 @@
-"""The layout as the page sees it: checked like ``hapticdesk check``, edited keeping comments.
+"""The designer's edits of a layout's text, keeping comments, and saving it atomically.
 
-Checking goes through the loader ``check`` and ``run`` use (``load_scene_layout``), so the
-page refuses what they would, at the same line and column. Edits are applied to the YAML text
-with ruamel.yaml's round trip, so the user's comments, key order and flow style survive.
+Edits are applied to the YAML text with ruamel.yaml's round trip, so the user's comments, key
+order and flow style survive; lengths from the page (metres) are written in the layout's
+units. Checking what the edits make is the loader's (``check``'s) job: :mod:`.layout_api`.
 """
 
 from __future__ import annotations
@@ -11,6 +11,8 @@ import io
 import os
 import re
 import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -28,19 +30,6 @@ UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 SHAPE_KEYS = ("rect", "circle", "polygon")
 
 
-def error_dict(err: ConfigError) -> dict[str, Any]:
-    """A ConfigError as ``{line, column, message}`` (0, 0 when it has no place in the file)."""
-    where = err.where
-    if isinstance(where, Position):
-        return {"line": where.line, "column": where.column, "message": err.message}
-    return message_error(err.message if where is None else f"{where}: {err.message}")
-
-
-def message_error(message: str) -> dict[str, Any]:
-    """An error with no place in the layout file, as :func:`error_dict` gives one."""
-    return {"line": 0, "column": 0, "message": message}
-
-
 def save_layout_text(layout_path: Path, text: str) -> None:
     """Write ``text`` to the layout file atomically (a reader never sees half a file)."""
     folder = layout_path.parent
@@ -54,104 +43,6 @@ def save_layout_text(layout_path: Path, text: str) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
-
-
-# --- what the page draws ----------------------------------------------------------------------
-
-
-def desk_message(profile: Any, layout: Any, *, live: bool) -> dict[str, Any]:
-    """The WebSocket's first message: the desk's outline, surfaces and regions in metres."""
-    import numpy as np
-
-    surfaces = []
-    for s in profile.surfaces:
-        horizontal = abs(float(np.dot(s.normal, [0.0, 0.0, 1.0]))) > 0.99
-        surfaces.append(
-            {
-                "name": s.name,
-                "horizontal": horizontal,
-                "height": float(s.origin[2]),
-                "polygon": np.round(s.polygon, 5).tolist(),
-            }
-        )
-    regions = []
-    for name, r in layout.regions.items():
-        regions.append(
-            {
-                "name": name,
-                "kind": r.kind,
-                "surface": r.surface,
-                "outline": np.round(r.outline, 5).tolist(),
-                "center": None if r.center is None else np.round(r.center, 5).tolist(),
-                "radius": float(r.radius),
-                "axis": None if r.axis is None else np.round(r.axis, 5).tolist(),
-            }
-        )
-    bindings = [
-        {
-            "gesture": b.gesture,
-            "region": b.region,
-            "actions": [u.name for u in b.actions],
-            "line": b.position.line,
-        }
-        for b in layout.bindings
-    ]
-    top = profile.surfaces[0].polygon if profile.surfaces else np.zeros((0, 2))
-    return {
-        "type": "desk",
-        "name": profile.name,
-        "live": live,
-        "units": layout.units,
-        "layout": str(layout.path),
-        "outline": np.round(top, 5).tolist(),
-        "surfaces": surfaces,
-        "sensors": [
-            {"name": s.name, "x": float(s.position[0]), "y": float(s.position[1])}
-            for s in profile.sensors
-        ],
-        "regions": regions,
-        "bindings": bindings,
-        "templates": sorted(layout.templates),
-    }
-
-
-def schemas(registry: Any) -> dict[str, Any]:
-    """Forms for the designer: each gesture's options (its recognizer's ``option_specs``, or
-    the built-in table) and each action's options (the schema its plugin registered)."""
-    from hapticdesk.gestures.options import GESTURE_OPTIONS
-
-    gestures: dict[str, Any] = {}
-    types = registry.recognizer_types()
-    for name in sorted(set(GESTURE_OPTIONS) | set(types)):
-        specs = GESTURE_OPTIONS.get(name)
-        if specs is None:
-            try:
-                specs = getattr(types[name].load(), "option_specs", None) or {}
-            except ConfigError:
-                specs = {}
-        gestures[name] = {
-            key: {
-                "kind": spec.kind,
-                "default": spec.default,
-                "help": spec.help,
-                "choices": list(spec.choices),
-                "role": spec.role,
-            }
-            for key, spec in specs.items()
-        }
-    actions = {
-        name: {
-            "description": record.description,
-            "options": getattr(record, "options", None),
-            "plugin": record.plugin,
-        }
-        for name, record in sorted(registry.actions.items())
-        if name != "exec"  # the page never adds a program to run
-    }
-    return {"gestures": gestures, "actions": actions}
-
-
-# --- edits ------------------------------------------------------------------------------------
 
 
 def _yaml(text: str) -> Any:
@@ -195,6 +86,27 @@ def _number(value: Any, what: str) -> float:
     return number
 
 
+@dataclass(frozen=True)
+class _Units:
+    """Metres from the page, written in the layout's ``units`` (rounded to its decimals)."""
+
+    scale: float
+    digits: int
+
+    @classmethod
+    def of(cls, doc: Any) -> _Units:
+        units = str(doc.get("units", "m"))
+        return cls(UNITS.get(units, 1.0), DECIMALS.get(units, 4))
+
+    def length(self, value: Any, what: str) -> float:
+        return round(_number(value, what) / self.scale, self.digits)
+
+    def point(self, p: Any, what: str) -> list[float]:
+        if not isinstance(p, list | tuple) or len(p) != 2:
+            raise ConfigError(None, f"{what}: expected [x, y], found {p!r}")
+        return [self.length(p[0], what), self.length(p[1], what)]
+
+
 def apply_edit(text: str, edit: dict[str, Any]) -> str:
     """``text`` with one edit from the designer applied; comments and order kept.
 
@@ -204,7 +116,20 @@ def apply_edit(text: str, edit: dict[str, Any]) -> str:
     (name, new_name), ``remove_region`` (name), ``add_binding`` (gesture, region or None,
     options, do {action: options}), ``remove_binding`` (index, 0-based), ``add_template``
     (shape, points)."""
-    from ruamel.yaml.comments import CommentedMap, CommentedSeq
+    y, doc = _round_trip(text)
+    op = edit.get("op")
+    apply = EDITS.get(op) if isinstance(op, str) else None
+    if apply is None:
+        raise ConfigError(None, f"unknown edit {op!r}")
+    apply(doc, edit, _Units.of(doc))
+    out = io.StringIO()
+    y.dump(doc, out)
+    return out.getvalue()
+
+
+def _round_trip(text: str) -> tuple[Any, Any]:
+    """(ruamel's round-trip reader and writer for ``text``, the document it read)."""
+    from ruamel.yaml.comments import CommentedMap
     from ruamel.yaml.error import YAMLError
 
     # first through the bounded reader `check` uses: ruamel recursed into 500 open brackets
@@ -220,119 +145,148 @@ def apply_edit(text: str, edit: dict[str, Any]) -> str:
         raise ConfigError(where, f"not valid YAML: {getattr(err, 'problem', err)}") from None
     if not isinstance(doc, dict):
         raise ConfigError(Position("layout", 1, 1), "a layout is a mapping")
-    units = str(doc.get("units", "m"))
-    scale = UNITS.get(units, 1.0)
-    digits = DECIMALS.get(units, 4)
+    return y, doc
 
-    def length(v: Any, what: str) -> float:
-        return round(_number(v, what) / scale, digits)
 
-    def point(p: Any, what: str) -> list[float]:
-        if not isinstance(p, list | tuple) or len(p) != 2:
-            raise ConfigError(None, f"{what}: expected [x, y], found {p!r}")
-        return [length(p[0], what), length(p[1], what)]
+def _regions(doc: Any) -> Any:
+    """The layout's ``regions:`` mapping (made when there is none)."""
+    from ruamel.yaml.comments import CommentedMap
 
-    op = edit.get("op")
     regions = doc.get("regions")
-    if op in ("set_region", "rename_region", "remove_region") and not isinstance(regions, dict):
+    if not isinstance(regions, dict):
         regions = doc["regions"] = CommentedMap()
-    name = edit.get("name")
-    if op == "set_region":
-        if not isinstance(name, str) or not REGION_NAME.match(name):
-            raise ConfigError(None, f"region name {name!r} {REGION_RULE}")
-        shape = edit.get("shape")
-        if shape == "rect":
-            r = edit.get("rect") or []
-            if len(r) != 4:
-                raise ConfigError(None, "rect: expected [x0, y0, x1, y1]")
-            x0, y0, x1, y1 = (length(v, "rect") for v in r)
-            value: Any = {"rect": [min(x0, x1), min(y0, y1), max(x0, x1), max(y0, y1)]}
-        elif shape == "circle":
-            value = {
-                "circle": {
-                    "center": point(edit.get("center"), "circle center"),
-                    "radius": length(edit.get("radius"), "circle radius"),
-                }
+    return regions
+
+
+def _region_name(name: Any) -> str:
+    if not isinstance(name, str) or not REGION_NAME.match(name):
+        raise ConfigError(None, f"region name {name!r} {REGION_RULE}")
+    return name
+
+
+def _shape(edit: dict[str, Any], units: _Units) -> dict[str, Any]:
+    """The region's shape the edit gives, as the layout writes it."""
+    shape = edit.get("shape")
+    if shape == "rect":
+        r = edit.get("rect") or []
+        if len(r) != 4:
+            raise ConfigError(None, "rect: expected [x0, y0, x1, y1]")
+        x0, y0, x1, y1 = (units.length(v, "rect") for v in r)
+        return {"rect": [min(x0, x1), min(y0, y1), max(x0, x1), max(y0, y1)]}
+    if shape == "circle":
+        center = units.point(edit.get("center"), "circle center")
+        return {
+            "circle": {
+                "center": center,
+                "radius": units.length(edit.get("radius"), "circle radius"),
             }
-        elif shape == "polygon":
-            pts = edit.get("points") or []
-            if len(pts) < 3:
-                raise ConfigError(None, "polygon: expected at least 3 points")
-            value = {"polygon": [point(p, "polygon point") for p in pts]}
-        else:
-            raise ConfigError(None, f"shape: expected rect, circle or polygon, found {shape!r}")
-        existing = regions.get(name)
-        if isinstance(existing, dict):  # keep its axis:, surface: and comments
-            for key in SHAPE_KEYS:
-                if key in existing:
-                    del existing[key]
-            for k, v in value.items():
-                existing.insert(0, k, _flow(v))
-        else:
-            regions[name] = _flow(value)
-    elif op == "rename_region":
-        new = edit.get("new_name")
-        if name not in regions:
-            raise ConfigError(None, f"no region {name!r}")
-        if not isinstance(new, str) or not REGION_NAME.match(new):
-            raise ConfigError(None, f"region name {new!r} {REGION_RULE}")
-        if new in regions:
-            raise ConfigError(None, f"there is already a region {new!r}")
-        position = list(regions).index(name)
-        regions.insert(position, new, regions.pop(name))
-        for binding in doc.get("bindings") or []:
-            if isinstance(binding, dict) and binding.get("region") == name:
-                binding["region"] = new
-    elif op == "remove_region":
-        if name not in regions:
-            raise ConfigError(None, f"no region {name!r}")
-        del regions[name]
-    elif op == "add_binding":
-        gesture = edit.get("gesture")
-        if not isinstance(gesture, str) or not gesture:
-            raise ConfigError(None, "add_binding needs a gesture")
-        binding: dict[str, Any] = {"gesture": gesture}
-        if edit.get("region"):
-            binding["region"] = edit["region"]
-        for k, v in (edit.get("options") or {}).items():
-            binding[k] = v
-        binding["do"] = edit.get("do") or {"log": {}}
-        bindings = doc.get("bindings")
-        if not isinstance(bindings, list):
-            bindings = doc["bindings"] = CommentedSeq()
-        bindings.append(_flow(binding))
-    elif op == "remove_binding":
-        bindings = doc.get("bindings")
-        index = edit.get("index")
-        if not isinstance(bindings, list) or not isinstance(index, int):
-            raise ConfigError(None, "remove_binding needs the binding's index")
-        if not 0 <= index < len(bindings):
-            raise ConfigError(None, f"no binding {index + 1}")
-        del bindings[index]
-    elif op == "add_template":
-        shape = edit.get("shape")
-        if not isinstance(shape, str) or not SHAPE_NAME.match(shape):
-            raise ConfigError(None, f"a shape name is letters, digits and _; found {shape!r}")
-        pts = [point(p, "template point") for p in edit.get("points") or []]
-        if len(pts) < 2:
-            raise ConfigError(None, "a template needs at least 2 points")
-        templates = doc.get("templates")
-        if not isinstance(templates, dict):
-            if templates is not None:
-                raise ConfigError(None, "`templates:` is a folder; add the stroke file there")
-            templates = doc["templates"] = CommentedMap()
-        current = templates.get(shape)
-        if current is None:
-            templates[shape] = CommentedSeq([_flow(pts)])
-        elif isinstance(current, list) and current and isinstance(current[0], list | str):
-            if isinstance(current[0], list) and current[0] and not isinstance(current[0][0], list):
-                templates[shape] = CommentedSeq([current, _flow(pts)])  # was one inline stroke
-            else:
-                current.append(_flow(pts))
-        else:
-            templates[shape] = CommentedSeq([current, _flow(pts)])
+        }
+    if shape == "polygon":
+        pts = edit.get("points") or []
+        if len(pts) < 3:
+            raise ConfigError(None, "polygon: expected at least 3 points")
+        return {"polygon": [units.point(p, "polygon point") for p in pts]}
+    raise ConfigError(None, f"shape: expected rect, circle or polygon, found {shape!r}")
+
+
+def _set_region(doc: Any, edit: dict[str, Any], units: _Units) -> None:
+    regions = _regions(doc)
+    name = _region_name(edit.get("name"))
+    value = _shape(edit, units)
+    existing = regions.get(name)
+    if isinstance(existing, dict):  # keep its axis:, surface: and comments
+        for key in SHAPE_KEYS:
+            if key in existing:
+                del existing[key]
+        for k, v in value.items():
+            existing.insert(0, k, _flow(v))
     else:
-        raise ConfigError(None, f"unknown edit {op!r}")
-    out = io.StringIO()
-    y.dump(doc, out)
-    return out.getvalue()
+        regions[name] = _flow(value)
+
+
+def _rename_region(doc: Any, edit: dict[str, Any], units: _Units) -> None:
+    regions = _regions(doc)
+    name, new = edit.get("name"), edit.get("new_name")
+    if name not in regions:
+        raise ConfigError(None, f"no region {name!r}")
+    _region_name(new)
+    if new in regions:
+        raise ConfigError(None, f"there is already a region {new!r}")
+    position = list(regions).index(name)
+    regions.insert(position, new, regions.pop(name))
+    for binding in doc.get("bindings") or []:
+        if isinstance(binding, dict) and binding.get("region") == name:
+            binding["region"] = new
+
+
+def _remove_region(doc: Any, edit: dict[str, Any], units: _Units) -> None:
+    regions = _regions(doc)
+    name = edit.get("name")
+    if name not in regions:
+        raise ConfigError(None, f"no region {name!r}")
+    del regions[name]
+
+
+def _add_binding(doc: Any, edit: dict[str, Any], units: _Units) -> None:
+    from ruamel.yaml.comments import CommentedSeq
+
+    gesture = edit.get("gesture")
+    if not isinstance(gesture, str) or not gesture:
+        raise ConfigError(None, "add_binding needs a gesture")
+    binding: dict[str, Any] = {"gesture": gesture}
+    if edit.get("region"):
+        binding["region"] = edit["region"]
+    for k, v in (edit.get("options") or {}).items():
+        binding[k] = v
+    binding["do"] = edit.get("do") or {"log": {}}
+    bindings = doc.get("bindings")
+    if not isinstance(bindings, list):
+        bindings = doc["bindings"] = CommentedSeq()
+    bindings.append(_flow(binding))
+
+
+def _remove_binding(doc: Any, edit: dict[str, Any], units: _Units) -> None:
+    bindings = doc.get("bindings")
+    index = edit.get("index")
+    if not isinstance(bindings, list) or not isinstance(index, int):
+        raise ConfigError(None, "remove_binding needs the binding's index")
+    if not 0 <= index < len(bindings):
+        raise ConfigError(None, f"no binding {index + 1}")
+    del bindings[index]
+
+
+def _add_template(doc: Any, edit: dict[str, Any], units: _Units) -> None:
+    from ruamel.yaml.comments import CommentedMap, CommentedSeq
+
+    shape = edit.get("shape")
+    if not isinstance(shape, str) or not SHAPE_NAME.match(shape):
+        raise ConfigError(None, f"a shape name is letters, digits and _; found {shape!r}")
+    pts = [units.point(p, "template point") for p in edit.get("points") or []]
+    if len(pts) < 2:
+        raise ConfigError(None, "a template needs at least 2 points")
+    templates = doc.get("templates")
+    if not isinstance(templates, dict):
+        if templates is not None:
+            raise ConfigError(None, "`templates:` is a folder; add the stroke file there")
+        templates = doc["templates"] = CommentedMap()
+    current = templates.get(shape)
+    if current is None:
+        templates[shape] = CommentedSeq([_flow(pts)])
+    elif isinstance(current, list) and current and isinstance(current[0], list | str):
+        if isinstance(current[0], list) and current[0] and not isinstance(current[0][0], list):
+            templates[shape] = CommentedSeq([current, _flow(pts)])  # was one inline stroke
+        else:
+            current.append(_flow(pts))
+    else:
+        templates[shape] = CommentedSeq([current, _flow(pts)])
+
+
+#: the designer's edits by ``op``
+EDITS: dict[str, Callable[[Any, dict[str, Any], _Units], None]] = {
+    "set_region": _set_region,
+    "rename_region": _rename_region,
+    "remove_region": _remove_region,
+    "add_binding": _add_binding,
+    "remove_binding": _remove_binding,
+    "add_template": _add_template,
+}

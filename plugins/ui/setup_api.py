@@ -1,4 +1,5 @@
-"""The page's set-up check: record the raw samples of a guided session, then check them.
+"""The page's set-up check: record the raw samples of a guided session, then check them
+(``POST /api/setup/start``, ``POST /api/setup/finish``).
 
 The page asks for a quiet desk (the tare) and then presses at marked points, in order; the
 samples come from the running service through ``Runtime.block_taps`` (a reference per block
@@ -7,10 +8,21 @@ kept in a bounded deque on the sensing thread, nothing copied there).
 
 from __future__ import annotations
 
+import asyncio
 import collections
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+from starlette.requests import Request
+from starlette.responses import JSONResponse, Response
+from starlette.routing import BaseRoute, Route
 
 from hapticdesk.errors import ConfigError
+from hapticdesk.plugins.ui.answers import error_dict, json_object, message_error, refusal
+from hapticdesk.plugins.ui.shown_desk import ShownDesk
+
+if TYPE_CHECKING:
+    from hapticdesk.files.profile import DeskProfile
+    from hapticdesk.runtime.service import Runtime
 
 #: the longest session kept (seconds of samples); older blocks are dropped
 MAX_SESSION_S = 180.0
@@ -18,7 +30,48 @@ MAX_SESSION_S = 180.0
 MAX_POINTS = 64
 
 
-def read_points(payload: dict[str, Any], profile: Any) -> list[list[float]]:
+async def setup_start(request: Request) -> Response:
+    """``POST /api/setup/start``: ``{points: [[x, y], ...]}`` metres: start a set-up check
+    (one that was under way ends without a word)."""
+    payload = await json_object(request)
+    shown: ShownDesk = request.app.state.shown
+    runtime = shown.runtime
+    if runtime is None:
+        problem = "the set-up check needs a running desk (`hapticdesk ui` or `run --ui`)"
+        return refusal(422, message_error(problem))
+    try:
+        points = read_points(payload, runtime.scene.profile)
+    except ConfigError as err:
+        return refusal(422, error_dict(err))
+    state = request.app.state
+    if state.setup is not None:
+        await asyncio.to_thread(state.setup.finish_quietly)
+    state.setup = SetupSession(runtime, points)
+    return JSONResponse({"ok": True})
+
+
+async def setup_finish(request: Request) -> Response:
+    """``POST /api/setup/finish``: end it: what was found, each press's residual, a profile
+    snippet."""
+    state = request.app.state
+    session, state.setup = state.setup, None
+    if session is None:
+        return refusal(422, message_error("no set-up check was started"))
+    try:
+        result = await asyncio.to_thread(session.finish)
+    except ConfigError as err:
+        return refusal(422, error_dict(err))
+    return JSONResponse(result)
+
+
+#: this module's part of the HTTP contract (gathered in :data:`.server.ROUTES`)
+ROUTES: list[BaseRoute] = [
+    Route("/api/setup/start", setup_start, methods=["POST"]),
+    Route("/api/setup/finish", setup_finish, methods=["POST"]),
+]
+
+
+def read_points(payload: dict[str, Any], profile: DeskProfile) -> list[list[float]]:
     """The points of a ``POST /api/setup/start`` body: ``{"points": [[x, y], ...]}`` in
     metres on the desk's top, at least one per sensor, at most :data:`MAX_POINTS`, each
     within the top's outline grown by a metre. ConfigError says which and what was expected
@@ -63,7 +116,7 @@ class BlockRecorder:
     """The raw blocks a running desk senses from now on (the last :data:`MAX_SESSION_S`
     seconds of them), for a guided session of the page's set-up."""
 
-    def __init__(self, runtime: Any) -> None:
+    def __init__(self, runtime: Runtime) -> None:
         self.runtime = runtime
         rate = runtime.scene.profile.sample_rate_hz
         self.blocks: collections.deque[tuple[Any, Any]] = collections.deque(
@@ -94,7 +147,7 @@ class BlockRecorder:
 class SetupSession(BlockRecorder):
     """One guided session: marked points, and the blocks sensed since it started."""
 
-    def __init__(self, runtime: Any, points: list[list[float]]) -> None:
+    def __init__(self, runtime: Runtime, points: list[list[float]]) -> None:
         super().__init__(runtime)
         self.points = points
 

@@ -1,24 +1,46 @@
-"""Scoring a stroke drawn in the page (with the mouse, or on the desk) against every shape."""
+"""Scoring a stroke drawn in the page (with the mouse, or on the desk) against every shape:
+``POST /api/strokes``."""
 
 from __future__ import annotations
 
-from pathlib import Path
+import asyncio
 from typing import Any
 
+from starlette.requests import Request
+from starlette.responses import JSONResponse, Response
+from starlette.routing import BaseRoute, Route
+
 from hapticdesk.errors import ConfigError
+from hapticdesk.plugins.ui.answers import error_dict, json_object, refusal
+from hapticdesk.plugins.ui.shown_desk import ShownDesk
 
 #: the most points a stroke from the page may have (a 15 s stroke at 50 Hz is 750)
 MAX_POINTS = 5000
 
 
-def score(payload: dict[str, Any], layout_path: Path, layout_text: str, server: Any) -> dict:
+async def strokes(request: Request) -> Response:
+    """``POST /api/strokes``: ``{points: [[x, y], ...]}`` → the stroke's score against every
+    shape."""
+    payload = await json_object(request)
+    shown: ShownDesk = request.app.state.shown
+    try:
+        result = await asyncio.to_thread(score, payload, shown)
+    except ConfigError as err:
+        return refusal(422, error_dict(err))
+    return JSONResponse(result)
+
+
+#: this module's part of the HTTP contract (gathered in :data:`.server.ROUTES`)
+ROUTES: list[BaseRoute] = [Route("/api/strokes", strokes, methods=["POST"])]
+
+
+def score(payload: dict[str, Any], shown: ShownDesk) -> dict[str, Any]:
     """``{"shape", "score", "best_shape", "scores"}`` for ``payload["points"]`` (metres),
-    against the built-in shapes and the layout's own templates, with the layout's stroke
+    against the built-in shapes and the layout file's own templates, with its stroke
     settings (``min_score``, ``max_rotation_deg``)."""
     import numpy as np
 
     from hapticdesk.gestures.strokes.unistroke import template_set
-    from hapticdesk.runtime.assembly import load_scene_layout
 
     points = payload.get("points")
     if not isinstance(points, list) or not 2 <= len(points) <= MAX_POINTS:
@@ -29,7 +51,7 @@ def score(payload: dict[str, Any], layout_path: Path, layout_text: str, server: 
         raise ConfigError(None, "a stroke is a list of [x, y] points in metres") from None
     if not np.isfinite(pts).all():
         raise ConfigError(None, "a stroke's points must be finite numbers")
-    layout, _ = load_scene_layout(layout_path, server.registry, server.desk, text=layout_text)
+    layout, _ = shown.load()
     options = layout.options_for("stroke", None)
     templates = template_set(layout.templates)
     match = templates.classify(

@@ -15,7 +15,8 @@ import jinja2
 import pytest
 
 from hapticdesk.files.recording_io import write_recording
-from hapticdesk.plugins.mqtt.homeassistant import DeskTopics, discovery_configs, event_types
+from hapticdesk.plugins.mqtt.homeassistant import discovery_configs, event_types
+from hapticdesk.plugins.mqtt.settings import DeskTopics
 
 from .taps import Tap, tap_recording
 from .test_runtime_mqtt import run_layout, write_layout
@@ -202,7 +203,7 @@ def test_event_types_are_only_what_the_desk_can_send():
     """Issue 31 item 6: a gesture carries a region only where it is bound there; a binding
     without a region gives `desk_…` only (`lamp_swipe_up`, `pad_stroke_circle` were listed:
     32 types for a layout that can send 12)."""
-    from hapticdesk.plugins.mqtt import discovery_for
+    from hapticdesk.plugins.mqtt.homeassistant import discovery_for
     from hapticdesk.plugins.mqtt.settings import MqttSettings
 
     bindings = [
@@ -395,7 +396,7 @@ def test_a_bad_style_names_its_place(tmp_path, section, message):
 def test_two_desks_of_one_name_on_two_floors_are_two_devices():
     """Issue 14 item 4: with a topic prefix per floor, desks called `study` on two floors get
     their own discovery topics and device identifiers; the default topics keep the old ones."""
-    from hapticdesk.plugins.mqtt import discovery_for
+    from hapticdesk.plugins.mqtt.homeassistant import discovery_for
     from hapticdesk.plugins.mqtt.settings import MqttSettings
 
     binding = SimpleNamespace(

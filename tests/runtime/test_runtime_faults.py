@@ -16,7 +16,7 @@ from hapticdesk.errors import ConfigError
 from hapticdesk.files.recording_io import write_recording
 from hapticdesk.files.yamlfile import load_marked_yaml
 from hapticdesk.plugin_loading import load_registry
-from hapticdesk.plugins.mqtt import link_for
+from hapticdesk.plugins.mqtt.desk_link import link_for
 from hapticdesk.plugins.mqtt.link import MqttLink
 from hapticdesk.plugins.mqtt.message import Message
 from hapticdesk.plugins.mqtt.settings import MqttSettings, settings_from_layout
@@ -168,7 +168,7 @@ def test_home_assistant_coming_online_again_and_again_does_not_pile_up_announcem
     online = SimpleNamespace(topic="homeassistant/status", payload=b"online")
     for _ in range(1000):
         link._on_message(None, None, online)
-    assert list(link._control) == birth  # coalesced: each announcement once, the newest
+    assert list(link._outbox.control) == birth  # coalesced: each announcement once, the newest
 
 
 def test_announcements_again_are_sent_once_each_on_a_live_broker(broker):

@@ -204,7 +204,7 @@ def _state(pid: int) -> str:
 
 
 def test_an_action_that_shares_the_runs_connection_cannot_be_isolated(tmp_path):
-    from hapticdesk.plugins.mqtt import MqttAction
+    from hapticdesk.plugins.mqtt.action import MqttAction
 
     with pytest.raises(ConfigError, match="uses the run's shared `mqtt` resource"):
         ProcessAction(

@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 
 from hapticdesk.errors import ConfigError
 from hapticdesk.gestures.event import GestureEvent
-from hapticdesk.plugins import template_worker, templating
+from hapticdesk.plugins import template_pool, template_worker, templating
 from hapticdesk.plugins.templating import (
     MAX_RENDER_S,
     SAMPLE_VARIABLES,
@@ -281,7 +281,7 @@ def test_fuzz_each_render_ends_within_1_s_and_100_mb_or_check_refuses_it(text: s
         event("refused by check")
         return
     event("passed check")
-    workers = template_worker.pool()
+    workers = template_pool.pool()
     before = rss_kb()
     for gesture in _EVENTS:
         started = time.monotonic()
@@ -303,6 +303,6 @@ def test_the_worker_keeps_none_of_the_desks_environment(monkeypatch: pytest.Monk
     """Guards item 1 and 2 together: templates render in a process that holds no secret of
     the desk's environment (a sandbox escape there would find no token)."""
     monkeypatch.setenv("HA_TOKEN", "s3cret")
-    env = template_worker._worker_environment()
+    env = template_pool._worker_environment()
     assert "HA_TOKEN" not in env and "PATH" in env
     assert json.dumps(env).count("s3cret") == 0

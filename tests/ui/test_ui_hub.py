@@ -15,7 +15,8 @@ pytest.importorskip("uvicorn")
 websockets_sync = pytest.importorskip("websockets.sync.client")
 
 from hapticdesk.plugin_loading import load_registry  # noqa: E402
-from hapticdesk.plugins.ui.server import CLIENT_QUEUE, UiServer  # noqa: E402
+from hapticdesk.plugins.ui.hub import CLIENT_QUEUE  # noqa: E402
+from hapticdesk.plugins.ui.server import UiServer  # noqa: E402
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
@@ -37,16 +38,16 @@ def test_a_browser_that_does_not_read_drops_frames_and_never_blocks(tmp_path: Pa
         frame = {"type": "contact", "t": 0.0, "x": 0.01, "y": 0.02, "force_n": 5.0}
         started = time.perf_counter()
         for k in range(5_000):
-            server.publish(dict(frame, t=k / 1200, phase="hold", surface="top", pad="x" * 200))
+            server.hub.publish(dict(frame, t=k / 1200, phase="hold", surface="top", pad="x" * 200))
             if k % 10 == 0:
-                server.publish({"type": "gesture", "t": k / 1200, "gesture": "tap", "n": k})
+                server.hub.publish({"type": "gesture", "t": k / 1200, "gesture": "tap", "n": k})
         spent = time.perf_counter() - started
         # what the sensing side pays: a JSON encoding and a hand-off per frame, no waiting
         assert spent / 5_500 < 200e-6, f"{spent / 5_500 * 1e6:.0f} µs per publish"
         time.sleep(1.0)  # let the server's loop push what the socket takes
-        [client] = list(server._clients)
+        [client] = list(server.hub.clients)
         assert len(client.queue) <= CLIENT_QUEUE  # bounded, oldest gestures dropped
-        assert server.contacts_dropped > 2_500  # the slow page lost frames, not the desk
+        assert server.hub.contacts_dropped > 2_500  # the slow page lost frames, not the desk
         slow.socket.close()  # gone without a goodbye, as a crashed browser
     finally:
         server.close()

@@ -20,8 +20,10 @@ from starlette.testclient import TestClient  # noqa: E402
 
 from hapticdesk.files.profile_reader import load_profile  # noqa: E402
 from hapticdesk.plugin_loading import load_registry  # noqa: E402
-from hapticdesk.plugins.ui import server as ui_server  # noqa: E402
-from hapticdesk.plugins.ui.server import TOKEN_COOKIE, UiServer  # noqa: E402
+from hapticdesk.plugins.ui import hub as ui_hub  # noqa: E402
+from hapticdesk.plugins.ui.guard import TOKEN_COOKIE  # noqa: E402
+from hapticdesk.plugins.ui.page import STATIC  # noqa: E402
+from hapticdesk.plugins.ui.server import UiServer  # noqa: E402
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 LOCAL = "http://127.0.0.1:8765"
@@ -70,6 +72,32 @@ def test_a_confined_read_says_the_same_for_what_exists_outside_and_what_does_not
         assert answers[0] == answers[1], answers
         assert "lies outside the layout's folder" in answers[0]["message"]
         assert answers[0]["line"] > 0
+
+
+def test_the_guard_confines_what_a_page_sends_not_the_operator_s_own_file(
+    layout: Path, tmp_path: Path
+) -> None:
+    """Guards the guard (one middleware confining every request's reads): the operator's own
+    layout file may name strokes outside its folder, and the page still shows them and
+    scores against them (the file is read as the operator's); the same text sent by a page
+    is refused at its place."""
+    folder = tmp_path / "elsewhere" / "zig"
+    folder.mkdir(parents=True)
+    (folder / "one.csv").write_text("x,y\n0,0\n0.05,0.05\n0.1,0\n0.15,0.05\n")
+    text = layout.read_text().replace(
+        "desk: kitamura2017\n", f"desk: kitamura2017\ntemplates: {{zig: {folder}}}\n"
+    )
+    layout.write_text(text)
+    client = TestClient(UiServer(layout, load_registry(entry_points=False)).app(), base_url=LOCAL)
+    stroke = {"points": [[0, 0], [0.05, 0.05], [0.1, 0], [0.15, 0.05]]}
+    scored = client.post("/api/strokes", json=stroke)
+    assert scored.status_code == 200 and scored.json()["user_shapes"] == ["zig"]
+    with client.websocket_connect("/ws", headers={"host": "127.0.0.1:8765"}) as socket:
+        desk = json.loads(socket.receive_text())
+    assert desk["type"] == "desk" and desk["templates"] == ["zig"]
+    [error] = client.post("/api/check", content=text).json()["errors"]
+    assert "lies outside the layout's folder" in error["message"]
+    assert client.put("/api/layout", content=text).status_code == 422
 
 
 class _FakeRuntime(SimpleNamespace):
@@ -145,7 +173,7 @@ def test_websocket_clients_are_capped_and_the_next_is_told_why(
     accepted 1,500 idle clients, 229 MB)."""
     from starlette.websockets import WebSocketDisconnect
 
-    monkeypatch.setattr(ui_server, "MAX_WS_CLIENTS", 3)
+    monkeypatch.setattr(ui_hub, "MAX_WS_CLIENTS", 3)
     server = UiServer(layout, load_registry(entry_points=False))
     client = TestClient(server.app(), base_url=LOCAL)
     here = {"host": "127.0.0.1:8765"}
@@ -166,7 +194,7 @@ def test_websocket_clients_are_capped_and_the_next_is_told_why(
             with pytest.raises(WebSocketDisconnect) as closed:
                 refused.receive_text()
             assert closed.value.code == 1013
-        assert server.refused_sockets == 1
+        assert server.hub.refused_sockets == 1
     with client.websocket_connect("/ws", headers=here) as again:
         assert json.loads(again.receive_text())["type"] == "desk"
 
@@ -253,6 +281,11 @@ def test_a_paused_desk_says_so_to_the_page(layout: Path, paper_desk) -> None:
     try:
         url = f"ws://127.0.0.1:{server.port}/ws"
         with websockets.connect(url, origin=f"http://127.0.0.1:{server.port}") as socket:
+            # the run goes on once the page is fed (its first contact frame came): let go at
+            # connecting, the run had often paused before the page's first frame
+            while (first := json.loads(socket.recv(timeout=10)))["type"] != "contact":
+                pass
+            seen.append(first["paused"])
             go_on.set()
             deadline = time.monotonic() + 30
             while time.monotonic() < deadline and not (seen and seen[-1] is False and True in seen):
@@ -266,5 +299,5 @@ def test_a_paused_desk_says_so_to_the_page(layout: Path, paper_desk) -> None:
         sensing.join(30)
         server.close()
     assert seen == [False, True, False]
-    page = (ui_server.STATIC / "app.js").read_text()
+    page = (STATIC / "app.js").read_text()
     assert 'm.paused ? "paused: gestures are not sent"' in page

@@ -9,8 +9,13 @@ finger holds that still, fingers tremble and wander) joins it already after
 ``object_settle_s``, the zero then the mean over the windows that showed it still; when the
 load later steps back to the zero from before an object joined it (the object lifted), that
 zero is restored at once. The desk is judged on windows of ``WINDOW_S``; a zero decided at
-the end of a window applies from the next sample on, whatever the block boundaries, so
-streaming equals batch.
+the end of a window applies from the next sample on.
+
+The kernel (:mod:`hapticdesk.estimator.kernel`, ``_window_add``) fills each window and, at
+its end, measures it — the spread of its low-passed force, its mean wrench, its share of bad
+samples — and leaves the loop (``EV_WINDOW``, five times a second); :meth:`ZeroStage.window`
+judges it here, on plain floats, and the estimator hands the zero and the resting flag back
+to the kernel.
 """
 
 from __future__ import annotations
@@ -21,9 +26,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hapticdesk.estimator.contacts import FLAG_GAP
 from hapticdesk.estimator.notices import Notice, add_notice, log
-from hapticdesk.estimator.samples import BAD_SAMPLE
 from hapticdesk.estimator.settings import EstimatorSettings
 
 # A load still within these multiples of the idle desk's own unsteadiness is an object, not a
@@ -75,36 +78,19 @@ OBJECT_NOISE_FLOOR_N = 1e-4
 # of the object's weight (or ``still_n``, whichever is larger) of that zero
 LIFT_TOLERANCE = 0.2
 
-ZeroSegments = tuple[np.ndarray, np.ndarray]  # starts (n,), (8, n): [F; M], set time, resting
-
-
-def window_spreads(lp_w: np.ndarray, block: int) -> np.ndarray:
-    """How far each window's low-passed force spreads, its largest axis (n,), from windows
-    ``lp_w`` (3, n, w): over means of ``block`` samples (``EstimatorSettings.still_block``,
-    1 unless the sway is compensated: see ``SWAY_STILL_MEAN_S``)."""
-    if block > 1:
-        three, n, w = lp_w.shape
-        lp_w = lp_w.reshape(three, n, w // block, block).mean(axis=3)
-    return (lp_w.max(axis=2) - lp_w.min(axis=2)).max(axis=0)
-
 
 class ZeroState:
-    """The current zero, the unfinished window and the tare / stillness state machine."""
+    """The current zero and the tare / stillness state machine."""
 
-    def __init__(self, window: int) -> None:
+    def __init__(self) -> None:
         self.zero: np.ndarray | None = None  # (6,), None before the tare
         self.zero_list: list[float] = []  # the same as plain floats
         self.zero_t = 0.0  # when the zero was last set, for the drift since then
+        self.zero_version = 0  # how many times it was set (the kernel's copy follows it)
         # the load has been as still as an object put down since the last window judged
         # (``object_pending``): recognizers wait for the verdict before a hold fires
         self.resting = False
-        self.segment: ZeroSegments = (np.zeros(1, int), np.array(self.column())[:, None])
         self.noise: np.ndarray | None = None  # (6, 6) measured at the tare
-        self.win_lp = np.zeros((3, window))  # the current, unfinished window
-        self.win_raw = np.zeros((6, window))
-        self.win_bad = np.zeros(window, bool)
-        self.win_fill = 0
-        self.last_window_t = float("nan")
         self.tare_raw: list[np.ndarray] = []
         self.tare_means: list[list[float]] = []
         self.windows_seen = 0
@@ -129,159 +115,46 @@ class ZeroState:
         # objects absorbed into the zero, last on top: (the zero before it, its weight |F|)
         self.objects: list[tuple[list[float], float]] = []
 
-    def column(self) -> list[float]:
-        """The zero (6,), the time it was set and whether the load is resting (0 or 1), as
-        one column; the zero and its time NaN before the tare."""
-        if self.zero is None:
-            return [math.nan] * 7 + [float(self.resting)]
-        return [*self.zero_list, self.zero_t, float(self.resting)]
-
     @property
     def object_pending(self) -> bool:
         """After a window: an object run is under way and its windows stay within the allowed
         wander, so the load is resting until the verdict."""
         return self.zero is not None and self.object_run > 0 and self.object_resting
 
-    def set_resting(self, resting: bool) -> None:
-        """Whether the load is resting (see ``resting``) from the next sample on."""
-        if resting != self.resting:
-            self.resting = resting
-            self.segment = (np.zeros(1, int), np.array(self.column())[:, None])
-
     def set_zero(self, zero: np.ndarray | list[float], t: float) -> None:
         self.zero_list = [float(z) for z in zero]
         self.zero = np.array(self.zero_list)
         self.zero_t = t
-        self.segment = (np.zeros(1, int), np.array(self.column())[:, None])
+        self.zero_version += 1
 
 
 class ZeroStage:
-    """The zero for each sample, from the low-passed force and the raw wrench."""
+    """Judges the windows of the zero (the tare, drift, objects), one at a time."""
 
     def __init__(self, settings: EstimatorSettings, notices: list[Notice]) -> None:
         self.settings = settings
         self.notices = notices
-        self.state = ZeroState(settings.window)
+        self.state = ZeroState()
         self.window_s = settings.window / settings.sample_rate_hz
         # the idle desk's wander is measured over as many windows as an object waits
         self.wander_windows = max(2, settings.n_object)
 
-    def process_one(self, t: float, lp_force: list[float], raw: list[float]) -> None:
-        """:meth:`process` for one good sample once tared: remembered, and where it ends a
-        window, the window judged by the same code as a block's (so a zero it sets takes
-        effect from the next sample on, as in a block) — one window's work, not a block's."""
-        st, w = self.state, self.settings.window
-        m = st.win_fill
-        st.win_lp[:, m] = lp_force
-        st.win_raw[:, m] = raw
-        st.win_bad[m] = False
-        if m + 1 < w:
-            st.win_fill = m + 1
-        else:
-            self._window_one(t)
-            st.win_fill = 0
-        st.last_window_t = t
-
-    def _window_one(self, t: float) -> None:
-        """:meth:`_windows` for the one window a single sample ends, with as few numpy calls
-        as it takes: at a window's end (5 times a second) they run cold, and the general
-        code's dozen took about 125 µs there against 21 µs warm. The same reductions (a
-        window's max and min, its mean), so the same values as a block's."""
+    def window(
+        self, spread: float, bad: bool, mean: list[float], raw: np.ndarray, t_end: float
+    ) -> None:
+        """Judge one window: the spread of its low-passed force (its largest axis, over means
+        of ``still_block`` samples), whether over a tenth of it was held over (bad samples,
+        a gap), its mean wrench (6), its wrench (6, w) (read only before the tare; kept
+        then) and its last sample's time. Once tared, a window that is not still only ends
+        a still run and the resting."""
         st, s = self.state, self.settings.user
         st.window_index += 1
-        spread = float(window_spreads(st.win_lp[:, None, :], self.settings.still_block)[0])
-        bad = bool(np.count_nonzero(st.win_bad) / len(st.win_bad) > 0.1)  # (as _windows)
         if st.zero is not None and (bad or spread >= s.still_n):
-            st.still_run = st.object_run = 0  # not still: ends a still run (see _windows)
-            st.set_resting(False)
+            st.still_run = st.object_run = 0
+            st.resting = False
             return
-        self._window_done(spread, bad, st.win_raw.mean(axis=1).tolist(), st.win_raw, t)
-        st.set_resting(st.object_pending)
-
-    def process(
-        self, t: np.ndarray, lp_force: np.ndarray, raw: np.ndarray, flags: np.ndarray
-    ) -> ZeroSegments:
-        """The zero in force for each sample, as segments: ``starts`` (n,) sample indices
-        where a zero (or whether the load rests) takes effect and ``zeros`` (8, n), [F; M],
-        the time it was set (NaN before the tare) and the load resting (0 or 1)."""
-        st, w = self.state, self.settings.window
-        m, k = st.win_fill, len(t)
-        bad = (flags & (BAD_SAMPLE | FLAG_GAP)) != 0
-        if m + k < w:  # the block ends inside the current window: only remember it
-            st.win_lp[:, m : m + k] = lp_force
-            st.win_raw[:, m : m + k] = raw
-            st.win_bad[m : m + k] = bad
-            st.win_fill = m + k
-            st.last_window_t = float(t[-1])
-            return st.segment
-        if m:
-            all_lp = np.concatenate([st.win_lp[:, :m], lp_force], axis=1)
-            all_raw = np.concatenate([st.win_raw[:, :m], raw], axis=1)
-            all_bad = np.concatenate([st.win_bad[:m], bad])
-        else:  # windows start with the block: no copies
-            all_lp, all_raw, all_bad = lp_force, raw, bad
-        n_full = all_lp.shape[1] // w
-        starts, zeros = [0], [st.column()]
-        if n_full:
-            self._windows(t, all_lp, all_raw, all_bad, n_full, starts, zeros)
-            cut = n_full * w
-            rest = all_lp.shape[1] - cut
-            st.win_lp[:, :rest] = all_lp[:, cut:]
-            st.win_raw[:, :rest] = all_raw[:, cut:]
-            st.win_bad[:rest] = all_bad[cut:]
-            st.win_fill = rest
-        st.last_window_t = float(t[-1])
-        return np.array(starts), np.array(zeros).T
-
-    def _windows(
-        self,
-        t: np.ndarray,
-        all_lp: np.ndarray,
-        all_raw: np.ndarray,
-        all_bad: np.ndarray,
-        n_full: int,
-        starts: list[int],
-        zeros: list[list[float]],
-    ) -> None:
-        """Judge the ``n_full`` complete windows; append where a new zero takes effect."""
-        st, w = self.state, self.settings.window
-        m = st.win_fill
-        cut = n_full * w
-        lp_w = all_lp[:, :cut].reshape(3, n_full, w)
-        spread: list[float] = window_spreads(lp_w, self.settings.still_block).tolist()
-        means = all_raw[:, :cut].reshape(6, n_full, w).mean(axis=2)
-        # a window is unusable for the zero when more than a tenth of it was held over
-        bad_share = all_bad[:cut].reshape(n_full, w).mean(axis=1)
-        any_bad = (bad_share > 0.1).tolist()
-        ends = np.arange(1, n_full + 1) * w - 1 - m  # block index of each window's end
-        t_end = np.where(ends >= 0, t[np.maximum(ends, 0)], st.last_window_t).tolist()
-        mean_rows = means.T.tolist()
-        # Once tared, a window that is not still only ends a still run: the loop (over
-        # 0.2 s windows, not samples) visits the still ones and notes the breaks.
-        still_n = self.settings.user.still_n
-        still = [not b and sp < still_n for b, sp in zip(any_bad, spread, strict=True)]
-        previous = -1
-        for j in range(n_full):
-            st.window_index += 1
-            if st.zero is not None and not still[j]:
-                if st.resting:  # (the load moved: no longer resting, from the next sample)
-                    st.set_resting(False)
-                    starts.append(int(ends[j]) + 1)
-                    zeros.append(st.column())
-                continue
-            if st.zero is not None and j != previous + 1:
-                st.still_run = st.object_run = 0  # windows in between were not still
-            previous = j
-            before, resting = st.zero, st.resting
-            self._window_done(
-                spread[j], any_bad[j], mean_rows[j], all_raw[:, j * w : (j + 1) * w], t_end[j]
-            )
-            st.set_resting(st.object_pending)
-            if st.zero is not before or st.resting != resting:
-                starts.append(int(ends[j]) + 1)
-                zeros.append(st.column())
-        if previous != n_full - 1:
-            st.still_run = st.object_run = 0  # the block ended on windows that were not still
+        self._window_done(spread, bad, mean, raw, t_end)
+        st.resting = st.object_pending
 
     def _window_done(
         self, spread: float, bad: bool, mean: list[float], raw: np.ndarray, t_end: float
@@ -292,7 +165,7 @@ class ZeroStage:
         if st.zero is None:
             self._tare_window(spread, bad, mean, raw, t_end)
             return
-        if bad or spread >= s.still_n:  # (only before the tare: see _windows)
+        if bad or spread >= s.still_n:  # (only before the tare: see window)
             st.still_run = st.object_run = 0
             return
         if st.objects and self._lifted(mean, t_end):
@@ -451,7 +324,7 @@ class ZeroStage:
         """Before the tare: collect quiet windows; tare over ``tare_s`` of them."""
         st, s, n_tare = self.state, self.settings.user, self.settings.n_tare
         if not bad and spread < s.tare_quiet_n:
-            st.tare_raw.append(raw)
+            st.tare_raw.append(raw.copy())
             st.tare_means.append(mean[:3])
             st.tare_spreads.append(spread)
             if len(st.tare_raw) > n_tare:
@@ -460,7 +333,11 @@ class ZeroStage:
                 st.tare_spreads.pop(0)
             if np.ptp(np.array(st.tare_means), axis=0).max() >= s.tare_quiet_n:
                 # each window was quiet, but the load moved between them: start again here
-                st.tare_raw, st.tare_means, st.tare_spreads = [raw], [mean[:3]], [spread]
+                st.tare_raw, st.tare_means, st.tare_spreads = (
+                    [st.tare_raw[-1]],
+                    [mean[:3]],
+                    [spread],
+                )
         else:
             st.tare_raw, st.tare_means, st.tare_spreads = [], [], []
         if len(st.tare_raw) >= n_tare:
@@ -496,32 +373,3 @@ def _quantile(values: list[float], q: float) -> float:
     """The ``q`` quantile of ``values`` by nearest rank (plain floats: a window's end is hot)."""
     ordered = sorted(values)
     return ordered[min(len(ordered) - 1, int(q * len(ordered)))]
-
-
-def subtract_zero(
-    t: np.ndarray, det: np.ndarray, lp: np.ndarray, segments: ZeroSegments, det_full: bool
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The zero taken off the fast wrench (a new array) and the low-passed one (in place),
-    segment by segment (it is piecewise constant). Returns the tared fast wrench, the age of
-    the zero at each sample (s), where a zero was known and where the load was resting."""
-    starts, zeros = segments
-    k = len(t)
-    ends = [*starts[1:].tolist(), k]
-    tared_zero = ~np.isnan(zeros[0])
-    fast = det.copy()
-    packed_zeros = zeros[:3] + 1j * zeros[3:6]
-    fast_zeros = packed_zeros if det_full else zeros[:3]
-    tared = np.ones(k, bool)
-    resting = np.zeros(k, bool)
-    age = np.empty(k)  # time since the zero in force was set
-    for a, b, j in zip(starts.tolist(), ends, range(len(ends)), strict=True):
-        if zeros[7, j]:
-            resting[a:b] = True
-        if tared_zero[j]:
-            fast[:, a:b] -= fast_zeros[:, j : j + 1]
-            lp[:, a:b] -= packed_zeros[:, j : j + 1]
-            age[a:b] = t[a:b] - zeros[6, j]
-        else:
-            tared[a:b] = False
-            age[a:b] = 0.0
-    return fast, age, tared, resting

@@ -214,8 +214,9 @@ class ContactEstimator:
         sf, si = self.state
         self.zeroing = ZeroStage(self.stage_settings, self.notices)
         self.covariances = None  # made again from the new tare's noise
-        for slot in (k.J_TARED, k.J_RESTING, k.J_WIN_FILL, k.J_IN_CONTACT, k.J_BLOCKED):
+        for slot in (k.J_TARED, k.J_RESTING, k.J_WIN_FILL, k.J_WIN_SKIPPED, k.J_IN_CONTACT):
             si[slot] = 0
+        si[k.J_BLOCKED] = si[k.J_WIN_NOT_STILL] = 0
         guard = self.params.slot(k.I_SO_GUARD)
         sf[guard : guard + int(self.params.pi[k.I_N_UP])] = 0.0
 
@@ -245,9 +246,10 @@ class ContactEstimator:
         ``accel`` (k, A): the desk's accelerometer readings (its profile's columns, m/s²),
         used only when the profile has an accelerometer; without them such a desk's samples
         are estimated uncompensated and flagged ``FLAG_NO_ACCEL``."""
-        t = np.ascontiguousarray(t, dtype=np.float64)
-        if t.ndim != 1:
-            t = t.reshape(-1)
+        if not (type(t) is np.ndarray and t.dtype == np.float64 and t.ndim == 1):
+            t = np.ascontiguousarray(t, dtype=np.float64).reshape(-1)
+        elif not t.flags.c_contiguous:
+            t = np.ascontiguousarray(t)
         n = len(t)
         x = self._channels(wrench, n)
         readings = self._readings(accel, n)
@@ -269,11 +271,14 @@ class ContactEstimator:
 
     def _channels(self, wrench: np.ndarray, n: int) -> np.ndarray:
         """The raw channels (n, C), C-contiguous float64 (a view where they already are)."""
-        w = np.ascontiguousarray(wrench, dtype=np.float64)
         c = self._n_channels
-        if w.shape == (n, c):
+        w = wrench
+        if not (type(w) is np.ndarray and w.dtype == np.float64 and w.flags.c_contiguous):
+            w = np.ascontiguousarray(wrench, dtype=np.float64)
+        shape = w.shape
+        if shape == (n, c):
             return w
-        if w.ndim == 3 and w.shape == (n, c // 6, 6) and c % 6 == 0:
+        if shape == (n, c // 6, 6) and c % 6 == 0:
             return w.reshape(n, c)
         sensors = len(self.profile.sensors)
         raise ValueError(
@@ -382,6 +387,9 @@ class ContactEstimator:
         w = int(self.params.pi[k.I_WINDOW])
         zero = self.zeroing.state
         tared, version = zero.zero is not None, zero.zero_version
+        if si[k.J_WIN_SKIPPED]:  # (windows that were not still, judged by the kernel)
+            self.zeroing.not_still(int(si[k.J_WIN_SKIPPED]))
+            si[k.J_WIN_SKIPPED] = 0
         raw = self.params.slot(k.I_SO_WIN_RAW)
         self.zeroing.window(
             float(sf[k.S_WIN_SPREAD]),

@@ -134,8 +134,9 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     P_MT_MIN_STEP_SHARE,
     P_MT_MIN_NORMAL_SHARE,
     P_MT_MAX_FIRST_MOVE,
+    P_STILL_N,  # a window whose low-passed force spreads this much is not still
     N_PF_FIXED,
-) = range(28)
+) = range(29)
 # --- parameters: fixed int slots (pi) -----------------------------------------------------------
 (
     I_C,  # raw channels
@@ -262,6 +263,8 @@ N_SF_FIXED = 78
     J_SWAY_DIFF_POS,
     J_WIN_FILL,
     J_WIN_BADS,  # the window just ended: its bad samples
+    J_WIN_SKIPPED,  # windows judged here, not still, since Python judged one
+    J_WIN_NOT_STILL,  # the sample in flight ended such a window: no resting after it
     J_IN_CONTACT,
     J_BLOCKED,
     J_N_LEARNING,
@@ -283,7 +286,7 @@ N_SF_FIXED = 78
     J_MT_HAS_SECOND,
     J_MT_END_FLAGGED,
     N_SI_FIXED,
-) = range(38)
+) = range(40)
 # the second-finger stage's history of each sample: smoothed wrench and contact (floats), and
 # its located, surface and in-contact (ints)
 MT_W, MT_X, MT_Y, MT_Z, MT_FORCE, MT_F = 0, 6, 7, 8, 9, 10
@@ -873,13 +876,19 @@ def _filters(pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray) -> 
 
 @inlined
 def _window_add(
-    t: float, flags: int, first_good: bool, pi: np.ndarray, sf: np.ndarray, si: np.ndarray
+    t: float,
+    flags: int,
+    first_good: bool,
+    pf: np.ndarray,
+    pi: np.ndarray,
+    sf: np.ndarray,
+    si: np.ndarray,
 ) -> int:
     """The sample in flight into the zero's window (its low-passed force, its wrench, whether
     it is bad); at the window's end its spread, mean and last time go to S_WIN_* and
-    EV_WINDOW is returned. Before the first good sample there is no wrench (the filters have
-    not started: zeros); that sample stands in for those before it in its window, as if the
-    input had started with it."""
+    EV_WINDOW is returned, unless the desk is tared and the window is not still. Before the
+    first good sample there is no wrench (the filters have not started: zeros); that sample
+    stands in for those before it in its window, as if the input had started with it."""
     w = pi[I_WINDOW]
     win_lp = sf[pi[I_SO_WIN_LP] : pi[I_SO_WIN_LP] + 3 * w]
     win_raw = sf[pi[I_SO_WIN_RAW] : pi[I_SO_WIN_RAW] + 6 * w]
@@ -919,6 +928,13 @@ def _window_add(
             )
             lo, hi = min(lo, value), max(hi, value)
         spread = max(spread, hi - lo)
+    if si[J_TARED] and (bads / w > 0.1 or spread >= pf[P_STILL_N]):
+        # once tared, a window that is not still (or mostly held over) only ends a still run
+        # and the resting (from the next sample on): judged here, and Python told at its next
+        # window (zero.py)
+        si[J_WIN_NOT_STILL] = 1
+        si[J_WIN_SKIPPED] += 1
+        return 0
     sf[S_WIN_SPREAD] = spread
     for lane in range(6):
         sf[S_WIN_MEAN + lane] = pairwise_sum(sf, raw_at + lane * w, w, 1) / w
@@ -1377,7 +1393,7 @@ def _front(
         for r in range(6):
             sf[S_LP + r] = sf[S_DET + r] = sf[S_DIFF + r] = 0.0
     si[J_FLAGS] = flags
-    return events | _window_add(t, flags, first_good, pi, sf, si)
+    return events | _window_add(t, flags, first_good, pf, pi, sf, si)
 
 
 @inlined
@@ -1473,7 +1489,10 @@ def _sample(
         if events & EV_COVS:  # the sample's own candidates use them: after Python made them
             si[J_RESUME] = RESUME_BACK
             return events
-    return events | _back(t, pf, pi, sf, si, out_f, out_b, out_s, col)
+    events |= _back(t, pf, pi, sf, si, out_f, out_b, out_s, col)
+    if si[J_WIN_NOT_STILL]:
+        si[J_WIN_NOT_STILL] = si[J_RESTING] = 0
+    return events
 
 
 # --- the two entries ----------------------------------------------------------------------------

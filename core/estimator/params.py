@@ -180,6 +180,7 @@ def params_of(s: EstimatorSettings, inertia: InertiaSettings | None) -> Params:
         k.P_MT_MIN_STEP_SHARE: MIN_STEP_SHARE,
         k.P_MT_MIN_NORMAL_SHARE: MIN_NORMAL_SHARE,
         k.P_MT_MAX_FIRST_MOVE: MAX_FIRST_MOVE_M,
+        k.P_STILL_N: user.still_n,
     }
     fixed_i = {
         k.I_C: c_n,

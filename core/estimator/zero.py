@@ -13,9 +13,10 @@ the end of a window applies from the next sample on.
 
 The kernel (:mod:`hapticdesk.estimator.kernel`, ``_window_add``) fills each window and, at
 its end, measures it — the spread of its low-passed force, its mean wrench, its share of bad
-samples — and leaves the loop (``EV_WINDOW``, five times a second); :meth:`ZeroStage.window`
-judges it here, on plain floats, and the estimator hands the zero and the resting flag back
-to the kernel.
+samples. Once tared, a window that is not still only ends a still run and the resting: the
+kernel judges it itself (and counts it for :meth:`ZeroStage.not_still`); any other leaves
+the loop (``EV_WINDOW``) and :meth:`ZeroStage.window` judges it here, on plain floats, and
+the estimator hands the zero and the resting flag back to the kernel.
 """
 
 from __future__ import annotations
@@ -139,6 +140,14 @@ class ZeroStage:
         # the idle desk's wander is measured over as many windows as an object waits
         self.wander_windows = max(2, settings.n_object)
 
+    def not_still(self, windows: int) -> None:
+        """Once tared, ``windows`` more windows that were not still (the kernel judges those
+        itself): each ends a still run and the resting."""
+        st = self.state
+        st.window_index += windows
+        st.still_run = st.object_run = 0
+        st.resting = False
+
     def window(
         self, spread: float, bad: bool, mean: list[float], raw: np.ndarray, t_end: float
     ) -> None:
@@ -150,8 +159,7 @@ class ZeroStage:
         st, s = self.state, self.settings.user
         st.window_index += 1
         if st.zero is not None and (bad or spread >= s.still_n):
-            st.still_run = st.object_run = 0
-            st.resting = False
+            self.not_still(0)  # (this one is counted above)
             return
         self._window_done(spread, bad, mean, raw, t_end)
         st.resting = st.object_pending

@@ -55,13 +55,16 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 import sys
+import tempfile
 import time
 from typing import Any
 
 import numpy as np
-from numba import njit, types
+from numba import config, njit, types
 from numba.core import event
+from numba.misc.appdirs import AppDirs
 
 from hapticdesk.estimator.contacts import (
     BAD_SAMPLE,
@@ -80,6 +83,26 @@ from hapticdesk.estimator.contacts import (
     SOURCE_FORCE,
     SOURCE_FUSED,
 )
+
+
+def _writable(folder: str) -> bool:
+    try:
+        os.makedirs(folder, exist_ok=True)
+        tempfile.TemporaryFile(dir=folder).close()
+    except OSError:
+        return False
+    return True
+
+
+# numba caches a compiled kernel beside this file (__pycache__) or, where that cannot be
+# written (an installed package, a read-only folder), in the user's cache directory (numba's
+# own choice, in that order); where neither can be, in a folder of this process's own
+# (compiled once per process then), never a failure at import
+if not config.CACHE_DIR and not (
+    _writable(os.path.join(os.path.dirname(__file__), "__pycache__"))
+    or _writable(AppDirs(appname="numba", appauthor=False).user_cache_dir)
+):
+    config.CACHE_DIR = tempfile.mkdtemp(prefix="hapticdesk-kernels-")
 
 # compiled once and cached; the GIL released while it runs (a reader thread keeps pace); IEEE
 # division (a division by zero gives inf, never an exception); no reference counting (the

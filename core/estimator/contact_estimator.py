@@ -181,7 +181,7 @@ class ContactEstimator:
     def reset(self) -> None:
         """Forget everything: filters, zero and contact state (a new run)."""
         self.state: State = new_state(self.params)
-        self.zeroing = ZeroStage(self.stage_settings, self.notices)
+        self.zeroing = self._zero_stage()
         self.covariances: Covariances | None = None  # made at the tare
         self._accel_missing = False  # in a spell of samples without accelerometer readings
         self.second_finger: SecondFingerStage | None = None
@@ -212,13 +212,20 @@ class ContactEstimator:
         the start); the filters keep their state, so no transient follows. Contacts are
         reported again once the new zero is set."""
         sf, si = self.state
-        self.zeroing = ZeroStage(self.stage_settings, self.notices)
-        self.covariances = None  # made again from the new tare's noise
-        for slot in (k.J_TARED, k.J_RESTING, k.J_WIN_FILL, k.J_WIN_SKIPPED, k.J_IN_CONTACT):
+        for slot in (
+            *(k.J_TARED, k.J_RESTING, k.J_RESTING_OFF, k.J_WIN_FILL, k.J_IN_CONTACT, k.J_BLOCKED),
+            *(k.J_WINDOW_INDEX, k.J_WINDOWS_SEEN, k.J_STILL_RUN, k.J_STILL_POS, k.J_STILL_COUNT),
+            *(k.J_OBJECT_RUN, k.J_OBJECTS, k.J_ZERO_VERSION, k.J_IDLE_LOG_N, k.J_IDLE_LOG_POS),
+        ):
             si[slot] = 0
-        si[k.J_BLOCKED] = si[k.J_WIN_NOT_STILL] = 0
+        self.zeroing = self._zero_stage()
+        self.covariances = None  # made again from the new tare's noise
         guard = self.params.slot(k.I_SO_GUARD)
         sf[guard : guard + int(self.params.pi[k.I_N_UP])] = 0.0
+
+    def _zero_stage(self) -> ZeroStage:
+        sf, si = self.state
+        return ZeroStage(self.stage_settings, self.notices, sf, si, self.params.pi)
 
     @property
     def tared(self) -> bool:
@@ -381,29 +388,21 @@ class ContactEstimator:
             self._fit_second(cols, col)
 
     def _window(self) -> None:
-        """A zero window ended: judged (zero.py); the zero and the resting flag back to the
-        kernel, and at the tare the covariances made."""
+        """A zero window ended that Python judges (zero.py: the tare, an object, its lift);
+        at the tare the covariances are made."""
         sf, si = self.state
         w = int(self.params.pi[k.I_WINDOW])
-        zero = self.zeroing.state
-        tared, version = zero.zero is not None, zero.zero_version
-        if si[k.J_WIN_SKIPPED]:  # (windows that were not still, judged by the kernel)
-            self.zeroing.not_still(int(si[k.J_WIN_SKIPPED]))
-            si[k.J_WIN_SKIPPED] = 0
+        tared = self.zeroing.state.tared
         raw = self.params.slot(k.I_SO_WIN_RAW)
+        spread, *mean, t_end = sf[k.S_WIN_SPREAD : k.S_WIN_T_END + 1].tolist()
         self.zeroing.window(
-            float(sf[k.S_WIN_SPREAD]),
+            spread,
             int(si[k.J_WIN_BADS]) / w > 0.1,  # more than a tenth held over: no use for the zero
-            sf[k.S_WIN_MEAN : k.S_WIN_MEAN + 6].tolist(),
+            mean,
             sf[raw : raw + 6 * w].reshape(6, w),
-            float(sf[k.S_WIN_T_END]),
+            t_end,
         )
-        if zero.zero_version != version:
-            sf[k.S_ZERO : k.S_ZERO + 6] = zero.zero_list
-            sf[k.S_ZERO_T] = zero.zero_t
-            si[k.J_TARED] = 1
-        si[k.J_RESTING] = int(zero.resting)
-        if not tared and zero.zero is not None:
+        if not tared and self.zeroing.state.tared:
             k.steps_changed(self.params.pf, self.params.pi, sf, si)  # (the steps they use)
             self._make_covariances()
 

@@ -98,11 +98,11 @@ def _writable(folder: str) -> bool:
 # written (an installed package, a read-only folder), in the user's cache directory (numba's
 # own choice, in that order); where neither can be, in a folder of this process's own
 # (compiled once per process then), never a failure at import
-if not config.CACHE_DIR and not (
+if not getattr(config, "CACHE_DIR", "") and not (
     _writable(os.path.join(os.path.dirname(__file__), "__pycache__"))
     or _writable(AppDirs(appname="numba", appauthor=False).user_cache_dir)
 ):
-    config.CACHE_DIR = tempfile.mkdtemp(prefix="hapticdesk-kernels-")
+    setattr(config, "CACHE_DIR", tempfile.mkdtemp(prefix="hapticdesk-kernels-"))  # noqa: B010
 
 # compiled once and cached; the GIL released while it runs (a reader thread keeps pace); IEEE
 # division (a division by zero gives inf, never an exception); no reference counting (the
@@ -158,8 +158,9 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     P_MT_MIN_NORMAL_SHARE,
     P_MT_MAX_FIRST_MOVE,
     P_STILL_N,  # a window whose low-passed force spreads this much is not still
+    P_DRIFT_MAX,  # a still load lighter than this is the idle desk's drift
     N_PF_FIXED,
-) = range(29)
+) = range(30)
 # --- parameters: fixed int slots (pi) -----------------------------------------------------------
 (
     I_C,  # raw channels
@@ -186,6 +187,9 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     I_MT_LAG,
     I_MT_LANDING,
     I_MT_BOARD,  # the second finger's surface (the first), or -1: none
+    I_N_DRIFT,  # windows an idle desk rests before its drift is followed; 0: never
+    I_STILL_RING,  # still windows' means kept (the last of a still run)
+    I_IDLE_LOG,  # idle windows the kernel judged, kept for Python's yardsticks
     # offsets into pf
     I_PO_MAP,  # (C, 6) channels -> [F_o; M_o]: the matrix (6, C) stored by channel
     I_PO_LIMIT,  # (C,) a channel at or beyond this is saturated
@@ -226,13 +230,15 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     I_SO_LANDING,  # (2·LAG + 1 + LANDING, 6)
     I_SO_PARTIAL_GAIN,  # (6, A)
     I_SO_TRACE,  # (TRACE_ROWS,) the traced candidates of the sample in flight
+    I_SO_STILL_MEANS,  # (I_STILL_RING, 6): a ring of the still run's window means
+    I_SO_IDLE_LOG,  # (I_IDLE_LOG, 5): a ring of idle windows: spread, force mean (3), index
     # offsets into si
     I_JO_CHANGES,  # (C,) each
     I_JO_LEARNING,
     I_JO_WIN_BAD,  # (WINDOW,)
     I_JO_MT_HIST,  # (2·LAG + 1, MT_I)
     N_PI,
-) = range(66)
+) = range(71)
 # a surface in pf: the rows of F'z, M'x, M'y of its wrench transform, origin, axes, normal,
 # bounds of its outline; in pi: whether the outline is a rectangle, whether (u, v) are the
 # desk's (x, y), where its polygon's vertices are in pf and how many
@@ -266,7 +272,9 @@ S_MT_MIN_APART = 64  # how far from the first finger a landing must be
 S_MT_END_STRAY = 65  # a contact's stray at its end (EV_CONTACT_END)
 S_TARED_W = 66  # (6,) the tared low-passed wrench
 S_TARED_Q = 72  # (6,) the tared fast wrench
-N_SF_FIXED = 78
+S_STILL_LO = 78  # (3,) the still run's lowest window mean of the force less the zero
+S_STILL_HI = 81  # (3,) ... and highest
+N_SF_FIXED = 84
 # --- state: fixed int slots (si) ----------------------------------------------------------------
 (
     J_STARTED,  # a good sample has been seen: the filters run
@@ -286,8 +294,17 @@ N_SF_FIXED = 78
     J_SWAY_DIFF_POS,
     J_WIN_FILL,
     J_WIN_BADS,  # the window just ended: its bad samples
-    J_WIN_SKIPPED,  # windows judged here, not still, since Python judged one
-    J_WIN_NOT_STILL,  # the sample in flight ended such a window: no resting after it
+    J_RESTING_OFF,  # the sample in flight ended a window judged here: no resting after it
+    J_WINDOW_INDEX,  # windows ended so far, still or not (zero.py: which are in a row)
+    J_WINDOWS_SEEN,  # windows judged on (every one before the tare, the still ones after)
+    J_STILL_RUN,  # still windows in a row, the load not moved
+    J_STILL_POS,  # where the next still mean goes in its ring
+    J_STILL_COUNT,  # still means in the ring since the run began (at most I_STILL_RING)
+    J_OBJECT_RUN,  # windows a load has been as still as an object (zero.py)
+    J_OBJECTS,  # objects absorbed into the zero (zero.py keeps what they were)
+    J_ZERO_VERSION,  # how many times the zero was set
+    J_IDLE_LOG_N,  # idle windows logged since Python read them (at most I_IDLE_LOG)
+    J_IDLE_LOG_POS,
     J_IN_CONTACT,
     J_BLOCKED,
     J_N_LEARNING,
@@ -309,7 +326,7 @@ N_SF_FIXED = 78
     J_MT_HAS_SECOND,
     J_MT_END_FLAGGED,
     N_SI_FIXED,
-) = range(40)
+) = range(49)
 # the second-finger stage's history of each sample: smoothed wrench and contact (floats), and
 # its located, surface and in-contact (ints)
 MT_W, MT_X, MT_Y, MT_Z, MT_FORCE, MT_F = 0, 6, 7, 8, 9, 10
@@ -951,18 +968,103 @@ def _window_add(
             )
             lo, hi = min(lo, value), max(hi, value)
         spread = max(spread, hi - lo)
+    si[J_WINDOW_INDEX] += 1
     if si[J_TARED] and (bads / w > 0.1 or spread >= pf[P_STILL_N]):
         # once tared, a window that is not still (or mostly held over) only ends a still run
-        # and the resting (from the next sample on): judged here, and Python told at its next
-        # window (zero.py)
-        si[J_WIN_NOT_STILL] = 1
-        si[J_WIN_SKIPPED] += 1
+        # and the resting, from the next sample on (zero.py)
+        si[J_STILL_RUN] = si[J_OBJECT_RUN] = 0
+        si[J_RESTING_OFF] = 1
         return 0
     sf[S_WIN_SPREAD] = spread
     for lane in range(6):
         sf[S_WIN_MEAN + lane] = pairwise_sum(sf, raw_at + lane * w, w, 1) / w
     sf[S_WIN_T_END] = t
+    if si[J_TARED] and _idle_window(spread, t, pf, pi, sf, si):
+        return 0
     return EV_WINDOW
+
+
+@inlined
+def _idle_window(
+    spread: float, t_end: float, pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray
+) -> bool:
+    """A still window of a tared desk with nothing absorbed, whose load is lighter than
+    P_DRIFT_MAX: the idle desk, judged here as ZeroStage._window_done does (the still run
+    goes on or starts again where the load moved, the window joins the idle desk's yardsticks
+    — logged for zero.py —, and after I_N_DRIFT such windows the zero follows the drift: the
+    mean of their means). Returns False, changing nothing, for any other window (Python's)."""
+    if si[J_OBJECTS] or pi[I_N_DRIFT] == 0:
+        return False
+    f0 = sf[S_WIN_MEAN] - sf[S_ZERO]
+    f1 = sf[S_WIN_MEAN + 1] - sf[S_ZERO + 1]
+    f2 = sf[S_WIN_MEAN + 2] - sf[S_ZERO + 2]
+    if not math.sqrt(f0 * f0 + f1 * f1 + f2 * f2) < pf[P_DRIFT_MAX]:
+        return False
+    si[J_WINDOWS_SEEN] += 1
+    lo, hi = sf[S_STILL_LO : S_STILL_LO + 3], sf[S_STILL_HI : S_STILL_HI + 3]
+    moved = False
+    if si[J_STILL_RUN]:
+        width = 0.0
+        for lane, f in enumerate((f0, f1, f2)):
+            width = max(width, max(hi[lane], f) - min(lo[lane], f))
+        moved = width >= pf[P_STILL_N]
+        if moved:
+            si[J_STILL_RUN] = 0  # the load moved: a new still run starts here
+    if si[J_STILL_RUN] == 0:
+        lo[0] = hi[0] = f0
+        lo[1] = hi[1] = f1
+        lo[2] = hi[2] = f2
+        si[J_STILL_COUNT] = 0
+    else:
+        for lane, f in enumerate((f0, f1, f2)):
+            lo[lane], hi[lane] = min(lo[lane], f), max(hi[lane], f)
+    ring = pi[I_STILL_RING]
+    at = pi[I_SO_STILL_MEANS] + 6 * si[J_STILL_POS]
+    for lane in range(6):
+        sf[at + lane] = sf[S_WIN_MEAN + lane]
+    si[J_STILL_POS] = si[J_STILL_POS] + 1 if si[J_STILL_POS] + 1 < ring else 0
+    si[J_STILL_COUNT] = min(si[J_STILL_COUNT] + 1, ring)
+    si[J_STILL_RUN] += 1
+    log = pi[I_SO_IDLE_LOG] + 5 * si[J_IDLE_LOG_POS]
+    sf[log] = spread
+    sf[log + 1], sf[log + 2], sf[log + 3] = sf[S_WIN_MEAN], sf[S_WIN_MEAN + 1], sf[S_WIN_MEAN + 2]
+    sf[log + 4] = si[J_WINDOW_INDEX]
+    si[J_IDLE_LOG_POS] = si[J_IDLE_LOG_POS] + 1 if si[J_IDLE_LOG_POS] + 1 < pi[I_IDLE_LOG] else 0
+    si[J_IDLE_LOG_N] = min(si[J_IDLE_LOG_N] + 1, pi[I_IDLE_LOG])
+    si[J_OBJECT_RUN] = 0
+    n = pi[I_N_DRIFT]
+    if si[J_STILL_RUN] >= n:  # the drift followed: the mean of the last n windows' means
+        for lane in range(6):
+            first = si[J_STILL_POS] - n
+            if first < 0:
+                first += ring
+            sf[S_ZERO + lane] = _exact_mean(sf, pi[I_SO_STILL_MEANS] + lane, first, n, ring)
+        sf[S_ZERO_T] = t_end
+        si[J_ZERO_VERSION] += 1
+        si[J_STILL_RUN] = 0
+    si[J_RESTING_OFF] = 1  # (no object run: the load is not resting)
+    return True
+
+
+@inlined
+def _exact_mean(sf: np.ndarray, base: int, first: int, n: int, ring: int) -> float:
+    """The mean of n values sf[base + 6·((first + j) mod ring)], summed with Neumaier's
+    compensation: for the default two windows the correctly rounded sum, as zero.py's
+    math.fsum; for more, the same to rounding."""
+    total = 0.0
+    small = 0.0
+    for j in range(n):
+        at = first + j
+        if at >= ring:
+            at -= ring
+        x = sf[base + 6 * at]
+        t = total + x
+        if abs(total) >= abs(x):
+            small += (total - t) + x
+        else:
+            small += (x - t) + total
+        total = t
+    return (total + small) / n
 
 
 # --- stage 4: the detector ----------------------------------------------------------------------
@@ -1513,8 +1615,8 @@ def _sample(
             si[J_RESUME] = RESUME_BACK
             return events
     events |= _back(t, pf, pi, sf, si, out_f, out_b, out_s, col)
-    if si[J_WIN_NOT_STILL]:
-        si[J_WIN_NOT_STILL] = si[J_RESTING] = 0
+    if si[J_RESTING_OFF]:
+        si[J_RESTING_OFF] = si[J_RESTING] = 0
     return events
 
 

@@ -38,6 +38,7 @@ from hapticdesk.estimator.multitouch import (
 from hapticdesk.estimator.resolution import CONFIRM_CHANGES, STEP_CHANGE
 from hapticdesk.estimator.samples import LIVE_AGAIN_S, NOISE_CHECK_S, NOISE_FREE_REPEATS, STUCK_RUN
 from hapticdesk.estimator.settings import EstimatorSettings
+from hapticdesk.estimator.zero import IDLE_WINDOWS
 from hapticdesk.files.profile import METHODS
 
 
@@ -151,6 +152,10 @@ def params_of(s: EstimatorSettings, inertia: InertiaSettings | None) -> Params:
     span = s.sway.span if s.sway is not None else 0
     window = s.window
     check_n = max(STUCK_RUN + 1, round(NOISE_CHECK_S * fs))
+    # the still run's means the zero stage reads back (the drift's, an object's wait), and
+    # the idle windows whose yardsticks count (zero.py)
+    still_ring = max(s.n_drift, s.n_object + 1)
+    idle_log = IDLE_WINDOWS + max(2, s.n_object)
     live_n = max(1, round(LIVE_AGAIN_S * fs))
     fixed_f = {
         k.P_MAX_GAP: user.max_gap_s,
@@ -181,6 +186,7 @@ def params_of(s: EstimatorSettings, inertia: InertiaSettings | None) -> Params:
         k.P_MT_MIN_NORMAL_SHARE: MIN_NORMAL_SHARE,
         k.P_MT_MAX_FIRST_MOVE: MAX_FIRST_MOVE_M,
         k.P_STILL_N: user.still_n,
+        k.P_DRIFT_MAX: user.drift_max_n,
     }
     fixed_i = {
         k.I_C: c_n,
@@ -207,6 +213,9 @@ def params_of(s: EstimatorSettings, inertia: InertiaSettings | None) -> Params:
         k.I_MT_LAG: lag,
         k.I_MT_LANDING: landing,
         k.I_MT_BOARD: 0 if s.frames else -1,
+        k.I_N_DRIFT: s.n_drift if user.drift_settle_s > 0 else 0,
+        k.I_STILL_RING: still_ring,
+        k.I_IDLE_LOG: idle_log,
         k.I_PO_MAP: pf.put(s.wrench_map.T),  # (by channel: see kernel.I_PO_MAP)
         k.I_PO_LIMIT: pf.put(s.range_flat),
         k.I_PO_LP_SOS: sos_at["lp"],
@@ -244,6 +253,8 @@ def params_of(s: EstimatorSettings, inertia: InertiaSettings | None) -> Params:
         k.I_SO_LANDING: sf.room((2 * lag + 1 + landing) * 6),
         k.I_SO_PARTIAL_GAIN: sf.room(6 * n_a),
         k.I_SO_TRACE: sf.room(k.TRACE_ROWS),
+        k.I_SO_STILL_MEANS: sf.room(6 * still_ring),
+        k.I_SO_IDLE_LOG: sf.room(5 * idle_log),
         k.I_JO_CHANGES: si.room(c_n),
         k.I_JO_LEARNING: si.put(np.ones(c_n, np.int64)),
         k.I_JO_WIN_BAD: si.room(window),

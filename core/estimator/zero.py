@@ -27,6 +27,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from hapticdesk.estimator import kernel as k
 from hapticdesk.estimator.notices import Notice, add_notice, log
 from hapticdesk.estimator.settings import EstimatorSettings
 
@@ -81,24 +82,21 @@ LIFT_TOLERANCE = 0.2
 
 
 class ZeroState:
-    """The current zero and the tare / stillness state machine."""
+    """The current zero and the tare / stillness state machine.
 
-    def __init__(self) -> None:
-        self.zero: np.ndarray | None = None  # (6,), None before the tare
-        self.zero_list: list[float] = []  # the same as plain floats
-        self.zero_t = 0.0  # when the zero was last set, for the drift since then
-        self.zero_version = 0  # how many times it was set (the kernel's copy follows it)
-        # the load has been as still as an object put down since the last window judged
-        # (``object_pending``): recognizers wait for the verdict before a hold fires
-        self.resting = False
+    What the kernel shares — the zero, when it was set, the window count, the still run and
+    its means, whether the load is resting, how many objects are absorbed — lives in the
+    kernel's state arrays (``kernel.S_*``, ``kernel.J_*``: the kernel judges the idle desk's
+    windows itself); the properties here read and write them there. The rest is Python's:
+    the tare's windows, the idle desk's yardsticks (from the windows the kernel logs), the
+    object rule's windows and the objects absorbed."""
+
+    def __init__(self, sf: np.ndarray, si: np.ndarray, pi: np.ndarray) -> None:
+        self._sf, self._si = sf, si
+        self._ring_at, self._ring = int(pi[k.I_SO_STILL_MEANS]), int(pi[k.I_STILL_RING])
         self.noise: np.ndarray | None = None  # (6, 6) measured at the tare
         self.tare_raw: list[np.ndarray] = []
         self.tare_means: list[list[float]] = []
-        self.windows_seen = 0
-        self.still_run = 0
-        self.still_lo: list[float] = [0.0, 0.0, 0.0]
-        self.still_hi: list[float] = [0.0, 0.0, 0.0]
-        self.still_means: list[list[float]] = []
         self.tare_spreads: list[float] = []
         # the idle desk's unsteadiness: the IDLE_QUANTILE of its recent window spreads, and of
         # how far its window means strayed over an object's wait (``n_object`` windows) in a row
@@ -107,62 +105,169 @@ class ZeroState:
         self.idle_spreads: list[float] = []  # the last IDLE_WINDOWS of each
         self.idle_wanders: list[float] = []
         self.idle_tail: list[tuple[int, list[float]]] = []  # (window index, force mean) of the last
-        self.window_index = 0  # windows judged so far, still or not (which are in a row)
-        self.object_run = 0  # windows the load has been as still as the idle desk
-        # the last of them judged (spread, force mean less the zero), and whether their means
-        # stayed within the allowed wander
+        # the last windows of an object run (spread, force mean less the zero), and whether
+        # their means stayed within the allowed wander
         self.object_windows: list[tuple[float, tuple[float, float, float]]] = []
         self.object_resting = False
         # objects absorbed into the zero, last on top: (the zero before it, its weight |F|)
         self.objects: list[tuple[list[float], float]] = []
 
     @property
+    def tared(self) -> bool:
+        return bool(self._si[k.J_TARED])
+
+    @property
+    def zero(self) -> np.ndarray | None:
+        """The zero (6,), None before the tare."""
+        return self._sf[k.S_ZERO : k.S_ZERO + 6].copy() if self.tared else None
+
+    @property
+    def zero_list(self) -> list[float]:
+        return list(self._sf[k.S_ZERO : k.S_ZERO + 6].tolist())
+
+    @property
+    def zero_t(self) -> float:
+        """When the zero was last set, for the drift since then."""
+        return float(self._sf[k.S_ZERO_T])
+
+    @property
+    def zero_version(self) -> int:
+        """How many times the zero was set."""
+        return int(self._si[k.J_ZERO_VERSION])
+
+    def set_zero(self, zero: np.ndarray | list[float], t: float) -> None:
+        self._sf[k.S_ZERO : k.S_ZERO + 6] = [float(z) for z in zero]
+        self._sf[k.S_ZERO_T] = t
+        self._si[k.J_TARED] = 1
+        self._si[k.J_ZERO_VERSION] += 1
+
+    def _int(name: int) -> property:  # type: ignore[misc]  # (a slot of the kernel's si)
+        return property(
+            lambda self: int(self._si[name]),
+            lambda self, value: self._si.__setitem__(name, int(value)),
+        )
+
+    #: windows judged on (each before the tare, the still ones after); windows ended so far,
+    #: still or not (which are in a row); still windows in a row with the load not moved; windows
+    #: the load has been as still as the idle desk
+    windows_seen = _int(k.J_WINDOWS_SEEN)
+    window_index = _int(k.J_WINDOW_INDEX)
+    still_run = _int(k.J_STILL_RUN)
+    object_run = _int(k.J_OBJECT_RUN)
+    del _int
+
+    @property
+    def resting(self) -> bool:
+        """The load has been as still as an object put down since the last window judged
+        (``object_pending``): recognizers wait for the verdict before a hold fires."""
+        return bool(self._si[k.J_RESTING])
+
+    @resting.setter
+    def resting(self, value: bool) -> None:
+        self._si[k.J_RESTING] = int(value)
+
+    @property
+    def still_lo(self) -> list[float]:
+        """The still run's lowest window mean of the force less the zero (3)."""
+        return list(self._sf[k.S_STILL_LO : k.S_STILL_LO + 3].tolist())
+
+    @still_lo.setter
+    def still_lo(self, values: list[float]) -> None:
+        self._sf[k.S_STILL_LO : k.S_STILL_LO + 3] = values
+
+    @property
+    def still_hi(self) -> list[float]:
+        return list(self._sf[k.S_STILL_HI : k.S_STILL_HI + 3].tolist())
+
+    @still_hi.setter
+    def still_hi(self, values: list[float]) -> None:
+        self._sf[k.S_STILL_HI : k.S_STILL_HI + 3] = values
+
+    def clear_still_means(self) -> None:
+        self._si[k.J_STILL_COUNT] = 0
+
+    def push_still_mean(self, mean: list[float]) -> None:
+        """The mean wrench (6) of one more still window of the run."""
+        si, pos = self._si, int(self._si[k.J_STILL_POS])
+        at = self._ring_at + 6 * pos
+        self._sf[at : at + 6] = mean
+        si[k.J_STILL_POS] = pos + 1 if pos + 1 < self._ring else 0
+        si[k.J_STILL_COUNT] = min(int(si[k.J_STILL_COUNT]) + 1, self._ring)
+
+    def last_still_means(self, n: int) -> list[list[float]]:
+        """The means of the run's last ``n`` still windows (fewer if the run is shorter)."""
+        n = min(n, int(self._si[k.J_STILL_COUNT]))
+        pos = int(self._si[k.J_STILL_POS])
+        rows = []
+        for j in range(n):
+            at = self._ring_at + 6 * ((pos - n + j) % self._ring)
+            rows.append(self._sf[at : at + 6].tolist())
+        return rows
+
+    def count_objects(self) -> None:
+        """How many objects are absorbed, for the kernel (it judges no window while any is:
+        their lift is Python's)."""
+        self._si[k.J_OBJECTS] = len(self.objects)
+
+    @property
     def object_pending(self) -> bool:
         """After a window: an object run is under way and its windows stay within the allowed
         wander, so the load is resting until the verdict."""
-        return self.zero is not None and self.object_run > 0 and self.object_resting
-
-    def set_zero(self, zero: np.ndarray | list[float], t: float) -> None:
-        self.zero_list = [float(z) for z in zero]
-        self.zero = np.array(self.zero_list)
-        self.zero_t = t
-        self.zero_version += 1
+        return self.tared and self.object_run > 0 and self.object_resting
 
 
 class ZeroStage:
     """Judges the windows of the zero (the tare, drift, objects), one at a time."""
 
-    def __init__(self, settings: EstimatorSettings, notices: list[Notice]) -> None:
+    def __init__(
+        self,
+        settings: EstimatorSettings,
+        notices: list[Notice],
+        sf: np.ndarray,
+        si: np.ndarray,
+        pi: np.ndarray,
+    ) -> None:
+        """``sf``, ``si``, ``pi``: the kernel's state and parameters (see ZeroState)."""
         self.settings = settings
         self.notices = notices
-        self.state = ZeroState()
+        self.state = ZeroState(sf, si, pi)
+        self._log_at, self._log = int(pi[k.I_SO_IDLE_LOG]), int(pi[k.I_IDLE_LOG])
         self.window_s = settings.window / settings.sample_rate_hz
         # the idle desk's wander is measured over as many windows as an object waits
         self.wander_windows = max(2, settings.n_object)
 
-    def not_still(self, windows: int) -> None:
-        """Once tared, ``windows`` more windows that were not still (the kernel judges those
-        itself): each ends a still run and the resting."""
-        st = self.state
-        st.window_index += windows
-        st.still_run = st.object_run = 0
-        st.resting = False
-
     def window(
         self, spread: float, bad: bool, mean: list[float], raw: np.ndarray, t_end: float
     ) -> None:
-        """Judge one window: the spread of its low-passed force (its largest axis, over means
-        of ``still_block`` samples), whether over a tenth of it was held over (bad samples,
-        a gap), its mean wrench (6), its wrench (6, w) (read only before the tare; kept
-        then) and its last sample's time. Once tared, a window that is not still only ends
-        a still run and the resting."""
-        st, s = self.state, self.settings.user
-        st.window_index += 1
-        if st.zero is not None and (bad or spread >= s.still_n):
-            self.not_still(0)  # (this one is counted above)
-            return
+        """Judge one window the kernel leaves to Python (every one before the tare; after,
+        a still one whose load is no idle desk's, or with an object absorbed): the spread of
+        its low-passed force (its largest axis, over means of ``still_block`` samples),
+        whether over a tenth of it was held over (bad samples, a gap), its mean wrench (6),
+        its wrench (6, w) (read only before the tare; kept then) and its last sample's time.
+        The kernel counted it (``window_index``)."""
+        st = self.state
+        self.read_idle_windows()
         self._window_done(spread, bad, mean, raw, t_end)
         st.resting = st.object_pending
+        st.count_objects()
+
+    def read_idle_windows(self) -> None:
+        """The idle windows the kernel judged since the last call join the yardsticks, in
+        order (the last ``IDLE_WINDOWS`` and a wander's tail are all that count: the kernel
+        keeps that many)."""
+        si, sf = self.state._si, self.state._sf
+        n = int(si[k.J_IDLE_LOG_N])
+        if n == 0:
+            return
+        st = self.state
+        if n == self._log:  # (maybe more were logged: those the log kept are the ones that count)
+            st.idle_spreads, st.idle_wanders = [], []
+        pos = int(si[k.J_IDLE_LOG_POS])
+        for j in range(n):
+            at = self._log_at + 5 * ((pos - n + j) % self._log)
+            spread, fx, fy, fz, index = sf[at : at + 5].tolist()
+            self._idle_window(spread, [fx, fy, fz], int(index))
+        si[k.J_IDLE_LOG_N] = 0
 
     def _window_done(
         self, spread: float, bad: bool, mean: list[float], raw: np.ndarray, t_end: float
@@ -170,12 +275,10 @@ class ZeroStage:
         """Advance the tare / stillness state machine by one window (plain floats: it is hot)."""
         st, s = self.state, self.settings.user
         st.windows_seen += 1
-        if st.zero is None:
+        if not st.tared:
             self._tare_window(spread, bad, mean, raw, t_end)
             return
-        if bad or spread >= s.still_n:  # (only before the tare: see window)
-            st.still_run = st.object_run = 0
-            return
+        # (a tared window the kernel leaves to Python is still: see ZeroStage.window)
         if st.objects and self._lifted(mean, t_end):
             return
         z = st.zero_list
@@ -187,10 +290,10 @@ class ZeroStage:
                 st.still_run = 0  # the load moved: a new still run starts here
         if st.still_run == 0:
             lo, hi = list(f), list(f)
-            st.still_means = []
+            st.clear_still_means()
         st.still_lo, st.still_hi = lo, hi
         st.still_run += 1
-        st.still_means.append(mean)
+        st.push_still_mean(mean)
         load = math.sqrt(f[0] ** 2 + f[1] ** 2 + f[2] ** 2)
         if load < s.drift_max_n:  # the idle desk: a window of its own unsteadiness
             self._idle_window(spread, mean[:3], st.window_index)
@@ -206,7 +309,7 @@ class ZeroStage:
             # the new zero: the mean over the windows that showed it an object, not the last
             # one alone (a desk swaying at 4–5 Hz moves a 0.2 s window's mean moment enough
             # to put a press 2–3 mm off); their means are within the allowed wander
-            held = st.still_means[-len(st.object_windows) :]
+            held = st.last_still_means(len(st.object_windows))
             st.set_zero([math.fsum(c) / len(held) for c in zip(*held, strict=True)], t_end)
             held_s = len(held) * self.window_s
         else:
@@ -297,7 +400,7 @@ class ZeroStage:
         zero never builds up between touches)."""
         st, n_drift = self.state, self.settings.n_drift
         if st.still_run >= n_drift:
-            recent = st.still_means[-n_drift:]
+            recent = st.last_still_means(n_drift)
             columns = zip(*recent, strict=True)
             st.set_zero([math.fsum(c) / len(recent) for c in columns], t_end)
             st.still_run = 0

@@ -13,10 +13,11 @@ the end of a window applies from the next sample on.
 
 The kernel (:mod:`hapticdesk.estimator.kernel`, ``_window_add``) fills each window and, at
 its end, measures it — the spread of its low-passed force, its mean wrench, its share of bad
-samples. Once tared, a window that is not still only ends a still run and the resting: the
-kernel judges it itself (and counts it for :meth:`ZeroStage.not_still`); any other leaves
-the loop (``EV_WINDOW``) and :meth:`ZeroStage.window` judges it here, on plain floats, and
-the estimator hands the zero and the resting flag back to the kernel.
+samples. Once tared, a window that is not still only ends a still run and the resting, and
+a still window of the idle desk (nothing absorbed, a load under ``drift_max_n``) goes on with
+the still run and follows the drift: the kernel judges both itself (logging the idle ones for
+the yardsticks, :meth:`ZeroStage.read_idle_windows`); any other leaves the loop
+(``EV_WINDOW``) and :meth:`ZeroStage.window` judges it here, on plain floats.
 """
 
 from __future__ import annotations

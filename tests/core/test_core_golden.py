@@ -42,7 +42,6 @@ def golden():
     return _golden_module()
 
 
-@pytest.mark.slow
 def test_outputs_equal_the_golden_file_in_batch_and_pushes(golden):
     now = golden.golden_outputs(short=True, pushes=True)
     with np.load(GOLDEN) as stored_file:

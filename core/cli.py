@@ -41,11 +41,13 @@ BLAS_THREAD_VARIABLES = (
 
 # name -> (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
+    "init": ("hapticdesk.commands.init", "start a layout for a desk"),
     "contacts": ("hapticdesk.commands.contacts", "estimate contacts from a recording"),
     "simulate": ("hapticdesk.commands.simulate", "simulate a scene on a desk into a recording"),
     "bench": ("hapticdesk.commands.bench", "error against run time for every method"),
     "thresholds": ("hapticdesk.commands.thresholds", "derive F_tth and F_rth from presses"),
     "characterize": ("hapticdesk.commands.characterize", "measure a desk's noise, modes, drift"),
+    "calibrate": ("hapticdesk.commands.calibrate", "fit load cells' gains and places to a weight"),
     "plot": ("hapticdesk.commands.plot", "plot a recording and its contacts"),
     "check": ("hapticdesk.commands.check", "validate and explain a layout"),
     "strokes": ("hapticdesk.commands.strokes", "classify or record stroke templates"),
@@ -120,25 +122,61 @@ DEBUG_VARIABLE = "HAPTICDESK_DEBUG"
 #: what in it means off (anything else: on)
 OFF_WORDS = frozenset({"", "0", "false", "no", "off"})
 
-#: core commands that never touch an array: nothing to load numpy and scipy for
-NO_ARRAYS = frozenset({"plugins"})
+#: the packages that bring a BLAS of their own, and the module that loads it: numpy's loads
+#: with numpy, scipy's with its first compiled part (scipy.linalg, which most others import)
+BLAS_PACKAGES = {"numpy": "numpy", "scipy": "scipy.linalg"}
 
 
-def load_blas_with_one_thread() -> None:
-    """Load numpy and scipy (each with its own BLAS) with one thread, unless the user's
-    environment says otherwise.
+class _OneBlasThread:
+    """Loads numpy and scipy, when something first imports them, with one BLAS thread
+    unless the user's environment says otherwise; nothing before. (Importing both at start
+    cost every command scipy.linalg, 0.15–0.7 s, whether it used scipy or not.)
 
     The variables are read when the library loads, so they are set just for that moment and
     taken back: programs an ``exec`` action starts must not inherit them."""
-    added = [name for name in BLAS_THREAD_VARIABLES if name not in os.environ]
-    for name in added:
-        os.environ[name] = "1"
-    try:
-        import numpy  # noqa: F401  (each loads its own BLAS now, with the variables set)
-        import scipy.linalg  # noqa: F401
-    finally:
+
+    def find_spec(self, name: str, path: Any, target: Any = None) -> Any:
+        if name not in BLAS_PACKAGES:
+            return None
+        for finder in sys.meta_path:  # the finder that would have found it
+            if finder is self or not hasattr(finder, "find_spec"):
+                continue
+            spec = finder.find_spec(name, path, target)
+            if spec is not None:
+                if spec.loader is not None:  # (a Loader by its methods)
+                    wrapped: Any = _LoadingWithOneThread(spec.loader, BLAS_PACKAGES[name])
+                    spec.loader = wrapped
+                return spec
+        return None
+
+
+class _LoadingWithOneThread:
+    """A package's own loader, run with the BLAS thread variables set (see above)."""
+
+    def __init__(self, loader: Any, blas_module: str) -> None:
+        self.loader, self.blas_module = loader, blas_module
+
+    def create_module(self, spec: Any) -> Any:
+        return self.loader.create_module(spec)
+
+    def exec_module(self, module: Any) -> None:
+        module.__spec__.loader = module.__loader__ = self.loader  # (resources, reloads)
+        added = [name for name in BLAS_THREAD_VARIABLES if name not in os.environ]
         for name in added:
-            os.environ.pop(name, None)
+            os.environ[name] = "1"
+        try:
+            self.loader.exec_module(module)
+            importlib.import_module(self.blas_module)
+        finally:
+            for name in added:
+                os.environ.pop(name, None)
+
+
+def load_blas_with_one_thread() -> None:
+    """From now on numpy and scipy load with one BLAS thread each, when first imported
+    (:class:`_OneBlasThread`; once per process)."""
+    if not any(isinstance(finder, _OneBlasThread) for finder in sys.meta_path):
+        sys.meta_path.insert(0, _OneBlasThread())
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -210,8 +248,7 @@ def _output_failed(err: OSError) -> bool:
 
 
 def _main(argv: list[str], command: str | None, debug: bool) -> int:
-    if command in COMMANDS and command not in NO_ARRAYS:
-        load_blas_with_one_thread()
+    load_blas_with_one_thread()
     parser = build_parser(only=command)
     args = parser.parse_args(argv)
     logging.basicConfig(
@@ -245,6 +282,12 @@ def _unexpected(command: str | None, err: BaseException) -> str:
     if not what:
         what = "out of memory" if isinstance(err, MemoryError) else "no message"
     name = f"hapticdesk {command}" if command else "hapticdesk"
+    if isinstance(err, ModuleNotFoundError):  # an optional part not installed: say which extra
+        from hapticdesk.extras import install_hint
+
+        hint = install_hint(err.name)
+        if hint is not None:
+            return f"{name}: error: {hint}"
     return (
         f"{name}: error: {what} (an unexpected {type(err).__name__}; run with --debug or "
         f"{DEBUG_VARIABLE}=1 for the traceback)"

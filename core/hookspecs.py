@@ -59,10 +59,21 @@ def register_actions(register: Any) -> None:
       before anything starts. ``position`` is where the action stands in the layout.
 
     - ``options``: a form's schema of the options, ``{name: {"kind": "text" | "number" |
-      "integer" | "bool" | "mapping", "help": str, "required": bool, "choices": [...]}}``
+      "integer" | "bool" | "mapping" | "list", "help": str, "required": bool, "choices":
+      [...]}}``
       (the browser UI's designer builds its forms from it; ``validate`` still decides).
+    - ``check_events(options, position, events, desk)``: called after the layout loaded, with
+      every :class:`~hapticdesk.gestures.event.GestureEvent` the use's binding can make
+      (``desk`` the desk's name); raise ConfigError when the options break a limit for one of
+      them (the built-ins render their templates for each:
+      ``hapticdesk.plugins.templating:check_for_events``).
+    - ``operator_only``: True when a use of the action is the operator's alone (``exec`` runs
+      programs): a layout arriving through the browser UI, ``/set`` or a reload may not add
+      or change one (docs/security.md). Options that read the environment or a file (a
+      mapping with ``env:`` or ``file:``, a key ending ``_env`` or ``_file``) are held the
+      same way for every action, without asking.
 
-    ``factory`` and ``validate`` may be lazy ``"module:attr"`` strings.
+    ``factory``, ``validate`` and ``check_events`` may be lazy ``"module:attr"`` strings.
     """
 
 
@@ -114,7 +125,9 @@ def register_layout_sections(register: Any) -> None:
     ``register(name, validate, description="")``. The layout accepts a top-level key only when
     it is the core's own or a plugin claimed it, and hands a claimed section, as written, to
     ``validate(value, position, layout_path)`` while it loads (so ``hapticdesk check`` and
-    ``run`` refuse the same sections): ``value`` is the section (a
+    ``run`` refuse the same sections). ``operator_only=True`` (a keyword of ``register``)
+    makes the section the operator's alone: a layout from the browser UI, ``/set`` or a reload
+    may not change it (a connection's address and credentials). ``value`` is the section (a
     :class:`~hapticdesk.files.yamlfile.MarkedDict` for a mapping, with positions),
     ``position`` where it stands, ``layout_path`` the layout file (paths in the section are
     relative to its folder). Raise :class:`~hapticdesk.files.yamlfile.ConfigError` naming

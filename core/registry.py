@@ -41,6 +41,7 @@ DEFAULT_PLUGINS: tuple[str, ...] = (
     "hapticdesk.plugins.sim",
     "hapticdesk.plugins.replay",
     "hapticdesk.plugins.can",
+    "hapticdesk.plugins.serial",
     "hapticdesk.plugins.log",
     "hapticdesk.plugins.exec",
     "hapticdesk.plugins.http",
@@ -121,21 +122,36 @@ class ActionType(Registered):
     #: "help": str, "required": bool, "choices": [...]} (the browser UI builds its forms
     #: from it); None when the plugin gave none. ``validate`` stays the judge.
     options: Any = None
+    #: ``check_events(options, position, events, desk)``: checks the options against every
+    #: event the binding can make (its templates rendered for each); callable, "module:attr"
+    #: or None
+    check_events: Any = None
+    #: a use of this action is the operator's alone (it runs programs, or reads what it
+    #: likes): a layout from the page, ``/set`` or a reload may not add or change one
+    operator_only: bool = False
 
     def check(self, options: Any, position: Position | str) -> None:
         """Run the plugin's validation; a crash in it is reported as the plugin's fault."""
-        if self.validate is None:
+        self._judge(self.validate, "validator", position, options, position)
+
+    def check_for_events(
+        self, options: Any, position: Position | str, events: list[Any], desk: str
+    ) -> None:
+        """Run the plugin's ``check_events`` for the events a binding can make (if any)."""
+        self._judge(self.check_events, "event check", position, options, position, events, desk)
+
+    def _judge(self, ref: Any, what: str, position: Position | str, *args: Any) -> None:
+        """Call the plugin's ``ref`` (None: nothing to do) with ``args``, as its judgement."""
+        if ref is None:
             return
         try:
-            validator = resolve(self.validate)
+            judge = resolve(ref)
         except (ImportError, AttributeError) as err:
             raise PluginError(
-                f"the validator of action `{self.name}` from plugin `{self.plugin}` cannot be "
+                f"the {what} of action `{self.name}` from plugin `{self.plugin}` cannot be "
                 f"loaded: {type(err).__name__}: {err}"
             ) from err
-        _judged_by_plugin(
-            lambda: validator(options, position), position, self.plugin, f"action `{self.name}`"
-        )
+        _judged_by_plugin(lambda: judge(*args), position, self.plugin, f"action `{self.name}`")
 
 
 @dataclass(frozen=True)
@@ -146,6 +162,10 @@ class RecognizerType(Registered):
 @dataclass(frozen=True)
 class SectionType(Registered):
     """A top-level layout section a plugin owns: ``factory`` is its validator."""
+
+    #: the section is the operator's alone (a connection and its credentials): a layout from
+    #: the page, ``/set`` or a reload may not change it
+    operator_only: bool = False
 
     def check(self, value: Any, position: Position | str, layout_path: Any) -> None:
         """Run the plugin's validation of the section; a crash is reported as the plugin's."""
@@ -371,6 +391,16 @@ class Registry:
         # `isolation:` is for the runtime, not for the action's own options
         own, _ = split_isolation(options, position)
         self.action(name, position).check(own, position)
+
+    def check_action_events(
+        self, name: str, options: Any, position: Position | str, events: list[Any], desk: str
+    ) -> None:
+        """Check one action use against the events its binding can make (ConfigError if one
+        would break a limit: a template too costly for one of them)."""
+        from hapticdesk.runtime.isolation import split_isolation
+
+        own, _ = split_isolation(options, position)
+        self.action(name, position).check_for_events(own, position, events, desk)
 
     def recognizer_types(self) -> dict[str, RecognizerType]:
         """Recognizers by gesture name, not imported: the gesture engine and the layout load

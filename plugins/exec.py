@@ -25,12 +25,33 @@ from hapticdesk.files.yamlfile import ConfigError, MarkedList, Position
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.plugins.action_options import options_mapping, seconds, text, where
-from hapticdesk.plugins.templating import Template, compile_template, event_variables
+from hapticdesk.plugins.templating import (
+    CHECK_EVENTS,
+    Template,
+    compile_template,
+    event_variables,
+)
 from hapticdesk.runtime.dispatcher import ActionContext
 
 log = logging.getLogger(__name__)
 
 DEFAULT_TIMEOUT_S = 10.0
+
+#: the options `exec` takes (what the validator allows; the reference lists them from here)
+OPTIONS: dict[str, dict[str, Any]] = {
+    "argv": {
+        "kind": "list",
+        "required": True,
+        "help": "[program, argument, ...]: each item a template rendered on its own and passed "
+        "as one argument, never through a shell",
+    },
+    "timeout_s": {
+        "kind": "number",
+        "help": f"seconds the program may run before its whole process group is killed "
+        f"(default {DEFAULT_TIMEOUT_S:g})",
+    },
+    "cwd": {"kind": "text", "help": "the folder it runs in, relative to the layout"},
+}
 
 
 class ExecFailed(RuntimeError):
@@ -45,7 +66,7 @@ class ExecOptions:
 
 
 def parse_options(options: Any, position: Position | str) -> ExecOptions:
-    m = options_mapping(options, position, "`exec`", {"argv", "timeout_s", "cwd"}, {"argv"})
+    m = options_mapping(options, position, "`exec`", OPTIONS, {"argv"})
     raw = m["argv"]
     if not isinstance(raw, list) or not raw:
         raise ConfigError(
@@ -129,5 +150,11 @@ def _kill_group(pgid: int) -> None:
 @hookimpl
 def register_actions(register: Any) -> None:
     register(
-        "exec", ExecAction, "run a program with templated arguments (no shell)", validate=validate
+        "exec",
+        ExecAction,
+        "run a program with templated arguments (no shell)",
+        validate=validate,
+        options=OPTIONS,
+        check_events=CHECK_EVENTS,
+        operator_only=True,  # a program may read anything: only whoever starts the desk adds one
     )

@@ -35,6 +35,7 @@ from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.plugins.action_options import options_mapping, seconds, text, where
 from hapticdesk.plugins.templating import (
+    CHECK_EVENTS,
     Template,
     TemplatedValue,
     compile_template,
@@ -47,6 +48,25 @@ DEFAULT_TIMEOUT_S = 5.0
 METHODS = ("POST", "PUT", "PATCH", "GET", "DELETE")
 SECRET_HEADERS = ("authorization", "proxy-authorization", "cookie")
 SECRET_WORDS = ("token", "secret", "password", "key", "auth")
+
+
+#: the options `http` takes (what the validator allows; the designer's form and the reference
+#: are made from it)
+OPTIONS: dict[str, dict[str, Any]] = {
+    "url": {"kind": "text", "required": True, "help": "http(s)://host/path, no password"},
+    "method": {"kind": "text", "choices": list(METHODS), "help": "POST by default"},
+    "json": {"kind": "mapping", "help": "a JSON body (templated); the event itself by default"},
+    "body": {"kind": "text", "help": "a text body (templated), instead of `json`"},
+    "headers": {
+        "kind": "mapping",
+        "help": "{name: text}; one carrying credentials comes from {env: VARIABLE} or "
+        '{file: PATH}, with an optional prefix ("Bearer ")',
+    },
+    "timeout_s": {
+        "kind": "number",
+        "help": f"seconds for the whole call (default {DEFAULT_TIMEOUT_S:g})",
+    },
+}
 
 
 class HttpFailed(RuntimeError):
@@ -106,13 +126,7 @@ def redact_url(url: str) -> str:
 
 
 def parse_options(options: Any, position: Position | str) -> HttpOptions:
-    m = options_mapping(
-        options,
-        position,
-        "`http`",
-        {"url", "method", "json", "body", "headers", "timeout_s"},
-        {"url"},
-    )
+    m = options_mapping(options, position, "`http`", OPTIONS, {"url"})
     url = text(m, "url", "`http`")
     if "@" in urllib.parse.urlsplit(url).netloc:
         raise ConfigError(
@@ -267,10 +281,6 @@ def register_actions(register: Any) -> None:
         HttpAction,
         "call a webhook (standard library, no extra package)",
         validate=validate,
-        options={
-            "url": {"kind": "text", "required": True, "help": "http(s)://host/path, no password"},
-            "method": {"kind": "text", "choices": list(METHODS), "help": "POST by default"},
-            "json": {"kind": "mapping", "help": "a JSON body (templated)"},
-            "timeout_s": {"kind": "number", "help": "seconds for the whole call"},
-        },
+        options=OPTIONS,
+        check_events=CHECK_EVENTS,
     )

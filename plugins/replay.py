@@ -1,14 +1,18 @@
-"""The ``replay`` source: a recording (CSV/NPZ) or a CAN log played back on its own clock.
+"""The ``replay`` source: a recording (CSV/NPZ), a CAN log or a C3D file's force plates played
+back on their own clock.
 
     hapticdesk run --layout L --source replay:session.csv --speed 1    # real time
     hapticdesk run --layout L --source replay:session.npz --speed 0    # as fast as possible
     hapticdesk run --layout L --source replay:session.asc              # a CAN log
+    hapticdesk run --layout L --source replay:walk.c3d --plate 2       # a force plate
 
 Blocks of ~12 samples (10 ms at 1.2 kHz) are handed out when their last sample's time has
 come on the wall clock (scaled by ``speed``), as a live source would deliver them. Files are
 read in blocks of :data:`~hapticdesk.files.recording.BLOCK_ROWS` samples as they are played,
 so memory stays flat whatever the file's size. CAN logs are read by
-:mod:`hapticdesk.canbus.logs`, imported only for them.
+:mod:`hapticdesk.canbus.logs`, imported only for them; a C3D file (read whole by ezc3d) by
+:mod:`hapticdesk.files.forceplate`, its plates the desk's sensors ``plate<N>`` (without
+``--desk``, ``run`` makes the file's plate the desk).
 """
 
 from __future__ import annotations
@@ -104,16 +108,25 @@ class RecordingSource(Source):
 def open_replay(
     argument: str, profile: DeskProfile, *, speed: float = 1.0, **options: Any
 ) -> Source:
-    """``replay:FILE``: a CSV/NPZ recording, or a CAN log by any other suffix."""
+    """``replay:FILE``: a CSV/NPZ recording, a C3D file, or a CAN log by any other suffix."""
     from hapticdesk.files.readers import open_recording_blocks
     from hapticdesk.files.recording import RECORDING_SUFFIXES
 
     if not argument:
-        raise ConfigError("--source", "replay needs a file: replay:FILE.csv, .npz or a CAN log")
+        raise ConfigError(
+            "--source", "replay needs a file: replay:FILE.csv, .npz, .c3d or a CAN log"
+        )
     path = Path(argument).expanduser()
     if not path.is_file():
         what = "not a regular file" if path.exists() else "no such file"  # (a FIFO, a folder)
         raise ConfigError("--source", f"replay: {what}: {argument}")
+    if path.suffix.lower() == ".c3d":
+        from hapticdesk.files.readers import read_any_recording
+
+        plates = read_any_recording(path, profile)  # (checked to come at the desk's rate)
+        if len(plates) == 0:
+            raise ConfigError(str(path), "the C3D file holds no analog samples")
+        return PacedSource(RecordingSource(plates, profile.sample_rate_hz), speed)
     if path.suffix.lower() in RECORDING_SUFFIXES:
         recording = open_recording_blocks(path, profile)
         if recording.is_empty():
@@ -140,5 +153,6 @@ def register_sources(register: Any) -> None:
     register(
         "replay",
         open_replay,
-        "a recording (CSV, NPZ) or CAN log, at --speed (1 = real time, 0 = as fast as possible)",
+        "a recording (CSV, NPZ), CAN log or C3D file, at --speed (1 = real time, 0 = as fast "
+        "as possible)",
     )

@@ -6,6 +6,21 @@ no eval), with ``StrictUndefined`` so a misspelt name fails loudly. Templates ar
 when the layout is validated, so a syntax error or an unknown variable is reported with the
 layout's ``file:line:column`` before anything runs.
 
+Costs are bounded three times over, in ``check`` and ``run`` alike:
+
+1. the text itself (:func:`~.template_sandbox.static_problems`): literal arithmetic making a
+   huge number, a literal format's widths, a literal repetition, a ``range`` over the limits
+   are refused at compile time, whichever branch they stand in;
+2. while rendering (:mod:`.template_sandbox`): every operation that makes something large
+   checks its size before, loop turns and calls spend a budget;
+3. every rendering runs in a worker process (:mod:`.template_worker`) killed at
+   :data:`MAX_RENDER_S`, with its memory limited: a single C call nobody foresaw cannot hold
+   the desk.
+
+``check`` renders each template for sample events, for the constants the template compares
+variables with (``{% if region == 'b5' %}``), and (:func:`check_for_events`) for every event
+its binding's gesture can make, so what passes ``check`` cannot blow up at run time.
+
 A structured value (a payload mapping) is rendered leaf by leaf; a leaf that is a template
 and renders to a number becomes a JSON number (``"{{ value * 100 }}"`` -> ``37.5``). Plain
 strings are kept as written. jinja2 is imported only when a layout has a template.
@@ -13,20 +28,50 @@ strings are kept as written. jinja2 is imported only when a layout has a templat
 
 from __future__ import annotations
 
-import functools
-import json
+import logging
 import math
 import re
 import time
 import warnings
-from collections.abc import Callable, Iterable, Iterator, Mapping
-from contextvars import ContextVar
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
-from functools import cache
 from typing import Any
 
 from hapticdesk.files.yamlfile import ConfigError, LayoutWarning, MarkedDict, MarkedList, Position
 from hapticdesk.gestures.event import GestureEvent
+from hapticdesk.plugins import template_sandbox, template_worker
+from hapticdesk.plugins.template_sandbox import (
+    MAX_EXPONENT,
+    MAX_FORMAT_WIDTH,
+    MAX_NUMBER_BITS,
+    MAX_PIECE_CHARS,
+    MAX_RANGE,
+    MAX_RENDERED_CHARS,
+    static_problems,
+)
+
+__all__ = [
+    "CHECK_EVENTS",
+    "MAX_EXPONENT",
+    "MAX_FORMAT_WIDTH",
+    "MAX_NUMBER_BITS",
+    "MAX_PIECE_CHARS",
+    "MAX_RANGE",
+    "MAX_RENDERED_CHARS",
+    "Template",
+    "TemplateError",
+    "TemplateLimitError",
+    "TemplatedValue",
+    "check_for_events",
+    "compile_template",
+    "compile_value",
+    "event_variables",
+]
+
+log = logging.getLogger(__name__)
+
+#: what the built-in actions register as their ``check_events`` (see :func:`check_for_events`)
+CHECK_EVENTS = "hapticdesk.plugins.templating:check_for_events"
 
 #: the GestureEvent fields a template sees under their own names
 EVENT_FIELDS = (
@@ -48,16 +93,12 @@ EVENT_FIELDS = (
 #: extras), ``action`` its Zigbee2MQTT-style action string, ``desk`` the desk's name
 VARIABLES = (*EVENT_FIELDS, "action", "desk", "event")
 
-#: the longest text a template may render, or build on its way (a payload is a few hundred)
-MAX_RENDERED_CHARS = 65_536
-#: the largest exponent of ``**`` (10 ** 1000 is already far beyond any payload)
-MAX_EXPONENT = 1000
-#: the most loop turns and calls one rendering may take (text or lists made on the way count
-#: a step per kB): a payload loops over a few dozen items, and loops nested in loops would
-#: otherwise run for hours with nothing to show
-MAX_STEPS = 100_000
-#: the longest one rendering may take (checked at every loop turn and call), seconds
-MAX_RENDER_S = 1.0
+#: the most loop turns and calls one rendering may take (see :mod:`.template_sandbox`)
+MAX_STEPS = template_sandbox.MAX_STEPS
+#: the longest one rendering may take, seconds: the worker rendering it is killed then
+MAX_RENDER_S = template_sandbox.MAX_RENDER_S
+#: the longest `check` spends rendering one template for every event its gesture can make
+MAX_CHECK_S = 3.0
 #: the variables of the sample event a template is rendered with once when it is checked
 SAMPLE_VARIABLES: dict[str, Any] = {
     "t": 0.0,
@@ -77,6 +118,8 @@ SAMPLE_VARIABLES: dict[str, Any] = {
     "desk": "desk",
 }
 SAMPLE_VARIABLES["event"] = dict(SAMPLE_VARIABLES)
+#: what a tap carries: the optional fields a gesture may leave out, left out
+_OPTIONAL_FIELDS = ("shape", "score", "direction", "value", "level", "phase", "hold_s")
 
 _INT = re.compile(r"[+-]?\d+")
 _FLOAT = re.compile(r"[+-]?(\d+\.\d*|\.\d+|\d+)([eE][+-]?\d+)?|[+-]?(nan|inf|infinity)", re.I)
@@ -90,180 +133,50 @@ class TemplateLimitError(TemplateError):
     """A template would render (or build on its way) more than the limits allow."""
 
 
-class _Budget:
-    """What is left of one rendering's :data:`MAX_STEPS` and :data:`MAX_RENDER_S`."""
-
-    __slots__ = ("deadline", "steps")
-
-    def __init__(self) -> None:
-        self.steps = MAX_STEPS
-        self.deadline = time.monotonic() + MAX_RENDER_S
-
-    def spend(self, steps: int) -> None:
-        self.steps -= steps
-        if self.steps < 0:
-            raise TemplateLimitError(f"it takes more than {MAX_STEPS} loop turns and calls")
-        if time.monotonic() > self.deadline:
-            raise TemplateLimitError(f"it takes longer than {MAX_RENDER_S:g} s")
-
-
-#: the budget of the rendering under way in this thread (dispatcher lanes render in parallel)
-_BUDGET: ContextVar[_Budget | None] = ContextVar("hapticdesk_template_budget", default=None)
-
-
-def _spend(steps: int = 1) -> None:
-    budget = _BUDGET.get()
-    if budget is not None:
-        budget.spend(steps)
-
-
-def _made(value: Any) -> Any:
-    """``value``, spending a step per kB (or 1,000 items) it holds: text or lists built in a
-    loop (``map`` over a long list, a namespace growing by ``+``) then cost what they take
-    in memory, not one step each."""
-    if isinstance(value, str | list | tuple | dict):
-        _spend(len(value) // 1024)
-    return value
-
-
-def _counted(iterable: Iterable[Any]) -> Iterator[Any]:
-    """``iterable``, spending one step of the rendering's budget per item."""
-    for item in iterable:
-        _spend()
-        yield item
-
-
 def is_template(text: str) -> bool:
     return "{{" in text or "{%" in text
 
 
-@cache
 def _environment() -> Any:
-    from jinja2 import StrictUndefined, nodes
-    from jinja2.sandbox import ImmutableSandboxedEnvironment
-
-    def limit(size: int, what: str) -> None:
-        if size > MAX_RENDERED_CHARS:
-            raise TemplateLimitError(
-                f"{what} would make {size} characters; the limit is {MAX_RENDERED_CHARS}"
-            )
-
-    class BoundedEnvironment(ImmutableSandboxedEnvironment):
-        # intercepted operators are also never folded into constants when compiling, so
-        # `{{ "a" * 10**10 }}` cannot allocate at compile time either
-        intercepted_binops = frozenset({"*", "**", "+"})
-
-        def call_binop(self, context: Any, operator: str, left: Any, right: Any) -> Any:
-            if operator == "*":
-                for seq, n in ((left, right), (right, left)):
-                    if isinstance(seq, str | list | tuple) and isinstance(n, int):
-                        limit(len(seq) * n, "repeating")
-            if operator == "**" and isinstance(right, int | float) and abs(right) > MAX_EXPONENT:
-                raise TemplateLimitError(f"an exponent over {MAX_EXPONENT} ({right})")
-            _spend()
-            return _made(super().call_binop(context, operator, left, right))
-
-        def call(__self, __context: Any, __obj: Any, *args: Any, **kwargs: Any) -> Any:  # noqa: N805
-            # every call of a sandboxed template comes here: a macro calling itself twice
-            # is as costly as nested loops
-            _spend()
-            return _made(super().call(__context, __obj, *args, **kwargs))
-
-        def call_filter(self, *args: Any, **kwargs: Any) -> Any:
-            # the filters `map`, `select` … apply to each item of a list
-            _spend()
-            return _made(super().call_filter(*args, **kwargs))
-
-        def _parse(self, source: str, name: str | None, filename: str | None) -> Any:
-            # every `for` loop iterates through _counted: an empty loop body has no call
-            # and no output to count otherwise
-            tree = super()._parse(source, name, filename)
-            for loop in tree.find_all(nodes.For):
-                counter = nodes.EnvironmentAttribute("count_steps", lineno=loop.lineno)
-                loop.iter = nodes.Call(counter, [loop.iter], [], None, None, lineno=loop.lineno)
-            return tree
-
-    env = BoundedEnvironment(undefined=StrictUndefined, autoescape=False)
-    env.count_steps = _counted  # type: ignore[attr-defined]
-    del env.globals["lipsum"]  # random text of any length: no use in a payload
-    for name, size in _FILTER_SIZES.items():
-        env.filters[name] = _bounded_filter(name, env.filters[name], size, limit)
-    return env
+    return template_sandbox.environment()
 
 
-def _width(value: Any) -> int:
-    return len(value) if isinstance(value, str) else int(value)
+_said_in_process = False
 
 
-#: a %-conversion: an optional (key), flags, a width and a precision, each digits or `*`
-_CONVERSION = re.compile(r"%(?:\([^)]*\))?[-+ #0]*(\d+|\*)?(?:\.(\d+|\*))?")
-#: a width or precision of more digits than this is counted as this many characters (and
-#: refused): int() of thousands of digits is itself refused by Python
-_MAX_DIGITS = 9
-
-
-def _format_widths(text: Any, args: tuple[Any, ...]) -> int:
-    """An upper bound of the padding a %-format string adds: its field widths and
-    precisions (``%99999s`` pads to 99999, ``%.99999f`` prints 99999 decimals, ``%(a)9s``
-    too), and for a ``*`` (the width taken from the arguments) every integer argument."""
-    total, star = 0, False
-    for width, precision in _CONVERSION.findall(str(text)):
-        for part in (width, precision):
-            if part == "*":
-                star = True
-            elif part:
-                total += 10**_MAX_DIGITS if len(part) > _MAX_DIGITS else int(part)
-    if star:
-        total += sum(abs(a) for a in args if isinstance(a, int) and not isinstance(a, bool))
-    return total
-
-
-#: `tojson`'s indent at most this (a payload's JSON needs no more)
-MAX_JSON_INDENT = 16
-
-
-def _json_size(value: Any, indent: Any = None) -> int:
-    """An upper bound of ``tojson``'s result: refused past MAX_JSON_INDENT (an indent of
-    4·10⁸ spaces made gigabytes before the length was checked)."""
-    if indent is None:
-        spaces = 0
-    elif isinstance(indent, int) and not isinstance(indent, bool) and indent >= 0:
-        spaces = indent
-    elif isinstance(indent, str):
-        spaces = len(indent)
-    else:
-        spaces = MAX_JSON_INDENT + 1
-    if spaces > MAX_JSON_INDENT:
-        raise TemplateLimitError(f"a `tojson` indent over {MAX_JSON_INDENT} ({indent!r})")
-    text = json.dumps(value, default=str, separators=(",", ":"))
-    # each value on its own line, indented at most its depth (a payload's: a few) times
-    return len(text) * (2 + spaces * 8)
-
-
-# filter -> an upper bound of its result's length from its arguments, computed before any
-# text is made (the arguments are those Jinja passes: an environment or eval context first
-# for `wordwrap` and `replace`)
-_FILTER_SIZES: dict[str, Callable[..., int]] = {
-    "center": lambda s, width=80: len(str(s)) + _width(width),
-    "indent": lambda s, width=4, *_: len(str(s)) * (1 + _width(width)),
-    "wordwrap": lambda _env, s, width=79, *_, **__: 2 * len(str(s)) + _width(width),
-    "format": lambda s, *args, **kw: (
-        len(str(s)) + len(str(args)) + len(str(kw)) + _format_widths(s, args)
-    ),
-    "tojson": lambda _ctx, value, indent=None: _json_size(value, indent),
-    "replace": lambda _ctx, s, old, new, *_: len(str(s)) * max(1, len(str(new))) + len(str(new)),
-}
-
-
-def _bounded_filter(name: str, original: Any, size: Callable[..., int], limit: Any) -> Any:
-    """``original``, refusing arguments whose result could exceed the limit."""
-
-    @functools.wraps(original)  # keeps Jinja's marker of what to pass first
-    def bounded(*args: Any, **kwargs: Any) -> Any:
-        limit(size(*args, **kwargs), f"the `{name}` filter")
-        return original(*args, **kwargs)
-
-    return bounded
+def render_text(text: str, variables: Mapping[str, Any]) -> str:
+    """``text`` (a template) rendered with ``variables`` in a template worker, within
+    :data:`MAX_RENDER_S` and the worker's memory bound; TemplateLimitError past them,
+    TemplateError when the template fails for these variables."""
+    global _said_in_process
+    workers = template_worker.pool()
+    if workers.unavailable is None:
+        try:
+            return workers.render(text, variables, max_steps=MAX_STEPS, limit_s=MAX_RENDER_S)
+        except template_worker.WorkerLimit as err:
+            raise TemplateLimitError(str(err)) from None
+        except template_worker.WorkerFailed as err:
+            raise TemplateError(str(err)) from None
+        except OSError:
+            pass  # no worker could start: said below, rendered here
+    if not _said_in_process:
+        _said_in_process = True
+        log.warning(
+            "templates render in this process (%s): their time and memory are bounded by the "
+            "sandbox's checks only",
+            workers.unavailable or "no template worker",
+        )
+    try:
+        compiled = _environment().from_string(text)
+        return template_sandbox.render_bounded(
+            compiled, variables, max_steps=MAX_STEPS, limit_s=MAX_RENDER_S
+        )
+    except template_sandbox.TemplateLimitError as err:
+        raise TemplateLimitError(str(err)) from None
+    except MemoryError:
+        raise TemplateLimitError("it needs more memory than there is") from None
+    except Exception as err:
+        raise TemplateError(f"{type(err).__name__}: {err}") from None
 
 
 def event_variables(event: GestureEvent, desk: str) -> dict[str, Any]:
@@ -287,10 +200,13 @@ class Template:
         if self.compiled is None:
             return self.text
         try:
-            text = _render_bounded(self.compiled, variables)
-        except Exception as err:  # any template runtime error: name the template
-            raise TemplateError(f"template {self.text!r} ({self.where}) failed: {err}") from err
-        return text
+            return render_text(self.text, variables)
+        except TemplateLimitError as err:
+            raise TemplateLimitError(
+                f"template {self.text!r} ({self.where}) failed: {err}"
+            ) from None
+        except TemplateError as err:  # any template runtime error: name the template
+            raise TemplateError(f"template {self.text!r} ({self.where}) failed: {err}") from None
 
     def render_value(self, variables: Mapping[str, Any]) -> Any:
         """Rendered text, as a number when the template rendered one."""
@@ -311,39 +227,28 @@ class Template:
         return text
 
 
-def _render_bounded(compiled: Any, variables: Mapping[str, Any]) -> str:
-    """The rendered text, stopped as soon as it grows past :data:`MAX_RENDERED_CHARS` or
-    spends more than its budget of loop turns, calls and time."""
-    parts: list[str] = []
-    size = 0
-    token = _BUDGET.set(_Budget())
-    try:
-        for part in compiled.generate(variables):
-            size += len(part)
-            if size > MAX_RENDERED_CHARS:
-                raise TemplateLimitError(
-                    f"the text rendered exceeds {MAX_RENDERED_CHARS} characters"
-                )
-            parts.append(part)
-    finally:
-        _BUDGET.reset(token)
-    return "".join(parts)
-
-
 def compile_template(text: str, where: Position | str, what: str = "template") -> Template:
-    """Compile ``text``; a syntax error or unknown variable is a ConfigError at ``where``."""
+    """Compile ``text``; a syntax error, an unknown variable, or a cost over the limits (in
+    the text itself, or when rendered for sample events) is a ConfigError at ``where``."""
     if not is_template(text):
         return Template(text, None, str(where))
     env = _environment()
+    template_worker.pool().warm()  # (the first rendering then finds a worker started)
     from jinja2 import TemplateSyntaxError, meta
 
     try:
         tree = env.parse(text)
-        misread = _filters_on_a_number(tree)  # (first: the analysis below folds constants)
+        too_costly = static_problems(tree)
+        misread = _filters_on_a_number(tree)
         unknown = sorted(meta.find_undeclared_variables(tree) - set(VARIABLES))
+        compared = _compared_constants(tree)
         compiled = env.from_string(text)
     except TemplateSyntaxError as err:
         raise ConfigError(where, f"{what} is not a valid template: {err.message}") from None
+    except RecursionError:
+        raise ConfigError(where, f"{what} nests too deep to be read as a template") from None
+    if too_costly:
+        raise ConfigError(where, f"{what} is too costly to render: {too_costly[0]}")
     if unknown:
         raise ConfigError(
             where,
@@ -359,8 +264,10 @@ def compile_template(text: str, where: Position | str, what: str = "template") -
             ),
             stacklevel=2,
         )
-    _check_limits(compiled, where, what)
-    return Template(text, compiled, str(where))
+    template = Template(text, compiled, str(where))
+    samples = [(v, "an event") for v in _sample_variables(compared)]
+    _check_renders(template, samples, where, what)
+    return template
 
 
 def _filters_on_a_number(tree: Any) -> list[tuple[str, Any, str]]:
@@ -381,18 +288,121 @@ def _filters_on_a_number(tree: Any) -> list[tuple[str, Any, str]]:
     return found
 
 
-def _check_limits(compiled: Any, where: Position | str, what: str) -> None:
-    """Render once with a sample event: breaking a limit then is an error in the layout.
+def _compared_constants(tree: Any) -> dict[str, set[Any]]:
+    """Variable -> the constants the template compares it with (``region == 'b5'``,
+    ``direction in ['up', 'down']``, ``event.level == 'hard'``): the values a check renders
+    it with besides the sample's, so the branch they guard is rendered too."""
+    from jinja2 import nodes
 
-    Other failures are not reported here: they may depend on the event (``value`` is None
-    for a tap), and the dispatcher reports them when they happen.
-    """
-    try:
-        _render_bounded(compiled, SAMPLE_VARIABLES)
-    except (TemplateLimitError, MemoryError) as err:
-        raise ConfigError(where, f"{what} is too costly to render for an event: {err}") from None
-    except Exception:
-        return  # may depend on the event: the dispatcher reports it when it happens
+    def variable(node: Any) -> str | None:
+        if isinstance(node, nodes.Name) and node.name in VARIABLES:
+            return str(node.name)
+        if isinstance(node, nodes.Getattr | nodes.Getitem) and isinstance(node.node, nodes.Name):
+            if node.node.name == "event":
+                key = node.attr if isinstance(node, nodes.Getattr) else None
+                if isinstance(node, nodes.Getitem) and isinstance(node.arg, nodes.Const):
+                    key = node.arg.value
+                return key if key in EVENT_FIELDS else None
+        return None
+
+    def constants(node: Any) -> list[Any]:
+        if isinstance(node, nodes.Const) and isinstance(node.value, str | int | float):
+            return [node.value]
+        if isinstance(node, nodes.List | nodes.Tuple):
+            return [c for item in node.items for c in constants(item)]
+        return []
+
+    found: dict[str, set[Any]] = {}
+    for compare in tree.find_all(nodes.Compare):
+        operands = [compare.expr, *(op.expr for op in compare.ops)]
+        for a, b in zip(operands, operands[1:], strict=False):
+            for name_node, value_node in ((a, b), (b, a)):
+                name = variable(name_node)
+                if name is not None:
+                    found.setdefault(name, set()).update(constants(value_node))
+    return found
+
+
+def _sample_variables(compared: Mapping[str, set[Any]]) -> list[dict[str, Any]]:
+    """The sample event, one like a tap's (its optional fields absent), and one for each
+    constant the template compares a variable with (at most 64 in all)."""
+    tap = {**SAMPLE_VARIABLES, **dict.fromkeys(_OPTIONAL_FIELDS)}
+    tap["event"] = {k: v for k, v in tap.items() if k != "event" and v is not None}
+    out = [dict(SAMPLE_VARIABLES), tap]
+    for name, values in sorted(compared.items()):
+        for value in sorted(values, key=repr):
+            for base in (SAMPLE_VARIABLES, tap):
+                variant = {**base, name: value}
+                variant["event"] = {**base["event"], name: value}
+                out.append(variant)
+    return out[:64]
+
+
+def _check_renders(
+    template: Template,
+    samples: list[tuple[dict[str, Any], str]],
+    where: Position | str,
+    what: str,
+) -> None:
+    """Render ``template`` with each of ``samples`` ((variables, the event they stand for)):
+    breaking a limit with any is an error in the layout. Other failures are not reported
+    here (``value`` is None for a tap; the dispatcher reports them when they happen)."""
+    started = time.monotonic()
+    for variables, label in samples:
+        try:
+            render_text(template.text, variables)
+        except TemplateLimitError as err:
+            raise ConfigError(where, f"{what} is too costly to render for {label}: {err}") from None
+        except TemplateError:
+            pass
+        if time.monotonic() - started > MAX_CHECK_S:
+            raise ConfigError(
+                where,
+                f"{what} is too costly to render for an event: rendering it for the events it "
+                f"may see took longer than {MAX_CHECK_S:g} s",
+            )
+
+
+def check_for_events(
+    options: Any, position: Position | str, events: list[GestureEvent], desk: str
+) -> None:
+    """Render every template in an action's ``options`` for each of ``events`` (the events
+    its binding can make, from :func:`hapticdesk.runtime.binding_events.possible_events`):
+    one that breaks a limit for any of them is a ConfigError at its place, so what passes
+    `check` cannot blow up at run time. Registered by the actions as their
+    ``check_events``."""
+    samples: dict[str, tuple[dict[str, Any], str]] = {}
+    for event in events:
+        variables = event_variables(event, desk)
+        samples.setdefault(repr(sorted(variables.items())), (variables, _describe(event)))
+    for text, where, what in _templates_in(options, position, "the action's options"):
+        _check_renders(Template(text, True, str(where)), list(samples.values()), where, what)
+
+
+def _describe(event: GestureEvent) -> str:
+    """``a press in b6 (level hard, force_n 5.0)``: which event broke a limit."""
+    fields = ", ".join(
+        f"{name} {getattr(event, name)}"
+        for name in ("phase", "level", "shape", "direction", "value", "hold_s", "force_n")
+        if getattr(event, name) is not None
+    )
+    where = f" in {event.region}" if event.region else " outside every region"
+    return f"a {event.gesture}{where}" + (f" ({fields})" if fields else "")
+
+
+def _templates_in(value: Any, where: Position | str, what: str) -> Iterator[tuple[str, Any, str]]:
+    """(text, position, what) of every template among the leaves of ``value``."""
+    if isinstance(value, str):
+        if is_template(value):
+            yield value, where, what
+    elif isinstance(value, Mapping):
+        for key, item in value.items():
+            pos = value.where(key) if isinstance(value, MarkedDict) else where
+            yield from _templates_in(item, pos, f"`{key}`")
+    elif isinstance(value, list):
+        for i, item in enumerate(value):
+            pos = value.where(i) if isinstance(value, MarkedList) else where
+            yield from _templates_in(item, pos, f"item {i + 1} of {what}")
 
 
 @dataclass(frozen=True)

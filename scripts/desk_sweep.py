@@ -293,7 +293,10 @@ def detail_run(desk: DeskProfile, n: int, seed: int, sensors=None) -> dict:
 
     # long presses and swipes nobody made (the second engine)
     extra = {"lp_right": 0, "lp_wrong": 0, "lp_phantom": 0, "sw_right": 0, "sw_wrong": 0,
-             "sw_phantom": 0, "lp_made": 0, "sw_made": 0}  # fmt: skip
+             "sw_phantom": 0, "lp_made": 0, "sw_made": 0, "tap_and_swipe": 0}  # fmt: skip
+    # one gesture per touch: a tap and a swipe decided at the same release are one touch
+    tap_times = {e.t for e in full if e.gesture == "tap"}
+    extra["tap_and_swipe"] = sum(e.gesture == "swipe" and e.t in tap_times for e in full)
     extra["lp_made"] = sum(isinstance(a, LongPress) for a in scene.actions)
     extra["sw_made"] = sum(isinstance(a, Swipe) for a in scene.actions)
     for e in full:
@@ -413,7 +416,7 @@ def report(results: list[dict]) -> None:
         f"{total['unfelt']} not felt); long presses wrong {total['lp_wrong']} phantom "
         f"{total['lp_phantom']} right {total['lp_right']}/{total['lp_made']}; swipes wrong "
         f"{total['sw_wrong']} phantom {total['sw_phantom']} right {total['sw_right']}/"
-        f"{total['sw_made']}"
+        f"{total['sw_made']}; touches that fired a tap and a swipe {total['tap_and_swipe']}"
     )
     bad = [r for r in results if problems(r["auto"])]
     print(f"desks with a gesture nobody made: {len(bad)} of {len(results)}")

@@ -33,7 +33,7 @@ from tap_accuracy import add_sway_compensation_option, with_sway_compensation  #
 
 from hapticdesk.gestures.options import GESTURE_OPTIONS
 from hapticdesk.gestures.strokes.shapes import SHAPES, hand_drawn, normalised, resample
-from hapticdesk.gestures.strokes.unistroke import BUILTIN_EXTRA_SCORE, TemplateSet, template_set
+from hapticdesk.gestures.strokes.unistroke import TemplateSet, template_set
 
 MIN_SCORE = GESTURE_OPTIONS["stroke"]["min_score"].default
 MAX_ROTATION = GESTURE_OPTIONS["stroke"]["max_rotation_deg"].default
@@ -183,199 +183,10 @@ def score(templates: TemplateSet, labels: list[str], paths: list[np.ndarray]) ->
     }
 
 
-# --- real people: the $1 logs -----------------------------------------------------------------
+# --- real people: the $1 logs at their real speed on the simulated desk ------------------------
+# (the logs as drawn, leave-one-writer-out with Protractor beside: scripts/stroke_lowo.py)
 
 SPEEDS = ("slow", "medium", "fast")
-BASELINE_POINTS = 16  # a plain Protractor (Li 2010): n = 16, uniform scale, ±30° rotation
-
-
-def protractor_vectors(paths: list[np.ndarray]) -> np.ndarray:
-    """Plain Protractor vectors (k, 2n): resampled, centred, of unit length."""
-    out = []
-    for p in paths:
-        q = resample(p, BASELINE_POINTS)
-        q = (q - q.mean(axis=0)).ravel()
-        out.append(q / max(float(np.linalg.norm(q)), 1e-12))
-    return np.asarray(out)
-
-
-def protractor_top1(templates: np.ndarray, tlabels: list[str], strokes: np.ndarray) -> list[str]:
-    """The baseline's nearest template's shape for each stroke (no rejection)."""
-    t = templates.reshape(len(templates), -1, 2)
-    g = strokes.reshape(len(strokes), -1, 2)
-    a = np.einsum("mnd,knd->km", t, g)
-    b = np.einsum("mn,kn->km", t[:, :, 1], g[:, :, 0]) - np.einsum(
-        "mn,kn->km", t[:, :, 0], g[:, :, 1]
-    )
-    limit = math.radians(MAX_ROTATION)
-    theta = np.clip(np.arctan2(b, a), -limit, limit)
-    best = np.argmax(a * np.cos(theta) + b * np.sin(theta), axis=1)
-    return [tlabels[i] for i in best]
-
-
-def real_splits(strokes, kind: str):
-    """(name, test indices, template indices) of one protocol over the logs.
-
-    ``ud1``/``ud3``: 1 or 3 templates a shape from the same person at the same speed (the $1
-    paper's protocol), every other repetition tested, templates rotated over the 10
-    repetitions; ``wi1``/``wi3``: templates from each other person, same speed."""
-    index: dict[tuple[str, str], list[int]] = {}
-    for i, s in enumerate(strokes):
-        index.setdefault((s.subject, s.speed), []).append(i)
-    subjects = sorted({s.subject for s in strokes})
-    count = int(kind[-1])
-    for (subject, speed), members in sorted(index.items()):
-        for r in range(10) if kind.startswith("ud") else (0, 5):
-            reps = {(r + j) % 10 + 1 for j in range(count)}
-            if kind.startswith("ud"):
-                tm = [i for i in members if strokes[i].repetition in reps]
-                te = [i for i in members if strokes[i].repetition not in reps]
-                yield subject, speed, te, tm
-            else:
-                for other in subjects:
-                    if other != subject and (other, speed) in index:
-                        tm = [i for i in index[(other, speed)] if strokes[i].repetition in reps]
-                        yield subject, speed, members, tm
-
-
-def run_real(folder: str, live: bool, plot: str | None) -> None:
-    from hapticdesk.gestures.recognizers.stroke import (
-        DEFAULT_NATURAL_FREQUENCY_HZ,
-        SWAY_CYCLES,
-        stroke_path,
-    )
-    from hapticdesk.gestures.strokes.dollar_logs import read_logs
-    from hapticdesk.gestures.strokes.unistroke import builtin_templates
-
-    started = time.perf_counter()
-    strokes = list(read_logs(folder))
-    if not strokes:
-        raise SystemExit(f"no $1 logs (*.xml) under {folder}")
-    paths = [s.points for s in strokes]
-    if live:  # as the live recognizer sees them: trimmed, resampled, smoothed in time
-        sigma = SWAY_CYCLES / DEFAULT_NATURAL_FREQUENCY_HZ
-        paths = [stroke_path(s.t, s.points, sigma)[1] for s in strokes]
-    truth = [s.shape for s in strokes]
-    base = protractor_vectors(paths)
-    # verdicts: (protocol, subject, speed, truth, best shape, score, baseline shape, known,
-    # the score the best shape asks beyond min_score: its templates' own agreement less margin,
-    # and what a built-in template asks above min_score)
-    rows: list[tuple[str, str, str, str, str | None, float, str, bool, float, float]] = []
-
-    def judge(name, templates, te, known, baseline_t, baseline_labels, subject_of, extra=0.0):
-        top1 = protractor_top1(baseline_t, baseline_labels, base[te])
-        matches = templates.classify_many([paths[i] for i in te], 0.0, MAX_ROTATION)
-        own = templates.thresholds(math.radians(MAX_ROTATION))
-        for i, b, m in zip(te, top1, matches, strict=True):
-            rows.append(
-                (
-                    name,
-                    subject_of(i),
-                    strokes[i].speed,
-                    truth[i],
-                    m.best_shape,
-                    m.score,
-                    b,
-                    truth[i] in known,
-                    own.get(m.best_shape, 0.0) if m.best_shape else 0.0,
-                    extra,
-                )
-            )
-
-    halves = [
-        set(sorted(set(truth))[k::2]) for k in (0, 1)
-    ]  # open set: templates for every other shape by name
-    for kind, label in (
-        ("ud1", "same person, 1 template"),
-        ("ud3", "same person, 3 templates"),
-        ("wi1", "another person, 1 template"),
-        ("wi3", "another person, 3 templates"),
-    ):
-        for _, _, te, tm in real_splits(strokes, kind):
-            templates = TemplateSet()
-            for i in tm:
-                templates.add(truth[i], paths[i])
-            labels = [truth[i] for i in tm]
-            judge(label, templates, te, set(labels), base[tm], labels, lambda i: strokes[i].subject)
-            if kind == "ud3":
-                for half in halves:
-                    sub = TemplateSet()
-                    keep = [i for i in tm if truth[i] in half]
-                    for i in keep:
-                        sub.add(truth[i], paths[i])
-                    judge(
-                        "open set: same person, 3 templates, half the shapes",
-                        sub,
-                        te,
-                        half,
-                        base[keep],
-                        [truth[i] for i in keep],
-                        lambda i: strokes[i].subject,
-                    )
-    builtin_docs = builtin_templates(expand=False)
-    for name, templates in (
-        ("built-in", builtin_templates()),
-        ("built-in, not expanded", builtin_docs),
-    ):
-        bt = [p for p in _builtin_paths()]
-        judge(
-            name,
-            templates,
-            list(range(len(strokes))),
-            set(truth),
-            protractor_vectors([p for _, p in bt]),
-            [n for n, _ in bt],
-            lambda i: strokes[i].subject,
-            BUILTIN_EXTRA_SCORE,  # (every template here is built-in)
-        )
-    print(
-        f"Stroke accuracy on real people: the $1 logs ({len(strokes)} strokes, "
-        f"{len({s.subject for s in strokes})} people, 16 shapes × 3 speeds × 10), "
-        f"{'replayed through the live smoothing' if live else 'as logged'}; "
-        f"min_score {MIN_SCORE}, max_rotation_deg {MAX_ROTATION:g} "
-        f"(`python scripts/stroke_accuracy.py --dollar {folder}{' --live' if live else ''}`, "
-        f"{time.perf_counter() - started:.0f} s)\n"
-    )
-    print("| templates | speed | right | rejected | wrong | Protractor top-1 | right per person |")
-    print("|---|---|---:|---:|---:|---:|---|")
-    order = list(dict.fromkeys(r[0] for r in rows))
-    for name in order:
-        mine = [r for r in rows if r[0] == name]
-        for speed in (*SPEEDS, "all"):
-            sel = [r for r in mine if speed in ("all", r[2]) and r[7]]
-            if not sel:
-                continue
-            acc = [r for r in sel if _accepted(r, MIN_SCORE)]
-            right = sum(r[4] == r[3] for r in acc)
-            people = sorted({r[1] for r in sel})
-            per = [
-                100 * np.mean([_accepted(r, MIN_SCORE) and r[4] == r[3] for r in sel if r[1] == p])
-                for p in people
-            ]
-            base_right = np.mean([r[6] == r[3] for r in sel])
-            print(
-                f"| {name} | {speed} | {100 * right / len(sel):.1f} % | "
-                f"{100 * (len(sel) - len(acc)) / len(sel):.1f} % | "
-                f"{100 * (len(acc) - right) / len(sel):.1f} % | {100 * base_right:.1f} % | "
-                f"{min(per):.0f}–{max(per):.0f} % |"
-            )
-        unknown = [r for r in mine if not r[7]]
-        if unknown:
-            for speed in (*SPEEDS, "all"):
-                sel = [r for r in unknown if speed in ("all", r[2])]
-                taken = np.mean([_accepted(r, MIN_SCORE) for r in sel])
-                per = [
-                    100 * np.mean([_accepted(r, MIN_SCORE) for r in sel if r[1] == p])
-                    for p in sorted({r[1] for r in sel})
-                ]
-                print(
-                    f"| {name}: strokes of the other half accepted | {speed} | "
-                    f"{100 * taken:.1f} % | | | | {min(per):.1f}–{max(per):.1f} % |"
-                )
-    if plot:
-        _plot_threshold(rows, plot)
-
-
 HUMAN_SIZE_M = (0.07, 0.10)  # a logged stroke is scaled so its larger side is this long
 
 
@@ -465,65 +276,6 @@ def run_human_speed(
         )
 
 
-def _builtin_paths() -> list[tuple[str, np.ndarray]]:
-    """The shipped templates as drawn: (shape, points)."""
-    import json
-    from importlib import resources
-
-    root = resources.files("hapticdesk.gestures.strokes").joinpath("templates")
-    out = []
-    for entry in sorted(root.iterdir(), key=lambda p: p.name):
-        if entry.name.endswith(".json"):
-            doc = json.loads(entry.read_text(encoding="utf-8"))
-            out += [(doc["shape"], np.asarray(s)) for s in doc["strokes"]]
-    return out
-
-
-def _accepted(row, min_score: float) -> bool:
-    """A verdict row's best shape is taken at ``min_score``: its score reaches min_score
-    and what the shape's own templates ask (TemplateSet.thresholds), plus what a built-in
-    template asks beyond min_score."""
-    return row[5] >= max(min_score + row[9], row[8])
-
-
-def _plot_threshold(rows, path: str) -> None:
-    """Right (accepted and correct) and unknown shapes accepted as min_score moves."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    taus = np.linspace(0.6, 1.0, 81)
-    fig, ax = plt.subplots(figsize=(7, 4.2))
-    for name in dict.fromkeys(r[0] for r in rows):
-        # (score, what the shape asks of its own, right shape) per known stroke
-        known = np.array([(r[5], r[8], r[4] == r[3], r[9]) for r in rows if r[0] == name and r[7]])
-        taken = known[:, None, 0] >= np.maximum(
-            taus[None, :] + known[:, None, 3], known[:, None, 1]
-        )
-        right = 100 * np.mean(taken & (known[:, None, 2] > 0), axis=0)
-        ax.plot(taus, right, label=f"right: {name}")
-        unknown = np.array([(r[5], r[8], r[9]) for r in rows if r[0] == name and not r[7]])
-        if len(unknown):
-            floor = np.maximum(taus[None, :] + unknown[:, None, 2], unknown[:, None, 1])
-            ax.plot(
-                taus,
-                100 * np.mean(unknown[:, None, 0] >= floor, axis=0),
-                "k--",
-                label="unknown shapes accepted (open set)",
-            )
-    ax.axvline(MIN_SCORE, color="grey", lw=0.8)
-    ax.set_xlabel("min_score (acceptance threshold)")
-    ax.set_ylabel("% of strokes")
-    ax.set_ylim(0, 100)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, loc="lower left")
-    ax.set_title("Real strokes ($1 logs): right vs unknown accepted")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    print(f"\nwrote {path}")
-
-
 def _sway_label(sway: str) -> str:
     return {"on": " with sway_compensation", "off": " without sway_compensation"}.get(sway, "")
 
@@ -540,9 +292,6 @@ def main() -> None:
     add_sway_compensation_option(parser, "the desk")
     parser.add_argument("--synthetic", action="store_true", help="noisy paths, no simulator")
     parser.add_argument("--quick", action="store_true", help="skip the user-template rows")
-    parser.add_argument("--dollar", metavar="DIR", help="real people: the $1 XML logs under DIR")
-    parser.add_argument("--live", action="store_true", help="with --dollar: replay as live")
-    parser.add_argument("--plot", metavar="PNG", help="with --dollar: right vs min_score")
     parser.add_argument(
         "--human-speed", metavar="DIR", help="$1 logs under DIR at real speed, on the desk"
     )
@@ -550,9 +299,6 @@ def main() -> None:
     args = parser.parse_args()
     if args.human_speed:
         run_human_speed(args.human_speed, args.reps, args.seed, args.desk, args.sway_compensation)
-        return
-    if args.dollar:
-        run_real(args.dollar, args.live, args.plot)
         return
     trace = (
         trace_synthetic

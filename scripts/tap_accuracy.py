@@ -21,6 +21,13 @@ true force reached it; the others are counted apart ("under 2 N").
     python scripts/tap_accuracy.py                  # 1,000 taps on each desk, about 1 min
     python scripts/tap_accuracy.py --taps 200 --desk unseen-four
     python scripts/tap_accuracy.py --desk paper --noise 0.1   # a quieter sensor
+    python scripts/tap_accuracy.py --desk loadcells           # the load-cell desks
+
+The load-cell desks (profiles kitamura2017-loadcells-80hz, -1khz and balance-board) are
+simulated with their converters' own noise (hapticdesk.sim.loadcells: HX711s at 80 Hz, an
+ADS1256 at 1 kHz); ``--noise`` sets the same amplitude on their total F_z, shared by the
+cells, ``--resolution`` the six-axis sensors only.
+scripts/loadcell_accuracy.py varies them (clocks, gains, mounting, other desks).
 """
 
 from __future__ import annotations
@@ -30,6 +37,7 @@ import tempfile
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -50,6 +58,7 @@ from hapticdesk.sim import (
     Tap,
     simulate,
 )
+from hapticdesk.sim.loadcells import LoadCellParameters, with_total_amplitude
 from hapticdesk.sim.sensors import SensorParameters
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -209,13 +218,21 @@ class TapRun:
 
 
 def simulate_taps(
-    desk: DeskProfile, n: int, seed: int, sensors: SensorParameters | None = None
+    desk: DeskProfile,
+    n: int,
+    seed: int,
+    sensors: SensorParameters | None = None,
+    *,
+    cells: LoadCellParameters | None = None,
+    built: DeskProfile | None = None,
 ) -> TapRun:
     """Simulate ``n`` edge taps on ``desk`` with ``seed`` and estimate them; ``sensors``: the
-    simulated sensors' noise and resolution (default: the paper's)."""
+    simulated sensors' noise and resolution (default: the paper's); ``cells``: a load-cell
+    desk's (default: its rate's converter); ``built``: the desk as it really is, where the
+    profile ``desk`` is not quite it (cells elsewhere: scripts/loadcell_accuracy.py)."""
     rng = np.random.default_rng(seed)
     scene, which, peak = edge_taps(rng, n)
-    rec = simulate(desk, scene, seed=seed, sensors=sensors)
+    rec = simulate(built or desk, scene, seed=seed, sensors=sensors, cells=cells)
     contacts = estimate(desk, rec)
     tap_actions = [k for k, a in enumerate(scene.actions) if isinstance(a, Tap)]
     touches = [touch for touch in true_touches(rec) if touch[2] in tap_actions]
@@ -231,10 +248,16 @@ def gesture_events(desk: DeskProfile, layout: Layout, contacts: ContactBlock) ->
 
 
 def run(
-    desk: DeskProfile, layout: Layout, n: int, seed: int, sensors: SensorParameters | None = None
+    desk: DeskProfile,
+    layout: Layout,
+    n: int,
+    seed: int,
+    sensors: SensorParameters | None = None,
+    **simulation: Any,
 ) -> Tally:
-    """Simulate ``n`` edge taps on ``desk`` and judge the engine's tap events."""
-    taps = simulate_taps(desk, n, seed, sensors)
+    """Simulate ``n`` edge taps on ``desk`` and judge the engine's tap events
+    (``simulation``: :func:`simulate_taps`'s ``cells`` and ``built``)."""
+    taps = simulate_taps(desk, n, seed, sensors, **simulation)
     events = [e for e in gesture_events(desk, layout, taps.contacts) if e.gesture == "tap"]
     return judge_taps(desk, taps.contacts, taps.touches, taps.which, taps.peak, events).tally
 
@@ -316,17 +339,23 @@ def measure(
     seed: int,
     chunk: int = 250,
     sensors: SensorParameters | None = None,
+    **simulation: Any,
 ) -> Tally:
     """``n`` taps in scenes of at most ``chunk`` (bounded memory), seeds ``seed``, ``seed+1``…"""
     total = Tally()
     for k, start in enumerate(range(0, n, chunk)):
-        total.add(run(desk, layout, min(chunk, n - start), seed + k, sensors))
+        total.add(run(desk, layout, min(chunk, n - start), seed + k, sensors, **simulation))
     return total
+
+
+#: the shipped load-cell desks (``--desk loadcells``)
+LOADCELL_DESKS = ("kitamura2017-loadcells-80hz", "kitamura2017-loadcells-1khz", "balance-board")
 
 
 def desks(which: str) -> dict[str, DeskProfile]:
     """The desks ``which`` names: paper, unseen (both unseen desks), unseen-six, unseen-four,
-    unseen-switched (the six-sensor desk with the paper's `switched` method), all."""
+    unseen-switched (the six-sensor desk with the paper's `switched` method), loadcells (the
+    load-cell profiles), all."""
     out = {}
     if which in ("paper", "all"):
         out["paper desk (kitamura2017)"] = load_profile("kitamura2017")
@@ -340,6 +369,9 @@ def desks(which: str) -> dict[str, DeskProfile]:
         out["unseen 6-sensor desk, switched (a profile's default)"] = unseen_desk(
             "unseen-six", "switched"
         )
+    if which in ("loadcells", "all"):
+        for name in LOADCELL_DESKS:
+            out[f"load cells ({name})"] = load_profile(name)
     return out
 
 
@@ -403,11 +435,19 @@ def main() -> None:
         type=float,
         metavar="SHARE",
         help="the simulated sensors' resolution step as a share of each channel's rating "
-        "(default: the paper's 1/2000; 0: unrounded)",
+        "(default: the paper's 1/2000; 0: unrounded; six-axis sensors only)",
     )
     parser.add_argument(
         "--desk",
-        choices=("paper", "unseen", "unseen-six", "unseen-four", "unseen-switched", "all"),
+        choices=(
+            "paper",
+            "unseen",
+            "unseen-six",
+            "unseen-four",
+            "unseen-switched",
+            "loadcells",
+            "all",
+        ),
         default="all",
     )
     args = parser.parse_args()
@@ -422,11 +462,13 @@ def main() -> None:
             label += f", at {args.rate:g} Hz"
         started = time.monotonic()
         layout = buttons(desk, args.snap)
-        sensors = None
-        if args.noise is not None or args.resolution is not None:
+        sensors = cells = None
+        if not desk.six_axis_only:  # load cells: the same amplitude, shared by the cells
+            cells = None if args.noise is None else with_total_amplitude(desk, args.noise)
+        elif args.noise is not None or args.resolution is not None:
             given = {"noise_amplitude_n": args.noise, "resolution": args.resolution}
             sensors = SensorParameters(**{k: v for k, v in given.items() if v is not None})
-        tally = measure(desk, layout, args.taps, args.seed, sensors=sensors)
+        tally = measure(desk, layout, args.taps, args.seed, sensors=sensors, cells=cells)
         print(tally.line(label) + f"  <!-- {time.monotonic() - started:.0f} s -->")
 
 

@@ -39,7 +39,6 @@ from scipy import signal
 
 from hapticdesk.analysis.inertia_fit import InertiaFit, fit_inertia
 from hapticdesk.files.profile import (
-    AXES,
     LOWPASS_PER_NATURAL_FREQUENCY,
     DeskProfile,
     is_body_inertia,
@@ -253,9 +252,9 @@ def _characterize(profile: DeskProfile, recording: Recording, where: str) -> Cha
         flat = _hold_last_good(flat, good)
     resultant = flat @ profile.wrench_map().T  # (k, 6): paper eqs. (1)–(4)
 
-    channels = [f"{s}_{a}" for s in profile.sensor_names for a in AXES]
+    channels = profile.channel_names()  # (a load cell's one, a six-axis sensor's six)
     units = ["N", "N", "N", "N·m", "N·m", "N·m"]
-    sensor_units = units * len(profile.sensors)
+    sensor_units = ["N·m" if moment else "N" for moment in profile.moment_channels()]
 
     # --- quiet windows: detrended spread against the noise floor ------------------------
     n_win = k // n_w

@@ -9,6 +9,7 @@ the paper pools its subjects.
 
 from __future__ import annotations
 
+import shutil
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -75,22 +76,42 @@ def _candidate_errors(
     }
 
 
-def figure2(pooled: dict[str, np.ndarray]) -> Finding:
+#: the force bands (N) at release on which the two candidates' errors are compared (Fig. 2)
+RELEASE_BANDS_N = (2.0, 3.0, 4.0, 5.0, 6.0, 8.0, 12.0)
+#: the file each figure is drawn to in ``reproduce``'s folder
+FIGURE_FILES = {
+    "Fig. 2": "fig2.png",
+    "Fig. 8": "fig8.png",
+    "Fig. 14": "fig14.png",
+    "Fig. 16": "fig16.png",
+}
+
+
+def figure2(pooled: dict[str, np.ndarray], png: Path | None = None) -> Finding:
     crossing = error_model.crossover_force()
     at2 = error_model.error_range(0.2, 2.0, error_model.PAPER_RAW_NOISE_N)
     diff = error_model.error_range(
         0.2, error_model.PAPER_RATE_N_S, error_model.PAPER_RATE_NOISE_N_S
     )
     # on the simulator, at release: the force below which D_ed's errors are the smaller
-    edges = [2.0, 3.0, 4.0, 5.0, 6.0, 8.0, 12.0]
     better = []
-    for lo, hi in zip(edges[:-1], edges[1:], strict=True):
+    bands: list[dict[str, Any]] = []
+    for lo, hi in zip(RELEASE_BANDS_N[:-1], RELEASE_BANDS_N[1:], strict=True):
         sel = (pooled["motion"] < 0) & (pooled["force_n"] >= lo) & (pooled["force_n"] < hi)
+        band: dict[str, Any] = {"from_n": lo, "to_n": hi, "samples": int(sel.sum())}
         if sel.sum() > 20:
-            spread_r = np.percentile(np.abs(pooled["err_er"][sel]), 95)
-            spread_d = np.percentile(np.abs(pooled["err_ed"][sel]), 95)
-            better.append((hi, bool(spread_d < spread_r)))
+            spread_r = float(np.percentile(np.abs(pooled["err_er"][sel]), 95))
+            spread_d = float(np.percentile(np.abs(pooled["err_ed"][sel]), 95))
+            better.append((hi, spread_d < spread_r))
+            band.update(p95_er_mm=spread_r * 1e3, p95_ed_mm=spread_d * 1e3)
+        else:
+            band["samples"] = 0  # too few to say
+        bands.append(band)
     empirical = max((hi for hi, b in better if b), default=None)
+    if png is not None:
+        from hapticdesk.bench.paper_figures import draw_figure2
+
+        draw_figure2(png, bands)
     holds = abs(crossing - 3.8) <= 0.2 and abs(at2 - 0.083) < 0.001 and abs(diff - 0.0026) < 1e-4
     return Finding(
         "Fig. 2",
@@ -105,11 +126,13 @@ def figure2(pooled: dict[str, np.ndarray]) -> Finding:
             "range_diff_m": diff,
             "crossover_n": crossing,
             "simulated_release_crossover_n": empirical,
+            "release_bands": bands,
+            **({"png": str(png)} if png is not None else {}),
         },
     )
 
 
-def figure8(pooled: dict[str, np.ndarray]) -> Finding:
+def figure8(pooled: dict[str, np.ndarray], png: Path | None = None) -> Finding:
     small = (pooled["force_n"] >= 2.0) & (pooled["force_n"] <= 3.0)
     out: dict[str, Any] = {}
     for name, sign in (("touch", 1), ("release", -1)):
@@ -135,6 +158,12 @@ def figure8(pooled: dict[str, np.ndarray]) -> Finding:
         and ed_release < ed_touch
     )
 
+    if png is not None:
+        from hapticdesk.bench.paper_figures import draw_figure8
+
+        draw_figure8(png, out)
+        out["png"] = str(png)
+
     def fmt(name: str) -> str:
         er, ed = out[f"{name}_std_er_mm"], out[f"{name}_std_ed_mm"]
         if er is None:
@@ -151,7 +180,12 @@ def figure8(pooled: dict[str, np.ndarray]) -> Finding:
     )
 
 
-def figure14(profile: DeskProfile, recs: list[Recording], settings: EstimationSettings) -> Finding:
+def figure14(
+    profile: DeskProfile,
+    recs: list[Recording],
+    settings: EstimationSettings,
+    png: Path | None = None,
+) -> Finding:
     stats: dict[str, Any] = {}
     for method in ("force", "switched"):
         accs = [
@@ -178,6 +212,11 @@ def figure14(profile: DeskProfile, recs: list[Recording], settings: EstimationSe
             f"{phase}: mean {fm:.2f} → {sm:.2f} mm, std {fs:.2f} → {ss:.2f} mm "
             f"({100 * (1 - ss / fs):.0f} % less)"
         )
+    if png is not None:
+        from hapticdesk.bench.paper_figures import draw_figure14
+
+        draw_figure14(png, stats)
+        stats["png"] = str(png)
     return Finding(
         "Fig. 14",
         "switched (F_tth 5.67 N, F_rth 11.8 N) has lower mean error and std than the "
@@ -204,9 +243,9 @@ def figure16(
         stats[f"{m}_ends_p95_mm"] = float(np.percentile(ends, 95))
         stats[f"{m}_strokes"] = acc.presses
     if png is not None:
-        from hapticdesk.bench.report import plot_trace_comparison
+        from hapticdesk.bench.paper_figures import draw_figure16
 
-        plot_trace_comparison(profile, rec, blocks, png)
+        draw_figure16(png, rec, blocks)
         stats["png"] = str(png)
     holds = stats["switched_ends_mean_mm"] < stats["force_ends_mean_mm"]
     return Finding(
@@ -222,16 +261,27 @@ def figure16(
 
 
 def reproduce(
-    profile: DeskProfile, seeds: tuple[int, ...] = (0, 1, 2), png: Path | None = None
+    profile: DeskProfile,
+    seeds: tuple[int, ...] = (0, 1, 2),
+    png: Path | None = None,
+    figures: Path | None = None,
 ) -> list[Finding]:
-    """All four findings, pooled over ``seeds``."""
+    """All four findings, pooled over ``seeds``; with ``figures`` (a folder) each drawn
+    there (:data:`FIGURE_FILES`), with ``png`` Fig. 16 drawn there too."""
+
+    def drawn(figure: str) -> Path | None:
+        return None if figures is None else figures / FIGURE_FILES[figure]
+
     settings = paper_settings(profile)
     recs = [simulate(profile, paper_experiment(), seed=s) for s in seeds]
     parts = [_candidate_errors(profile, rec, settings) for rec in recs]
     pooled = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
-    return [
-        figure2(pooled),
-        figure8(pooled),
-        figure14(profile, recs, settings),
-        figure16(profile, settings, seeds[0], png),
+    findings = [
+        figure2(pooled, drawn("Fig. 2")),
+        figure8(pooled, drawn("Fig. 8")),
+        figure14(profile, recs, settings, drawn("Fig. 14")),
+        figure16(profile, settings, seeds[0], drawn("Fig. 16") or png),
     ]
+    if png is not None and figures is not None:  # (both asked for: the same drawing twice)
+        shutil.copyfile(figures / FIGURE_FILES["Fig. 16"], png)
+    return findings

@@ -8,9 +8,6 @@ from typing import Any
 import numpy as np
 
 from hapticdesk.bench.runner import pareto_front
-from hapticdesk.estimator.contacts import SOURCE_DIFF, SOURCE_FORCE, SOURCE_FUSED, ContactBlock
-from hapticdesk.files.profile import DeskProfile
-from hapticdesk.files.recording import Recording
 
 COLUMNS = [
     ("label", "configuration", "{}"),
@@ -27,6 +24,7 @@ COLUMNS = [
     ("release_delay_p95_ms", "up p95", "{:.1f}"),
     ("samples_per_s", "batch S/s", "{:,.0f}"),
     ("us_per_sample_stream", "µs k=1", "{:.1f}"),
+    ("us_per_sample_stream_range", "range", "{:.1f}–{:.1f}"),
 ]
 #: what a cell says when a time-offset p95 is a miss (more than 5 % not located)
 MISS = "miss"
@@ -52,16 +50,37 @@ def table(rows: list[dict[str, Any]]) -> str:
 
 
 def _cell(row: dict[str, Any], key: str, fmt: str) -> str:
+    if key.endswith("_range"):  # the figure's min and max over the rounds
+        figure = key.removesuffix("_range")
+        low, high = row.get(f"{figure}_min"), row.get(f"{figure}_max")
+        return "—" if low is None or high is None else fmt.format(low, high)
     if row.get(key) is not None:
         return fmt.format(row[key])
     located = row.get(key.replace("_p95_mm", "_located"))
     return MISS if located is not None else "—"
 
 
+#: on a panel's logarithmic error axis, a point more than this factor off the panel's median
+#: error is drawn at the axis's edge, its value written beside it (one 816 mm point had
+#: flattened every other point of its panel into the bottom tenth)
+OUTLIER_FACTOR = 10.0
+#: where a point's number is tried, in points from the point: right, left, above, below, then
+#: the diagonals, then further out
+LABEL_OFFSETS = [
+    (dx * r, dy * r)
+    for r in (1.0, 2.2, 3.4)
+    for dx, dy in ((5, -3), (-5, -3), (0, 5), (0, -11), (5, 4), (-5, 4), (5, -10), (-5, -10))
+]
+
+
 def plot_pareto(rows: list[dict[str, Any]], path: Path) -> None:
-    """Error at equal coverage against µs per sample (single-sample streaming), the Pareto
-    front marked. Points carry numbers, explained in a key beside the panels, so labels
-    never pile up; the error axis is logarithmic with plain numbers as ticks."""
+    """Error at equal coverage against µs per sample (single-sample streaming): each point
+    the median run time with a bar over its range across the rounds, the Pareto front
+    (:func:`~hapticdesk.bench.runner.pareto_front`: costs within each other's range tie)
+    drawn as a line and ringed. Points carry numbers explained in a key beside the panels,
+    each placed where it overlaps no other number or point; the error axis is logarithmic
+    with plain numbers as ticks, limited to the bulk of the points, with any point
+    :data:`OUTLIER_FACTOR` off drawn at the edge as an arrow with its value."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -79,40 +98,55 @@ def plot_pareto(rows: list[dict[str, Any]], path: Path) -> None:
         ("touch_p95_common_mm", "touch, samples all methods locate"),
         ("release_p95_common_mm", "release until the contact ends"),
     )
-    fig = plt.figure(figsize=(15, 5.2), constrained_layout=True)
+    cost_key = "us_per_sample_stream"
+    fig = plt.figure(figsize=(15, 5.4), layout="constrained")
     grid = fig.add_gridspec(1, len(panels) + 1, width_ratios=[1] * len(panels) + [0.8])
     plain = FuncFormatter(lambda v, _: f"{v:g}")
+    cost = np.array([r[cost_key] for r in rows], dtype=float)
+    low = np.array([r.get(f"{cost_key}_min", r[cost_key]) for r in rows], dtype=float)
+    high = np.array([r.get(f"{cost_key}_max", r[cost_key]) for r in rows], dtype=float)
+    numbered: list[tuple[Any, np.ndarray, np.ndarray, list[str]]] = []
     for n, (key, title) in enumerate(panels):
         ax = fig.add_subplot(grid[0, n])
-        cost = [r["us_per_sample_stream"] for r in rows]
-        err = [r.get(key) for r in rows]
-        for i, (r, c, e) in enumerate(zip(rows, cost, err, strict=True)):
-            if e is None:
-                continue
-            ax.scatter(c, e, color=colours.get(r["method"], "grey"), s=36, zorder=3)
-            ax.annotate(str(i + 1), (c, e), fontsize=7, xytext=(3, 2), textcoords="offset points")
-        front = sorted(
-            pareto_front(rows, key, "us_per_sample_stream")
-            if any(e is not None for e in err)
-            else [],
-            key=lambda i: rows[i]["us_per_sample_stream"],
-        )
-        if front:
-            ax.step(
-                [cost[i] for i in front],
-                [err[i] for i in front],
-                where="post",
-                color="black",
+        err = np.array([np.nan if r.get(key) is None else r[key] for r in rows], dtype=float)
+        shown = np.flatnonzero(np.isfinite(err) & (err > 0))
+        lo_lim, hi_lim = _robust_log_limits(err[shown])
+        drawn = np.clip(err, lo_lim, hi_lim)
+        for i in shown:
+            colour = colours.get(rows[i]["method"], "grey")
+            ax.errorbar(
+                cost[i],
+                drawn[i],
+                xerr=[[cost[i] - low[i]], [high[i] - cost[i]]],
+                fmt="none",
+                ecolor=colour,
+                alpha=0.5,
                 lw=1.0,
+                capsize=2,
                 zorder=2,
             )
-        ax.set_yscale("log")
-        shown = [e for e in err if e is not None and e > 0]
-        if shown and max(shown) < 10 * min(shown):
-            # within one decade 1-2-5 leaves a single labelled tick: evenly spaced plain ones
-            even = MaxNLocator(nbins=6, steps=[1, 2, 2.5, 5, 10]).tick_values(
-                min(shown), max(shown)
+            outside = err[i] > hi_lim or err[i] < lo_lim
+            ax.scatter(
+                cost[i],
+                drawn[i],
+                color=colour,
+                s=36,
+                marker=("^" if err[i] > hi_lim else "v") if outside else "o",
+                zorder=3,
+                clip_on=False,
             )
+        front = sorted(pareto_front(rows, key, cost_key), key=lambda i: cost[i])
+        if front:
+            ax.step(cost[front], drawn[front], where="post", color="black", lw=1.0, zorder=1)
+            ax.scatter(
+                cost[front], drawn[front], s=110, facecolors="none", edgecolors="black", lw=0.8
+            )
+        ax.set_yscale("log")
+        ax.set_ylim(lo_lim, hi_lim)
+        inside = err[shown][(err[shown] >= lo_lim) & (err[shown] <= hi_lim)]
+        if len(inside) and inside.max() < 10 * inside.min():
+            # within one decade 1-2-5 leaves a single labelled tick: evenly spaced plain ones
+            even = MaxNLocator(nbins=6, steps=[1, 2, 2.5, 5, 10]).tick_values(lo_lim, hi_lim)
             ax.yaxis.set_major_locator(FixedLocator(even))
         else:
             ax.yaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
@@ -123,11 +157,16 @@ def plot_pareto(rows: list[dict[str, Any]], path: Path) -> None:
         ax.set_ylabel("error p95 (mm)")
         ax.set_title(title, fontsize=10)
         ax.grid(alpha=0.3, which="both")
+        names = [
+            f"{i + 1}" if lo_lim <= err[i] <= hi_lim else f"{i + 1}: {err[i]:.0f} mm" for i in shown
+        ]
+        numbered.append((ax, cost[shown], drawn[shown], names))
     key_ax = fig.add_subplot(grid[0, -1])
     key_ax.axis("off")
     # the colours' legend beside the numbered key, off the data (on a panel it hid points)
     for method, colour in colours.items():
         key_ax.scatter([], [], color=colour, label=method)
+    key_ax.plot([], [], color="grey", lw=1.0, marker="|", label="run time: min–max of the rounds")
     key_ax.plot([], [], color="black", lw=1.0, label="Pareto front")
     key_ax.legend(fontsize=8, loc="lower left", title="method", title_fontsize=8)
     key_ax.text(
@@ -144,38 +183,58 @@ def plot_pareto(rows: list[dict[str, Any]], path: Path) -> None:
         "hapticdesk bench: error at equal coverage against run time "
         "(the paper's experiment, simulated with the paper's noise)"
     )
+    # the layout fixed first: the numbers are placed where the points end up
+    fig.draw_without_rendering()
+    fig.set_layout_engine("none")
+    for ax, xs, ys, names in numbered:
+        place_labels(ax, xs, ys, names, fontsize=7)
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
 
-def plot_trace_comparison(
-    profile: DeskProfile, rec: Recording, blocks: dict[str, ContactBlock], path: Path
+def _robust_log_limits(values: np.ndarray) -> tuple[float, float]:
+    """A logarithmic axis's limits around the bulk of ``values`` (positive): every value
+    within :data:`OUTLIER_FACTOR` of their median, with a margin."""
+    if len(values) == 0:
+        return 1.0, 10.0
+    median = float(np.median(values))
+    bulk = values[(values <= OUTLIER_FACTOR * median) & (values >= median / OUTLIER_FACTOR)]
+    lo, hi = float(bulk.min()), float(bulk.max())
+    margin = max(hi / lo, 1.2) ** 0.08
+    return lo / margin, hi * margin
+
+
+def place_labels(
+    ax: Any, xs: np.ndarray, ys: np.ndarray, texts: list[str], *, fontsize: float = 7
 ) -> None:
-    """The traced character with each method (paper Fig. 16), truth as a line."""
-    import matplotlib
+    """Write ``texts`` beside the points (``xs``, ``ys``, data coordinates) of a figure whose
+    layout is fixed, each at the first of :data:`LABEL_OFFSETS` where it overlaps no point,
+    no label placed before it and nothing outside the axes; one that fits nowhere goes to
+    the last place tried, with a thin line to its point."""
+    from matplotlib.transforms import Bbox
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, len(blocks), figsize=(6 * len(blocks), 6), constrained_layout=True)
-    axes = np.atleast_1d(axes)
-    tx, ty = rec.extra["true_x"], rec.extra["true_y"]
-    for ax, (method, block) in zip(axes, blocks.items(), strict=True):
-        ax.plot(tx, ty, color="black", lw=1, label="true path")
-        for source, colour, name in (
-            (SOURCE_FORCE, "tab:blue", "from force"),
-            (SOURCE_DIFF, "tab:orange", "from differentiated force"),
-            (SOURCE_FUSED, "tab:red", "fused"),
-        ):
-            sel = block.located & (block.source == source)
-            if sel.any():
-                ax.scatter(block.x[sel], block.y[sel], s=2, color=colour, label=name)
-        ax.set_aspect("equal")
-        ax.set_title(method)
-        ax.set_xlabel("x (m)")
-        ax.set_ylabel("y (m)")
-        ax.legend(fontsize=8, markerscale=4)
-        ax.grid(alpha=0.3)
-    fig.suptitle("kita (the character in the paper's Fig. 15) traced at 3.4 cm/s, simulated")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    renderer = ax.figure.canvas.get_renderer()
+    frame = ax.get_window_extent(renderer)
+    half = 4.0  # a marker's half size in pixels, at the sizes these figures use
+    taken = [
+        Bbox.from_extents(x - half, y - half, x + half, y + half)
+        for x, y in ax.transData.transform(np.column_stack([xs, ys]))
+    ]
+    for x, y, text in zip(xs, ys, texts, strict=True):
+        for n, (dx, dy) in enumerate(LABEL_OFFSETS):
+            last = n == len(LABEL_OFFSETS) - 1
+            label = ax.annotate(
+                text,
+                (x, y),
+                xytext=(dx, dy),
+                textcoords="offset points",
+                fontsize=fontsize,
+                ha="left" if dx > 0 else "right" if dx < 0 else "center",
+                arrowprops={"arrowstyle": "-", "lw": 0.5, "color": "grey"} if last else None,
+            )
+            box = label.get_window_extent(renderer)
+            inside = frame.contains(box.x0, box.y0) and frame.contains(box.x1, box.y1)
+            if last or (inside and not any(box.overlaps(other) for other in taken)):
+                taken.append(box)
+                break
+            label.remove()

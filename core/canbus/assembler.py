@@ -51,6 +51,8 @@ JUMP_PERIODS = 1.5  # sample times further apart than this count as lost samples
 LATE = np.iinfo(np.int64).min  # the key of a frame that came too late for its sample
 MAX_SAMPLE_FRAMES = 4  # by time, a sample of more than 4 × its frame kinds is given up
 NOTICES_KEPT = 1000  # notices a source or assembler keeps (the oldest go first)
+#: a frame whose time is this many sample periods before the latest frame's went back in time
+TIME_BACK_PERIODS = 1.0
 
 
 @dataclass
@@ -116,6 +118,7 @@ class FrameAssembler:
         silent_timeout_s: float = 0.2,
         silent_sensor: str = "continue",
         where: Position | str = "",
+        hold_samples: int = 0,
     ) -> None:
         if assemble == "counter" and decoding.counter_modulus is None:
             raise ValueError("assemble='counter' needs a counter in every frame kind")
@@ -126,11 +129,15 @@ class FrameAssembler:
         self.silent_timeout_s = silent_timeout_s
         self.silent_sensor = silent_sensor
         self.where = where
+        #: a channel whose frame is missing from a sample takes its value from the samples
+        #: before, for at most this many samples in a row (0: left NaN)
+        self.hold_samples = hold_samples
         self.stats = CanStats()
         # the most recent ones: a bus that keeps failing must not grow this for the whole run
         self.notices: collections.deque[CanNotice] = collections.deque(maxlen=NOTICES_KEPT)
         names = decoding.sensor_names
         self.stats.incomplete = {n: 0 for n in names}
+        self.stats.held = {n: 0 for n in names}
         self.stats.invalid = {n: 0 for n in names}
         self.stats.status = {n: {} for n in names}
         n_kinds = len(decoding.kinds)
@@ -165,6 +172,15 @@ class FrameAssembler:
         self._late_frames = np.zeros(len(names), dtype=np.int64)  # since the sensor last fit
         self._stopped: SensorSilentError | None = None
         self._accel_axes = decoding.accel_axes  # the last groups: the accelerometers
+        # the last value of each field and how many samples ago it was read (for the hold)
+        self._last_row = np.full(decoding.n_fields, np.nan)
+        self._last_age = np.zeros(decoding.n_fields, dtype=np.int64)
+        # only the force sensors' fields are held: a missing accelerometer reading stays NaN,
+        # the estimator then flags that sample `no_accel` (the documented contract)
+        self._holdable = np.zeros(decoding.n_fields, dtype=bool)
+        force_readings = decoding.readings[: len(decoding.readings) - len(self._accel_axes)]
+        for reading in force_readings:
+            self._holdable[reading.columns] = True
 
     # --- public -------------------------------------------------------------------------
 
@@ -217,8 +233,13 @@ class FrameAssembler:
                 frames.t[0],
             )
         prev_c = np.concatenate([[self._prev_counter], counter[:-1]])
-        prev_t = np.concatenate([[self._prev_t], frames.t[:-1]])
+        # the latest time seen before each frame: a frame whose time went back (a corrupt or
+        # merged log) neither counts as a wrap of the counter nor moves the clock for the
+        # frames after it (0.5 % of them had made 1.6 million samples "lost" and no tap)
+        clock = np.fmax.accumulate(np.concatenate([[self._prev_t], frames.t]))
+        prev_t = clock[:-1]
         dt = frames.t - prev_t
+        self._count_time_back(dt)
         # Within half its range the counter alone decides (host clocks stall and burst, and a
         # fast replay is not on the sample clock); across a longer pause the time says how
         # many wraps were missed.
@@ -230,7 +251,7 @@ class FrameAssembler:
         self._prev_counter, self._prev_key, self._prev_t = (
             int(counter[-1]),
             int(keys[-1]),
-            frames.t[-1],
+            clock[-1],
         )
         # A frame more than REORDER_DEPTH samples behind the newest one before it is late,
         # whether or not its sample has been given out yet: so a log read at once and a bus
@@ -248,6 +269,7 @@ class FrameAssembler:
         after_polls = self._polled | (np.cumsum(is_request) > 0)
         prev_t = np.concatenate([[self._prev_t], frames.t[:-1]])
         dt = frames.t - prev_t
+        self._count_time_back(dt)
         # ranks of kinds in the order they first appeared (for logs without times)
         new = np.unique(kind[(self._rank[kind] < 0) & ~is_request])
         if len(new):
@@ -271,6 +293,10 @@ class FrameAssembler:
         for second, first in self.decoding.second_halves.items():
             self._pair_halves(keys, kind, first, second)
         return keys
+
+    def _count_time_back(self, dt: np.ndarray) -> None:
+        with np.errstate(invalid="ignore"):
+            self.stats.time_back += int(np.count_nonzero(dt < -TIME_BACK_PERIODS / self.rate))
 
     def _pair_halves(self, keys: np.ndarray, kind: np.ndarray, first: int, second: int) -> None:
         """Give each second frame of a reply its first frame's key, in place.
@@ -363,9 +389,11 @@ class FrameAssembler:
                 self.stats.duplicates += int(presence[doubled, k].sum())
         if self.assemble == "time":
             self._check_counters(p, row_of, n, table)
+        held = self._hold(table)
         t = self._times(p, row_of, keys)
         wrench = np.empty((n, len(decoding.readings), 6))
         for s, reading in enumerate(decoding.readings):
+            self.stats.held[reading.name] += int(held[:, reading.columns].any(axis=1).sum())
             w, invalid, counts = reading.channels(table)
             missing = np.isnan(w).any(axis=1) & ~invalid
             w[invalid] = np.nan
@@ -387,6 +415,36 @@ class FrameAssembler:
             self._last_t = float(t[-1])
         self.stats.samples += len(t)
         return self._result(t, wrench, notices)
+
+    def _hold(self, table: np.ndarray) -> np.ndarray:
+        """Fill, in place, each field a sample lacks (its frame was lost, doubled, or came
+        with another counter) with the field's last value, when that is at most
+        :attr:`hold_samples` samples old; returns where it did. A log with 5 % of its lines
+        junk had lost a frame in a third of its samples, and the NaN samples the estimator
+        skips had refused the tare for the whole run; a value one sample old is a truer
+        sample than none. Carried across pushes, so any split gives the same samples."""
+        n = len(table)
+        if self.hold_samples <= 0 or n == 0:
+            return np.zeros(table.shape, dtype=bool)
+        full = np.vstack([self._last_row[None, :], table])
+        valid = ~np.isnan(full)
+        rows = np.arange(n + 1)[:, None]
+        last = np.maximum.accumulate(np.where(valid, rows, -1), axis=0)  # row of the last value
+        # how old that value is, in samples: row 0 is the carried one, already _last_age old
+        age = np.where(last > 0, rows - last, rows + self._last_age[None, :])
+        fill = ~valid & (last >= 0) & (age <= self.hold_samples) & self._holdable[None, :]
+        fill[0] = False
+        columns = np.broadcast_to(np.arange(full.shape[1]), full.shape)
+        full[fill] = full[np.maximum(last, 0)[fill], columns[fill]]
+        table[:] = full[1:]
+        held = fill[1:]
+        read = valid[1:]
+        # the carried value: each field's last real value and its age at the last sample
+        seen = read.any(axis=0)
+        last_real = n - 1 - np.argmax(read[::-1], axis=0)
+        self._last_row = np.where(seen, table[last_real, np.arange(table.shape[1])], self._last_row)
+        self._last_age = np.where(seen, n - 1 - last_real, self._last_age + n)
+        return held
 
     def _times(self, p: _Pending, row_of: np.ndarray, keys: np.ndarray) -> np.ndarray:
         if self._key0 is None:

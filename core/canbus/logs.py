@@ -62,6 +62,10 @@ MAX_STANDARD_ID = 0x7FF
 #: writers date a log by its first frame, so a later one cannot be written; read, a time beyond
 #: it (either way) is no clock's, and its gaps overflowed the assembler's integer sample counts
 MAX_LOG_TIME_S = 253_402_214_400.0
+#: in a log assembled by counter, a channel whose frame is missing holds its value this many
+#: samples at most (:attr:`FrameAssembler.hold_samples`): a corrupt line loses one frame, not
+#: the sample
+HOLD_SAMPLES = 2
 # candump -l / python-can .log lines: "(1700000000.000000) can0 123#DEADBEEF"
 _CANUTILS_LINE = re.compile(r"^\s*\(\d+(\.\d+)?\)\s+\S+\s+[0-9A-Fa-f]+#")
 # ... and all of one, as python-can's reader parses it without raising: an optional CAN FD
@@ -93,17 +97,21 @@ def is_can_log(path: str | Path) -> bool:
 # --- frames -----------------------------------------------------------------------------------
 
 
-def read_frames(path: str | Path, chunk_frames: int = CHUNK_FRAMES) -> Iterator[FrameArray]:
-    """The log's frames in chunks, in file order. ConfigError when it cannot be read."""
+def read_frames(
+    path: str | Path, chunk_frames: int = CHUNK_FRAMES, skipped: dict[str, int] | None = None
+) -> Iterator[FrameArray]:
+    """The log's frames in chunks, in file order. ConfigError when it cannot be read.
+    ``skipped``: filled with what was skipped, by reason, as the log is read (a run's
+    summary says it: a log of 5 % junk lines had been "silently nothing")."""
     path = Path(path)
     if not path.is_file():
         raise ConfigError(str(path), "no such CAN log")
     suffix = _suffix(path)
     any_frame = False
     if suffix in (".asc", ".blf", ".trc") or (suffix == ".log" and _looks_canutils(path)):
-        chunks = _python_can_frames(path, chunk_frames)
+        chunks = _python_can_frames(path, chunk_frames, skipped)
     else:
-        chunks = _candump_text_frames(path, chunk_frames)
+        chunks = _candump_text_frames(path, chunk_frames, skipped)
     for chunk in chunks:
         any_frame = any_frame or len(chunk) > 0
         yield chunk
@@ -164,7 +172,9 @@ _READERS = {
 }
 
 
-def _python_can_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
+def _python_can_frames(
+    path: Path, chunk_frames: int, tally: dict[str, int] | None = None
+) -> Iterator[FrameArray]:
     import gzip
 
     import can  # lazily: only CAN paths need python-can
@@ -233,11 +243,11 @@ def _python_can_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
     if failure is None and text is not None:
         text.frame_read(end=True)  # the last line may have been a frame line python-can skipped
     for skipped in (mismatched, bad_ids, bad_times):
-        skipped.warn(path)
+        skipped.warn(path, tally)
     if failure is not None:
         raise failure
     if lines is not None:
-        lines.skipped.warn(path)
+        lines.skipped.warn(path, tally)
 
 
 _BAD_ID = (
@@ -271,9 +281,11 @@ class _Skipped:
         if self.why is None:
             self.why = why
 
-    def warn(self, path: Path) -> None:
+    def warn(self, path: Path, tally: dict[str, int] | None = None) -> None:
         if not self.n:
             return
+        if tally is not None:
+            tally[self.what] = tally.get(self.what, 0) + self.n
         shown = ", ".join(f"{path}:{number}" for number in self.lines) or str(path)
         more = " …" if self.lines and self.n > len(self.lines) else ""
         why = f": {self.why}" if self.why else ""
@@ -414,7 +426,9 @@ class _CanutilsLines:
 _NOT_FRAMES = "line(s) are not CAN frames and were"
 
 
-def _candump_text_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
+def _candump_text_frames(
+    path: Path, chunk_frames: int, tally: dict[str, int] | None = None
+) -> Iterator[FrameArray]:
     import datetime
 
     from cantools.logreader import Parser
@@ -491,7 +505,7 @@ def _candump_text_frames(path: Path, chunk_frames: int) -> Iterator[FrameArray]:
     if datas:
         yield chunk()
     for skipped in (unknown, unreadable, bad_ids, bad_times):
-        skipped.warn(path)
+        skipped.warn(path, tally)
 
 
 def write_frames(path: str | Path, frames: Iterable[FrameArray], channel: Any = None) -> int:
@@ -596,11 +610,16 @@ def _assembler(path: str | Path, profile: DeskProfile) -> FrameAssembler:
         silent_timeout_s=config.silent_timeout_s,
         silent_sensor=config.silent_sensor,
         where=str(path),
+        # by counter a sample's frames are known for sure, so a lost one is a known hole;
+        # by time, an incomplete sample may be frames split wrongly, and nothing is held
+        hold_samples=HOLD_SAMPLES if config.assemble == "counter" else 0,
     )
 
 
-def _blocks(path: str | Path, assembler: FrameAssembler) -> Iterator[AssembledBlock]:
-    for chunk in read_frames(path):
+def _blocks(
+    path: str | Path, assembler: FrameAssembler, skipped: dict[str, int] | None = None
+) -> Iterator[AssembledBlock]:
+    for chunk in read_frames(path, skipped=skipped):
         block = assembler.push(chunk)
         yield block
         if block.stop is not None:
@@ -662,16 +681,20 @@ class CanLogSource(Source):
         self.profile_name = profile.name
         self.assembler = _assembler(path, profile)
         self._closed = False
+        #: lines and frames the reader skipped, by reason (see :func:`read_frames`)
+        self.skipped: dict[str, int] = {}
 
     @property
     def stats(self) -> CanStats:
         return self.assembler.stats
 
     def summary(self) -> list[str]:
-        return [f"CAN log {self.path.name}: {line}" for line in self.stats.summary()]
+        lines = self.stats.summary()
+        lines[1:1] = [f"{n} {what} skipped" for what, n in self.skipped.items()]
+        return [f"CAN log {self.path.name}: {line}" for line in lines]
 
     def blocks(self) -> Iterator[WrenchBlock]:
-        for block in _blocks(self.path, self.assembler):
+        for block in _blocks(self.path, self.assembler, self.skipped):
             if self._closed:
                 return
             if len(block.t):

@@ -39,6 +39,11 @@ class CanStats:
     lost_samples: int = 0  # samples skipped by the counter or the clock
     samples: int = 0
     incomplete: dict[str, int] = field(default_factory=dict)  # sensor -> samples with NaN
+    #: sensor -> samples in which a missing frame's values were held from the sample before
+    held: dict[str, int] = field(default_factory=dict)
+    #: frames whose time is before an earlier frame's (a corrupt or merged log); their
+    #: counters still place them
+    time_back: int = 0
     invalid: dict[str, int] = field(default_factory=dict)  # sensor -> samples its status voided
     status: dict[str, dict[str, int]] = field(default_factory=dict)  # sensor -> bit -> samples
 
@@ -62,6 +67,7 @@ class CanStats:
             ("samples whose frames carried different counters", self.counter_mismatch),
             ("samples lost (counter or clock jumped)", self.lost_samples),
             ("error frames", self.error_frames),
+            ("frames came with a time before an earlier frame's", self.time_back),
         ):
             if value:
                 lines.append(f"{value} {label}")
@@ -71,6 +77,13 @@ class CanStats:
                 # ones: many of them show up downstream as "tare refused"
                 share = 100.0 * n / max(self.samples, 1)
                 lines.append(f"sensor {name}: {n} samples ({share:.1f} %) with missing data (NaN)")
+        for name, n in self.held.items():
+            if n:
+                share = 100.0 * n / max(self.samples, 1)
+                lines.append(
+                    f"sensor {name}: {n} samples ({share:.1f} %) lacked a frame; its values "
+                    "were held from the sample before"
+                )
         for name, n in self.invalid.items():
             if n:
                 lines.append(f"sensor {name}: {n} samples voided by its status")

@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from hapticdesk.commands.output_path import check_output_path
+from hapticdesk.commands.output_path import cannot_write, check_output_path
 from hapticdesk.files.profile import DeskProfile, load_profile
 from hapticdesk.files.yamlfile import ConfigError
 
@@ -32,6 +32,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="with --paper: where to draw the traced 北 (Fig. 16)",
     )
+    parser.add_argument(
+        "--figures",
+        type=Path,
+        default=None,
+        metavar="FOLDER",
+        help="with --paper: draw Figs. 2, 8, 14 and 16 into FOLDER (fig2.png, fig8.png, "
+        "fig14.png, fig16.png; the folder is made if its parent exists)",
+    )
 
 
 #: the most simulated sessions pooled: 1000 had grown the process past 3 GB
@@ -43,6 +51,15 @@ def run(args: argparse.Namespace) -> int:
     for flag, path in (("--plot", args.plot), ("--paper-png", args.paper_png)):
         if path is not None:
             check_output_path(path, flag, (".png",), "the plot")
+    if args.figures is not None:
+        if not args.paper:
+            raise ConfigError("--figures", "draws the paper's figures: give it with --paper")
+        if args.figures.exists() and not args.figures.is_dir():
+            raise ConfigError("--figures", f"{args.figures} is a file; expected a folder")
+        if not args.figures.parent.is_dir():
+            raise ConfigError(
+                "--figures", f"cannot make {args.figures}: {args.figures.parent} does not exist"
+            )
     if args.seeds is not None and not 1 <= args.seeds <= MAX_SEEDS:
         # each session's recording and contacts are held for the pooled figures (~80 MB)
         raise ConfigError(
@@ -52,7 +69,13 @@ def run(args: argparse.Namespace) -> int:
     if args.paper:
         return _paper(args, profile)
     from hapticdesk.bench.report import plot_pareto, table
-    from hapticdesk.bench.runner import common_masks, default_configs, run_config
+    from hapticdesk.bench.runner import (
+        COST_ROUNDS,
+        WARMUP_ROUNDS,
+        common_masks,
+        default_configs,
+        run_configs,
+    )
     from hapticdesk.bench.scenes import paper_experiment
     from hapticdesk.sim import simulate
 
@@ -60,13 +83,18 @@ def run(args: argparse.Namespace) -> int:
     seeds = args.seeds or (1 if args.quick else 3)
     recordings = [simulate(profile, paper_experiment(), seed=s) for s in range(seeds)]
     common = common_masks(profile, recordings)
-    rows = []
-    for config in default_configs(args.quick):
-        rows.append(
-            run_config(profile, config, recordings, repeats=2 if args.quick else 3, common=common)
-        )
-        if not args.json:
-            print(f"  {config.label}", file=sys.stderr)
+    configs = default_configs(args.quick)
+    stream_samples = 2400 if args.quick else 6000
+    rows = run_configs(
+        profile,
+        configs,
+        recordings,
+        common=common,
+        # (single pushes over 2 s of the desk, not 5: five rounds of every configuration
+        # keep --quick under a minute)
+        stream_samples=stream_samples,
+        progress=None if args.json else lambda label: print(f"  {label}", file=sys.stderr),
+    )
     if args.plot:
         plot_pareto(rows, args.plot)
     info = {
@@ -75,6 +103,11 @@ def run(args: argparse.Namespace) -> int:
         "seeds": seeds,
         "samples": int(sum(len(r.t) for r in recordings)),
         "seconds": round(time.perf_counter() - started, 1),
+        "run_time": {
+            "rounds": COST_ROUNDS,
+            "warmup_rounds": WARMUP_ROUNDS,
+            "single_pushes": stream_samples,
+        },
         "methods": rows,
     }
     if args.json:
@@ -88,7 +121,9 @@ def run(args: argparse.Namespace) -> int:
             "errors in mm against the truth, p95: at +20/+50 ms after the true touch-down and "
             "-20 ms before the true release (a point not reported is a miss: 'miss' when over "
             "5 % are), then on the samples all four methods locate (touch, hold, release until "
-            "the contact ends); delays in ms after the true force crosses 2 N\n"
+            "the contact ends); delays in ms after the true force crosses 2 N; run time the "
+            f"median of {COST_ROUNDS} rounds after a warm-up, each timing every configuration "
+            "in turn, with its range\n"
         )
         print(table(rows))
         if args.plot:
@@ -97,14 +132,21 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _paper(args: argparse.Namespace, profile: DeskProfile) -> int:
-    from hapticdesk.bench.paper import reproduce
+    from hapticdesk.bench.paper import FIGURE_FILES, reproduce
 
     seeds = tuple(range(args.seeds or 3))
-    findings = reproduce(profile, seeds, args.paper_png)
+    if args.figures is not None:
+        try:
+            args.figures.mkdir(exist_ok=True)
+        except OSError as err:
+            raise cannot_write(args.figures, err) from None
+    findings = reproduce(profile, seeds, args.paper_png, args.figures)
     if args.json:
         print(json.dumps([f.__dict__ for f in findings], indent=1, default=float))
         return 0
     for f in findings:
         mark = "holds" if f.holds else "DOES NOT HOLD"
         print(f"{f.figure}  [{mark}]\n  paper: {f.paper}\n  ours:  {f.ours}\n")
+    if args.figures is not None:
+        print(f"figures: {', '.join(str(args.figures / n) for n in FIGURE_FILES.values())}")
     return 0

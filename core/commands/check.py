@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from hapticdesk.commands.output_path import check_output_path
+from hapticdesk.files.sensing import sensing_of
 from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.gestures.layout import Binding, Layout
 from hapticdesk.gestures.options import GESTURE_OPTIONS, describe_value
@@ -55,6 +56,7 @@ def explain(layout: Layout) -> str:
     lines = [
         f"OK: {layout.path} is a valid layout",
         f"desk      {desk.name} ({len(desk.sensors)} sensors; {surfaces})",
+        *(f"sensing   {line}" for line in sensing_of(desk).lines()),
         f"units     {units}",
         f"regions   {len(layout.regions)}",
     ]
@@ -69,6 +71,9 @@ def explain(layout: Layout) -> str:
     for b in layout.bindings:
         actions = ", ".join(a.name for a in b.actions)
         lines.append(f"  {b.index + 1:>2}. {_binding_text(b, layout)} → {actions}")
+    from hapticdesk.gestures.arbitration import describe  # (numpy: loaded with the layout)
+
+    lines += describe(layout)
     tuned = _tuned(layout)
     if tuned:
         lines.append("settings (differing from the built-in defaults)")

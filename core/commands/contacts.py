@@ -1,4 +1,6 @@
-"""``hapticdesk contacts REC --desk DESK [-o OUT.csv] [--method M] [--json]`` (DESIGN.md)."""
+"""``hapticdesk contacts REC --desk DESK [-o OUT.csv] [--method M] [--json]`` (DESIGN.md), and
+``hapticdesk contacts FILE.c3d [--plate N] -o OUT.csv``: a C3D file's force plate is its own
+desk, and the contacts' x, y, z are metres in the file's lab frame (docs/forceplates.md)."""
 
 from __future__ import annotations
 
@@ -8,24 +10,27 @@ import io
 import json
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
 
 import numpy as np
 
 from hapticdesk.commands.output_path import cannot_write, check_output_path
+from hapticdesk.commands.recording_input import add_recording_arguments, load_input
 from hapticdesk.estimator import ContactEstimator
 from hapticdesk.estimator.contacts import FLAG_NAMES, PHASE_NAMES, SOURCE_NAMES, ContactBlock
 from hapticdesk.estimator.inertia import accelerometer_readings
-from hapticdesk.files.profile import METHODS, DeskProfile, load_profile
-from hapticdesk.files.readers import read_any_recording
+from hapticdesk.files.profile import METHODS, DeskProfile
+
+if TYPE_CHECKING:
+    from hapticdesk.files.forceplate import PlateDesk
 
 HEADER = ["t", "x", "y", "z", "surface", "force_n", "source", "phase"]
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("recording", help="recording (.csv, .npz) or CAN log")
-    parser.add_argument("--desk", required=True, help="desk profile name or path")
+    add_recording_arguments(parser)
     parser.add_argument("-o", "--output", help="contacts CSV to write ('-' for standard output)")
     parser.add_argument("--method", choices=METHODS, help="override the profile's method")
     parser.add_argument("--json", action="store_true", help="print a JSON summary")
@@ -65,6 +70,15 @@ def write_contacts_csv(out: TextIO, block: ContactBlock, profile: DeskProfile) -
     return len(rows)
 
 
+def in_lab_frame(block: ContactBlock, plate: PlateDesk) -> ContactBlock:
+    """The block with its located points taken from the plate's desk frame to the C3D
+    file's lab frame (metres; PlateDesk.to_lab, with a Kistler plate's FPCOPPOLY)."""
+    lab = plate.to_lab(np.stack([block.x, block.y, block.z], axis=1)[block.located])
+    x, y, z = block.x.copy(), block.y.copy(), block.z.copy()
+    x[block.located], y[block.located], z[block.located] = lab[:, 0], lab[:, 1], lab[:, 2]
+    return replace(block, x=x, y=y, z=z)
+
+
 def _csv_cell(text: str) -> str:
     # (with the writer's own line end: the csv module quotes the line ends it knows of)
     buffer = io.StringIO()
@@ -95,13 +109,15 @@ def run(args: argparse.Namespace) -> int:
     output = Path(args.output) if args.output and args.output != "-" else None
     if output is not None:  # before the work: a wrong name is not found after it
         check_output_path(output, str(output), what="the contacts file")
-    profile = load_profile(args.desk)
-    recording = read_any_recording(args.recording, profile)
+    given = load_input(args)
+    profile, recording = given.profile, given.recording
     estimator = ContactEstimator(profile, method=args.method)
     start = time.perf_counter()
     accel = accelerometer_readings(profile, recording.extra)  # (None: no accelerometer)
     block = estimator.push(recording.t, recording.wrench, accel)  # estimation alone is timed
     seconds = time.perf_counter() - start
+    if given.plate is not None:
+        block = in_lab_frame(block, given.plate)
     if args.output == "-":
         write_contacts_csv(sys.stdout, block, profile)
     elif output is not None:
@@ -111,6 +127,8 @@ def run(args: argparse.Namespace) -> int:
         except OSError as err:
             raise cannot_write(output, err) from None
     info = summary(block, seconds, estimator.method)
+    if given.plate is not None:
+        info["plate"] = given.plate.plate.number
     info["notices"] = [
         {"t": n.t, "kind": n.kind, "message": n.message}
         for n in estimator.notices

@@ -1,5 +1,6 @@
-"""``hapticdesk plot REC --desk D -o FILE.png [--method M] [--start S --end E]``: a PNG of a
-recording — force over time, the paper's D_er and D_ed, and the contact trace on the desk
+"""``hapticdesk plot REC --desk D -o FILE.png [--method M] [--start S --end E]`` (or
+``plot FILE.c3d [--plate N] -o FILE.png``: the plate is the desk, drawn in its own frame): a PNG
+of a recording — force over time, the paper's D_er and D_ed, and the contact trace on the desk
 outline (estimate coloured by candidate, truth as a line where the recording has it), like
 the paper's Fig. 7 and Fig. 13. Needs matplotlib (``pip install 'hapticdesk[plot]'``)."""
 
@@ -10,14 +11,13 @@ import json
 import math
 from pathlib import Path
 
-from hapticdesk.files.profile import METHODS, load_profile
-from hapticdesk.files.readers import read_any_recording
+from hapticdesk.commands.recording_input import add_recording_arguments, load_input
+from hapticdesk.files.profile import METHODS
 from hapticdesk.files.yamlfile import ConfigError
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("recording", help="recording (.csv, .npz) or CAN log")
-    parser.add_argument("--desk", required=True, help="desk profile name or path")
+    add_recording_arguments(parser)
     parser.add_argument("-o", "--output", required=True, help="PNG file to write")
     parser.add_argument("--method", choices=METHODS, help="override the profile's method")
     parser.add_argument("--start", type=float, metavar="S", help="first second to draw")
@@ -38,8 +38,8 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(
             "--end", f"must be after --start ({args.start:g} s), found {args.end:g} s"
         )
-    profile = load_profile(args.desk)
-    recording = read_any_recording(args.recording, profile)
+    given = load_input(args)
+    profile, recording = given.profile, given.recording
     if len(recording.t) == 0:  # (a header alone; the plot would not know the file's name)
         raise ConfigError(str(args.recording), "the recording holds no samples")
     from hapticdesk.analysis.plotting import plot_recording  # matplotlib only when plotting
@@ -51,7 +51,8 @@ def run(args: argparse.Namespace) -> int:
         method=args.method,
         start_s=args.start,
         end_s=args.end,
-        title=f"{Path(args.recording).name} on desk {profile.name}",
+        title=f"{Path(args.recording).name} on desk {profile.name}"
+        + (" (the plate's frame, seen from above)" if given.plate is not None else ""),
     )
     size_kb = output.stat().st_size / 1024
     if args.json:
@@ -59,10 +60,11 @@ def run(args: argparse.Namespace) -> int:
         info["bytes"] = output.stat().st_size
         print(json.dumps(info))
     else:
-        located = ", ".join(f"{n} {c}" for n, c in summary.located.items() if c) or "none"
+        by_source = ", ".join(f"{n} {c}" for n, c in summary.located.items() if c)
         print(
             f"wrote {output} ({size_kb:.0f} kB): {summary.start_s:.2f}–{summary.end_s:.2f} s, "
-            f"{summary.samples} samples, {summary.contact_samples} in contact, located: "
-            f"{located}{', with truth' if summary.truth else ''} ({summary.method})"
+            f"{summary.samples} samples, {summary.contact_samples} in contact, "
+            f"{summary.located_samples} located{f' ({by_source})' if by_source else ''}"
+            f"{', with truth' if summary.truth else ''} ({summary.method})"
         )
     return 0

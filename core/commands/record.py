@@ -12,6 +12,7 @@ the samples before it and exits 1.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 import threading
@@ -108,14 +109,28 @@ def _record_bus(args: argparse.Namespace, profile: DeskProfile, output: Path) ->
     writer: Any = None
     lock = threading.Lock()
     frames = 0
+    lost_frames = 0
+    write_failed: OSError | None = None
 
     def sink(messages: list[Any]) -> None:
-        nonlocal frames
+        # on the bus reader's thread: a log that cannot be written (a full disk) is said
+        # once and dropped, and the frames from then on counted, but the reader goes on
+        nonlocal frames, lost_frames, write_failed, writer
         with lock:
             if writer is None:
+                lost_frames += len(messages) if write_failed is not None else 0
                 return
-            for msg in messages:
-                writer.on_message_received(msg)
+            try:
+                for msg in messages:
+                    writer.on_message_received(msg)
+            except OSError as err:
+                write_failed = err
+                lost_frames += len(messages)
+                print(f"hapticdesk record: {cannot_write(output, err)}", file=sys.stderr)
+                with contextlib.suppress(OSError):
+                    writer.stop()
+                writer = None
+                return
             frames += len(messages)
 
     if raw:
@@ -154,8 +169,18 @@ def _record_bus(args: argparse.Namespace, profile: DeskProfile, output: Path) ->
         source.close()
         with lock:
             if writer is not None:
-                writer.stop()
+                try:
+                    writer.stop()
+                except OSError as err:  # (its last buffer: the disk is full)
+                    write_failed = err
                 writer = None
+    if write_failed is not None:
+        _remove_partial(output)
+        raise ConfigError(
+            str(output),
+            f"cannot write: {write_failed.strerror or write_failed} ({frames} frames written, "
+            f"{lost_frames} more not; the partial log was removed)",
+        )
     t = np.concatenate(ts) if ts else np.zeros(0)
     wrench = np.concatenate(ws) if ws else np.zeros((0, len(profile.sensors), 6))
     if not raw:
@@ -272,14 +297,29 @@ def _write_frames(output: Path, frames: Any, write: Any) -> int:
     try:
         return int(write(output, frames))
     except OSError as err:
-        raise cannot_write(output, err) from None
+        _remove_partial(output)
+        raise _partial_removed(output, err) from None
 
 
 def _write(output: Path, rec: Recording) -> None:
     try:
         write_recording(output, rec)
     except OSError as err:
-        raise cannot_write(output, err) from None
+        _remove_partial(output)
+        raise _partial_removed(output, err) from None
+
+
+def _remove_partial(output: Path) -> None:
+    """A recording cut short by a full disk is removed: a reader would take the part for
+    the whole (b5a43bd left truncated recordings behind)."""
+    with contextlib.suppress(OSError):
+        output.unlink(missing_ok=True)
+
+
+def _partial_removed(output: Path, err: OSError) -> ConfigError:
+    return ConfigError(
+        str(output), f"cannot write: {err.strerror or err} (the partial file was removed)"
+    )
 
 
 def _summary(t: np.ndarray, problems: list[str]) -> dict[str, Any]:

@@ -2,6 +2,7 @@
 
     hapticdesk run --layout living-room.yaml --source can:socketcan:can0
     hapticdesk run --layout demo.yaml --source replay:session.csv --speed 0 --events out.jsonl
+    hapticdesk run --layout plate.yaml --source replay:walk.c3d --plate 2   # the plate is the desk
 
 SIGINT (Ctrl-C) or SIGTERM stop it cleanly: queued commands get ``--drain`` seconds to go out
 and whatever did not is reported. A second signal stops at once.
@@ -18,6 +19,7 @@ import argparse
 import math
 import sys
 
+from hapticdesk.commands.recording_input import plate_number, source_desk
 from hapticdesk.registry import load_registry
 from hapticdesk.runtime.assembly import build_scene
 from hapticdesk.runtime.service import RunReport, Runtime, report_json
@@ -54,9 +56,17 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--layout", required=True, help="the layout YAML")
     parser.add_argument("--desk", help="desk profile name or path (overrides the layout's desk:)")
     parser.add_argument(
+        "--plate",
+        type=plate_number,
+        metavar="N",
+        help="with --source replay:FILE.c3d and no --desk: the file's force plate that is the "
+        "desk, from 1 (default 1)",
+    )
+    parser.add_argument(
         "--source",
         required=True,
-        help="sim:SCENE.yaml, replay:FILE (recording or CAN log), can:INTERFACE:CHANNEL",
+        help="sim:SCENE.yaml, replay:FILE (recording or CAN log), can:INTERFACE:CHANNEL, "
+        "serial:PORT[?baud=N] (a board on a serial line)",
     )
     parser.add_argument(
         "--speed",
@@ -100,11 +110,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     registry = load_registry(strict=args.strict)
+    # a C3D replay brings its desk, its plate, unless --desk says otherwise
+    desk = source_desk(args.source, args.plate, given=args.desk) or args.desk
     scene = build_scene(
         args.layout,
         args.source,
         registry,
-        desk=args.desk,
+        desk=desk,
         speed=args.speed,
         overrides=overrides(args),
         action_timeout_s=args.action_timeout,
@@ -123,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
         print(report_json(report))
     if report.error:
         return 1
-    problems = undelivered(report, scene.context.failures)
+    problems = undelivered(report, scene.context.failures) + report.output_failures
     if problems:
         print(f"error: not everything was delivered: {'; '.join(problems)}", file=sys.stderr)
         return UNDELIVERED_EXIT

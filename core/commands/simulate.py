@@ -16,6 +16,7 @@ from hapticdesk.commands.output_path import cannot_write
 from hapticdesk.files.profile import load_profile
 from hapticdesk.files.recording import RECORDING_SUFFIXES, write_recording
 from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.sim.loadcells import with_total_amplitude
 from hapticdesk.sim.scene import load_scene
 from hapticdesk.sim.sensors import SensorParameters
 from hapticdesk.sim.simulator import SimEffects, simulate
@@ -53,7 +54,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--noise-amplitude",
         type=float,
         metavar="N",
-        help="noise amplitude on the total F_z at rest, newtons (3σ; default the paper's 0.4)",
+        help="noise amplitude on the total F_z at rest, newtons (3σ; default the paper's 0.4, "
+        "or a load-cell desk's converter's)",
     )
     parser.add_argument("--json", action="store_true", help="print a JSON summary")
 
@@ -72,16 +74,26 @@ def run(args: argparse.Namespace) -> int:
         profile = load_profile(scene.desk or DEFAULT_DESK, relative_to=relative)
     effects = SimEffects.ideal() if args.ideal else SimEffects(dynamics=not args.static)
     sensors = None
+    cells = None
     if args.noise_amplitude is not None:
         if not 0 <= args.noise_amplitude <= MAX_NOISE_N:  # (NaN too)
             raise ConfigError(
                 "--noise-amplitude",
                 f"must be 0 to {MAX_NOISE_N:g} N, found {args.noise_amplitude}",
             )
-        sensors = SensorParameters(noise_amplitude_n=args.noise_amplitude)
+        if profile.six_axis_only:
+            sensors = SensorParameters(noise_amplitude_n=args.noise_amplitude)
+        else:  # load cells: the same amplitude on the total F_z, shared by the cells
+            cells = with_total_amplitude(profile, args.noise_amplitude)
     start = time.perf_counter()
     rec = simulate(
-        profile, scene, args.seed, noise=not args.no_noise, effects=effects, sensors=sensors
+        profile,
+        scene,
+        args.seed,
+        noise=not args.no_noise,
+        effects=effects,
+        sensors=sensors,
+        cells=cells,
     )
     seconds = time.perf_counter() - start
     try:

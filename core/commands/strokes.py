@@ -140,7 +140,25 @@ def classify(args: argparse.Namespace) -> int:
         for r in rows:
             shape = r["shape"] or f"-- (nearest {r.get('nearest')})"
             print(f"{r['file']:<{width}}  {r['score']:.3f}  {shape}")
+    _hint_unknown_folders(args.paths, rows, set(templates.shapes))
     return 1 if failed else 0
+
+
+def _hint_unknown_folders(given: list[str], rows: list[dict[str, Any]], known: set[str]) -> None:
+    """A folder named like a shape no template has (examples/strokes/zed without
+    ``--templates``): its strokes can only be rejected; say why, not only that."""
+    for text in given:
+        folder = Path(text)
+        if not folder.is_dir() or not SHAPE_NAME.match(folder.name) or folder.name in known:
+            continue
+        inside = [r for r in rows if Path(r["file"]).is_relative_to(folder)]
+        if inside and all(r["shape"] is None for r in inside):
+            print(
+                f"hapticdesk strokes: `{folder.name}` is not a shape the templates know "
+                f"(they know {len(known)}); give your own with --templates DIR, the "
+                f"folder holding {folder.name}/, e.g. --templates {folder.parent}",
+                file=sys.stderr,
+            )
 
 
 # --- record ----------------------------------------------------------------------------------

@@ -40,9 +40,7 @@ class Covariances:
         (C,) learned so far (resolution.py; None or 0: none)."""
         s, m = settings.user, settings.wrench_map
         if s.noise_force_n > 0 or s.noise_moment_nm > 0:
-            per_channel = np.tile(
-                [s.noise_force_n] * 3 + [s.noise_moment_nm] * 3, settings.n_sensors
-            )
+            per_channel = np.where(settings.moment_channels, s.noise_moment_nm, s.noise_force_n)
             cov = m @ np.diag(per_channel**2) @ m.T
         else:
             cov = measured
@@ -56,9 +54,9 @@ class Covariances:
         cov = cov + slow
         # a floor so that a perfectly noise-free input (simulation) still gives finite weights
         cov = cov + np.eye(6) * 1e-12
-        rates = np.tile(
-            [s.drift_force_n_per_min / 60.0] * 3 + [s.drift_moment_nm_per_min / 60.0] * 3,
-            settings.n_sensors,
+        rates = (
+            np.where(settings.moment_channels, s.drift_moment_nm_per_min, s.drift_force_n_per_min)
+            / 60.0
         )
         drift_cov = m @ np.diag(rates**2) @ m.T
         frames = settings.frames

@@ -277,21 +277,19 @@ class ContactEstimator:
         return block
 
     def _channels(self, wrench: np.ndarray, n: int) -> np.ndarray:
-        """The raw channels (n, C), C-contiguous float64 (a view where they already are)."""
-        c = self._n_channels
+        """The raw channels (n, C), C-contiguous float64 (a view where they already are):
+        (k, C), or (k, S, 6) for a desk of six-axis sensors (``DeskProfile.flat_channels``,
+        which names the shapes expected otherwise)."""
         w = wrench
         if not (type(w) is np.ndarray and w.dtype == np.float64 and w.flags.c_contiguous):
             w = np.ascontiguousarray(wrench, dtype=np.float64)
-        shape = w.shape
-        if shape == (n, c):
-            return w
-        if shape == (n, c // 6, 6) and c % 6 == 0:
-            return w.reshape(n, c)
-        sensors = len(self.profile.sensors)
-        raise ValueError(
-            f"wrench must have shape (k, S, 6) = ({n}, {sensors}, 6) or (k, C) = ({n}, {c}) "
-            f"for desk {self.profile.name!r}, found {np.shape(wrench)}"
-        )
+        if w.shape != (n, self._n_channels):
+            w = np.ascontiguousarray(self.profile.flat_channels(w))
+            if len(w) != n:
+                raise ValueError(
+                    f"{n} sample times but {len(w)} samples for desk {self.profile.name!r}"
+                )
+        return w
 
     def _readings(self, accel: np.ndarray | None, n: int) -> np.ndarray | None:
         """The accelerometer's readings (n, A), C-contiguous, or None (none, or a desk without

@@ -190,6 +190,7 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     I_N_DRIFT,  # windows an idle desk rests before its drift is followed; 0: never
     I_STILL_RING,  # still windows' means kept (the last of a still run)
     I_IDLE_LOG,  # idle windows the kernel judged, kept for Python's yardsticks
+    I_ZEROED,  # the readings come zeroed: the zero is 0 from the first good sample, no windows
     # offsets into pf
     I_PO_MAP,  # (C, 6) channels -> [F_o; M_o]: the matrix (6, C) stored by channel
     I_PO_LIMIT,  # (C,) a channel at or beyond this is saturated
@@ -238,7 +239,7 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     I_JO_WIN_BAD,  # (WINDOW,)
     I_JO_MT_HIST,  # (2·LAG + 1, MT_I)
     N_PI,
-) = range(71)
+) = range(72)
 # a surface in pf: the rows of F'z, M'x, M'y of its wrench transform, origin, axes, normal,
 # bounds of its outline; in pi: whether the outline is a rectangle, whether (u, v) are the
 # desk's (x, y), where its polygon's vertices are in pf and how many
@@ -1492,10 +1493,23 @@ def _front(
             no_accel = True
     flags, events = _samples(t, x, pf, pi, sf, si)
     first_good = False
+    zeroed = pi[I_ZEROED] == 1
     if flags == 0 or flags == FLAG_GAP:
         first_good = si[J_STARTED] == 0
         si[J_STARTED] = 1
-        if steps_changed(pf, pi, sf, si):
+        if zeroed and not si[J_TARED]:
+            # readings that come zeroed: the zero is 0 from here on (never tared, no drift, no
+            # object); the covariances from the profile's noise (zero.py), before this sample
+            # is located
+            for r in range(6):
+                sf[S_ZERO + r] = 0.0
+            sf[S_ZERO_T] = t
+            si[J_TARED] = 1
+            si[J_ZERO_VERSION] += 1
+            si[J_DIRTY] = 1
+            steps_changed(pf, pi, sf, si)  # (the steps the covariances use)
+            events |= EV_COVS
+        elif steps_changed(pf, pi, sf, si):
             events |= EV_COVS
     started = si[J_STARTED] == 1
     for r in range(6):
@@ -1518,6 +1532,8 @@ def _front(
         for r in range(6):
             sf[S_LP + r] = sf[S_DET + r] = sf[S_DIFF + r] = 0.0
     si[J_FLAGS] = flags
+    if zeroed:
+        return events
     return events | _window_add(t, flags, first_good, pf, pi, sf, si)
 
 

@@ -216,6 +216,7 @@ def params_of(s: EstimatorSettings, inertia: InertiaSettings | None) -> Params:
         k.I_N_DRIFT: s.n_drift if user.drift_settle_s > 0 else 0,
         k.I_STILL_RING: still_ring,
         k.I_IDLE_LOG: idle_log,
+        k.I_ZEROED: int(user.zeroed),
         k.I_PO_MAP: pf.put(s.wrench_map.T),  # (by channel: see kernel.I_PO_MAP)
         k.I_PO_LIMIT: pf.put(s.range_flat),
         k.I_PO_LP_SOS: sos_at["lp"],

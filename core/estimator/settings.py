@@ -44,6 +44,7 @@ class EstimatorSettings:
     trace: bool  # keep every candidate (CandidateTrace): all three are computed
     sample_rate_hz: float
     n_sensors: int
+    moment_channels: np.ndarray  # (C,) bool: the raw channels that measure a moment
     wrench_map: np.ndarray  # (6, C): the channels to [F_o; M_o], paper eqs. (1)–(4)
     range_flat: np.ndarray  # (C,) each channel's limit: at or beyond it, it is saturated
     frames: list[SurfaceFrame]
@@ -77,12 +78,12 @@ class EstimatorSettings:
         """Derive the settings for ``profile`` and the (method-resolved) ``user`` settings."""
         s = user
         fs = profile.sample_rate_hz
-        limits = profile.saturation_limits()
+        limits = profile.channel_limits()
         if limits is None:
-            limits = np.full((len(profile.sensors), 6), np.inf)
+            limits = np.full(profile.channel_count, np.inf)
         # an unrated channel counts as rated at UNRATED_LIMIT, so that no finite reading
         # can overflow the resultant wrench (and put infinity into the filters)
-        range_flat = np.where(np.isfinite(limits), limits, UNRATED_LIMIT).reshape(-1)
+        range_flat = np.where(np.isfinite(limits), limits, UNRATED_LIMIT)
         normals = (
             np.array([surf.normal for surf in profile.surfaces])
             if profile.surfaces
@@ -111,6 +112,7 @@ class EstimatorSettings:
             trace=trace,
             sample_rate_hz=fs,
             n_sensors=len(profile.sensors),
+            moment_channels=profile.moment_channels(),
             wrench_map=np.ascontiguousarray(mapping),
             range_flat=range_flat,
             frames=[SurfaceFrame.of(surf) for surf in profile.surfaces],

@@ -1,4 +1,5 @@
-"""Stage 3, the zero: tare, drift and objects.
+"""Stage 3, the zero: tare, drift and objects (none of them for readings that come zeroed,
+``estimation.zeroed``: the zero is 0 from the first sample on).
 
 An automatic tare over the first ``tare_s`` of a quiet desk (refused with a notice and
 retried while the desk is not quiet); the zero then follows sensor drift whenever the idle
@@ -236,6 +237,10 @@ class ZeroStage:
         self.window_s = settings.window / settings.sample_rate_hz
         # the idle desk's wander is measured over as many windows as an object waits
         self.wander_windows = max(2, settings.n_object)
+        if settings.user.zeroed:
+            # the readings come zeroed: the kernel sets the zero to 0 at the first good sample
+            # and judges no window; the noise is the profile's (Covariances.of)
+            self.state.noise = np.zeros((6, 6))
 
     def window(
         self, spread: float, bad: bool, mean: list[float], raw: np.ndarray, t_end: float

@@ -21,6 +21,7 @@ import numpy as np
 from hapticdesk.files.yamlfile import (
     ConfigError,
     MarkedDict,
+    check_confined,
     file_kind,
     load_marked_yaml,
     require_mapping,
@@ -80,7 +81,16 @@ def rotation_matrix(roll_deg: float, pitch_deg: float, yaw_deg: float) -> np.nda
 
 @dataclass(frozen=True)
 class SensorSpec:
-    """One six-axis sensor: its place, orientation, sign convention and rated range."""
+    """One sensor under the desk: its place, orientation, sign convention, rated range, and
+    which raw channels it delivers.
+
+    A six-axis force/torque sensor (the paper's, the default) delivers ``fx … mz``; a load
+    cell only ``fz``; a three-axis cell ``fx, fy, fz`` (``channels`` a subset of
+    :data:`AXES`, each channel its axis). A force plate's amplifier delivers raw channels
+    (a Kistler plate's ``fx12, fx34, fy14, fy23, fz1 … fz4``, or a plate's six calibrated
+    outputs) and a ``calibration`` matrix (6, n) maps them to the wrench [f; m] the sensor
+    measures at its ``position``, in its own frame.
+    """
 
     name: str
     position: np.ndarray  # (3,) desk frame, metres
@@ -88,15 +98,48 @@ class SensorSpec:
     reports: str = "reaction"  # "reaction" (the paper's) or "load" (opposite sign)
     force_range: np.ndarray | None = None  # (3,) N, |reading| >= range is saturated
     moment_range: np.ndarray | None = None  # (3,) N·m
+    #: the raw channels' names (recording columns ``<name>_<channel>``), in order
+    channels: tuple[str, ...] = AXES
+    #: (6, n): raw channels -> the sensor's own wrench; None: each channel is the axis it names
+    calibration: np.ndarray | None = None
+    #: (n,): a raw channel at or beyond this is saturated (a calibrated sensor's amplifier)
+    channel_range: np.ndarray | None = None
 
     @property
     def sign(self) -> float:
         """+1 when the sensor reports the wrench it exerts on the desk, -1 for the load."""
         return 1.0 if self.reports == "reaction" else -1.0
 
+    @property
+    def is_six_axis(self) -> bool:
+        """True for a sensor whose six channels are fx … mz (the paper's kind)."""
+        return self.calibration is None and self.channels == AXES
+
     def channel_names(self) -> list[str]:
-        """Recording column names of this sensor's six channels."""
-        return [f"{self.name}_{axis}" for axis in AXES]
+        """Recording column names of this sensor's raw channels."""
+        return [f"{self.name}_{channel}" for channel in self.channels]
+
+    def own_wrench_matrix(self) -> np.ndarray:
+        """(6, n): the sensor's wrench [f; m] in its own frame from its raw channels."""
+        if self.calibration is not None:
+            return np.array(self.calibration, dtype=float)
+        out = np.zeros((6, len(self.channels)))
+        for j, axis in enumerate(self.channels):
+            out[AXES.index(axis), j] = 1.0
+        return out
+
+    def channel_limits(self) -> np.ndarray:
+        """(n,) each raw channel's saturation limit (inf where the profile gives none)."""
+        if self.calibration is not None:
+            if self.channel_range is None:
+                return np.full(len(self.channels), np.inf)
+            return np.array(self.channel_range, dtype=float)
+        per_axis = np.full(6, np.inf)
+        if self.force_range is not None:
+            per_axis[:3] = self.force_range
+        if self.moment_range is not None:
+            per_axis[3:] = self.moment_range
+        return np.array([per_axis[AXES.index(axis)] for axis in self.channels])
 
 
 def accel_column_prefix(index: int) -> str:
@@ -200,6 +243,11 @@ class EstimationSettings:
     max_gap_s: float = 0.05  # a gap in sample times longer than this restarts the filters
     noise_force_n: float = 0.0  # per-channel noise σ if known; 0 = measure during the tare
     noise_moment_nm: float = 0.0
+    # the readings come zeroed (a force plate's ZERO frames taken off by its reader, a board
+    # that tares itself): no tare, the zero is 0 from the first sample and stays (no drift
+    # followed, no object absorbed: a person standing still on a plate is no object); the
+    # covariances take noise_force_n / noise_moment_nm, which must then be given
+    zeroed: bool = False
     # the legs as the accelerometer: the desk's inertial force from the measured force's
     # curvature and `desk.natural_frequency_hz` (see hapticdesk.estimator.sway); None (auto,
     # the default): on for `fused` on a desk without an accelerometer
@@ -211,7 +259,8 @@ class EstimationSettings:
 
 @dataclass(frozen=True)
 class DeskProfile:
-    """A desk: sensors, surfaces, estimation settings, and the optional CAN section."""
+    """A desk: sensors, surfaces, estimation settings, and the optional CAN and serial
+    sections."""
 
     name: str
     sample_rate_hz: float
@@ -219,6 +268,8 @@ class DeskProfile:
     surfaces: tuple[Surface, ...]
     estimation: EstimationSettings = field(default_factory=EstimationSettings)
     can: dict[str, Any] | None = None
+    #: a board on a serial line: port, baud, scales (see hapticdesk.boards.settings)
+    serial: dict[str, Any] | None = None
     path: Path | None = None
     mass_kg: float | None = None  # optional, used by the simulator
     natural_frequency_hz: float | None = None  # optional, used by the simulator
@@ -236,8 +287,36 @@ class DeskProfile:
         return [s.name for s in self.sensors]
 
     def channel_names(self) -> list[str]:
-        """All recording columns after ``t``, in order."""
+        """All recording columns after ``t``, in order: every sensor's raw channels."""
         return [c for s in self.sensors for c in s.channel_names()]
+
+    @property
+    def channel_count(self) -> int:
+        """C, the number of raw channels the desk's sensors deliver per sample."""
+        return sum(len(s.channels) for s in self.sensors)
+
+    @property
+    def six_axis_only(self) -> bool:
+        """True when every sensor is a six-axis one: samples may then come as (k, S, 6),
+        the same numbers in the same order as (k, C)."""
+        return all(s.is_six_axis for s in self.sensors)
+
+    def flat_channels(self, readings: np.ndarray) -> np.ndarray:
+        """Readings (k, C), or (k, S, 6) for a desk of six-axis sensors, as (k, C) (a view
+        where it can be); a ValueError naming the expected shapes otherwise."""
+        readings = np.asarray(readings, dtype=float)
+        c = self.channel_count
+        if readings.ndim == 2 and readings.shape[1] == c:
+            return readings
+        n = len(self.sensors)
+        if readings.ndim == 3 and readings.shape[1:] == (n, 6) and self.six_axis_only:
+            return readings.reshape(len(readings), c)
+        expected = f"(k, {c})" + (f" or (k, {n}, 6)" if self.six_axis_only else "")
+        raise ValueError(
+            f"sensor readings for desk {self.name!r} must have shape {expected} (its channels "
+            f"{', '.join(self.channel_names()[:8])}{', …' if c > 8 else ''}), "
+            f"found {readings.shape}"
+        )
 
     def with_estimation(self, **changes: Any) -> DeskProfile:
         """The same desk with these :class:`EstimationSettings` changed."""
@@ -317,10 +396,13 @@ class DeskProfile:
         return float(span[0]), float(span[1])
 
     def wrench_map(self) -> np.ndarray:
-        """(6, 6·S) matrix A with [F_o; M_o] = A · w for the stacked channels w.
+        """(6, C) matrix A with [F_o; M_o] = A · w for the desk's raw channels w (C of them,
+        :meth:`channel_names` order; 6·S for six-axis sensors).
 
-        Paper eqs. (1)–(4): F_o = Σ f_i, M_o = Σ (m_i + p_i × f_i), with each reading rotated
-        into the desk frame and its sign made "reaction".
+        Paper eqs. (1)–(4): F_o = Σ f_i, M_o = Σ (m_i + p_i × f_i), with each sensor's wrench
+        (from its channels, :meth:`SensorSpec.own_wrench_matrix`) rotated into the desk frame
+        and its sign made "reaction". A component no sensor measures (a load cell's shear)
+        has a row of zeros: the estimator takes it as zero (see :mod:`.sensing`).
         """
         blocks = []
         for s in self.sensors:
@@ -330,20 +412,32 @@ class DeskProfile:
             block[:3, :3] = r
             block[3:, 3:] = r
             block[3:, :3] = px @ r
-            blocks.append(block)
+            blocks.append(block @ s.own_wrench_matrix())
         return np.hstack(blocks)
 
+    def moment_channels(self) -> np.ndarray:
+        """(C,) True for a raw channel that measures a moment (N·m: its nominal noise and
+        drift are a moment's), False for a force (a calibrated channel counts as a moment
+        only when its calibration column has no force in it)."""
+        return np.concatenate(
+            [np.abs(s.own_wrench_matrix()[:3]).sum(axis=0) == 0 for s in self.sensors]
+        )
+
+    def channel_limits(self) -> np.ndarray | None:
+        """(C,) each raw channel's saturation limit (inf where unknown), or None when no
+        sensor gives one."""
+        limits = np.concatenate([s.channel_limits() for s in self.sensors])
+        return limits if np.isfinite(limits).any() else None
+
     def saturation_limits(self) -> np.ndarray | None:
-        """(S, 6) rated limits per channel (inf where unknown), or None when no sensor has one."""
-        if all(s.force_range is None and s.moment_range is None for s in self.sensors):
-            return None
-        lim = np.full((len(self.sensors), 6), np.inf)
-        for i, s in enumerate(self.sensors):
-            if s.force_range is not None:
-                lim[i, :3] = s.force_range
-            if s.moment_range is not None:
-                lim[i, 3:] = s.moment_range
-        return lim
+        """(S, 6) rated limits per channel of a desk of six-axis sensors (inf where unknown),
+        or None when no sensor has one; :meth:`channel_limits` for a desk of any sensors."""
+        if not self.six_axis_only:
+            raise ValueError(
+                f"desk {self.name!r} has sensors other than six-axis ones: use channel_limits()"
+            )
+        limits = self.channel_limits()
+        return None if limits is None else limits.reshape(len(self.sensors), 6)
 
 
 # --- loading ---------------------------------------------------------------------------------
@@ -365,6 +459,7 @@ def resolve_profile_path(name_or_path: str | Path, relative_to: Path | None = No
     path = Path(text)
     if not path.is_absolute() and relative_to is not None:
         path = relative_to / path
+    check_confined(path, "the desk profile", str(name_or_path))  # (before it is looked at)
     if not path.is_file():
         try:
             mode: int | None = os.stat(path).st_mode

@@ -12,6 +12,7 @@ import numpy as np
 
 from hapticdesk.files.profile import (
     ACCEL_AXES,
+    AXES,
     LOWPASS_PER_NATURAL_FREQUENCY,
     METHODS,
     AccelerometerSpec,
@@ -23,10 +24,12 @@ from hapticdesk.files.profile import (
     is_body_inertia,
     rotation_matrix,
 )
+from hapticdesk.files.sensing import surface_locatable
 from hapticdesk.files.yamlfile import (
     ConfigError,
     MarkedDict,
     MarkedList,
+    as_number,
     check_keys,
     choice,
     flag,
@@ -87,11 +90,30 @@ _TOP_KEYS = {
     "surfaces",
     "estimation",
     "can",
+    "serial",
     "desk",
     "accelerometer",
     "accelerometers",
 }
-_SENSOR_KEYS = {"name", "position", "rotation_rpy_deg", "reports", "range"}
+_SENSOR_KEYS = {
+    "name",
+    "position",
+    "rotation_rpy_deg",
+    "reports",
+    "range",
+    "kind",
+    "axes",
+    "channels",
+    "calibration",
+}
+#: a sensor's `kind`: the channels it delivers (`axes` lists them for any other subset)
+SENSOR_KINDS = {
+    "six_axis": AXES,
+    "load_cell": ("fz",),
+    "three_axis": ("fx", "fy", "fz"),
+}
+#: the most raw channels one sensor may deliver (a force plate's amplifier: 8 to 12)
+MAX_SENSOR_CHANNELS = 64
 _SURFACE_KEYS = {"name", "origin", "normal", "polygon", "u_axis"}
 _DESK_KEYS = {"mass_kg", "natural_frequency_hz", "center_of_mass_m", "inertia_kg_m2", "note"}
 _ACCEL_KEYS = {"position", "rotation_rpy_deg", "axes", "noise_m_s2", "range_m_s2"}
@@ -128,11 +150,7 @@ def read_profile(doc: MarkedDict, path: Path) -> DeskProfile:
     for i, n in enumerate(snames):
         if snames.index(n) != i:
             raise ConfigError(surfaces_raw.where(i), f"surface name `{n}` is used twice")  # type: ignore[attr-defined]
-    if surfaces and len(sensors) < 3:
-        raise ConfigError(
-            doc.where("sensors"),
-            f"a desk with surfaces needs 3 or more sensors to locate a touch, found {len(sensors)}",
-        )
+    _check_locatable(sensors, surfaces, doc, surfaces_raw)
 
     estimation = (
         _estimation(doc["estimation"], doc.where("estimation"))
@@ -142,6 +160,9 @@ def read_profile(doc: MarkedDict, path: Path) -> DeskProfile:
     can = doc.get("can")
     if can is not None:
         can = require_mapping(can, doc.where("can"), "`can`")
+    serial = doc.get("serial")  # read by hapticdesk.boards.settings, when a run uses it
+    if serial is not None:
+        serial = require_mapping(serial, doc.where("serial"), "`serial`")
     mass = natural = com = inertia = None
     if "desk" in doc:
         desk = require_mapping(doc["desk"], doc.where("desk"), "`desk`")
@@ -213,6 +234,7 @@ def read_profile(doc: MarkedDict, path: Path) -> DeskProfile:
         surfaces=surfaces,
         estimation=estimation,
         can=can,
+        serial=serial,
         path=path,
         mass_kg=mass,
         natural_frequency_hz=natural,
@@ -220,6 +242,32 @@ def read_profile(doc: MarkedDict, path: Path) -> DeskProfile:
         inertia_kg_m2=inertia,
         accelerometers=accelerometers,
     )
+
+
+def _check_locatable(
+    sensors: tuple[SensorSpec, ...],
+    surfaces: tuple[Surface, ...],
+    doc: MarkedDict,
+    surfaces_raw: Any,
+) -> None:
+    """Every surface must be one a touch on can be located on: the sensors see the force
+    into it and the moments about its axes (3 upright load cells not on one line, or one
+    six-axis sensor, for a horizontal board; :mod:`hapticdesk.files.sensing`)."""
+    if not surfaces:
+        return
+    probe = DeskProfile(name="", sample_rate_hz=1.0, sensors=sensors, surfaces=surfaces)
+    wrench_map = probe.wrench_map()
+    for i, surface in enumerate(surfaces):
+        if surface_locatable(wrench_map, surface):
+            continue
+        kinds = sorted({" ".join(s.channels) for s in sensors})
+        raise ConfigError(
+            surfaces_raw.where(i) if isinstance(surfaces_raw, MarkedList) else doc.where(),
+            f"a touch on surface `{surface.name}` cannot be located with these sensors "
+            f"({len(sensors)}, delivering {'; '.join(kinds)}): they must see the force into "
+            "it and the moments about its two axes (a horizontal board needs 3 or more "
+            "sensors not on one line, or one six-axis sensor)",
+        )
 
 
 def _check_against_rate(
@@ -354,26 +402,133 @@ def _sensor(item: Any, where: Any, index: int) -> SensorSpec:
         3,
     )
     reports = choice(m, "reports", ("reaction", "load"), what, default="reaction")
-    force_range = moment_range = None
+    channels, calibration = _sensor_channels(m, what)
+    force_range = moment_range = channel_range = None
     if "range" in m:
         rng = require_mapping(m["range"], m.where("range"), f"`range` of {what}")
-        check_keys(rng, {"force_n", "moment_nm"}, f"`range` of {what}")
-        if "force_n" in rng:
-            force_range = np.array(vector(rng["force_n"], rng.where("force_n"), "`force_n`", 3))
-        if "moment_nm" in rng:
-            moment_range = np.array(
-                vector(rng["moment_nm"], rng.where("moment_nm"), "`moment_nm`", 3)
+        if calibration is not None:
+            check_keys(rng, {"channels"}, f"`range` of {what} (a calibrated sensor)")
+            if "channels" in rng:
+                channel_range = _ratings(rng, "channels", what, len(channels))
+        else:
+            check_keys(rng, {"force_n", "moment_nm"}, f"`range` of {what}")
+            if "force_n" in rng:
+                force_range = _ratings(rng, "force_n", what, 3)
+            if "moment_nm" in rng:
+                moment_range = _ratings(rng, "moment_nm", what, 3)
+    return SensorSpec(
+        name,
+        position,
+        rotation_matrix(*rpy),
+        reports,
+        force_range,
+        moment_range,
+        channels,
+        calibration,
+        channel_range,
+    )
+
+
+def _sensor_channels(m: MarkedDict, what: str) -> tuple[tuple[str, ...], np.ndarray | None]:
+    """The raw channels a sensor delivers and, for a calibrated one, the (6, n) matrix from
+    them to its wrench: ``kind`` (six_axis, the default; load_cell: fz; three_axis: fx, fy,
+    fz), or ``axes`` (any subset of fx … mz), or ``channels`` with ``calibration``."""
+    given = [key for key in ("kind", "axes", "channels") if key in m]
+    if len(given) > 1:
+        raise ConfigError(
+            m.where(given[1], of_key=True),
+            f"give one of `kind`, `axes` or `channels` for {what}, found "
+            + " and ".join(f"`{key}`" for key in given),
+        )
+    if "calibration" in m and "channels" not in m:
+        raise ConfigError(
+            m.where("calibration", of_key=True),
+            f"`calibration` of {what} maps its raw `channels` to its wrench: list the "
+            "`channels` too",
+        )
+    if "kind" in m:
+        kind = choice(m, "kind", tuple(SENSOR_KINDS), what)
+        return SENSOR_KINDS[kind], None
+    if "axes" in m:
+        raw = m["axes"]
+        if (
+            not isinstance(raw, list)
+            or not raw
+            or any(a not in AXES for a in raw)
+            or len(set(raw)) != len(raw)
+        ):
+            raise ConfigError(
+                m.where("axes"),
+                f"`axes` of {what} must list some of {', '.join(AXES)} once each, found {raw!r}",
             )
-        for arr, key in ((force_range, "force_n"), (moment_range, "moment_nm")):
-            if arr is not None and np.any(arr <= 0):
-                raise ConfigError(rng.where(key), f"`{key}` of {what} must be positive ratings")
-            if arr is not None and not np.all((arr >= MIN_RATING) & (arr <= MAX_RATING)):
-                raise ConfigError(
-                    rng.where(key),
-                    f"`{key}` of {what} must be ratings from {MIN_RATING:g} to {MAX_RATING:g}, "
-                    f"found {arr.tolist()}",
-                )
-    return SensorSpec(name, position, rotation_matrix(*rpy), reports, force_range, moment_range)
+        return tuple(a for a in AXES if a in raw), None  # columns in fx … mz order
+    if "channels" not in m:
+        return AXES, None
+    raw = m["channels"]
+    if (
+        not isinstance(raw, list)
+        or not 1 <= len(raw) <= MAX_SENSOR_CHANNELS
+        or not all(isinstance(c, str) and c.replace("_", "").isalnum() for c in raw)
+        or len(set(raw)) != len(raw)
+    ):
+        raise ConfigError(
+            m.where("channels"),
+            f"`channels` of {what} must list 1 to {MAX_SENSOR_CHANNELS} different names of "
+            f"letters, digits and _ (its raw channels: recording columns `<sensor>_<channel>`), "
+            f"found {raw!r}",
+        )
+    channels = tuple(str(c) for c in raw)
+    if "calibration" not in m:
+        if all(c in AXES for c in channels):
+            return tuple(a for a in AXES if a in channels), None
+        raise ConfigError(
+            m.where("channels"),
+            f"{what} lists raw `channels` that are not axes ({', '.join(AXES)}): give its "
+            f"`calibration`, 6 rows (fx, fy, fz, mx, my, mz) of {len(channels)} numbers, the "
+            "sensor's wrench per unit of each channel",
+        )
+    rows = m["calibration"]
+    if not isinstance(rows, list) or len(rows) != 6:
+        raise ConfigError(
+            m.where("calibration"),
+            f"`calibration` of {what} must be 6 rows (fx, fy, fz, mx, my, mz) of "
+            f"{len(channels)} numbers each, one per channel",
+        )
+    places = rows if isinstance(rows, MarkedList) else None
+    matrix = np.array(
+        [
+            vector(
+                row,
+                places.where(i) if places is not None else m.where("calibration"),
+                f"row {AXES[i]} of `calibration` of {what}",
+                len(channels),
+            )
+            for i, row in enumerate(rows)
+        ]
+    )
+    if not (np.abs(matrix) <= MAX_RATING).all() or not matrix.any():
+        raise ConfigError(
+            m.where("calibration"),
+            f"`calibration` of {what} must have numbers within ±{MAX_RATING:g}, not all zero",
+        )
+    return channels, matrix
+
+
+def _ratings(rng: MarkedDict, key: str, what: str, length: int) -> np.ndarray:
+    """Ratings at ``key``: ``length`` numbers, or one number for all of them."""
+    value = as_number(rng[key])
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        value = [value] * length
+    arr = np.array(vector(value, rng.where(key), f"`{key}`", length))
+    if np.any(arr <= 0):
+        raise ConfigError(rng.where(key), f"`{key}` of {what} must be positive ratings")
+    if not np.all((arr >= MIN_RATING) & (arr <= MAX_RATING)):
+        raise ConfigError(
+            rng.where(key),
+            f"`{key}` of {what} must be ratings from {MIN_RATING:g} to {MAX_RATING:g}, "
+            f"found {arr.tolist()}",
+        )
+    return arr
 
 
 def _unit(v: list[float], where: Any, what: str) -> np.ndarray:
@@ -453,6 +608,8 @@ def _estimation(item: Any, where: Any) -> EstimationSettings:
             values[key] = flag_or_auto(m, key, "`estimation`")
         elif key == "second_finger":
             values[key] = flag(m, key, "`estimation`", default=defaults.second_finger)
+        elif key == "zeroed":
+            values[key] = flag(m, key, "`estimation`", default=defaults.zeroed)
         elif key in m:
             strict = key not in (
                 "noise_force_n",
@@ -477,6 +634,12 @@ def _estimation(item: Any, where: Any) -> EstimationSettings:
     settings = EstimationSettings(**values)
     if settings.min_normal_cos >= 1.0:
         raise ConfigError(m.where("min_normal_cos"), "`min_normal_cos` must be below 1")
+    if settings.zeroed and not (settings.noise_force_n > 0 or settings.noise_moment_nm > 0):
+        raise ConfigError(
+            m.where("zeroed"),
+            "`zeroed: true` (the readings come zeroed: no tare) needs the channels' noise, "
+            "which a tare would have measured: give `noise_force_n` and `noise_moment_nm`",
+        )
     if settings.release_hysteresis_n >= settings.contact_force_n:
         raise ConfigError(
             m.where("release_hysteresis_n"),

@@ -1,4 +1,5 @@
-"""Read any recording a user hands us: CSV, NPZ, or a CAN log decoded through the profile."""
+"""Read any recording a user hands us: CSV, NPZ, a CAN log decoded through the profile, or a
+C3D file's force plates (:mod:`.forceplate`)."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hapticdesk.files.c3d import is_c3d
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.recording import (
     RECORDING_SUFFIXES,
@@ -62,7 +64,7 @@ def open_recording_blocks(path: str | Path, profile: DeskProfile) -> RecordingBl
     """A CSV or NPZ recording to stream in blocks (``replay:``, ``record``), its first block
     read and checked to come at the profile's rate (:func:`check_sample_rate`); the file is
     closed when it is refused."""
-    recording = RecordingBlocks(path, profile.sensor_names)
+    recording = RecordingBlocks(path, profile.sensor_names, channel_names=profile.channel_names())
     try:
         check_sample_rate(recording.first_times(), profile, str(path))
     except ConfigError:
@@ -74,7 +76,8 @@ def open_recording_blocks(path: str | Path, profile: DeskProfile) -> RecordingBl
 def read_any_recording(
     path: str | Path, profile: DeskProfile, *, at_profile_rate: bool = True
 ) -> Recording:
-    """A recording (.csv, .npz) or a CAN log (.asc, .blf, .log, .trc, candump text), whose
+    """A recording (.csv, .npz), a CAN log (.asc, .blf, .log, .trc, candump text) or a C3D
+    file (its plates the desk's sensors ``plate<N>``: :mod:`.forceplate`), whose
     samples come at the profile's rate (:func:`check_sample_rate`) unless
     ``at_profile_rate`` is False (``characterize`` measures a desk's rate itself).
 
@@ -88,8 +91,13 @@ def read_any_recording(
 
 
 def _read(path: str | Path, profile: DeskProfile) -> Recording:
+    if is_c3d(path):  # a force plate's C3D file: its plates are the desk's sensors
+        from hapticdesk.files.forceplate import read_plate_recording  # (ezc3d: lazily)
+
+        return read_plate_recording(path, profile)
     if Path(path).suffix.lower() in RECORDING_SUFFIXES:
-        return read_recording(path, profile.sensor_names)  # (it checks the file itself)
+        # (it checks the file itself)
+        return read_recording(path, profile.sensor_names, channel_names=profile.channel_names())
     # before the CAN log's own checks: a missing file is said so, not taken for a CAN log
     # the profile cannot decode
     regular_file_size(path, "the recording")

@@ -15,7 +15,12 @@ from pathlib import Path
 
 import numpy as np
 
-from hapticdesk.files.yamlfile import ConfigError, decode_utf8, regular_file_size
+from hapticdesk.files.yamlfile import (
+    ConfigError,
+    check_confined,
+    decode_utf8,
+    regular_file_size,
+)
 
 STROKE_SUFFIXES = (".csv", ".json")
 SHAPE_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
@@ -215,6 +220,7 @@ def read_template_dir(folder: str | Path) -> dict[str, list[np.ndarray]]:
         raise ConfigError(str(root), "no such template folder (expected one sub-folder per shape)")
     out: dict[str, list[np.ndarray]] = {}
     for sub in sorted(p for p in root.iterdir() if p.is_dir()):
+        check_confined(sub, "a template folder")  # (a link inside to a folder outside)
         if not SHAPE_NAME.match(sub.name):
             raise ConfigError(
                 str(sub),

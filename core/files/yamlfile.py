@@ -387,16 +387,21 @@ def reads_confined_to(*roots: str | Path) -> Iterator[None]:
         _READ_ROOTS.reset(token)
 
 
-def check_confined(path: str | Path, what: str) -> None:
-    """ConfigError when reads are confined (:func:`reads_confined_to`) and ``path`` lies
-    outside every root."""
+def check_confined(path: str | Path, what: str, where: Position | str | None = None) -> None:
+    """ConfigError (at ``where``, else at the path) when reads are confined
+    (:func:`reads_confined_to`) and ``path`` lies outside every root.
+
+    Called *before* anything looks at the path (exists, is a file or a folder, its listing):
+    the answer for a path outside is then the same whether it exists or not (``layouts: {x:
+    /etc/shadow}`` had been accepted where a missing file was "no such file", and
+    ``templates: /root`` had named a folder in it)."""
     roots = _READ_ROOTS.get()
     if roots is None:
         return
     real = Path(path).resolve()
     if not any(real.is_relative_to(root) for root in roots):
         raise ConfigError(
-            str(path),
+            str(path) if where is None else where,
             f"{what} lies outside the layout's folder: a layout edited in the browser reads "
             "files there only (and the shipped profiles and examples)",
         )

@@ -9,7 +9,8 @@ gesture events (DESIGN.md, "Layout", "Gesture events", "Strokes").
 
 Modules: layout (loading, validation, bindings), options (gesture settings), regions
 (shapes on a surface), touch (one touch and its best position), recognizer (the interface),
-engine; the recognizers taps, long_press, pressure, swipe, slide, stroke; unistroke
-($1/Protractor), shapes (the built-in shapes), strokefile, capture. Nothing is imported
-here, so a scene loads only what it uses.
+engine, arbitration (one gesture per touch: which recognizer's gesture holds a touch); the
+recognizers taps, long_press, pressure, swipe, slide, stroke; unistroke ($1/Protractor),
+shapes (the built-in shapes), strokefile, capture. Nothing is imported here, so a scene
+loads only what it uses.
 """

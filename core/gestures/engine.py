@@ -7,6 +7,8 @@ plugin in :data:`~hapticdesk.registry.DEFAULT_PLUGINS`) and third-party ones ali
 STYLE.md 4, 15).
 Output does not depend on how the contact stream is cut into blocks: state is carried
 across blocks and timers fire at the first sample time at or after their deadline.
+One touch fires one gesture: the recognizers are asked the most specific first and the
+first gesture a binding reacts to holds the touch (:mod:`~hapticdesk.gestures.arbitration`).
 """
 
 from __future__ import annotations
@@ -17,10 +19,11 @@ from typing import Any
 import numpy as np
 
 from hapticdesk.estimator.contacts import FLAG_GAP, ContactBlock, ContactEvent
+from hapticdesk.gestures.arbitration import ORDER, claims, rank
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.layout import Layout
 from hapticdesk.gestures.recognizer import Recognizer
-from hapticdesk.gestures.touch import TouchTracker
+from hapticdesk.gestures.touch import Touch, TouchTracker
 
 
 def _default_recognizers() -> Mapping[str, Any]:
@@ -74,13 +77,38 @@ class GestureEngine:
                 served = {g for g, c in classes.items() if c is cls}
                 instances[cls] = cls(layout, [b for b in layout.bindings if b.gesture in served])
             self.recognizers[gesture] = instances[cls]
-        self._active = list(instances.values())
+        # the most specific first (arbitration.ORDER): a gesture decided at the same sample
+        # as a more specific one is asked after it, and sees whether it claimed the touch
+        self._active = sorted(instances.values(), key=self._specificity)
         self._tracker = TouchTracker(layout.desk, position_delay_s)
         #: a bound gesture reads a second finger: the estimator must run its second-finger
         #: stage (:meth:`ContactEstimator.use_second_finger`)
         self.needs_second_finger = any(
             gesture in getattr(cls, "needs_second_finger", ()) for gesture, cls in classes.items()
         )
+
+    @property
+    def idle(self) -> bool:
+        """No touch is open and no recognizer waits for a deadline (a tap for its double):
+        another engine can take over now without a touch seen twice or a decision lost
+        (a layout reload swaps engines only then)."""
+        tracker = self._tracker
+        return (
+            tracker.touch is None
+            and not tracker.in_contact
+            and all(r.next_deadline() is None for r in self._active)
+        )
+
+    def join_contact(self) -> None:
+        """Start in the middle of a contact that began before this engine (a reloaded layout
+        taking over while a finger is held): that touch is not recognised, the next one is.
+        Nothing is fired for a touch whose start was not seen."""
+        self._tracker.join_contact()
+
+    @staticmethod
+    def _specificity(recognizer: Recognizer) -> int:
+        ranks = [r for g in type(recognizer).gestures if (r := rank(g)) is not None]
+        return min(ranks, default=len(ORDER))
 
     def feed(self, block: ContactBlock) -> list[GestureEvent]:
         """Recognise gestures in the next block (any length, including 0).
@@ -154,7 +182,21 @@ class GestureEngine:
         touch = self._tracker.add(event)
         if touch is None:
             return []
+        earlier: list[GestureEvent] = []
         out: list[GestureEvent] = []
         for recognizer in self._active:
-            out += recognizer.on_contact(event, touch)
-        return out
+            mine = recognizer.on_contact(event, touch)
+            if touch.claimed_by is None:
+                self._claim(touch, mine)
+            out += mine
+            earlier += recognizer.decided_earlier()
+        if touch.claimed_by is not None:  # one gesture per touch: the others' are dropped
+            out = [e for e in out if e.gesture not in ORDER or e.gesture == touch.claimed_by]
+        return earlier + out
+
+    def _claim(self, touch: Touch, events: list[GestureEvent]) -> None:
+        """The first arbitrated event of ``events`` a binding reacts to claims ``touch``."""
+        for e in events:
+            if e.gesture in ORDER and any(claims(b, e) for b in self.layout.bindings):
+                touch.claimed_by = e.gesture
+                return

@@ -23,6 +23,7 @@ from hapticdesk.files.yamlfile import (
     MarkedList,
     Position,
     as_flag,
+    check_confined,
     check_keys,
     choice,
     require_mapping,
@@ -121,7 +122,7 @@ class LayoutReader:
     # -- top level ---------------------------------------------------------------------------
     def read(self) -> Layout:
         doc = self.doc
-        check_keys(doc, allowed_top_keys(self.sections), "the layout", required={"bindings"})
+        check_keys(doc, allowed_top_keys(self.sections), "the layout")
         self._desk_name()
         self._named_layouts()
         desk = self._desk()
@@ -198,6 +199,7 @@ class LayoutReader:
             path = Path(value).expanduser()
             if not path.is_absolute():
                 path = self.path.parent / path
+            check_confined(path, f"`layouts.{name}`", m.where(name))  # (before it is looked at)
             if not path.is_file():
                 raise ConfigError(m.where(name), f"`layouts.{name}`: no such file {path}")
 
@@ -276,10 +278,17 @@ class LayoutReader:
     def _bindings(
         self, regions: dict[str, Region]
     ) -> tuple[list[Binding], dict[tuple[str, str | None], dict[str, tuple[Any, Position, int]]]]:
-        raw = self.doc["bindings"]
-        if not isinstance(raw, MarkedList) or not raw:
+        raw = self.doc.get("bindings", MarkedList())
+        if not isinstance(raw, MarkedList):
             raise ConfigError(
-                self.doc.where("bindings"), "`bindings` must be a list of at least one binding"
+                self.doc.where("bindings"),
+                f"`bindings` must be a list of bindings (`[]` for none yet), found {raw!r}",
+            )
+        if not raw:  # a layout being made (`hapticdesk init --blank`): it runs, doing nothing
+            self.warnings.append(
+                f"{self.doc.where('bindings')}: no bindings yet: no gesture does anything; "
+                "bind one, e.g. in the browser: hapticdesk ui --layout "
+                f"{self.path.name}"
             )
         bindings = []
         # (gesture, region) -> option -> (value, where, binding index) set explicitly on a binding

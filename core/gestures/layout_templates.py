@@ -12,7 +12,14 @@ from typing import Any
 import numpy as np
 
 from hapticdesk.files.strokefile import SHAPE_NAME, read_stroke, read_template_dir, stroke_files
-from hapticdesk.files.yamlfile import ConfigError, MarkedList, Position, require_mapping, vector
+from hapticdesk.files.yamlfile import (
+    ConfigError,
+    MarkedList,
+    Position,
+    check_confined,
+    require_mapping,
+    vector,
+)
 
 
 class TemplateReader:
@@ -27,6 +34,7 @@ class TemplateReader:
         base = self.base
         if isinstance(value, str):
             folder = base / value
+            check_confined(folder, f"template folder `{value}`", where)  # (before it is looked at)
             if not folder.is_dir():
                 raise ConfigError(where, f"no template folder `{value}` (looked in {folder})")
             return read_template_dir(folder)
@@ -56,6 +64,7 @@ class TemplateReader:
         for item, pos in zip(items, positions, strict=True):
             if isinstance(item, str):
                 target = base / item
+                check_confined(target, f"template `{item}`", pos)  # (before it is looked at)
                 if target.is_dir():
                     files = stroke_files(target)
                     if not files:

@@ -11,6 +11,7 @@ landing on it is flagged on that touch, :attr:`Touch.multi`).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any, ClassVar
 
@@ -24,6 +25,15 @@ from hapticdesk.gestures.touch import Touch
 #: twice a touch's position noise (≈ 4.5 mm 1-σ for a light touch on the paper's desk), so
 #: a finger on the region's edge does not cancel it
 LEAVE_MARGIN_M = 0.01
+#: a point is placed in a region only when it is this many times likelier there than in any
+#: other bound region (BoundRegions.find with a ``sigma``). On the 120-desk sweep
+#: (scripts/desk_sweep.py --seed 1; 35,646 taps, 39 in a wrong button, 31,877 right), odds of
+#: 10 / 30 / 100 / 300 left 35 / 27 / 20 / 12 in a wrong button and 31,852 / 31,759 / 31,576 /
+#: 31,361 right: 30 is the most that keeps the right taps within 0.5 % (chosen on that sweep).
+#: The wrong ones were placed 2.6-6.7 times their claimed σ off: past what any odds on that σ
+#: can tell from a right tap snapped across a gap (the estimator's σ, README)
+ODDS = 30.0
+LOG_ODDS = math.log(ODDS)
 
 
 class Recognizer:
@@ -42,7 +52,17 @@ class Recognizer:
         self.bindings = list(bindings)
 
     def on_contact(self, event: ContactEvent, touch: Touch) -> list[GestureEvent]:
-        """One contact event (down, move, up) of ``touch``, already added to it."""
+        """One contact event (down, move, up) of ``touch``, already added to it. Its events
+        belong to ``touch``; ``touch.claimed_by`` names the gesture that holds it when a more
+        specific one claimed it (arbitration): a gesture of ``arbitration.ORDER`` that is
+        not that one is dropped by the engine, and need not be decided."""
+        return []
+
+    def decided_earlier(self) -> list[GestureEvent]:
+        """Events the last :meth:`on_contact` decided for an earlier touch (a tap that waited
+        for a double tap and turned out single), taken once. The engine reads them apart
+        from that call's events, which belong to the current touch: a gesture that claimed
+        the current touch drops the others' events of it (arbitration), not these."""
         return []
 
     def next_deadline(self) -> float | None:
@@ -77,19 +97,35 @@ class BoundRegions:
     def __bool__(self) -> bool:
         return bool(self.regions) or self.anywhere
 
-    def find(self, x: float, y: float, surface: int, snap: bool = False) -> tuple[bool, str | None]:
+    def find(
+        self, x: float, y: float, surface: int, snap: bool = False, sigma: float = 0.0
+    ) -> tuple[bool, str | None]:
         """(found, region name): the bound region holding the point, else (with ``snap``) the
         nearest one when the point is within that region's ``snap`` option of it, else
-        (True, None) when the gesture is bound anywhere, else (False, None)."""
+        (True, None) when the gesture is bound anywhere, else (False, None).
+
+        ``sigma``: how well the point is placed (1-σ, metres). A region is only found when
+        the point is at least ``ODDS`` times likelier in it than in any other bound region
+        that does not hold it, each likelihood that of the point's nearest place in the
+        region under a normal error of ``sigma``: where the uncertainty reaches two regions
+        alike, neither is taken (a miss, not the wrong button)."""
         on_surface = [r for r in self.regions if r.surface_index == surface]
-        for region in on_surface:
-            if bool(region.contains(x, y)):
-                return True, region.name
-        if snap and on_surface:
-            distance, nearest = min((r.distance(x, y), r.name) for r in on_surface)
+        distances = [(r.distance(x, y), r.name) for r in on_surface]
+        found: tuple[float, str] | None = next(
+            ((0.0, r.name) for r in on_surface if bool(r.contains(x, y))), None
+        )
+        if found is None and snap and distances:
+            distance, nearest = min(distances)
             if distance <= self.options(nearest).get("snap", 0.0):
-                return True, nearest
-        return self.anywhere, None
+                found = (distance, nearest)
+        if found is None:
+            return self.anywhere, None
+        if sigma > 0.0:
+            others = [d for d, name in distances if name != found[1] and d > 0.0]
+            # log of the odds of the region found against the nearest other one
+            if others and (min(others) ** 2 - found[0] ** 2) / (2 * sigma**2) < LOG_ODDS:
+                return self.anywhere, None
+        return True, found[1]
 
     def left(self, region: str | None, x: float, y: float) -> bool:
         """Whether a finger at (x, y) has left ``region`` where the gesture's ``leave`` option

@@ -16,6 +16,7 @@ from typing import Any
 from hapticdesk.files.profile import DeskProfile, load_profile
 from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.registry import Registry
+from hapticdesk.runtime.binding_events import check_bindings
 from hapticdesk.runtime.control import ControlQueue
 from hapticdesk.runtime.dispatcher import ActionContext, Dispatcher, Lane, Route
 from hapticdesk.runtime.isolation import ProcessAction, split_isolation
@@ -45,7 +46,8 @@ class Assembly:
     context: ActionContext
     #: the layout file the run started with (``default`` among its named layouts)
     layout_path: Path | None = None
-    desk_override: str | None = None  # ``--desk``: a reloaded layout is read with it too
+    # ``--desk`` (or a C3D replay's plate): a reloaded layout is read with it too
+    desk_override: str | DeskProfile | None = None
     action_timeout_s: float | None = None
     #: commands for the running desk (re-tare, pause, reload …), applied between blocks
     control: ControlQueue = field(default_factory=ControlQueue)
@@ -76,7 +78,8 @@ def load_scene_layout(
     text: str | None = None,
 ) -> tuple[Any, DeskProfile]:
     """The layout, validated against the installed actions, recognizers and the sections
-    plugins claim (``hapticdesk check`` and ``run`` both load through here), and its desk.
+    plugins claim, each action use checked against the events its binding can make
+    (``hapticdesk check`` and ``run`` both load through here), and its desk.
     ``text``: the layout's YAML when it is not the file's (an edit checked before saving)."""
     from hapticdesk.gestures.layout import load_layout
 
@@ -91,6 +94,9 @@ def load_scene_layout(
         section_names=list(registry.layout_sections),
         text=text,
     )
+    # each action tried on every event its binding can make (a template too costly for a
+    # tap on one region, which the sample event never rendered, is refused here, not at run)
+    check_bindings(layout, registry)
     return layout, layout.desk
 
 
@@ -99,7 +105,7 @@ def build_scene(
     source_spec: str,
     registry: Registry,
     *,
-    desk: str | None = None,
+    desk: str | DeskProfile | None = None,
     speed: float = 1.0,
     overrides: Mapping[str, Mapping[str, Any]] | None = None,
     action_timeout_s: float | None = None,

@@ -11,15 +11,17 @@ The commands (:data:`COMMANDS`):
 
 - ``tare``: forget the zero and take it again over the next ``tare_s`` of a still desk.
 - ``pause`` / ``resume``: gestures are recognised but not sent while paused; sensing goes on,
-  so the zero keeps following drift and no new tare is needed after ``resume``.
+  so the zero keeps following drift and no new tare is needed after ``resume``. A pause ends
+  by itself after ``for_s`` seconds (default and at most :data:`MAX_PAUSE_S`; any client of
+  the broker can send one, so none lasts for ever), and says so.
 - ``reload``: read the current layout file again and rebuild the gesture engine and the
   actions; the estimator (and its zero) and shared connections (the MQTT session) are kept.
 - ``layout NAME``: switch to one of the layout's ``layouts:`` (``default`` is the layout the
   run started with), as a reload of that file.
 
 As JSON (what ``<prefix>/set`` takes): ``{"command": "tare"}``, ``{"command": "layout",
-"layout": "evening"}``, or the short forms ``"tare"``, ``{"tare": true}``, ``{"layout":
-"evening"}``.
+"layout": "evening"}``, ``{"command": "pause", "for_s": 600}``, or the short forms
+``"tare"``, ``{"tare": true}``, ``{"layout": "evening"}``, ``{"pause": 600}``.
 """
 
 from __future__ import annotations
@@ -34,6 +36,8 @@ from typing import Any
 COMMANDS = ("tare", "pause", "resume", "reload", "layout")
 MAX_PAYLOAD = 4096  # bytes: a command is a word or two; anything longer is not one
 MAX_WAITING = 64  # commands queued at most (a flood from the network cannot grow memory)
+#: the longest a pause lasts (seconds) unless it asks for less: it ends by itself then
+MAX_PAUSE_S = 3600.0
 
 
 class ControlError(ValueError):
@@ -77,14 +81,17 @@ def parse_command(payload: bytes | str) -> ControlCommand:
         name = value["command"]
         if not isinstance(name, str):
             raise ControlError(f"`command` must be one of {', '.join(COMMANDS)}, found {name!r}")
-        return command(name, value.get("layout"))
+        return command(name, value.get("for_s") if name == "pause" else value.get("layout"))
     named = [k for k in value if k in COMMANDS]
     if len(named) != 1:
         raise ControlError(
             f"expected one command of {', '.join(COMMANDS)}, found keys {sorted(value)}"
         )
     name = named[0]
-    return command(name, value[name] if name == "layout" else None)
+    argument = value[name] if name in ("layout", "pause") else None
+    if name == "pause" and argument is True:  # {"pause": true}
+        argument = None
+    return command(name, argument)
 
 
 def command(name: str, argument: Any = None) -> ControlCommand:
@@ -96,7 +103,23 @@ def command(name: str, argument: Any = None) -> ControlCommand:
         if not isinstance(argument, str) or not argument:
             raise ControlError('`layout` needs the name of a layout: {"layout": "evening"}')
         return ControlCommand(name, argument)
+    if name == "pause" and argument is not None:
+        seconds = pause_seconds(argument)
+        return ControlCommand(name, f"{seconds:g}")
     return ControlCommand(name)
+
+
+def pause_seconds(argument: Any) -> float:
+    """A pause's length from its argument: a number of seconds, 1 to MAX_PAUSE_S."""
+    try:
+        seconds = float(argument)
+    except (TypeError, ValueError):
+        seconds = float("nan")
+    if isinstance(argument, bool) or not 1.0 <= seconds <= MAX_PAUSE_S:
+        raise ControlError(
+            f"`pause` takes `for_s`, seconds from 1 to {MAX_PAUSE_S:g}, found {argument!r}"
+        )
+    return seconds
 
 
 class ControlQueue:

@@ -24,7 +24,7 @@ class ContactSummary:
     ``force_n``: the external force (fast path), newtons; ``x``/``y``: the contact point in
     the desk frame, metres, None when not located; ``zero_force_n``: the magnitude of the
     force the estimator's zero holds (the desk's weight and whatever rests on it), None
-    before the tare."""
+    before the tare; ``paused``: the run does not send gestures."""
 
     t: float
     in_contact: bool
@@ -32,9 +32,11 @@ class ContactSummary:
     x: float | None
     y: float | None
     zero_force_n: float | None
+    #: gestures are not sent (a ``pause`` from ``/set``, the browser UI or Python)
+    paused: bool = False
 
 
-def summarize(contacts: Any, zero: Any) -> ContactSummary:
+def summarize(contacts: Any, zero: Any, paused: bool = False) -> ContactSummary:
     """The summary of a non-empty :class:`~hapticdesk.estimator.contacts.ContactBlock` and
     the estimator's zero ((6,) or None)."""
     located = bool(contacts.located[-1])
@@ -47,6 +49,7 @@ def summarize(contacts: Any, zero: Any) -> ContactSummary:
         x=float(contacts.x[-1]) if located else None,
         y=float(contacts.y[-1]) if located else None,
         zero_force_n=zero_force if zero_force is not None and math.isfinite(zero_force) else None,
+        paused=paused,
     )
 
 
@@ -59,10 +62,10 @@ class ContactObservers:
     def __bool__(self) -> bool:
         return bool(self.sinks)
 
-    def __call__(self, contacts: Any, zero: Any) -> None:
+    def __call__(self, contacts: Any, zero: Any, paused: bool = False) -> None:
         if not self.sinks or len(contacts.t) == 0:
             return
-        summary = summarize(contacts, zero)
+        summary = summarize(contacts, zero, paused)
         for name, sink in list(self.sinks):
             try:
                 sink(summary)

@@ -16,6 +16,7 @@ import collections
 import contextlib
 import json
 import logging
+import os
 import signal
 import sys
 import threading
@@ -32,8 +33,9 @@ from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.runtime.assembly import Assembly, build_routes, build_scene, load_scene_layout
-from hapticdesk.runtime.control import ControlCommand, ControlError
+from hapticdesk.runtime.control import MAX_PAUSE_S, ControlCommand, ControlError, pause_seconds
 from hapticdesk.runtime.dispatcher import DispatchReport
+from hapticdesk.runtime.operator_secrets import OperatorSecrets
 
 __all__ = [
     "Assembly",
@@ -49,6 +51,8 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 STATUS_INTERVAL_S = 0.1
+#: the longest a reloaded layout waits (sample time) for the touch in progress to end
+MAX_SWAP_WAIT_S = 30.0
 
 
 @dataclass
@@ -91,12 +95,26 @@ class RunReport:
     gestures: collections.Counter[str] = field(default_factory=collections.Counter)
     dispatch: DispatchReport = field(default_factory=DispatchReport)
     notes: list[str] = field(default_factory=list)
+    #: optional outputs that could not be written (``--events`` on a full disk), one line each
+    output_failures: list[str] = field(default_factory=list)
+    #: messages the actions handed to a connection that never delivered them
+    undelivered: int = 0
     stopped_by: str | None = None  # a signal's name, or None when the source ended
     error: str | None = None
 
     @property
     def gesture_count(self) -> int:
         return sum(self.gestures.values())
+
+    def _done(self, ok: int) -> str:
+        """The calls that returned: "done" only when their connection delivered everything
+        (without a broker the summary had said "57 done" with nothing delivered)."""
+        if not self.undelivered:
+            return f"{ok} done"
+        return (
+            f"{ok} handed to their connection, which did NOT deliver {self.undelivered} "
+            "message(s) (see below)"
+        )
 
     def summary(self) -> list[str]:
         d = self.dispatch.totals
@@ -112,7 +130,7 @@ class RunReport:
                 if self.gestures
                 else ""
             ),
-            f"actions: {d.ok} done, {d.failed} failed, {d.timed_out} timed out, "
+            f"actions: {self._done(d.ok)}, {d.failed} failed, {d.timed_out} timed out, "
             f"{d.dropped} dropped, {d.not_run} not run",
         ]
         return lines + self.notes + ([f"error: {self.error}"] if self.error else [])
@@ -138,19 +156,31 @@ class Runtime:
         self._stop = threading.Event()
         self._force = False
         self._events_out: IO[str] | None = None
+        self._events_error: str | None = None  # why --events could not be written, once
+        self._events_written = self._events_unwritten = self._events_bytes = 0
         #: callables given every block's ``(t, wrench)`` on the sensing thread, after the
         #: estimator (a set-up check recording raw samples); each must be O(1): keep a
         #: reference, never copy or wait. Replaced whole (a tuple), never changed in place.
         self.block_taps: tuple[Any, ...] = ()
-        #: gestures are recognised but not sent while paused (``pause`` / ``resume``)
+        #: gestures are recognised but not sent while paused (``pause`` / ``resume``), until
+        #: ``_paused_until`` (monotonic time) at the latest
         self.paused = False
+        self._paused_until: float | None = None
         self._t_last: float | None = None  # the last sample time sensed (to flush an engine)
+        #: a reloaded layout built and waiting for the touch in progress to end
+        self._waiting: _WaitingLayout | None = None
+        self._tared_once = False  # the zero was taken at some block (else the run says so)
         self.layout_path = scene.layout_path or scene.layout.path
         #: the layouts ``layout NAME`` switches among (from the layout the run started with)
         self.named_layouts: dict[str, Path] = {
             "default": Path(self.layout_path),
             **getattr(scene.layout, "named_layouts", {}),
         }
+        #: what the layouts the run started with read from the environment and files, run
+        #: and connect to: a reload may not add or change any of it
+        self.operator_secrets = OperatorSecrets.from_start(
+            scene.layout.raw, Path(self.layout_path), scene.registry, self.named_layouts
+        )
 
     # --- control: what the desk can be told while it runs ------------------------------------
 
@@ -194,10 +224,16 @@ class Runtime:
             self.live.tared = False
             return f"re-taring: keep the desk still for {scene.profile.estimation.tare_s:g} s"
         if cmd.name == "pause":
+            seconds = pause_seconds(cmd.argument) if cmd.argument is not None else MAX_PAUSE_S
             self.paused = self.live.paused = True
-            return "paused: gestures are recognised but not sent (sensing and the zero go on)"
+            self._paused_until = time.monotonic() + seconds
+            return (
+                f"paused for {seconds:g} s: gestures are recognised but not sent (sensing and "
+                "the zero go on); `resume` ends it sooner"
+            )
         if cmd.name == "resume":
             self.paused = self.live.paused = False
+            self._paused_until = None
             return "resumed: gestures are sent again"
         if cmd.name == "reload":
             return self._use_layout(Path(scene.context.layout_path or self.layout_path))
@@ -218,6 +254,15 @@ class Runtime:
 
         scene, context = self.scene, self.scene.context
         layout, profile = load_scene_layout(path, scene.registry, scene.desk_override)
+        refused = self.operator_secrets.refusal(
+            layout.raw,
+            Path(path),
+            scene.registry,
+            "a reload (SIGHUP, `reload` or `layout` on MQTT, a save from the browser UI)",
+            "restart the desk to use it",
+        )
+        if refused is not None:
+            raise refused
         if _desk_key(profile) != _desk_key(scene.profile):
             raise ConfigError(
                 str(path),
@@ -245,16 +290,9 @@ class Runtime:
                 recognizer_types=scene.registry.recognizer_types(),
                 position_delay_s=scene.estimator.position_delay_s,
             )
-            scene.estimator.use_second_finger(
-                scene.profile.estimation.second_finger or engine.needs_second_finger
-            )
         except BaseException:
             context.layout, context.settings, context.layout_path = before
             raise
-        if self._t_last is not None:  # what the old layout was deciding (a tap) is decided
-            self._emit(scene.engine.flush(self._t_last))
-        scene.dispatcher.replace_routes(routes, self.drain_timeout_s)
-        scene.engine, scene.layout = engine, layout
         what = f"layout `{name}` ({path})" if name else f"reloaded {path}"
         line = f"{what}: {len(layout.bindings)} bindings; the zero and connections are kept"
         # shared connections were opened from the first layout's sections and are kept
@@ -268,7 +306,49 @@ class Runtime:
                 f" ({', '.join(changed)} changed: its connection settings take effect at the "
                 "next start)"
             )
+        if self._waiting is not None:  # a newer layout replaces one still waiting
+            _close_routes(self._waiting.routes)
+        self._waiting = _WaitingLayout(layout, engine, routes, self._t_last)
+        if not self._take_waiting_layout():
+            line += "; it takes over when the touch in progress ends"
         return line
+
+    def _take_waiting_layout(self) -> bool:
+        """Swap in the layout a reload built, if any, once the running engine is idle: a
+        touch finishes under the layout it began in (a reload during a 3 s hold had fired a
+        second long press, and a toggle bound to it twice). A touch still held
+        :data:`MAX_SWAP_WAIT_S` of sample time after the reload is cancelled (phase
+        `cancel`, never a release) and the new layout taken. True when swapped (or nothing
+        waited)."""
+        waiting, scene = self._waiting, self.scene
+        if waiting is None:
+            return True
+        if not scene.engine.idle:
+            asked, now = waiting.asked_t, self._t_last
+            if asked is None or now is None or now - asked < MAX_SWAP_WAIT_S:
+                return False
+            log.warning(
+                "control: a touch was still held %g s after the reload; it is cancelled and "
+                "the new layout taken",
+                MAX_SWAP_WAIT_S,
+            )
+            self._emit(scene.engine.cancel(now))
+            waiting.engine.join_contact()  # (the held finger is nobody's new touch)
+        if self._t_last is not None:  # what the old layout was deciding is decided
+            self._emit(scene.engine.flush(self._t_last))
+        scene.estimator.use_second_finger(
+            scene.profile.estimation.second_finger or waiting.engine.needs_second_finger
+        )
+        scene.dispatcher.replace_routes(waiting.routes, self.drain_timeout_s)
+        scene.engine, scene.layout = waiting.engine, waiting.layout
+        self._waiting = None
+        return True
+
+    def _end_pause(self) -> None:
+        """A pause that reached its length ends by itself (the log says so)."""
+        self.paused = self.live.paused = False
+        self._paused_until = None
+        log.warning("control: the pause ended by itself; gestures are sent again")
 
     def stop(self, reason: str = "request", *, force: bool = False) -> None:
         """Ask the run to end; ``force`` skips waiting for queued commands."""
@@ -310,14 +390,19 @@ class Runtime:
             if self._events_out is not None:
                 try:
                     self._events_out.close()
-                except OSError as err:  # (what was left in its buffer: the disk is still full)
-                    self.report.error = self.report.error or str(self._events_failed(err))
+                except OSError as err:  # (what was left in its buffer: the disk is full)
+                    self._events_lost(err)
+                self._events_out = None
+            if self._events_error is not None:
+                self.report.output_failures.append(self._events_summary())
+                self.report.notes.append(self.report.output_failures[-1])
             # queued commands get drain_timeout_s in all: first the actions' own queues, then
             # the shared connections they handed their messages to
             deadline = time.monotonic() + (0.0 if self._force else self.drain_timeout_s)
             self.report.dispatch = scene.dispatcher.close(max(0.0, deadline - time.monotonic()))
             remaining = 0.0 if self._force else max(0.0, deadline - time.monotonic())
             self.report.notes.extend(scene.context.close_resources(remaining))
+            self.report.undelivered = scene.context.undelivered
         scene.source.close()
         for cmd, future in scene.control.take():  # asked for after the last block
             future.set_exception(ControlError(f"`{cmd}`: the run has ended"))
@@ -334,7 +419,7 @@ class Runtime:
             self._sense()
         except ConfigError as err:  # e.g. a bad line in a replayed file
             self.report.error = str(err)
-        except OSError as err:  # e.g. the events file's disk is full
+        except OSError as err:  # e.g. a source's device went away
             where = f"{err.filename}: " if err.filename else ""
             self.report.error = f"{where}{err.strerror or err}"
         except Exception as err:  # a bug: one line for the user, still shut down cleanly
@@ -353,6 +438,8 @@ class Runtime:
                 if self._stop.is_set():
                     break
                 self.apply_control()  # between blocks: a command never sees half a block
+                if self._paused_until is not None and time.monotonic() >= self._paused_until:
+                    self._end_pause()
                 if len(block.t) == 0:
                     continue
                 if t_first is None:
@@ -360,9 +447,12 @@ class Runtime:
                 # (it logs its own notices)
                 contacts = scene.estimator.push(block.t, block.wrench, block.accel)
                 self._emit(scene.engine.feed(contacts))
+                if self._waiting is not None:  # (at block ends only: never half a touch)
+                    self._t_last = float(block.t[-1])
+                    self._take_waiting_layout()
                 self._update_live(contacts)
                 if scene.observers:
-                    scene.observers(contacts, scene.estimator.zero)
+                    scene.observers(contacts, scene.estimator.zero, paused=self.paused)
                 for tap in self.block_taps:
                     tap(block.t, block.wrench)
                 self.report.samples += len(block.t)
@@ -380,7 +470,19 @@ class Runtime:
         self._end_sensing(t_first, t_last)
 
     def _end_sensing(self, t_first: float | None, t_last: float | None) -> None:
-        """The samples' time span into the report, and the engine flushed at the last one."""
+        """The samples' time span into the report, and the engine flushed at the last one
+        (a reloaded layout still waiting for a touch to end is dropped). A run whose zero
+        was never taken says so: no gesture could be recognised (a damaged CAN log had ended
+        with 0 taps and nothing said)."""
+        if t_first is not None and t_last is not None and not self._tared_once:
+            self.report.notes.append(
+                f"the desk was never tared in {t_last - t_first:.1f} s of samples: no gesture "
+                "could be recognised (the tare needs a still desk and whole samples; see the "
+                "warnings above)"
+            )
+        if self._waiting is not None:
+            _close_routes(self._waiting.routes)
+            self._waiting = None
         if t_first is not None and t_last is not None:
             self.report.sample_time_s = t_last - t_first
             self._emit(self.scene.engine.flush(t_last))
@@ -389,20 +491,59 @@ class Runtime:
         if self.paused:  # recognised (the engine's state stays right) but not sent
             return
         for event in events:
-            if self._events_out is not None:
-                try:
-                    self._events_out.write(event.to_json() + "\n")
-                    self._events_out.flush()
-                except OSError as err:  # (a full disk: /dev/full, a quota)
-                    raise self._events_failed(err) from None
+            self._write_event(event)
             self.scene.dispatcher.submit(event)
             self.report.gestures[event.gesture] += 1
             self.live.last_gesture = f"{event.action_name} at {event.t:.2f} s"
             self.live.gestures += 1
 
-    def _events_failed(self, err: OSError) -> ConfigError:
-        """The error for an events file that could not be written (``--events``)."""
-        return ConfigError(str(self.events_path), f"cannot write the events: {err.strerror or err}")
+    def _write_event(self, event: GestureEvent) -> None:
+        """One line of ``--events``. The file is optional: when it cannot be written (a full
+        disk, a quota) it is said once, cut back to its last whole line and dropped, and the
+        events not written are counted; sensing and the actions go on (a full disk had
+        stopped the desk)."""
+        if self._events_out is None:
+            if self._events_error is not None:
+                self._events_unwritten += 1
+            return
+        line = event.to_json() + "\n"
+        try:
+            self._events_out.write(line)
+            self._events_out.flush()
+        except OSError as err:  # (a full disk: /dev/full, a quota)
+            self._events_lost(err)
+            self._events_unwritten += 1
+            return
+        self._events_written += 1
+        self._events_bytes += len(line.encode("utf-8"))
+
+    def _events_lost(self, err: OSError) -> None:
+        """``--events`` failed: said once, its last half line cut off, the file dropped."""
+        if self._events_error is None:
+            self._events_error = err.strerror or str(err)
+            log.error(
+                "%s: cannot write the events (%s); sensing and the actions go on, the "
+                "events from now on are not written",
+                self.events_path,
+                self._events_error,
+            )
+        out, self._events_out = self._events_out, None
+        if out is not None:
+            try:
+                out.close()
+            except OSError:
+                pass  # (its buffer could not be written either)
+        try:  # a reader finds whole events only
+            if self.events_path is not None and self.events_path.is_file():
+                os.truncate(self.events_path, self._events_bytes)
+        except OSError:
+            pass
+
+    def _events_summary(self) -> str:
+        return (
+            f"{self.events_path}: cannot write the events ({self._events_error}): "
+            f"{self._events_written} written (whole lines), {self._events_unwritten} not"
+        )
 
     def _update_live(self, contacts: ContactBlock) -> None:
         live = self.live
@@ -412,6 +553,7 @@ class Runtime:
         if contacts.located[-1]:
             live.x, live.y = float(contacts.x[-1]), float(contacts.y[-1])
         live.tared = not bool(contacts.flags[-1] & FLAG_NOT_TARED)
+        self._tared_once = self._tared_once or live.tared
         located = bool(contacts.located[-1])
         live.sample = (
             live.t,
@@ -478,6 +620,22 @@ class Runtime:
                 signal.signal(s, handler)
 
 
+@dataclass
+class _WaitingLayout:
+    """A reloaded layout, built and checked, waiting for the running engine to be idle."""
+
+    layout: Any
+    engine: Any
+    routes: list[Any]
+    asked_t: float | None  # the sample time of the reload
+
+
+def _close_routes(routes: list[Any]) -> None:
+    for route in routes:
+        for lane in route.lanes:
+            lane.close(0.0)
+
+
 def _desk_key(profile: DeskProfile) -> tuple[Any, ...]:
     """What makes two profiles the same desk for a running estimator."""
     return (profile.name, profile.sample_rate_hz, tuple(s.name for s in profile.sensors))
@@ -498,6 +656,7 @@ def report_json(report: RunReport) -> str:
                 "timed_out": d.timed_out,
                 "dropped": d.dropped,
                 "not_run": d.not_run,
+                "undelivered": report.undelivered,
             },
             "notes": report.notes,
             "stopped_by": report.stopped_by,

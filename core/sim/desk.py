@@ -18,6 +18,16 @@ The supports' resultant (what :meth:`DeskProfile.wrench_map` recovers from the r
 ``-K q - C q̇ = M q̈ - u``: the negated load plus the inertial term, paper eqs. (1)–(2) for a
 desk at rest.
 
+A leg on a load cell (a sensor that measures no moment: ``kind: load_cell``, a three-axis
+cell) stands on a *pin*: it passes its axial force to the cell and no moment, and what holds
+the desk sideways (friction at the foot, the frame the cell is bolted to) acts at the cell,
+where the cell does not feel it. Its spring point is the cell itself and it has no
+rotational stiffness (``DeskParameters.legs``), so the cells' axial forces alone carry the
+desk's moments about horizontal axes: Σ fz_i at p_i gives F_z, M_x and M_y exactly, as the
+weight tables of the literature assume. A finger's sideways push ``f`` at the top's height
+``h`` is not seen as a force, but its moment ``h·f`` is, as a centre of pressure moved by
+``h·f/F_z`` (a load cell cannot tell it from a press elsewhere).
+
 Stiffness is set from the frequencies a user knows: the horizontal ("sway") stiffness of the
 legs is scaled so the lowest mode is the desk's natural frequency (the paper's 5.9 Hz) and
 the vertical stiffness puts the vertical mode at ``vertical_frequency_hz``, far above the
@@ -43,10 +53,23 @@ import scipy.linalg
 import scipy.optimize
 import scipy.signal
 
-from hapticdesk.files.profile import STANDARD_GRAVITY, DeskProfile, skew, spatial_inertia
+from hapticdesk.files.profile import (
+    STANDARD_GRAVITY,
+    DeskProfile,
+    SensorSpec,
+    skew,
+    spatial_inertia,
+)
 
 DEFAULT_MASS_KG = 13.7  # the paper's desk (Table 1)
 DEFAULT_SWAY_HZ = 5.9  # the paper's desk (§3.2)
+LEG_KINDS = ("auto", "clamped", "pinned")
+
+
+def measures_moment(sensor: SensorSpec) -> bool:
+    """True when some channel of ``sensor`` measures a moment (a six-axis sensor, a force
+    plate's amplifier), False for a load cell or a three-axis cell."""
+    return bool(np.abs(sensor.own_wrench_matrix()[3:]).any())
 
 
 def point_load(force: np.ndarray, point: np.ndarray) -> np.ndarray:
@@ -74,6 +97,10 @@ class DeskParameters:
       half the top board's height, the inflection point of a leg bent in double curvature).
     - ``leg_rotation_ratio``: each leg's rotational stiffness as a fraction of
       ``k_horizontal · leg_spring_height²`` (how much moment a leg joint resists itself).
+    - ``legs``: ``"clamped"`` (the 6-DOF springs above), ``"pinned"`` (each leg a strut on a
+      pin at its sensor: axial force only, held sideways at the sensor, no moment; the two
+      settings above do not apply) or ``"auto"``: pinned when no sensor of the desk measures
+      a moment (load cells, three-axis cells), clamped otherwise.
     """
 
     mass_kg: float | None = None
@@ -85,6 +112,7 @@ class DeskParameters:
     inertia_kg_m2: tuple[float, float, float] | None = None
     leg_spring_height_m: float | None = None
     leg_rotation_ratio: float = 0.25
+    legs: str = "auto"
 
 
 class DeskModel:
@@ -131,8 +159,16 @@ class DeskModel:
         # spatial inertia about the origin for small motions (d, θ): momentum = M [ḋ; θ̇]
         self.mass_matrix = spatial_inertia(self.mass_kg, com, inertia)
 
+        if params.legs not in LEG_KINDS:
+            raise ValueError(f"legs must be one of {', '.join(LEG_KINDS)}, found {params.legs!r}")
+        self.pinned = params.legs == "pinned" or (
+            params.legs == "auto" and not any(measures_moment(s) for s in sensors)
+        )
         h_spring = params.leg_spring_height_m
         h_spring = 0.5 * height if h_spring is None else float(h_spring)
+        rotation_ratio = params.leg_rotation_ratio
+        if self.pinned:  # the spring is the pin at the cell: no lever, no moment
+            h_spring, rotation_ratio = 0.0, 0.0
         self.spring_points = positions + np.array([0.0, 0.0, h_spring])
         # T_i: desk motion about the origin -> displacement and rotation at spring point i
         self._transfer = np.zeros((n, 6, 6))
@@ -142,7 +178,7 @@ class DeskModel:
 
         # vertical stiffness from the vertical mode of the desk as one mass on all legs
         k_vertical = self.mass_kg * (2 * math.pi * self.vertical_frequency_hz) ** 2 / n
-        rot_ratio = params.leg_rotation_ratio * max(h_spring, 0.05) ** 2
+        rot_ratio = rotation_ratio * max(h_spring, 0.05) ** 2
         sway_unit = np.array([1.0, 1.0, 0.0, rot_ratio, rot_ratio, rot_ratio])
         vert_unit = np.array([0.0, 0.0, k_vertical, 0.0, 0.0, 0.0])
         target = 2 * math.pi * self.sway_frequency_hz

@@ -4,12 +4,16 @@ The run is computed in fixed chunks of :data:`CHUNK` samples. Each chunk's senso
 from its own generator (spawned from the seed and the chunk's index) and the desk's state is
 carried from chunk to chunk, so :func:`simulate` and :class:`SimSource` give the same samples
 for any block size, and a seed gives the same run every time.
+
+A desk of six-axis sensors is sampled at its rate (:mod:`.sensors`). A desk of other sensors
+(load cells, three-axis cells: :mod:`.loadcells`) is simulated on a finer grid, each reading
+averaging its own conversion, and delivers its raw channels (k, C).
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
@@ -18,10 +22,12 @@ from hapticdesk.files.recording import Recording, accel_table
 from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.runtime.source import Source, WrenchBlock
 from hapticdesk.sim.desk import DeskModel, DeskParameters
+from hapticdesk.sim.loadcells import Conversions, LoadCellModel, LoadCellParameters, oversampling
 from hapticdesk.sim.scene import Scene
 from hapticdesk.sim.sensors import AccelerometerModel, SensorModel, SensorParameters
 from hapticdesk.sim.timeline import (
     STREAM_ACCEL,
+    STREAM_CLOCKS,
     STREAM_DRIFT,
     STREAM_NOISE,
     TRUTH_COLUMNS,
@@ -71,6 +77,7 @@ class SimulationRun:
         effects: SimEffects | None = None,
         desk: DeskParameters | None = None,
         sensors: SensorParameters | None = None,
+        cells: LoadCellParameters | None = None,
     ) -> None:
         effects = effects or SimEffects()
         if not noise:
@@ -86,16 +93,44 @@ class SimulationRun:
         self.scene = scene
         self.seed = int(scene.seed if seed is None else seed)
         self.effects = effects
-        self.timeline = Timeline(profile, scene, self.seed)
-        self.model = DeskModel(profile, desk)
-        self.sensor_model = SensorModel(profile, sensors, quantisation=effects.quantisation)
         self.fs = float(profile.sample_rate_hz)
-        self.n_samples = self.timeline.n_samples
+        self.model = DeskModel(profile, desk)
+        #: the load cells' model (a desk of sensors other than six-axis ones), else None
+        self.cells: LoadCellModel | None = None
+        if profile.six_axis_only:
+            if cells is not None:
+                raise ValueError(
+                    f"desk {profile.name!r} stands on six-axis sensors: give `sensors` "
+                    "(SensorParameters), not `cells`"
+                )
+            self.timeline = Timeline(profile, scene, self.seed)
+            self.sensor_model = SensorModel(profile, sensors, quantisation=effects.quantisation)
+            self.n_samples = self.timeline.n_samples
+        else:
+            if sensors is not None:
+                raise ValueError(
+                    f"desk {profile.name!r} has sensors other than six-axis ones: give `cells` "
+                    "(LoadCellParameters), not `sensors`"
+                )
+            cells = cells or LoadCellParameters.for_rate(self.fs)
+            points = oversampling(self.fs, profile.channel_count, cells.sampling)
+            conversions = Conversions.of(
+                cells.sampling,
+                profile.channel_count,
+                points,
+                cells.clock_tolerance,
+                stream(self.seed, STREAM_CLOCKS),
+            )
+            self.cells = LoadCellModel(profile, cells, conversions)
+            fine = replace(profile, sample_rate_hz=self.fs * points)
+            self.timeline = Timeline(fine, scene, self.seed)
+            self.n_samples = (self.timeline.n_samples - 1) // points + 1
         self._base = self.model.weight() if effects.desk_weight else np.zeros(6)
+        drift_model = self.cells if self.cells is not None else self.sensor_model
         self._drift = (
-            self.sensor_model.draw_drift(stream(self.seed, STREAM_DRIFT)) if effects.drift else None
+            drift_model.draw_drift(stream(self.seed, STREAM_DRIFT)) if effects.drift else None
         )
-        self._discrete = self.model.discretize(1.0 / self.fs) if effects.dynamics else None
+        self._discrete = self.model.discretize(1.0 / self.timeline.fs) if effects.dynamics else None
         self.accelerometer = AccelerometerModel(profile) if profile.accelerometers else None
         #: the per-sample columns of :meth:`chunks`' third item: the ground truth, then the
         #: accelerometers' readings when the desk has some (recordings' extra columns)
@@ -103,23 +138,16 @@ class SimulationRun:
 
     def chunks(self) -> Iterator[tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]]:
         """Yield ``(t, wrench, columns)`` chunk by chunk, from the start: ``columns`` maps
-        each of :attr:`columns` to its values."""
+        each of :attr:`columns` to its values; ``wrench`` is (k, S, 6) for a desk of six-axis
+        sensors, else the raw channels (k, C)."""
+        if self.cells is not None:
+            yield from self._cell_chunks(self.cells)
+            return
         state = None
         for c, k0 in enumerate(range(0, self.n_samples, CHUNK)):
             k1 = min(k0 + CHUNK, self.n_samples)
-            loads, truth = self.timeline.render(k0, k1)
-            loads += self._base
+            loads, truth, true, motion, state = self._desk(k0, k1, state)
             t = np.arange(k0, k1) / self.fs
-            motion = None
-            if self._discrete is not None:
-                if state is None:
-                    state = self._discrete.initial_state(loads[0])
-                if self.accelerometer is not None:
-                    true, motion, state = self._discrete.run_moving(loads, state)
-                else:
-                    true, state = self._discrete.run(loads, state)
-            else:
-                true = self.model.static_readings(loads)
             if self.accelerometer is not None:
                 truth.update(self._accelerometer(loads, motion, c))
             wrench = self.sensor_model.apply(
@@ -131,6 +159,61 @@ class SimulationRun:
                 saturation=self.effects.saturation,
             )
             yield t, wrench, truth
+
+    def _desk(
+        self, k0: int, k1: int, state: np.ndarray | None
+    ) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """The timeline's samples k0 … k1-1 on the desk: (loads (k, 6) with the desk's
+        weight, truth, the sensors' true readings (k, S, 6), the desk's motion where an
+        accelerometer needs it, the state to carry; ``state`` None: at rest under the first
+        load)."""
+        loads, truth = self.timeline.render(k0, k1)
+        loads += self._base
+        if self._discrete is None:
+            return loads, truth, self.model.static_readings(loads), None, state
+        if state is None:
+            state = self._discrete.initial_state(loads[0])
+        motion = None
+        if self.accelerometer is not None:
+            true, motion, state = self._discrete.run_moving(loads, state)
+        else:
+            true, state = self._discrete.run(loads, state)
+        return loads, truth, true, motion, state
+
+    def _cell_chunks(
+        self, cells: LoadCellModel
+    ) -> Iterator[tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]]:
+        """:meth:`chunks` of a desk of load cells: the desk on the fine grid, each reading
+        its conversion's average (:mod:`.loadcells`)."""
+        points = cells.conversions.points
+        n_fine = self.timeline.n_samples
+        history: np.ndarray | None = None
+        state = creep = None
+        for c, k0 in enumerate(range(0, self.n_samples, CHUNK)):
+            k1 = min(k0 + CHUNK, self.n_samples)
+            a, b = k0 * points, min(k1 * points, n_fine)
+            loads, truth, true, motion, state = self._desk(a, b, state)
+            fine = cells.channels(true)
+            if history is None:  # the desk stood still under its first load before
+                history = np.repeat(fine[:1], cells.conversions.history, axis=0)
+            k = np.arange(k0, k1)
+            converted = cells.convert(fine, a, history, k)
+            history = np.concatenate([history, fine])[-cells.conversions.history :]
+            t = k / self.fs
+            columns = {name: values[::points] for name, values in truth.items()}
+            if self.accelerometer is not None:
+                moving = None if motion is None else motion[::points]
+                columns.update(self._accelerometer(loads[::points], moving, c))
+            readings, creep = cells.apply(
+                converted,
+                t,
+                creep,
+                noise_rng=stream(self.seed, STREAM_NOISE, c) if self.effects.noise else None,
+                drift=self._drift,
+                quantisation=self.effects.quantisation,
+                saturation=self.effects.saturation,
+            )
+            yield t, readings, columns
 
     def _accelerometer(
         self, loads: np.ndarray, motion: np.ndarray | None, chunk: int
@@ -159,6 +242,7 @@ def simulate(
     effects: SimEffects | None = None,
     desk: DeskParameters | None = None,
     sensors: SensorParameters | None = None,
+    cells: LoadCellParameters | None = None,
 ) -> Recording:
     """Simulate ``scene`` on the desk ``profile`` into a recording with ground truth.
 
@@ -170,9 +254,13 @@ def simulate(
     apply, desk frame), ``true_surface`` and ``true_action`` (indices, -1 when not touching);
     then, for a desk with accelerometers, their readings ``acc_x, acc_y, acc_z``, ``acc2_x``, …
     (m/s², the axes the profile lists).
+
+    A desk of six-axis sensors takes ``sensors`` (default: the paper's); a desk of load cells
+    (or any other sensors) ``cells`` (default :meth:`LoadCellParameters.for_rate`), and its
+    recording holds the raw channels (k, C).
     """
     run = SimulationRun(
-        profile, scene, seed, noise=noise, effects=effects, desk=desk, sensors=sensors
+        profile, scene, seed, noise=noise, effects=effects, desk=desk, sensors=sensors, cells=cells
     )
     if run.n_samples > MAX_SIMULATE_SAMPLES:
         fs = run.fs
@@ -187,7 +275,8 @@ def simulate(
     t = np.concatenate([p[0] for p in parts])
     wrench = np.concatenate([p[1] for p in parts])
     extra = {c: np.concatenate([p[2][c] for p in parts]) for c in run.columns}
-    return Recording(t, wrench, profile.sensor_names, extra)
+    channels = None if profile.six_axis_only else profile.channel_names()
+    return Recording(t, wrench, profile.sensor_names, extra, channels)
 
 
 class SimSource(Source):
@@ -208,11 +297,19 @@ class SimSource(Source):
         effects: SimEffects | None = None,
         desk: DeskParameters | None = None,
         sensors: SensorParameters | None = None,
+        cells: LoadCellParameters | None = None,
     ) -> None:
         if block_size < 1:
             raise ValueError(f"block_size must be >= 1, found {block_size}")
         self.run = SimulationRun(
-            profile, scene, seed, noise=noise, effects=effects, desk=desk, sensors=sensors
+            profile,
+            scene,
+            seed,
+            noise=noise,
+            effects=effects,
+            desk=desk,
+            sensors=sensors,
+            cells=cells,
         )
         self.block_size = int(block_size)
         self.sensor_names = profile.sensor_names

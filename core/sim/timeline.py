@@ -38,6 +38,7 @@ STREAM_HUMAN = 1  # SeedSequence spawn keys: one stream per purpose, independent
 STREAM_NOISE = 2
 STREAM_DRIFT = 3
 STREAM_ACCEL = 4  # the accelerometer's noise
+STREAM_CLOCKS = 5  # independent converters' clocks (load cells)
 
 TRUTH_COLUMNS = (
     "true_x",

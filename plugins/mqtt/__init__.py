@@ -9,7 +9,7 @@
       keepalive: 60
       qos: 2                                # 2: a TOGGLE is delivered exactly once
       retain: false
-      discovery: false                      # Home Assistant: triggers, event, sensors
+      discovery: false                      # Home Assistant: true (= entity) or device
       base_topic: hapticdesk                # topics under <base_topic>/<desk>
       prefix: hapticdesk/site1/floor2/study # or the desk's whole prefix (not with base_topic)
       protocol: auto                        # MQTT 5 where the broker speaks it, else 3.1.1
@@ -30,8 +30,10 @@ while the layout loads, so ``hapticdesk check`` refuses what ``run`` would) and 
 (``lamp_tap``) and in full to ``<prefix>/event`` (JSON), with the retained availability
 ``<prefix>/availability`` (``online``; ``offline`` as last will), and the desk's state JSON
 (with ``action``) on ``<prefix>`` itself; a desk whose availability is already ``online``
-(another process of the same name) is refused at start. ``discovery: true`` announces the desk
-to Home Assistant (:mod:`.homeassistant`); ``action_style: zigbee2mqtt`` sends the actions
+(another process of the same name) is refused at start. ``discovery: true`` (or ``entity``, or
+``device`` for one config per desk) announces the desk to Home Assistant (:mod:`.homeassistant`),
+at the start and after every layout switch (:mod:`.announce`); ``action_style: zigbee2mqtt``
+sends the actions
 Zigbee2MQTT's remotes send (:mod:`.z2m`). Its ``control_channel`` listens on ``<prefix>/set``
 (:mod:`.control`).
 paho is imported only when the connection is opened.
@@ -39,6 +41,7 @@ paho is imported only when the connection is opened.
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 from typing import Any
 
@@ -56,6 +59,7 @@ from hapticdesk.plugins.mqtt.settings import (
 )
 from hapticdesk.plugins.mqtt.z2m import Zigbee2MqttActions, style_from_section
 from hapticdesk.plugins.templating import (
+    CHECK_EVENTS,
     Template,
     TemplatedValue,
     compile_template,
@@ -127,10 +131,20 @@ def _section(context: Any) -> Any:
     return settings.get(SECTION) if settings is not None else None
 
 
-def discovery_for(context: ActionContext, settings: MqttSettings) -> list[Any]:
-    """The run's Home Assistant discovery configs: the gestures, sensors and connectivity
-    (:mod:`.homeassistant`) and the desk's controls (:mod:`.control`); each has ``topic``
-    and ``payload``. The stale-config sweep keeps exactly these."""
+def layout_names(layout: Any) -> list[str]:
+    """The names a run can switch among (``default`` and the layout's ``layouts:``), or none."""
+    named = getattr(layout, "named_layouts", {}) or {}
+    return ["default", *named] if named else []
+
+
+def discovery_for(
+    context: ActionContext, settings: MqttSettings, layouts: list[str] | None = None
+) -> list[Any]:
+    """The run's Home Assistant discovery configs, one per trigger and entity: the gestures,
+    sensors and connectivity (:mod:`.homeassistant`) and the desk's controls
+    (:mod:`.control`); each has ``topic``, ``config`` and ``payload``. ``layouts``: the
+    select's options (default: the current layout's names; a run keeps those it started
+    with, as the runtime does)."""
     from hapticdesk.plugins.mqtt.control import control_entities
     from hapticdesk.plugins.mqtt.homeassistant import (
         ORIGIN,
@@ -150,17 +164,14 @@ def discovery_for(context: ActionContext, settings: MqttSettings) -> list[Any]:
         topics=topics,
         prefix=settings.discovery_prefix,
         qos=min(settings.qos, 1),
-        regions=list(getattr(context.layout, "regions", {}) or {}),
         node=node,
-        # with Zigbee2MQTT's action strings the triggers match the desk's own in the event
-        match_event_topic=style_from_section(_section(context))[0] == "zigbee2mqtt",
     )
-    named = getattr(context.layout, "named_layouts", {})
     controls = control_entities(
         desk=desk,
         set_topic=desk_topic(settings, desk, "set"),
+        state_topic=topics.prefix,
         availability_topic=topics.availability,
-        layouts=["default", *named] if named else [],
+        layouts=layout_names(context.layout) if layouts is None else layouts,
         device=device_info(desk, model, node),
         prefix=settings.discovery_prefix,
         node=node,
@@ -181,16 +192,23 @@ def open_link(context: ActionContext) -> MqttLink:
     birth = [Message(availability, b"online", 1, True, command=False)]
     birth_again_on = None
     if settings.discovery:
-        for config in discovery_for(context, settings):
-            birth.append(Message(config.topic, config.payload, 1, True, command=False))
-        # Home Assistant forgets non-retained state when it restarts; it says so here
+        # the discovery configs join the birth once announced (:mod:`.announce`); Home
+        # Assistant forgets non-retained state when it restarts, and says so here
         birth_again_on = (f"{settings.discovery_prefix}/status", b"online")
-    return MqttLink(
+    link = MqttLink(
         settings,
         will=Message(availability, b"offline", 1, True, command=False),
         birth=birth,
         birth_again_on=birth_again_on,
-    ).start()
+    )
+    # `set` before the link connects: it is granted before the desk says `online` (Home
+    # Assistant's select sends at once; subscribed when the run began, a second later, the
+    # desk had missed it). The run's control queue joins in the control_channel hook.
+    from hapticdesk.plugins.mqtt.control import SetTopic
+
+    topic = desk_topic(settings, context.desk_name, "set")
+    link.subscribe(topic, SetTopic(None, link.announce, topic))
+    return link.start()
 
 
 def refuse_a_second_desk(settings: MqttSettings, desk: str, availability: str) -> None:
@@ -270,9 +288,64 @@ class MqttAction:
         self.link.publish(topic, payload, qos=self.qos, retain=self.retain)
 
 
+def announcer_for(context: ActionContext) -> Any:
+    """The run's :class:`~.announce.Announcer` (with ``discovery``), started on first use."""
+    # (the link and the state first: ``shared`` holds its lock while it creates a resource)
+    link, state = link_for(context), desk_state(context)
+    return context.shared("mqtt-announcer", lambda: start_announcer(context, link, state))
+
+
+def start_announcer(context: ActionContext, link: MqttLink, state: Any) -> Any:
+    from hapticdesk.plugins.mqtt.announce import Announcer
+
+    settings = link.settings
+    state_topic = settings.desk_prefix(context.desk_name)
+    # the select's options and their files are those the run started with (as the runtime's)
+    names = layout_names(context.layout)
+    paths = {
+        name: _resolved(path)
+        for name, path in {"default": context.layout_path, **_named(context.layout)}.items()
+    }
+
+    def current_layout() -> str | None:
+        here = _resolved(context.layout_path)
+        return next((name for name, path in paths.items() if path == here), None)
+
+    def keep(step: list[tuple[str, bytes]]) -> None:
+        link.keep_announcing([Message(t, p, 1, True, command=False) for t, p in step if p])
+
+    def announced() -> None:
+        # the select reads the layout from the desk's state (and the sensors read theirs)
+        state.update(layout=current_layout())
+        with contextlib.suppress(RuntimeError):  # the link closed under a late announcement
+            link.publish(state_topic, state.snapshot(), qos=0, retain=False)
+
+    state.update(layout=current_layout())
+    return Announcer(
+        settings,
+        node=ha_node(settings, context.desk_name),
+        mode=settings.discovery_mode,
+        configs=lambda: discovery_for(context, settings, names),
+        keep=keep,
+        announced=announced,
+        ready=link.wait_ready,
+        mqtt5=lambda: link.mqtt5,
+    ).start()
+
+
+def _named(layout: Any) -> dict[str, Any]:
+    return dict(getattr(layout, "named_layouts", {}) or {})
+
+
+def _resolved(path: Any) -> Path | None:
+    return None if path is None else Path(path).resolve()
+
+
 class DeskPublisher:
     """Publishes every gesture to the desk's ``action``, ``event`` and state topics (a
-    dispatcher sink), and clears stale Home Assistant configs once at the start."""
+    dispatcher sink), each message with the run's count of events ``seq`` (two identical
+    taps in a row are two messages that differ: Home Assistant drops a state equal to the
+    last), and with ``discovery`` announces the desk to Home Assistant."""
 
     timeout_s = 2.0
 
@@ -285,28 +358,23 @@ class DeskPublisher:
         style, slide = style_from_section(_section(context))
         self.z2m = Zigbee2MqttActions(slide) if style == "zigbee2mqtt" else None
         self.state = desk_state(context)
-        self.sweep = None
+        self.seq = 0
         if settings.discovery:
-            from hapticdesk.plugins.mqtt.stale import start_sweep
-
-            wanted = [c.topic for c in discovery_for(context, settings)]
-            node = ha_node(settings, context.desk_name)
-            self.sweep = start_sweep(settings, settings.discovery_prefix, node, wanted)
+            announcer_for(context)
 
     def __call__(self, event: GestureEvent) -> None:
         action = event.action_name
-        if self.z2m is None:
-            payloads = [{**event.to_dict(), "action": action}]
-        else:
-            payloads = self.z2m(event)
+        self.seq += 1
+        whole = {**event.to_dict(), "action": action, "seq": self.seq}
+        payloads = [whole] if self.z2m is None else self.z2m(event)
         for payload in payloads:
             self.link.publish(self.action_topic, payload["action"], retain=False)
-            self.link.publish(self.state_topic, {**self.state.snapshot(), **payload}, retain=False)
-        self.link.publish(self.event_topic, {**event.to_dict(), "action": action}, retain=False)
-
-    def close(self) -> None:
-        if self.sweep is not None:
-            self.sweep.join(10.0)
+            self.link.publish(
+                self.state_topic,
+                {**self.state.snapshot(), **payload, "seq": self.seq},
+                retain=False,
+            )
+        self.link.publish(self.event_topic, whole, retain=False)
 
 
 @hookimpl
@@ -326,19 +394,32 @@ def desk_state(context: ActionContext) -> Any:
 
 @hookimpl
 def contact_sink(layout: Any, context: ActionContext) -> Any:
-    """With ``discovery: true``: force, touch position, resting load and occupancy on the
-    desk's state topic, throttled (:mod:`.sensors`), for Home Assistant's sensors."""
+    """With ``discovery``: force, touch position, resting load and occupancy on the desk's
+    state topic, throttled (:mod:`.sensors`), for Home Assistant's sensors, and a look, once
+    a block, for another layout in the run (then the desk is announced again); with or
+    without it, ``paused`` there when the desk is paused or resumed."""
     if not uses_mqtt(layout.raw, layout.bindings, broker_override(context)):
         return None
     link = link_for(context)
-    if not link.settings.discovery:
-        return None
     from hapticdesk.plugins.mqtt.sensors import SensorPublisher
 
     topic = link.settings.desk_prefix(context.desk_name)
-    return SensorPublisher(
-        desk_state(context), lambda payload: link.publish(topic, payload, qos=0, retain=False)
+    sensors = SensorPublisher(
+        desk_state(context),
+        lambda payload: link.publish(topic, payload, qos=0, retain=False),
+        sensors=link.settings.discovery,
     )
+    if not link.settings.discovery:
+        return sensors
+    from hapticdesk.plugins.mqtt.announce import LayoutWatch
+
+    watch = LayoutWatch(context, announcer_for(context).layout_changed)
+
+    def sink(summary: Any) -> None:
+        watch(summary)
+        sensors(summary)
+
+    return sink
 
 
 @hookimpl
@@ -349,13 +430,21 @@ def control_channel(control: Any, layout: Any, context: ActionContext) -> None:
     from hapticdesk.plugins.mqtt.control import SetTopic
 
     link = link_for(context)
-    topic = desk_topic(link.settings, context.desk_name, "set")
-    link.subscribe(topic, SetTopic(control, link.announce, topic))
+    commands = link.handler(desk_topic(link.settings, context.desk_name, "set"))
+    if isinstance(commands, SetTopic):  # subscribed when the link opened (open_link)
+        commands.attach(control)
 
 
 @hookimpl
 def register_layout_sections(register: Any) -> None:
-    register(SECTION, validate_section, "the MQTT broker, credentials, TLS, QoS and topics")
+    # the broker's address, credentials and TLS files: the operator's alone (a page that
+    # could change the broker would send the password there at the next start)
+    register(
+        SECTION,
+        validate_section,
+        "the MQTT broker, credentials, TLS, QoS and topics",
+        operator_only=True,
+    )
 
 
 @hookimpl
@@ -374,6 +463,7 @@ def register_actions(register: Any) -> None:
         MqttAction,
         "publish to an MQTT broker (templated topic and payload, QoS 0/1/2, TLS)",
         validate=validate,
+        check_events=CHECK_EVENTS,
         options={
             "topic": {"kind": "text", "required": True, "help": "e.g. zigbee2mqtt/lamp/set"},
             "payload": {"kind": "mapping", "help": 'JSON, e.g. {"state": "TOGGLE"}'},

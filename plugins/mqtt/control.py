@@ -6,13 +6,17 @@
     mosquitto_pub -t hapticdesk/study/set -m '{"layout": "evening"}'
 
 Each is handed to the run's control queue (the ``control_channel`` hook) and applied by the
-sensing thread between two blocks. What was done, or why not, is published (not retained) to
-``<prefix>/set/result`` as ``{"command": ..., "ok": bool, "message": ...}``, so a script or
-Home Assistant can see a refused layout name.
+sensing thread between two blocks. The topic is subscribed when the desk's connection opens,
+before the desk says it is ``online`` (Home Assistant sends as soon as it sees that); a
+command that comes before the run has begun waits for it. What was done, or why not, is
+published (not retained) to ``<prefix>/set/result`` as ``{"command": ..., "ok": bool,
+"message": ...}``, so a script or Home Assistant can see a refused layout name.
 
-With ``discovery: true`` the controls appear in Home Assistant beside the gestures: a
+With ``discovery`` the controls appear in Home Assistant beside the gestures: a
 *button* per command (Re-tare, Pause, Resume, Reload layout) and, when the layout names
-``layouts:``, a *select* of them; both publish to ``<prefix>/set``.
+``layouts:``, a *select* of them; both publish to ``<prefix>/set``. The select shows the
+layout the desk runs, from ``layout`` in the desk's state JSON (``<prefix>``), whoever
+switched it (the select, ``/set``, SIGHUP, the page) and after a restart.
 """
 
 from __future__ import annotations
@@ -21,13 +25,14 @@ import json
 import logging
 import math
 import re
+import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import dataclass
 from typing import Any
 
-from hapticdesk.runtime.control import ControlError, ControlQueue, parse_command
+from hapticdesk.runtime.control import ControlCommand, ControlError, ControlQueue, parse_command
 
 log = logging.getLogger(__name__)
 
@@ -50,12 +55,18 @@ LOG_EVERY_S = 10.0
 class SetTopic:
     """Turns messages on ``<prefix>/set`` into control requests; answers on ``…/set/result``.
 
-    ``publish(topic, payload)`` sends the answer (the run's MQTT link)."""
+    ``publish(topic, payload)`` sends the answer (the run's MQTT link). ``control``: the run's
+    queue, or None until :meth:`attach` gives it (the topic is subscribed before the run
+    begins): commands that come before are held, at most :data:`SET_BURST`, and queued then."""
 
-    def __init__(self, control: ControlQueue, publish: Callable[[str, Any], None], topic: str):
+    def __init__(
+        self, control: ControlQueue | None, publish: Callable[[str, Any], None], topic: str
+    ):
         self.control = control
         self.publish = publish
         self.topic = topic
+        self._held: list[ControlCommand] = []
+        self._lock = threading.Lock()  # paho's thread and the run's, around control and _held
         self.result_topic = f"{topic}/result"
         self._budget = float(SET_BURST)  # commands that may come at once (a token bucket)
         self._refilled = time.monotonic()
@@ -72,7 +83,26 @@ class SetTopic:
             log.warning("MQTT: %s: %s", self.topic, err)
             self._answer(None, False, str(err))
             return
-        future = self.control.request(command)
+        with self._lock:
+            if self.control is not None:
+                self._request(self.control, command)
+            elif len(self._held) < SET_BURST:
+                self._held.append(command)
+            else:
+                self._answer(
+                    str(command), False, f"the desk is starting; {SET_BURST} commands wait"
+                )
+
+    def attach(self, control: ControlQueue) -> None:
+        """The run's queue: the commands held so far go to it, in the order they came."""
+        with self._lock:
+            self.control = control
+            held, self._held = self._held, []
+            for command in held:
+                self._request(control, command)
+
+    def _request(self, control: ControlQueue, command: ControlCommand) -> None:
+        future = control.request(command)  # never blocks
         future.add_done_callback(lambda f: self._done(str(command), f))
 
     def _take(self) -> bool:
@@ -122,13 +152,15 @@ def control_entities(
     set_topic: str,
     availability_topic: str,
     layouts: list[str],
+    state_topic: str | None = None,
     device: dict[str, Any],
     prefix: str = "homeassistant",
     node: str | None = None,
     origin: dict[str, Any] | None = None,
 ) -> list[ControlEntity]:
     """Discovery configs of the desk's controls: a button per command, a select of layouts
-    (``node``: as for the desk's other configs; default from its name)."""
+    (``node``: as for the desk's other configs; default from its name) that reads the running
+    one from ``state_topic`` (without it the select only says what it sent)."""
     node = node or _OBJECT_ID.sub("_", desk)
     common: dict[str, Any] = {"command_topic": set_topic, "availability_topic": availability_topic}
     if origin is not None:  # Home Assistant's `origin`: this software, on every config
@@ -160,6 +192,16 @@ def control_entities(
                     "options": layouts,
                     "command_template": '{"command": "layout", "layout": "{{ value }}"}',
                     "device": device,
+                    **(
+                        {
+                            "state_topic": state_topic,
+                            # a state message without it (none so far) changes nothing
+                            "value_template": "{{ value_json.layout if value_json.layout is"
+                            " defined else '' }}",
+                        }
+                        if state_topic
+                        else {}
+                    ),
                 },
             )
         )

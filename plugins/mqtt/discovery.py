@@ -6,13 +6,20 @@ trigger``, a ``type`` (``button_short_press`` …, or the gesture's own name), t
 ``subtype``, and the desk's action topic and action string. Home Assistant then offers "lamp
 tapped" in its automation editor with nothing typed by hand.
 
-What one action string cannot tell apart gets its own trigger on the event topic with a
-``value_template`` (Home Assistant compares the rendered value with ``payload``):
+Every trigger listens on the desk's event topic and renders the desk's action string from the
+event's JSON with a ``value_template`` (Home Assistant compares the rendered value with
+``payload``), so an automation finds the gesture's data in ``trigger.payload_json`` (``x``,
+``y``, ``value``, ``level``, ``force_n``, ``hold_s``, ``seq``). What one action string cannot
+tell apart gets its own trigger:
 
 - long-press tiers (``hold_s`` 0.8 and 1.5 both give ``lamp_long_press``): one trigger per
-  tier, payload ``lamp_long_press_1.5s``, rendered from the event's ``hold_s``;
+  tier, payload ``lamp_long_press_1.5s``, rendered from the event's ``hold_s`` (hold for N
+  seconds); a binding's ``repeat: true`` adds a trigger for the repeats while held;
 - continuous gestures (``slide``, ``force``) trigger at their ``begin`` and ``end`` only; their
   updates go to the event entity, which carries the value (:mod:`.homeassistant`).
+
+Every template renders from keys every event has, or tests for the key first: Home Assistant
+renders each trigger's template on every message of the topic, and warns for each missing key.
 
 Press levels are distinct action strings already (``lamp_press_firm``). The action strings
 themselves never change (DESIGN.md, "The desk as an MQTT device").
@@ -37,9 +44,13 @@ TRIGGER_TYPES = {
 CONTINUOUS = ("slide", "force")  # gestures whose updates are values, not triggers
 _DETAIL_KEYS = ("shape", "direction", "level")
 _OBJECT_ID = re.compile(r"[^A-Za-z0-9_-]")
-# renders the tier of a long press as its trigger payload: lamp_long_press_1.5s
-TIER_TEMPLATE = "{{ value_json.action }}_{{ value_json.hold_s }}s"
-# the desk's own action string in the event's JSON (when the action topic carries another)
+# renders the tier of a long press as its trigger payload (lamp_long_press_1.5s); an event
+# without hold_s (a tap) renders its bare action, which no tier trigger matches
+TIER_TEMPLATE = (
+    "{{ value_json.action ~ ('_' ~ value_json.hold_s ~ 's' if value_json.hold_s is defined"
+    " else '') }}"
+)
+# the desk's own action string in the event's JSON (every event has it)
 ACTION_TEMPLATE = "{{ value_json.action }}"
 
 
@@ -145,38 +156,30 @@ def device_triggers(
     *,
     device: dict[str, Any],
     origin: dict[str, Any],
-    action_topic: str,
     event_topic: str,
     node: str,
     prefix: str = "homeassistant",
     qos: int = 1,
-    match_event_topic: bool = False,
 ) -> list[DeviceTrigger]:
     """The device-trigger discovery configs of a layout's bindings.
 
     Device triggers take no ``availability`` (Home Assistant's schema has none); the desk's
-    connectivity is its own binary sensor (:mod:`.homeassistant`). ``match_event_topic``:
-    the action topic carries other strings (``action_style: zigbee2mqtt`` sends
-    ``lamp_single`` for a tap), so every trigger matches the desk's own action string in the
-    event's JSON instead (they had matched ``lamp_tap`` on the action topic, and never fired)."""
+    connectivity is its own binary sensor (:mod:`.homeassistant`). Every trigger matches the
+    desk's own action string in the event's JSON (see the module docstring), whatever the
+    action topic carries (``action_style: zigbee2mqtt`` sends ``lamp_single`` there)."""
     out = []
     for spec in trigger_specs(bindings):
         config: dict[str, Any] = {
             "automation_type": "trigger",
             "type": spec.kind,
             "subtype": spec.subtype,
-            "topic": action_topic,
+            "topic": event_topic,
+            "value_template": ACTION_TEMPLATE if spec.hold_s is None else TIER_TEMPLATE,
             "payload": spec.payload,
             "qos": qos,
             "device": device,
             "origin": origin,
         }
-        if spec.hold_s is not None:
-            config["topic"] = event_topic
-            config["value_template"] = TIER_TEMPLATE
-        elif match_event_topic:
-            config["topic"] = event_topic
-            config["value_template"] = ACTION_TEMPLATE
         out.append(
             DeviceTrigger(
                 f"{prefix}/device_automation/{node}/{object_id(spec.payload)}/config", config

@@ -22,6 +22,7 @@ against a table of the documented keys.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
@@ -139,22 +140,38 @@ PHASES = {
 }
 
 
-def event_types(bindings: Iterable[Any], regions: Iterable[str] = ()) -> list[str]:
+def event_types(bindings: Iterable[Any]) -> list[str]:
     """Every action string the desk can publish for the layout's bindings (the event
-    entity's ``event_types``; Home Assistant drops an event whose type is not listed).
+    entity's ``event_types``).
 
-    A binding without a region hears its gesture in every region (and outside them, ``desk``);
-    a recognizer emits all its phases, and details (shape, direction, level) or none."""
-    regions = [*regions, None]
+    A recognizer reports a gesture in a region only where that gesture is bound to the region;
+    anywhere else it reports no region (``desk``), and only when a binding of that gesture has
+    no region. So a swipe bound without a region gives ``desk_swipe_up`` and never
+    ``lamp_swipe_up``, and a stroke bound on ``pad`` gives ``pad_stroke_circle`` and never
+    ``desk_stroke_circle``. A recognizer emits all its phases, and details (shape, direction,
+    level) or none."""
     types: set[str] = set()
     for b in bindings:
-        details = [{}, *details_of(b)]
-        for region in [b.region] if b.region is not None else regions:
+        for detail in [{}, *details_of(b)]:
             for phase in PHASES.get(b.gesture, (None,)):
-                for detail in details:
-                    event = GestureEvent(0.0, b.gesture, region, 0.0, 0.0, phase=phase, **detail)
-                    types.add(event.action_name)
+                event = GestureEvent(0.0, b.gesture, b.region, 0.0, 0.0, phase=phase, **detail)
+                types.add(event.action_name)
     return sorted(types)
+
+
+def event_template(types: Iterable[str]) -> str:
+    """The event entity's ``value_template``: the event's JSON with ``event_type`` (Home
+    Assistant's key) set to its ``action``, and nothing for an action not in ``types``.
+
+    Home Assistant drops an event whose type is not listed, and warns for each one; the desk
+    publishes every gesture its recognizers see (a swipe is also a ``stroke`` of shape
+    ``line``, a shape no binding asked for), so those render empty, which Home Assistant
+    ignores without a word."""
+    listed = json.dumps(sorted(types))
+    return (
+        f"{{% if value_json.action in {listed} %}}"
+        "{{ dict(value_json, event_type=value_json.action) | tojson }}{% endif %}"
+    )
 
 
 def discovery_configs(
@@ -166,9 +183,7 @@ def discovery_configs(
     prefix: str = "homeassistant",
     qos: int = 1,
     sensors: bool = True,
-    regions: Iterable[str] = (),
     node: str | None = None,
-    match_event_topic: bool = False,
 ) -> list[DeviceTrigger]:
     """Every discovery config of the desk (device triggers, event entity, sensors,
     connectivity), as (topic, config) pairs. ``node``: the desk's node id in the topics and
@@ -180,12 +195,10 @@ def discovery_configs(
         bindings,
         device=device,
         origin=ORIGIN,
-        action_topic=topics.action,
         event_topic=topics.event,
         node=node,
         prefix=prefix,
         qos=qos,
-        match_event_topic=match_event_topic,
     )
 
     def entity(component: str, name: str, config: dict[str, Any]) -> DeviceTrigger:
@@ -197,7 +210,7 @@ def discovery_configs(
         }
         return DeviceTrigger(f"{prefix}/{component}/{node}/{name}/config", {**common, **config})
 
-    types = event_types(bindings, regions)
+    types = event_types(bindings)
     if types:
         out.append(
             entity(
@@ -207,9 +220,7 @@ def discovery_configs(
                     "name": "Gesture",
                     "state_topic": topics.event,
                     "event_types": types,
-                    # the event JSON carries `action`; Home Assistant wants `event_type`
-                    "value_template": "{{ dict(value_json, event_type=value_json.action)"
-                    " | tojson }}",
+                    "value_template": event_template(types),
                     "availability_topic": topics.availability,
                 },
             )

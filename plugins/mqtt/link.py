@@ -25,7 +25,10 @@ back is used within a second; publishing does not shorten or lengthen that wait.
 *refuses the login* (bad user name or password, not authorised) is not retried: that is a
 configuration error, said once, and every command is reported as not delivered.
 Announcements (availability, discovery) are coalesced by topic and bounded, so a chatty
-``homeassistant/status`` cannot grow them. The password never appears in ``repr`` or the log.
+``homeassistant/status`` cannot grow them. On every connect the subscriptions go first and the
+birth (``online``, the discovery configs kept) only once the broker has granted them: whoever
+acts on seeing the desk ``online`` (Home Assistant's select) reaches it. The password never
+appears in ``repr`` or the log.
 """
 
 from __future__ import annotations
@@ -85,6 +88,7 @@ class MqttLink:
         self.stats = LinkStats()
         self._will = will
         self._birth = list(birth)
+        self._kept: list[Message] = []  # announcements added while running (discovery)
         self._birth_again_on = birth_again_on
         self._subscriptions: dict[str, tuple[int, Callable[[bytes], None]]] = {}
         self._cond = threading.Condition()
@@ -100,6 +104,10 @@ class MqttLink:
         # set when close begins: nothing is taken after it, the goodbye is the last message
         self._sealed = False
         self._ever_connected = threading.Event()
+        #: connected, the subscriptions granted and the birth queued (cleared on a disconnect)
+        self._ready = threading.Event()
+        #: the SUBSCRIBE (message id, topics) whose SUBACK lets the birth go
+        self._birth_after: tuple[int, list[tuple[str, int]]] | None = None
         self._outage_logged = False
         self.refused: str | None = None  # why the broker refused the login, if it did
         #: paho's protocol constant in use: MQTT 5 until the broker turns it down (``auto``)
@@ -158,22 +166,49 @@ class MqttLink:
                 self._control.popleft()
             self._cond.notify_all()
 
+    def keep_announcing(self, messages: Sequence[Message], *, now: bool = False) -> None:
+        """Send ``messages`` (retained announcements: Home Assistant's discovery configs) with
+        the birth on every (re)connect and when ``birth_again_on`` comes, in place of those
+        kept before; ``now``: also queue them at once (when nothing else has sent them)."""
+        with self._cond:
+            self._kept = list(messages)
+            if now and self._ready.is_set():
+                self._announce(self._kept)
+
     def subscribe(self, topic: str, on_message: Callable[[bytes], None], *, qos: int = 0) -> None:
         """Call ``on_message(payload)`` (on paho's thread: it must not block) for every
         message on ``topic``, subscribed again on every connect. QoS 0 by default: a command
-        sent while the desk was away is not kept by the broker to arrive late."""
+        sent while the desk was away is not kept by the broker to arrive late. Made before
+        :meth:`start`, the subscription is granted before the birth is sent."""
         with self._cond:
             self._subscriptions[topic] = (qos, on_message)
-        if self._connected:
+            connected = self._connected
+        if connected:
             self._client.subscribe(topic, qos=qos)
+
+    def handler(self, topic: str) -> Callable[[bytes], None] | None:
+        """What :meth:`subscribe` calls for ``topic`` (None when not subscribed)."""
+        with self._cond:
+            subscribed = self._subscriptions.get(topic)
+        return None if subscribed is None else subscribed[1]
 
     def wait_connected(self, timeout: float) -> bool:
         """True once the first connection is up (for the demo and tests)."""
         return self._ever_connected.wait(timeout)
 
+    def wait_ready(self, timeout: float) -> bool:
+        """True once connected with every subscription granted and the birth queued: what is
+        announced after this finds the desk listening."""
+        return self._ready.wait(timeout)
+
     @property
     def connected(self) -> bool:
         return self._connected
+
+    @property
+    def mqtt5(self) -> bool:
+        """Whether the link speaks MQTT 5 (``protocol: auto`` finds out when it connects)."""
+        return bool(self.protocol == self._mqtt.MQTTv5)
 
     @property
     def failure(self) -> str | None:
@@ -184,6 +219,12 @@ class MqttLink:
         if s.pending or s.dropped:
             return f"{s.pending + s.dropped} MQTT command(s) not delivered to {self.settings.url}"
         return None
+
+    @property
+    def undelivered(self) -> int:
+        """After :meth:`close`: commands queued but never delivered (dropped from the full
+        queue, or still waiting at the end); the run's summary says so."""
+        return self.stats.pending + self.stats.dropped
 
     def flush(self, timeout: float) -> bool:
         """Wait until every queued command is acknowledged; False after ``timeout``."""
@@ -255,16 +296,24 @@ class MqttLink:
                 log.error("MQTT: %s refused the connection: %s", self.settings.url, reason)
                 self._outage_logged = True
             return
-        if self._birth_again_on is not None:
-            client.subscribe(self._birth_again_on[0], qos=1)
         with self._cond:
-            subscriptions = list(self._subscriptions.items())
-        for topic, (qos, _) in subscriptions:
-            client.subscribe(topic, qos=qos)
-        with self._cond:
+            # connected before the subscriptions are read, under one lock: a subscribe() from
+            # now on subscribes itself, one before is in the list (the `set` topic, subscribed
+            # in between, had been in neither, and the desk deaf to its commands)
             self._connected = True
             self._resuming = bool(self._inflight)
-            self._announce(self._birth)
+            wanted = [(topic, qos) for topic, (qos, _) in self._subscriptions.items()]
+            if self._birth_again_on is not None:
+                wanted.append((self._birth_again_on[0], 1))
+            if not wanted:
+                self._born()
+        if wanted:
+            # the birth waits for the SUBACK (_on_subscribe): said `online` while `set` was
+            # not yet subscribed, the desk lost the command Home Assistant sent on seeing it.
+            # (The SUBACK is read on this thread, so it cannot come before _birth_after is set.)
+            _, mid = client.subscribe(wanted)
+            with self._cond:
+                self._birth_after = (mid, wanted)
         if self._outage_logged:
             log.warning("MQTT: connected to %s again", self.settings.url)
             self._outage_logged = False
@@ -275,8 +324,10 @@ class MqttLink:
     def _on_disconnect(
         self, client: Any, userdata: Any, flags: Any, reason: Any, props: Any
     ) -> None:
+        self._ready.clear()
         with self._cond:
             self._connected = False
+            self._birth_after = None
             # paho resends QoS 1/2 messages after reconnecting; a QoS 0 message that was not
             # yet written is gone (at most once), so stop waiting for it
             for mid in [mid for mid, m in self._inflight.items() if m.qos == 0]:
@@ -300,6 +351,28 @@ class MqttLink:
             log.warning("MQTT: cannot reach %s; retrying", self.settings.url)
             self._outage_logged = True
 
+    def _on_subscribe(self, client: Any, userdata: Any, mid: int, reasons: Any, props: Any) -> None:
+        with self._cond:
+            if self._birth_after is None or self._birth_after[0] != mid:
+                return  # a subscribe() made later, while connected
+            wanted = self._birth_after[1]
+            self._birth_after = None
+            self._born()
+        for (topic, _), reason in zip(wanted, reasons, strict=False):
+            if getattr(reason, "is_failure", False):  # e.g. an ACL that denies the topic
+                log.warning(
+                    "MQTT: %s refused the subscription to %s (%s); messages sent there do "
+                    "not reach this desk",
+                    self.settings.url,
+                    topic,
+                    reason,
+                )
+
+    def _born(self) -> None:
+        """(under self._cond) Send the birth and the kept announcements: the desk is ready."""
+        self._announce(self._birth + self._kept)
+        self._ready.set()
+
     def _on_publish(self, client: Any, userdata: Any, mid: int, reason: Any, props: Any) -> None:
         with self._cond:
             message = self._inflight.pop(mid, None)
@@ -319,7 +392,7 @@ class MqttLink:
             return
         if self._birth_again_on and message.payload == self._birth_again_on[1]:
             with self._cond:
-                self._announce(self._birth)
+                self._announce(self._birth + self._kept)
 
     def _announce(self, messages: Sequence[Message]) -> None:
         """Queue announcements (under ``self._cond``): one per topic, the newest, bounded."""
@@ -357,6 +430,7 @@ class MqttLink:
         client.on_connect = self._on_connect
         client.on_disconnect = self._on_disconnect
         client.on_publish = self._on_publish
+        client.on_subscribe = self._on_subscribe
         client.on_message = self._on_message
         client.on_connect_fail = self._on_connect_fail
         client.reconnect_delay_set(RECONNECT_MIN_S, RECONNECT_MAX_S)

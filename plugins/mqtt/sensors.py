@@ -30,6 +30,8 @@ class DeskState:
             "y": None,
             "resting_load_n": 0.0,
             "occupancy": False,
+            "paused": False,  # gestures not sent (a pause from `set`): said, not hidden
+            "layout": None,  # the running layout's name (the select of layouts reads it)
         }
 
     def update(self, **values: Any) -> None:
@@ -44,16 +46,25 @@ class DeskState:
 class SensorPublisher:
     """A ``contact_sink``: throttles the contact state into state-JSON messages."""
 
-    def __init__(self, state: DeskState, publish: Any) -> None:
-        """``publish(payload)`` queues one state JSON (a dict)."""
+    def __init__(self, state: DeskState, publish: Any, sensors: bool = True) -> None:
+        """``publish(payload)`` queues one state JSON (a dict); ``sensors`` False: only when
+        the desk is paused or resumed (a desk without Home Assistant discovery)."""
         self.state = state
         self.publish = publish
+        self.sensors = sensors
+        self._paused = False
         self._next_t = float("-inf")
         self._last_touch_t: float | None = None
         self._occupied = False
         self._first_zero: float | None = None
 
     def __call__(self, s: ContactSummary) -> None:
+        if s.paused != self._paused:  # at once, whatever the rate
+            self._paused = s.paused
+            self.state.update(paused=s.paused)
+            self.publish(self.state.snapshot())
+        if not self.sensors:
+            return
         if s.in_contact:
             self._last_touch_t = s.t
         occupied = self._last_touch_t is not None and s.t - self._last_touch_t < OCCUPANCY_HOLD_S

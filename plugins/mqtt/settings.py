@@ -73,6 +73,9 @@ class MqttSettings:
     qos: int = 2
     retain: bool = False
     discovery: bool = False
+    #: how the desk is announced with ``discovery``: ``entity`` (one config per trigger and
+    #: entity, any Home Assistant) or ``device`` (one config, Home Assistant 2024.11 or later)
+    discovery_mode: str = "entity"
     discovery_prefix: str = "homeassistant"
     base_topic: str = DEFAULT_BASE_TOPIC
     #: the desk's whole topic prefix when given (``hapticdesk/site1/floor2/study``); else
@@ -199,12 +202,10 @@ def settings_from_layout(
     client_id = str(m.get("client_id", own_prefix.strip("/").replace("/", "-")))
     if not client_id or len(client_id) > 128:
         raise ConfigError(m.where("client_id"), "`client_id` must be 1 to 128 characters")
-    flags: dict[str, bool] = {}
-    for key_name in ("retain", "discovery"):
-        value = as_flag(m.get(key_name, False))
-        if not isinstance(value, bool):
-            raise ConfigError(m.where(key_name), f"`{key_name}` of `mqtt` must be true or false")
-        flags[key_name] = value
+    retain = as_flag(m.get("retain", False))
+    if not isinstance(retain, bool):
+        raise ConfigError(m.where("retain"), "`retain` of `mqtt` must be true or false")
+    discovery, discovery_mode = _discovery(m)
     return MqttSettings(
         host=host,
         port=port,
@@ -217,8 +218,9 @@ def settings_from_layout(
         client_id=client_id,
         keepalive=int(number(m, "keepalive", "`mqtt`", default=60, minimum=5, maximum=65535)),
         qos=qos_of(m, "`mqtt`", 2),
-        retain=flags["retain"],
-        discovery=flags["discovery"],
+        retain=retain,
+        discovery=discovery,
+        discovery_mode=discovery_mode,
         discovery_prefix=str(m.get("discovery_prefix", "homeassistant")).strip("/"),
         base_topic=str(m.get("base_topic", DEFAULT_BASE_TOPIC)).strip("/"),
         prefix=str(m["prefix"]).strip("/") if "prefix" in m else None,
@@ -236,6 +238,25 @@ def settings_from_layout(
         expiry_s=int(
             number(m, "expiry_s", "`mqtt`", default=DEFAULT_EXPIRY_S, minimum=0, maximum=2**32 - 1)
         ),
+    )
+
+
+#: ``discovery:`` values: off, or the shape of Home Assistant's discovery (``true``: entity)
+DISCOVERY_MODES = ("entity", "device")
+
+
+def _discovery(m: MarkedDict) -> tuple[bool, str]:
+    """(``discovery`` on, its mode) from ``discovery: false | true | entity | device``."""
+    value = as_flag(m.get("discovery", False))
+    if isinstance(value, bool):
+        return value, DISCOVERY_MODES[0]
+    if value in DISCOVERY_MODES:
+        return True, str(value)
+    raise ConfigError(
+        m.where("discovery"),
+        "`discovery` of `mqtt` must be false, true (= entity), entity (one config per "
+        "trigger and entity, any Home Assistant) or device (one config for the desk, Home "
+        f"Assistant 2024.11 or later), found {value!r}",
     )
 
 

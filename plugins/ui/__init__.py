@@ -41,6 +41,10 @@ def event_sink(desk: Any, layout: Any, context: Any) -> Any:
     if not wanted:
         return None
 
+    from hapticdesk.extras import require
+
+    require("starlette", "uvicorn", "ruamel.yaml", needed_by="the browser UI (`--ui`)")
+
     def open_server() -> Any:
         from hapticdesk.plugins.ui.server import UiServer, parse_listen
 

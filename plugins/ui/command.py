@@ -3,10 +3,12 @@
     hapticdesk ui [--layout L] [--desk D] [--source SPEC] [--speed X] [--host H] [--port P]
 
 Like ``run`` without actions (``--actions`` runs them): the layout's gestures are recognised
-and shown, nothing is sent. ``--source`` defaults to the simulator playing the demo scene.
-The page stays up after a finite source ends, until Ctrl-C. Without ``--layout`` the demo
-layout is shown and cannot be saved. Listening anywhere but loopback needs a token
-(``--token`` or ``HAPTICDESK_UI_TOKEN``; the URL printed carries it).
+and shown, nothing is sent. A ``--layout`` that does not exist yet is created as ``hapticdesk
+init`` makes one (for ``--desk``, else the paper's desk). ``--source`` defaults to the
+simulator playing the demo scene. The page stays up after a finite source ends, until
+Ctrl-C. Without ``--layout`` the demo layout is shown and cannot be saved. Listening anywhere
+but loopback needs a token (``--token`` or ``HAPTICDESK_UI_TOKEN``; the URL printed carries
+it).
 """
 
 from __future__ import annotations
@@ -24,7 +26,9 @@ TOKEN_ENV = "HAPTICDESK_UI_TOKEN"
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--layout", help="the layout YAML to show and edit (saved in place)")
+    parser.add_argument(
+        "--layout", help="the layout YAML to show and edit (saved in place; created if missing)"
+    )
     parser.add_argument("--desk", help="desk profile name or path (overrides the layout's desk:)")
     parser.add_argument(
         "--source", help="sim:SCENE.yaml, replay:FILE, can:IF:CHANNEL (default: the demo scene)"
@@ -39,13 +43,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    try:
-        import starlette  # noqa: F401
-        import uvicorn  # noqa: F401
-    except ImportError:
-        raise ConfigError(
-            None, "the browser UI needs the `ui` extra: pip install 'hapticdesk[ui]'"
-        ) from None
+    from hapticdesk.extras import require
+
+    require("starlette", "uvicorn", "ruamel.yaml", needed_by="the browser UI")
     if not 0 <= args.port <= 65535:  # (uvicorn's bind failed with a traceback in its thread)
         raise ConfigError("--port", f"expected a port 0..65535, found {args.port}")
     from hapticdesk.files.profile import load_profile
@@ -58,6 +58,11 @@ def run(args: argparse.Namespace) -> int:
 
     examples = examples_dir()
     layout = Path(args.layout) if args.layout else examples / "layouts" / "demo.yaml"
+    if args.layout and not layout.exists():  # a new layout: started as `hapticdesk init` does
+        from hapticdesk.commands.init import DEFAULT_DESK, write_starter
+
+        desk = write_starter(layout, args.desk or DEFAULT_DESK)
+        print(f"hapticdesk ui: created {layout}, a new layout for desk {desk}", file=sys.stderr)
     source = args.source or f"sim:{examples / 'scenes' / 'demo.yaml'}"
     registry = load_registry()
     token = args.token or os.environ.get(TOKEN_ENV)

@@ -7,9 +7,7 @@ with ruamel.yaml's round trip, so the user's comments, key order and flow style 
 
 from __future__ import annotations
 
-import collections
 import io
-import json
 import os
 import re
 import tempfile
@@ -40,73 +38,6 @@ def error_dict(err: ConfigError) -> dict[str, Any]:
 def message_error(message: str) -> dict[str, Any]:
     """An error with no place in the layout file, as :func:`error_dict` gives one."""
     return {"line": 0, "column": 0, "message": message}
-
-
-def exec_added(layout_path: Path, new: Any, registry: Any, desk: Any = None) -> list[dict]:
-    """Refuse a save (``new``, the layout it loads as) that adds or changes ``exec`` actions,
-    or names another layout file to switch to: a page may not make the desk run programs
-    (README, "Browser UI": no exec runs from the page). An ``exec`` use already in the file
-    may stay, as it is, on its gesture; one whose argv was changed, or that moved to another
-    binding, is a new one (counting the uses let a save that edited the one there was run any
-    program)."""
-    from hapticdesk.runtime.assembly import load_scene_layout
-
-    def uses(layout: Any) -> tuple[list[tuple[str, Position]], set[Path]]:
-        execs = [
-            (_exec_key(b, u.options), u.position)
-            for b in layout.bindings
-            for u in b.actions
-            if u.name == "exec" or _reads_a_file(u.options)
-        ]
-        return execs, {p.resolve() for p in layout.named_layouts.values()}
-
-    try:
-        on_disk = (
-            load_scene_layout(layout_path, registry, desk)[0] if layout_path.is_file() else None
-        )
-        before, files_before = uses(on_disk) if on_disk is not None else ([], set())
-    except ConfigError:
-        before, files_before = [], set()
-    after, files_after = uses(new)
-    kept = collections.Counter(key for key, _ in before)
-    for key, where in after:
-        if kept[key] > 0:
-            kept[key] -= 1
-            continue
-        return [
-            {
-                "line": where.line,
-                "column": where.column,
-                "message": "the page may not add or change `exec` actions, or actions that read "
-                "a file (an http header's `file:`); edit them in the file by hand",
-            }
-        ]
-    if files_after - files_before:
-        return [
-            {
-                "line": 1,
-                "column": 1,
-                "message": "the page may not name other layout files under `layouts:` (they "
-                "may run programs); add them to the file by hand",
-            }
-        ]
-    return []
-
-
-def _reads_a_file(options: Any) -> bool:
-    """Whether an action's options name a file it reads when it runs (an http header's
-    ``{file: PATH}``, sent with each request: a page could send any file anywhere)."""
-    if isinstance(options, dict):
-        return "file" in options or any(_reads_a_file(v) for v in options.values())
-    if isinstance(options, list):
-        return any(_reads_a_file(v) for v in options)
-    return False
-
-
-def _exec_key(binding: Any, options: Any) -> str:
-    """An exec use as what it runs and on which gesture, comparable across two loads."""
-    trigger = {k: v for k, v in vars(binding).items() if k not in ("actions", "index", "position")}
-    return json.dumps([trigger, options], sort_keys=True, default=str)
 
 
 def save_layout_text(layout_path: Path, text: str) -> None:

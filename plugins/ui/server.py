@@ -24,7 +24,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from hapticdesk.files.yamlfile import ConfigError, reads_confined_to
+from hapticdesk.files.yamlfile import ConfigError, load_marked_yaml, reads_confined_to
 from hapticdesk.plugins.ui.layout_edit import desk_message, message_error
 from hapticdesk.plugins.ui.layout_edit import error_dict as error_of
 
@@ -64,21 +64,57 @@ def parse_listen(text: str) -> tuple[str, int]:
 
 #: the largest WebSocket message a client may send (the page sends none)
 WS_MAX_MESSAGE_BYTES = 4096
+#: browser pages (WebSocket clients) served at once; one more is refused, saying so (1,500
+#: idle clients had been taken, 229 MB)
+MAX_WS_CLIENTS = 32
+#: connections uvicorn serves at once (pages and API calls); beyond, it answers 503
+MAX_CONNECTIONS = MAX_WS_CLIENTS + 32
+#: the cookie the page's own requests carry the token in (its scripts and styles under
+#: /static are fetched by the browser, which adds no ?token= to them)
+TOKEN_COOKIE = "hapticdesk_token"
+#: names (besides IP addresses and the machine's own names) a server listening on every
+#: address answers to, comma-separated
+HOSTS_ENV = "HAPTICDESK_UI_HOSTS"
 #: the names a server bound to loopback answers to: another Host is a page of another site
 #: reaching it through DNS rebinding
 LOOPBACK_NAMES = {"127.0.0.1", "localhost", "::1"}
 
 
-def same_origin(headers: Any, bound: str) -> bool:
+def host_names() -> frozenset[str]:
+    """The names a server listening beyond loopback answers to: the machine's own names,
+    loopback names, and those in $HAPTICDESK_UI_HOSTS (IP addresses always)."""
+    import os
+    import socket
+
+    names = {*LOOPBACK_NAMES, socket.gethostname(), socket.getfqdn()}
+    names |= {n.strip() for n in os.environ.get(HOSTS_ENV, "").split(",") if n.strip()}
+    return frozenset(n.lower() for n in names)
+
+
+def _is_address(name: str) -> bool:
+    import ipaddress
+
+    try:
+        ipaddress.ip_address(name)
+    except ValueError:
+        return False
+    return True
+
+
+def same_origin(headers: Any, bound: str, names: frozenset[str] | None = None) -> bool:
     """Whether a request comes from the page itself: an ``Origin`` (sent by browsers on
-    cross-site requests and every WebSocket) naming the host it was sent to, and, on a server
-    bound to loopback, a ``Host`` that is a loopback name. Without this any web site the user
-    visited could read the live desk and save layouts through the user's browser."""
+    cross-site requests and every WebSocket) naming the host it was sent to, and a ``Host``
+    the server answers to: on loopback a loopback name, elsewhere an IP address or one of
+    ``names`` (:func:`host_names`). Without this any web site the user visited could read
+    the live desk and save layouts through the user's browser, and a name of an attacker's
+    resolving to this machine (DNS rebinding) reach it as if it were the page."""
     host = headers.get("host", "")
+    name = (host[1:].split("]")[0] if host.startswith("[") else host.rsplit(":", 1)[0]).lower()
     if bound in LOOPBACK_NAMES:
-        name = host[1:].split("]")[0] if host.startswith("[") else host.rsplit(":", 1)[0]
         if name not in LOOPBACK_NAMES:
             return False
+    elif not (_is_address(name) or name in (names if names is not None else host_names())):
+        return False
     origin = headers.get("origin")
     if origin is None:
         return True  # not from a browser's cross-site request (curl, a same-origin GET)
@@ -94,6 +130,28 @@ async def _close_on_message(socket: Any, client: Any) -> None:
     except Exception:  # (the socket is gone already)
         pass
     client.wake.set()  # the sending loop finds the socket closed and ends
+
+
+class _OneLineErrors:
+    """The app, with an error no handler expected logged as one line (``--debug`` shows its
+    traceback) after Starlette answered it (500, JSON): ``/api/setup/finish`` on points of
+    any shape had written a traceback into the log."""
+
+    def __init__(self, app: Any) -> None:
+        self.app = app
+
+    @property
+    def routes(self) -> Any:
+        """The wrapped app's routes (the reference of the HTTP contract is made from them)."""
+        return self.app.routes
+
+    async def __call__(self, scope: Any, receive: Any, send: Any) -> None:
+        try:
+            await self.app(scope, receive, send)
+        except Exception as err:  # (answered already by the app's handler for Exception)
+            log.error("ui: %s %s failed: %s: %s", scope.get("method", "WS"), scope.get("path"),
+                      type(err).__name__, err)  # fmt: skip
+            log.debug("the error's traceback", exc_info=True)
 
 
 class _Client:
@@ -132,12 +190,22 @@ class UiServer:
         self._registry = registry
         self.host, self.port = host, port
         self._read_roots: list[Path] | None = None  # (see _confined)
+        # the layout as the operator started with it: what a page may not add to or change
+        # (read now; its held parts are made once the run's registry is known)
+        try:
+            self._started_doc: Any = load_marked_yaml(self.layout_path)
+        except ConfigError:
+            self._started_doc = None
+        self._secrets: Any = None
         self.token = token
         self.desk = desk  # a DeskProfile overriding the layout's desk:, or None
         self.read_only = read_only  # the shipped demo layout: shown, never written
         self.runtime: Any = None
         self.setup: Any = None  # the set-up check session recording, or None
         self._clients: set[_Client] = set()
+        self._sockets = 0  # WebSockets accepted and not yet closed (see MAX_WS_CLIENTS)
+        self.refused_sockets = 0
+        self._host_names = host_names()
         self._loop: asyncio.AbstractEventLoop | None = None
         self._server: Any = None
         self._thread: threading.Thread | None = None
@@ -160,6 +228,7 @@ class UiServer:
             log_level="warning",
             lifespan="on",
             ws_max_size=WS_MAX_MESSAGE_BYTES,  # the page sends nothing; uvicorn's 16 MB each
+            limit_concurrency=MAX_CONNECTIONS,
         )
         self._server = uvicorn.Server(config)
         self._server.install_signal_handlers = lambda: None  # the run owns the signals
@@ -227,7 +296,8 @@ class UiServer:
         try:
             if layout is not None:
                 profile = self.runtime.scene.profile if self.runtime else layout.desk
-                self.publish(desk_message(profile, layout, live=self.runtime is not None))
+                message = desk_message(profile, layout, live=self.runtime is not None)
+                self.publish(self._with_actions(message))
                 return
             self.publish(self._desk_message())
         except ConfigError as err:
@@ -236,11 +306,20 @@ class UiServer:
     def _desk_message(self) -> dict[str, Any]:
         runtime = self.runtime
         if runtime is not None:
-            return desk_message(runtime.scene.profile, runtime.scene.layout, live=True)
+            message = desk_message(runtime.scene.profile, runtime.scene.layout, live=True)
+            return self._with_actions(message)
         from hapticdesk.runtime.assembly import load_scene_layout
 
         layout, profile = load_scene_layout(self.layout_path, self.registry, self.desk)
-        return desk_message(profile, layout, live=False)
+        return self._with_actions(desk_message(profile, layout, live=False))
+
+    def _with_actions(self, message: dict[str, Any]) -> dict[str, Any]:
+        """The desk message with ``actions``: whether the running desk runs its layout's
+        actions (false for `hapticdesk ui` without --actions: the page says so), null when
+        nothing runs."""
+        runtime = self.runtime
+        message["actions"] = None if runtime is None else bool(runtime.scene.actions)
+        return message
 
     def on_gesture(self, event: Any) -> None:
         """The event sink: one gesture event, on a dispatcher lane's thread."""
@@ -280,6 +359,7 @@ class UiServer:
                         "phase": PHASES[phase] if 0 <= phase < len(PHASES) else "",
                         "surface": profile.surfaces[surface].name if surface >= 0 else None,
                         "tared": live.tared,
+                        "paused": live.paused,  # (gestures not sent: the page says so)
                     }
                 )
             notices = runtime.scene.estimator.notices
@@ -318,19 +398,21 @@ class UiServer:
         from starlette.applications import Starlette
         from starlette.requests import Request
         from starlette.responses import FileResponse, JSONResponse, PlainTextResponse, Response
-        from starlette.routing import Mount, Route, WebSocketRoute
+        from starlette.routing import Route, WebSocketRoute
         from starlette.staticfiles import StaticFiles
         from starlette.websockets import WebSocket, WebSocketDisconnect
 
         from hapticdesk.plugins.ui import strokes_api
+
+        static_files = StaticFiles(directory=STATIC)
         from hapticdesk.plugins.ui.layout_edit import apply_edit, save_layout_text
 
         def allowed(request: Request | WebSocket) -> bool:
-            if not same_origin(request.headers, self.host):
+            if not same_origin(request.headers, self.host, self._host_names):
                 return False
             if self.token is None:
                 return True
-            given = request.query_params.get("token") or ""
+            given = request.query_params.get("token") or request.cookies.get(TOKEN_COOKIE, "")
             auth = request.headers.get("authorization", "")
             if auth.lower().startswith("bearer "):
                 given = auth[7:]
@@ -344,7 +426,18 @@ class UiServer:
         async def page(request: Request) -> Response:
             if not allowed(request):
                 return refused()
-            return FileResponse(STATIC / "index.html", media_type="text/html")
+            response = FileResponse(STATIC / "index.html", media_type="text/html")
+            if self.token is not None:  # the page's own /static requests carry it back
+                response.set_cookie(
+                    TOKEN_COOKIE, self.token, httponly=True, samesite="strict", path="/"
+                )
+            return response
+
+        async def static(request: Request) -> Response:
+            # behind the token like the rest: the page's scripts say which API it has
+            if not allowed(request):
+                return refused()
+            return await static_files.get_response(request.path_params["path"], request.scope)
 
         async def get_layout(request: Request) -> Response:
             if not allowed(request):
@@ -401,18 +494,17 @@ class UiServer:
                     status_code=403,
                 )
             text = await body_text(request)
-            errors = await asyncio.to_thread(self._check, text)
+            errors, new_layout = await asyncio.to_thread(self._check, text)
             if errors:
                 return JSONResponse({"ok": False, "errors": errors}, status_code=422)
             await asyncio.to_thread(save_layout_text, self.layout_path, text)
             reloaded = False
-            new_layout = None
             runtime = self.runtime
             if runtime is not None:
-                try:  # the sensing thread swaps it in between two blocks, then answers
+                try:  # the sensing thread builds it between two blocks, then answers; it
+                    # takes over once no touch is in progress
                     await asyncio.to_thread(runtime.reload, 10.0)
                     reloaded = True
-                    new_layout = runtime.scene.layout
                 except ConfigError as err:  # e.g. an action that cannot be set up now
                     return JSONResponse(
                         {"ok": False, "errors": [error_of(err)], "saved": True}, status_code=422
@@ -459,19 +551,18 @@ class UiServer:
         async def setup_start(request: Request) -> Response:
             if not allowed(request):
                 return refused()
-            from hapticdesk.plugins.ui.setup_api import SetupSession
+            from hapticdesk.plugins.ui.setup_api import SetupSession, read_points
 
             payload = await json_object(request)
-            points = payload.get("points")
             runtime = self.runtime
-            problem = None
             if runtime is None:
                 problem = "the set-up check needs a running desk (`hapticdesk ui` or `run --ui`)"
-            elif not isinstance(points, list) or len(points) < len(runtime.scene.profile.sensors):
-                problem = "mark at least as many points as the desk has sensors"
-            if problem:
                 error = message_error(problem)
                 return JSONResponse({"ok": False, "errors": [error]}, status_code=422)
+            try:
+                points = read_points(payload, runtime.scene.profile)
+            except ConfigError as err:
+                return JSONResponse({"ok": False, "errors": [error_of(err)]}, status_code=422)
             if self.setup is not None:
                 await asyncio.to_thread(self.setup.finish_quietly)
             self.setup = SetupSession(runtime, points)
@@ -495,6 +586,26 @@ class UiServer:
                 await socket.close(code=4401)
                 return
             await socket.accept()
+            if self._sockets >= MAX_WS_CLIENTS:  # said, then closed: "try again later"
+                self.refused_sockets += 1
+                if self.refused_sockets in (1, 10, 100) or self.refused_sockets % 1000 == 0:
+                    log.warning(
+                        "ui: %d pages are open, the most served at once; %d refused so far",
+                        MAX_WS_CLIENTS,
+                        self.refused_sockets,
+                    )
+                message = f"{MAX_WS_CLIENTS} pages are open already, the most served at once"
+                refusal = {"type": "notice", "kind": "refused", "message": message}
+                await socket.send_text(json.dumps(refusal))
+                await socket.close(code=1013, reason="too many pages open")
+                return
+            self._sockets += 1
+            try:
+                await serve_socket(socket)
+            finally:
+                self._sockets -= 1
+
+        async def serve_socket(socket: WebSocket) -> None:
             client = _Client()
             # the page sends nothing: whatever a client sends is read (not left for the server
             # to buffer, 30 clients of 3 × 15 MB had taken it past 1 GB) and ends its socket
@@ -544,13 +655,19 @@ class UiServer:
             Route("/api/setup/start", setup_start, methods=["POST"]),
             Route("/api/setup/finish", setup_finish, methods=["POST"]),
             WebSocketRoute("/ws", ws),
-            Mount("/static", StaticFiles(directory=STATIC), name="static"),
+            Route("/static/{path:path}", static, methods=["GET", "HEAD"]),
         ]
-        return Starlette(
+
+        async def internal_error(request: Request, err: Exception) -> Response:
+            error = message_error(f"internal error: {type(err).__name__}")
+            return JSONResponse({"ok": False, "errors": [error]}, status_code=500)
+
+        app = Starlette(
             routes=routes,
             lifespan=lifespan,
-            exception_handlers={BadRequest: refuse_bad_request},
+            exception_handlers={BadRequest: refuse_bad_request, Exception: internal_error},
         )
+        return _OneLineErrors(app)
 
     @property
     def registry(self) -> Any:
@@ -572,16 +689,38 @@ class UiServer:
             return [error_of(err)], None
         return [], desk_message(profile, layout, live=False)["regions"]
 
-    def _check(self, text: str) -> list[dict[str, Any]]:
-        """What `check` says of ``text``, then whether it adds or changes an exec action."""
-        from hapticdesk.plugins.ui.layout_edit import exec_added
-
+    def _check(self, text: str) -> tuple[list[dict[str, Any]], Any]:
+        """What `check` says of ``text``, then whether it adds or changes what only the
+        operator may (:mod:`hapticdesk.runtime.operator_secrets`): compared with the layout
+        file as it was when this server started, not as the last save left it. The errors,
+        and the layout when there are none."""
         try:  # (loaded once, for both)
             layout, _ = self._load_sent(text)
         except ConfigError as err:
-            return [error_of(err)]
-        with self._confined():
-            return exec_added(self.layout_path, layout, self.registry, self.desk)
+            return [error_of(err)], None
+        refused = self._operator_secrets().refusal(
+            layout.raw,
+            self.layout_path,
+            self.registry,
+            "the page",
+            "edit the layout file by hand and restart the desk",
+        )
+        return ([], layout) if refused is None else ([error_of(refused)], None)
+
+    def _operator_secrets(self) -> Any:
+        from hapticdesk.runtime.operator_secrets import OperatorSecrets
+
+        if self._secrets is None:
+            doc = self._started_doc if isinstance(self._started_doc, dict) else {}
+            named = {}
+            layouts = doc.get("layouts")
+            if isinstance(layouts, dict):
+                named = {
+                    str(k): self.layout_path.parent / Path(str(v)).expanduser()
+                    for k, v in layouts.items()
+                }
+            self._secrets = OperatorSecrets.from_start(doc, self.layout_path, self.registry, named)
+        return self._secrets
 
     def _load_sent(self, text: str) -> Any:
         """``text``, a layout the page sent, loaded as `check` would as the layout file (its

@@ -14,6 +14,49 @@ from hapticdesk.files.yamlfile import ConfigError
 
 #: the longest session kept (seconds of samples); older blocks are dropped
 MAX_SESSION_S = 180.0
+#: the most points a session may mark (a desk's check needs a few more than its sensors)
+MAX_POINTS = 64
+
+
+def read_points(payload: dict[str, Any], profile: Any) -> list[list[float]]:
+    """The points of a ``POST /api/setup/start`` body: ``{"points": [[x, y], ...]}`` in
+    metres on the desk's top, at least one per sensor, at most :data:`MAX_POINTS`, each
+    within the top's outline grown by a metre. ConfigError says which and what was expected
+    (any JSON had been taken, and ``finish`` then failed with a traceback in the log)."""
+    import math
+
+    points = payload.get("points")
+    sensors = len(profile.sensors)
+    expected = f"`points`: a list of {sensors} to {MAX_POINTS} points [x, y] in metres"
+    if not isinstance(points, list):
+        raise ConfigError(None, f"{expected}, found {type(points).__name__}")
+    if not sensors <= len(points) <= MAX_POINTS:
+        raise ConfigError(
+            None,
+            f"{expected}, found {len(points)} (mark at least as many points as the desk has "
+            "sensors)",
+        )
+    extent = 1.0
+    if profile.surfaces:
+        polygon = profile.surfaces[0].polygon
+        extent += max(abs(float(v)) for row in polygon for v in row)
+    out = []
+    for i, point in enumerate(points):
+        ok = (
+            isinstance(point, list)
+            and len(point) == 2
+            and all(isinstance(v, int | float) and not isinstance(v, bool) for v in point)
+            and all(math.isfinite(v) and abs(v) <= extent for v in point)
+        )
+        if not ok:
+            shown = repr(point) if len(repr(point)) <= 60 else repr(point)[:60] + "…"
+            raise ConfigError(
+                None,
+                f"`points` item {i + 1}: expected [x, y] in metres on the desk (within "
+                f"{extent:g} m of its centre), found {shown}",
+            )
+        out.append([float(point[0]), float(point[1])])
+    return out
 
 
 class SetupSession:

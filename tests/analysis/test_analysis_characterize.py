@@ -201,3 +201,17 @@ def test_the_pasted_snippet_sets_the_estimators_filters(desk, knock_recording, t
     assert pasted.estimation.noise_force_n == pytest.approx(
         np.sqrt(np.mean([n.sigma**2 for n in c.noise if n.unit == "N"])), rel=0.01
     )
+
+
+def test_a_load_cell_desk_is_characterized_per_cell() -> None:
+    """One channel a cell, named as its recording's columns; its noise is the converter's
+    (an HX711 at 80 Hz on a 490 N cell: 0.026 N a reading)."""
+    from hapticdesk.sim.loadcells import LoadCellParameters
+
+    cells = load_profile("kitamura2017-loadcells-80hz")
+    rec = simulate(cells, Scene([Idle(duration_s=30.0)]), seed=3)
+    c = characterize(cells, rec)
+    expected = LoadCellParameters.for_rate(80).noise_n * 490 / LoadCellParameters().rated_n
+    for name in cells.channel_names():
+        assert c.noise_of(name).unit == "N"
+        assert c.noise_of(name).sigma == pytest.approx(expected, rel=0.15)

@@ -9,6 +9,9 @@ import json
 import subprocess
 import sys
 
+import numpy as np
+import pytest
+
 # The help lists the plugins' commands too (``demo`` is the MQTT plugin's), so the plugin
 # registry (pluggy) and the hook modules load, with the error type they share (yaml, ~15 ms);
 # none of them may pull in numpy, scipy or the estimator.
@@ -69,3 +72,79 @@ def test_listing_the_plugins_loads_no_array_library():
     assert probe["code"] == 0
     assert probe["heavy"] == []
     assert "hapticdesk.plugins.mqtt" in probe["help"]
+
+
+READ_PROBE = """
+import argparse, json, sys
+from hapticdesk.cli import load_blas_with_one_thread
+load_blas_with_one_thread()
+from hapticdesk.commands.recording_input import load_input
+import hapticdesk.commands.output_path
+given = load_input(argparse.Namespace(recording={path!r}, desk="kitamura2017", plate=None))
+print(json.dumps({{"samples": len(given.recording.t),
+                   "loaded": [m for m in {watched!r} if m in sys.modules]}}))
+"""
+
+
+def test_reading_the_desk_and_a_recording_loads_no_scipy_and_no_plugin_registry(tmp_path):
+    """All that ``contacts`` and ``plot`` do before the estimator (the desk, the recording)
+    imports neither scipy (0.3–1 s), nor the plugin registry (pluggy and the entry points),
+    nor the force-plate reader a CSV does not need: what scipy ``contacts`` still loads is the
+    estimator's own."""
+    from hapticdesk.files.recording import Recording, write_recording
+
+    path = tmp_path / "rec.csv"
+    k = 50
+    names = ["fl", "fr", "bl", "br"]
+    write_recording(path, Recording(np.arange(k) / 1200, np.zeros((k, 4, 6)), names))
+    watched = ("scipy", "pluggy", "hapticdesk.registry", "hapticdesk.files.forceplate")
+    done = subprocess.run(
+        [sys.executable, "-c", READ_PROBE.format(path=str(path), watched=watched)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=True,
+    )
+    probe = json.loads(done.stdout.splitlines()[-1])
+    assert probe == {"samples": k, "loaded": []}
+
+
+BLAS_PROBE = """
+import ctypes, json, os, sys
+from hapticdesk.cli import BLAS_THREAD_VARIABLES, load_blas_with_one_thread
+load_blas_with_one_thread()
+before = [m for m in ("numpy", "scipy") if m in sys.modules]
+import scipy.signal  # numpy first, then scipy with its own BLAS
+
+def threads(library, function):
+    for line in open("/proc/self/maps"):
+        if library in line:
+            return getattr(ctypes.CDLL(line.split()[-1]), function)()
+    return None
+
+print(json.dumps({
+    "before": before,
+    "numpy": threads("libscipy_openblas64_", "scipy_openblas_get_num_threads64_"),
+    "scipy": threads("libscipy_openblas-", "scipy_openblas_get_num_threads"),
+    "left": [name for name in BLAS_THREAD_VARIABLES if name in os.environ],
+}))
+"""
+
+
+def test_numpy_and_scipy_load_with_one_blas_thread_when_first_imported(monkeypatch):
+    """The command line no longer imports scipy.linalg at start for every command; numpy and
+    scipy still get one BLAS thread each, set as they load and not left for the programs an
+    ``exec`` action starts. (Checked through OpenBLAS's own count, where the wheels bring it.)"""
+    from hapticdesk.cli import BLAS_THREAD_VARIABLES
+
+    for name in BLAS_THREAD_VARIABLES:
+        monkeypatch.delenv(name, raising=False)
+    done = subprocess.run(
+        [sys.executable, "-c", BLAS_PROBE], capture_output=True, text=True, timeout=120, check=True
+    )
+    probe = json.loads(done.stdout.splitlines()[-1])
+    assert probe["before"] == [] and probe["left"] == []
+    counted = [probe[lib] for lib in ("numpy", "scipy") if probe[lib] is not None]
+    if not counted:
+        pytest.skip("numpy and scipy here do not bring OpenBLAS")
+    assert counted == [1] * len(counted)

@@ -64,10 +64,37 @@ def test_any_orientation_and_sign(tmp_path):
         ("    normal: [0, 0, 1]", "    normal: [0, 0]", 10, "3 numbers"),
         ("    origin: [1, 0, 0.3]", "    origin: [1, 0, 0.3]\n    colour: red", 14, "unknown key"),
         (
+            "  - {name: a, position: [0, 0, 0]}\n  - {name: b, position: [1, 0, 0], "
+            "rotation_rpy_deg: [180, 0, 0], reports: load}\n"
             "  - {name: c, position: [0, 1, 0], rotation_rpy_deg: [0, 0, 90]}\n",
-            "",
+            "  - {name: a, position: [0, 0, 0], kind: load_cell}\n"
+            "  - {name: b, position: [1, 0, 0], kind: load_cell}\n",
+            7,
+            "cannot be located with these sensors (2, delivering fz)",
+        ),
+        (
+            "  - {name: a, position: [0, 0, 0]}",
+            "  - {name: a, position: [0, 0, 0], kind: cell}",
             4,
-            "3 or more sensors",
+            "`kind` in sensor `a` must be one of six_axis, load_cell, three_axis",
+        ),
+        (
+            "  - {name: a, position: [0, 0, 0]}",
+            "  - {name: a, position: [0, 0, 0], channels: [fz1, fz2]}",
+            4,
+            "give its `calibration`, 6 rows",
+        ),
+        (
+            "  - {name: a, position: [0, 0, 0]}",
+            "  - {name: a, position: [0, 0, 0], channels: [u, v], calibration: [[1, 0]]}",
+            4,
+            "must be 6 rows (fx, fy, fz, mx, my, mz) of 2 numbers",
+        ),
+        (
+            "  - {name: a, position: [0, 0, 0]}",
+            "  - {name: a, position: [0, 0, 0], kind: load_cell, axes: [fz]}",
+            4,
+            "give one of `kind`, `axes` or `channels`",
         ),
         # YAML 1.2 reads `on` as text (PyYAML's 1.1 read it as true): an unknown key
         ("name: bench", "name: bench\non: 1", 2, "unknown key `on`"),
@@ -137,3 +164,105 @@ def test_values_no_desk_has_are_refused_where_they_stand(tmp_path, extra, needle
     text = str(info.value)
     assert text.startswith(f"{path}:{GOOD.count(chr(10)) + 1}:"), text  # (the added line)
     assert needle in text
+
+
+LOAD_CELLS = """\
+name: cells
+sample_rate_hz: 80
+sensors:
+  - {name: fl, kind: load_cell, position: [-0.3, -0.2, 0], range: {force_n: 500}}
+  - {name: fr, axes: [fz], position: [0.3, -0.2, 0]}
+  - {name: bl, channels: [fz], position: [-0.3, 0.2, 0], reports: load}
+  - {name: br, kind: three_axis, position: [0.3, 0.2, 0]}
+surfaces:
+  - name: top
+    origin: [0, 0, 0.7]
+    normal: [0, 0, 1]
+    polygon: [[-0.4, -0.3], [0.4, -0.3], [0.4, 0.3], [-0.4, 0.3]]
+"""
+
+
+def test_load_cells_deliver_fz_and_map_to_fz_mx_my(tmp_path):
+    """A load cell's one channel is its F_z: the map's rows of the unseen components are
+    zero, and a press's centre of pressure comes out of the seen ones (paper eq. 5 with
+    F_x = F_y = 0)."""
+    from hapticdesk.files.sensing import sensing_of
+
+    desk = load_profile(write(tmp_path, LOAD_CELLS))
+    assert desk.channel_names() == ["fl_fz", "fr_fz", "bl_fz", "br_fx", "br_fy", "br_fz"]
+    assert desk.channel_count == 6 and not desk.six_axis_only
+    limits = desk.channel_limits()
+    assert limits is not None and limits[0] == 500 and np.isinf(limits[1:]).all()
+    a = desk.wrench_map()
+    assert a.shape == (6, 6)
+    # 10 N pressed at (0.1, 0.05): each cell's reaction by the lever rule, summed moments
+    x, y, f = 0.1, 0.05, 10.0
+    weights = np.array(
+        [(0.3 - x) * (0.2 - y), (0.3 + x) * (0.2 - y), (0.3 - x) * (0.2 + y), (0.3 + x) * (0.2 + y)]
+    ) / (0.6 * 0.4)
+    cells = f * weights
+    readings = np.array([cells[0], cells[1], -cells[2], 0.0, 0.0, cells[3]])  # bl reports load
+    fo, mo = (a @ readings)[:3], (a @ readings)[3:]
+    assert fo == pytest.approx([0, 0, f])
+    assert -mo[1] / fo[2] == pytest.approx(x) and mo[0] / fo[2] == pytest.approx(y)
+    # one three-axis cell's shear cannot be told from a twist (F_x and M_z share it) ...
+    assert sensing_of(desk).seen == ("Fz", "Mx", "My")
+    # ... two of them see it all
+    two = load_profile(write(tmp_path, LOAD_CELLS.replace("kind: load_cell", "kind: three_axis")))
+    assert sensing_of(two).seen == ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
+    assert sensing_of(two).shear_seen == {"top": True}
+    only_cells = load_profile(
+        write(tmp_path, LOAD_CELLS.replace("kind: three_axis", "kind: load_cell"))
+    )
+    lines = sensing_of(only_cells).lines()
+    assert "not Fx, Fy, Mz" in lines[0] and "taken as vertical" in lines[0]
+    assert "no shear" in lines[1]
+
+
+def test_a_calibrated_plate_maps_its_raw_channels(tmp_path):
+    """A force plate's amplifier channels through its calibration matrix: one sensor that
+    sees all six components locates a touch on its own."""
+    plate = """\
+name: plate
+sample_rate_hz: 1000
+sensors:
+  - name: plate
+    position: [0, 0, 0]
+    channels: [a, b, c, d, e, f]
+    calibration: [[2, 0, 0, 0, 0, 0], [0, 2, 0, 0, 0, 0], [0, 0, 4, 0, 0, 0],
+                  [0, 0, 0, 0.5, 0, 0], [0, 0, 0, 0, 0.5, 0], [0, 0, 0, 0, 0, 0.5]]
+    range: {channels: 10}
+surfaces:
+  - name: top
+    origin: [0, 0, 0.05]
+    normal: [0, 0, 1]
+    polygon: [[-0.2, -0.3], [0.2, -0.3], [0.2, 0.3], [-0.2, 0.3]]
+"""
+    desk = load_profile(write(tmp_path, plate))
+    assert desk.channel_names() == [f"plate_{c}" for c in "abcdef"]
+    assert np.allclose(np.diag(desk.wrench_map()), [2, 2, 4, 0.5, 0.5, 0.5])
+    assert np.allclose(desk.channel_limits(), 10)
+
+
+def test_two_six_axis_sensors_locate_a_touch(tmp_path):
+    """Two six-axis sensors see the whole wrench: the desk is accepted (it was refused for
+    having fewer than three sensors)."""
+    two = GOOD.replace("  - {name: c, position: [0, 1, 0], rotation_rpy_deg: [0, 0, 90]}\n", "")
+    assert len(load_profile(write(tmp_path, two)).sensors) == 2
+
+
+def test_a_load_cell_recording_has_one_column_per_cell(tmp_path):
+    from hapticdesk.files.recording import Recording, read_recording, write_recording
+
+    desk = load_profile(write(tmp_path, LOAD_CELLS))
+    k = 5
+    readings = np.arange(k * 6, dtype=float).reshape(k, 6)
+    rec = Recording(np.arange(k) / 80.0, readings, desk.sensor_names, {}, desk.channel_names())
+    assert rec.columns()[1:] == desk.channel_names()
+    for suffix in (".csv", ".npz"):
+        path = tmp_path / f"cells{suffix}"
+        write_recording(path, rec)
+        back = read_recording(path, desk.sensor_names, channel_names=desk.channel_names())
+        assert back.wrench.shape == (k, 6) and np.array_equal(back.channels, readings)
+    with pytest.raises(ConfigError, match="missing column"):
+        read_recording(tmp_path / "cells.csv", desk.sensor_names)  # six-axis columns expected

@@ -22,6 +22,10 @@ def test_check_explains_a_valid_layout(capsys):
     assert " 6. swipe anywhere (direction up) → mqtt" in out
     assert "slide in dimmer: interval_s 0.1 s" in out  # a setting differing from the default
     assert "templates built-in: 18 shapes; yours: zed (3)" in out
+    # one gesture per touch: the order, and what each waits for where it can meet another
+    assert "  2. swipe (anywhere): waits for stroke to fail; not after a long press fired" in out
+    assert "  4. tap (lamp): waits for stroke, swipe to fail; not after a long press fired" in out
+    assert "  beside, not arbitrated: slide" in out
 
 
 def test_check_draws_the_layout(tmp_path, capsys):

@@ -67,7 +67,8 @@ def test_another_persons_templates_recognise_most_strokes(medium):
 def test_built_in_templates_and_unknown_shapes(medium):
     strokes = medium["s02"] + medium["s03"]
     matches = builtin_templates().classify_many([s.points for s in strokes], MIN_SCORE)
-    assert np.mean([m.shape == s.shape for m, s in zip(matches, strokes, strict=True)]) >= 0.9
+    # (held out in scripts/stroke_lowo.py: 98.1 % and 99.4 %; the issue's floor is 92 %)
+    assert np.mean([m.shape == s.shape for m, s in zip(matches, strokes, strict=True)]) >= 0.95
     # the same person's 3 templates for half the shapes; strokes of the others are mostly
     # rejected (the braces and brackets, alike at any threshold, are left out of this check)
     known = {"arrow", "check", "circle", "star", "triangle", "v", "x", "pigtail"}
@@ -176,8 +177,10 @@ def test_a_bad_log_is_named_at_its_line_and_column(tmp_path, monkeypatch):
 
 def test_a_stroke_nearest_a_built_in_template_asks_more():
     """Built-in templates are not compared by form, so a stroke nearest one asks min_score +
-    BUILTIN_EXTRA_SCORE (non-shapes taken for a built-in shape: 18 % -> 5 % at 0.8)."""
-    from hapticdesk.gestures.strokes.unistroke import BUILTIN_EXTRA_SCORE
+    builtin_extra (chosen so that at most 5 % of strokes that are no shape are taken)."""
+    from hapticdesk.gestures.strokes.unistroke import DEFAULT_CHOICES
+
+    BUILTIN_EXTRA_SCORE = DEFAULT_CHOICES.builtin_extra
 
     u = np.linspace(0.0, 2 * np.pi, 120)
     circle = np.column_stack([np.cos(u), np.sin(u)])
@@ -191,3 +194,61 @@ def test_a_stroke_nearest_a_built_in_template_asks_more():
         taken = templates.classify(egg, just_below).shape
         assert taken == (None if ideal else "circle")
         assert templates.classify(egg, score - BUILTIN_EXTRA_SCORE - 0.01).shape == "circle"
+
+
+@needs_logs
+def test_the_lowo_scripts_verdicts_are_the_recognizers(medium):
+    """scripts/stroke_lowo.py judges from one big score matrix (similarity, agreement,
+    nearest); a TemplateSet of the same templates gives the same verdicts."""
+    from hapticdesk.gestures.strokes.unistroke import (
+        DEFAULT_CHOICES,
+        agreement,
+        judge,
+        similarity,
+        stroke_features,
+    )
+
+    strokes = medium["s03"]
+    templates = [s for s in strokes if s.repetition <= 3]
+    tests = [s for s in strokes if s.repetition > 3]
+    features, _ = stroke_features([s.points for s in templates + tests])
+    scores = similarity(features, features, 30.0).score(DEFAULT_CHOICES)
+    k = len(templates)
+    names = np.asarray([s.shape for s in templates], dtype=object)
+    own = agreement(scores[:k, :k], names, np.ones(k, bool))
+    lowo = judge(scores[k:, :k], names, np.zeros(k, bool), MIN_SCORE, own)
+    mine = TemplateSet()
+    for s in templates:
+        mine.add(s.shape, s.points)
+    direct = mine.classify_many([s.points for s in tests], MIN_SCORE, 30.0)
+    assert [m.shape for m in lowo] == [m.shape for m in direct]
+    assert np.allclose([m.score for m in lowo], [m.score for m in direct])
+
+
+@needs_logs
+def test_own_three_templates_and_a_shape_left_out(medium):
+    """A writer's own 3 templates a shape (rotated over the 10 repetitions): right at least
+    98 %; with one shape's templates left out, its strokes mostly rejected (held out in
+    scripts/stroke_lowo.py, s02 medium: 99.3 % and 5.5 %)."""
+    strokes = medium["s02"]
+    right = tested = accepted = unknown = 0
+    for r in range(10):
+        reps = {(r + j) % 10 + 1 for j in range(3)}
+        chosen = [s for s in strokes if s.repetition in reps]
+        rest = [s for s in strokes if s.repetition not in reps]
+        templates = TemplateSet()
+        for s in chosen:
+            templates.add(s.shape, s.points)
+        got = templates.classify_many([s.points for s in rest], MIN_SCORE)
+        right += sum(m.shape == s.shape for m, s in zip(got, rest, strict=True))
+        tested += len(rest)
+        for left_out in ("v", "left_brace", "circle"):
+            without = TemplateSet()
+            for s in chosen:
+                if s.shape != left_out:
+                    without.add(s.shape, s.points)
+            mine = [s.points for s in rest if s.shape == left_out]
+            accepted += sum(m.shape is not None for m in without.classify_many(mine, MIN_SCORE))
+            unknown += len(mine)
+    assert right >= 0.98 * tested, right / tested
+    assert accepted <= 0.1 * unknown, accepted / unknown

@@ -202,7 +202,7 @@ GOOD_REGION = "regions:\n  lamp: {rect: [-0.3, -0.2, -0.1, 0]}\n"
         ),
         (GOOD_REGION + "true: 1\nbindings: []\n", 4, 1, ["boolean", "quotes"]),
         (GOOD_REGION + "on: true\nbindings: []\n", 4, 1, ["unknown key `on`", "allowed"]),
-        (GOOD_REGION + "bindings: []\n", 4, 11, ["at least one binding"]),
+        (GOOD_REGION + "bindings: {}\n", 4, 11, ["a list of bindings", "`[]` for none yet"]),
         (
             GOOD_REGION
             + "bindings:\n  - {gesture: tap, region: lamp, do: log}\n"

@@ -354,3 +354,45 @@ def test_a_tap_is_not_a_stroke(make_layout, timeline):
     layout = make_layout(STROKES)
     tl = timeline(3.0).touch(1.0, 0.1, (-0.1, 0.0))
     assert run(layout, tl.block()) == []
+
+
+TWO_BUTTONS = """
+units: cm
+regions:
+  lamp: {rect: [-8, -2.5, -3, 2.5]}
+  fan: {rect: [0, -2.5, 5, 2.5]}
+bindings:
+  - {gesture: tap, region: lamp, do: log}
+  - {gesture: tap, region: fan, do: log}
+"""
+
+
+@pytest.mark.parametrize(("sigma_m", "fired"), [(0.001, ["lamp"]), (0.008, [])])
+def test_a_tap_whose_uncertainty_reaches_two_buttons_presses_neither(
+    make_layout, timeline, sigma_m, fired
+):
+    # in the 3 cm gap, 1 cm from the lamp (within its 12 mm snap) and 2 cm from the fan: placed
+    # to 1 mm it is the lamp's; placed to 8 mm (each sample, and so the tap) the lamp is only
+    # about 10 times likelier than the fan (ODDS asks 30): a miss, not a guess
+    tl = timeline(2.0).touch(1.0, 0.12, (-0.02, 0.0), sigma_m=sigma_m, noise=False)
+    events = run(make_layout(TWO_BUTTONS), tl.block())
+    assert [e.region for e in events if e.gesture == "tap"] == fired
+
+
+def test_a_tap_well_inside_a_button_is_taken_however_uncertain_within_reason(make_layout, timeline):
+    tl = timeline(2.0).touch(1.0, 0.12, (-0.065, 0.0), sigma_m=0.008, noise=False)
+    assert [e.region for e in run(make_layout(TWO_BUTTONS), tl.block())] == ["lamp"]
+
+
+def test_a_touch_is_placed_as_well_as_its_samples_not_their_count(make_layout, timeline):
+    from hapticdesk.gestures.touch import TouchTracker
+
+    layout = make_layout(TWO_BUTTONS)
+    tracker = TouchTracker(layout.desk)
+    tl = timeline(2.0).touch(1.0, 0.2, (0.0, 0.0), sigma_m=0.002, force_n=8.0)
+    touch = None
+    for event in tracker.events(tl.block()):
+        touch = tracker.add(event) or touch
+    assert touch is not None and touch.samples > 100
+    assert touch.place_sigma() == pytest.approx(0.002, rel=0.15)  # 2 mm, more on the ramps
+    assert touch.best()[2] < touch.place_sigma() / 8  # the mean's, as if independent

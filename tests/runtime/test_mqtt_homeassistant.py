@@ -198,6 +198,60 @@ def test_a_slide_triggers_at_begin_and_end_only_and_its_updates_are_events():
     assert set(event_types(LAYOUT)) >= {"lamp_tap", "lamp_press_firm", "desk_swipe_up"}
 
 
+def test_event_types_are_only_what_the_desk_can_send():
+    """Issue 31 item 6: a gesture carries a region only where it is bound there; a binding
+    without a region gives `desk_…` only (`lamp_swipe_up`, `pad_stroke_circle` were listed:
+    32 types for a layout that can send 12)."""
+    from hapticdesk.plugins.mqtt import discovery_for
+    from hapticdesk.plugins.mqtt.settings import MqttSettings
+
+    bindings = [
+        binding("tap"),
+        binding("swipe", region=None, direction=["up"]),
+        binding("stroke", region="pad", shape=["circle"]),
+    ]
+    layout = SimpleNamespace(bindings=bindings, regions={"lamp": 0, "pad": 0}, named_layouts={})
+    context = SimpleNamespace(desk_name="study", profile=None, layout=layout)
+    configs = {c.topic: c.config for c in discovery_for(context, MqttSettings())}
+    assert set(configs["homeassistant/event/study/gesture/config"]["event_types"]) == {
+        "lamp_tap", "desk_swipe", "desk_swipe_up", "pad_stroke", "pad_stroke_circle",
+    }  # fmt: skip
+
+
+def test_the_event_entity_renders_nothing_for_an_action_it_does_not_list():
+    """Issue 31 item 1: a swipe is also a stroke of shape `line`; Home Assistant logged
+    "Invalid event type desk_stroke_line" for each. Unlisted actions now render empty (which
+    Home Assistant ignores) and listed ones render with `event_type`."""
+    configs = configs_of([binding("swipe", region=None, direction=["up"])])
+    event = configs["homeassistant/event/study/gesture/config"]
+    line = json.dumps({"action": "desk_stroke_line", "gesture": "stroke", "shape": "line"})
+    assert render(event["value_template"], line).strip() == ""
+    up = json.dumps({"action": "desk_swipe_up", "gesture": "swipe", "x": 0.1, "y": 0.2, "seq": 3})
+    rendered = json.loads(render(event["value_template"], up))
+    assert rendered["event_type"] == "desk_swipe_up" and rendered["seq"] == 3
+
+
+def test_no_trigger_template_reads_a_key_an_event_lacks():
+    """Issue 31 item 2: Home Assistant renders every trigger's template on every event (70
+    "has no attribute 'hold_s'" warnings for a tap, a long press and a slide). Rendered with
+    undefined keys as errors, every template takes every kind of event."""
+    env = jinja2.Environment(undefined=jinja2.StrictUndefined)
+    templates = {
+        c["value_template"]
+        for c in configs_of(LAYOUT).values()
+        if c.get("automation_type") == "trigger"
+    }
+    assert len(templates) == 2  # the action's, and the tier's
+    events = [
+        {"action": "lamp_tap", "gesture": "tap"},
+        {"action": "dimmer_slide", "gesture": "slide", "value": 0.4},
+        {"action": "lamp_long_press", "gesture": "long_press", "hold_s": 1.5},
+    ]
+    for template in templates:
+        for event in events:
+            env.from_string(template).render(value=json.dumps(event), value_json=event)
+
+
 # --- with mosquitto -----------------------------------------------------------------------------
 
 
@@ -306,15 +360,15 @@ def test_a_removed_binding_has_its_config_cleared(broker, tmp_path, paper_desk):
     assert other in after
 
 
-def test_without_a_broker_the_sweep_gives_up_quietly(caplog):
+def test_without_a_broker_the_announcement_gives_up_quietly(caplog):
+    from hapticdesk.plugins.mqtt.announce import publish_steps
     from hapticdesk.plugins.mqtt.settings import MqttSettings
-    from hapticdesk.plugins.mqtt.stale import sweep_stale
 
     from .conftest import free_port
 
     settings = MqttSettings(host="127.0.0.1", port=free_port(), client_id="t")
-    assert sweep_stale(settings, "homeassistant", "study", []) == []
-    assert "stale discovery configs not checked" in caplog.text
+    assert publish_steps(settings, "homeassistant", "study", lambda found: []) is None
+    assert "Home Assistant discovery not announced" in caplog.text
 
 
 @pytest.mark.parametrize(

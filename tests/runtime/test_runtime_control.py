@@ -360,3 +360,21 @@ def test_a_flood_on_the_set_topic_is_dropped_beyond_its_rate_and_said_once(caplo
     flood = [r for r in caplog.records if "commands a second" in r.getMessage()]
     assert len(flood) == 1 and "dropped so far, unanswered" in flood[0].getMessage()
     assert queue.take() == []  # garbage is never queued
+
+
+def test_commands_on_the_set_topic_before_the_run_begins_wait_for_it():
+    """`set` is subscribed before the desk says it is online, the run's queue comes later:
+    what arrives in between is held and queued, in its order, when the queue is attached."""
+    from hapticdesk.plugins.mqtt.control import SetTopic
+    from hapticdesk.runtime.control import ControlQueue
+
+    answers: list[dict] = []
+    topic = SetTopic(None, lambda t, payload: answers.append(payload), "hapticdesk/d/set")
+    topic(b'{"command": "layout", "layout": "b"}')
+    topic(b"tare")
+    topic(b"explode")  # refused at once, not held
+    assert [(a["command"], a["ok"]) for a in answers] == [(None, False)]
+    queue = ControlQueue()
+    topic.attach(queue)
+    topic(b"pause")
+    assert [str(cmd) for cmd, _ in queue.take()] == ["layout b", "tare", "pause"]

@@ -8,7 +8,6 @@ import subprocess
 import sys
 import threading
 import time
-from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
@@ -214,19 +213,3 @@ def test_a_replay_speed_no_one_asks_for_is_refused(speed):
 
     with pytest.raises(ConfigError, match="--speed: must be 0"):
         Pacer(speed, threading.Event())
-
-
-def test_a_full_disk_for_the_events_is_one_error_and_a_failed_run(tmp_path, capsys):
-    """`--events /dev/full`: the flush's OSError went through the sensing thread's traceback
-    and the close's again out of `run`; now one line naming the file, exit 1."""
-    from hapticdesk.cli import main
-
-    examples = Path(__file__).resolve().parents[2] / "examples"
-    code = main(
-        ["run", "--layout", str(examples / "layouts" / "buttons.yaml"), "--source",
-         f"sim:{examples / 'scenes' / 'buttons.yaml'}", "--speed", "0", "--events", "/dev/full"]
-    )  # fmt: skip
-    err = capsys.readouterr().err
-    assert code == 1
-    assert "error: /dev/full: cannot write the events: No space left on device" in err
-    assert "Traceback" not in err

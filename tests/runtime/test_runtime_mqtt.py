@@ -199,7 +199,7 @@ def test_username_and_password_from_a_file_or_the_environment(
         ("{brokr: x}", "brokr", "unknown key `brokr`"),
         ("{broker: 'http://host'}", "'http", "mqtt://host[:port] or mqtts://host[:port]"),
         ("{tls: {cert: l.yaml}}", "{cert", "needs both `cert` and `key`"),
-        ("{discovery: 'yes'}", "'yes'", "`discovery` of `mqtt` must be true or false"),
+        ("{discovery: 'yes'}", "'yes'", "`discovery` of `mqtt` must be false, true"),
         # the fuzzing pass: port 0 connected to 1883, a 1e18 queue was taken, a binary
         # password file was "a plugin crashed ... UnicodeDecodeError"
         ("{broker: 'mqtt://localhost:0'}", "'mqtt", "has port 0; expected 1 to 65535"),
@@ -309,7 +309,11 @@ def test_home_assistant_discovery_and_availability(broker, subscribe, tmp_path, 
     assert tap["automation_type"] == "trigger"
     assert tap["type"] == "button_short_press"
     assert tap["subtype"] == "lamp"
-    assert tap["topic"] == "hapticdesk/study/action"
+    # on the event topic: the trigger's payload_json carries the gesture's data
+    assert (tap["topic"], tap["value_template"]) == (
+        "hapticdesk/study/event",
+        "{{ value_json.action }}",
+    )
     assert tap["payload"] == "lamp_tap"
     assert tap["device"]["identifiers"] == ["hapticdesk_study"]
     assert tap["device"]["name"] == "study"
@@ -327,7 +331,7 @@ def test_home_assistant_discovery_and_availability(broker, subscribe, tmp_path, 
     assert by_topic[0] == ("hapticdesk/study/availability", "online")
     assert ("hapticdesk/study/action", "lamp_tap") in by_topic
     event = next(json.loads(p) for t, p in by_topic if t == "hapticdesk/study/event")
-    assert event == {**events[0], "action": "lamp_tap"}
+    assert event == {**events[0], "action": "lamp_tap", "seq": 1}  # the run's count
     assert by_topic[-1] == offline
 
 

@@ -28,7 +28,7 @@ def plugin(**hooks):
 def test_builtins_are_registered_through_the_same_hooks():
     registry = load_registry(entry_points=False)
     assert list(registry.plugins) == list(DEFAULT_PLUGINS)
-    assert set(registry.sources) == {"sim", "replay", "can"}
+    assert set(registry.sources) == {"sim", "replay", "can", "serial"}
     assert set(registry.actions) >= {"mqtt", "exec", "http", "log"}
     assert registry.actions["mqtt"].plugin == "hapticdesk.plugins.mqtt"
     assert registry.sources["can"].plugin == "hapticdesk.plugins.can"
@@ -102,9 +102,9 @@ def test_unknown_action_and_source_list_what_is_installed():
     ):
         registry.validate_action("lamp", {}, "layout.yaml:3:5")
     with pytest.raises(
-        ConfigError, match="unknown source kind `serial`; installed: can, replay, sim"
+        ConfigError, match="unknown source kind `usb`; installed: can, replay, serial, sim"
     ):
-        registry.source("serial")
+        registry.source("usb")
 
 
 def test_a_lazy_factory_that_cannot_be_imported_names_its_plugin():

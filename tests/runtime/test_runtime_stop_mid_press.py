@@ -127,10 +127,12 @@ def test_sigterm_to_hapticdesk_run_while_the_finger_is_down_fires_no_tap(tmp_pat
     presses = [e.get("phase") for e in events if e["gesture"] == "long_press"]
     assert presses == [None, "cancel"]  # the hold broke off: cancel, not end
     assert events[-1]["t"] < 5.7
-    # played to the end, the press is released (so the test can fail): a second tap, an end
+    # played to the end, the press is released (so the test can fail): an end, where the stop
+    # gave a cancel; no second tap, as the long press holds that touch (one gesture per touch:
+    # the made-up tap is the in-process tests' above)
     proc, events_path = hapticdesk_run(tmp_path, paper_desk, speed="0")
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 0, err
     events = read_events(events_path)
-    assert len([e for e in events if e["gesture"] == "tap"]) == 2
+    assert len([e for e in events if e["gesture"] == "tap"]) == 1
     assert [e.get("phase") for e in events if e["gesture"] == "long_press"] == [None, "end"]

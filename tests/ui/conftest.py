@@ -35,13 +35,18 @@ CHROMIUM_ARGS = [
     "--disable-sync",
 ]
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
-# the page's screenshots: the README's pictures under docs/ only when asked for
+# the page's screenshots: the documentation's pictures under docs/ only when asked for
 # (HAPTICDESK_SCREENSHOTS=docs); a plain test run must not rewrite committed files
 DOCS = (
     Path(__file__).resolve().parents[2] / "docs"
     if os.environ.get("HAPTICDESK_SCREENSHOTS") == "docs"
     else Path(tempfile.gettempdir()) / "hapticdesk-ui-screenshots"
 )
+#: the pictures of the page the guides show (docs/images/), each at both sizes
+IMAGES = DOCS / "images"
+#: the two windows the page is checked in: a desktop's and a phone's
+DESKTOP = {"width": 1400, "height": 900}
+PHONE = {"width": 390, "height": 844}
 
 # Taps alternate between button b5 (0, 0) and (20, -10) cm, where no region is yet (the
 # designer test draws one there), one a second, for longer than the page tests take.
@@ -85,15 +90,24 @@ class UiProcess:
     def __init__(self, layout: Path, scene: Path, *extra: str) -> None:
         self.layout = layout
         self.lines: list[str] = []
+        #: what it printed (the `log` action's lines, with --actions)
+        self.printed: list[str] = []
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "hapticdesk", "ui", "--layout", str(layout)]
             + ["--source", f"sim:{scene}", "--port", "0", *extra],
             stderr=subprocess.PIPE,
-            stdout=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
             text=True,
         )
         found = threading.Event()
         self.url = ""
+
+        def printed() -> None:
+            assert self.proc.stdout is not None
+            for line in self.proc.stdout:
+                self.printed.append(line)
+
+        threading.Thread(target=printed, daemon=True).start()
 
         def read() -> None:
             assert self.proc.stderr is not None
@@ -144,6 +158,22 @@ def desk_to_screen(page: Any, x: float, y: float) -> tuple[float, float]:
         }""",
         [x, y],
     )
+
+
+def draw_rectangle(page: Any, name: str, a: tuple[float, float], b: tuple[float, float]) -> None:
+    """Draw the region ``name`` with the designer's rectangle tool from desk point ``a`` to
+    ``b`` (metres), as a person drags, and wait until it is drawn."""
+    page.click("#tab-designer")
+    page.check("#tool-rect")
+    page.fill("#region-name", name)
+    x0, y0 = desk_to_screen(page, *a)
+    x1, y1 = desk_to_screen(page, *b)
+    page.mouse.move(x0, y0)
+    page.mouse.down()
+    page.mouse.move((x0 + x1) / 2, (y0 + y1) / 2)
+    page.mouse.move(x1, y1)
+    page.mouse.up()
+    page.wait_for_selector(f"#region-{name}")
 
 
 @pytest.fixture

@@ -14,12 +14,12 @@ from typing import Any
 
 import pytest
 
-from .conftest import DOCS
+from .conftest import DESKTOP, DOCS, draw_rectangle
 
 
 @pytest.fixture(scope="module")
 def page(browser: Any, ui_service: Any) -> Any:
-    context = browser.new_context(viewport={"width": 1280, "height": 860})
+    context = browser.new_context(viewport=DESKTOP)
     p = context.new_page()
     errors: list[str] = []
     p.on("pageerror", lambda err: errors.append(str(err)))
@@ -78,20 +78,8 @@ def test_a_broken_edit_shows_its_error_on_the_field(page: Any, ui_service: Any) 
     page.wait_for_function("document.getElementById('yaml-error').textContent === ''")
 
 
-def test_a_drawn_rectangle_with_a_tap_is_saved_checked_and_used(
-    page: Any, ui_service: Any, to_screen: Any
-) -> None:
-    page.click("#tab-designer")
-    page.check("#tool-rect")
-    page.fill("#region-name", "pad")
-    x0, y0 = to_screen(page, 0.15, -0.05)
-    x1, y1 = to_screen(page, 0.25, -0.15)
-    page.mouse.move(x0, y0)
-    page.mouse.down()
-    page.mouse.move((x0 + x1) / 2, (y0 + y1) / 2)
-    page.mouse.move(x1, y1)
-    page.mouse.up()
-    page.wait_for_selector("#region-pad")
+def test_a_drawn_rectangle_with_a_tap_is_saved_checked_and_used(page: Any, ui_service: Any) -> None:
+    draw_rectangle(page, "pad", (0.15, -0.05), (0.25, -0.15))
     drawn = re.search(r"\n  pad: \{rect: \[([^\]]+)\]\}\n", page.input_value("#yaml"))
     assert drawn, page.input_value("#yaml")
     corners = [float(v) for v in drawn.group(1).split(",")]

@@ -72,6 +72,7 @@ class TapRecognizer(Recognizer):
         self._pending: _PendingTap | None = None
         self._second_down = False  # a touch began inside the double-tap window
         self._deadline: float | None = None
+        self._earlier: list[GestureEvent] = []  # taps of earlier touches decided just now
 
     def next_deadline(self) -> float | None:
         return self._deadline
@@ -87,21 +88,29 @@ class TapRecognizer(Recognizer):
             return []
         if event.kind != "up":
             return []
+        first, self._pending = self._pending, None
+        if first is not None:
+            self._second_down = False
+            self._deadline = None
+        if touch.claimed_by is not None:
+            # a more specific gesture holds this touch (arbitration): it is no tap, so a tap
+            # waiting for it was a single one
+            self._earlier += self._single(first, event.t) if first is not None else []
+            return []
         if touch.multi and self.two_finger:
             two = self._two_finger(touch, event.t)
             if two is not None:
-                return self.on_deadline(event.t) + [two]  # (a pending tap is single after all)
-        out: list[GestureEvent] = []
-        if self._pending is not None:
-            first = self._pending
-            self._second_down = False
-            self._pending = None
-            self._deadline = None
+                self._earlier += self._single(first, event.t) if first is not None else []
+                return [two]
+        if first is not None:
             double = self._double(first, touch, event.t)
             if double is not None:
                 return [double]
-            out += self._single(first, event.t)
-        out += self._judge(touch, event.t)
+            self._earlier += self._single(first, event.t)
+        return self._judge(touch, event.t)
+
+    def decided_earlier(self) -> list[GestureEvent]:
+        out, self._earlier = self._earlier, []
         return out
 
     def on_deadline(self, t: float) -> list[GestureEvent]:
@@ -111,13 +120,15 @@ class TapRecognizer(Recognizer):
         return self._single(first, t) if first is not None else []
 
     def _judge(self, touch: Touch, t: float) -> list[GestureEvent]:
-        """A released touch on its own: a tap now, a tap waiting for its double, or nothing."""
-        if not touch.located:
+        """A released touch on its own: a tap now, a tap waiting for its double, or nothing.
+        A touch whose start a gap hid is nothing: its short rest is no tap."""
+        if not touch.located or touch.began_unseen:
             return []
         x, y, _ = touch.best()
-        tap_found, tap_region = self.taps.find(x, y, touch.surface, snap=True)
+        sigma = touch.place_sigma()  # (a tap whose uncertainty reaches two buttons: neither)
+        tap_found, tap_region = self.taps.find(x, y, touch.surface, snap=True, sigma=sigma)
         is_single = tap_found and _is_tap(touch, x, y, self.taps.options(tap_region))
-        double_found, double_region = self.doubles.find(x, y, touch.surface, snap=True)
+        double_found, double_region = self.doubles.find(x, y, touch.surface, True, sigma)
         if double_found:
             options = self.doubles.options(double_region)
             if _is_tap(touch, x, y, options):
@@ -136,7 +147,8 @@ class TapRecognizer(Recognizer):
         if not touch.located:
             return None
         x, y, _ = touch.best()
-        found, region = self.two_finger.find(x, y, touch.surface, snap=True)
+        sigma = touch.place_sigma()
+        found, region = self.two_finger.find(x, y, touch.surface, snap=True, sigma=sigma)
         if not found or not _is_tap(touch, x, y, self.two_finger.options(region)):
             return None
         second = touch.second
@@ -150,7 +162,8 @@ class TapRecognizer(Recognizer):
         if not touch.located:
             return None
         x, y, _ = touch.best()
-        found, region = self.doubles.find(x, y, touch.surface, snap=True)
+        sigma = touch.place_sigma()
+        found, region = self.doubles.find(x, y, touch.surface, snap=True, sigma=sigma)
         options = first.double_options
         if (
             not found

@@ -1,6 +1,7 @@
 // hapticdesk's page: live view, layout designer, strokes. Hand-written, no framework, no
 // build step, nothing fetched but this server's own API. Desk coordinates are metres with
 // y away from the person; the SVG draws millimetres with y flipped (SVG y points down).
+// What a person reads (the touch's x and y, the set-up's points) is in the layout's units.
 "use strict";
 
 const NS = "http://www.w3.org/2000/svg";
@@ -16,6 +17,7 @@ const Y = (y) => -y * 1000;
 const fromSvg = (px, py) => [px / 1000, -py / 1000];
 
 let desk = null;          // the last `desk` message
+let connected = false;    // the WebSocket is open
 let schema = null;        // gesture and action option forms (GET /api/schema)
 let tab = "live";
 const trail = [];         // [t, x, y]
@@ -42,9 +44,45 @@ function pointsAttr(outline) {
 
 // --- drawing the desk ------------------------------------------------------------------------
 
+// --- the layout's units ------------------------------------------------------------------------
+
+const UNIT_METRES = { m: 1, cm: 0.01, mm: 0.001 };
+const UNIT_DECIMALS = { m: 3, cm: 1, mm: 0 };
+function units() { return (desk && UNIT_METRES[desk.units]) ? desk.units : "m"; }
+function inUnits(metres, extra = 0) {  // a length as the layout writes it, e.g. "12.5 cm"
+  return `${(metres / UNIT_METRES[units()]).toFixed(UNIT_DECIMALS[units()] + extra)} ${units()}`;
+}
+function toUnits(metres) {
+  const f = 10 ** (UNIT_DECIMALS[units()] + 1);
+  return Math.round(metres / UNIT_METRES[units()] * f) / f;
+}
+function toMetres(value) { return value * UNIT_METRES[units()]; }
+
+// --- one status: connected, sensing, actions ---------------------------------------------------
+
+function showStatus() {
+  const box = $("status");
+  if (!connected) { box.textContent = "disconnected: retrying…"; box.className = "status off"; }
+  else if (desk && desk.live) { box.textContent = "live"; box.className = "status on"; }
+  else {
+    box.textContent = "not sensing: the source ended (the designer still works)";
+    box.className = "status idle";
+  }
+  const hint = $("actions-hint");
+  hint.classList.remove("off");
+  if (!desk || !desk.live) hint.textContent = "nothing runs: no desk is sensing";
+  else if (desk.actions === false) {
+    hint.textContent = "Actions are off: this is a preview (hapticdesk ui without --actions). " +
+      "Gestures are recognised and shown here; nothing is sent.";
+    hint.classList.add("off");
+  } else hint.textContent = actionRows.size ? "" : "no action has run yet";
+}
+
 function drawDesk(message) {
   desk = message;
-  $("desk-name").textContent = `hapticdesk — ${message.name}` + (message.live ? "" : " (not live)");
+  $("desk-name").textContent = `hapticdesk — ${message.name}`;
+  for (const span of document.querySelectorAll(".units")) span.textContent = units();
+  showStatus();
   const surfaces = $("surfaces"), sensors = $("sensors");
   surfaces.replaceChildren(); sensors.replaceChildren();
   let xs = [], ys = [];
@@ -66,6 +104,10 @@ function drawDesk(message) {
   }
   drawRegions();
   fillBindingForm();
+  if (!message.regions.length && !$("events").children.length) {
+    $("events-hint").textContent = "this layout has no regions yet: draw one in the Designer, " +
+      "then bind a gesture to it";
+  }
 }
 
 function drawRegions() {
@@ -114,7 +156,8 @@ function onContact(m) {
   stats.contacts += 1;
   if (lastT !== null && m.t < lastT) { trail.length = 0; forces.length = 0; }  // a new run
   lastT = m.t;
-  $("tare").textContent = m.tared ? "" : "taring: keep the desk still";
+  $("tare").textContent = (m.tared ? "" : "taring: keep the desk still ") +
+    (m.paused ? "paused: gestures are not sent" : "");
   forces.push([m.t, m.force_n]);
   while (forces.length && forces[0][0] < m.t - FORCE_S) forces.shift();
   const touching = m.phase === "touch" || m.phase === "hold" || m.phase === "release";
@@ -142,8 +185,8 @@ function onContact(m) {
   const lit = region || (shown ? shown.region : null);
   if (lit) $("region-" + lit)?.classList.add("hot");
   $("touch-region").textContent = region || "—";
-  $("rx").textContent = located ? (m.x * 100).toFixed(1) + " cm" : "—";
-  $("ry").textContent = located ? (m.y * 100).toFixed(1) + " cm" : "—";
+  $("rx").textContent = located ? inUnits(m.x) : "—";
+  $("ry").textContent = located ? inUnits(m.y) : "—";
   $("rf").textContent = m.force_n.toFixed(1);
   $("rphase").textContent = m.phase || "—";
   if (recordingFromDesk) recordDeskSample(m, touching, located);
@@ -151,11 +194,37 @@ function onContact(m) {
   drawForce(m.t);
 }
 
+// The force over the last FORCE_S seconds, drawn in the element's own pixels (so the labels
+// are not stretched): a time axis in seconds before now, and newtons up the left.
+const FORCE_PAD = { left: 36, right: 8, top: 8, bottom: 20 };
+let forceAxes = "";       // the size and scale the axes were drawn for
+
 function drawForce(now) {
-  const top = Math.max(20, ...forces.map((f) => f[1]));
-  $("force-max").textContent = `${top.toFixed(0)} N`;
+  const svg = $("force");
+  const w = svg.clientWidth || 500, h = svg.clientHeight || 100;
+  const top = Math.max(20, Math.ceil(Math.max(0, ...forces.map((f) => f[1])) / 10) * 10);
+  const x0 = FORCE_PAD.left, x1 = w - FORCE_PAD.right, y0 = FORCE_PAD.top, y1 = h - FORCE_PAD.bottom;
+  const key = `${w}x${h}/${top}`;
+  if (key !== forceAxes) {
+    forceAxes = key;
+    svg.setAttribute("viewBox", `0 0 ${w} ${h}`);
+    const g = $("force-axes");
+    g.replaceChildren();
+    for (let s = 0; s <= FORCE_S; s += 1) {
+      const x = x1 - (x1 - x0) * s / FORCE_S;
+      el("line", { class: s === 0 ? "axis-line" : "grid-line", x1: x, y1: y0, x2: x, y2: y1 }, g);
+      const anchor = s === 0 ? "end" : s === FORCE_S ? "start" : "middle";
+      el("text", { class: "axis", x, y: h - 5, "text-anchor": anchor }, g)
+        .textContent = s === 0 ? "now" : `−${s} s`;
+    }
+    for (const f of [0, top / 2, top]) {
+      const y = y1 - (y1 - y0) * f / top;
+      el("line", { class: f === 0 ? "axis-line" : "grid-line", x1: x0, y1: y, x2: x1, y2: y }, g);
+      el("text", { class: "axis", x: x0 - 4, y: y + 4, "text-anchor": "end" }, g).textContent = `${f} N`;
+    }
+  }
   $("force-line").setAttribute("points", forces.map(([t, f]) =>
-    `${(500 * (1 - (now - t) / FORCE_S)).toFixed(1)},${(78 - 70 * f / top).toFixed(1)}`).join(" "));
+    `${(x1 - (x1 - x0) * (now - t) / FORCE_S).toFixed(1)},${(y1 - (y1 - y0) * f / top).toFixed(1)}`).join(" "));
 }
 
 function addItem(listId, text, cls) {
@@ -165,12 +234,37 @@ function addItem(listId, text, cls) {
   if (cls) li.className = cls;
   list.prepend(li);
   while (list.children.length > MAX_LIST) list.lastChild.remove();
+  return li;
 }
 
+// A continuous gesture (slide, force) is one line from its begin to its end, its updates
+// counted on it; a tap is a line of its own, so taps stay in view while a slider moves.
+const going = new Map();  // gesture + region -> {li, first, value, updates, t}
+
 function onGesture(m) {
+  $("events-hint").textContent = "";
+  const where = m.region ?? "anywhere";
+  const key = `${m.gesture} ${where}`;
+  if (m.phase === "begin" || m.phase === "update" || ((m.phase === "end" || m.phase === "cancel") && going.has(key))) {
+    let g = going.get(key);
+    if (!g || m.phase === "begin") {
+      g = { li: addItem("events", "", "going"), first: m.value, updates: 0, t: m.t };
+      going.set(key, g);
+    }
+    if (m.phase === "update") g.updates += 1;
+    g.value = m.value;
+    const values = m.value !== undefined && g.first !== undefined
+      ? ` ${g.first.toFixed(2)} → ${m.value.toFixed(2)}` : "";
+    const ended = m.phase === "end" || m.phase === "cancel";
+    const state = ended ? ` ${m.phase}` : " …";
+    const updates = g.updates ? ` (${g.updates} updates)` : "";
+    g.li.textContent = `${g.t.toFixed(2)} s  ${m.gesture} ${where}${values}${updates}${state} → ${m.action}`;
+    if (ended) { g.li.className = m.phase === "cancel" ? "failed" : ""; going.delete(key); }
+    return;
+  }
   const detail = m.shape ?? m.direction ?? m.level ?? (m.value !== undefined ? m.value.toFixed(2) : "");
-  addItem("events", `${m.t.toFixed(2)} s  ${m.gesture} ${m.region ?? "anywhere"} ${detail ?? ""} ${m.phase ?? ""} → ${m.action}`);
-  if (m.gesture === "stroke" && recordingFromDesk === false && m.shape !== undefined) { /* shown */ }
+  const phase = m.phase ? ` ${m.phase}` : "";
+  addItem("events", `${m.t.toFixed(2)} s  ${m.gesture} ${where} ${detail ?? ""}${phase} → ${m.action}`);
 }
 
 const actionRows = new Map();
@@ -181,6 +275,7 @@ function onAction(m) {
   if (!li) { li = document.createElement("li"); actionRows.set(m.label, li); $("actions").prepend(li); }
   li.textContent = text;
   li.className = m.failed || m.timed_out || m.dropped ? "failed" : "";
+  showStatus();
 }
 
 function onNotice(m) {
@@ -191,9 +286,9 @@ function onNotice(m) {
 function connect() {
   const proto = location.protocol === "https:" ? "wss" : "ws";
   const ws = new WebSocket(`${proto}://${location.host}/ws` + (TOKEN ? `?token=${TOKEN}` : ""));
-  ws.onopen = () => { $("conn").textContent = "live"; $("conn").className = "on"; };
+  ws.onopen = () => { connected = true; showStatus(); };
   ws.onclose = () => {
-    $("conn").textContent = "disconnected"; $("conn").className = "off";
+    connected = false; showStatus();
     setTimeout(connect, 1000);
   };
   ws.onmessage = (e) => {
@@ -377,7 +472,8 @@ function drawDraft(kind, pts) {
     const [c, p] = pts;
     el("circle", { class: "draft", cx: X(c[0]), cy: Y(c[1]), r: X(Math.hypot(p[0] - c[0], p[1] - c[1])) }, g);
   } else {
-    el(kind === "stroke" ? "polyline" : "polygon", { class: "draft", points: pointsAttr(pts), id: "draft" }, g);
+    el(kind === "stroke" ? "polyline" : "polygon",
+      { class: kind === "stroke" ? "draft stroke" : "draft", points: pointsAttr(pts), id: "draft" }, g);
   }
 }
 
@@ -553,17 +649,20 @@ $("stroke-discard").addEventListener("click", () => {
 let setupPresses = null;  // presses counted since Start (a release ends one)
 let setupTouching = false;
 
+// the marked points, in the layout's units (the set-up API takes metres)
 function defaultPoints() {
   const xs = desk.outline.map((p) => p[0]), ys = desk.outline.map((p) => p[1]);
   const cx = (Math.min(...xs) + Math.max(...xs)) / 2, cy = (Math.min(...ys) + Math.max(...ys)) / 2;
   const hx = (Math.max(...xs) - Math.min(...xs)) / 3, hy = (Math.max(...ys) - Math.min(...ys)) / 3;
-  const r = (v) => Math.round(v * 1000) / 1000;
   return [[cx - hx, cy - hy], [cx + hx, cy - hy], [cx + hx, cy + hy], [cx - hx, cy + hy],
-    [cx, cy], [cx + hx / 2, cy - hy / 3]].map(([x, y]) => [r(x), r(y)]);
+    [cx, cy], [cx + hx / 2, cy - hy / 3]].map(([x, y]) => [toUnits(x), toUnits(y)]);
 }
 
-function setupPoints() {
-  try { return JSON.parse($("setup-points").value); } catch { return null; }
+function setupPoints() {  // metres
+  try {
+    const points = JSON.parse($("setup-points").value);
+    return points.map(([x, y]) => [toMetres(x), toMetres(y)]);
+  } catch { return null; }
 }
 
 function drawMarks(points, measured = null) {
@@ -629,7 +728,7 @@ $("setup-finish").addEventListener("click", async () => {
     .map((f) => { const li = document.createElement("li"); li.textContent = f.message; return li; }));
   $("setup-residuals").replaceChildren(...result.residual_m.map((d) => {
     const li = document.createElement("li");
-    li.textContent = d === null ? "not located" : `placed ${(d * 1000).toFixed(1)} mm from the mark`;
+    li.textContent = d === null ? "not located" : `placed ${inUnits(d, 1)} from the mark`;
     return li;
   }));
   $("setup-desk").textContent = `noise of Fz: ${result.noise_fz_n ?? "— (" + result.noise_reason + ")"} N; ` +

@@ -1,0 +1,140 @@
+"""``hapticdesk init [FILE] [--desk D] [--units U] [--blank] [--force]``: start a layout.
+
+Writes a layout for a chosen desk that ``check``, ``run`` and the browser's designer take as
+it is: commented, with one button in the middle of the desk's top bound to a tap that logs,
+and the other region shapes and a slider as comments to copy; or, with ``--blank``, no
+regions and no bindings yet (``check`` then warns that nothing will happen). An existing
+file is never overwritten without ``--force``. ``hapticdesk ui --layout NEW.yaml`` starts a
+missing layout the same way.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+from typing import Any
+
+from hapticdesk.files.yamlfile import ConfigError
+
+DEFAULT_FILE = "layout.yaml"
+DEFAULT_DESK = "kitamura2017"
+#: the example button's side, metres (a fingertip's width and some)
+BUTTON_M = 0.05
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "file", nargs="?", default=DEFAULT_FILE, help="the layout to write (%(default)s)"
+    )
+    parser.add_argument(
+        "--desk",
+        default=DEFAULT_DESK,
+        help="a desk profile name or path (default %(default)s, the paper's desk)",
+    )
+    parser.add_argument(
+        "--units", choices=("m", "cm", "mm"), default="cm", help="lengths in (default cm)"
+    )
+    parser.add_argument(
+        "--blank", action="store_true", help="no regions and no bindings yet (draw them in `ui`)"
+    )
+    parser.add_argument("--force", action="store_true", help="overwrite FILE if it exists")
+
+
+def run(args: argparse.Namespace) -> int:
+    path = Path(args.file)
+    if path.exists() and not args.force:
+        raise ConfigError(str(path), "already exists; give another name, or --force to replace it")
+    desk = write_starter(path, args.desk, units=args.units, blank=args.blank)
+    regions = "no regions yet" if args.blank else "a button bound to a tap that logs"
+    print(f"wrote {path}: a layout for desk {desk} with {regions}")
+    print("next:")
+    print(f"  hapticdesk check {path}")
+    print(f"  hapticdesk ui --layout {path}     # draw regions and bind gestures in the browser")
+    return 0
+
+
+def desk_reference(desk: str, layout: Path) -> str:
+    """How the layout names ``desk``: a shipped profile by its name, a file by its path
+    relative to the layout's folder (as a layout's paths are read) when it is in or below that
+    folder, else absolute."""
+    given = Path(desk).expanduser()
+    if given.suffix.lower() not in (".yaml", ".yml") and not given.exists():
+        return desk
+    relative = os.path.relpath(given.resolve(), layout.resolve().parent)
+    return given.resolve().as_posix() if relative.startswith("..") else Path(relative).as_posix()
+
+
+def starter_text(profile: Any, desk: str, file_name: str, units: str, blank: bool) -> str:
+    """The layout ``init`` writes (see the module docstring)."""
+    from hapticdesk.gestures.layout import UNITS
+
+    scale = UNITS[units]
+    if not profile.surfaces:
+        raise ConfigError(
+            desk, f"desk `{profile.name}` has no surfaces to touch (its profile needs `surfaces:`)"
+        )
+    top = profile.surfaces[0]
+    (x0, y0), (x1, y1) = top.polygon.min(axis=0), top.polygon.max(axis=0)
+
+    def n(metres: float) -> str:
+        return f"{metres / scale:.4g}"
+
+    lines = [
+        f"# A layout for hapticdesk, started by `hapticdesk init` for desk {profile.name}.",
+        f"# Its surface `{top.name}` spans x {n(x0)}..{n(x1)} and y {n(y0)}..{n(y1)} {units}:",
+        "# x to your right, y away from you, seen from where you sit.",
+        f"#   hapticdesk check {file_name}            # what it means, or where it is wrong",
+        f"#   hapticdesk ui --layout {file_name}      # draw regions and bind gestures",
+        "# Every key, gesture and action: the documentation's Reference pages.",
+        f"desk: {desk}",
+        f"units: {units}                  # m | cm | mm, for every length below",
+    ]
+    if blank:
+        return "\n".join(lines + ["regions: {}", "bindings: []", ""])
+    cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
+    half = min(BUTTON_M, (x1 - x0) / 5, (y1 - y0) / 5) / 2
+    width, depth = x1 - x0, y1 - y0
+    lines += [
+        "regions:",
+        f"  button: {{rect: [{n(cx - half)}, {n(cy - half)}, {n(cx + half)}, {n(cy + half)}]}}"
+        "   # x0, y0, x1, y1",
+        f"  # knob: {{circle: {{center: [{n(cx + width / 4)}, {n(cy)}], radius: {n(half)}}}}}",
+        f"  # dimmer: {{rect: [{n(cx - width / 4)}, {n(cy + depth / 4 - half)}, "
+        f"{n(cx + width / 4)}, {n(cy + depth / 4 + half)}], axis: x}}   # a slider along x",
+        f"  # corner: {{polygon: [[{n(x0)}, {n(y0)}], [{n(x0 + width / 5)}, {n(y0)}], "
+        f"[{n(x0)}, {n(y0 + depth / 5)}]]}}",
+        "bindings:",
+        "  - gesture: tap",
+        "    region: button",
+        '    do: {log: {message: "{{ region }} tapped at {{ t }} s"}}',
+        "  # - gesture: slide",
+        "  #   region: dimmer",
+        "  #   do: {mqtt: {topic: zigbee2mqtt/desk_lamp/set,",
+        '  #               payload: {brightness: "{{ (value * 254) | round | int }}"}}}',
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def write_starter(
+    path: Path, desk: str = DEFAULT_DESK, *, units: str = "cm", blank: bool = False
+) -> str:
+    """Write the starter layout to ``path`` (checked as ``check`` would, first); the desk's
+    name."""
+    from hapticdesk.files.profile import load_profile
+    from hapticdesk.registry import load_registry
+    from hapticdesk.runtime.assembly import load_scene_layout
+
+    reference = desk_reference(desk, path)
+    profile = load_profile(desk)
+    text = starter_text(profile, reference, path.name, units, blank)
+    if not path.parent.is_dir():
+        raise ConfigError(str(path), f"no such folder {path.parent}")
+    load_scene_layout(path, load_registry(), None, text=text)  # (it is ours: never fails)
+    try:
+        with path.open("x" if not path.exists() else "w", encoding="utf-8") as out:
+            out.write(text)
+    except OSError as err:
+        raise ConfigError(str(path), f"cannot write it: {err.strerror or err}") from None
+    return str(profile.name)

@@ -1,0 +1,458 @@
+#!/usr/bin/env python3
+"""Leave-one-writer-out: the stroke recognizer's choices made on four writers of the $1 logs
+and measured on the fifth, all five ways, per speed, with a plain Protractor beside.
+
+The choices (``unistroke.ScoreChoices``) and how each is made on the four training writers:
+
+- ``direction_weight`` (the warped directions' share of the score, the rest Protractor's
+  cosine) and ``form_weight`` (whether and how much a difference in form costs): the pair
+  of the grid with the best top-1 accuracy, averaged over three protocols on the four
+  (a writer's own 3 templates; writer-independent, templates from three of them tested on
+  the fourth; the built-in templates), rejection left out;
+- ``margin`` (how far below its own templates' agreement a shape still takes a stroke): the
+  largest of the grid that accepts at most 5 % of unknown shapes, pooled over the four:
+  with a writer's own 3 templates a shape, a shape left out (leave-one-shape-out) must be
+  rejected;
+- ``builtin_extra`` (what a stroke nearest a built-in template asks beyond ``min_score``):
+  the smallest of the grid that accepts at most 5 % of strokes that are none of the shapes
+  (S, Z, spiral, figure eight, scribble; ``stroke_accuracy.others``, drawn differently each
+  time): chosen on no writer at all.
+
+Each held-out writer is then measured with the choices its four made: writer-independent
+(the four writers' 1,920 strokes as templates), the writer's own 3 templates a shape
+(rotated over the 10 repetitions, the 7 others tested), the built-in templates, and unknown
+shapes accepted (own 3 templates, each shape left out in turn). A plain Protractor (Li 2010:
+n = 16, uniform scale, rotation within ``max_rotation_deg``, top-1, no rejection) has the
+same templates. The shipped choices are the same procedure on all five writers; they are
+shipped when every fold chose the same.
+
+    python scripts/stroke_lowo.py ../shared/data/dollar1            # about 4 min
+    python scripts/stroke_lowo.py ../shared/data/dollar1 --json lowo.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import math
+import sys
+import time
+from collections.abc import Iterator
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # (stroke_accuracy beside this one)
+
+from stroke_accuracy import others, trace_synthetic  # noqa: E402
+
+from hapticdesk.gestures.options import GESTURE_OPTIONS  # noqa: E402
+from hapticdesk.gestures.strokes.dollar_logs import SPEEDS, read_logs  # noqa: E402
+from hapticdesk.gestures.strokes.shapes import normalised, resample  # noqa: E402
+from hapticdesk.gestures.strokes.unistroke import (  # noqa: E402
+    DEFAULT_CHOICES,
+    Nearest,
+    ScoreChoices,
+    Similarity,
+    agreement,
+    builtin_templates,
+    nearest,
+    similarity,
+    stroke_features,
+)
+
+MIN_SCORE = GESTURE_OPTIONS["stroke"]["min_score"].default
+MAX_ROTATION = GESTURE_OPTIONS["stroke"]["max_rotation_deg"].default
+PROTRACTOR_POINTS = 16
+DIRECTION_WEIGHTS = (0.15, 0.3, 0.5, 0.7, 0.85)
+FORM_WEIGHTS = (0.0, 0.3)
+MARGINS = tuple(round(0.02 + 0.005 * k, 3) for k in range(21))  # 0.02 .. 0.12
+BUILTIN_EXTRAS = tuple(round(0.01 * k, 2) for k in range(13))  # 0 .. 0.12
+UNKNOWN_TARGET = 0.05  # unknown shapes accepted, at most
+OWN_TEMPLATES = 3
+
+
+@dataclass
+class Logs:
+    """The logs: each stroke's shape, writer, speed and repetition (arrays), and the parts of
+    the score of every stroke against every other (and against the built-in templates)."""
+
+    shape: np.ndarray
+    writer: np.ndarray
+    speed: np.ndarray
+    repetition: np.ndarray
+    parts: Similarity  # (N, N)
+    builtin_parts: Similarity  # (N, B)
+    builtin_names: np.ndarray
+    builtin_ideal: np.ndarray
+    protractor: np.ndarray  # (N, N) plain Protractor's cosine
+    builtin_protractor: np.ndarray  # (N, B)
+
+    @property
+    def writers(self) -> list[str]:
+        return sorted(set(self.writer.tolist()))
+
+
+def protractor_vectors(paths: list[np.ndarray]) -> np.ndarray:
+    """Plain Protractor vectors (k, n, 2): resampled, centred, of unit length."""
+    out = []
+    for p in paths:
+        q = resample(p, PROTRACTOR_POINTS)
+        q = q - q.mean(axis=0)
+        out.append(q / max(float(np.linalg.norm(q)), 1e-12))
+    return np.asarray(out)
+
+
+def protractor_cosine(strokes: np.ndarray, templates: np.ndarray) -> np.ndarray:
+    """Li 2010 eq. 5 at the best rotation within ±MAX_ROTATION: (k, T)."""
+    a = np.einsum("tnd,knd->kt", templates, strokes)
+    b = np.einsum("tn,kn->kt", templates[:, :, 1], strokes[:, :, 0]) - np.einsum(
+        "tn,kn->kt", templates[:, :, 0], strokes[:, :, 1]
+    )
+    limit = math.radians(MAX_ROTATION)
+    theta = np.clip(np.arctan2(b, a), -limit, limit)
+    return a * np.cos(theta) + b * np.sin(theta)
+
+
+def load(folder: str) -> tuple[Logs, dict[str, float]]:
+    """The logs and the seconds each part of the work took."""
+    strokes = list(read_logs(folder))
+    if not strokes:
+        raise SystemExit(f"no $1 logs (*.xml) under {folder}")
+    paths = [s.points for s in strokes]
+    cost: dict[str, float] = {}
+    started = time.perf_counter()
+    features, ok = stroke_features(paths)
+    if len(ok) != len(paths):
+        raise SystemExit("a logged stroke has no extent")
+    parts = similarity(features, features, MAX_ROTATION)
+    cost["ours"] = time.perf_counter() - started
+    builtin = builtin_templates()
+    builtin_parts = similarity(features, builtin.features(), MAX_ROTATION, builtin.ideal)
+    started = time.perf_counter()
+    vectors = protractor_vectors(paths)
+    protractor = protractor_cosine(vectors, vectors)
+    cost["protractor"] = time.perf_counter() - started
+    logs = Logs(
+        shape=np.asarray([s.shape for s in strokes], dtype=object),
+        writer=np.asarray([s.subject for s in strokes], dtype=object),
+        speed=np.asarray([s.speed for s in strokes], dtype=object),
+        repetition=np.asarray([s.repetition for s in strokes]),
+        parts=parts,
+        builtin_parts=builtin_parts,
+        builtin_names=builtin.names,
+        builtin_ideal=builtin.ideal,
+        protractor=protractor,
+        builtin_protractor=protractor_cosine(vectors, protractor_vectors(builtin.paths)),
+    )
+    cost["pairs"] = float(len(paths) ** 2)
+    return logs, cost
+
+
+# --- protocols: (test strokes, template strokes) -----------------------------------------------
+
+
+def own_splits(logs: Logs, writers: list[str]) -> Iterator[tuple[str, str, np.ndarray, np.ndarray]]:
+    """A writer's own OWN_TEMPLATES templates a shape at one speed (repetitions r … r+2,
+    rotated over the 10), the others of that writer and speed tested."""
+    for w, speed in itertools.product(writers, SPEEDS):
+        members = np.flatnonzero((logs.writer == w) & (logs.speed == speed))
+        for r in range(10):
+            reps = [(r + j) % 10 + 1 for j in range(OWN_TEMPLATES)]
+            chosen = np.isin(logs.repetition[members], reps)
+            yield w, speed, members[~chosen], members[chosen]
+
+
+def top1(scores: np.ndarray, names: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """Whether each stroke's nearest template is of its shape (k,) bool."""
+    return names[np.argmax(scores, axis=1)] == truth
+
+
+@dataclass
+class Found:
+    """Nearest shapes of many strokes gathered over splits (only what the verdict reads),
+    with the true shapes (k,)."""
+
+    nearest: Nearest
+    truth: np.ndarray
+
+    @classmethod
+    def gather(cls, parts: list[tuple[Nearest, np.ndarray]]) -> Found:
+        def joined(field: str) -> np.ndarray:
+            return np.concatenate([getattr(n, field) for n, _ in parts])
+
+        shape = joined("shape")
+        empty = np.zeros((len(shape), 0))
+        fields = (shape, joined("score"), joined("own"), joined("built_in"))
+        truth = np.concatenate([t for _, t in parts])
+        return cls(Nearest([], empty, *fields), truth)
+
+    def accepted(self, choices: ScoreChoices) -> np.ndarray:
+        """:meth:`Nearest.accepted`: the recognizer's own rule."""
+        return self.nearest.accepted(MIN_SCORE, choices)
+
+    def right(self, choices: ScoreChoices) -> np.ndarray:
+        return self.accepted(choices) & (self.nearest.shape == self.truth)
+
+
+def drawn_by_people(
+    logs: Logs, scores: np.ndarray, test: np.ndarray, templates: np.ndarray, loso: bool = False
+) -> list[tuple[Nearest, np.ndarray]]:
+    """The nearest shapes of strokes ``test`` among the strokes ``templates`` as templates
+    (as ``TemplateSet.classify_many`` finds them), with the true shapes; with ``loso``, each
+    shape's strokes among the other shapes' templates only (leave-one-shape-out)."""
+    names = logs.shape[templates]
+    people = np.zeros(len(templates), bool)
+    own = agreement(scores[np.ix_(templates, templates)], names, ~people)
+    if not loso:
+        return [(nearest(scores[np.ix_(test, templates)], names, people, own), logs.shape[test])]
+    out = []
+    for shape in dict.fromkeys(logs.shape[test].tolist()):
+        keep = names != shape
+        mine = test[logs.shape[test] == shape]
+        found = nearest(scores[np.ix_(mine, templates[keep])], names[keep], people[keep], own)
+        out.append((found, logs.shape[mine]))
+    return out
+
+
+@dataclass
+class Protocols:
+    """The nearest shapes of some writers' strokes in each protocol, for one ScoreChoices'
+    scores: own 3 templates, the same with a shape left out, writer-independent, built-in."""
+
+    own: Found
+    unknown: Found
+    independent: Found
+    builtin: Found
+
+    @classmethod
+    def on(
+        cls, logs: Logs, choices: ScoreChoices, test_writers: list[str], template_writers: list[str]
+    ) -> Protocols:
+        """``test_writers``' strokes; writer-independent templates: the strokes of those of
+        ``template_writers`` that are not the tested writer."""
+        scores = logs.parts.score(choices)
+        own, unknown, independent = [], [], []
+        for _, _, te, tm in own_splits(logs, test_writers):
+            own += drawn_by_people(logs, scores, te, tm)
+            unknown += drawn_by_people(logs, scores, te, tm, loso=True)
+        for w in test_writers:
+            te = np.flatnonzero(logs.writer == w)
+            tm = np.flatnonzero(np.isin(logs.writer, template_writers) & (logs.writer != w))
+            independent += drawn_by_people(logs, scores, te, tm)
+        tested = np.flatnonzero(np.isin(logs.writer, test_writers))
+        builtin = nearest(
+            logs.builtin_parts.score(choices)[tested], logs.builtin_names, logs.builtin_ideal, {}
+        )
+        return cls(
+            Found.gather(own),
+            Found.gather(unknown),
+            Found.gather(independent),
+            Found.gather([(builtin, logs.shape[tested])]),
+        )
+
+
+# --- the choices, made on some writers ------------------------------------------------------------
+
+
+def non_shapes(seed: int = 5, count: int = 40) -> list[np.ndarray]:
+    """Strokes that are none of the built-in shapes, each drawn differently (proportions,
+    turn, noise): ``count`` of each of stroke_accuracy.others' five."""
+    rng = np.random.default_rng(seed)
+    items = []
+    for _ in range(count):
+        for name, path in others(rng, 0.1).items():
+            aspect = np.exp(rng.uniform(np.log(0.75), np.log(1.33), size=2))
+            turn = math.radians(rng.uniform(-12.0, 12.0))
+            c, s = math.cos(turn), math.sin(turn)
+            affine = np.array([[c, -s], [s, c]]) @ np.diag(aspect)
+            items.append((name, normalised(path @ affine.T, 0.1), 0.1))
+    return trace_synthetic(items, seed)
+
+
+def builtin_extra(non_shape_parts: Similarity, choices: ScoreChoices) -> float:
+    """The smallest BUILTIN_EXTRAS that accepts at most UNKNOWN_TARGET of the non-shapes."""
+    best = non_shape_parts.score(choices).max(axis=1)
+    for extra in BUILTIN_EXTRAS:
+        if np.mean(best >= MIN_SCORE + extra) <= UNKNOWN_TARGET:
+            return extra
+    return BUILTIN_EXTRAS[-1]
+
+
+def choose(logs: Logs, writers: list[str], non_shape_parts: Similarity) -> ScoreChoices:
+    """The choices made on ``writers`` only (see the module docstring): for each weight pair
+    of the grid its built-in extra and its margin, then the pair whose writers are most often
+    right, averaged over the three protocols."""
+    best: tuple[float, ScoreChoices] | None = None
+    for dw, fw in itertools.product(DIRECTION_WEIGHTS, FORM_WEIGHTS):
+        choices = replace(DEFAULT_CHOICES, direction_weight=dw, form_weight=fw)
+        choices = replace(choices, builtin_extra=builtin_extra(non_shape_parts, choices))
+        found = Protocols.on(logs, choices, writers, writers)
+        margin = MARGINS[0]
+        for m in MARGINS:
+            if found.unknown.accepted(replace(choices, margin=m)).mean() > UNKNOWN_TARGET:
+                break
+            margin = m
+        choices = replace(choices, margin=margin)
+        right = np.mean(
+            [f.right(choices).mean() for f in (found.own, found.independent, found.builtin)]
+        )
+        if best is None or right > best[0] + 1e-12:
+            best = (float(right), choices)
+    assert best is not None
+    return best[1]
+
+
+# --- measuring a held-out writer ---------------------------------------------------------------
+
+
+def measure(logs: Logs, held_out: str, choices: ScoreChoices) -> dict[str, dict[str, float]]:
+    """Per speed: the held-out writer's figures with ``choices`` (% right, % accepted), and
+    a plain Protractor's top-1 with the same templates."""
+    train = [w for w in logs.writers if w != held_out]
+    found = Protocols.on(logs, choices, [held_out], train)
+    mine = np.flatnonzero(logs.writer == held_out)
+    own_protractor = np.concatenate(
+        [
+            top1(logs.protractor[np.ix_(te, tm)], logs.shape[tm], logs.shape[te])
+            for _, _, te, tm in own_splits(logs, [held_out])
+        ]
+    )
+    own_speed = np.concatenate([logs.speed[te] for _, _, te, _ in own_splits(logs, [held_out])])
+    others_ = np.flatnonzero(logs.writer != held_out)
+    wi_protractor = top1(
+        logs.protractor[np.ix_(mine, others_)], logs.shape[others_], logs.shape[mine]
+    )
+    builtin_protractor = top1(logs.builtin_protractor[mine], logs.builtin_names, logs.shape[mine])
+    unknown_speed = np.concatenate(
+        [
+            logs.speed[te[logs.shape[te] == shape]]
+            for _, _, te, _ in own_splits(logs, [held_out])
+            for shape in dict.fromkeys(logs.shape[te].tolist())
+        ]
+    )
+    out: dict[str, dict[str, float]] = {}
+    for speed in SPEEDS:
+        at = logs.speed[mine] == speed
+        own_at = own_speed == speed
+        out[speed] = {
+            "wi": 100 * found.independent.right(choices)[at].mean(),
+            "wi_protractor": 100 * wi_protractor[at].mean(),
+            "own": 100 * found.own.right(choices)[own_at].mean(),
+            "own_protractor": 100 * own_protractor[own_at].mean(),
+            "builtin": 100 * found.builtin.right(choices)[at].mean(),
+            "builtin_protractor": 100 * builtin_protractor[at].mean(),
+            "unknown": 100 * found.unknown.accepted(choices)[unknown_speed == speed].mean(),
+        }
+    return out
+
+
+COLUMNS = (
+    ("wi", "writer-independent"),
+    ("wi_protractor", "Protractor"),
+    ("own", "own 3 templates"),
+    ("own_protractor", "Protractor"),
+    ("builtin", "built-in"),
+    ("builtin_protractor", "Protractor"),
+    ("unknown", "unknown accepted"),
+)
+
+
+def table(folds: dict[str, dict[str, dict[str, float]]]) -> list[str]:
+    """Markdown: writer × speed, then the mean and the worst writer per speed."""
+    lines = [
+        "| writer | speed | " + " | ".join(label for _, label in COLUMNS) + " |",
+        "|---|---|" + "---:|" * len(COLUMNS),
+    ]
+    for writer, per_speed in folds.items():
+        for speed, row in per_speed.items():
+            cells = " | ".join(f"{row[key]:.1f} %" for key, _ in COLUMNS)
+            lines.append(f"| {writer} | {speed} | {cells} |")
+    for speed in (*SPEEDS, "all"):
+        speeds = SPEEDS if speed == "all" else (speed,)
+        rows = [
+            {k: float(np.mean([folds[w][s][k] for s in speeds])) for k, _ in COLUMNS} for w in folds
+        ]
+        mean = " | ".join(f"{np.mean([r[k] for r in rows]):.1f} %" for k, _ in COLUMNS)
+        lines.append(f"| **mean** | {speed} | {mean} |")
+        worst = []
+        for key, _ in COLUMNS:
+            pick = max if key == "unknown" else min
+            value = pick(r[key] for r in rows)
+            who = next(w for w, r in zip(folds, rows, strict=True) if r[key] == value)
+            worst.append(f"{value:.1f} % ({who})")
+        lines.append(f"| **worst writer** | {speed} | {' | '.join(worst)} |")
+    return lines
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("folder", help="the $1 logs (one folder per writer)")
+    parser.add_argument("--json", metavar="FILE", help="also write every figure as JSON")
+    args = parser.parse_args()
+    started = time.perf_counter()
+    logs, cost = load(args.folder)
+    non_shape = stroke_features(non_shapes())[0]
+    builtin = builtin_templates()
+    non_shape_parts = similarity(non_shape, builtin.features(), MAX_ROTATION, builtin.ideal)
+    folds: dict[str, dict[str, dict[str, float]]] = {}
+    chosen: dict[str, ScoreChoices] = {}
+    for held_out in logs.writers:
+        train = [w for w in logs.writers if w != held_out]
+        chosen[held_out] = choose(logs, train, non_shape_parts)
+        folds[held_out] = measure(logs, held_out, chosen[held_out])
+    shipped = choose(logs, logs.writers, non_shape_parts)
+    n = len(logs.shape)
+    print(
+        f"Leave-one-writer-out on the $1 logs ({n} strokes, {len(logs.writers)} writers × "
+        f"{len(SPEEDS)} speeds × 16 shapes × 10), as logged; min_score {MIN_SCORE}, "
+        f"max_rotation_deg {MAX_ROTATION:g}; every choice made on the other four writers "
+        f"(`python scripts/stroke_lowo.py {args.folder}`, {time.perf_counter() - started:.0f} s)\n"
+    )
+    print("\n".join(table(folds)))
+    print("\nChoices made by each fold (on the four other writers):\n")
+    for writer, c in chosen.items():
+        print(f"- without {writer}: {_choices_text(c)}")
+    fields = [
+        f for f in asdict(DEFAULT_CHOICES) if len({getattr(c, f) for c in chosen.values()}) == 1
+    ]
+    print(f"- on all five: {_choices_text(shipped)}")
+    print(f"- shipped (unistroke.DEFAULT_CHOICES): {_choices_text(DEFAULT_CHOICES)}")
+    same = "are" if shipped == DEFAULT_CHOICES else "are NOT"
+    print(
+        f"\nThe folds agree on: {', '.join(fields) or 'nothing'}; the shipped choices {same} "
+        "what the procedure makes on all five."
+    )
+    per_pair = {k: 1e6 * cost[k] / cost["pairs"] for k in ("ours", "protractor")}
+    print(
+        f"\nCost, the same way for both (every stroke against every other, {cost['pairs']:,.0f} "
+        f"pairs): ours {per_pair['ours']:.1f} µs a pair, plain Protractor "
+        f"{per_pair['protractor']:.2f} µs a pair; a stroke against the {len(builtin)} built-in "
+        f"templates: ours {per_pair['ours'] * len(builtin) / 1e3:.1f} ms, Protractor "
+        f"{per_pair['protractor'] * len(builtin) / 1e3:.2f} ms."
+    )
+    if args.json:
+        Path(args.json).write_text(
+            json.dumps(
+                {
+                    "folds": folds,
+                    "choices": {w: asdict(c) for w, c in chosen.items()},
+                    "all_five": asdict(shipped),
+                    "cost_s": cost,
+                },
+                indent=1,
+            )
+        )
+
+
+def _choices_text(c: ScoreChoices) -> str:
+    return (
+        f"direction_weight {c.direction_weight:g}, form_weight {c.form_weight:g}, "
+        f"margin {c.margin:g}, builtin_extra {c.builtin_extra:g}"
+    )
+
+
+if __name__ == "__main__":
+    main()

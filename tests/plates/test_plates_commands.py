@@ -1,0 +1,97 @@
+"""`contacts`, `plot` and `run --source replay:` on a C3D file: the plate is the desk, the
+contacts come in the lab frame, and what is wrong is said in one line."""
+
+from __future__ import annotations
+
+import csv
+import json
+import sys
+
+import numpy as np
+import pytest
+
+from hapticdesk.cli import main
+
+from .conftest import PlateSpec, Press, write_plate_file, y_up_corners, z_up_corners
+
+POINT = (1.08, 0.0, 0.41)  # on the top of a plate in a lab whose vertical is y
+
+
+@pytest.fixture
+def two_plates(tmp_path):
+    """Plate 1 unloaded (a light touch only), plate 2 (y up, TYPE 2) under 650 N at POINT."""
+    a = PlateSpec(2, z_up_corners(centre=(3.0, 3.0, 0.0)), (0.0, 0.0, -40.0))
+    b = PlateSpec(2, y_up_corners(), (0.0, 0.0, -40.0))
+    presses = [
+        Press((3.0, 3.0, 0.0), (0.0, 0.0, 0.5)),
+        Press(POINT, (0.0, 650.0, 0.0), seconds=1.5, quiet_s=0.5),
+    ]
+    return write_plate_file(tmp_path / "walk.c3d", [a, b], presses)
+
+
+def test_contacts_writes_lab_frame_metres_for_the_chosen_plate(two_plates, tmp_path, capsys):
+    out = tmp_path / "contacts.csv"
+    assert main(["contacts", str(two_plates), "--plate", "2", "-o", str(out), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["plate"] == 2 and info["method"] == "force"
+    rows = list(csv.DictReader(out.open()))
+    located = np.array([[float(r["x"]), float(r["y"]), float(r["z"])] for r in rows if r["x"]])
+    assert len(located) > 1400  # 1.5 s at 1 kHz
+    assert np.abs(located - np.array(POINT)).max() < 1e-4
+    assert min(float(r["t"]) for r in rows) >= 0.5  # (nothing before the step)
+
+
+def test_contacts_on_plate_one_finds_no_contact_under_half_a_newton(two_plates, capsys):
+    assert main(["contacts", str(two_plates), "-o", "-"]) == 0
+    assert capsys.readouterr().out.strip().splitlines() == ["t,x,y,z,surface,force_n,source,phase"]
+
+
+def test_plot_draws_the_plate(two_plates, tmp_path, capsys):
+    pytest.importorskip("matplotlib")
+    png = tmp_path / "plate.png"
+    assert main(["plot", str(two_plates), "--plate", "2", "-o", str(png), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["located"]["force"] > 1400
+    assert png.stat().st_size > 10_000
+
+
+def test_run_replays_the_plate_as_the_desk(two_plates, tmp_path):
+    layout = tmp_path / "plate.yaml"
+    # the desk's frame is the plate's, z up: POINT lies 0.09 m along the plate's −x (the
+    # lab's −z) and 0.08 m along the lab's x, which is the plate's −y: the desk's +y
+    layout.write_text(
+        "regions:\n  front: {rect: [-0.2, -0.3, 0.2, 0]}\n  back: {rect: [-0.2, 0, 0.2, 0.3]}\n"
+        "bindings:\n  - gesture: press\n    region: back\n    do: log\n"
+        "  - gesture: press\n    region: front\n    do: log\n"
+    )
+    events = tmp_path / "events.jsonl"
+    argv = ["run", "--layout", str(layout), "--source", f"replay:{two_plates}", "--plate", "2"]
+    assert main([*argv, "--speed", "0", "--events", str(events)]) == 0
+    fired = [json.loads(line) for line in events.read_text().splitlines()]
+    assert fired and {e["region"] for e in fired} == {"back"}
+    assert all(abs(e["x"] + 0.09) < 1e-3 and abs(e["y"] - 0.08) < 1e-3 for e in fired)
+
+
+@pytest.mark.parametrize(
+    ("argv", "said"),
+    [
+        (
+            ["contacts", "{f}", "--plate", "3"],
+            "walk.c3d has 2 force plates: expected --plate 1 to 2",
+        ),
+        (["contacts", "{f}", "--desk", "kitamura2017"], "a desk's sensors are its force plates"),
+        (["contacts", "{f}", "--desk", "kitamura2017", "--plate", "1"], "--plate"),
+        (["contacts", "{d}/x.csv", "--plate", "1"], "is not a .c3d file"),
+    ],
+)
+def test_wrong_combinations_are_one_line(two_plates, capsys, argv, said):
+    argv = [a.format(f=two_plates, d=two_plates.parent) for a in argv]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert said in err and "Traceback" not in err
+
+
+def test_without_ezc3d_the_install_command_is_named(two_plates, capsys, monkeypatch):
+    monkeypatch.setitem(sys.modules, "ezc3d", None)  # (import ezc3d now fails)
+    assert main(["contacts", str(two_plates), "-o", "-"]) == 2
+    err = capsys.readouterr().err
+    assert "pip install 'hapticdesk[c3d]'" in err and "Traceback" not in err

@@ -1,0 +1,270 @@
+"""The browser UI left running: what a page, a stranger on the network or a flood of sockets
+can do to it (issue 30, items 5, 7, 8 and 10). Each test says what it guards."""
+
+from __future__ import annotations
+
+import json
+import logging
+import shutil
+import threading
+import time
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+
+pytest.importorskip("starlette")
+pytest.importorskip("httpx")
+
+from starlette.testclient import TestClient  # noqa: E402
+
+from hapticdesk.files.profile import load_profile  # noqa: E402
+from hapticdesk.plugins.ui import server as ui_server  # noqa: E402
+from hapticdesk.plugins.ui.server import TOKEN_COOKIE, UiServer  # noqa: E402
+from hapticdesk.registry import load_registry  # noqa: E402
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+LOCAL = "http://127.0.0.1:8765"
+
+
+@pytest.fixture
+def layout(tmp_path: Path) -> Path:
+    folder = tmp_path / "desk"
+    folder.mkdir()
+    path = folder / "buttons.yaml"
+    shutil.copy(EXAMPLES / "layouts" / "buttons.yaml", path)
+    return path
+
+
+@pytest.fixture
+def client(layout: Path) -> TestClient:
+    return TestClient(UiServer(layout, load_registry(entry_points=False)).app(), base_url=LOCAL)
+
+
+def test_a_confined_read_says_the_same_for_what_exists_outside_and_what_does_not(
+    client: TestClient, layout: Path, tmp_path: Path
+) -> None:
+    """Guards item 5: a layout from the page naming a path outside its folder gets one answer
+    whether the path exists or not (b5a43bd: `templates: /root` listed the folder, `layouts:
+    {x: /etc/shadow}` passed where a missing file said "no such file")."""
+    there = tmp_path / "outside"
+    (there / "circle").mkdir(parents=True)
+    (there / "circle" / "one.csv").write_text("x,y\n0,0\n1,1\n")
+    (there / "secret.yaml").write_text("desk: kitamura2017\n")
+    base = layout.read_text()
+    cases = [
+        ("templates: {}\n", str(there)),
+        ("templates: {{x: {}}}\n", str(there / "circle")),
+        ("templates: {{x: {}}}\n", str(there / "circle" / "one.csv")),
+        ("layouts: {{x: {}}}\n", str(there / "secret.yaml")),
+        ("desk: {}\n", str(there / "secret.yaml")),
+    ]
+    for line, path in cases:
+        answers = []
+        for named in (path, path.replace("outside", "missing")):
+            text = base.replace("desk: kitamura2017\n", "desk: kitamura2017\n" + line.format(named))
+            if line.startswith("desk"):
+                text = base.replace("desk: kitamura2017\n", line.format(named))
+            [error] = client.post("/api/check", content=text).json()["errors"]
+            answers.append({**error, "message": error["message"].replace(named, "PATH")})
+        assert answers[0] == answers[1], answers
+        assert "lies outside the layout's folder" in answers[0]["message"]
+        assert answers[0]["line"] > 0
+
+
+class _FakeRuntime(SimpleNamespace):
+    """What the set-up check reads of a run: its profile, and the block taps it adds to."""
+
+    def __init__(self) -> None:
+        profile = load_profile("kitamura2017")
+        super().__init__(scene=SimpleNamespace(profile=profile), block_taps=())
+
+
+@pytest.mark.parametrize(
+    ("payload", "said"),
+    [
+        ({}, "`points`: a list of 4 to 64 points [x, y] in metres, found NoneType"),
+        ({"points": "abc"}, "found str"),
+        ({"points": [[0, 0]]}, "found 1 (mark at least as many points"),
+        ({"points": [[0, 0]] * 65}, "found 65"),
+        ({"points": [[0, 0], [0.1], "x", [1, 2]]}, "`points` item 2: expected [x, y] in metres"),
+        ({"points": [[0, 0], [0, 1e300], [0, 0], [0, 0]]}, "item 2: expected [x, y]"),
+        ({"points": [[0, 0], [0, 0], [True, 0], [0, 0]]}, "item 3"),
+    ],
+)
+def test_setup_start_refuses_what_is_not_points_saying_what(
+    layout: Path, payload: dict, said: str, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Guards item 7: `/api/setup/start` validates its JSON with a clear error (b5a43bd took
+    any JSON, and `/api/setup/finish` then failed with a traceback in the log)."""
+    server = UiServer(layout, load_registry(entry_points=False))
+    server.runtime = _FakeRuntime()  # (what the set-up check reads of a run)
+    client = TestClient(server.app(), base_url=LOCAL)
+    answer = client.post("/api/setup/start", json=payload)
+    assert answer.status_code == 422
+    assert said in answer.json()["errors"][0]["message"]
+    assert client.post("/api/setup/finish").status_code == 422  # none was started
+    assert "Traceback" not in caplog.text
+    good = {"points": [[0, 0], [0.1, 0.1], [-0.1, 0.1], [0.1, -0.1]]}
+    assert client.post("/api/setup/start", json=good).json() == {"ok": True}
+
+
+def test_an_unexpected_error_is_one_line_in_the_log_and_json_to_the_page(
+    layout: Path, caplog: pytest.LogCaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Guards item 7's "no traceback in the log": an error no handler expected (a bug) is
+    answered 500 as JSON and logged as one line."""
+    from hapticdesk.plugins.ui import setup_api
+
+    server = UiServer(layout, load_registry(entry_points=False))
+    server.runtime = _FakeRuntime()  # (what the set-up check reads of a run)
+    client = TestClient(server.app(), base_url=LOCAL, raise_server_exceptions=False)
+    good = {"points": [[0, 0], [0.1, 0.1], [-0.1, 0.1], [0.1, -0.1]]}
+    assert client.post("/api/setup/start", json=good).status_code == 200
+
+    def broken(self: object) -> dict:
+        raise ValueError("shapes (3,) and (2,) not aligned")
+
+    monkeypatch.setattr(setup_api.SetupSession, "finish", broken)
+    with caplog.at_level(logging.DEBUG, logger="hapticdesk"):
+        answer = client.post("/api/setup/finish")
+    assert answer.status_code == 500
+    assert answer.json()["errors"][0]["message"] == "internal error: ValueError"
+    lines = [r for r in caplog.records if r.levelno >= logging.ERROR]
+    assert [r.getMessage() for r in lines] == [
+        "ui: POST /api/setup/finish failed: ValueError: shapes (3,) and (2,) not aligned"
+    ]
+    assert all(r.exc_info is None for r in lines)
+
+
+def test_websocket_clients_are_capped_and_the_next_is_told_why(
+    layout: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Guards item 8: at most MAX_WS_CLIENTS pages at once; one more gets a notice saying
+    why and is closed with 1013 (try again later); a place freed is taken again (b5a43bd
+    accepted 1,500 idle clients, 229 MB)."""
+    from starlette.websockets import WebSocketDisconnect
+
+    monkeypatch.setattr(ui_server, "MAX_WS_CLIENTS", 3)
+    server = UiServer(layout, load_registry(entry_points=False))
+    client = TestClient(server.app(), base_url=LOCAL)
+    here = {"host": "127.0.0.1:8765"}
+    with (
+        client.websocket_connect("/ws", headers=here) as a,
+        client.websocket_connect("/ws", headers=here) as b,
+        client.websocket_connect("/ws", headers=here) as c,
+    ):
+        for socket in (a, b, c):
+            assert json.loads(socket.receive_text())["type"] == "desk"
+        with client.websocket_connect("/ws", headers=here) as refused:
+            notice = json.loads(refused.receive_text())
+            assert notice == {
+                "type": "notice",
+                "kind": "refused",
+                "message": "3 pages are open already, the most served at once",
+            }
+            with pytest.raises(WebSocketDisconnect) as closed:
+                refused.receive_text()
+            assert closed.value.code == 1013
+        assert server.refused_sockets == 1
+    with client.websocket_connect("/ws", headers=here) as again:
+        assert json.loads(again.receive_text())["type"] == "desk"
+
+
+def test_static_files_are_behind_the_token_and_the_page_gets_them(layout: Path) -> None:
+    """Guards item 10: with a token, /static answers 401 without it (b5a43bd served it to
+    anyone); the page itself gets a SameSite=Strict cookie, so the browser's requests for
+    its scripts carry the token."""
+    server = UiServer(layout, load_registry(entry_points=False), host="0.0.0.0", token="s3cret")
+    app = server.app()
+    stranger = TestClient(app, base_url="http://192.0.2.7:8765")
+    assert stranger.get("/static/app.js").status_code == 401
+    assert stranger.get("/static/../layout_edit.py").status_code in (401, 404)
+    page = TestClient(app, base_url="http://192.0.2.7:8765")
+    answer = page.get("/?token=s3cret")
+    assert answer.status_code == 200
+    cookie = answer.headers["set-cookie"]
+    assert f"{TOKEN_COOKIE}=s3cret" in cookie and "HttpOnly" in cookie
+    assert "SameSite=strict" in cookie or "SameSite=Strict" in cookie
+    script = page.get("/static/app.js")
+    assert script.status_code == 200 and "function onContact" in script.text
+    assert page.get("/static/nothing.js").status_code == 404
+
+
+def test_the_host_header_is_checked_on_a_server_listening_everywhere(layout: Path) -> None:
+    """Guards item 10: on 0.0.0.0 a request must name the server by an IP address or one of
+    its own names (or $HAPTICDESK_UI_HOSTS), even with the token: a site of an attacker's
+    whose name resolves to the desk (DNS rebinding) is refused (b5a43bd: not checked)."""
+    import socket
+
+    server = UiServer(layout, load_registry(entry_points=False), host="0.0.0.0", token="s3cret")
+    app = server.app()
+    bearer = {"Authorization": "Bearer s3cret"}
+    for host, status in [
+        ("192.0.2.7:8765", 200),
+        ("[2001:db8::7]:8765", 200),
+        (f"{socket.gethostname()}:8765", 200),
+        ("attacker.example:8765", 401),
+        ("desk.attacker.example", 401),
+    ]:
+        answer = TestClient(app).get("/api/layout", headers={**bearer, "host": host})
+        assert answer.status_code == status, host
+
+
+def test_a_paused_desk_says_so_to_the_page(layout: Path, paper_desk) -> None:
+    """Guards item 10 ("a desk paused by `/set` says so ... in the page"): the contact frames
+    the page draws carry `paused`, true from the pause until the resume (b5a43bd: not said;
+    the page shows "paused: gestures are not sent" from it)."""
+    websockets = pytest.importorskip("websockets.sync.client")
+    from hapticdesk.hookspecs import hookimpl
+    from hapticdesk.runtime.assembly import build_scene
+    from hapticdesk.runtime.service import Runtime
+
+    from ..runtime.taps import Tap, tap_recording
+    from ..runtime.test_runtime_control import ScriptedSource
+
+    recording = tap_recording(paper_desk, [Tap(1.5, 0.0, 0.0)], 60.0)
+    holder: dict[str, Runtime] = {}
+    go_on = threading.Event()
+
+    def pace() -> None:  # the page is connected before the pause
+        go_on.wait(20)
+
+    script = {1.0: pace, 2.0: lambda: holder["rt"].request("pause")}
+    # wall time before the pause too, so the page is sent a frame of the unpaused desk
+    # (replayed as fast as possible, a second of samples passed between two frames)
+    script.update({1.0 + 0.05 * k: (lambda: time.sleep(0.01)) for k in range(1, 20)})
+    script.update({2.0 + 0.05 * k: (lambda: time.sleep(0.01)) for k in range(1, 100)})
+    script[7.0] = lambda: holder["rt"].request("resume")
+    script.update({7.0 + 0.05 * k: (lambda: time.sleep(0.01)) for k in range(1, 100)})
+    source = ScriptedSource(recording, script)
+    plugin = SimpleNamespace(
+        register_sources=hookimpl(lambda register: register("s", lambda a, p, **o: source))
+    )
+    registry = load_registry(entry_points=False, plugins=[("s", plugin)])
+    scene = build_scene(layout, "s:", registry, speed=0, actions=False)
+    server = UiServer(layout, registry, port=0)
+    server.start()
+    runtime = holder["rt"] = Runtime(scene, drain_timeout_s=0.5)
+    server.attach(runtime)
+    sensing = threading.Thread(target=runtime.run, kwargs={"handle_signals": False})
+    sensing.start()
+    seen: list[bool] = []
+    try:
+        url = f"ws://127.0.0.1:{server.port}/ws"
+        with websockets.connect(url, origin=f"http://127.0.0.1:{server.port}") as socket:
+            go_on.set()
+            deadline = time.monotonic() + 30
+            while time.monotonic() < deadline and not (seen and seen[-1] is False and True in seen):
+                message = json.loads(socket.recv(timeout=10))
+                if message["type"] == "contact":
+                    if not seen or seen[-1] != message["paused"]:
+                        seen.append(message["paused"])
+    finally:
+        go_on.set()
+        runtime.stop()
+        sensing.join(30)
+        server.close()
+    assert seen == [False, True, False]
+    page = (ui_server.STATIC / "app.js").read_text()
+    assert 'm.paused ? "paused: gestures are not sent"' in page

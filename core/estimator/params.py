@@ -16,12 +16,11 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-from scipy.signal import sosfilt_zi
 
 from hapticdesk.estimator import kernel as k
 from hapticdesk.estimator.contacts import SHEAR_CAP, UNCERTAINTY_CAP_M
 from hapticdesk.estimator.detector import RING_MEMORY_S, upright_surfaces
-from hapticdesk.estimator.filters import butter_lowpass_sos
+from hapticdesk.estimator.filters import butter_lowpass_sos, sosfilt_zi
 from hapticdesk.estimator.geometry import EDGE_TOLERANCE_M, VAR_CAP, SurfaceFrame
 from hapticdesk.estimator.inertia import InertiaSettings
 from hapticdesk.estimator.methods import DET_FLOOR, DIFF_INFO_RATIO

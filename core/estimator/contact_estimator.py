@@ -168,6 +168,8 @@ class ContactEstimator:
         self.position_delay_s = self.stage_settings.position_delay_s
         self.notices = NoticeList()  # bounded: see NoticeList
         self._n_channels = self.stage_settings.wrench_map.shape[1]
+        # (k, S, 6) samples of a desk of six-axis sensors are its channels as they are
+        self._sensor_shape = (len(profile.sensors), 6) if profile.six_axis_only else None
         n_axes = 0 if self.inertia_settings is None else self.inertia_settings.n_axes
         self._no_readings = np.zeros((1, n_axes))  # (the kernels' accel when there is none)
         self._record = _Columns(1, self.params.out_rows)  # the one-sample record
@@ -283,12 +285,17 @@ class ContactEstimator:
         w = wrench
         if not (type(w) is np.ndarray and w.dtype == np.float64 and w.flags.c_contiguous):
             w = np.ascontiguousarray(wrench, dtype=np.float64)
-        if w.shape != (n, self._n_channels):
-            w = np.ascontiguousarray(self.profile.flat_channels(w))
-            if len(w) != n:
-                raise ValueError(
-                    f"{n} sample times but {len(w)} samples for desk {self.profile.name!r}"
-                )
+        if w.shape == (n, self._n_channels):
+            return w
+        if w.shape[1:] == self._sensor_shape and len(w) == n:
+            # (k, S, 6) of a six-axis desk: its channels are a view (DeskProfile.flat_channels
+            # costs more than a single sample's estimate)
+            return w.reshape(n, self._n_channels)
+        w = np.ascontiguousarray(self.profile.flat_channels(w))
+        if len(w) != n:
+            raise ValueError(
+                f"{n} sample times but {len(w)} samples for desk {self.profile.name!r}"
+            )
         return w
 
     def _readings(self, accel: np.ndarray | None, n: int) -> np.ndarray | None:

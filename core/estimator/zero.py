@@ -272,7 +272,8 @@ class ZeroStage:
         for j in range(n):
             at = self._log_at + 5 * ((pos - n + j) % self._log)
             spread, fx, fy, fz, index = sf[at : at + 5].tolist()
-            self._idle_window(spread, [fx, fy, fz], int(index))
+            self._idle_window(spread, [fx, fy, fz], int(index), yardsticks=False)
+        self._yardsticks()  # (once for the lot: only the last windows' count)
         si[k.J_IDLE_LOG_N] = 0
 
     def _window_done(
@@ -362,10 +363,13 @@ class ZeroStage:
         spreads = sorted(window_spread for window_spread, _ in st.object_windows)
         return still and st.object_run >= wait and spreads[len(spreads) // 2] < limit
 
-    def _idle_window(self, spread: float, mean: list[float], index: int) -> None:
+    def _idle_window(
+        self, spread: float, mean: list[float], index: int, yardsticks: bool = True
+    ) -> None:
         """One more window of the idle desk (``index``: its number, see ``window_index``):
         its spread, and how far the force means of the last ``wander_windows`` in a row
-        strayed, update the yardsticks of stillness."""
+        strayed, update the yardsticks of stillness (``yardsticks`` False: the caller
+        updates them once after several windows)."""
         st = self.state
         st.idle_spreads.append(spread)
         tail = [(i, m) for i, m in st.idle_tail if index - i < self.wander_windows]
@@ -376,7 +380,14 @@ class ZeroStage:
         for values in (st.idle_spreads, st.idle_wanders):
             if len(values) > IDLE_WINDOWS:
                 del values[0]
-        st.quiet_spread = _quantile(st.idle_spreads, IDLE_QUANTILE)
+        if yardsticks:
+            self._yardsticks()
+
+    def _yardsticks(self) -> None:
+        """The quiet spread and wander: quantiles of the idle desk's last windows."""
+        st = self.state
+        if st.idle_spreads:
+            st.quiet_spread = _quantile(st.idle_spreads, IDLE_QUANTILE)
         if st.idle_wanders:
             st.quiet_wander = _quantile(st.idle_wanders, IDLE_QUANTILE)
 

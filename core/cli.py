@@ -71,8 +71,8 @@ def _available(with_plugins: bool = True) -> dict[str, tuple[Any, str]]:
 
 @functools.cache
 def _plugin_commands() -> dict[str, tuple[Any, str]]:
-    from hapticdesk.files.yamlfile import ConfigError
-    from hapticdesk.registry import load_registry
+    from hapticdesk.errors import ConfigError
+    from hapticdesk.plugin_loading import load_registry
 
     try:
         registry = load_registry()
@@ -263,7 +263,7 @@ def _main(argv: list[str], command: str | None, debug: bool) -> int:
     else:
         module = _module(_plugin_commands()[args.command][0])
     # Imported here, not at the top: yaml is not needed to print the list of commands.
-    from hapticdesk.files.yamlfile import ConfigError
+    from hapticdesk.errors import ConfigError
 
     try:
         with _short_reports(args.command, debug):

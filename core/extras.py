@@ -63,7 +63,7 @@ def require(*modules: str, needed_by: str) -> None:
     extra to install (for a part that would otherwise fail later, in a thread of its own)."""
     import importlib
 
-    from hapticdesk.files.yamlfile import ConfigError
+    from hapticdesk.errors import ConfigError
 
     for module in modules:
         try:

@@ -2,13 +2,15 @@
 and which plugin gave each.
 
 Built-in plugins (:data:`DEFAULT_PLUGINS`) and third-party ones (entry-point group
-``hapticdesk``) go through the same hooks (:mod:`hapticdesk.hookspecs`). Each entry point is
-loaded on its own: one that fails to import, or whose registration hook raises, is skipped with
-a warning naming it (``strict=True`` makes that fatal). Two plugins registering the same name
-is always an error naming both, since either choice would surprise someone.
+``hapticdesk``) go through the same hooks. Each entry point is loaded on its own: one that
+fails to import, or whose registration hook raises, is skipped with a warning naming it
+(``strict=True`` makes that fatal). Two plugins registering the same name is always an error
+naming both, since either choice would surprise someone.
 
 Factories may be ``"module:attr"`` strings, imported the first time a run uses them, so a
-scene imports only what it uses (python-can's ``BACKENDS`` habit).
+scene imports only what it uses (python-can's ``BACKENDS`` habit). This is a base layer: it is
+handed the hooks (:mod:`hapticdesk.hookspecs`, whose types name the runtime's parts) by
+:func:`hapticdesk.plugin_loading.load_registry`, and imports nothing of the runtime.
 """
 
 from __future__ import annotations
@@ -16,16 +18,26 @@ from __future__ import annotations
 import importlib
 import importlib.metadata
 import logging
-import os
-from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
 from types import ModuleType
 from typing import Any
 
 import pluggy
 
-from hapticdesk import __version__, hookspecs
-from hapticdesk.files.yamlfile import ConfigError, Position
+from hapticdesk import __version__
+from hapticdesk.errors import ConfigError, Position
+from hapticdesk.lazy_ref import is_loadable
+from hapticdesk.registered import (
+    KINDS,
+    RECORD_TYPES,
+    ActionType,
+    CommandType,
+    PluginError,
+    PluginInfo,
+    RecognizerType,
+    Registered,
+    SectionType,
+    SourceType,
+)
 
 log = logging.getLogger(__name__)
 
@@ -49,176 +61,15 @@ DEFAULT_PLUGINS: tuple[str, ...] = (
     "hapticdesk.plugins.ui",
 )
 
-KINDS = ("sources", "actions", "recognizers", "layout_sections", "commands")
-
-
-class PluginError(ConfigError):
-    """A plugin could not be loaded or registered something wrong."""
-
-    def __init__(self, message: str) -> None:
-        super().__init__(None, message)
-
-
-def resolve(ref: Any) -> Any:
-    """A lazy ``"module:attr"`` reference imported, or ``ref`` itself when it is not text."""
-    if not isinstance(ref, str):
-        return ref
-    module_name, _, attr = ref.partition(":")
-    obj: Any = importlib.import_module(module_name)
-    for part in attr.split(".") if attr else ():
-        obj = getattr(obj, part)
-    return obj
-
-
-@dataclass(frozen=True)
-class Registered:
-    """One named thing a plugin provides."""
-
-    name: str
-    factory: Any  # callable or "module:attr"
-    description: str
-    plugin: str
-
-    def load(self) -> Any:
-        """The factory, importing it on first use; import problems become a PluginError."""
-        try:
-            return resolve(self.factory)
-        except (ImportError, AttributeError) as err:
-            raise PluginError(
-                f"`{self.name}` from plugin `{self.plugin}` cannot be loaded: "
-                f"{type(err).__name__}: {err}"
-            ) from err
-
-
-@dataclass(frozen=True)
-class SourceType(Registered):
-    """A source kind: ``factory(argument, profile, **options) -> Source``."""
-
-    def open(self, argument: str, profile: Any, **options: Any) -> Any:
-        return self.load()(argument, profile, **options)
-
-
-def _judged_by_plugin(
-    validate: Callable[[], Any], position: Position | str, plugin: str, what: str
-) -> None:
-    """Run a plugin's validation: its ConfigError is the user's, any other exception a bug in
-    the plugin, reported as the plugin's fault at the place being checked."""
-    try:
-        validate()
-    except ConfigError:
-        raise
-    except Exception as err:  # a bug in the plugin, not the user's layout
-        raise PluginError(
-            f"{position}: plugin `{plugin}` crashed validating {what}: {type(err).__name__}: {err}"
-        ) from err
-
-
-@dataclass(frozen=True)
-class ActionType(Registered):
-    """An action: ``factory(options, context) -> callable(event)``; ``validate(options, pos)``."""
-
-    validate: Any = None  # callable, "module:attr" or None
-    #: the options a form may offer: name -> {"kind": text|number|integer|bool|mapping,
-    #: "help": str, "required": bool, "choices": [...]} (the browser UI builds its forms
-    #: from it); None when the plugin gave none. ``validate`` stays the judge.
-    options: Any = None
-    #: ``check_events(options, position, events, desk)``: checks the options against every
-    #: event the binding can make (its templates rendered for each); callable, "module:attr"
-    #: or None
-    check_events: Any = None
-    #: a use of this action is the operator's alone (it runs programs, or reads what it
-    #: likes): a layout from the page, ``/set`` or a reload may not add or change one
-    operator_only: bool = False
-
-    def check(self, options: Any, position: Position | str) -> None:
-        """Run the plugin's validation; a crash in it is reported as the plugin's fault."""
-        self._judge(self.validate, "validator", position, options, position)
-
-    def check_for_events(
-        self, options: Any, position: Position | str, events: list[Any], desk: str
-    ) -> None:
-        """Run the plugin's ``check_events`` for the events a binding can make (if any)."""
-        self._judge(self.check_events, "event check", position, options, position, events, desk)
-
-    def _judge(self, ref: Any, what: str, position: Position | str, *args: Any) -> None:
-        """Call the plugin's ``ref`` (None: nothing to do) with ``args``, as its judgement."""
-        if ref is None:
-            return
-        try:
-            judge = resolve(ref)
-        except (ImportError, AttributeError) as err:
-            raise PluginError(
-                f"the {what} of action `{self.name}` from plugin `{self.plugin}` cannot be "
-                f"loaded: {type(err).__name__}: {err}"
-            ) from err
-        _judged_by_plugin(lambda: judge(*args), position, self.plugin, f"action `{self.name}`")
-
-
-@dataclass(frozen=True)
-class RecognizerType(Registered):
-    """A gesture recognizer the gesture engine can build."""
-
-
-@dataclass(frozen=True)
-class SectionType(Registered):
-    """A top-level layout section a plugin owns: ``factory`` is its validator."""
-
-    #: the section is the operator's alone (a connection and its credentials): a layout from
-    #: the page, ``/set`` or a reload may not change it
-    operator_only: bool = False
-
-    def check(self, value: Any, position: Position | str, layout_path: Any) -> None:
-        """Run the plugin's validation of the section; a crash is reported as the plugin's."""
-        validator = self.load()
-        _judged_by_plugin(
-            lambda: validator(value, position, layout_path),
-            position,
-            self.plugin,
-            f"section `{self.name}`",
-        )
-
-
-@dataclass(frozen=True)
-class CommandType(Registered):
-    """A ``hapticdesk`` sub-command: ``factory`` is a module with ``configure`` and ``run``."""
-
-
-@dataclass
-class PluginInfo:
-    """What the ``plugins`` command shows for one plugin."""
-
-    name: str
-    version: str
-    origin: str  # "built-in" or "entry point (distribution name)"
-    hooks: list[str] = field(default_factory=list)
-    provides: dict[str, list[str]] = field(default_factory=lambda: {k: [] for k in KINDS})
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "name": self.name,
-            "version": self.version,
-            "origin": self.origin,
-            "hooks": list(self.hooks),
-            **{k: list(v) for k, v in self.provides.items()},
-        }
-
-
-_RECORD_TYPES: dict[str, type[Registered]] = {
-    "sources": SourceType,
-    "actions": ActionType,
-    "recognizers": RecognizerType,
-    "layout_sections": SectionType,
-    "commands": CommandType,
-}
-
 
 class Registry:
-    """Plugins and what they registered. Build it with :func:`load_registry`."""
+    """Plugins and what they registered, checked against the hooks of ``specs`` (a module of
+    hookspecs). Build it with :func:`hapticdesk.plugin_loading.load_registry`."""
 
-    def __init__(self, *, strict: bool = False) -> None:
+    def __init__(self, specs: ModuleType, *, strict: bool = False) -> None:
         self.strict = strict
         self.manager = pluggy.PluginManager("hapticdesk")
-        self.manager.add_hookspecs(hookspecs)
+        self.manager.add_hookspecs(specs)
         self.plugins: dict[str, PluginInfo] = {}
         self.warnings: list[str] = []
         self.errors: list[str] = []  # conflicts no plugin can be blamed alone for
@@ -256,7 +107,7 @@ class Registry:
         unknown = sorted(hook.name for hook in callers if not hook.has_spec())
         if unknown:  # pluggy accepts these silently; a typo would never be called
             self.manager.unregister(plugin)
-            known = ", ".join(hookspec_names())
+            known = ", ".join(self.hook_names())
             self._fail(
                 f"plugin `{name}` ({origin}) is not a valid hapticdesk plugin: it implements "
                 f"{', '.join(unknown)}, which hapticdesk does not have; hooks: {known}"
@@ -338,7 +189,7 @@ class Registry:
     @staticmethod
     def _registrar(kind: str, plugin: str, found: list[Registered]) -> Any:
         """The ``register`` callback one plugin's registration hook receives."""
-        record_type = _RECORD_TYPES[kind]
+        record_type = RECORD_TYPES[kind]
         what = kind[:-1].replace("_", " ")
 
         def register(name: str, factory: Any, description: str = "", **extra: Any) -> None:
@@ -347,8 +198,7 @@ class Registry:
                     f"plugin `{plugin}` registered {what} name {name!r}; "
                     "names must be identifiers (letters, digits, _)"
                 )
-            loadable = callable(factory) or isinstance(factory, str | ModuleType)
-            if factory is None or not loadable:
+            if not is_loadable(factory):
                 raise PluginError(
                     f"plugin `{plugin}` registered {what} `{name}` with factory {factory!r}; "
                     "expected a callable or a 'module:attr' string"
@@ -385,22 +235,17 @@ class Registry:
         return sorted(self.actions)
 
     def validate_action(self, name: str, options: Any, position: Position | str) -> None:
-        """Validate one action use of a layout (unknown name or bad options: ConfigError)."""
-        from hapticdesk.runtime.isolation import split_isolation
-
-        # `isolation:` is for the runtime, not for the action's own options
-        own, _ = split_isolation(options, position)
-        self.action(name, position).check(own, position)
+        """Validate one action use of a layout: ``options`` the action's own (unknown name or
+        bad options: ConfigError)."""
+        self.action(name, position).check(options, position)
 
     def check_action_events(
         self, name: str, options: Any, position: Position | str, events: list[Any], desk: str
     ) -> None:
         """Check one action use against the events its binding can make (ConfigError if one
-        would break a limit: a template too costly for one of them)."""
-        from hapticdesk.runtime.isolation import split_isolation
-
-        own, _ = split_isolation(options, position)
-        self.action(name, position).check_for_events(own, position, events, desk)
+        would break a limit: a template too costly for one of them); ``options`` the
+        action's own."""
+        self.action(name, position).check_for_events(options, position, events, desk)
 
     def recognizer_types(self) -> dict[str, RecognizerType]:
         """Recognizers by gesture name, not imported: the gesture engine and the layout load
@@ -458,6 +303,11 @@ class Registry:
                 log.warning("%s", message)
                 self.warnings.append(message)
 
+    def hook_names(self) -> list[str]:
+        """Every hook a plugin can implement (those of the registry's hookspecs)."""
+        hooks = vars(self.manager.hook).items()
+        return sorted(name for name, caller in hooks if caller.has_spec())
+
     # --- internals ----------------------------------------------------------------------------
 
     def _plugin_order(self, impl: Any) -> int:
@@ -477,53 +327,3 @@ class Registry:
             message = f"{message}; {consequence}"
         log.warning("%s", message)
         self.warnings.append(message)
-
-
-def load_registry(
-    *,
-    entry_points: bool | None = None,
-    strict: bool = False,
-    plugins: Iterable[tuple[str, object]] = (),
-    defaults: bool = True,
-    conflicts_fatal: bool = True,
-    blocked: Iterable[str] = (),
-) -> Registry:
-    """Build the registry: built-ins, then entry points, then ``plugins`` (name, object) pairs.
-
-    ``entry_points`` None loads them unless the environment variable
-    ``HAPTICDESK_DISABLE_PLUGIN_AUTOLOAD`` is set. Tests pass ``entry_points=False`` (or set
-    the variable for the command line) so whatever is installed on the machine cannot change
-    their outcome, and add their own plugins through ``plugins``. A name registered by two
-    plugins raises :class:`PluginError` unless ``conflicts_fatal`` is False (``hapticdesk
-    plugins`` lists it as an error instead). ``blocked``: plugin names never to load (a
-    built-in from :data:`DEFAULT_PLUGINS` that a third-party plugin replaces; two plugins may
-    not register the same name), added to those named in the environment variable
-    ``HAPTICDESK_BLOCK_PLUGINS`` (comma-separated), which is how a person installing such a
-    replacement turns the built-in off for every command.
-    """
-    if entry_points is None:
-        entry_points = not os.environ.get(DISABLE_AUTOLOAD_ENV)
-    registry = Registry(strict=strict)
-    from_env = os.environ.get(BLOCK_ENV, "").split(",")
-    for name in [*blocked, *from_env]:
-        if name.strip():
-            registry.block(name.strip())
-    if defaults:
-        registry.load_default_plugins()
-    if entry_points:
-        registry.load_entry_points()
-    for name, plugin in plugins:
-        registry.add_plugin(plugin, name, origin="given by the caller")
-    registry.collect()
-    if registry.errors and conflicts_fatal:
-        raise PluginError(registry.errors[0])
-    return registry
-
-
-def _is_hookspec(name: str) -> bool:
-    return hasattr(getattr(hookspecs, name, None), "hapticdesk_spec")
-
-
-def hookspec_names() -> list[str]:
-    """Every hook a plugin can implement."""
-    return sorted(name for name in dir(hookspecs) if _is_hookspec(name))

@@ -1,7 +1,7 @@
 """Reading an action's options from a layout, with errors that point at the layout.
 
-Options arrive as the :class:`~hapticdesk.files.yamlfile.MarkedDict` of the layout (or a plain dict
-when a program builds them); both are read the same way here.
+Options arrive as the :class:`~hapticdesk.files.marked_values.MarkedDict` of the layout (or a
+plain dict when a program builds them); both are read the same way here.
 """
 
 from __future__ import annotations
@@ -9,7 +9,9 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import Any
 
-from hapticdesk.files.yamlfile import ConfigError, MarkedDict, Position, check_keys, number
+from hapticdesk.errors import ConfigError, Position
+from hapticdesk.files.marked_values import MarkedDict
+from hapticdesk.files.validators import check_keys, number
 
 
 def options_mapping(

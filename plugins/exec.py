@@ -21,7 +21,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from hapticdesk.files.yamlfile import ConfigError, MarkedList, Position
+from hapticdesk.errors import ConfigError, Position
+from hapticdesk.files.marked_values import MarkedList
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.plugins.action_options import options_mapping, seconds, text, where

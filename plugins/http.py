@@ -30,7 +30,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from hapticdesk.files.yamlfile import ConfigError, Position, choice, require_mapping
+from hapticdesk.errors import ConfigError, Position
+from hapticdesk.files.validators import choice, require_mapping
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.plugins.action_options import options_mapping, seconds, text, where

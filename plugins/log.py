@@ -19,7 +19,8 @@ import threading
 from dataclasses import dataclass
 from typing import Any
 
-from hapticdesk.files.yamlfile import Position, choice
+from hapticdesk.errors import Position
+from hapticdesk.files.validators import choice
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.plugins.action_options import options_mapping, text, where

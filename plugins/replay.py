@@ -8,7 +8,7 @@ back on their own clock.
 
 Blocks of ~12 samples (10 ms at 1.2 kHz) are handed out when their last sample's time has
 come on the wall clock (scaled by ``speed``), as a live source would deliver them. Files are
-read in blocks of :data:`~hapticdesk.files.recording.BLOCK_ROWS` samples as they are played,
+read in blocks of :data:`~hapticdesk.files.recording_io.BLOCK_ROWS` samples as they are played,
 so memory stays flat whatever the file's size. CAN logs are read by
 :mod:`hapticdesk.canbus.logs`, imported only for them; a C3D file (read whole by ezc3d) by
 :mod:`hapticdesk.files.forceplate`, its plates the desk's sensors ``plate<N>`` (without
@@ -21,18 +21,18 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 from hapticdesk.hookspecs import hookimpl
-from hapticdesk.runtime.pacing import PacedSource, Pacer
 from hapticdesk.runtime.source import Source, WrenchBlock
 
 if TYPE_CHECKING:  # the hooks are loaded for every command, even `--help`: no numpy here
     import numpy as np
 
     from hapticdesk.files.profile import DeskProfile
-    from hapticdesk.files.recording import Recording, RecordingBlocks
+    from hapticdesk.files.recording import Recording
+    from hapticdesk.files.recording_io import RecordingBlocks
 
-__all__ = ["BLOCK_SIZE", "PacedSource", "Pacer", "RecordingSource", "open_replay"]
+__all__ = ["BLOCK_SIZE", "RecordingSource", "open_replay"]
 
 BLOCK_SIZE = 12
 
@@ -55,38 +55,38 @@ class RecordingSource(Source):
         block_size: int = BLOCK_SIZE,
         accel_columns: list[str] | None = None,
     ) -> None:
+        super().__init__(recording.sensor_names, sample_rate_hz)
         self.recording = recording
         self.accel_columns = accel_columns
-        self.sensor_names = list(recording.sensor_names)
-        self.sample_rate_hz = sample_rate_hz
         self.block_size = block_size
-        self._reading = False
-        self._closed = False
+        self._parts: Iterator[Recording] | None = None  # the file's read blocks, once reading
+        self._part: Recording | None = None
+        self._at = 0  # the next sample of ``_part`` to hand out
 
-    def blocks(self) -> Iterator[WrenchBlock]:
+    def read_block(self) -> WrenchBlock | None:
+        """The next ``block_size`` samples of the recording (fewer at the end of one of the
+        file's read blocks); None at its end."""
         import numpy as np
 
+        while self._part is None or self._at >= len(self._part):
+            self._part, self._at = next(self._file_parts(), None), 0
+            if self._part is None:
+                return None
+        rec, start = self._part, self._at
+        end = min(start + self.block_size, len(rec))
+        self._at = end
+        truth = {k: np.asarray(v[start:end]) for k, v in rec.extra.items()} or None
+        accel = self._readings(truth) if truth else None
+        return WrenchBlock(rec.t[start:end], rec.wrench[start:end], truth, accel)
+
+    def _file_parts(self) -> Iterator[Recording]:
+        """The recording whole, or its file's read blocks one at a time as they are read."""
         from hapticdesk.files.recording import Recording
 
-        rec_or_blocks = self.recording
-        if isinstance(rec_or_blocks, Recording):
-            parts: Iterator[Recording] = iter([rec_or_blocks])
-        else:
-            parts = rec_or_blocks.blocks()  # closes the file when it ends or is closed
-        self._reading = True
-        try:
-            for rec in parts:
-                for start in range(0, len(rec), self.block_size):
-                    if self._closed:
-                        return
-                    end = min(start + self.block_size, len(rec))
-                    truth = {k: np.asarray(v[start:end]) for k, v in rec.extra.items()} or None
-                    accel = self._readings(truth) if truth else None
-                    yield WrenchBlock(rec.t[start:end], rec.wrench[start:end], truth, accel)
-        finally:
-            close = getattr(parts, "close", None)  # a generator of file blocks
-            if close is not None:
-                close()
+        if self._parts is None:
+            whole = self.recording
+            self._parts = iter([whole]) if isinstance(whole, Recording) else whole.blocks()
+        return self._parts
 
     def _readings(self, columns: dict[str, np.ndarray]) -> np.ndarray | None:
         """The accelerometers' readings (k, A) among a block's extra ``columns``, or None."""
@@ -96,12 +96,14 @@ class RecordingSource(Source):
             return accel_table(columns)
         return named_columns(columns, self.accel_columns)
 
-    def close(self) -> None:
-        """Safe from another thread: a file being read is closed by the reading thread."""
+    def release(self) -> None:
+        """Close the file (the base calls this on the reading thread while one reads)."""
         from hapticdesk.files.recording import Recording
 
-        self._closed = True
-        if not self._reading and not isinstance(self.recording, Recording):
+        close = getattr(self._parts, "close", None)  # a generator of the file's blocks
+        if close is not None:
+            close()
+        if not isinstance(self.recording, Recording):
             self.recording.close()
 
 
@@ -109,8 +111,8 @@ def open_replay(
     argument: str, profile: DeskProfile, *, speed: float = 1.0, **options: Any
 ) -> Source:
     """``replay:FILE``: a CSV/NPZ recording, a C3D file, or a CAN log by any other suffix."""
-    from hapticdesk.files.readers import open_recording_blocks
-    from hapticdesk.files.recording import RECORDING_SUFFIXES
+    from hapticdesk.files.recording_io import RECORDING_SUFFIXES
+    from hapticdesk.recordings import open_recording_blocks
 
     if not argument:
         raise ConfigError(
@@ -121,12 +123,12 @@ def open_replay(
         what = "not a regular file" if path.exists() else "no such file"  # (a FIFO, a folder)
         raise ConfigError("--source", f"replay: {what}: {argument}")
     if path.suffix.lower() == ".c3d":
-        from hapticdesk.files.readers import read_any_recording
+        from hapticdesk.recordings import read_any_recording
 
         plates = read_any_recording(path, profile)  # (checked to come at the desk's rate)
         if len(plates) == 0:
             raise ConfigError(str(path), "the C3D file holds no analog samples")
-        return PacedSource(RecordingSource(plates, profile.sample_rate_hz), speed)
+        return RecordingSource(plates, profile.sample_rate_hz).paced(speed)
     if path.suffix.lower() in RECORDING_SUFFIXES:
         recording = open_recording_blocks(path, profile)
         if recording.is_empty():
@@ -135,17 +137,18 @@ def open_replay(
         source = RecordingSource(
             recording, profile.sample_rate_hz, accel_columns=profile.accelerometer_columns()
         )
-        return PacedSource(source, speed)
-    from hapticdesk.canbus import logs
+        return source.paced(speed)
+    from hapticdesk.canbus.logs.desk_samples import open_can_log
+    from hapticdesk.canbus.logs.formats import FRAME_READERS, is_can_log
 
-    if not logs.is_can_log(path):
-        kinds = ", ".join(logs.PYTHON_CAN_SUFFIXES + logs.CANDUMP_TEXT_SUFFIXES)
+    if not is_can_log(path):
+        kinds = ", ".join(FRAME_READERS)
         raise ConfigError(
             str(path),
             f"cannot replay a {path.suffix or 'suffix-less'} file; expected a recording "
             f"({', '.join(RECORDING_SUFFIXES)}) or a CAN log ({kinds})",
         )
-    return PacedSource(logs.open_can_log(path, profile), speed)
+    return open_can_log(path, profile).paced(speed)
 
 
 @hookimpl

@@ -11,7 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 from hapticdesk.hookspecs import hookimpl
 
 if TYPE_CHECKING:  # the hooks are loaded for every command, even `--help`: no numpy here
@@ -32,11 +32,10 @@ def open_sim(
         raise ConfigError("--source", "sim needs a scene file: sim:SCENE.yaml")
     if not Path(argument).expanduser().is_file():
         raise ConfigError("--source", f"sim: no such scene file {argument}")
-    from hapticdesk.runtime.pacing import PacedSource
     from hapticdesk.sim import SimSource, load_scene
 
     scene = load_scene(Path(argument).expanduser())
-    return PacedSource(SimSource(profile, scene, seed=seed), speed)
+    return SimSource(profile, scene, seed=seed).paced(speed)
 
 
 @hookimpl

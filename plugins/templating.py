@@ -37,7 +37,8 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from hapticdesk.files.yamlfile import ConfigError, LayoutWarning, MarkedDict, MarkedList, Position
+from hapticdesk.errors import ConfigError, LayoutWarning, Position
+from hapticdesk.files.marked_values import MarkedDict, MarkedList
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.plugins import template_sandbox, template_worker
 from hapticdesk.plugins.template_sandbox import (

@@ -55,11 +55,13 @@ def main() -> int:
     )
     args = parser.parse_args()
 
-    from hapticdesk.canbus.config import can_config
-    from hapticdesk.canbus.emulator import CanEmulator, FrameEncoder
+    from hapticdesk.canbus.config_reader import can_config
+    from hapticdesk.canbus.emulator import CanEmulator
+    from hapticdesk.canbus.frame_encoder import FrameEncoder
     from hapticdesk.canbus.source import CanSource
-    from hapticdesk.files.profile import load_profile
-    from hapticdesk.files.recording import Recording, write_recording
+    from hapticdesk.files.profile_reader import load_profile
+    from hapticdesk.files.recording import Recording
+    from hapticdesk.files.recording_io import write_recording
 
     names = ["fl", "fr", "bl", "br"][: args.boards]
     tmp = Path(tempfile.mkdtemp(prefix="ati-rate-"))

@@ -56,7 +56,8 @@ import numpy as np  # noqa: E402
 
 from hapticdesk.bench.scenes import desk_day, paper_experiment  # noqa: E402
 from hapticdesk.estimator import ContactEstimator  # noqa: E402
-from hapticdesk.files.profile import METHODS, DeskProfile, load_profile  # noqa: E402
+from hapticdesk.files.profile import METHODS, DeskProfile  # noqa: E402
+from hapticdesk.files.profile_reader import load_profile  # noqa: E402
 from hapticdesk.sim import simulate  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))

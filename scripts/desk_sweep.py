@@ -40,9 +40,10 @@ import tap_accuracy as ta  # noqa: E402
 
 from hapticdesk.estimator import ContactEstimator  # noqa: E402
 from hapticdesk.estimator.contacts import PHASE_NAMES, SOURCE_NAMES  # noqa: E402
-from hapticdesk.files.profile import DeskProfile, profile_from_mapping  # noqa: E402
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import profile_from_mapping  # noqa: E402
 from hapticdesk.files.yamlfile import load_marked_yaml  # noqa: E402
-from hapticdesk.gestures.layout import load_layout  # noqa: E402
+from hapticdesk.gestures.layout_reader import load_layout  # noqa: E402
 from hapticdesk.sim import LongPress, Swipe  # noqa: E402
 from hapticdesk.sim.timeline import Timeline  # noqa: E402
 

@@ -118,7 +118,7 @@ def _only_hapticdesk_plugins() -> Iterator[None]:
 
 
 def registry() -> Any:
-    from hapticdesk.registry import load_registry
+    from hapticdesk.plugin_loading import load_registry
 
     return load_registry(entry_points=False)
 
@@ -190,7 +190,7 @@ def region_keys() -> Generated:
 
 
 def binding_keys() -> Generated:
-    from hapticdesk.gestures.layout_reader import BINDING_KEYS
+    from hapticdesk.gestures.layout_bindings import BINDING_KEYS
 
     keys = [k for k in ("gesture", "region", "do", "description") if k in BINDING_KEYS]
     keys += sorted(set(BINDING_KEYS) - set(keys))
@@ -469,7 +469,8 @@ def allowed_keys(validate: Callable[[Any], Any]) -> list[str]:
     """The keys a validator accepts, read from its own refusal of a key nobody would use
     (check_keys says ``unknown key `…` in …; allowed: a, b, c``): the code's behaviour, not a
     copy of its table."""
-    from hapticdesk.files.yamlfile import ConfigError, load_marked_yaml
+    from hapticdesk.errors import ConfigError
+    from hapticdesk.files.yamlfile import load_marked_yaml
 
     probe = load_marked_yaml(Path("probe.yaml"), "__no_such_key__: 1\n")  # as a layout gives it
     try:
@@ -697,22 +698,24 @@ def _estimation_comments() -> dict[str, str]:
 
 
 def profile_keys() -> Generated:
-    from hapticdesk.files import profile_reader as pr
+    from hapticdesk.files.profile_reader import DESK_KEYS, PROFILE_KEYS
+    from hapticdesk.files.profile_sensors import ACCELEROMETER_KEYS, SENSOR_KEYS, SENSOR_KINDS
+    from hapticdesk.files.profile_surfaces import SURFACE_KEYS
 
     out = Generated("")
     parts = []
     for title, keys, words in (
-        ("The profile", pr._TOP_KEYS, PROFILE_WORDS["top"]),
-        ("A sensor (`sensors:`)", pr._SENSOR_KEYS, PROFILE_WORDS["sensor"]),
-        ("A surface (`surfaces:`)", pr._SURFACE_KEYS, PROFILE_WORDS["surface"]),
-        ("The desk (`desk:`)", pr._DESK_KEYS, PROFILE_WORDS["desk"]),
-        ("An accelerometer", pr._ACCEL_KEYS, PROFILE_WORDS["accelerometer"]),
+        ("The profile", PROFILE_KEYS, PROFILE_WORDS["top"]),
+        ("A sensor (`sensors:`)", SENSOR_KEYS, PROFILE_WORDS["sensor"]),
+        ("A surface (`surfaces:`)", SURFACE_KEYS, PROFILE_WORDS["surface"]),
+        ("The desk (`desk:`)", DESK_KEYS, PROFILE_WORDS["desk"]),
+        ("An accelerometer", ACCELEROMETER_KEYS, PROFILE_WORDS["accelerometer"]),
     ):
         ordered = [k for k in words if k in keys] + sorted(set(keys) - set(words))
         rows = [[code(k), w] for k, w in _described(ordered, words, out)]
         parts += [f"#### {title}", "", table(["key", "what"], rows), ""]
-    kinds = [[code(k), ", ".join(v)] for k, v in pr.SENSOR_KINDS.items()]
-    out.keys += list(pr.SENSOR_KINDS)
+    kinds = [[code(k), ", ".join(v)] for k, v in SENSOR_KINDS.items()]
+    out.keys += list(SENSOR_KINDS)
     parts += ["#### Sensor kinds (`kind:`)", "", table(["kind", "channels"], kinds), ""]
     out.markdown = "\n".join(parts)
     return out
@@ -755,7 +758,7 @@ def estimation_settings() -> Generated:
 
 
 def recording_columns() -> Generated:
-    from hapticdesk.files.profile import load_profile
+    from hapticdesk.files.profile_reader import load_profile
 
     out = Generated("")
     rows = []
@@ -807,6 +810,13 @@ ROUTE_WORDS = {
     "POST /api/strokes": "`{points: [[x, y], ...]}` → the stroke's score against every shape",
     "POST /api/setup/start": "`{points: [[x, y], ...]}` metres: start a set-up check",
     "POST /api/setup/finish": "end it: what was found, each press's residual, a profile snippet",
+    "GET /api/setup/weight/spots": "`?count=N` (3 to 5) → `{ok, spots_m}`: the spots to mark for "
+    "the set-up with a known weight (a load-cell desk)",
+    "POST /api/setup/weight/start": "`{mass_kg, count}`: start recording the weight put on each "
+    "spot in turn → `{ok, mass_kg, spots_m}`",
+    "POST /api/setup/weight/finish": "end it: each cell's `gain` and `position_m`, the `check` on "
+    "the spot the fit did not use (`error_m`, and `check_before_m` with the profile as it "
+    "was), `leave_one_out`, `passed`, `profile_path` (written beside the layout) or `note`",
     "WS /ws": "JSON messages, one per frame (below)",
     "GET /static/{path:path}": "the page's script and style (behind the token when one is set)",
 }
@@ -834,7 +844,7 @@ def http_routes() -> Generated:
 
 def hooks() -> Generated:
     from hapticdesk import hookspecs
-    from hapticdesk.registry import hookspec_names
+    from hapticdesk.hookspecs import hookspec_names
 
     out = Generated("")
     parts = []

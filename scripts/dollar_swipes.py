@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 
 from hapticdesk.estimator import ContactEstimator, estimate
-from hapticdesk.files.profile import load_profile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.gestures.engine import GestureEngine
-from hapticdesk.gestures.layout import load_layout
+from hapticdesk.gestures.layout_reader import load_layout
 from hapticdesk.gestures.strokes.dollar_logs import read_logs
 from hapticdesk.sim import Idle, Scene, Stroke, simulate
 

@@ -30,12 +30,8 @@ import numpy as np
 
 from hapticdesk.estimator import ContactEstimator
 from hapticdesk.files.c3d import import_ezc3d, open_c3d
-from hapticdesk.files.forceplate import (
-    PlateDesk,
-    plate_count,
-    plate_desk,
-    read_plate_recording,
-)
+from hapticdesk.files.forceplate import PlateDesk, plate_desk, read_plate_recording
+from hapticdesk.files.plate_parameters import plate_count
 from hapticdesk.files.profile import METHODS
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "forceplates"

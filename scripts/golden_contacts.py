@@ -45,7 +45,8 @@ from hapticdesk.bench.scenes import desk_day, paper_experiment
 from hapticdesk.estimator import CandidateTrace, ContactEstimator
 from hapticdesk.estimator.contacts import ContactBlock
 from hapticdesk.estimator.inertia import accelerometer_readings
-from hapticdesk.files.profile import METHODS, DeskProfile, load_profile
+from hapticdesk.files.profile import METHODS, DeskProfile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.files.recording import Recording
 from hapticdesk.sim import Press, Scene, SimEffects, Swipe, Tap, simulate
 from hapticdesk.sim.actions import Idle, LiftObject, PutObject

@@ -629,9 +629,9 @@ def configs_event_types(layout: Path) -> list[str]:
 
 
 def desk_configs(layout: Path) -> list[Any]:
+    from hapticdesk.plugin_loading import load_registry
     from hapticdesk.plugins.mqtt import discovery_for
     from hapticdesk.plugins.mqtt.settings import settings_from_layout
-    from hapticdesk.registry import load_registry
     from hapticdesk.runtime.assembly import load_scene_layout
 
     loaded, profile = load_scene_layout(layout, load_registry(entry_points=False), None)

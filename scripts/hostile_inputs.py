@@ -308,9 +308,9 @@ def run_ui(folder: Path, tally: Tally) -> None:
     warnings.filterwarnings("ignore", message=".*httpx.*", category=DeprecationWarning)
     from starlette.testclient import TestClient
 
-    from hapticdesk.files.profile import load_profile
+    from hapticdesk.files.profile_reader import load_profile
+    from hapticdesk.plugin_loading import load_registry
     from hapticdesk.plugins.ui.server import UiServer
-    from hapticdesk.registry import load_registry
 
     layout = folder / "buttons.yaml"
     registry = load_registry(entry_points=False)

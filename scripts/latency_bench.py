@@ -28,11 +28,10 @@ from pathlib import Path
 
 import numpy as np
 
-from hapticdesk.files.profile import load_profile
-from hapticdesk.files.recording import write_recording
-from hapticdesk.registry import load_registry
+from hapticdesk.files.profile_reader import load_profile
+from hapticdesk.files.recording_io import write_recording
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.runtime.assembly import build_scene
-from hapticdesk.runtime.pacing import PacedSource
 from hapticdesk.runtime.service import Runtime
 
 TARGET_P95_MS = 40.0
@@ -148,7 +147,7 @@ def main() -> int:
             overrides={"mqtt": {"broker": url}},
         )
         source = scene.source
-        assert isinstance(source, PacedSource)
+        assert source.pacer is not None  # a replay plays on its sample clock
         report = Runtime(scene).run(handle_signals=False)
         sent = sum(lane.stats.ok for route in scene.dispatcher.routes for lane in route.lanes)
         arrivals: list[tuple[float, float]] = []

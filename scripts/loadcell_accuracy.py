@@ -60,7 +60,8 @@ from hapticdesk.analysis.known_weight import (
     suggested_spots,
 )
 from hapticdesk.estimator import estimate
-from hapticdesk.files.profile import DeskProfile, load_profile, profile_from_mapping
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile, profile_from_mapping
 from hapticdesk.files.recording import Recording
 from hapticdesk.files.yamlfile import load_marked_yaml
 from hapticdesk.sim import Idle, LiftObject, PutObject, Scene, SimulationRun, Tap, simulate
@@ -175,8 +176,7 @@ def random_desk(rng: np.random.Generator, index: int) -> DeskProfile:
     w2, d2 = width / 2, depth / 2
     outline = [[-w2, -d2], [w2, -d2], [w2, d2], [-w2, d2]]
     # what stands on the cells is the top board: its mass in it, 15 mm under its surface,
-    # and a board's inertia (the profile's default box would be 0.7 m tall: a top this
-    # close to its cells is taken for none by DeskProfile.top_height_m)
+    # and a 3 cm board's inertia (given, so the drawn desks stay as they were)
     mass = rng.uniform(3, 15)
     board = 0.03
     inertia = [

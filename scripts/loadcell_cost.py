@@ -19,7 +19,7 @@ import numpy as np
 from tap_accuracy import LOADCELL_DESKS, buttons, gesture_events, simulate_taps  # (beside this)
 
 from hapticdesk.estimator import ContactEstimator, estimate
-from hapticdesk.files.profile import load_profile
+from hapticdesk.files.profile_reader import load_profile
 
 
 def cost(name: str, taps: int, repeats: int, seed: int) -> str:

@@ -43,7 +43,8 @@ from tap_accuracy import (
 
 from hapticdesk.estimator import ContactEstimator
 from hapticdesk.estimator.inertia import accelerometer_readings
-from hapticdesk.files.profile import DeskProfile, load_profile
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.sim import Scene, simulate
 from hapticdesk.sim.actions import Idle, LiftObject, LongPress, Press, PutObject
 
@@ -150,7 +151,7 @@ def long_presses(desk: DeskProfile, folder: Path, seeds: range) -> tuple[dict, d
     """On a button bound to a 0.8 s long press: per finger force the delay (s) of the tier
     after it was due (inf: never fired), per object mass whether a tier fired."""
     from hapticdesk.gestures.engine import GestureEngine
-    from hapticdesk.gestures.layout import load_layout
+    from hapticdesk.gestures.layout_reader import load_layout
 
     path = folder / f"long-press-{desk.name}.yaml"
     path.write_text(LONG_PRESS_LAYOUT.format(desk=desk.name))

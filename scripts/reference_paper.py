@@ -149,8 +149,8 @@ def reference_contacts(
 
 
 def main() -> None:
-    from hapticdesk.files.profile import load_profile
-    from hapticdesk.files.readers import read_any_recording
+    from hapticdesk.files.profile_reader import load_profile
+    from hapticdesk.recordings import read_any_recording
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("recording")

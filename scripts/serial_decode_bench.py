@@ -24,7 +24,8 @@ from hapticdesk.boards.decoder import BoardDecoder
 from hapticdesk.boards.hello import BoardHello, with_checksum
 from hapticdesk.boards.settings import serial_settings
 from hapticdesk.estimator import ContactEstimator
-from hapticdesk.files.profile import DeskProfile, builtin_profile_path, load_profile
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import builtin_profile_path, load_profile
 
 CELLS = """\
 name: cells

@@ -89,7 +89,7 @@ def simulate_strokes(items, seed: int, desk_name: str = "kitamura2017", sway: st
     (desk, recording, contacts)."""
 
     from hapticdesk.estimator import estimate
-    from hapticdesk.files.profile import load_profile
+    from hapticdesk.files.profile_reader import load_profile
     from hapticdesk.sim import Idle, Scene, Stroke, simulate
 
     desk = with_sway_compensation(load_profile(desk_name), sway)

@@ -33,10 +33,11 @@ import numpy as np
 from tap_accuracy import BUTTONS, true_touches  # (scripts beside this one)
 
 from hapticdesk.estimator import ContactEstimator
-from hapticdesk.files.profile import DeskProfile, load_profile
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.gestures.engine import GestureEngine
 from hapticdesk.gestures.event import GestureEvent
-from hapticdesk.gestures.layout import load_layout
+from hapticdesk.gestures.layout_reader import load_layout
 from hapticdesk.sim import Idle, Scene, Swipe, simulate
 
 DIRECTIONS = {"right": (1.0, 0.0), "up": (0.0, 1.0), "left": (-1.0, 0.0), "down": (0.0, -1.0)}

@@ -43,10 +43,12 @@ import numpy as np
 
 from hapticdesk.estimator import ContactEstimator, estimate
 from hapticdesk.estimator.contacts import ContactBlock
-from hapticdesk.files.profile import DeskProfile, load_profile, profile_from_mapping
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile, profile_from_mapping
 from hapticdesk.files.yamlfile import load_marked_yaml
 from hapticdesk.gestures.engine import GestureEngine
-from hapticdesk.gestures.layout import Layout, load_layout
+from hapticdesk.gestures.layout import Layout
+from hapticdesk.gestures.layout_reader import load_layout
 from hapticdesk.sim import (
     Idle,
     LiftObject,

@@ -30,7 +30,8 @@ import numpy as np
 from hapticdesk.bench.accuracy import find_presses, measure_accuracy
 from hapticdesk.bench.scenes import PAPER_POINTS, paper_experiment
 from hapticdesk.estimator import ContactEstimator
-from hapticdesk.files.profile import DeskProfile, load_profile
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.files.recording import Recording
 from hapticdesk.sim import Action, LongPress, Press, Scene, Tap, simulate
 

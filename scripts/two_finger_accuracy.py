@@ -21,9 +21,9 @@ from tap_accuracy import UNSEEN_DESKS, unseen_desk  # (a script beside this one)
 
 from hapticdesk.estimator import ContactEstimator
 from hapticdesk.estimator.contacts import FLAG_MULTI
-from hapticdesk.files.profile import load_profile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.gestures.engine import GestureEngine
-from hapticdesk.gestures.layout import load_layout
+from hapticdesk.gestures.layout_reader import load_layout
 from hapticdesk.sim import Scene, simulate
 from hapticdesk.sim.actions import Press, Step, Swipe, Tap
 

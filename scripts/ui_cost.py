@@ -69,8 +69,8 @@ def main() -> int:
 
     from playwright.sync_api import sync_playwright
 
+    from hapticdesk.plugin_loading import load_registry
     from hapticdesk.plugins.ui.server import UiServer
-    from hapticdesk.registry import load_registry
     from hapticdesk.runtime.assembly import build_scene
     from hapticdesk.runtime.dispatcher import Lane
     from hapticdesk.runtime.service import Runtime

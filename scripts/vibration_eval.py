@@ -44,7 +44,8 @@ import scipy.signal
 from hapticdesk.estimator import ContactEstimator
 from hapticdesk.estimator.filters import butter_lowpass_sos
 from hapticdesk.estimator.inertia import InertiaSettings, InertiaStage, accelerometer_readings
-from hapticdesk.files.profile import DeskProfile, load_profile
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.files.recording import Recording
 from hapticdesk.sim import Action, Press, Scene, Tap, simulate
 from hapticdesk.sim.scene import load_scene

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from hapticdesk.files.profile import DeskProfile, load_profile
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile
 
 
 @pytest.fixture(autouse=True)
@@ -56,3 +57,33 @@ def any_desk(request: pytest.FixtureRequest) -> DeskProfile:
     if request.param == "paper":
         return load_profile("kitamura2017")
     return request.getfixturevalue(f"{request.param}_desk")  # type: ignore[no-any-return]
+
+
+def _press_errors(profile: DeskProfile, built: DeskProfile, cells: object, points: list) -> object:
+    """Presses of 10 N held 1 s at ``points`` on the desk ``built`` (its load cells
+    ``cells``: LoadCellParameters), located with ``profile``: each press's distance from
+    where it was made (the medians over its hold), metres."""
+    import numpy as np
+
+    from hapticdesk.estimator import estimate
+    from hapticdesk.sim import Press, Scene, simulate
+
+    scene = Scene([Press(p, peak_n=10.0, hold_s=1.0) for p in points], seed=4)
+    rec = simulate(built, scene, cells=cells)  # type: ignore[arg-type]
+    contacts = estimate(profile, rec)
+    action = rec.extra["true_action"]
+    errors = []
+    for k in range(len(points)):
+        held = (action == k) & contacts.located & (contacts.force_n > 5.0)
+        assert held.sum() > 20
+        dx = np.median(contacts.x[held]) - np.median(rec.extra["true_x"][held])
+        dy = np.median(contacts.y[held]) - np.median(rec.extra["true_y"][held])
+        errors.append(np.hypot(dx, dy))
+    return np.array(errors)
+
+
+@pytest.fixture(scope="session")
+def press_errors() -> object:
+    """``press_errors(profile, built, cells, points)``: how far presses on a load-cell desk as
+    built land with ``profile`` (the set-up with a known weight's tests, analysis and page)."""
+    return _press_errors

@@ -38,13 +38,10 @@ import numpy as np
 from scipy import signal
 
 from hapticdesk.analysis.inertia_fit import InertiaFit, fit_inertia
-from hapticdesk.files.profile import (
-    LOWPASS_PER_NATURAL_FREQUENCY,
-    DeskProfile,
-    is_body_inertia,
-)
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.profile import LOWPASS_PER_NATURAL_FREQUENCY, DeskProfile
 from hapticdesk.files.recording import Recording
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.files.rigid_body import is_body_inertia
 
 QUIET_WINDOW_S = 0.5
 FLOOR_PERCENTILE = 5.0  # works while at least 5 % of the recording is quiet

@@ -35,8 +35,9 @@ from hapticdesk.estimator.inertia import (
     accelerometer_readings,
     rigid_motion,
 )
-from hapticdesk.files.profile import DeskProfile, is_body_inertia, spatial_inertia
+from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.recording import Recording
+from hapticdesk.files.rigid_body import is_body_inertia, spatial_inertia
 
 BAND_HZ = (2.0, 40.0)
 HOLD_AFTER_S = 0.3  # a press's point: where it held from this long after touch-down

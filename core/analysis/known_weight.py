@@ -37,8 +37,10 @@ from typing import Any
 
 import numpy as np
 
-from hapticdesk.files.profile import STANDARD_GRAVITY, DeskProfile, profile_from_mapping
-from hapticdesk.files.yamlfile import ConfigError, load_marked_yaml
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.profile import STANDARD_GRAVITY, DeskProfile
+from hapticdesk.files.profile_reader import profile_from_mapping
+from hapticdesk.files.yamlfile import load_marked_yaml
 
 #: prior spread of a cell's gain around the profile's (a cheap cell's rated output: ±10 %)
 GAIN_SD = 0.1

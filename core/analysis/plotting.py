@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.estimator import CandidateTrace, ContactEstimator
 from hapticdesk.estimator.contacts import (
     SOURCE_DIFF,
@@ -33,7 +34,6 @@ from hapticdesk.estimator.contacts import (
 from hapticdesk.estimator.inertia import accelerometer_readings
 from hapticdesk.files.profile import AXES, DeskProfile
 from hapticdesk.files.recording import Recording
-from hapticdesk.files.yamlfile import ConfigError
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes

@@ -25,8 +25,8 @@ from typing import Any
 
 import numpy as np
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile
-from hapticdesk.files.yamlfile import ConfigError
 
 #: a sensor placed further than this from where the presses put it is reported
 POSITION_TOLERANCE_M = 0.01
@@ -117,7 +117,7 @@ def check_setup(
     if quiet.sum() < 10:
         raise ConfigError(None, f"the recording needs {tare_s:g} s of a quiet desk first")
     tared = wrench - wrench[quiet].mean(axis=0)
-    # desk frame: R_i · (sign_i · reading), forces and moments alike (DESIGN.md, conventions)
+    # desk frame: R_i · (sign_i · reading), forces and moments alike (docs/reference/contracts.md)
     rot = np.stack([s.rotation for s in sensors])  # (S, 3, 3)
     sign = np.array([s.sign for s in sensors])[None, :, None]
     f_desk = np.einsum("sij,nsj->nsi", rot, tared[:, :, :3]) * sign

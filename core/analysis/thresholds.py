@@ -41,10 +41,10 @@ from typing import Any
 
 import numpy as np
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.estimator import BAD_SAMPLE, CandidateTrace, ContactEstimator
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.recording import Recording
-from hapticdesk.files.yamlfile import ConfigError
 
 CONVERGED_M_S = 0.2  # paper §5.2: |dD_er/dt| ≤ 0.2 m/s
 DIVERGED_M = 0.01  # paper §5.2: |D_er − D_ed| ≥ 0.01 m

@@ -33,8 +33,8 @@ from hapticdesk.boards.lines import (
 )
 from hapticdesk.boards.settings import SerialSettings, board_channels
 from hapticdesk.boards.stats import SerialStats, log
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile
-from hapticdesk.files.yamlfile import ConfigError
 
 #: the board's rate may differ from the profile's by this share at most
 RATE_TOLERANCE = 0.005

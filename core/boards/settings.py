@@ -23,18 +23,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from hapticdesk.boards.hello import MAX_OFFSET_US
+from hapticdesk.errors import ConfigError, Position
+from hapticdesk.files.marked_values import MarkedDict, MarkedList
 from hapticdesk.files.profile import DeskProfile
-from hapticdesk.files.yamlfile import (
-    ConfigError,
-    MarkedDict,
-    MarkedList,
-    Position,
-    check_keys,
-    flag,
-    number,
-    require_mapping,
-    vector,
-)
+from hapticdesk.files.validators import check_keys, flag, number, require_mapping, vector
 
 SECTION_KEYS = {
     "port",

@@ -24,9 +24,9 @@ from typing import Any
 
 from hapticdesk.boards.decoder import BoardDecoder, DecodedBlock
 from hapticdesk.boards.settings import serial_settings
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile
-from hapticdesk.files.yamlfile import ConfigError
-from hapticdesk.runtime.source import LiveSource, WrenchBlock
+from hapticdesk.runtime.source import Source, WrenchBlock
 
 BLOCK_WAIT_S = 0.01  # a block gathers what came within this long
 READ_TIMEOUT_S = 0.05  # the reader thread's longest wait in one read (bounds close())
@@ -58,13 +58,16 @@ def import_pyserial() -> Any:
     return serial
 
 
-class SerialSource(LiveSource):
+class SerialSource(Source):
     """Samples of a desk read from a board on a serial port (module docstring)."""
 
     def __init__(self, spec: str, profile: DeskProfile) -> None:
         self.serial = import_pyserial()  # (before the base: nothing to close if it fails)
         self.settings = serial_settings(profile, spec)
-        super().__init__(profile)
+        super().__init__(
+            profile.sensor_names, profile.sample_rate_hz, channel_count=profile.channel_count
+        )
+        self.profile = profile
         self.port_name = self.settings.port
         self.decoder = BoardDecoder(profile, self.settings, where=self.port_name)
         self._queue: collections.deque[tuple[float, bytes]] = collections.deque()

@@ -2,7 +2,7 @@
 
 Every frame that carries sample data gets a *sample key*; one desk sample is all frames with
 the same key, and it is complete when every frame kind (:mod:`hapticdesk.canbus.decoding`) is
-in it. Keys come from
+in it. Keys come (:mod:`.sample_keys`) from
 
 - **counters** (``assemble: counter``, every message has one and all share it): the counter
   unwrapped over its wrap-around, using the frame times, where there are any, to tell a wrap
@@ -15,7 +15,10 @@ in it. Keys come from
 
 What the keys cannot make whole is never guessed: a missing or doubled frame kind leaves its
 channels NaN in that sample (the estimator flags and skips NaN samples), a frame whose sample
-was already given out is dropped, and every such case is counted in :class:`CanStats`.
+was already given out is dropped, and every such case is counted in :class:`CanStats`. A
+field whose frame is lost is held from the sample before for a few samples at most
+(:mod:`.field_hold`, logs assembled by counter); a sensor silent for longer is noticed
+(:mod:`.silence`).
 
 Sample times are on the sensor clock: ``key / sample_rate`` with counters, otherwise the
 time of the sample's first frame. The same code serves a live bus and a log: ``push`` any
@@ -40,19 +43,18 @@ from hapticdesk.canbus.decoding import (
     WRONG_LENGTH,
     DeskDecoding,
 )
+from hapticdesk.canbus.field_hold import FieldHold
 from hapticdesk.canbus.frames import FrameArray
-from hapticdesk.canbus.stats import CanNotice, CanStats, SensorSilentError, silence_message
-from hapticdesk.files.yamlfile import Position
+from hapticdesk.canbus.sample_keys import LATE, REORDER_DEPTH, CounterKeys, TimeKeys
+from hapticdesk.canbus.silence import SilenceWatch
+from hapticdesk.canbus.stats import CanNotice, CanStats, SensorSilentError
+from hapticdesk.errors import Position
 
 log = logging.getLogger("hapticdesk.canbus")
 
-REORDER_DEPTH = 3  # with counters, a sample is given up once a frame this many samples newer came
 JUMP_PERIODS = 1.5  # sample times further apart than this count as lost samples
-LATE = np.iinfo(np.int64).min  # the key of a frame that came too late for its sample
 MAX_SAMPLE_FRAMES = 4  # by time, a sample of more than 4 × its frame kinds is given up
 NOTICES_KEPT = 1000  # notices a source or assembler keeps (the oldest go first)
-#: a frame whose time is this many sample periods before the latest frame's went back in time
-TIME_BACK_PERIODS = 1.0
 
 
 @dataclass
@@ -129,9 +131,6 @@ class FrameAssembler:
         self.silent_timeout_s = silent_timeout_s
         self.silent_sensor = silent_sensor
         self.where = where
-        #: a channel whose frame is missing from a sample takes its value from the samples
-        #: before, for at most this many samples in a row (0: left NaN)
-        self.hold_samples = hold_samples
         self.stats = CanStats()
         # the most recent ones: a bus that keeps failing must not grow this for the whole run
         self.notices: collections.deque[CanNotice] = collections.deque(maxlen=NOTICES_KEPT)
@@ -152,35 +151,14 @@ class FrameAssembler:
         self._key0: int | None = None
         self._t0: float | None = None
         self._last_t: float | None = None
-        # key state: counter unwrapping, or clustering by time
-        self._prev_counter: int | None = None
-        self._newest_key = np.iinfo(np.int64).min + REORDER_DEPTH
-        self._prev_key = 0
-        self._prev_t = np.nan
-        self._prev_rank = -1
-        self._cluster = 0
-        self._rank = np.full(n_kinds + 1, -1, dtype=np.int64)
-        self._next_rank = 0
-        self._lead_request: int | None = None
-        self._polled = False  # a poll request has been seen: polls start samples
-        # per reply whose frames come in order (ATI 0x0 then 0x1): the key of the last first
-        # frame still waiting for its second, if any
-        self._open_first: dict[int, int | None] = {a: None for a in decoding.second_halves.values()}
-        # silence per sensor
-        self._last_seen = np.full(len(names), np.nan)
-        self._silent = np.zeros(len(names), dtype=bool)
-        self._late_frames = np.zeros(len(names), dtype=np.int64)  # since the sensor last fit
-        self._stopped: SensorSilentError | None = None
+        self._keys: CounterKeys | TimeKeys = (
+            CounterKeys(decoding, self.rate, self.stats)
+            if assemble == "counter"
+            else TimeKeys(decoding, self.rate, self.frame_gap_s, self.stats)
+        )
+        self._silence = SilenceWatch(names, silent_timeout_s, silent_sensor, where)
         self._accel_axes = decoding.accel_axes  # the last groups: the accelerometers
-        # the last value of each field and how many samples ago it was read (for the hold)
-        self._last_row = np.full(decoding.n_fields, np.nan)
-        self._last_age = np.zeros(decoding.n_fields, dtype=np.int64)
-        # only the force sensors' fields are held: a missing accelerometer reading stays NaN,
-        # the estimator then flags that sample `no_accel` (the documented contract)
-        self._holdable = np.zeros(decoding.n_fields, dtype=bool)
-        force_readings = decoding.readings[: len(decoding.readings) - len(self._accel_axes)]
-        for reading in force_readings:
-            self._holdable[reading.columns] = True
+        self._hold = FieldHold(decoding, hold_samples)
 
     # --- public -------------------------------------------------------------------------
 
@@ -191,7 +169,7 @@ class FrameAssembler:
 
     def push(self, frames: FrameArray) -> AssembledBlock:
         """Take more frames (in arrival order); give out the samples now complete or given up."""
-        if self._stopped is not None:
+        if self._silence.stopped is not None:
             return self._result(np.zeros(0), np.zeros((0, len(self._sensor_kinds), 6)), [])
         codes = self.decoding.classify(frames)
         self._count(frames, codes)
@@ -202,132 +180,15 @@ class FrameAssembler:
             sub = frames.take(relevant)
             kind = codes[relevant]
             kind[kind == REQUEST] = self._n_kinds
-            keys = (
-                self._counter_keys(sub, kind)
-                if self.assemble == "counter"
-                else self._time_keys(sub, kind)
-            )
+            keys = self._keys.keys(sub, kind)
             self._pending = self._pending.join(_Pending(keys, kind, sub.t, sub.ident, sub.data))
         return self._give_out(flush=False)
 
     def flush(self) -> AssembledBlock:
         """End of the stream: give out everything still waiting, complete or not."""
-        if self._stopped is not None:
+        if self._silence.stopped is not None:
             return self._result(np.zeros(0), np.zeros((0, len(self._sensor_kinds), 6)), [])
         return self._give_out(flush=True)
-
-    # --- keys ---------------------------------------------------------------------------
-
-    def _counter_keys(self, frames: FrameArray, kind: np.ndarray) -> np.ndarray:
-        modulus = int(self.decoding.counter_modulus or 0)
-        counter = np.zeros(len(kind), dtype=np.int64)
-        for k in np.unique(kind):
-            sel = kind == k
-            layout = self.decoding.kinds[k].counter
-            assert layout is not None
-            counter[sel] = layout.raw(frame_words(frames.data[sel])).astype(np.int64)
-        if self._prev_counter is None:
-            self._prev_counter, self._prev_key, self._prev_t = (
-                int(counter[0]),
-                int(counter[0]),
-                frames.t[0],
-            )
-        prev_c = np.concatenate([[self._prev_counter], counter[:-1]])
-        # the latest time seen before each frame: a frame whose time went back (a corrupt or
-        # merged log) neither counts as a wrap of the counter nor moves the clock for the
-        # frames after it (0.5 % of them had made 1.6 million samples "lost" and no tap)
-        clock = np.fmax.accumulate(np.concatenate([[self._prev_t], frames.t]))
-        prev_t = clock[:-1]
-        dt = frames.t - prev_t
-        self._count_time_back(dt)
-        # Within half its range the counter alone decides (host clocks stall and burst, and a
-        # fast replay is not on the sample clock); across a longer pause the time says how
-        # many wraps were missed.
-        half = modulus // 2
-        periods = np.where(np.isfinite(dt), dt * self.rate, 0.0)
-        expected = np.where(periods >= half, np.rint(periods), 0).astype(np.int64)
-        delta = expected + np.mod(counter - prev_c - expected + half, modulus) - half
-        keys = self._prev_key + np.cumsum(delta)
-        self._prev_counter, self._prev_key, self._prev_t = (
-            int(counter[-1]),
-            int(keys[-1]),
-            clock[-1],
-        )
-        # A frame more than REORDER_DEPTH samples behind the newest one before it is late,
-        # whether or not its sample has been given out yet: so a log read at once and a bus
-        # read frame by frame agree, and a sensor whose counter went its own way (a reboot)
-        # is never merged into other samples.
-        newest = np.maximum.accumulate(np.concatenate([[self._newest_key], keys]))[:-1]
-        self._newest_key = max(self._newest_key, int(keys.max()))
-        return np.where(keys <= newest - REORDER_DEPTH, LATE, keys)
-
-    def _time_keys(self, frames: FrameArray, kind: np.ndarray) -> np.ndarray:
-        is_request = kind == self._n_kinds
-        if self._lead_request is None and is_request.any():
-            # the board polled first in each round starts a sample
-            self._lead_request = int(frames.ident[np.argmax(is_request)])
-        after_polls = self._polled | (np.cumsum(is_request) > 0)
-        prev_t = np.concatenate([[self._prev_t], frames.t[:-1]])
-        dt = frames.t - prev_t
-        self._count_time_back(dt)
-        # ranks of kinds in the order they first appeared (for logs without times)
-        new = np.unique(kind[(self._rank[kind] < 0) & ~is_request])
-        if len(new):
-            first = np.array([np.argmax(kind == k) for k in new])
-            for k in new[np.argsort(first)]:
-                self._rank[k] = self._next_rank
-                self._next_rank += 1
-        rank = np.where(is_request, -1, self._rank[kind])
-        prev_rank = np.concatenate([[self._prev_rank], rank[:-1]])
-        with np.errstate(invalid="ignore"):
-            by_poll = is_request & (frames.ident == self._lead_request)
-            by_gap = np.where(
-                np.isfinite(dt), dt > self.frame_gap_s, (rank <= prev_rank) & (rank >= 0)
-            )
-        boundary = np.where(after_polls, by_poll, by_gap)
-        keys = self._cluster + np.cumsum(boundary)
-        self._cluster = int(keys[-1])
-        self._prev_t = frames.t[-1]
-        self._prev_rank = int(rank[-1])
-        self._polled = bool(after_polls[-1])
-        for second, first in self.decoding.second_halves.items():
-            self._pair_halves(keys, kind, first, second)
-        return keys
-
-    def _count_time_back(self, dt: np.ndarray) -> None:
-        with np.errstate(invalid="ignore"):
-            self.stats.time_back += int(np.count_nonzero(dt < -TIME_BACK_PERIODS / self.rate))
-
-    def _pair_halves(self, keys: np.ndarray, kind: np.ndarray, first: int, second: int) -> None:
-        """Give each second frame of a reply its first frame's key, in place.
-
-        A board sends the two frames of a reply in order, but traffic of higher priority can
-        delay the second until after the host's next poll, which starts the next sample: by
-        its poll it would land there (doubled) and void two samples. So a second frame takes
-        the key of the last first frame before it that has no second yet, if that first
-        frame is of its own poll round or the one before (any older is not its reply's).
-        """
-        a_pos = np.flatnonzero(kind == first)
-        b_pos = np.flatnonzero(kind == second)
-        carried = self._open_first[first]
-        if len(b_pos):
-            # the first frame before each second one: its index in a_pos, -1 an earlier push's
-            prev = np.searchsorted(a_pos, b_pos) - 1
-            a_keys = keys[a_pos] if len(a_pos) else np.zeros(1, np.int64)
-            owner = np.where(prev >= 0, a_keys[np.maximum(prev, 0)], carried or 0)
-            # one second frame per first frame: a second after the same first keeps its key
-            takes = np.concatenate([[True], prev[1:] != prev[:-1]])
-            takes &= (prev >= 0) | (carried is not None)
-            takes &= (owner >= keys[b_pos] - 1) & (owner <= keys[b_pos])
-            keys[b_pos[takes]] = owner[takes]
-            answered = set(prev[takes].tolist())
-        else:
-            answered = set()
-        if len(a_pos):
-            last = len(a_pos) - 1
-            self._open_first[first] = None if last in answered else int(keys[a_pos[last]])
-        elif -1 in answered:
-            self._open_first[first] = None
 
     # --- samples ------------------------------------------------------------------------
 
@@ -344,7 +205,7 @@ class FrameAssembler:
             late_kinds = p.kind[late & (p.kind < self._n_kinds)]
             self.stats.late += len(late_kinds)
             for s, kinds in enumerate(self._sensor_kinds):
-                self._late_frames[s] += int(np.isin(late_kinds, kinds).sum())
+                self._silence.late_frames[s] += int(np.isin(late_kinds, kinds).sum())
             p = p.take(~late)
             if not len(p.key):
                 self._pending = p
@@ -363,8 +224,9 @@ class FrameAssembler:
             overgrown = np.bincount(row_of, minlength=n_rows) > MAX_SAMPLE_FRAMES * (n_kinds + 1)
             # by polls, an incomplete sample waits one more round: its reply's second frame
             # may come after the next poll (see _pair_halves)
-            waits = 1 if self._polled and self.decoding.second_halves else 0
-            final = complete | (keys < self._cluster - waits) | overgrown
+            assert isinstance(self._keys, TimeKeys)
+            waits = 1 if self._keys.polled and self.decoding.second_halves else 0
+            final = complete | (keys < self._keys.cluster - waits) | overgrown
         n_out = n_rows if final.all() else int(np.argmin(final))
         if n_out == 0:
             self._pending = p
@@ -389,7 +251,7 @@ class FrameAssembler:
                 self.stats.duplicates += int(presence[doubled, k].sum())
         if self.assemble == "time":
             self._check_counters(p, row_of, n, table)
-        held = self._hold(table)
+        held = self._hold.fill(table)
         t = self._times(p, row_of, keys)
         wrench = np.empty((n, len(decoding.readings), 6))
         for s, reading in enumerate(decoding.readings):
@@ -405,7 +267,7 @@ class FrameAssembler:
                 bits[label] = bits.get(label, 0) + count
         self._count_lost(keys, t)
         talking = np.stack([(presence[:, ks] > 0).any(axis=1) for ks in self._sensor_kinds], axis=1)
-        notices, stop_at = self._watch_silence(t, talking)
+        notices, stop_at = self._silence.watch(t, talking)
         if stop_at is not None:
             t, wrench = t[:stop_at], wrench[:stop_at]
             keys = keys[:stop_at]
@@ -415,36 +277,6 @@ class FrameAssembler:
             self._last_t = float(t[-1])
         self.stats.samples += len(t)
         return self._result(t, wrench, notices)
-
-    def _hold(self, table: np.ndarray) -> np.ndarray:
-        """Fill, in place, each field a sample lacks (its frame was lost, doubled, or came
-        with another counter) with the field's last value, when that is at most
-        :attr:`hold_samples` samples old; returns where it did. A log with 5 % of its lines
-        junk had lost a frame in a third of its samples, and the NaN samples the estimator
-        skips had refused the tare for the whole run; a value one sample old is a truer
-        sample than none. Carried across pushes, so any split gives the same samples."""
-        n = len(table)
-        if self.hold_samples <= 0 or n == 0:
-            return np.zeros(table.shape, dtype=bool)
-        full = np.vstack([self._last_row[None, :], table])
-        valid = ~np.isnan(full)
-        rows = np.arange(n + 1)[:, None]
-        last = np.maximum.accumulate(np.where(valid, rows, -1), axis=0)  # row of the last value
-        # how old that value is, in samples: row 0 is the carried one, already _last_age old
-        age = np.where(last > 0, rows - last, rows + self._last_age[None, :])
-        fill = ~valid & (last >= 0) & (age <= self.hold_samples) & self._holdable[None, :]
-        fill[0] = False
-        columns = np.broadcast_to(np.arange(full.shape[1]), full.shape)
-        full[fill] = full[np.maximum(last, 0)[fill], columns[fill]]
-        table[:] = full[1:]
-        held = fill[1:]
-        read = valid[1:]
-        # the carried value: each field's last real value and its age at the last sample
-        seen = read.any(axis=0)
-        last_real = n - 1 - np.argmax(read[::-1], axis=0)
-        self._last_row = np.where(seen, table[last_real, np.arange(table.shape[1])], self._last_row)
-        self._last_age = np.where(seen, n - 1 - last_real, self._last_age + n)
-        return held
 
     def _times(self, p: _Pending, row_of: np.ndarray, keys: np.ndarray) -> np.ndarray:
         if self._key0 is None:
@@ -489,47 +321,6 @@ class FrameAssembler:
             jumped = periods > JUMP_PERIODS  # jitter of a host clock is not a loss
             self.stats.lost_samples += int(np.sum(np.rint(periods[jumped]) - 1))
 
-    def _watch_silence(
-        self, t: np.ndarray, talking: np.ndarray
-    ) -> tuple[list[CanNotice], int | None]:
-        """Notice sensors that stop and come back; stop at the first silence if configured."""
-        notices: list[CanNotice] = []
-        stop_at: int | None = None
-        names = self.decoding.sensor_names
-        for s, name in enumerate(names):
-            if np.isnan(self._last_seen[s]):
-                self._last_seen[s] = t[0]
-            seen = np.where(talking[:, s], t, -np.inf)
-            last = np.maximum(np.maximum.accumulate(seen), self._last_seen[s])
-            silent = ~talking[:, s] & (t - last > self.silent_timeout_s)
-            prev = np.concatenate([[self._silent[s]], silent[:-1]])
-            for i in np.flatnonzero(silent & ~prev):
-                text = silence_message(
-                    name, self.silent_timeout_s, float(last[i]), int(self._late_frames[s])
-                )
-                if self.silent_sensor == "stop":
-                    if stop_at is None or i < stop_at:
-                        stop_at = int(i)
-                        self._stopped = SensorSilentError(
-                            self.where, text + "; stopping (`silent_sensor: stop`)"
-                        )
-                    break
-                notices.append(CanNotice(float(t[i]), "silent", text + "; its channels are NaN"))
-            for i in np.flatnonzero(talking[:, s] & prev):
-                notices.append(
-                    CanNotice(
-                        float(t[i]), "back", f"sensor {name} is sending again at t={t[i]:.3f} s"
-                    )
-                )
-            if talking[:, s].any():
-                self._late_frames[s] = 0
-            self._silent[s] = bool(silent[-1]) if len(silent) else self._silent[s]
-            self._last_seen[s] = last[-1]
-        if stop_at is not None:
-            notices = [n for n in notices if n.t < t[stop_at]]
-        notices.sort(key=lambda n: n.t)
-        return notices, stop_at
-
     def _result(
         self, t: np.ndarray, wrench: np.ndarray, notices: list[CanNotice]
     ) -> AssembledBlock:
@@ -537,11 +328,11 @@ class FrameAssembler:
             log.warning("%s", notice.message)
         self.notices.extend(notices)
         if not self._accel_axes:
-            return AssembledBlock(t, wrench, notices, self._stopped)
+            return AssembledBlock(t, wrench, notices, self._silence.stopped)
         sensors = wrench.shape[1] - len(self._accel_axes)
         parts = [wrench[:, sensors + i, axes] for i, axes in enumerate(self._accel_axes)]
         accel = parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
-        return AssembledBlock(t, wrench[:, :sensors], notices, self._stopped, accel)
+        return AssembledBlock(t, wrench[:, :sensors], notices, self._silence.stopped, accel)
 
     # --- counting -----------------------------------------------------------------------
 

@@ -1,6 +1,6 @@
 """The ATI NETCANOEM six-axis F/T protocol (ATI manual 9610-05-1030-04, §7 and §10).
 
-Facts restated in ../shared/sensors/ati-netcanoem.md. Identifiers are ``(base << 4) | opcode``;
+Facts from that manual (docs/can.md restates them). Identifiers are ``(base << 4) | opcode``;
 all data big-endian; a reply differs from its request by its length. A sample is two frames:
 opcode 0x0 (8 bytes: status, sg0, sg2, sg4) and opcode 0x1 (6 bytes: sg1, sg3, sg5). The
 calibration matrix (opcode 0x2, one row per request, three reply frames), the counts per unit

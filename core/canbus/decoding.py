@@ -15,11 +15,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hapticdesk.canbus import ati_netcanoem as ati
-from hapticdesk.canbus.config import AtiSensor, CanConfig, SignalSensor
+from hapticdesk.canbus.config import AtiSensor, CanConfig, SignalRef, SignalSensor
 from hapticdesk.canbus.dbc_signals import SignalLayout, frame_words
 from hapticdesk.canbus.frames import ERROR, EXTENDED, REMOTE, FrameArray
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import AXES, DeskProfile
-from hapticdesk.files.yamlfile import ConfigError
 
 # classification codes (kind indices are >= 0)
 FOREIGN = -1  # an identifier the desk does not use (CANopen traffic, other devices)
@@ -184,16 +184,7 @@ def build_decoding(
     """Frame kinds and sensor readings for ``profile``; ATI boards need a calibration each
     (from the profile, or ``calibrations`` read from the bus or a capture)."""
     calibrations = calibrations or {}
-    kinds: list[FrameKind] = []
-    readings: list[SensorReading] = []
-    request_sensor: dict[int, int] = {}
-    protocol: set[int] = set()
-    second_halves: dict[int, int] = {}
-    column = 0
-    # database messages may carry several sensors' signals: one kind per message
-    message_fields: dict[str, list[tuple[int, SignalLayout]]] = {}
-    message_sensors: dict[str, list[int]] = {}
-    message_counter: dict[str, SignalLayout] = {}
+    builder = _DecodingBuilder(config)
     for index, (name, sensor) in enumerate(config.groups()):  # sensors, then accelerometer
         if isinstance(sensor, AtiSensor):
             cal = sensor.calibration or calibrations.get(name)
@@ -204,81 +195,114 @@ def build_decoding(
                     "read from the bus at start, taken from the replies in a capture, or given "
                     "as `calibration` in the profile",
                 )
-            first = column
-            column += 7
-            kinds.append(
-                FrameKind(
-                    f"{name} gauges 0x0",
-                    ati.frame_id(sensor.base, ati.OP_GAUGES_A),
-                    ati.GAUGES_A_LENGTH,
-                    np.arange(first, first + 4),
-                    ati.decode_gauges_a,
-                    None,
-                    (index,),
-                )
+            builder.add_ati(index, name, sensor, cal)
+        else:
+            assert isinstance(sensor, SignalSensor)
+            builder.add_signals(index, name, sensor)
+    return builder.decoding()
+
+
+class _DecodingBuilder:
+    """The frame kinds, field-table columns and readings of a desk, group by group."""
+
+    def __init__(self, config: CanConfig) -> None:
+        self.config = config
+        self.kinds: list[FrameKind] = []
+        self.readings: list[SensorReading] = []
+        self.request_sensor: dict[int, int] = {}
+        self.protocol: set[int] = set()
+        self.second_halves: dict[int, int] = {}
+        self.column = 0  # the next free column of the field table
+        # database messages may carry several sensors' signals: one kind per message
+        self.message_fields: dict[str, list[tuple[int, SignalLayout]]] = {}
+        self.message_sensors: dict[str, list[int]] = {}
+        self.message_counter: dict[str, SignalLayout] = {}
+
+    def add_ati(self, index: int, name: str, sensor: AtiSensor, cal: ati.AtiCalibration) -> None:
+        """An ATI board: its two sample frames (gauges 0x0, then 0x1), the poll that asks
+        for them, the rest of its identifiers as protocol traffic."""
+        first = self.column
+        self.column += 7
+        gauges_a = ati.frame_id(sensor.base, ati.OP_GAUGES_A)
+        gauges_b = ati.frame_id(sensor.base, ati.OP_GAUGES_B)
+        self.kinds.append(
+            FrameKind(
+                f"{name} gauges 0x0",
+                gauges_a,
+                ati.GAUGES_A_LENGTH,
+                np.arange(first, first + 4),
+                ati.decode_gauges_a,
+                None,
+                (index,),
             )
-            kinds.append(
-                FrameKind(
-                    f"{name} gauges 0x1",
-                    ati.frame_id(sensor.base, ati.OP_GAUGES_B),
-                    ati.GAUGES_B_LENGTH,
-                    np.arange(first + 4, first + 7),
-                    ati.decode_gauges_b,
-                    None,
-                    (index,),
-                )
+        )
+        self.kinds.append(
+            FrameKind(
+                f"{name} gauges 0x1",
+                gauges_b,
+                ati.GAUGES_B_LENGTH,
+                np.arange(first + 4, first + 7),
+                ati.decode_gauges_b,
+                None,
+                (index,),
             )
-            second_halves[len(kinds) - 1] = len(kinds) - 2
-            request_sensor[ati.frame_id(sensor.base, ati.OP_GAUGES_A)] = index
-            protocol |= ati.ati_frame_ids(sensor.base) - {
-                ati.frame_id(sensor.base, ati.OP_GAUGES_A),
-                ati.frame_id(sensor.base, ati.OP_GAUGES_B),
-            }
-            readings.append(AtiReading(name, first, cal))
-            continue
-        assert isinstance(sensor, SignalSensor)
+        )
+        self.second_halves[len(self.kinds) - 1] = len(self.kinds) - 2
+        self.request_sensor[gauges_a] = index
+        self.protocol |= ati.ati_frame_ids(sensor.base) - {gauges_a, gauges_b}
+        self.readings.append(AtiReading(name, first, cal))
+
+    def add_signals(self, index: int, name: str, sensor: SignalSensor) -> None:
+        """A sensor (or accelerometer) of database signals: a column per axis and status
+        signal, filled by the kind of the message that carries it."""
         axis_columns: dict[int, int] = {}
         status_columns: list[tuple[str, int]] = []
         for axis, ref in sensor.axes.items():
-            axis_columns[AXES.index(axis)] = column
-            message_fields.setdefault(ref.message, []).append((column, _layout(config, ref)))
-            message_sensors.setdefault(ref.message, []).append(index)
-            column += 1
+            axis_columns[AXES.index(axis)] = self.column
+            self._add_field(ref)
+            self.message_sensors.setdefault(ref.message, []).append(index)
         for ref in sensor.status:
-            status_columns.append((str(ref), column))
-            message_fields.setdefault(ref.message, []).append((column, _layout(config, ref)))
-            column += 1
+            status_columns.append((str(ref), self.column))
+            self._add_field(ref)
         for ref in sensor.counters:
-            message_counter[ref.message] = _layout(config, ref)
-        readings.append(SignalReading(name, axis_columns, status_columns))
-    for message_name, slots in message_fields.items():
-        message = config.database.get_message_by_name(message_name)
-        layouts = [layout for _, layout in slots]
-        ident = int(message.frame_id) | (int(EXTENDED) if message.is_extended_frame else 0)
-        kinds.append(
-            FrameKind(
-                message_name,
-                ident,
-                int(message.length),
-                np.array([c for c, _ in slots]),
-                _signal_decoder(layouts),
-                message_counter.get(message_name),
-                tuple(sorted(set(message_sensors.get(message_name, [])))),
+            self.message_counter[ref.message] = _layout(self.config, ref)
+        self.readings.append(SignalReading(name, axis_columns, status_columns))
+
+    def _add_field(self, ref: SignalRef) -> None:
+        fields = self.message_fields.setdefault(ref.message, [])
+        fields.append((self.column, _layout(self.config, ref)))
+        self.column += 1
+
+    def decoding(self) -> DeskDecoding:
+        """The decoding: a kind per database message, after the ATI boards' kinds."""
+        kinds = list(self.kinds)
+        for message_name, slots in self.message_fields.items():
+            message = self.config.database.get_message_by_name(message_name)
+            ident = int(message.frame_id) | (int(EXTENDED) if message.is_extended_frame else 0)
+            kinds.append(
+                FrameKind(
+                    message_name,
+                    ident,
+                    int(message.length),
+                    np.array([c for c, _ in slots]),
+                    _signal_decoder([layout for _, layout in slots]),
+                    self.message_counter.get(message_name),
+                    tuple(sorted(set(self.message_sensors.get(message_name, [])))),
+                )
             )
+        modulus = None
+        if kinds and all(k.counter is not None for k in kinds):
+            modulus = 1 << kinds[0].counter.length  # type: ignore[union-attr]
+        return DeskDecoding(
+            kinds,
+            self.readings,
+            self.column,
+            self.request_sensor,
+            frozenset(self.protocol),
+            modulus,
+            self.second_halves,
+            len(self.config.accelerometers),
         )
-    modulus = None
-    if kinds and all(k.counter is not None for k in kinds):
-        modulus = 1 << kinds[0].counter.length  # type: ignore[union-attr]
-    return DeskDecoding(
-        kinds,
-        readings,
-        column,
-        request_sensor,
-        frozenset(protocol),
-        modulus,
-        second_halves,
-        len(config.accelerometers),
-    )
 
 
 def _layout(config: CanConfig, ref: object) -> SignalLayout:

@@ -19,17 +19,18 @@ import collections
 import logging
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from typing import Any
 
 from hapticdesk.canbus import ati_netcanoem as ati
 from hapticdesk.canbus.assembler import NOTICES_KEPT, AssembledBlock, FrameAssembler
-from hapticdesk.canbus.config import CanConfig, can_config
+from hapticdesk.canbus.config import CanConfig
+from hapticdesk.canbus.config_reader import can_config
 from hapticdesk.canbus.decoding import build_decoding
 from hapticdesk.canbus.frames import FrameArray
 from hapticdesk.canbus.stats import CanNotice, CanStats
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile
-from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.runtime.source import Source, WrenchBlock
 
 log = logging.getLogger("hapticdesk.canbus.source")
@@ -90,8 +91,6 @@ class CanSource(Source):
         self.spec = spec
         self.profile = profile
         self.config = can_config(profile)
-        self.sensor_names = profile.sensor_names
-        self.sample_rate_hz = profile.sample_rate_hz
         self.interface, self.channel = parse_spec(spec, self.config)
         self.bus_kwargs: dict[str, Any] = dict(self.config.bus_options)
         if bitrate or self.config.bitrate:
@@ -103,15 +102,22 @@ class CanSource(Source):
         self.notices: collections.deque[CanNotice] = collections.deque(maxlen=NOTICES_KEPT)
         self.reconnects = 0
         self._lock = threading.Lock()  # guards self._bus between the poller and the reader
-        self._closed = threading.Event()
         self._polls: collections.deque[Any] = collections.deque()  # sent, not yet assembled
         self._poller: threading.Thread | None = None
-        self._bus = self._open_bus()
+        # (the base last: nothing to close when the spec or the section is wrong)
+        super().__init__(
+            profile.sensor_names, profile.sample_rate_hz, channel_count=profile.channel_count
+        )
+        self._bus: Any = None
+        self._stop_after: BaseException | None = None  # a stop, raised after its samples
+        self._quiet_since: float | None = None  # since when no frame came (None: not reading)
+        self._quiet_told = False
         try:
+            self._bus = self._open_bus()
             calibrations = self._read_calibrations(calibration_timeout_s)
             decoding = build_decoding(self.config, profile, calibrations)
         except BaseException:
-            self._shutdown_bus()
+            self.close()
             raise
         self.calibrations = calibrations
         self.assembler = FrameAssembler(
@@ -123,6 +129,11 @@ class CanSource(Source):
             silent_sensor=self.config.silent_sensor,
             where=spec,
         )
+        self._plan_polls()
+        self._check_bus_capacity()
+
+    def _plan_polls(self) -> None:
+        """The ATI boards' poll frames, and the frame that ends a round of their replies."""
         self._poll_ids = [
             ati.frame_id(s.base, ati.OP_GAUGES_A) for s in self.config.ati_sensors.values()
         ]
@@ -135,7 +146,6 @@ class CanSource(Source):
         )
         self._round_answered = threading.Event()
         self._poll_id_set = frozenset(self._poll_ids)
-        self._check_bus_capacity()
 
     @property
     def stats(self) -> CanStats:
@@ -189,7 +199,7 @@ class CanSource(Source):
         )
         self._shutdown_bus()
         deadline = time.monotonic() + self.config.reconnect_timeout_s
-        while not self._closed.is_set():
+        while not self._closing.is_set():
             try:
                 bus = self._open_bus()
             except CanSourceError as err:
@@ -199,7 +209,7 @@ class CanSource(Source):
                         f"CAN bus lost ({reason}) and not back within "
                         f"{self.config.reconnect_timeout_s:g} s: {err.message}",
                     ) from None
-                self._closed.wait(RECONNECT_INTERVAL_S)
+                self._closing.wait(RECONNECT_INTERVAL_S)
                 continue
             with self._lock:
                 self._bus = bus
@@ -298,7 +308,7 @@ class CanSource(Source):
         """
         period = 1.0 / self.sample_rate_hz
         next_due = time.monotonic()
-        while not self._closed.is_set():
+        while not self._closing.is_set():
             self._round_answered.clear()
             for ident in self._poll_ids:
                 try:
@@ -311,7 +321,7 @@ class CanSource(Source):
             self._round_answered.wait(max(next_due, sent_at + period) + period - sent_at)
             wait = next_due - time.monotonic()
             if wait > 0:
-                self._closed.wait(wait)
+                self._closing.wait(wait)
             elif wait < -period:
                 next_due = time.monotonic()  # fell behind: skip, do not burst
 
@@ -323,72 +333,93 @@ class CanSource(Source):
 
     # --- reading ------------------------------------------------------------------------
 
-    def blocks(self) -> Iterator[WrenchBlock]:
-        """Wrench blocks as samples complete, until :meth:`close` (or a stop/fatal error)."""
+    def read_block(self) -> WrenchBlock | None:
+        """The samples completed by the frames that came within ``BLOCK_S``; a lost bus is
+        reconnected (what the assembler held is given out first)."""
         import can
 
-        if self._poll_ids and self._poller is None:
-            self._poller = threading.Thread(target=self._poll, name="ati-poller", daemon=True)
-            self._poller.start()
-        quiet_since = time.monotonic()
-        quiet_told = False
-        while not self._closed.is_set():
-            batch: list[Any] = []
-            deadline = time.monotonic() + BLOCK_S
-            try:
-                while time.monotonic() < deadline and len(batch) < 5000:
-                    bus = self._bus
-                    if bus is None:
-                        raise can.CanOperationError("bus is closed")
-                    msg = bus.recv(timeout=max(0.0, deadline - time.monotonic()))
-                    if msg is None:
-                        break
-                    if msg.is_error_frame and msg.arbitration_id & CAN_ERR_BUSOFF:
-                        raise can.CanOperationError("bus-off")
-                    if msg.arbitration_id == self._round_end_id and len(msg.data):
-                        self._round_answered.set()
-                    if not msg.data and msg.arbitration_id in self._poll_id_set:
-                        # our own poll echoed back (udp_multicast loops them): it is taken
-                        # from the queue of sent polls, in order; twice would split samples
-                        continue
-                    batch.append(msg)
-            except (can.CanError, OSError) as err:
-                if self._closed.is_set():
-                    return
-                yield from self._give(self.assembler.flush())
-                self._reconnect(str(err))
+        if self._stop_after is not None:  # (the samples before it were given out)
+            raise self._stop_after
+        if self._quiet_since is None:  # the first read: the quiet clock and the polls start
+            self._quiet_since = time.monotonic()
+            if self._poll_ids:
+                self._poller = threading.Thread(target=self._poll, name="ati-poller", daemon=True)
+                self._poller.start()
+        try:
+            batch = self._gather()
+        except (can.CanError, OSError) as err:
+            if self._closing.is_set():
+                return None
+            held = self._give(self.assembler.flush())
+            self._reconnect(str(err))
+            return held
+        polls = self._sent_polls()
+        if polls:  # in time order with what came back, for the assembler and the sink
+            batch = sorted(batch + polls, key=lambda m: m.timestamp)
+        if self.frame_sink is not None and batch:
+            self.frame_sink(batch)
+        if batch:
+            self._quiet_since, self._quiet_told = time.monotonic(), False
+            return self._give(self.assembler.push(FrameArray.from_messages(batch)))
+        quiet_s = time.monotonic() - self._quiet_since
+        if self._quiet_told or quiet_s <= self.config.silent_timeout_s:
+            return WrenchBlock.empty()
+        return self._quiet()
+
+    def read_rest(self) -> WrenchBlock | None:
+        return self._give(self.assembler.flush())  # closed: what is still waiting
+
+    def _gather(self) -> list[Any]:
+        """The frames that came within ``BLOCK_S`` (a python-can error if the bus failed)."""
+        import can
+
+        batch: list[Any] = []
+        deadline = time.monotonic() + BLOCK_S
+        while time.monotonic() < deadline and len(batch) < 5000:
+            bus = self._bus
+            if bus is None:
+                raise can.CanOperationError("bus is closed")
+            msg = bus.recv(timeout=max(0.0, deadline - time.monotonic()))
+            if msg is None:
+                break
+            if msg.is_error_frame and msg.arbitration_id & CAN_ERR_BUSOFF:
+                raise can.CanOperationError("bus-off")
+            if msg.arbitration_id == self._round_end_id and len(msg.data):
+                self._round_answered.set()
+            if not msg.data and msg.arbitration_id in self._poll_id_set:
+                # our own poll echoed back (udp_multicast loops them): it is taken from the
+                # queue of sent polls, in order; twice would split samples
                 continue
-            polls = self._sent_polls()
-            if polls:  # in time order with what came back, for the assembler and the sink
-                batch = sorted(batch + polls, key=lambda m: m.timestamp)
-            if self.frame_sink is not None and batch:
-                self.frame_sink(batch)
-            if batch:
-                quiet_since, quiet_told = time.monotonic(), False
-                yield from self._give(self.assembler.push(FrameArray.from_messages(batch)))
-            elif not quiet_told and time.monotonic() - quiet_since > self.config.silent_timeout_s:
-                quiet_told = True  # once per quiet stretch
-                yield from self._give(self.assembler.flush())
-                names = ", ".join(self.sensor_names)
-                text = (
-                    f"no CAN frames on {self.interface}:{self.channel} for "
-                    f"{self.config.silent_timeout_s:g} s (sensors {names})"
-                )
-                if self.config.silent_sensor == "stop":
-                    raise CanSourceError(self.spec, text + "; stopping (`silent_sensor: stop`)")
-                self._notice("silent", text)
-        yield from self._give(self.assembler.flush())  # closed: what is still waiting
+            batch.append(msg)
+        return batch
 
-    def _give(self, block: AssembledBlock) -> Iterator[WrenchBlock]:
+    def _quiet(self) -> WrenchBlock:
+        """No frame for ``silent_timeout_s``: said once per quiet stretch (or the end, with
+        ``silent_sensor: stop``), after what the assembler held."""
+        self._quiet_told = True
+        held = self._give(self.assembler.flush())
+        names = ", ".join(self.sensor_names)
+        text = (
+            f"no CAN frames on {self.interface}:{self.channel} for "
+            f"{self.config.silent_timeout_s:g} s (sensors {names})"
+        )
+        if self.config.silent_sensor == "stop":
+            self._stop_after = self._stop_after or CanSourceError(
+                self.spec, text + "; stopping (`silent_sensor: stop`)"
+            )
+        else:
+            self._notice("silent", text)
+        return held
+
+    def _give(self, block: AssembledBlock) -> WrenchBlock:
+        """The assembled samples as a block; a stop it carries is raised at the next read."""
         self.notices.extend(block.notices)
-        if len(block.t):
-            yield WrenchBlock(block.t, block.wrench, accel=block.accel)
         if block.stop is not None:
-            raise block.stop
+            self._stop_after = block.stop
+        return WrenchBlock(block.t, block.wrench, accel=block.accel)
 
-    def close(self) -> None:
-        """Stop polling and release the bus; safe to call more than once, from any thread."""
-        self._closed.set()
+    def release(self) -> None:
+        """Stop polling and release the bus."""
         if self._poller is not None and self._poller is not threading.current_thread():
             self._poller.join(timeout=1.0)
         self._shutdown_bus()

@@ -9,8 +9,9 @@ import time
 from pathlib import Path
 
 from hapticdesk.commands.output_path import cannot_write, check_output_path
-from hapticdesk.files.profile import DeskProfile, load_profile
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

@@ -27,9 +27,9 @@ from hapticdesk.analysis.known_weight import (
     write_calibrated_profile,
 )
 from hapticdesk.commands.output_path import cannot_write, check_output_path
-from hapticdesk.files.profile import load_profile, resolve_profile_path
-from hapticdesk.files.readers import read_any_recording
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.profile_reader import load_profile, resolve_profile_path
+from hapticdesk.recordings import read_any_recording
 
 MIN_SPOTS, MAX_SPOTS = 3, 5
 
@@ -107,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
     spots = spots_from_recording(profile, recording.t, recording.channels, points, args.mass_kg)
     result = calibrate(profile, spots, args.mass_kg, check_index=check_index)
     if output is not None:
-        header = _header(result, args.mass_kg, len(points))
+        header = profile_header(result, args.mass_kg, len(points))
         source = resolve_profile_path(args.desk)
         try:
             write_calibrated_profile(source, result.fit, output, header)
@@ -136,7 +136,11 @@ def _check_index(text: str, count: int) -> int | None:
     return number - 1
 
 
-def _header(result: Calibration, mass_kg: float, spots: int) -> str:
+def profile_header(
+    result: Calibration, mass_kg: float, spots: int, by: str = "hapticdesk calibrate"
+) -> str:
+    """The comment put at the top of a calibrated profile: the weight, the spots, the day,
+    what made it (``by``) and how far the check spot was placed."""
     check = result.check
     checked = (
         f"; the check spot placed {check.error_m * 1000:.1f} mm from its mark"
@@ -145,7 +149,7 @@ def _header(result: Calibration, mass_kg: float, spots: int) -> str:
     )
     return (
         f"Calibrated with a {mass_kg:g} kg weight on {spots} spots on {date.today()} "
-        f"(hapticdesk calibrate){checked}.\n"
+        f"({by}){checked}.\n"
         "Each cell's gain is its calibration's fz (newtons per unit of its reading)."
     )
 

@@ -19,8 +19,8 @@ from hapticdesk.analysis.characterize import (
     Characterization,
     characterize,
 )
-from hapticdesk.files.profile import load_profile
-from hapticdesk.files.readers import read_any_recording
+from hapticdesk.files.profile_reader import load_profile
+from hapticdesk.recordings import read_any_recording
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

@@ -13,8 +13,8 @@ from pathlib import Path
 from typing import Any
 
 from hapticdesk.commands.output_path import check_output_path
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.sensing import sensing_of
-from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.gestures.layout import Binding, Layout
 from hapticdesk.gestures.options import GESTURE_OPTIONS, describe_value
 
@@ -26,7 +26,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hapticdesk.registry import load_registry
+    from hapticdesk.plugin_loading import load_registry
     from hapticdesk.runtime.assembly import load_scene_layout
 
     if args.png:  # before the work: matplotlib would refuse the format only after it

@@ -1,4 +1,4 @@
-"""``hapticdesk contacts REC --desk DESK [-o OUT.csv] [--method M] [--json]`` (DESIGN.md), and
+"""``hapticdesk contacts REC --desk DESK [-o OUT.csv] [--method M] [--json]`` (docs: CLI), and
 ``hapticdesk contacts FILE.c3d [--plate N] -o OUT.csv``: a C3D file's force plate is its own
 desk, and the contacts' x, y, z are metres in the file's lab frame (docs/forceplates.md)."""
 
@@ -87,7 +87,7 @@ def _csv_cell(text: str) -> str:
 
 
 def summary(block: ContactBlock, seconds: float, method: str) -> dict[str, object]:
-    """The ``--json`` summary (DESIGN.md: at least samples, contact_samples, touches,
+    """The ``--json`` summary (docs/reference/files.md: at least samples, contact_samples, touches,
     estimate_seconds, samples_per_s)."""
     k = len(block)
     starts = np.count_nonzero(block.in_contact[1:] & ~block.in_contact[:-1]) if k else 0

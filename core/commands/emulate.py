@@ -20,9 +20,9 @@ import time
 from typing import Any
 
 from hapticdesk.commands import bit_rate, seed_number
-from hapticdesk.files.profile import load_profile
-from hapticdesk.files.recording import read_recording
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.profile_reader import load_profile
+from hapticdesk.files.recording_io import read_recording
 from hapticdesk.runtime.pacing import check_speed
 
 
@@ -52,8 +52,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import can
 
-    from hapticdesk.canbus.config import can_config
-    from hapticdesk.canbus.emulator import CanEmulator, encoder_for
+    from hapticdesk.canbus.config_reader import can_config
+    from hapticdesk.canbus.emulator import CanEmulator
+    from hapticdesk.canbus.frame_encoder import encoder_for
     from hapticdesk.canbus.source import bus_cannot_open
 
     check_speed(args.speed)  # as `run` paces a replay

@@ -15,7 +15,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 
 DEFAULT_FILE = "layout.yaml"
 DEFAULT_DESK = "kitamura2017"
@@ -122,8 +122,8 @@ def write_starter(
 ) -> str:
     """Write the starter layout to ``path`` (checked as ``check`` would, first); the desk's
     name."""
-    from hapticdesk.files.profile import load_profile
-    from hapticdesk.registry import load_registry
+    from hapticdesk.files.profile_reader import load_profile
+    from hapticdesk.plugin_loading import load_registry
     from hapticdesk.runtime.assembly import load_scene_layout
 
     reference = desk_reference(desk, path)

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 
 
 def check_output_path(

@@ -12,8 +12,8 @@ import math
 from pathlib import Path
 
 from hapticdesk.commands.recording_input import add_recording_arguments, load_input
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import METHODS
-from hapticdesk.files.yamlfile import ConfigError
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

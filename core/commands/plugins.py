@@ -6,7 +6,9 @@ import argparse
 import json
 import os
 
-from hapticdesk.registry import DISABLE_AUTOLOAD_ENV, KINDS, load_registry
+from hapticdesk.plugin_loading import load_registry
+from hapticdesk.registered import KINDS
+from hapticdesk.registry import DISABLE_AUTOLOAD_ENV
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

@@ -24,15 +24,12 @@ import numpy as np
 
 from hapticdesk.commands import bit_rate, seed_number
 from hapticdesk.commands.output_path import cannot_write
-from hapticdesk.files.profile import DeskProfile, load_profile
-from hapticdesk.files.readers import open_recording_blocks
-from hapticdesk.files.recording import (
-    RECORDING_SUFFIXES,
-    Recording,
-    concat_recordings,
-    write_recording,
-)
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile
+from hapticdesk.files.recording import Recording, concat_recordings
+from hapticdesk.files.recording_io import RECORDING_SUFFIXES, write_recording
+from hapticdesk.recordings import open_recording_blocks
 
 LOG_SUFFIXES = (".asc", ".blf", ".log", ".trc")
 
@@ -208,7 +205,9 @@ def _record_file(
         raise ConfigError("--source", f"{kind}: no such file {argument}")
     raw = output.suffix.lower() in LOG_SUFFIXES
     if kind == "replay" and path.suffix.lower() not in RECORDING_SUFFIXES:
-        from hapticdesk.canbus.logs import decode_can_log, read_frames, write_frames
+        from hapticdesk.canbus.logs.desk_samples import decode_can_log
+        from hapticdesk.canbus.logs.formats import read_frames
+        from hapticdesk.canbus.logs.writer import write_frames
 
         if raw:  # a CAN log into another format: frames as they are
             limit = args.seconds
@@ -249,9 +248,9 @@ def _record_file(
     if not raw:
         _write(output, rec)
         return _stopped(_summary(rec.t, problems), stopped_by, len(rec))
-    from hapticdesk.canbus.config import can_config
-    from hapticdesk.canbus.emulator import FrameEncoder
-    from hapticdesk.canbus.logs import write_frames
+    from hapticdesk.canbus.config_reader import can_config
+    from hapticdesk.canbus.frame_encoder import FrameEncoder
+    from hapticdesk.canbus.logs.writer import write_frames
     from hapticdesk.estimator.inertia import accelerometer_readings
 
     encoder = FrameEncoder(can_config(profile), profile)

@@ -10,11 +10,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.c3d import is_c3d, open_c3d
-from hapticdesk.files.profile import DeskProfile, load_profile
-from hapticdesk.files.readers import read_any_recording
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.files.recording import Recording
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.recordings import read_any_recording
 
 if TYPE_CHECKING:  # (imported where a C3D plate is read: a CSV's contacts need neither)
     from hapticdesk.files.forceplate import PlateDesk

@@ -20,9 +20,10 @@ import math
 import sys
 
 from hapticdesk.commands.recording_input import plate_number, source_desk
-from hapticdesk.registry import load_registry
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.runtime.assembly import build_scene
-from hapticdesk.runtime.service import RunReport, Runtime, report_json
+from hapticdesk.runtime.run_report import RunReport, report_json
+from hapticdesk.runtime.service import Runtime
 
 UNDELIVERED_EXIT = 3
 

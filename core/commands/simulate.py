@@ -1,5 +1,5 @@
 """``hapticdesk simulate SCENE --desk DESK -o REC.csv|npz [--seed N]``: a scene on a simulated
-desk into a recording (DESIGN.md format) with ground-truth columns ``true_x, true_y, true_fn``
+desk into a recording (docs: File formats) with ground-truth columns ``true_x, true_y, true_fn``
 (and ``true_z, true_fx, true_fy, true_fz, true_surface, true_action``)."""
 
 from __future__ import annotations
@@ -13,9 +13,9 @@ import numpy as np
 
 from hapticdesk.commands import seed_number
 from hapticdesk.commands.output_path import cannot_write
-from hapticdesk.files.profile import load_profile
-from hapticdesk.files.recording import RECORDING_SUFFIXES, write_recording
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.profile_reader import load_profile
+from hapticdesk.files.recording_io import RECORDING_SUFFIXES, write_recording
 from hapticdesk.sim.loadcells import with_total_amplitude
 from hapticdesk.sim.scene import load_scene
 from hapticdesk.sim.sensors import SensorParameters

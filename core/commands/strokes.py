@@ -4,7 +4,7 @@
     hapticdesk strokes record NAME --layout L --source SPEC [--desk D] [--into DIR] [--count N]
 
 ``classify`` prints, per stroke, the file, the recognised shape (null when nothing matches
-well enough) and the score; with ``--json`` one JSON object a line (DESIGN.md, "Strokes").
+well enough) and the score; with ``--json`` one JSON object a line (docs/reference/files.md).
 A file that cannot be read is reported and the others are still classified (exit code 1).
 
 ``record`` runs a source (``sim:SCENE.yaml``, ``replay:REC.csv``, a live CAN bus …) through
@@ -23,6 +23,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.strokefile import (
     SHAPE_NAME,
     STROKE_SUFFIXES,
@@ -30,7 +31,6 @@ from hapticdesk.files.strokefile import (
     read_template_dir,
     write_stroke,
 )
-from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.gestures.options import GESTURE_OPTIONS
 
 _STROKE = GESTURE_OPTIONS["stroke"]
@@ -172,10 +172,10 @@ def _next_index(folder: Path, name: str) -> int:
 
 def record(args: argparse.Namespace) -> int:
     from hapticdesk.estimator import ContactEstimator
-    from hapticdesk.files.profile import load_profile
+    from hapticdesk.files.profile_reader import load_profile
     from hapticdesk.gestures.strokes.capture import StrokeCapture
     from hapticdesk.gestures.strokes.unistroke import template_set
-    from hapticdesk.registry import load_registry
+    from hapticdesk.plugin_loading import load_registry
     from hapticdesk.runtime.assembly import load_scene_layout
     from hapticdesk.runtime.source_spec import open_source
 

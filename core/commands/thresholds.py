@@ -20,9 +20,9 @@ from hapticdesk.analysis.thresholds import (
     ThresholdSummary,
     derive_thresholds,
 )
-from hapticdesk.files.profile import load_profile
-from hapticdesk.files.readers import read_any_recording
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.profile_reader import load_profile
+from hapticdesk.recordings import read_any_recording
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

@@ -1,7 +1,7 @@
 """Contact samples (one per input sample, struct of arrays) and contact events (down, move, up).
 
-This is what the estimator gives and what the gesture recognizers consume (DESIGN.md: gestures
-see contacts only). Arrays never hold NaN or infinity: where a contact is not located,
+This is what the estimator gives and what the gesture recognizers consume (the docs' contracts:
+gestures see contacts only). Arrays never hold NaN or infinity: where a contact is not located,
 ``located`` is False and x, y, z hold 0.
 """
 

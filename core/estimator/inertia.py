@@ -50,14 +50,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hapticdesk.estimator.contacts import FLAG_NO_ACCEL
-from hapticdesk.files.profile import (
-    STANDARD_GRAVITY,
-    AccelerometerSpec,
-    DeskProfile,
-    skew,
-    spatial_inertia,
-)
+from hapticdesk.files.profile import STANDARD_GRAVITY, AccelerometerSpec, DeskProfile
 from hapticdesk.files.recording import named_columns
+from hapticdesk.files.rigid_body import skew, spatial_inertia
 
 
 @dataclass(frozen=True, eq=False)

@@ -1704,7 +1704,7 @@ def intersect_block(
     out: np.ndarray,
 ) -> None:
     """:func:`intersect` for the wrenches (n, 6) one by one, into ``out`` (n, 6): surface,
-    u, v, var_u, var_v, cov_uv (for geometry.intersect, the same code the kernel runs)."""
+    u, v, var_u, var_v, cov_uv (for intersection.intersect, the same code the kernel runs)."""
     for i in range(wrench.shape[0]):
         c = intersect(
             pf, pi, wrench[i], 0, sign[i], covs, cov_at, drift_at, age2[i], extra_var[i], norm[i]

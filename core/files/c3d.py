@@ -19,7 +19,8 @@ from typing import Any
 
 import numpy as np
 
-from hapticdesk.files.yamlfile import ConfigError, regular_file_size
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.file_safety import regular_file_size
 
 C3D_SUFFIX = ".c3d"
 INSTALL_HINT = "pip install 'hapticdesk[c3d]'"

@@ -1,7 +1,8 @@
 """Desk profiles: where the sensors stand, which surfaces can be touched, and how to estimate.
 
-The YAML format is a contract (../shared/DESIGN.md, "Desk profile"). Loading validates every
-field and reports ``file:line:column: what was expected``. The profile also owns the one
+The YAML format is a contract (docs/reference/profile.md); this module is the
+model it fills, and knows nothing of YAML: :mod:`.profile_reader` loads and checks a profile
+(``load_profile``), every error at ``file:line:column``. The profile also owns the one
 linear map from the stacked sensor channels to the resultant wrench about P_o (paper eqs. 1–4),
 which every consumer of sensor data uses.
 """
@@ -9,23 +10,14 @@ which every consumer of sensor data uses.
 from __future__ import annotations
 
 import math
-import os
 import re
 from dataclasses import dataclass, field, replace
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from hapticdesk.files.yamlfile import (
-    ConfigError,
-    MarkedDict,
-    check_confined,
-    file_kind,
-    load_marked_yaml,
-    require_mapping,
-)
+from hapticdesk.files.rigid_body import skew
 
 METHODS = ("force", "diff", "switched", "fused")
 LOWPASS_PER_NATURAL_FREQUENCY = 4.77 / 5.9  # the paper's cut-off for its desk's lowest mode
@@ -34,49 +26,6 @@ ACCEL_AXES = ("x", "y", "z")
 STANDARD_GRAVITY = 9.80665  # m/s²: the desk's weight (simulator), an accelerometer's rest reading
 DEFAULT_TOP_HEIGHT_M = 0.7  # a desk's top above its sensors when the profile has no surface
 COM_HEIGHT_FRACTION = 0.85  # the default centre of mass: a heavy top on light legs
-
-
-def skew(v: np.ndarray) -> np.ndarray:
-    """[v]×, the matrix with [v]× w = v × w."""
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
-def is_body_inertia(moments: list[float] | tuple[float, ...]) -> bool:
-    """Three principal moments of inertia a body can have: finite, positive, each at most the
-    sum of the other two."""
-    return all(math.isfinite(v) and v > 0 for v in moments) and max(moments) <= (
-        sum(moments) - max(moments)
-    ) * (1 + 1e-9)
-
-
-def spatial_inertia(mass_kg: float, center_of_mass: np.ndarray, inertia: np.ndarray) -> np.ndarray:
-    """The (6, 6) spatial inertia M about the desk origin for small motions q = [d; θ]: the
-    inertial wrench about the origin is M q̈ = [m (d̈ + θ̈ × c); m c × d̈ + I_o θ̈], with
-    ``inertia`` (3, 3) about the centre of mass c and I_o = I_c − m [c]×² (parallel axes)."""
-    cx = skew(np.asarray(center_of_mass, dtype=float))
-    mass = np.zeros((6, 6))
-    mass[:3, :3] = mass_kg * np.eye(3)
-    mass[:3, 3:] = -mass_kg * cx
-    mass[3:, :3] = mass_kg * cx
-    mass[3:, 3:] = inertia - mass_kg * cx @ cx
-    return mass
-
-
-def rotation_matrix(roll_deg: float, pitch_deg: float, yaw_deg: float) -> np.ndarray:
-    """R = Rz(yaw) · Ry(pitch) · Rx(roll): the sensor frame expressed in the desk frame."""
-    r, p, y = (math.radians(v) for v in (roll_deg, pitch_deg, yaw_deg))
-    cr, sr, cp, sp, cy, sy = (
-        math.cos(r),
-        math.sin(r),
-        math.cos(p),
-        math.sin(p),
-        math.cos(y),
-        math.sin(y),
-    )
-    rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
-    ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
-    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
-    return rz @ ry @ rx
 
 
 @dataclass(frozen=True)
@@ -332,11 +281,15 @@ class DeskProfile:
         )
 
     def top_height_m(self) -> float:
-        """Height of the first surface above the sensors (0.7 m when there is none)."""
+        """Height of the first surface above the sensors, however close (a board's top 4 cm
+        over its cells, a desk's top 3 cm over cells under it); 0.7 m when there is no
+        surface, or it is not above the sensors (nothing says how tall the desk is then)."""
         positions = np.array([s.position for s in self.sensors], dtype=float)
         if self.surfaces:
             h = float(self.surfaces[0].origin[2] - positions[:, 2].mean())
-            if h > 0.05:
+            # (a floor of 5 cm here had taken every top close to its cells for none: the
+            # balance board's was 0.7 m tall, its default inertia a 0.7 m box)
+            if h > 0:
                 return h
         return DEFAULT_TOP_HEIGHT_M
 
@@ -438,59 +391,3 @@ class DeskProfile:
             )
         limits = self.channel_limits()
         return None if limits is None else limits.reshape(len(self.sensors), 6)
-
-
-# --- loading ---------------------------------------------------------------------------------
-
-
-def builtin_profile_path(name: str) -> Path | None:
-    """The shipped profile called ``name``, if there is one."""
-    candidate = resources.files("hapticdesk.profiles").joinpath(f"{name}.yaml")
-    return Path(str(candidate)) if candidate.is_file() else None
-
-
-def resolve_profile_path(name_or_path: str | Path, relative_to: Path | None = None) -> Path:
-    """A profile name from profiles/ or a path (relative to ``relative_to`` when given)."""
-    text = str(name_or_path)
-    if not text.endswith((".yaml", ".yml")) and "/" not in text:
-        builtin = builtin_profile_path(text)
-        if builtin is not None:
-            return builtin
-    path = Path(text)
-    if not path.is_absolute() and relative_to is not None:
-        path = relative_to / path
-    check_confined(path, "the desk profile", str(name_or_path))  # (before it is looked at)
-    if not path.is_file():
-        try:
-            mode: int | None = os.stat(path).st_mode
-        except OSError:
-            mode = None
-        if mode is not None:  # it is there, but not a file (a directory, a FIFO, /dev/zero)
-            raise ConfigError(
-                str(name_or_path),
-                f"the desk profile is {file_kind(mode)}, not a regular file "
-                "(a profile is a YAML file, or the name of a shipped one)",
-            )
-        shipped = ", ".join(sorted(p.stem for p in _shipped_profiles()))
-        raise ConfigError(str(name_or_path), f"no such desk profile; shipped profiles: {shipped}")
-    return path
-
-
-def _shipped_profiles() -> list[Path]:
-    root = resources.files("hapticdesk.profiles")
-    return [Path(str(p)) for p in root.iterdir() if str(p).endswith(".yaml")]
-
-
-def load_profile(name_or_path: str | Path, relative_to: Path | None = None) -> DeskProfile:
-    """Load and validate a desk profile; raises :class:`ConfigError` on any problem."""
-    path = resolve_profile_path(name_or_path, relative_to)
-    doc = require_mapping(load_marked_yaml(path), str(path), "a desk profile")
-    return profile_from_mapping(doc, path)
-
-
-def profile_from_mapping(doc: MarkedDict, path: Path) -> DeskProfile:
-    """The profile in ``doc`` (a marked YAML mapping read from ``path``), checked: see
-    :mod:`hapticdesk.files.profile_reader`."""
-    from hapticdesk.files.profile_reader import read_profile  # (the reader imports this model)
-
-    return read_profile(doc, path)

@@ -1,4 +1,4 @@
-"""Stroke files (DESIGN.md, "Strokes"): CSV ``x,y[,t]`` with a header, or JSON
+"""Stroke files (docs/reference/files.md): CSV ``x,y[,t]`` with a header, or JSON
 ``{"points": [[x, y], ...]}``, in desk coordinates (metres, y away from the user).
 
 A template folder holds one sub-folder per shape name with one or more stroke files.
@@ -15,12 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hapticdesk.files.yamlfile import (
-    ConfigError,
-    check_confined,
-    decode_utf8,
-    regular_file_size,
-)
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.file_safety import check_confined, decode_utf8, regular_file_size
 
 STROKE_SUFFIXES = (".csv", ".json")
 SHAPE_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")

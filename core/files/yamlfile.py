@@ -2,19 +2,15 @@
 
 Profiles, layouts and scenes are written by hand. When one is wrong the user must be told the
 file, line and column and what was expected (STYLE.md 9), never shown a traceback. This module
-loads YAML into ordinary dicts and lists that also carry the position of each key and item.
+loads YAML, bounded in size, depth and expanded aliases, into the marked dicts and lists of
+:mod:`.marked_values`, which carry the position of each key and item; the checks of what they
+hold are :mod:`.validators`, the errors :mod:`hapticdesk.errors`.
 """
 
 from __future__ import annotations
 
-import contextlib
-import os
 import re
-import stat
-import warnings
-from collections.abc import Callable, Iterator
-from contextvars import ContextVar
-from dataclasses import dataclass
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -26,67 +22,12 @@ from yaml.reader import Reader
 from yaml.resolver import Resolver
 from yaml.scanner import Scanner
 
+from hapticdesk.errors import ConfigError, Position
+from hapticdesk.files.file_safety import byte_position, decode_utf8, regular_file_size
+from hapticdesk.files.marked_values import FlagText, MarkedDict, MarkedList, NumberText
+
 # YAML 1.1 reads these bare words as booleans; as keys they are almost always a mistake.
 _YAML11_BOOL_WORDS = {"on", "off", "yes", "no", "y", "n", "true", "false"}
-
-
-@dataclass(frozen=True)
-class Position:
-    """A place in a file: 1-based line and column."""
-
-    file: str
-    line: int
-    column: int
-
-    def __str__(self) -> str:
-        return f"{self.file}:{self.line}:{self.column}"
-
-
-class ConfigError(ValueError):
-    """A user-written file is wrong. ``str(err)`` is ``file:line:column: what was expected``."""
-
-    def __init__(self, where: Position | str | None, message: str) -> None:
-        self.where = where
-        self.message = message
-        super().__init__(f"{where}: {message}" if where is not None else message)
-
-
-class LayoutWarning(UserWarning):
-    """A layout that works, but likely not as its author meant. A plugin's check of its
-    options says it with ``warnings.warn(LayoutWarning(...))``; the layout reader collects it
-    into :attr:`Layout.warnings` (``check`` shows them, ``run`` logs them). Anywhere else,
-    e.g. when a run builds the actions again, it is not shown a second time."""
-
-
-warnings.filterwarnings("ignore", category=LayoutWarning)
-
-
-class MarkedDict(dict[str, Any]):
-    """A mapping from YAML that knows the position of itself, each key and each value."""
-
-    position: Position
-    key_positions: dict[str, Position]
-    value_positions: dict[str, Position]
-
-    def where(self, key: str | None = None, *, of_key: bool = False) -> Position:
-        """Position of ``key``'s value (or of the key itself), or of the mapping."""
-        if key is None:
-            return self.position
-        table = self.key_positions if of_key else self.value_positions
-        return table.get(key, self.position)
-
-
-class MarkedList(list[Any]):
-    """A sequence from YAML that knows the position of itself and of each item."""
-
-    position: Position
-    item_positions: list[Position]
-
-    def where(self, index: int | None = None) -> Position:
-        """Position of item ``index``, or of the sequence."""
-        if index is None or index >= len(self.item_positions):
-            return self.position
-        return self.item_positions[index]
 
 
 #: the largest file read; hand-written profiles, layouts and scenes are a few kilobytes
@@ -193,32 +134,12 @@ else:  # pragma: no cover - PyYAML built without libyaml
 # YAML 1.1 (PyYAML) reads a float only with a dot and a signed exponent: `5e-2`, `1e6` and
 # `2.5e3` are text, and a profile's `1e6` an error that looks absurd (YAML 1.2, and ruamel
 # which the browser UI edits with, read them as numbers). Such a plain (unquoted) scalar is
-# kept as the text written, marked: :func:`number` and :func:`vector` read it as the number
-# it is, while a payload or an argv that means text keeps `1e3` as written (a resolver for
-# the whole file turned an exec's `1e3` argument into "1000.0").
+# kept as the text written, marked (NumberText): the validators' `number` and `vector` read
+# it as the number it is, while a payload or an argv that means text keeps `1e3` as written
+# (a resolver for the whole file turned an exec's `1e3` argument into "1000.0").
 _EXPONENT_FLOAT = re.compile(r"[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+")
-
-
-class NumberText(str):
-    """A plain YAML scalar that YAML 1.2 reads as a float and YAML 1.1 as text (``1e6``)."""
-
-
-class FlagText(str):
-    """A plain YAML scalar that YAML 1.1 (PyYAML) reads as a boolean and YAML 1.2 (and ruamel,
-    which the browser UI edits with) as text: ``on``, ``off``, ``yes``, ``no`` in any case.
-    Kept as the text written, so that a Zigbee2MQTT payload's ``state: ON`` is sent as "ON"
-    (it went out as ``true``); a setting that is true or false reads it through
-    :func:`as_flag`, as before."""
-
-
-_FLAG_TRUE = {"on", "yes"}
 # YAML 1.1's octal ints (`010` is 8); YAML 1.2 writes octal `0o10` and reads `010` as 10
 _YAML11_OCTAL = re.compile(r"[-+]?0[0-7_]+")
-
-
-def as_flag(value: Any) -> Any:
-    """``value``, or the boolean a :class:`FlagText` says."""
-    return value.lower() in _FLAG_TRUE if isinstance(value, FlagText) else value
 
 
 def _yaml12_scalar(node: yaml.ScalarNode) -> Any:
@@ -233,11 +154,6 @@ def _yaml12_scalar(node: yaml.ScalarNode) -> Any:
     if node.tag == "tag:yaml.org,2002:int" and _YAML11_OCTAL.fullmatch(value):
         return int(value.replace("_", ""), 10)
     return None
-
-
-def as_number(value: Any) -> Any:
-    """``value``, or the float a :class:`NumberText` writes."""
-    return float(value.replace("_", "")) if isinstance(value, NumberText) else value
 
 
 def _construct(node: yaml.Node, file: str, loader: _Loader) -> Any:
@@ -337,7 +253,7 @@ def load_marked_yaml(path: str | Path, text: str | None = None, max_bytes: int =
         # libyaml counts the offset in bytes of the UTF-8 text, PyYAML's reader in characters
         offset = err.position if yaml.__with_libyaml__ else len(text[: err.position].encode())
         raise ConfigError(
-            _byte_position(data, offset, file),
+            byte_position(data, offset, file),
             f"not valid YAML: character {err.character!r} is not allowed ({err.reason})",
         ) from None
     except yaml.YAMLError as err:  # no position known
@@ -356,268 +272,15 @@ def _read_bytes(path: Path, max_bytes: int) -> bytes:
         raise ConfigError(str(path), f"cannot read the file: {err.strerror or err}") from None
 
 
-_FILE_KINDS = (
-    (stat.S_ISREG, "a regular file"),
-    (stat.S_ISDIR, "a directory"),
-    (stat.S_ISFIFO, "a named pipe (FIFO)"),
-    (stat.S_ISCHR, "a character device"),
-    (stat.S_ISBLK, "a block device"),
-    (stat.S_ISSOCK, "a socket"),
-)
-
-
-def file_kind(mode: int) -> str:
-    """What a file of ``os.stat`` mode ``mode`` is, for a message (``a directory`` …)."""
-    return next((name for test, name in _FILE_KINDS if test(mode)), "not a regular file")
-
-
-#: while set (:func:`reads_confined_to`), the only folders files are read from
-_READ_ROOTS: ContextVar[tuple[Path, ...] | None] = ContextVar("read_roots", default=None)
-
-
-@contextlib.contextmanager
-def reads_confined_to(*roots: str | Path) -> Iterator[None]:
-    """Within it, a file outside ``roots`` (after symlinks and ``..``) is not read: the
-    browser UI checks a layout a page sent, and its `desk: /etc/passwd` had been read and
-    quoted back in the error."""
-    token = _READ_ROOTS.set(tuple(Path(r).resolve() for r in roots))
-    try:
-        yield
-    finally:
-        _READ_ROOTS.reset(token)
-
-
-def check_confined(path: str | Path, what: str, where: Position | str | None = None) -> None:
-    """ConfigError (at ``where``, else at the path) when reads are confined
-    (:func:`reads_confined_to`) and ``path`` lies outside every root.
-
-    Called *before* anything looks at the path (exists, is a file or a folder, its listing):
-    the answer for a path outside is then the same whether it exists or not (``layouts: {x:
-    /etc/shadow}`` had been accepted where a missing file was "no such file", and
-    ``templates: /root`` had named a folder in it)."""
-    roots = _READ_ROOTS.get()
-    if roots is None:
-        return
-    real = Path(path).resolve()
-    if not any(real.is_relative_to(root) for root in roots):
-        raise ConfigError(
-            str(path) if where is None else where,
-            f"{what} lies outside the layout's folder: a layout edited in the browser reads "
-            "files there only (and the shipped profiles and examples)",
-        )
-
-
-def regular_file_size(path: str | Path, what: str) -> int:
-    """The size in bytes of ``path``, which must be a regular file (after symlinks).
-
-    Checked before opening: opening a named pipe with no writer blocks forever, a device
-    such as /dev/zero never ends, a directory cannot be read. ``what`` names the file in the
-    message (``the file``, ``the stroke file`` …).
-    """
-    check_confined(path, what)
-    try:
-        info = os.stat(path)
-    except OSError as err:
-        raise ConfigError(str(path), f"cannot read {what}: {err.strerror or err}") from None
-    if not stat.S_ISREG(info.st_mode):
-        raise ConfigError(
-            str(path), f"cannot read {what}: it is {file_kind(info.st_mode)}, not a regular file"
-        )
-    return info.st_size
-
-
 def _encode(text: str, file: str) -> bytes:
     try:
         return text.encode("utf-8")
     except UnicodeEncodeError as err:
         raise ConfigError(
-            _byte_position(text[: err.start].encode("utf-8", "replace"), None, file),
+            byte_position(text[: err.start].encode("utf-8", "replace"), None, file),
             "the text holds a lone surrogate character, which UTF-8 cannot hold",
         ) from None
 
 
 def _decode(data: bytes, file: str) -> str:
     return decode_utf8(data, file, "YAML")
-
-
-def decode_utf8(data: bytes, file: str, kind: str) -> str:
-    """Strict UTF-8 (a UTF-8 byte-order mark is allowed); otherwise say where and why.
-
-    ``kind`` names what the text should be (``YAML``, ``a CSV stroke`` …) in the messages.
-    """
-    for bom, name in (
-        (b"\xff\xfe", "UTF-16"),
-        (b"\xfe\xff", "UTF-16"),
-        (b"\x00\x00\xfe\xff", "UTF-32"),
-    ):
-        if data.startswith(bom):
-            raise ConfigError(Position(file, 1, 1), f"the file is {name} text; save it as UTF-8")
-    nul = data.find(b"\x00")
-    if nul >= 0:
-        raise ConfigError(
-            _byte_position(data, nul, file),
-            f"a NUL byte: this is a binary file (or UTF-16 text), not {kind} saved as UTF-8",
-        )
-    try:
-        return data.decode("utf-8-sig")
-    except UnicodeDecodeError as err:
-        raise ConfigError(
-            _byte_position(data, err.start, file),
-            f"not UTF-8 text: byte 0x{data[err.start]:02x} ({err.reason}); save the file as UTF-8",
-        ) from None
-
-
-def _byte_position(data: bytes, offset: int | None, file: str) -> Position:
-    """Line and column (in characters) of byte ``offset`` of ``data`` (its end when None)."""
-    offset = len(data) if offset is None else offset
-    line_start = data.rfind(b"\n", 0, offset) + 1
-    column = len(data[line_start:offset].decode("utf-8", "replace")) + 1
-    return Position(file, data.count(b"\n", 0, offset) + 1, column)
-
-
-# --- small validation helpers shared by profiles, layouts and scenes -------------------------
-
-
-def require_mapping(value: Any, where: Position | str, what: str) -> MarkedDict:
-    """``value`` must be a mapping; otherwise a ConfigError naming ``what``."""
-    if not isinstance(value, MarkedDict):
-        raise ConfigError(where, f"{what} must be a mapping, found {_describe(value)}")
-    return value
-
-
-def check_keys(
-    mapping: MarkedDict,
-    allowed: set[str] | frozenset[str],
-    what: str,
-    required: set[str] | frozenset[str] = frozenset(),
-) -> None:
-    """Reject unknown keys (naming the allowed ones) and missing required keys."""
-    for key in mapping:
-        if key not in allowed:
-            raise ConfigError(
-                mapping.where(key, of_key=True),
-                f"unknown key `{key}` in {what}; allowed: {', '.join(sorted(allowed))}",
-            )
-    for key in sorted(required):
-        if key not in mapping:
-            raise ConfigError(mapping.where(), f"{what} is missing `{key}`")
-
-
-def number(
-    mapping: MarkedDict,
-    key: str,
-    what: str,
-    *,
-    default: float | None = None,
-    minimum: float | None = None,
-    maximum: float | None = None,
-    exclusive_minimum: bool = False,
-) -> float:
-    """Read a finite number at ``key`` with optional bounds."""
-    if key not in mapping:
-        if default is None:
-            raise ConfigError(mapping.where(), f"{what} is missing `{key}` (a number)")
-        return default
-    value = as_number(mapping[key])
-    where = mapping.where(key)
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ConfigError(
-            where,
-            f"`{key}` in {what} must be a number, found {_describe(value)}{_number_hint(value)}",
-        )
-    value = float(value)
-    if value != value or value in (float("inf"), float("-inf")):
-        raise ConfigError(where, f"`{key}` in {what} must be finite, found {value}")
-    if minimum is not None and (value < minimum or (exclusive_minimum and value == minimum)):
-        op = ">" if exclusive_minimum else ">="
-        raise ConfigError(where, f"`{key}` in {what} must be {op} {minimum:g}, found {value:g}")
-    if maximum is not None and value > maximum:
-        raise ConfigError(where, f"`{key}` in {what} must be <= {maximum:g}, found {value:g}")
-    return value
-
-
-def flag(mapping: MarkedDict, key: str, what: str, *, default: bool) -> bool:
-    """Read ``true`` or ``false`` at ``key``."""
-    if key not in mapping:
-        return default
-    value = as_flag(mapping[key])
-    if not isinstance(value, bool):
-        raise ConfigError(
-            mapping.where(key), f"`{key}` in {what} must be true or false, found {_describe(value)}"
-        )
-    return value
-
-
-def flag_or_auto(mapping: MarkedDict, key: str, what: str) -> bool | None:
-    """Read ``true``, ``false`` or ``auto`` at ``key``; ``auto`` or no key is None (the
-    program decides)."""
-    if key not in mapping or mapping[key] == "auto":
-        return None
-    value = as_flag(mapping[key])
-    if not isinstance(value, bool):
-        raise ConfigError(
-            mapping.where(key),
-            f"`{key}` in {what} must be true, false or auto, found {_describe(value)}",
-        )
-    return value
-
-
-def vector(value: Any, where: Position | str, what: str, length: int | None = None) -> list[float]:
-    """A list of finite numbers (of ``length`` items when given)."""
-    shape = f"{length} numbers" if length else "a list of numbers"
-    if not isinstance(value, list):
-        raise ConfigError(where, f"{what} must be {shape}, found {_describe(value)}")
-    items = [as_number(v) for v in value]
-    for i, v in enumerate(items):
-        if isinstance(v, bool) or not isinstance(v, int | float):
-            item_where = value.where(i) if isinstance(value, MarkedList) else where
-            raise ConfigError(
-                item_where,
-                f"{what} must be {shape}; item {i + 1} is {_describe(v)}{_number_hint(v)}",
-            )
-    if length is not None and len(value) != length:
-        raise ConfigError(where, f"{what} must have {length} numbers, found {len(value)}")
-    out = [float(v) for v in items]
-    if any(v != v or abs(v) == float("inf") for v in out):
-        raise ConfigError(where, f"{what} must be finite numbers, found {value}")
-    return out
-
-
-def choice(
-    mapping: MarkedDict, key: str, allowed: tuple[str, ...], what: str, default: str | None = None
-) -> str:
-    """A string from ``allowed``."""
-    if key not in mapping:
-        if default is None:
-            raise ConfigError(
-                mapping.where(), f"{what} is missing `{key}`; one of {', '.join(allowed)}"
-            )
-        return default
-    value = mapping[key]
-    if value not in allowed:
-        raise ConfigError(
-            mapping.where(key),
-            f"`{key}` in {what} must be one of {', '.join(allowed)}, found {_describe(value)}",
-        )
-    return str(value)
-
-
-def _number_hint(value: Any) -> str:
-    """A hint when ``value`` is text that reads as a number (it was quoted)."""
-    if not isinstance(value, str):
-        return ""
-    try:
-        float(value.replace("_", ""))
-    except ValueError:
-        return ""
-    return "; write the number without quotes"
-
-
-def _describe(value: Any) -> str:
-    if isinstance(value, dict):
-        return "a mapping"
-    if isinstance(value, list):
-        return f"a list of {len(value)}"
-    if value is None:
-        return "nothing"
-    return f"{type(value).__name__} {value!r}"

@@ -1,7 +1,7 @@
 """Gestures: layouts of regions and bindings, and the recognizers that turn contacts into
-gesture events (DESIGN.md, "Layout", "Gesture events", "Strokes").
+gesture events (docs/reference: layout.md, gestures.md, files.md).
 
-    from hapticdesk.gestures.layout import load_layout
+    from hapticdesk.gestures.layout_reader import load_layout
     from hapticdesk.gestures.engine import GestureEngine
     layout = load_layout("examples/layouts/demo.yaml")
     engine = GestureEngine(layout)              # builds only the recognizers it binds

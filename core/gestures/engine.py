@@ -28,14 +28,14 @@ from hapticdesk.gestures.touch import Touch, TouchTracker
 
 def _default_recognizers() -> Mapping[str, Any]:
     """The built-in recognizers, from the registry like any plugin's (no entry points)."""
-    from hapticdesk.registry import load_registry
+    from hapticdesk.plugin_loading import load_registry
 
     return load_registry(entry_points=False).recognizer_types()
 
 
 def _load(entry: Any) -> type:
     """A recognizer class from a registry record, a ``"module:Class"`` string or a class."""
-    from hapticdesk.registry import resolve
+    from hapticdesk.lazy_ref import resolve
 
     load = getattr(entry, "load", None)
     cls: type = load() if callable(load) else resolve(entry)

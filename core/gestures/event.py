@@ -1,4 +1,4 @@
-"""Gesture events: what recognizers emit and actions receive (DESIGN.md, "Gesture events")."""
+"""Gesture events: what recognizers emit and actions receive (docs: File formats)."""
 
 from __future__ import annotations
 
@@ -36,7 +36,7 @@ class GestureEvent:
     extra: dict[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
-        """A JSON-ready dict with the DESIGN.md keys; absent optional fields are left out."""
+        """A JSON-ready dict with the documented keys; absent optional fields are left out."""
         out: dict[str, Any] = {
             "t": round(self.t, 6),
             "gesture": self.gesture,

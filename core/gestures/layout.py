@@ -1,9 +1,9 @@
 """Layouts: which parts of the desk are buttons, sliders and drawing areas, and what each
-gesture there does (DESIGN.md, "Layout").
+gesture there does (docs/reference/layout.md).
 
 This module is the model: :class:`Layout`, its :class:`Binding` and :class:`ActionUse`
-records, and :func:`load_layout`, the one entry point. Reading and validating the YAML is
-``layout_reader`` (with ``layout_regions`` and ``layout_templates``), which reports every
+records; it reads no file. Loading (``layout_reader.load_layout``, the one entry point, with
+``layout_regions`` and ``layout_templates``) reads and validates the YAML and reports every
 mistake as ``file:line:column``, what was found and what is allowed.
 
 ``desk_name:`` is the desk's name in what actions send (``{desk}`` in templates, MQTT
@@ -15,15 +15,15 @@ plugin's validator while loading, so ``check`` refuses what ``run`` would.
 from __future__ import annotations
 
 import re
-from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from hapticdesk.errors import Position
+from hapticdesk.files.marked_values import MarkedDict
 from hapticdesk.files.profile import DeskProfile
-from hapticdesk.files.yamlfile import MarkedDict, Position, load_marked_yaml, require_mapping
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.options import GESTURE_OPTIONS, defaults
 from hapticdesk.gestures.regions import Region
@@ -32,11 +32,6 @@ from hapticdesk.gestures.regions import Region
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 #: the folder beside the layout that `hapticdesk strokes record` fills by default
 DEFAULT_TEMPLATE_DIR = "strokes"
-
-#: ``validate_action(name, options, position)``: raises ConfigError when the options are wrong
-ValidateAction = Callable[[str, Any, Position], None]
-#: ``validate_section(name, value, position, layout_path)``: a plugin's section
-ValidateSection = Callable[[str, Any, Position, Path], None]
 
 
 @dataclass(frozen=True)
@@ -152,43 +147,6 @@ class Layout:
         value = self.raw.get("templates")
         folder = value if isinstance(value, str) else DEFAULT_TEMPLATE_DIR
         return (self.path.parent / folder).resolve()
-
-
-def load_layout(
-    path: str | Path,
-    profile: DeskProfile | None = None,
-    action_names: Collection[str] | None = None,
-    validate_action: ValidateAction | None = None,
-    recognizer_types: Mapping[str, Any] | None = None,
-    validate_section: ValidateSection | None = None,
-    section_names: Collection[str] = (),
-    text: str | None = None,
-) -> Layout:
-    """Load and validate a layout; raises :class:`ConfigError` on any problem.
-
-    ``text``: the layout's YAML when it is not (yet) in the file, e.g. an edit being checked
-    before it is saved; errors and relative paths still name ``path``.
-
-    ``profile`` overrides the layout's ``desk:``. ``action_names``: the known actions (an
-    unknown one is an error); ``validate_action(name, options, position)`` is called for
-    every action use and may raise ConfigError. ``recognizer_types``: plugin gestures (name
-    -> recognizer class, registry record or ``"module:Class"``, whose optional
-    ``option_specs`` describe its options; a built-in gesture's options are its own whichever
-    class recognizes it, so built-ins are not imported here). ``section_names``: top-level
-    sections plugins claimed; each one present goes to ``validate_section``.
-    """
-    from hapticdesk.gestures.layout_reader import LayoutReader  # the reader imports this model
-
-    path = Path(path)
-    doc = require_mapping(load_marked_yaml(path, text), str(path), "a layout")
-    reader = LayoutReader(
-        doc, path, profile, action_names, validate_action, recognizer_types, section_names
-    )
-    layout = reader.read()
-    if validate_section is not None:
-        for name in sorted(reader.sections & set(doc)):
-            validate_section(name, doc[name], doc.where(name), path)
-    return layout
 
 
 def builtin_shape_names() -> set[str]:

@@ -12,13 +12,11 @@ from typing import Any
 
 import numpy as np
 
+from hapticdesk.errors import ConfigError, Position
+from hapticdesk.files.marked_values import MarkedDict, MarkedList
 from hapticdesk.files.profile import DeskProfile
-from hapticdesk.files.profile_reader import MAX_REACH_M  # (a radius of 1e200 had crashed)
-from hapticdesk.files.yamlfile import (
-    ConfigError,
-    MarkedDict,
-    MarkedList,
-    Position,
+from hapticdesk.files.validators import (
+    MAX_REACH_M,  # (a radius of 1e200 had crashed)
     check_keys,
     choice,
     number,

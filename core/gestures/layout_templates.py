@@ -11,15 +11,11 @@ from typing import Any
 
 import numpy as np
 
+from hapticdesk.errors import ConfigError, Position
+from hapticdesk.files.file_safety import check_confined
+from hapticdesk.files.marked_values import MarkedList
 from hapticdesk.files.strokefile import SHAPE_NAME, read_stroke, read_template_dir, stroke_files
-from hapticdesk.files.yamlfile import (
-    ConfigError,
-    MarkedList,
-    Position,
-    check_confined,
-    require_mapping,
-    vector,
-)
+from hapticdesk.files.validators import require_mapping, vector
 
 
 class TemplateReader:

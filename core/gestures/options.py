@@ -18,7 +18,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Literal
 
-from hapticdesk.files.yamlfile import ConfigError, MarkedDict, Position, as_flag, number
+from hapticdesk.errors import ConfigError, Position
+from hapticdesk.files.marked_values import MarkedDict, as_flag
+from hapticdesk.files.validators import number
 
 Kind = Literal[
     "seconds", "length", "newtons", "fraction", "degrees", "choice", "bool", "names", "levels"

@@ -13,13 +13,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from hapticdesk.files.profile import DeskProfile, load_profile
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.registry import Registry
 from hapticdesk.runtime.binding_events import check_bindings
 from hapticdesk.runtime.control import ControlQueue
 from hapticdesk.runtime.dispatcher import ActionContext, Dispatcher, Lane, Route
-from hapticdesk.runtime.isolation import ProcessAction, split_isolation
+from hapticdesk.runtime.isolation import ProcessAction, action_use_validator, split_isolation
 from hapticdesk.runtime.observe import ContactObservers
 from hapticdesk.runtime.source import Source
 from hapticdesk.runtime.source_spec import open_source
@@ -81,14 +82,14 @@ def load_scene_layout(
     plugins claim, each action use checked against the events its binding can make
     (``hapticdesk check`` and ``run`` both load through here), and its desk.
     ``text``: the layout's YAML when it is not the file's (an edit checked before saving)."""
-    from hapticdesk.gestures.layout import load_layout
+    from hapticdesk.gestures.layout_reader import load_layout
 
     profile = load_profile(desk) if isinstance(desk, str) else desk
     layout = load_layout(
         layout_path,
         profile=profile,
         action_names=registry.action_names,
-        validate_action=registry.validate_action,
+        validate_action=action_use_validator(registry),
         recognizer_types=registry.recognizer_types(),
         validate_section=registry.validate_section,
         section_names=list(registry.layout_sections),
@@ -132,25 +133,10 @@ def build_scene(
     try:
         observers = ContactObservers([])
         if actions:  # a preview (actions=False) sends nothing: no actions, no plugins' sinks
-            for route in build_routes(layout, registry, context, action_timeout_s):
-                dispatcher.add_route(route)
-            sinks = registry.event_sinks(desk=profile, layout=layout, context=context)
-            for plugin, sink in sinks:
-                lane = Lane(f"every event → {plugin}", sink, timeout_s=action_timeout_s)
-                dispatcher.add_sink(lane)
-            observers = ContactObservers(
-                registry.contact_sinks(desk=profile, layout=layout, context=context)
+            observers = _wire_actions(
+                dispatcher, profile, layout, registry, context, action_timeout_s
             )
-        from hapticdesk.estimator import ContactEstimator
-        from hapticdesk.gestures.engine import GestureEngine
-
-        estimator = ContactEstimator(profile)
-        engine = GestureEngine(
-            layout,
-            recognizer_types=registry.recognizer_types(),
-            position_delay_s=estimator.position_delay_s,
-        )
-        estimator.use_second_finger(profile.estimation.second_finger or engine.needs_second_finger)
+        estimator, engine = _estimator_and_engine(profile, layout, registry)
     except BaseException:
         _release(source, dispatcher, context)
         raise
@@ -169,6 +155,39 @@ def build_scene(
         actions=actions,
         observers=observers,
     )
+
+
+def _estimator_and_engine(desk: DeskProfile, layout: Any, registry: Registry) -> tuple[Any, Any]:
+    """The desk's contact estimator and the layout's gesture engine (the estimator tracks a
+    second finger when the desk or a bound gesture needs one)."""
+    from hapticdesk.estimator import ContactEstimator  # (numba and the recognizers: a run only)
+    from hapticdesk.gestures.engine import GestureEngine
+
+    estimator = ContactEstimator(desk)
+    engine = GestureEngine(
+        layout,
+        recognizer_types=registry.recognizer_types(),
+        position_delay_s=estimator.position_delay_s,
+    )
+    estimator.use_second_finger(desk.estimation.second_finger or engine.needs_second_finger)
+    return estimator, engine
+
+
+def _wire_actions(
+    dispatcher: Dispatcher,
+    desk: DeskProfile,
+    layout: Any,
+    registry: Registry,
+    context: ActionContext,
+    action_timeout_s: float | None,
+) -> ContactObservers:
+    """The layout's actions and every plugin's event sink into ``dispatcher``; the plugins'
+    contact sinks returned."""
+    for route in build_routes(layout, registry, context, action_timeout_s):
+        dispatcher.add_route(route)
+    for plugin, sink in registry.event_sinks(desk=desk, layout=layout, context=context):
+        dispatcher.add_sink(Lane(f"every event → {plugin}", sink, timeout_s=action_timeout_s))
+    return ContactObservers(registry.contact_sinks(desk=desk, layout=layout, context=context))
 
 
 def build_routes(

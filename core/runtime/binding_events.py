@@ -16,11 +16,16 @@ every field varied.
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from hapticdesk.gestures.event import GestureEvent
+from hapticdesk.runtime.isolation import split_isolation
+
+if TYPE_CHECKING:
+    from hapticdesk.gestures.layout import Layout
+    from hapticdesk.registry import Registry
 
 #: what each built-in gesture's events carry (besides t, gesture, region, x, y)
 GESTURE_FIELDS: dict[str, tuple[str, ...]] = {
@@ -130,15 +135,15 @@ def _places(layout: Any, region: str | None) -> list[tuple[float, float]]:
     ]
 
 
-def check_bindings(layout: Any, registry: Any) -> None:
+def check_bindings(layout: Layout, registry: Registry) -> None:
     """Hand every action use of ``layout`` the events its binding can make
-    (:meth:`Registry.check_action_events`); ConfigError at the first use that refuses."""
+    (:meth:`Registry.check_action_events`, with the action's own options: the isolation keys
+    are the runtime's); ConfigError at the first use that refuses."""
     for binding in layout.bindings:
         uses = [use for use in binding.actions if use.name in registry.actions]
         if not uses:
             continue
         events = possible_events(binding, layout)
         for use in uses:
-            registry.check_action_events(
-                use.name, use.options, use.position, events, layout.desk_name
-            )
+            own, _ = split_isolation(use.options, use.position)
+            registry.check_action_events(use.name, own, use.position, events, layout.desk_name)

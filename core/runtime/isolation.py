@@ -30,12 +30,20 @@ import logging
 import multiprocessing
 import resource
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from hapticdesk.files.yamlfile import ConfigError, MarkedDict, Position, number
+from hapticdesk.errors import ConfigError, Position
+from hapticdesk.files.marked_values import MarkedDict
+from hapticdesk.files.validators import number
 from hapticdesk.gestures.event import GestureEvent
+from hapticdesk.lazy_ref import resolve
+from hapticdesk.runtime.dispatcher import ActionContext
+
+if TYPE_CHECKING:
+    from hapticdesk.registry import Registry
 
 log = logging.getLogger(__name__)
 
@@ -77,6 +85,18 @@ def split_isolation(options: Any, position: Position | str) -> tuple[Any, Isolat
     rest.key_positions = {k: p for k, p in marked.key_positions.items() if k in rest}
     rest.value_positions = {k: p for k, p in marked.value_positions.items() if k in rest}
     return rest, IsolationSettings(limit) if kind == "process" else None
+
+
+def action_use_validator(registry: Registry) -> Callable[[str, Any, Position | str], None]:
+    """``validate_action(name, options, position)`` for a layout: the isolation keys are the
+    runtime's and checked here; the rest goes to the action's plugin (unknown name or bad
+    options: ConfigError)."""
+
+    def validate(name: str, options: Any, position: Position | str) -> None:
+        own, _ = split_isolation(options, position)
+        registry.validate_action(name, own, position)
+
+    return validate
 
 
 def _marked(options: dict[str, Any], position: Position | str) -> MarkedDict:
@@ -217,6 +237,16 @@ def _resident_mb() -> float:
         return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # kB on Linux
 
 
+class _ChildContext(ActionContext):
+    """The context of an action in its own process: the run's shared resources stay behind."""
+
+    def shared(self, key: str, create: Any) -> Any:
+        raise RuntimeError(
+            f"it uses the run's shared `{key}` resource, which stays in the run's own "
+            "process; remove `isolation: process` from this action"
+        )
+
+
 def _child_main(
     conn: Any,
     factory: Any,
@@ -226,17 +256,7 @@ def _child_main(
     settings: dict[str, Any],
 ) -> None:
     """The child: build the action, then call it for each event until None arrives."""
-    from hapticdesk.registry import resolve
-    from hapticdesk.runtime.dispatcher import ActionContext
-
-    class ChildContext(ActionContext):
-        def shared(self, key: str, create: Any) -> Any:
-            raise RuntimeError(
-                f"it uses the run's shared `{key}` resource, which stays in the run's own "
-                "process; remove `isolation: process` from this action"
-            )
-
-    context = ChildContext(desk, layout_path=layout_path, settings=settings)
+    context = _ChildContext(desk, layout_path=layout_path, settings=settings)
     try:
         action = resolve(factory)(options, context)
     except Exception as err:

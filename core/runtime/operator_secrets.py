@@ -33,7 +33,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from hapticdesk.files.yamlfile import ConfigError, MarkedDict, MarkedList, Position
+from hapticdesk.errors import ConfigError, Position
+from hapticdesk.files.marked_values import MarkedDict, MarkedList
 
 #: the keys of a binding that say when it fires (everything but what it does)
 _NOT_TRIGGER = ("do", "description")

@@ -1,18 +1,17 @@
 """Pacing: a finite source (recording, simulation, CAN log) delivered on its own sample clock.
 
 Blocks are held back until their last sample's time has come on the wall clock (scaled by
-``speed``), as a live source would deliver them. Every finite source plugin (``replay``,
-``sim``) uses this, so it lives in the runtime rather than in one of them.
+``speed``), as a live source would deliver them. The source base owns it
+(:meth:`hapticdesk.runtime.source.Source.paced`), so every finite source plugin (``replay``,
+``sim``) plays the same way.
 """
 
 from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Iterator
 
-from hapticdesk.files.yamlfile import ConfigError
-from hapticdesk.runtime.source import Source, WrenchBlock
+from hapticdesk.errors import ConfigError
 
 #: replay speeds (times real time) a person would ask for; beyond them a typing mistake
 MIN_SPEED, MAX_SPEED = 1e-3, 1e6
@@ -62,28 +61,3 @@ class Pacer:
     def wall_time(self, t: float) -> float:
         assert self.t0 is not None and self.started_at is not None, "not started"
         return self.started_at + (t - self.t0) / (self.speed or float("inf"))
-
-
-class PacedSource(Source):
-    """A finite source (recording, simulation, CAN log) with its blocks held back until their
-    last sample's time has come, as a live source would deliver them."""
-
-    def __init__(self, inner: Source, speed: float) -> None:
-        self.inner = inner
-        self.sensor_names = list(inner.sensor_names)
-        self.sample_rate_hz = inner.sample_rate_hz
-        self._stop = threading.Event()
-        self.pacer = Pacer(speed, self._stop)
-
-    def blocks(self) -> Iterator[WrenchBlock]:
-        for block in self.inner.blocks():
-            if len(block.t) and not self.pacer.wait_for(float(block.t[-1])):
-                return
-            yield block
-
-    def close(self) -> None:
-        self._stop.set()
-        self.inner.close()
-
-    def summary(self) -> list[str]:
-        return self.inner.summary()

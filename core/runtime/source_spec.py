@@ -8,8 +8,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile
-from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.registry import Registry
 from hapticdesk.runtime.source import Source
 

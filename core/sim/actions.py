@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from hapticdesk.files.yamlfile import Position
+from hapticdesk.errors import Position
 
 Point = tuple[float, float]
 

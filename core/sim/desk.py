@@ -53,13 +53,8 @@ import scipy.linalg
 import scipy.optimize
 import scipy.signal
 
-from hapticdesk.files.profile import (
-    STANDARD_GRAVITY,
-    DeskProfile,
-    SensorSpec,
-    skew,
-    spatial_inertia,
-)
+from hapticdesk.files.profile import STANDARD_GRAVITY, DeskProfile, SensorSpec
+from hapticdesk.files.rigid_body import skew, spatial_inertia
 
 DEFAULT_MASS_KG = 13.7  # the paper's desk (Table 1)
 DEFAULT_SWAY_HZ = 5.9  # the paper's desk (§3.2)

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.optimize
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 from hapticdesk.sim.actions import Drag, LongPress, Press, Ramp, Stroke, Swipe, Tap, TouchStep
 
 Range = tuple[float, float]

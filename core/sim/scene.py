@@ -38,21 +38,11 @@ from typing import Any
 
 import numpy as np
 
+from hapticdesk.errors import ConfigError, Position
+from hapticdesk.files.marked_values import MarkedDict, MarkedList, as_number
 from hapticdesk.files.strokefile import read_stroke
-from hapticdesk.files.yamlfile import (
-    ConfigError,
-    MarkedDict,
-    MarkedList,
-    Position,
-    as_number,
-    check_keys,
-    choice,
-    flag,
-    load_marked_yaml,
-    number,
-    require_mapping,
-    vector,
-)
+from hapticdesk.files.validators import check_keys, choice, flag, number, require_mapping, vector
+from hapticdesk.files.yamlfile import load_marked_yaml
 from hapticdesk.sim.actions import (
     DeskObject,
     Drag,
@@ -521,7 +511,7 @@ def _strokes(
                 raise ConfigError(p.where("file"), f"`file` of {what} must be a path")
             target = Path(file) if Path(file).is_absolute() else path.parent / file
             try:
-                pts = read_stroke(target)  # metres, as the stroke file format says (DESIGN.md)
+                pts = read_stroke(target)  # metres, as the stroke file format says
             except ConfigError as err:
                 raise ConfigError(p.where("file"), f"{what}: {err}") from None
         if size is not None or center is not None:

@@ -9,17 +9,9 @@ from typing import Any
 
 import numpy as np
 
-from hapticdesk.files.yamlfile import (
-    ConfigError,
-    MarkedDict,
-    MarkedList,
-    Position,
-    as_number,
-    check_keys,
-    number,
-    require_mapping,
-    vector,
-)
+from hapticdesk.errors import ConfigError, Position
+from hapticdesk.files.marked_values import MarkedDict, MarkedList, as_number
+from hapticdesk.files.validators import check_keys, number, require_mapping, vector
 from hapticdesk.sim.human import HumanModel
 
 

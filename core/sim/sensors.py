@@ -26,7 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from hapticdesk.files.profile import DeskProfile
-from hapticdesk.sim.desk import STANDARD_GRAVITY, skew
+from hapticdesk.files.rigid_body import skew
+from hapticdesk.sim.desk import STANDARD_GRAVITY
 
 PAPER_RATING = np.array([150.0, 150.0, 300.0, 4.0, 4.0, 4.0])  # Table 2
 

@@ -17,9 +17,9 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.recording import Recording, accel_table
-from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.runtime.source import Source, WrenchBlock
 from hapticdesk.sim.desk import DeskModel, DeskParameters
 from hapticdesk.sim.loadcells import Conversions, LoadCellModel, LoadCellParameters, oversampling
@@ -312,9 +312,15 @@ class SimSource(Source):
             cells=cells,
         )
         self.block_size = int(block_size)
-        self.sensor_names = profile.sensor_names
-        self.sample_rate_hz = float(profile.sample_rate_hz)
-        self._closed = False
+        super().__init__(
+            profile.sensor_names, profile.sample_rate_hz, channel_count=profile.channel_count
+        )
+        self._chunks = self.run.chunks()
+        # the run's samples not yet handed out: [self._at:] of these
+        self._t: np.ndarray | None = None
+        self._wrench: np.ndarray | None = None
+        self._truth: dict[str, np.ndarray] = {}
+        self._at = 0
 
     @property
     def n_samples(self) -> int:
@@ -325,41 +331,32 @@ class SimSource(Source):
     def duration_s(self) -> float:
         return self.run.timeline.duration_s
 
-    def blocks(self) -> Iterator[WrenchBlock]:
-        """Blocks of ``block_size`` samples (the last may be shorter) until the scene ends."""
-        pending_t: list[np.ndarray] = []
-        pending_w: list[np.ndarray] = []
-        pending_truth: list[dict[str, np.ndarray]] = []
-        size = 0
-        for t, wrench, truth in self.run.chunks():
-            pending_t.append(t)
-            pending_w.append(wrench)
-            pending_truth.append(truth)
-            size += len(t)
-            if size < self.block_size:
-                continue
-            t_all = np.concatenate(pending_t)
-            w_all = np.concatenate(pending_w)
-            tr_all = {c: np.concatenate([p[c] for p in pending_truth]) for c in self.run.columns}
-            full = (len(t_all) // self.block_size) * self.block_size
-            for a in range(0, full, self.block_size):
-                if self._closed:
-                    return
-                b = a + self.block_size
-                columns = {c: v[a:b] for c, v in tr_all.items()}
-                yield WrenchBlock(t_all[a:b], w_all[a:b], columns, accel_table(columns))
-            pending_t, pending_w = [t_all[full:]], [w_all[full:]]
-            pending_truth = [{c: v[full:] for c, v in tr_all.items()}]
-            size = len(t_all) - full
-        if size and not self._closed:
-            columns = {c: np.concatenate([p[c] for p in pending_truth]) for c in self.run.columns}
-            yield WrenchBlock(
-                np.concatenate(pending_t),
-                np.concatenate(pending_w),
-                columns,
-                accel_table(columns),
-            )
+    def read_block(self) -> WrenchBlock | None:
+        """The next ``block_size`` samples (the last block may be shorter); None at the
+        scene's end."""
+        while self._left() < self.block_size:
+            chunk = next(self._chunks, None)
+            if chunk is None:
+                break
+            self._take(*chunk)
+        n = min(self.block_size, self._left())
+        if n == 0 or self._t is None or self._wrench is None:
+            return None
+        a, b = self._at, self._at + n
+        self._at = b
+        columns = {c: v[a:b] for c, v in self._truth.items()}
+        return WrenchBlock(self._t[a:b], self._wrench[a:b], columns, accel_table(columns))
 
-    def close(self) -> None:
-        """Stop yielding blocks. Safe to call more than once."""
-        self._closed = True
+    def _left(self) -> int:
+        return 0 if self._t is None else len(self._t) - self._at
+
+    def _take(self, t: np.ndarray, wrench: np.ndarray, truth: dict[str, np.ndarray]) -> None:
+        """A chunk of the run after what is left of the last one."""
+        if self._t is None or self._wrench is None:
+            self._t, self._wrench, self._truth = t, wrench, dict(truth)
+        else:
+            a = self._at
+            self._t = np.concatenate([self._t[a:], t])
+            self._wrench = np.concatenate([self._wrench[a:], wrench])
+            self._truth = {c: np.concatenate([v[a:], truth[c]]) for c, v in self._truth.items()}
+        self._at = 0

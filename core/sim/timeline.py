@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hapticdesk.errors import ConfigError, Position
 from hapticdesk.files.profile import DeskProfile, Surface
-from hapticdesk.files.yamlfile import ConfigError, Position
 from hapticdesk.sim.actions import (
     Drag,
     Idle,

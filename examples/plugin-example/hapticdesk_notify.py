@@ -16,7 +16,9 @@ import threading
 from pathlib import Path
 from typing import Any
 
-from hapticdesk.files.yamlfile import ConfigError, MarkedDict, check_keys
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.marked_values import MarkedDict
+from hapticdesk.files.validators import check_keys
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.plugins.templating import compile_template, event_variables
 

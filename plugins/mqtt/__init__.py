@@ -45,7 +45,8 @@ import contextlib
 from pathlib import Path
 from typing import Any
 
-from hapticdesk.files.yamlfile import ConfigError, Position, as_flag
+from hapticdesk.errors import ConfigError, Position
+from hapticdesk.files.marked_values import as_flag
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.plugins.action_options import options_mapping, text, where

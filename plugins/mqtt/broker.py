@@ -14,7 +14,7 @@ import threading
 from types import TracebackType
 from typing import Any
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 
 log = logging.getLogger(__name__)
 

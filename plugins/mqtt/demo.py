@@ -22,9 +22,9 @@ from pathlib import Path
 from typing import Any
 
 import hapticdesk
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.plugins.mqtt.settings import parse_broker_url
-from hapticdesk.registry import load_registry
 from hapticdesk.runtime.assembly import build_scene
 from hapticdesk.runtime.dispatcher import Lane
 from hapticdesk.runtime.service import Runtime

@@ -22,7 +22,7 @@ Every template renders from keys every event has, or tests for the key first: Ho
 renders each trigger's template on every message of the topic, and warns for each missing key.
 
 Press levels are distinct action strings already (``lamp_press_firm``). The action strings
-themselves never change (DESIGN.md, "The desk as an MQTT device").
+themselves never change (docs/reference/mqtt.md).
 """
 
 from __future__ import annotations

@@ -103,7 +103,7 @@ SENSORS: list[tuple[str, str, dict[str, Any]]] = [
 
 @dataclass(frozen=True)
 class DeskTopics:
-    """The desk's own topics (DESIGN.md, "The desk as an MQTT device")."""
+    """The desk's own topics (docs/reference/mqtt.md)."""
 
     prefix: str  # <base>/<desk>: the state JSON
 

@@ -13,16 +13,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from hapticdesk.files.yamlfile import (
-    ConfigError,
-    MarkedDict,
-    Position,
-    as_flag,
-    check_confined,
-    check_keys,
-    number,
-    require_mapping,
-)
+from hapticdesk.errors import ConfigError, Position
+from hapticdesk.files.file_safety import check_confined
+from hapticdesk.files.marked_values import MarkedDict, as_flag
+from hapticdesk.files.validators import check_keys, number, require_mapping
 
 DEFAULT_QUEUE_SIZE = 1000
 #: topics under ``<base_topic>/<desk>`` by default; a desk keeps its Home Assistant node id

@@ -110,7 +110,7 @@ class Zigbee2MqttActions:
 def style_from_section(section: Any) -> tuple[str, str]:
     """(``action_style``, ``zigbee2mqtt_slide``) of the layout's ``mqtt:`` section, checked
     (ConfigError naming ``file:line:column``)."""
-    from hapticdesk.files.yamlfile import ConfigError
+    from hapticdesk.errors import ConfigError
 
     if section is None:
         return "hapticdesk", "step"

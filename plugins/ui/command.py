@@ -20,7 +20,7 @@ import sys
 import threading
 from pathlib import Path
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 
 TOKEN_ENV = "HAPTICDESK_UI_TOKEN"
 
@@ -48,10 +48,10 @@ def run(args: argparse.Namespace) -> int:
     require("starlette", "uvicorn", "ruamel.yaml", needed_by="the browser UI")
     if not 0 <= args.port <= 65535:  # (uvicorn's bind failed with a traceback in its thread)
         raise ConfigError("--port", f"expected a port 0..65535, found {args.port}")
-    from hapticdesk.files.profile import load_profile
+    from hapticdesk.files.profile_reader import load_profile
+    from hapticdesk.plugin_loading import load_registry
     from hapticdesk.plugins.mqtt.demo import examples_dir
     from hapticdesk.plugins.ui.server import UiServer
-    from hapticdesk.registry import load_registry
     from hapticdesk.runtime.assembly import build_scene
     from hapticdesk.runtime.dispatcher import Lane
     from hapticdesk.runtime.service import Runtime

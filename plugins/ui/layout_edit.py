@@ -14,8 +14,9 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+from hapticdesk.errors import ConfigError, Position
 from hapticdesk.files.strokefile import SHAPE_NAME
-from hapticdesk.files.yamlfile import ConfigError, Position, load_marked_yaml
+from hapticdesk.files.yamlfile import load_marked_yaml
 
 # the names the layout's reader takes: the designer refuses none `check` accepts (it had
 # refused `desk-lamp`) and takes none it refuses (`ẞtaste` passed Python's isidentifier)

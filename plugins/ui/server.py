@@ -24,7 +24,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-from hapticdesk.files.yamlfile import ConfigError, load_marked_yaml, reads_confined_to
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.file_safety import reads_confined_to
+from hapticdesk.files.yamlfile import load_marked_yaml
 from hapticdesk.plugins.ui.layout_edit import desk_message, message_error
 from hapticdesk.plugins.ui.layout_edit import error_dict as error_of
 
@@ -403,6 +405,7 @@ class UiServer:
         from starlette.websockets import WebSocket, WebSocketDisconnect
 
         from hapticdesk.plugins.ui import strokes_api
+        from hapticdesk.plugins.ui.known_weight_setup import weight_setup_routes
 
         static_files = StaticFiles(directory=STATIC)
         from hapticdesk.plugins.ui.layout_edit import apply_edit, save_layout_text
@@ -654,6 +657,7 @@ class UiServer:
             Route("/api/strokes", strokes, methods=["POST"]),
             Route("/api/setup/start", setup_start, methods=["POST"]),
             Route("/api/setup/finish", setup_finish, methods=["POST"]),
+            *weight_setup_routes(self, allowed, refused, json_object),
             WebSocketRoute("/ws", ws),
             Route("/static/{path:path}", static, methods=["GET", "HEAD"]),
         ]
@@ -672,7 +676,7 @@ class UiServer:
     @property
     def registry(self) -> Any:
         if self._registry is None:
-            from hapticdesk.registry import load_registry
+            from hapticdesk.plugin_loading import load_registry
 
             self._registry = load_registry()
         return self._registry

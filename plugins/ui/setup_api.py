@@ -10,7 +10,7 @@ from __future__ import annotations
 import collections
 from typing import Any
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 
 #: the longest session kept (seconds of samples); older blocks are dropped
 MAX_SESSION_S = 180.0
@@ -59,12 +59,12 @@ def read_points(payload: dict[str, Any], profile: Any) -> list[list[float]]:
     return out
 
 
-class SetupSession:
-    """One guided session: marked points, and the blocks sensed since it started."""
+class BlockRecorder:
+    """The raw blocks a running desk senses from now on (the last :data:`MAX_SESSION_S`
+    seconds of them), for a guided session of the page's set-up."""
 
-    def __init__(self, runtime: Any, points: list[list[float]]) -> None:
+    def __init__(self, runtime: Any) -> None:
         self.runtime = runtime
-        self.points = points
         rate = runtime.scene.profile.sample_rate_hz
         self.blocks: collections.deque[tuple[Any, Any]] = collections.deque(
             maxlen=max(100, int(MAX_SESSION_S * rate / 8))
@@ -79,6 +79,25 @@ class SetupSession:
         runtime = self.runtime
         runtime.block_taps = tuple(tap for tap in runtime.block_taps if tap != self._take)
 
+    def samples(self) -> tuple[Any, Any]:
+        """Stop recording; the sample times (k,) and raw readings of what was sensed
+        (ConfigError when nothing was)."""
+        import numpy as np
+
+        self.finish_quietly()
+        blocks = list(self.blocks)
+        if not blocks:
+            raise ConfigError(None, "nothing was sensed since the set-up started")
+        return np.concatenate([b[0] for b in blocks]), np.concatenate([b[1] for b in blocks])
+
+
+class SetupSession(BlockRecorder):
+    """One guided session: marked points, and the blocks sensed since it started."""
+
+    def __init__(self, runtime: Any, points: list[list[float]]) -> None:
+        super().__init__(runtime)
+        self.points = points
+
     def finish(self) -> dict[str, Any]:
         """Stop recording and check: findings, residuals, the corrected profile, and what
         ``characterize`` says of the desk's noise and natural frequency."""
@@ -88,13 +107,8 @@ class SetupSession:
         from hapticdesk.analysis.setup_check import check_setup, report_dict
         from hapticdesk.files.recording import Recording
 
-        self.finish_quietly()
+        t, wrench = self.samples()
         runtime = self.runtime
-        blocks = list(self.blocks)
-        if not blocks:
-            raise ConfigError(None, "nothing was sensed since the set-up check started")
-        t = np.concatenate([b[0] for b in blocks])
-        wrench = np.concatenate([b[1] for b in blocks])
         profile = runtime.scene.profile
         report = check_setup(profile, t, wrench, np.asarray(self.points, dtype=float))
         out = report_dict(report)

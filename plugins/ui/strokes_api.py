@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 
 #: the most points a stroke from the page may have (a 15 s stroke at 50 Hz is 750)
 MAX_POINTS = 5000

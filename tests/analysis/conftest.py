@@ -6,7 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from hapticdesk.files.profile import DeskProfile, load_profile
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.files.recording import Recording
 from hapticdesk.sim import Idle, Scene, Swipe, load_scene, simulate
 

@@ -11,9 +11,11 @@ import yaml
 
 from hapticdesk.analysis.characterize import CUTOFF_RATIO, characterize
 from hapticdesk.cli import main
-from hapticdesk.files.profile import DeskProfile, load_profile
-from hapticdesk.files.recording import Recording, write_recording
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile
+from hapticdesk.files.recording import Recording
+from hapticdesk.files.recording_io import write_recording
 from hapticdesk.sim import (
     DeskParameters,
     Idle,

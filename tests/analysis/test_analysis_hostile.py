@@ -11,9 +11,10 @@ import pytest
 from hapticdesk.analysis.characterize import MAX_READING, characterize
 from hapticdesk.analysis.thresholds import MAX_SLOPE_WINDOW_S, derive_thresholds
 from hapticdesk.cli import main
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile
-from hapticdesk.files.recording import Recording, write_recording
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.files.recording import Recording
+from hapticdesk.files.recording_io import write_recording
 
 
 def quiet_recording(desk: DeskProfile, seconds: float = 2.0, step_s: float | None = None):

@@ -16,7 +16,9 @@ from hapticdesk.bench.accuracy import measure_accuracy
 from hapticdesk.commands.characterize import format_report
 from hapticdesk.estimator import ContactEstimator
 from hapticdesk.estimator.inertia import accelerometer_readings
-from hapticdesk.files.profile import DeskProfile, is_body_inertia, load_profile
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile
+from hapticdesk.files.rigid_body import is_body_inertia
 from hapticdesk.sim import Press, Scene, Tap, simulate
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "scripts"))

@@ -10,9 +10,10 @@ import pytest
 
 from hapticdesk.analysis.plotting import plot_recording
 from hapticdesk.cli import main
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile
-from hapticdesk.files.recording import Recording, write_recording
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.files.recording import Recording
+from hapticdesk.files.recording_io import write_recording
 from hapticdesk.sim import Idle, Scene, simulate
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -152,7 +153,7 @@ def test_plot_and_contacts_count_the_same_points(tmp_path, capsys, desk_name) ->
     that was one candidate's count (the force's 56,431 were drawn under it); and on a desk
     with an accelerometer the plot estimated without its readings. Now both count the same
     samples, in contact and located, and the legend's counts add up to that."""
-    from hapticdesk.files.profile import load_profile
+    from hapticdesk.files.profile_reader import load_profile
     from hapticdesk.sim import Press, Swipe
 
     desk = load_profile(desk_name)

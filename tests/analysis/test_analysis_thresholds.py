@@ -11,9 +11,10 @@ import yaml
 
 from hapticdesk.analysis.thresholds import ThresholdSummary, derive_thresholds, local_slope
 from hapticdesk.cli import main
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile
-from hapticdesk.files.recording import Recording, write_recording
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.files.recording import Recording
+from hapticdesk.files.recording_io import write_recording
 from hapticdesk.sim import Idle, Scene, SensorParameters, load_scene, simulate
 
 from .conftest import SCENES

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from hapticdesk.analysis.setup_check import check_setup
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 from hapticdesk.sim import load_scene, simulate
 
 POINTS = np.array(

@@ -91,7 +91,8 @@ def test_reading_the_desk_and_a_recording_loads_no_scipy_and_no_plugin_registry(
     imports neither scipy (0.3–1 s), nor the plugin registry (pluggy and the entry points),
     nor the force-plate reader a CSV does not need: what scipy ``contacts`` still loads is the
     estimator's own."""
-    from hapticdesk.files.recording import Recording, write_recording
+    from hapticdesk.files.recording import Recording
+    from hapticdesk.files.recording_io import write_recording
 
     path = tmp_path / "rec.csv"
     k = 50

@@ -150,8 +150,8 @@ def test_outputs_are_checked_before_the_work(tmp_path, capsys):
 def test_contacts_that_cannot_be_written_after_all(tmp_path, capsys, monkeypatch):
     from pathlib import Path
 
-    from hapticdesk.files.profile import load_profile
-    from hapticdesk.files.recording import write_recording
+    from hapticdesk.files.profile_reader import load_profile
+    from hapticdesk.files.recording_io import write_recording
     from hapticdesk.sim import Idle, Scene, simulate
 
     recording = tmp_path / "rec.csv"

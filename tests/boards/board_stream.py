@@ -20,7 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from hapticdesk.boards.hello import BoardHello, with_checksum
-from hapticdesk.files.profile import DeskProfile, builtin_profile_path, load_profile
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import builtin_profile_path, load_profile
 from hapticdesk.sim import SimEffects, load_scene, simulate
 
 CELLS = """\

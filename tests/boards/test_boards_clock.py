@@ -10,9 +10,9 @@ from hapticdesk.boards.decoder import BoardDecoder
 from hapticdesk.boards.hello import BoardHello
 from hapticdesk.boards.lines import OUT_OF_SEQUENCE, REPEAT
 from hapticdesk.boards.settings import serial_settings
+from hapticdesk.errors import ConfigError
 from hapticdesk.estimator import ContactEstimator
 from hapticdesk.estimator.contacts import FLAG_GAP
-from hapticdesk.files.yamlfile import ConfigError
 
 from .board_stream import SCALE, ZERO, cells_desk, counts, hello_line, sample_lines
 

@@ -13,7 +13,7 @@ from hapticdesk.boards.decoder import BoardDecoder
 from hapticdesk.boards.hello import BoardHello
 from hapticdesk.boards.lines import MAX_LINE_BYTES
 from hapticdesk.boards.settings import serial_settings
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 
 from .board_stream import cells_desk, counts, hello_line, sample_lines
 

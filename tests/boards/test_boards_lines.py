@@ -12,7 +12,7 @@ from hapticdesk.boards.decoder import BoardDecoder
 from hapticdesk.boards.hello import BoardHello, checksum, parse_hello, with_checksum
 from hapticdesk.boards.lines import MAX_LINE_BYTES, REASONS, LineSplitter
 from hapticdesk.boards.settings import serial_settings
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 
 from .board_stream import SCALE, ZERO, cells_desk, counts, hello_line, sample_lines
 

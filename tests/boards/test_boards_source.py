@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from hapticdesk.boards.hello import BoardHello
-from hapticdesk.files.yamlfile import ConfigError
-from hapticdesk.registry import load_registry
+from hapticdesk.errors import ConfigError
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.runtime.source_spec import open_source
 
 from .board_stream import SCALE, ZERO, PtyBoard, cells_desk, counts, hello_line, sample_lines
@@ -71,8 +71,8 @@ def test_missing_pyserial_is_named_with_its_install_command(desk, registry, monk
 
 def test_pyserial_and_the_boards_are_imported_only_for_the_serial_source():
     probe = (
-        "import sys; from hapticdesk.registry import load_registry; "
-        "from hapticdesk.files.profile import load_profile; "
+        "import sys; from hapticdesk.plugin_loading import load_registry; "
+        "from hapticdesk.files.profile_reader import load_profile; "
         "from hapticdesk.runtime.source_spec import open_source; "
         "r = load_registry(entry_points=False); "
         "open_source('sim:examples/scenes/buttons.yaml', load_profile('kitamura2017'), r).close(); "

@@ -6,8 +6,8 @@ import re
 
 import pytest
 
-from hapticdesk.canbus.config import can_config
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.canbus.config_reader import can_config
+from hapticdesk.errors import ConfigError
 
 HEAD = """name: t
 sample_rate_hz: 1000

@@ -9,11 +9,13 @@ import numpy as np
 import pytest
 
 from hapticdesk.canbus.assembler import FrameAssembler
-from hapticdesk.canbus.config import CanConfig, can_config
+from hapticdesk.canbus.config import CanConfig
+from hapticdesk.canbus.config_reader import can_config
 from hapticdesk.canbus.decoding import build_decoding
-from hapticdesk.canbus.emulator import FrameEncoder
+from hapticdesk.canbus.frame_encoder import FrameEncoder
 from hapticdesk.canbus.frames import FrameArray
-from hapticdesk.files.profile import DeskProfile, load_profile, profile_from_mapping
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile, profile_from_mapping
 from hapticdesk.files.yamlfile import load_marked_yaml
 
 

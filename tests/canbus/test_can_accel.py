@@ -9,15 +9,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hapticdesk.canbus.config import can_config
-from hapticdesk.canbus.emulator import FrameEncoder
-from hapticdesk.canbus.logs import open_can_log, read_can_log, write_frames
+from hapticdesk.canbus.config_reader import can_config
+from hapticdesk.canbus.frame_encoder import FrameEncoder
+from hapticdesk.canbus.logs.desk_samples import open_can_log, read_can_log
+from hapticdesk.canbus.logs.writer import write_frames
+from hapticdesk.errors import ConfigError
 from hapticdesk.estimator import ContactEstimator, estimate
 from hapticdesk.estimator.contacts import FLAG_NO_ACCEL
 from hapticdesk.estimator.inertia import accelerometer_readings
-from hapticdesk.files.profile import load_profile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.files.recording import Recording
-from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.sim import simulate
 from hapticdesk.sim.scene import load_scene
 

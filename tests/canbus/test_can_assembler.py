@@ -5,11 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hapticdesk.canbus.assembler import FrameAssembler, SensorSilentError
-from hapticdesk.canbus.config import can_config
+from hapticdesk.canbus.assembler import FrameAssembler
+from hapticdesk.canbus.config_reader import can_config
 from hapticdesk.canbus.decoding import build_decoding
-from hapticdesk.canbus.emulator import FrameEncoder
+from hapticdesk.canbus.frame_encoder import FrameEncoder
 from hapticdesk.canbus.frames import FrameArray
+from hapticdesk.canbus.stats import SensorSilentError
 
 
 def mix(frames: FrameArray, other: FrameArray) -> FrameArray:

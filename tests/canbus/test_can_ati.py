@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from hapticdesk.canbus import ati_netcanoem as ati
-from hapticdesk.canbus.config import AtiSensor, can_config
-from hapticdesk.canbus.emulator import FrameEncoder
+from hapticdesk.canbus.config import AtiSensor
+from hapticdesk.canbus.config_reader import can_config
+from hapticdesk.canbus.frame_encoder import FrameEncoder
 
 
 def test_identifiers_are_base_and_opcode():

@@ -18,11 +18,12 @@ from can.interfaces.virtual import VirtualBus
 
 from hapticdesk.canbus.assembler import FrameAssembler
 from hapticdesk.canbus.ati_netcanoem import SAMPLE_BITS, max_poll_rate
-from hapticdesk.canbus.config import can_config
+from hapticdesk.canbus.config_reader import can_config
 from hapticdesk.canbus.decoding import build_decoding
-from hapticdesk.canbus.emulator import CanEmulator, FrameEncoder
+from hapticdesk.canbus.emulator import CanEmulator
+from hapticdesk.canbus.frame_encoder import FrameEncoder
 from hapticdesk.canbus.frames import FrameArray
-from hapticdesk.canbus.logs import decode_can_log
+from hapticdesk.canbus.logs.desk_samples import decode_can_log
 from hapticdesk.canbus.source import open_can_source
 
 T0 = 1_700_000_000.0

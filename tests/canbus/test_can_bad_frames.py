@@ -11,11 +11,14 @@ import numpy as np
 import pytest
 
 from hapticdesk.canbus.frames import FrameArray
-from hapticdesk.canbus.logs import decode_can_log, read_frames, write_frames
+from hapticdesk.canbus.logs.desk_samples import decode_can_log
+from hapticdesk.canbus.logs.formats import read_frames
+from hapticdesk.canbus.logs.writer import write_frames
 from hapticdesk.canbus.source import CanSourceError, open_can_source
 from hapticdesk.cli import main
-from hapticdesk.files.recording import Recording, write_recording
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.recording import Recording
+from hapticdesk.files.recording_io import write_recording
 
 ASC_HEAD = "date Tue Nov 24 12:37:15.59 2026\nbase hex  timestamps absolute\nBegin Triggerblock\n"
 ASC_ROW = " {t} 1  {ident}    Rx   d 8 F1 FF 00 00 2F 0D 00 00\n"

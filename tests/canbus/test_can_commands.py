@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from hapticdesk.cli import main
-from hapticdesk.files.recording import Recording, read_recording, write_recording
+from hapticdesk.files.recording import Recording
+from hapticdesk.files.recording_io import read_recording, write_recording
 
 
 @pytest.fixture
@@ -93,7 +94,7 @@ def test_record_a_live_bus_fed_by_emulate(
     if suffix == ".csv":
         rec = read_recording(out, can_desk.sensor_names)
     else:
-        from hapticdesk.canbus.logs import read_can_log
+        from hapticdesk.canbus.logs.desk_samples import read_can_log
 
         assert summary["frames"] == 8 * 1440
         rec = read_can_log(out, can_desk)
@@ -131,7 +132,7 @@ def test_record_an_ati_bench_through_emulate(
     )
     emulator.join(5)
     assert not emulator.is_alive()  # every sample was polled, the board went quiet
-    from hapticdesk.canbus.logs import decode_can_log
+    from hapticdesk.canbus.logs.desk_samples import decode_can_log
 
     decoded = decode_can_log(out, bench)  # decodes on its own: calibration and polls are in it
     got = decoded.recording.wrench[:, 0]
@@ -214,7 +215,7 @@ def test_record_a_scene_as_an_ati_log(tmp_path, capsys, ati_desk):
         ],
         capsys,
     )
-    from hapticdesk.canbus.logs import read_can_log
+    from hapticdesk.canbus.logs.desk_samples import read_can_log
     from hapticdesk.sim import load_scene, simulate
 
     rec = read_can_log(out, profile)

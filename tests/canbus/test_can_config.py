@@ -7,9 +7,10 @@ import re
 import numpy as np
 import pytest
 
-from hapticdesk.canbus.config import AtiSensor, SignalSensor, can_config
-from hapticdesk.files.profile import load_profile
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.canbus.config import AtiSensor, SignalSensor
+from hapticdesk.canbus.config_reader import can_config
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.profile_reader import load_profile
 
 from .can_profiles import HEAD, error_at, full_can, line_of
 

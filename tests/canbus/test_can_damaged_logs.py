@@ -18,9 +18,9 @@ import numpy as np
 import pytest
 
 from hapticdesk.canbus.assembler import FrameAssembler
-from hapticdesk.canbus.config import can_config
+from hapticdesk.canbus.config_reader import can_config
 from hapticdesk.canbus.decoding import build_decoding
-from hapticdesk.canbus.emulator import FrameEncoder
+from hapticdesk.canbus.frame_encoder import FrameEncoder
 from hapticdesk.cli import main
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"

@@ -8,7 +8,7 @@ import cantools
 import numpy as np
 import pytest
 
-from hapticdesk.canbus.config import can_config
+from hapticdesk.canbus.config_reader import can_config
 from hapticdesk.canbus.dbc_signals import (
     SignalLayout,
     frame_words,

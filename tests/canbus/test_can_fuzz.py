@@ -10,12 +10,12 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from hapticdesk.canbus.assembler import FrameAssembler
-from hapticdesk.canbus.config import can_config
+from hapticdesk.canbus.config_reader import can_config
 from hapticdesk.canbus.decoding import build_decoding
-from hapticdesk.canbus.emulator import FrameEncoder
+from hapticdesk.canbus.frame_encoder import FrameEncoder
 from hapticdesk.canbus.frames import FrameArray
-from hapticdesk.canbus.logs import read_frames
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.canbus.logs.formats import read_frames
+from hapticdesk.errors import ConfigError
 
 FUZZ = settings(
     max_examples=40,

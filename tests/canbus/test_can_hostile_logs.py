@@ -10,11 +10,12 @@ from pathlib import Path
 
 import pytest
 
-from hapticdesk.canbus import config as can_config_module
-from hapticdesk.canbus import logs
-from hapticdesk.canbus.config import can_config
-from hapticdesk.canbus.logs import read_frames, write_frames
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.canbus import can_database
+from hapticdesk.canbus.config_reader import can_config
+from hapticdesk.canbus.logs import log_files, python_can_logs
+from hapticdesk.canbus.logs.formats import read_frames
+from hapticdesk.canbus.logs.writer import write_frames
+from hapticdesk.errors import ConfigError
 
 from .can_profiles import error_at, full_can, line_of
 
@@ -39,7 +40,7 @@ def _insert_long_line(path: Path, at: int, gz: bool = False) -> None:
 def test_a_line_too_long_is_refused_at_file_and_line(
     tmp_path, monkeypatch, canopen_traffic, suffix, at
 ):
-    monkeypatch.setattr(logs, "MAX_LINE_CHARS", LIMIT)
+    monkeypatch.setattr(log_files, "MAX_LINE_CHARS", LIMIT)
     gz = suffix.endswith(".gz")
     written = tmp_path / f"bus{suffix.removesuffix('.gz')}"
     frames = canopen_traffic(40, 1.0, t0=1_700_000_000.0)
@@ -61,7 +62,7 @@ def test_a_line_too_long_is_refused_at_file_and_line(
 
 def test_a_line_at_the_limit_is_read(tmp_path, monkeypatch):
     line = "(1700000000.000000) can0 123#" + "00" * 8
-    monkeypatch.setattr(logs, "MAX_LINE_CHARS", len(line))
+    monkeypatch.setattr(log_files, "MAX_LINE_CHARS", len(line))
     path = tmp_path / "bus.log"
     path.write_text(f"{line}\r\n{line}\n{line}", encoding="utf-8")
     assert sum(len(chunk) for chunk in read_frames(path)) == 3
@@ -69,11 +70,11 @@ def test_a_line_at_the_limit_is_read(tmp_path, monkeypatch):
 
 def test_sniffing_reads_a_bounded_prefix(tmp_path, monkeypatch):
     """A `.log` of one endless line is not read whole to tell candump -l from printed text."""
-    monkeypatch.setattr(logs, "SNIFF_CHARS", 64)
+    monkeypatch.setattr(python_can_logs, "SNIFF_CHARS", 64)
     path = tmp_path / "one-line.log"
     path.write_text("\0" * 10_000, encoding="utf-8")
     reads: list[int] = []
-    real_open = logs._open_text
+    real_open = python_can_logs.open_text
 
     def spy(p):
         fh = real_open(p)
@@ -86,15 +87,15 @@ def test_sniffing_reads_a_bounded_prefix(tmp_path, monkeypatch):
         fh.read = read
         return fh
 
-    monkeypatch.setattr(logs, "_open_text", spy)
-    assert logs._looks_canutils(path) is True  # undecided: python-can then names the line
+    monkeypatch.setattr(python_can_logs, "open_text", spy)
+    assert python_can_logs.looks_canutils(path) is True  # undecided: python-can then names the line
     assert reads == [64]
     path.write_text("  can0  123   [1]  00\n" + "x" * 10_000, encoding="utf-8")
-    assert logs._looks_canutils(path) is False
+    assert python_can_logs.looks_canutils(path) is False
 
 
 def test_a_database_too_big_is_refused_before_it_is_parsed(profile_text, monkeypatch):
-    monkeypatch.setattr(can_config_module, "MAX_DATABASE_BYTES", 1000)
+    monkeypatch.setattr(can_database, "MAX_DATABASE_BYTES", 1000)
 
     def never(*args, **kwargs):
         raise AssertionError("parsed")
@@ -147,7 +148,7 @@ def test_a_blf_container_that_inflates_past_the_bound_is_refused_after_the_frame
 
     from can.io import blf
 
-    monkeypatch.setattr(logs, "MAX_BLF_CONTAINER_BYTES", 1 << 20)
+    monkeypatch.setattr(python_can_logs, "MAX_BLF_CONTAINER_BYTES", 1 << 20)
     path = tmp_path / "bus.blf"
     frames = canopen_traffic(40, 1.0, t0=1_700_000_000.0)
     write_frames(path, [frames])

@@ -11,13 +11,14 @@ import numpy as np
 import pytest
 from can.interfaces.virtual import VirtualBus
 
-from hapticdesk.canbus.assembler import SensorSilentError
-from hapticdesk.canbus.config import can_config
-from hapticdesk.canbus.emulator import CanEmulator, FrameEncoder
+from hapticdesk.canbus.config_reader import can_config
+from hapticdesk.canbus.emulator import CanEmulator
+from hapticdesk.canbus.frame_encoder import FrameEncoder
 from hapticdesk.canbus.source import CanSourceError, open_can_source
+from hapticdesk.canbus.stats import SensorSilentError
 from hapticdesk.estimator import ContactEstimator, estimate
 from hapticdesk.estimator.contacts import ContactBlock, contact_events
-from hapticdesk.files.profile import load_profile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.files.recording import Recording
 from hapticdesk.sim import load_scene, simulate
 
@@ -232,7 +233,7 @@ def test_clear_errors_when_opening(can_desk, bench, virtual_channel):
 def can_desk_without_interface(profile):
     from dataclasses import replace
 
-    from hapticdesk.files.yamlfile import MarkedDict
+    from hapticdesk.files.marked_values import MarkedDict
 
     section = MarkedDict(profile.can)
     section.position = profile.can.position

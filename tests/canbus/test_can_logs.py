@@ -8,17 +8,12 @@ import logging
 import numpy as np
 import pytest
 
-from hapticdesk.canbus.emulator import FrameEncoder
+from hapticdesk.canbus.frame_encoder import FrameEncoder
 from hapticdesk.canbus.frames import FrameArray
-from hapticdesk.canbus.logs import (
-    decode_can_log,
-    is_can_log,
-    open_can_log,
-    read_can_log,
-    read_frames,
-    write_frames,
-)
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.canbus.logs.desk_samples import decode_can_log, open_can_log, read_can_log
+from hapticdesk.canbus.logs.formats import is_can_log, read_frames
+from hapticdesk.canbus.logs.writer import write_frames
+from hapticdesk.errors import ConfigError
 
 T0 = 1_700_000_000.0  # logs carry absolute times
 

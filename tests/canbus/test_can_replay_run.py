@@ -11,9 +11,9 @@ import re
 import numpy as np
 import pytest
 
-from hapticdesk.canbus.config import can_config
-from hapticdesk.canbus.emulator import FrameEncoder
-from hapticdesk.canbus.logs import write_frames
+from hapticdesk.canbus.config_reader import can_config
+from hapticdesk.canbus.frame_encoder import FrameEncoder
+from hapticdesk.canbus.logs.writer import write_frames
 from hapticdesk.cli import main
 
 T0 = 1_700_000_000.0

@@ -12,7 +12,8 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from hapticdesk.files.profile import DeskProfile, load_profile
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile
 
 GRAVITY_N = 134.4  # 13.7 kg desk
 DITHER_N = 1e-9
@@ -98,7 +99,7 @@ def press_recording() -> Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]
 def noisy_presses() -> tuple[np.ndarray, np.ndarray]:
     """Two presses (20 N and a light 6 N one) with a slight tangential push, Gaussian noise,
     and a NaN burst inside the first press: the input of the chunk-invariance tests."""
-    from hapticdesk.files.profile import load_profile
+    from hapticdesk.files.profile_reader import load_profile
 
     desk = load_profile("kitamura2017")
     fs = desk.sample_rate_hz

@@ -11,7 +11,7 @@ import numpy as np
 
 from hapticdesk.commands.contacts import HEADER, write_contacts_csv
 from hapticdesk.estimator.contacts import PHASE_NAMES, SOURCE_NAMES, ContactBlock
-from hapticdesk.files.profile import load_profile
+from hapticdesk.files.profile_reader import load_profile
 
 
 def row_by_row(block: ContactBlock, names: list[str]) -> str:

@@ -5,8 +5,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hapticdesk.estimator.geometry import SurfaceFrame, intersect
-from hapticdesk.files.profile import DeskProfile, SensorSpec, Surface, rotation_matrix
+from hapticdesk.estimator.geometry import SurfaceFrame
+from hapticdesk.estimator.intersection import intersect
+from hapticdesk.files.profile import DeskProfile, SensorSpec, Surface
+from hapticdesk.files.rigid_body import rotation_matrix
 
 unit = st.floats(-1.0, 1.0, allow_nan=False)
 

@@ -14,11 +14,13 @@ from typing import Any
 import numpy as np
 import pytest
 
-from hapticdesk.files import recording, strokefile
-from hapticdesk.files.profile import builtin_profile_path, load_profile, resolve_profile_path
-from hapticdesk.files.recording import read_recording
+from hapticdesk.errors import ConfigError
+from hapticdesk.files import recording_io, recording_lines, strokefile
+from hapticdesk.files.profile_reader import builtin_profile_path, load_profile, resolve_profile_path
+from hapticdesk.files.recording_io import read_recording
 from hapticdesk.files.strokefile import read_stroke
-from hapticdesk.files.yamlfile import ConfigError, load_marked_yaml, number, vector
+from hapticdesk.files.validators import number, vector
+from hapticdesk.files.yamlfile import load_marked_yaml
 
 NAMES = ["fl", "fr", "bl", "br"]
 HEADER = ",".join(["t"] + [f"{s}_{a}" for s in NAMES for a in ("fx", "fy", "fz", "mx", "my", "mz")])
@@ -137,7 +139,7 @@ def test_a_quoted_cell_may_hold_commas_but_a_row_may_not_hold_more_cells(tmp_pat
 def test_a_line_without_end_is_refused_after_the_line_limit(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(recording, "MAX_LINE_CHARS", 1000)
+    monkeypatch.setattr(recording_lines, "MAX_LINE_CHARS", 1000)
     path = tmp_path / "nonl.csv"
     path.write_text("t" * 5000)
     with pytest.raises(ConfigError, match=r"nonl.csv:1: a line longer than 1000 characters"):
@@ -163,11 +165,11 @@ def test_the_samples_before_a_bad_line_are_handed_out_first(
 ) -> None:
     # a replay read in blocks lost the good rows of the block that held a bad line (a run
     # ended at 16,384 samples on a file good to line 27,000): nothing read is lost now
-    monkeypatch.setattr(recording, "MAX_LINE_CHARS", 1000)
+    monkeypatch.setattr(recording_lines, "MAX_LINE_CHARS", 1000)
     rows = [f"{i * 1e-3}," + ROW[2:] for i in range(30)]
     rows[20] = bad  # file line 22
     path = write_rows(tmp_path / "late_bad.csv", rows)
-    with recording.RecordingBlocks(path, NAMES, block_rows=8) as blocks:
+    with recording_io.RecordingBlocks(path, NAMES, block_rows=8) as blocks:
         got: list[float] = []
         with pytest.raises(ConfigError, match=r"late_bad.csv:22\b"):
             for block in blocks.blocks():
@@ -184,9 +186,9 @@ def test_a_trailing_comma_is_not_a_value_too_many(tmp_path: Path) -> None:
 def test_a_block_ends_once_its_lines_hold_the_block_limit(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(recording, "MAX_BLOCK_CHARS", 1000)  # about 20 rows of 50 characters
+    monkeypatch.setattr(recording_lines, "MAX_BLOCK_CHARS", 1000)  # about 20 rows of 50 characters
     path = write_rows(tmp_path / "rows.csv", [f"{i * 1e-3}," + ROW[2:] for i in range(200)])
-    with recording.RecordingBlocks(path, NAMES, block_rows=16_384) as blocks:
+    with recording_io.RecordingBlocks(path, NAMES, block_rows=16_384) as blocks:
         sizes = [len(block) for block in blocks.blocks()]
     # (a block holds the limit and at most one read of as many characters more)
     assert sum(sizes) == 200 and max(sizes) <= 2 * 1000 // len(ROW) + 2 and len(sizes) >= 5
@@ -200,7 +202,7 @@ def test_a_byte_that_is_not_utf8_is_named_at_its_line_after_the_samples_before(
     data = (HEADER + "\n" + "\n".join(rows) + "\n").encode()
     at = data.index(("\n" + rows[999] + "\n").encode()) + 1 + 6  # line 1001, column 7
     path.write_bytes(data[:at] + b"\xe9" + data[at + 1 :])
-    with recording.RecordingBlocks(path, NAMES, block_rows=16_384) as blocks:
+    with recording_io.RecordingBlocks(path, NAMES, block_rows=16_384) as blocks:
         got: list[float] = []
         with pytest.raises(ConfigError, match=r"bad_utf8.csv:1001:7: not UTF-8 text: byte 0xe9"):
             for block in blocks.blocks():
@@ -304,7 +306,7 @@ def test_words_and_numbers_read_as_yaml_1_2_reads_them(tmp_path: Path) -> None:
     "ON", "1:30" and 10. Now both read it alike; a true-or-false setting still takes `on`."""
     import json
 
-    from hapticdesk.files.yamlfile import flag
+    from hapticdesk.files.validators import flag
     from hapticdesk.gestures.event import GestureEvent
     from hapticdesk.plugins.mqtt.message import encode_payload
     from hapticdesk.plugins.templating import compile_value, event_variables
@@ -327,7 +329,7 @@ def test_words_and_numbers_read_as_yaml_1_2_reads_them(tmp_path: Path) -> None:
         flag(doc, "c", "x", default=False)  # quoted: text, in 1.1 as in 1.2
     assert doc["d"] == 31
     # and the settings that are true or false read them as before
-    from hapticdesk.gestures.layout import load_layout
+    from hapticdesk.gestures.layout_reader import load_layout
     from hapticdesk.plugins.mqtt.settings import settings_from_layout
 
     mqtt = load_marked_yaml("x.yaml", text="mqtt: {discovery: off, retain: yes}\n")["mqtt"]

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 import scipy.signal
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.estimator import ContactEstimator, estimate
 from hapticdesk.estimator.contacts import FLAG_NO_ACCEL
 from hapticdesk.estimator.filters import butter_lowpass_sos
 from hapticdesk.estimator.inertia import InertiaSettings, InertiaStage, accelerometer_readings
-from hapticdesk.files.profile import load_profile
-from hapticdesk.files.recording import read_recording, write_recording
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.files.profile_reader import load_profile
+from hapticdesk.files.recording_io import read_recording, write_recording
 from hapticdesk.sim import SimEffects, simulate
 from hapticdesk.sim.desk import DeskModel
 from hapticdesk.sim.scene import load_scene

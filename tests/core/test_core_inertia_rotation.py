@@ -8,12 +8,13 @@ import numpy as np
 import pytest
 
 from hapticdesk.bench.accuracy import measure_accuracy
+from hapticdesk.errors import ConfigError
 from hapticdesk.estimator import ContactEstimator, estimate
 from hapticdesk.estimator.contacts import FLAG_NO_ACCEL, ContactBlock
 from hapticdesk.estimator.inertia import InertiaSettings, InertiaStage, accelerometer_readings
-from hapticdesk.files.profile import load_profile
-from hapticdesk.files.recording import accel_table, read_recording, write_recording
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.files.profile_reader import load_profile
+from hapticdesk.files.recording import accel_table
+from hapticdesk.files.recording_io import read_recording, write_recording
 from hapticdesk.sim import LongPress, Scene, Tap, simulate
 from hapticdesk.sim.desk import DeskModel
 from hapticdesk.sim.sensors import AccelerometerModel

@@ -56,7 +56,7 @@ import json, sys
 import hapticdesk.estimator, hapticdesk.estimator.contacts, hapticdesk.gestures.engine
 before = [m for m in ("numba", "scipy.signal") if m in sys.modules]
 from hapticdesk.estimator import ContactEstimator
-from hapticdesk.files.profile import load_profile
+from hapticdesk.files.profile_reader import load_profile
 ContactEstimator(load_profile("kitamura2017"))
 print(json.dumps([before, "numba" in sys.modules, "scipy.signal" in sys.modules]))
 """
@@ -73,7 +73,7 @@ import numpy as np
 import hapticdesk
 assert hapticdesk.__file__.startswith(sys.argv[1]), hapticdesk.__file__
 from hapticdesk.estimator import ContactEstimator
-from hapticdesk.files.profile import load_profile
+from hapticdesk.files.profile_reader import load_profile
 start = time.perf_counter()
 est = ContactEstimator(load_profile(sys.argv[2]))
 block = est.push(np.arange(10) / 1200.0, np.zeros((10, 4, 6)))

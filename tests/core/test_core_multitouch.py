@@ -11,7 +11,7 @@ import pytest
 
 from hapticdesk.estimator import ContactEstimator
 from hapticdesk.estimator.contacts import FLAG_GAP, FLAG_MULTI, ContactBlock
-from hapticdesk.files.profile import load_profile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.sim import Scene, simulate
 from hapticdesk.sim.actions import Press, Step, Swipe, Tap
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from hapticdesk.estimator import ContactEstimator
-from hapticdesk.files.profile import load_profile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.sim import Scene, simulate
 from hapticdesk.sim.actions import Idle, LiftObject, Press, PutObject
 

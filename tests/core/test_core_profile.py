@@ -5,8 +5,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hapticdesk.files.profile import load_profile, rotation_matrix
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.profile_reader import load_profile
+from hapticdesk.files.rigid_body import rotation_matrix
 
 GOOD = """\
 name: bench
@@ -252,7 +253,8 @@ def test_two_six_axis_sensors_locate_a_touch(tmp_path):
 
 
 def test_a_load_cell_recording_has_one_column_per_cell(tmp_path):
-    from hapticdesk.files.recording import Recording, read_recording, write_recording
+    from hapticdesk.files.recording import Recording
+    from hapticdesk.files.recording_io import read_recording, write_recording
 
     desk = load_profile(write(tmp_path, LOAD_CELLS))
     k = 5
@@ -266,3 +268,25 @@ def test_a_load_cell_recording_has_one_column_per_cell(tmp_path):
         assert back.wrench.shape == (k, 6) and np.array_equal(back.channels, readings)
     with pytest.raises(ConfigError, match="missing column"):
         read_recording(tmp_path / "cells.csv", desk.sensor_names)  # six-axis columns expected
+
+
+def test_a_top_close_to_its_sensors_is_its_own_height():
+    """The top's height above the sensors, however close: the balance board's top is 4 cm
+    over its cells (it had read 0.7 m, a floor of 5 cm taking it for no top, so its default
+    inertia was a 0.7 m tall box and its centre of mass 60 cm above the board); a desk of
+    ordinary height reads its own; a profile with no surface keeps the 0.7 m default."""
+    from dataclasses import replace
+
+    board = load_profile("balance-board")
+    cells_z = np.mean([s.position[2] for s in board.sensors])
+    assert board.top_height_m() == pytest.approx(board.surfaces[0].origin[2] - cells_z)
+    assert board.top_height_m() == pytest.approx(0.04)
+    plain = replace(board, center_of_mass_m=None, inertia_kg_m2=None)
+    assert plain.center_of_mass()[2] < board.surfaces[0].origin[2]  # inside the board
+    lx, ly = plain.footprint_m()
+    ixx = np.diag(plain.inertia_about_com())[0]
+    assert ixx == pytest.approx(3.5 / 12 * (ly**2 + 0.04**2))  # a 4 cm plate, not a 0.7 m box
+    assert load_profile("kitamura2017").top_height_m() == pytest.approx(0.733)
+    cells = load_profile("kitamura2017-loadcells-80hz")  # cells 3 cm under the top
+    assert cells.top_height_m() == pytest.approx(0.03)
+    assert replace(board, surfaces=()).top_height_m() == pytest.approx(0.7)

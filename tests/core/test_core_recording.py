@@ -3,8 +3,9 @@
 import numpy as np
 import pytest
 
-from hapticdesk.files.recording import Recording, read_recording, write_recording
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.recording import Recording
+from hapticdesk.files.recording_io import read_recording, write_recording
 
 NAMES = ["fl", "fr", "bl", "br"]
 
@@ -186,7 +187,7 @@ def test_npz_extra_columns_of_other_kinds_are_ignored(tmp_path):
 
 @pytest.mark.parametrize("suffix", [".csv", ".npz"])
 def test_blocks_join_to_the_whole_file(tmp_path, suffix):
-    from hapticdesk.files.recording import RecordingBlocks
+    from hapticdesk.files.recording_io import RecordingBlocks
 
     rec = sample_recording(50)
     path = tmp_path / f"rec{suffix}"
@@ -226,4 +227,4 @@ def test_a_replay_closed_from_another_thread_ends_cleanly(tmp_path, paper_desk):
     thread.join(5)
     assert not thread.is_alive() and errors == []
     assert 0 < sum(got) < 40_000
-    assert source.inner.recording._reader._fh is None  # the file was closed
+    assert source.recording._reader._fh is None  # the file was closed

@@ -20,7 +20,7 @@ HEADER = "t," + ",".join(f"{s}_{a}" for s in NAMES for a in ("fx", "fy", "fz", "
 REPLAY = textwrap.dedent(
     """
     import sys
-    from hapticdesk.files.profile import load_profile
+    from hapticdesk.files.profile_reader import load_profile
     from hapticdesk.plugins.replay import open_replay
 
     source = open_replay(sys.argv[1], load_profile("kitamura2017"), speed=0)
@@ -76,8 +76,9 @@ def test_replay_memory_does_not_grow_with_the_file(tmp_path):
 def test_an_npz_of_thousands_of_members_is_refused_before_they_are_opened(tmp_path):
     """The fuzzing pass: a 12 MB NPZ of 60,000 tiny extra columns took 3.4 GB and 32 s,
     each member opened as a stream of its own. More than 1,024 members are refused at once."""
-    from hapticdesk.files.recording import MAX_NPZ_MEMBERS, read_recording
-    from hapticdesk.files.yamlfile import ConfigError
+    from hapticdesk.errors import ConfigError
+    from hapticdesk.files.recording_io import read_recording
+    from hapticdesk.files.recording_npz import MAX_NPZ_MEMBERS
 
     sensors = ["fl", "fr", "bl", "br"]
     columns = {"t": np.arange(10.0)}

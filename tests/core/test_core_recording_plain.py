@@ -11,9 +11,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from hapticdesk.files import recording
-from hapticdesk.files.recording import Recording, read_recording, write_recording
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
+from hapticdesk.files import recording_csv
+from hapticdesk.files.recording import Recording
+from hapticdesk.files.recording_io import read_recording, write_recording
 
 from .test_core_recording_fuzz import NAMES, csv_texts
 
@@ -32,7 +33,7 @@ def _read(path: Path, block_rows: int) -> Recording | str:
 
 
 def _careful_only(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(recording._CsvReader, "_parse_plain", lambda self, lines: None)
+    monkeypatch.setattr(recording_csv.CsvRecordingReader, "_parse_plain", lambda self, lines: None)
 
 
 def _assert_same(a: Recording | str, b: Recording | str) -> None:
@@ -117,7 +118,7 @@ def test_a_written_recording_never_takes_the_careful_path(
     def refuse(self, lines, first_line):
         raise AssertionError(f"the careful path ran on line {first_line}")
 
-    monkeypatch.setattr(recording._CsvReader, "_parse_careful", refuse)
+    monkeypatch.setattr(recording_csv.CsvRecordingReader, "_parse_careful", refuse)
     for file in (path, crlf):
         back = read_recording(file, NAMES, block_rows=1000)
         np.testing.assert_allclose(back.wrench, rec.wrench, rtol=1e-9)

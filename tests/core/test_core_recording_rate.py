@@ -11,11 +11,12 @@ import numpy as np
 import pytest
 
 from hapticdesk.cli import main
-from hapticdesk.files.profile import load_profile
-from hapticdesk.files.readers import check_sample_rate, read_any_recording
-from hapticdesk.files.recording import Recording, read_recording, write_recording
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.profile_reader import load_profile
+from hapticdesk.files.recording import Recording
+from hapticdesk.files.recording_io import read_recording, write_recording
 from hapticdesk.plugins.replay import open_replay
+from hapticdesk.recordings import check_sample_rate, read_any_recording
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,7 @@ import pytest
 
 from hapticdesk.bench.accuracy import find_presses, measure_accuracy
 from hapticdesk.estimator import ContactEstimator
-from hapticdesk.files.profile import load_profile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.sim import Action, LongPress, Press, Scene, Tap, simulate
 
 POINTS = [(-0.3, 0.2), (0.0, 0.0), (0.3, -0.2)]

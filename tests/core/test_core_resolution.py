@@ -9,7 +9,7 @@ import pytest
 from hapticdesk.estimator import ContactEstimator
 from hapticdesk.estimator.candidates import Covariances
 from hapticdesk.estimator.resolution import CONFIRM_CHANGES, rounding_deficit
-from hapticdesk.files.profile import load_profile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.sim import Scene, simulate
 from hapticdesk.sim.actions import Idle, Tap
 from hapticdesk.sim.sensors import SensorParameters

@@ -21,7 +21,8 @@ from hapticdesk.estimator.contacts import (
     FLAG_TIME_BACK,
     ContactBlock,
 )
-from hapticdesk.files.profile import METHODS, load_profile
+from hapticdesk.files.profile import METHODS
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.sim import Press, Scene, SimEffects, simulate
 
 SPLITS = ("one", "ones", "sevens", "random")

@@ -10,12 +10,13 @@ import numpy as np
 import pytest
 import scipy.signal
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.estimator import ContactEstimator
 from hapticdesk.estimator.contacts import ContactBlock
 from hapticdesk.estimator.inertia import accelerometer_readings
 from hapticdesk.estimator.sway import SwaySettings
-from hapticdesk.files.profile import DeskProfile, load_profile
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.sim import simulate
 from hapticdesk.sim.actions import Idle
 from hapticdesk.sim.scene import Scene, load_scene

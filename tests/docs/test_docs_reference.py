@@ -47,7 +47,7 @@ def pages() -> dict[str, str]:
 
 @pytest.fixture(scope="module")
 def registry() -> Any:
-    from hapticdesk.registry import load_registry
+    from hapticdesk.plugin_loading import load_registry
 
     return load_registry(entry_points=False)
 
@@ -59,7 +59,8 @@ def missing(keys: Any, text: str) -> list[str]:
 
 def test_every_layout_key_region_key_binding_key_and_unit(pages: dict[str, str], registry: Any):
     from hapticdesk.gestures.layout import UNITS
-    from hapticdesk.gestures.layout_reader import BINDING_KEYS, allowed_top_keys
+    from hapticdesk.gestures.layout_bindings import BINDING_KEYS
+    from hapticdesk.gestures.layout_reader import allowed_top_keys
     from hapticdesk.gestures.layout_regions import REGION_KEYS
 
     layout = pages["layout.md"]
@@ -142,17 +143,17 @@ def test_every_command_and_argument(pages: dict[str, str]) -> None:
 
 
 def test_every_profile_key_sensor_kind_and_estimation_setting(pages: dict[str, str]) -> None:
-    from hapticdesk.files import profile_reader
+    from hapticdesk.files import profile_reader, profile_sensors, profile_surfaces
     from hapticdesk.files.profile import EstimationSettings
 
     text = pages["profile.md"]
     for keys in (
-        profile_reader._TOP_KEYS,
-        profile_reader._SENSOR_KEYS,
-        profile_reader._SURFACE_KEYS,
-        profile_reader._DESK_KEYS,
-        profile_reader._ACCEL_KEYS,
-        profile_reader.SENSOR_KINDS,
+        profile_reader.PROFILE_KEYS,
+        profile_sensors.SENSOR_KEYS,
+        profile_surfaces.SURFACE_KEYS,
+        profile_reader.DESK_KEYS,
+        profile_sensors.ACCELEROMETER_KEYS,
+        profile_sensors.SENSOR_KINDS,
     ):
         assert missing(keys, text) == []
     assert missing([f.name for f in dataclasses.fields(EstimationSettings)], text) == []
@@ -163,8 +164,8 @@ def test_every_file_column_event_key_route_and_hook(pages: dict[str, str]) -> No
 
     from hapticdesk.commands.contacts import HEADER
     from hapticdesk.gestures.event import GestureEvent
+    from hapticdesk.hookspecs import hookspec_names
     from hapticdesk.plugins.ui.server import UiServer
-    from hapticdesk.registry import hookspec_names
 
     files = pages["files.md"]
     assert missing(HEADER, files) == []
@@ -239,15 +240,17 @@ def test_the_docs_found_whole_layouts_to_check() -> None:
 def test_users_are_not_sent_where_they_cannot_go() -> None:
     """The team's DESIGN.md and ../shared/ are not in the project: no page may send a user
     there (their contracts are stated in the docs' reference)."""
-    for folder in (DOCS, ROOT / "examples"):
-        for page in folder.rglob("*.md"):
-            text = page.read_text("utf-8")
-            assert "DESIGN.md" not in text, page
-            assert "../shared" not in text, page
+    pages = [ROOT / "README.md", *DOCS.rglob("*.md"), *(ROOT / "examples").rglob("*.md")]
+    # the package's own docstrings too: `help()` and an editor show them to a plugin's author
+    pages += [*(ROOT / "core").rglob("*.py"), *(ROOT / "plugins").rglob("*.py")]
+    for page in pages:
+        text = page.read_text("utf-8")
+        assert "DESIGN.md" not in text, page
+        assert "../shared" not in text, page
 
 
 def test_the_plugin_example_names_every_hook_and_where_they_are() -> None:
-    from hapticdesk.registry import hookspec_names
+    from hapticdesk.hookspecs import hookspec_names
 
     text = (ROOT / "examples" / "plugin-example" / "README.md").read_text("utf-8")
     assert missing(hookspec_names(), text) == []

@@ -195,7 +195,7 @@ def test_log_shows_the_first_update_of_a_binding_that_takes_no_begin(capsys):
 
 
 def test_log_refuses_an_updates_value_it_does_not_know():
-    from hapticdesk.files.yamlfile import ConfigError
+    from hapticdesk.errors import ConfigError
     from hapticdesk.plugins.log import validate
 
     with pytest.raises(ConfigError, match="summary, every"):

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from hapticdesk.estimator.contacts import PHASE_HOLD, SOURCE_FUSED, ContactBlock
-from hapticdesk.gestures.layout import Layout, load_layout
+from hapticdesk.gestures.layout import Layout
+from hapticdesk.gestures.layout_reader import load_layout
 
 ACTIONS = {"mqtt", "log", "exec", "http"}
 PathSpec = tuple[float, float] | np.ndarray | Callable[[np.ndarray], np.ndarray]

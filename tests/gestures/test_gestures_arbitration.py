@@ -9,11 +9,11 @@ import pytest
 
 from hapticdesk.cli import main
 from hapticdesk.estimator.contacts import ContactBlock
-from hapticdesk.files.profile import profile_from_mapping
+from hapticdesk.files.profile_reader import profile_from_mapping
 from hapticdesk.files.yamlfile import load_marked_yaml
 from hapticdesk.gestures.arbitration import ORDER, describe
 from hapticdesk.gestures.engine import GestureEngine
-from hapticdesk.gestures.layout import load_layout
+from hapticdesk.gestures.layout_reader import load_layout
 
 #: a tap may move 3 cm here and a swipe be 4 cm long: a quick 5 cm flick is both
 TAP_AND_SWIPE = """

@@ -201,7 +201,7 @@ def test_a_force_that_slides_off_its_knob_ends_with_cancel_when_asked(make_layou
 
 
 def test_leave_must_be_clip_or_cancel(make_layout):
-    from hapticdesk.files.yamlfile import ConfigError
+    from hapticdesk.errors import ConfigError
 
     with pytest.raises(ConfigError, match="`leave` .* must be one of clip, cancel, found 'away'"):
         make_layout(LEAVING.replace("leave: cancel", "leave: away", 1))

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 from hapticdesk.gestures.options import GESTURE_OPTIONS
 from hapticdesk.gestures.strokes.dollar_logs import read_logged_stroke, read_logs
 from hapticdesk.gestures.strokes.unistroke import TemplateSet, builtin_templates

@@ -13,7 +13,7 @@ import pytest
 from hapticdesk.estimator import ContactEstimator, estimate
 from hapticdesk.gestures.engine import GestureEngine
 from hapticdesk.gestures.event import GestureEvent
-from hapticdesk.gestures.layout import load_layout
+from hapticdesk.gestures.layout_reader import load_layout
 from hapticdesk.gestures.strokes.shapes import hand_drawn
 from hapticdesk.sim import Drag, Idle, LongPress, Press, Ramp, Scene, Stroke, Swipe, Tap, simulate
 from hapticdesk.sim.sensors import SensorParameters

@@ -120,7 +120,7 @@ def test_a_taps_only_layout_never_imports_the_stroke_recognizer(tmp_path):
         import numpy as np
         from hapticdesk.estimator.contacts import ContactBlock
         from hapticdesk.gestures.engine import GestureEngine
-        from hapticdesk.gestures.layout import load_layout
+        from hapticdesk.gestures.layout_reader import load_layout
         engine = GestureEngine(load_layout({str(layout)!r}))
         engine.feed(ContactBlock.empty())
         print(sorted(engine.recognizers))
@@ -161,7 +161,7 @@ def test_plugin_recognizer_gets_contact_events(make_layout, timeline):
 
 
 def test_touches_on_a_tilted_surface_use_its_own_coordinates(write_layout, tmp_path, timeline):
-    from hapticdesk.gestures.layout import load_layout
+    from hapticdesk.gestures.layout_reader import load_layout
 
     desk = tmp_path / "panel.yaml"
     desk.write_text(

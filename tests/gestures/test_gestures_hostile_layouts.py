@@ -11,8 +11,9 @@ from pathlib import Path
 import pytest
 
 from hapticdesk.cli import main
-from hapticdesk.files.profile import load_profile
-from hapticdesk.files.yamlfile import ConfigError, load_marked_yaml
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.profile_reader import load_profile
+from hapticdesk.files.yamlfile import load_marked_yaml
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.sim.scene import load_scene
 
@@ -195,7 +196,7 @@ def test_aliases_within_the_limit_still_work(tmp_path):
 
 def test_a_warning_is_printed_once(tmp_path, capsys, caplog, monkeypatch):
     """A failing plugin's warning was logged by the registry and printed again by check."""
-    import hapticdesk.registry as registry_module
+    import hapticdesk.plugin_loading as registry_module
 
     class Broken:
         @hookimpl

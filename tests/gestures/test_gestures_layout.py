@@ -7,12 +7,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hapticdesk.files.profile import load_profile
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.gestures.event import GestureEvent
-from hapticdesk.gestures.layout import load_layout
+from hapticdesk.gestures.layout_reader import load_layout
 from hapticdesk.gestures.regions import regions_overlap
-from hapticdesk.registry import load_registry
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.runtime.assembly import load_scene_layout
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "layouts"

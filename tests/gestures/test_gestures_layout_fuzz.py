@@ -14,9 +14,9 @@ from pathlib import Path
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from hapticdesk.files.yamlfile import ConfigError
-from hapticdesk.gestures.layout import load_layout
-from hapticdesk.registry import load_registry
+from hapticdesk.errors import ConfigError
+from hapticdesk.gestures.layout_reader import load_layout
+from hapticdesk.plugin_loading import load_registry
 
 VALID = """\
 desk: kitamura2017

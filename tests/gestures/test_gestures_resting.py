@@ -13,9 +13,9 @@ import pytest
 
 from hapticdesk.estimator import ContactEstimator
 from hapticdesk.estimator.inertia import accelerometer_readings
-from hapticdesk.files.profile import load_profile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.gestures.engine import GestureEngine
-from hapticdesk.gestures.layout import load_layout
+from hapticdesk.gestures.layout_reader import load_layout
 from hapticdesk.sim import Scene, simulate
 from hapticdesk.sim.actions import Idle, LiftObject, LongPress, PutObject
 

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from hapticdesk.cli import main
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.strokefile import read_stroke, read_template_dir, write_stroke
-from hapticdesk.files.yamlfile import ConfigError
 from hapticdesk.gestures.options import GESTURE_OPTIONS
 from hapticdesk.gestures.strokes.shapes import SHAPES, hand_drawn, template_document
 from hapticdesk.gestures.strokes.unistroke import TemplateSet, builtin_templates, template_set
@@ -237,7 +237,7 @@ def test_a_compensated_desks_strokes_keep_their_corners():
     sway to the wobble test and the heavy σ rounded them."""
     from dataclasses import replace
 
-    from hapticdesk.files.profile import load_profile
+    from hapticdesk.files.profile_reader import load_profile
     from hapticdesk.gestures.recognizers.stroke import (
         calm_smoothing_s,
         smoothing_s,

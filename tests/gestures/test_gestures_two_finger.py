@@ -8,7 +8,7 @@ import pytest
 
 from hapticdesk.estimator import ContactEstimator
 from hapticdesk.gestures.engine import GestureEngine
-from hapticdesk.gestures.layout import load_layout
+from hapticdesk.gestures.layout_reader import load_layout
 from hapticdesk.sim import Press, Scene, Tap, simulate
 from hapticdesk.sim.actions import Step
 

@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.estimator import ContactEstimator
 from hapticdesk.files.c3d import open_c3d
 from hapticdesk.files.forceplate import plate_desk, read_plate_recording
-from hapticdesk.files.yamlfile import ConfigError
 
 from .conftest import (
     PlateSpec,

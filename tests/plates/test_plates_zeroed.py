@@ -6,10 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.estimator import ContactEstimator
 from hapticdesk.files.profile import DeskProfile, EstimationSettings, SensorSpec, Surface
-from hapticdesk.files.profile_reader import read_profile
-from hapticdesk.files.yamlfile import ConfigError, load_marked_yaml
+from hapticdesk.files.profile_reader import profile_from_mapping
+from hapticdesk.files.yamlfile import load_marked_yaml
 
 RATE = 1000.0
 
@@ -93,9 +94,9 @@ def test_a_profile_that_says_zeroed_must_give_the_noise(tmp_path):
         "estimation: {zeroed: true}\n"
     )
     with pytest.raises(ConfigError, match=r"plate.yaml:4:\d+: `zeroed: true`.*noise_force_n"):
-        read_profile(load_marked_yaml(path), path)
+        profile_from_mapping(load_marked_yaml(path), path)
     path.write_text(
         "name: p\nsample_rate_hz: 1000\nsensors: [{name: s, position: [0, 0, -0.05]}]\n"
         "estimation: {zeroed: true, noise_force_n: 0.3, noise_moment_nm: 0.02}\n"
     )
-    assert read_profile(load_marked_yaml(path), path).estimation.zeroed
+    assert profile_from_mapping(load_marked_yaml(path), path).estimation.zeroed

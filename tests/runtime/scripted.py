@@ -12,7 +12,7 @@ from typing import Any
 
 from hapticdesk.files.recording import Recording
 from hapticdesk.hookspecs import hookimpl
-from hapticdesk.registry import load_registry
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.runtime.assembly import build_scene
 from hapticdesk.runtime.service import Runtime
 

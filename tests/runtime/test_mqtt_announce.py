@@ -12,7 +12,7 @@ from pathlib import Path
 
 import jinja2
 
-from hapticdesk.registry import load_registry
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.runtime.assembly import build_scene
 from hapticdesk.runtime.service import Runtime
 
@@ -112,7 +112,7 @@ def test_a_layout_switch_announces_the_new_layout_and_the_select_shows_it(
 
 def test_two_identical_taps_are_two_different_messages(broker, subscribe, tmp_path, paper_desk):
     """Home Assistant drops a state equal to the last one: every message carries ``seq``."""
-    from hapticdesk.files.recording import write_recording
+    from hapticdesk.files.recording_io import write_recording
 
     from .taps import Tap, tap_recording
 

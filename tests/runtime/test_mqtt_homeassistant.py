@@ -14,7 +14,7 @@ from typing import Any
 import jinja2
 import pytest
 
-from hapticdesk.files.recording import write_recording
+from hapticdesk.files.recording_io import write_recording
 from hapticdesk.plugins.mqtt.homeassistant import DeskTopics, discovery_configs, event_types
 
 from .taps import Tap, tap_recording
@@ -379,8 +379,8 @@ def test_without_a_broker_the_announcement_gives_up_quietly(caplog):
     ],
 )
 def test_a_bad_style_names_its_place(tmp_path, section, message):
-    from hapticdesk.files.yamlfile import ConfigError
-    from hapticdesk.registry import load_registry
+    from hapticdesk.errors import ConfigError
+    from hapticdesk.plugin_loading import load_registry
     from hapticdesk.runtime.assembly import load_scene_layout
 
     path = tmp_path / "layout.yaml"

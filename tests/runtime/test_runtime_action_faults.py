@@ -14,8 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from hapticdesk.files.yamlfile import ConfigError
-from hapticdesk.registry import load_registry
+from hapticdesk.errors import ConfigError
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.runtime.dispatcher import Lane
 
 from .test_runtime_actions import TAP, build, load

@@ -11,17 +11,18 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from hapticdesk.files.recording import Recording, write_recording
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.recording import Recording
+from hapticdesk.files.recording_io import write_recording
 from hapticdesk.hookspecs import hookimpl
-from hapticdesk.registry import load_registry
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.runtime.assembly import build_scene
 from hapticdesk.runtime.control import ControlError, command, parse_command
 from hapticdesk.runtime.service import Runtime
@@ -53,18 +54,20 @@ class ScriptedSource(Source):
     thread) just before the first block at or after it."""
 
     def __init__(self, recording: Recording, script: dict[float, Callable[[], None]]):
+        super().__init__(recording.sensor_names, 1200.0)
         self.recording = recording
-        self.sensor_names = list(recording.sensor_names)
-        self.sample_rate_hz = 1200.0
         self.script = dict(sorted(script.items()))
+        self.start = 0
 
-    def blocks(self) -> Iterator[WrenchBlock]:
-        rec = self.recording
-        for start in range(0, len(rec), BLOCK):
-            t0 = float(rec.t[start])
-            for when in [w for w in self.script if w <= t0]:
-                self.script.pop(when)()
-            yield WrenchBlock(rec.t[start : start + BLOCK], rec.wrench[start : start + BLOCK])
+    def read_block(self) -> WrenchBlock | None:
+        rec, start = self.recording, self.start
+        if start >= len(rec):
+            return None
+        t0 = float(rec.t[start])
+        for when in [w for w in self.script if w <= t0]:
+            self.script.pop(when)()
+        self.start += BLOCK
+        return WrenchBlock(rec.t[start : start + BLOCK], rec.wrench[start : start + BLOCK])
 
 
 @pytest.fixture

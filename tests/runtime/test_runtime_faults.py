@@ -12,13 +12,14 @@ from types import SimpleNamespace
 
 import pytest
 
-from hapticdesk.files.recording import write_recording
-from hapticdesk.files.yamlfile import ConfigError, load_marked_yaml
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.recording_io import write_recording
+from hapticdesk.files.yamlfile import load_marked_yaml
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.plugins.mqtt import link_for
 from hapticdesk.plugins.mqtt.link import MqttLink
 from hapticdesk.plugins.mqtt.message import Message
 from hapticdesk.plugins.mqtt.settings import MqttSettings, settings_from_layout
-from hapticdesk.registry import load_registry
 from hapticdesk.runtime.assembly import build_scene
 from hapticdesk.runtime.service import Runtime
 

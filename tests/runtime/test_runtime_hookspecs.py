@@ -12,11 +12,12 @@ from hapticdesk.estimator.contacts import ContactEvent
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.recognizer import Recognizer
 from hapticdesk.gestures.touch import Touch
-from hapticdesk.hookspecs import hookimpl
+from hapticdesk.hookspecs import hookimpl, hookspec_names
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.plugins.replay import RecordingSource
-from hapticdesk.registry import hookspec_names, load_registry
 from hapticdesk.runtime.assembly import build_scene
-from hapticdesk.runtime.service import RunReport, Runtime
+from hapticdesk.runtime.run_report import RunReport
+from hapticdesk.runtime.service import Runtime
 
 from .taps import Tap, tap_recording
 
@@ -36,6 +37,14 @@ def test_every_hookspec_is_documented(name):
     assert "Called" in doc, f"{name}: say when it is called"
     for argument in inspect.signature(spec).parameters:
         assert f"``{argument}``" in doc, f"{name}: document the argument `{argument}`"
+
+
+@pytest.mark.parametrize("name", hookspec_names())
+def test_every_hookspec_argument_is_typed(name):
+    """The hooks' types are the plugin contract: none is left `Any`."""
+    spec = getattr(hookspecs, name)
+    for argument, parameter in inspect.signature(spec).parameters.items():
+        assert parameter.annotation not in (inspect.Parameter.empty, "Any"), (name, argument)
 
 
 class Knock(Recognizer):

@@ -10,13 +10,14 @@ from pathlib import Path
 
 import pytest
 
-from hapticdesk.files.recording import write_recording
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.recording_io import write_recording
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.plugins import templating
 from hapticdesk.plugins.templating import SAMPLE_VARIABLES, TemplateError, compile_template
-from hapticdesk.registry import load_registry
 from hapticdesk.runtime.assembly import build_scene
-from hapticdesk.runtime.service import Runtime, report_json
+from hapticdesk.runtime.run_report import report_json
+from hapticdesk.runtime.service import Runtime
 
 from .taps import Tap, tap_recording
 

@@ -12,13 +12,13 @@ from types import SimpleNamespace
 
 import pytest
 
-from hapticdesk.files.recording import write_recording
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.recording_io import write_recording
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.hookspecs import hookimpl
-from hapticdesk.registry import load_registry
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.runtime.assembly import build_scene
-from hapticdesk.runtime.isolation import IsolationSettings, ProcessAction
+from hapticdesk.runtime.isolation import IsolationSettings, ProcessAction, action_use_validator
 from hapticdesk.runtime.service import Runtime
 
 from . import spin_plugin
@@ -179,7 +179,7 @@ def test_the_cost_of_a_call_through_a_process(capsys):
     ],
 )
 def test_isolation_options_are_checked_in_the_layout(tmp_path, options, expected):
-    from hapticdesk.gestures.layout import load_layout
+    from hapticdesk.gestures.layout_reader import load_layout
 
     registry = load_registry(entry_points=False, plugins=[("misbehaving", spin_plugin)])
     path = tmp_path / "layout.yaml"
@@ -189,7 +189,9 @@ def test_isolation_options_are_checked_in_the_layout(tmp_path, options, expected
     )
     with pytest.raises(ConfigError, match=expected) as err:
         load_layout(
-            path, action_names=registry.action_names, validate_action=registry.validate_action
+            path,
+            action_names=registry.action_names,
+            validate_action=action_use_validator(registry),
         )
     assert "layout.yaml:8:" in str(err.value)
 

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from hapticdesk.files.recording import write_recording
+from hapticdesk.files.recording_io import write_recording
 
 from .conftest import Mosquitto, Subscriber, _program, wait_subscribed
 from .taps import Tap, tap_recording
@@ -198,8 +198,8 @@ def test_desks_on_one_broker_under_site_and_floor_prefixes(broker, subscribe, tm
 )
 def test_bad_prefixes_are_refused_where_they_stand(broker, tmp_path, mqtt, message):
     from hapticdesk.cli import main
-    from hapticdesk.files.yamlfile import ConfigError
-    from hapticdesk.registry import load_registry
+    from hapticdesk.errors import ConfigError
+    from hapticdesk.plugin_loading import load_registry
     from hapticdesk.runtime.assembly import load_scene_layout
 
     layout = write_layout(tmp_path / "l.yaml", "lamp", broker, mqtt=mqtt)
@@ -314,7 +314,7 @@ def test_a_broker_that_does_not_speak_mqtt5_gets_311(broker, subscribe, caplog):
     ],
 )
 def test_bad_protocol_options_are_refused(broker, options, message):
-    from hapticdesk.files.yamlfile import ConfigError
+    from hapticdesk.errors import ConfigError
 
     with pytest.raises(ConfigError, match=re.escape(message)):
         link_settings(broker, "x", **options)

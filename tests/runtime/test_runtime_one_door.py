@@ -8,9 +8,10 @@ from types import SimpleNamespace
 
 import pytest
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 from hapticdesk.hookspecs import hookimpl
-from hapticdesk.registry import DEFAULT_PLUGINS, load_registry
+from hapticdesk.plugin_loading import load_registry
+from hapticdesk.registry import DEFAULT_PLUGINS
 from hapticdesk.runtime.assembly import build_scene
 
 CORE = Path(__file__).resolve().parents[2] / "core"

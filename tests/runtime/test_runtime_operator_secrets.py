@@ -18,9 +18,10 @@ from pathlib import Path
 
 import pytest
 
-from hapticdesk.files.recording import write_recording
-from hapticdesk.files.yamlfile import ConfigError, load_marked_yaml
-from hapticdesk.registry import load_registry
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.recording_io import write_recording
+from hapticdesk.files.yamlfile import load_marked_yaml
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.runtime.operator_secrets import OperatorSecrets, held_parts, reads_of
 from hapticdesk.runtime.service import Runtime
 

@@ -19,8 +19,9 @@ import pytest
 
 from hapticdesk.cli import main
 from hapticdesk.hookspecs import hookimpl
-from hapticdesk.registry import load_registry
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.runtime.assembly import build_scene
+from hapticdesk.runtime.events_file import EventsFile
 from hapticdesk.runtime.service import Runtime
 
 from .taps import Tap, tap_recording
@@ -71,7 +72,7 @@ def test_events_on_a_full_disk_are_dropped_counted_and_sensing_goes_on(
     )
     registry = load_registry(entry_points=False, plugins=[("s", plugin)])
     events = tmp_path / "events.jsonl"
-    monkeypatch.setattr(Runtime, "_open_events", lambda self: _DiskFillsUp(events, 2))
+    monkeypatch.setattr(EventsFile, "_open_file", lambda self: _DiskFillsUp(events, 2))
     runtime = Runtime(build_scene(path, "s:", registry, speed=0), events_path=events)
     with caplog.at_level(logging.ERROR):
         report = runtime.run(handle_signals=False)

@@ -15,9 +15,11 @@ from types import SimpleNamespace
 
 import pytest
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 from hapticdesk.hookspecs import hookimpl
-from hapticdesk.registry import DEFAULT_PLUGINS, DISABLE_AUTOLOAD_ENV, PluginError, load_registry
+from hapticdesk.plugin_loading import load_registry
+from hapticdesk.registered import PluginError
+from hapticdesk.registry import DEFAULT_PLUGINS, DISABLE_AUTOLOAD_ENV
 
 
 def plugin(**hooks):

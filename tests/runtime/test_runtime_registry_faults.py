@@ -8,7 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from hapticdesk.registry import PluginError, load_registry
+from hapticdesk.plugin_loading import load_registry
+from hapticdesk.registered import PluginError
 
 from .test_runtime_registry import _env, plugin
 

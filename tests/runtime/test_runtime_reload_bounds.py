@@ -14,10 +14,11 @@ from types import SimpleNamespace
 import numpy as np
 
 from hapticdesk.hookspecs import hookimpl
-from hapticdesk.registry import load_registry
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.runtime.assembly import build_scene
 from hapticdesk.runtime.dispatcher import MAX_RETIRED_LABELS
-from hapticdesk.runtime.service import MAX_SWAP_WAIT_S, Runtime
+from hapticdesk.runtime.layout_reload import MAX_SWAP_WAIT_S
+from hapticdesk.runtime.service import Runtime
 from hapticdesk.runtime.source import Source, WrenchBlock
 
 from .scripted import answer_into, rss_kb, scripted_run
@@ -65,7 +66,7 @@ def test_a_reload_during_a_3_s_hold_fires_exactly_one_long_press(tmp_path, paper
     assert reloaded == alone
     [answer] = answers
     assert answer.endswith("it takes over when the touch in progress ends")
-    assert runtime._waiting is None  # taken over once the hold ended
+    assert runtime.reloads.waiting is None  # taken over once the hold ended
 
 
 def test_a_reload_between_touches_takes_over_at_once(tmp_path, paper_desk):
@@ -90,32 +91,34 @@ def test_a_touch_held_past_the_wait_is_cancelled_never_released(tmp_path, paper_
     assert long_presses.count(("long_press", None, None)) == 1  # (none by the new layout)
     assert ("long_press", "cancel", None) in long_presses
     assert ("tap", None, None) not in events and ("long_press", "end", None) not in events
-    assert runtime._waiting is None
+    assert runtime.reloads.waiting is None
 
 
 class _Reloading(Source):
     """Quiet blocks; from block 20 on, a reload asked before each of ``count`` blocks."""
 
-    sensor_names = ["fl", "fr", "bl", "br"]
-    sample_rate_hz = 1200.0
-
     def __init__(self, count: int) -> None:
+        super().__init__(["fl", "fr", "bl", "br"], 1200.0)
         self.count = count
         self.runtime: Runtime | None = None
         self.rss_kb: dict[int, int] = {}
+        self.k = 0
 
-    def blocks(self):
+    def read_block(self) -> WrenchBlock | None:
+        k = self.k
+        if k >= self.count + 40:
+            return None
+        self.k += 1
         wrench = np.zeros((60, 4, 6))
         wrench[:, :, 2] = -33.6  # the desk's weight on its legs
-        for k in range(self.count + 40):
-            t = (k * 60 + np.arange(60)) / 1200.0
-            if 20 <= k < self.count + 20:
-                assert self.runtime is not None
-                self.runtime.request("reload")
-            if k in (70, self.count + 19):
-                gc.collect()
-                self.rss_kb[k] = rss_kb()
-            yield WrenchBlock(t, wrench.copy())
+        t = (k * 60 + np.arange(60)) / 1200.0
+        if 20 <= k < self.count + 20:
+            assert self.runtime is not None
+            self.runtime.request("reload")
+        if k in (70, self.count + 19):
+            gc.collect()
+            self.rss_kb[k] = rss_kb()
+        return WrenchBlock(t, wrench)
 
 
 def test_751_reloads_do_not_grow_memory(tmp_path):

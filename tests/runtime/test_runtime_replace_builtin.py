@@ -10,12 +10,14 @@ import numpy as np
 import pytest
 
 from hapticdesk.estimator.contacts import ContactEvent
-from hapticdesk.files.recording import write_recording
+from hapticdesk.files.recording_io import write_recording
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.recognizer import Recognizer
 from hapticdesk.gestures.touch import Touch
 from hapticdesk.hookspecs import hookimpl
-from hapticdesk.registry import BLOCK_ENV, PluginError, load_registry
+from hapticdesk.plugin_loading import load_registry
+from hapticdesk.registered import PluginError
+from hapticdesk.registry import BLOCK_ENV
 from hapticdesk.runtime.assembly import build_scene
 from hapticdesk.runtime.service import Runtime
 

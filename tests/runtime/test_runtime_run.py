@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from hapticdesk.cli import main
-from hapticdesk.files.recording import write_recording
+from hapticdesk.files.recording_io import write_recording
 
 from .taps import Tap, tap_recording
 

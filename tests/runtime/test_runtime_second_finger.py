@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hapticdesk.registry import load_registry
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.runtime.assembly import build_scene
 from hapticdesk.runtime.service import Runtime
 

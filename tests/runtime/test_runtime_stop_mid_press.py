@@ -14,8 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from hapticdesk.files.recording import write_recording
-from hapticdesk.registry import load_registry
+from hapticdesk.files.recording_io import write_recording
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.runtime.assembly import build_scene
 from hapticdesk.runtime.service import Runtime
 

@@ -20,7 +20,7 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.plugins import template_worker, templating
 from hapticdesk.plugins.templating import (
@@ -151,7 +151,7 @@ def test_check_renders_a_template_for_the_events_its_gesture_can_make(tmp_path: 
     """Guards item 2 ("check renders each template against the fields its gesture can
     carry"): a press's `level`, a slide's `value` and `phase`, a long press's tiers reach
     the template at check; a template costly only for one of them is refused, naming it."""
-    from hapticdesk.registry import load_registry
+    from hapticdesk.plugin_loading import load_registry
     from hapticdesk.runtime.assembly import load_scene_layout
 
     costly = "{{ range(9000)|join('x'*1000) }}"
@@ -262,7 +262,7 @@ _EVENTS = [
 RENDERS: list[float] = []
 
 
-@pytest.mark.filterwarnings("ignore::hapticdesk.files.yamlfile.LayoutWarning")
+@pytest.mark.filterwarnings("ignore::hapticdesk.errors.LayoutWarning")
 @settings(
     max_examples=120,
     deadline=None,

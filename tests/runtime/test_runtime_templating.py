@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from hapticdesk.files.yamlfile import ConfigError, load_marked_yaml
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.yamlfile import load_marked_yaml
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.plugins.templating import (
     VARIABLES,

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from hapticdesk.files.profile import DeskProfile, load_profile
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.sim.desk import DeskModel, DeskParameters, point_load
 
 TOP = 0.733

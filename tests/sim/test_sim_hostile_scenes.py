@@ -8,8 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from hapticdesk.files.profile import DeskProfile, load_profile
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.sim import human, simulator, timeline
 from hapticdesk.sim.scene import load_scene
 from hapticdesk.sim.simulator import SimSource, simulate

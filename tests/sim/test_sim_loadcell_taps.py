@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hapticdesk.files.profile import load_profile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.sim.loadcells import LoadCellParameters
 
 SCRIPTS = Path(__file__).resolve().parents[2] / "scripts"

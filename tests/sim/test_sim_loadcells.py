@@ -9,8 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hapticdesk.files.profile import DeskProfile, load_profile, profile_from_mapping
-from hapticdesk.files.recording import read_recording, write_recording
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile, profile_from_mapping
+from hapticdesk.files.recording_io import read_recording, write_recording
 from hapticdesk.files.yamlfile import load_marked_yaml
 from hapticdesk.sim import (
     DeskModel,

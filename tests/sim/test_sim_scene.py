@@ -7,8 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hapticdesk.files.profile import DeskProfile, load_profile
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.sim import (
     GLYPHS,
     Idle,

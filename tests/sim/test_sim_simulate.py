@@ -10,8 +10,9 @@ import pytest
 
 from hapticdesk.cli import main
 from hapticdesk.estimator import estimate
-from hapticdesk.files.profile import DeskProfile, profile_from_mapping
-from hapticdesk.files.recording import read_recording
+from hapticdesk.files.profile import DeskProfile
+from hapticdesk.files.profile_reader import profile_from_mapping
+from hapticdesk.files.recording_io import read_recording
 from hapticdesk.files.yamlfile import load_marked_yaml
 from hapticdesk.sim import (
     TRUTH_COLUMNS,

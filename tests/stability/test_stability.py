@@ -17,7 +17,7 @@ from hapticdesk.estimator.contacts import FLAG_NAN, FLAG_SATURATED, FLAG_STUCK, 
 from hapticdesk.estimator.samples import STUCK_RUN
 from hapticdesk.files.profile import METHODS, DeskProfile
 from hapticdesk.gestures.engine import GestureEngine
-from hapticdesk.gestures.layout import load_layout
+from hapticdesk.gestures.layout_reader import load_layout
 from hapticdesk.sim import (
     DeskParameters,
     HumanModel,

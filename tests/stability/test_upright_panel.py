@@ -19,9 +19,9 @@ from hapticdesk.bench.accuracy import find_presses
 from hapticdesk.estimator import ContactEstimator, estimate
 from hapticdesk.estimator import kernel as k
 from hapticdesk.estimator.detector import upright_surfaces
-from hapticdesk.files.profile import load_profile
+from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.gestures.engine import GestureEngine
-from hapticdesk.gestures.layout import load_layout
+from hapticdesk.gestures.layout_reader import load_layout
 from hapticdesk.sim import LongPress, Scene, Tap, simulate
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "scripts"))

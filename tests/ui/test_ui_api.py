@@ -16,10 +16,10 @@ pytest.importorskip("httpx")
 
 from starlette.testclient import TestClient  # noqa: E402
 
-from hapticdesk.files.yamlfile import ConfigError  # noqa: E402
+from hapticdesk.errors import ConfigError  # noqa: E402
+from hapticdesk.plugin_loading import load_registry  # noqa: E402
 from hapticdesk.plugins.ui.layout_edit import apply_edit  # noqa: E402
 from hapticdesk.plugins.ui.server import STATIC, UiServer, parse_listen  # noqa: E402
-from hapticdesk.registry import load_registry  # noqa: E402
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 #: where a page of the server itself sends from (the UI refuses other hosts and origins)

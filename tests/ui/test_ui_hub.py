@@ -14,8 +14,8 @@ import pytest
 pytest.importorskip("uvicorn")
 websockets_sync = pytest.importorskip("websockets.sync.client")
 
+from hapticdesk.plugin_loading import load_registry  # noqa: E402
 from hapticdesk.plugins.ui.server import CLIENT_QUEUE, UiServer  # noqa: E402
-from hapticdesk.registry import load_registry  # noqa: E402
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 

@@ -18,10 +18,10 @@ pytest.importorskip("httpx")
 
 from starlette.testclient import TestClient  # noqa: E402
 
-from hapticdesk.files.profile import load_profile  # noqa: E402
+from hapticdesk.files.profile_reader import load_profile  # noqa: E402
+from hapticdesk.plugin_loading import load_registry  # noqa: E402
 from hapticdesk.plugins.ui import server as ui_server  # noqa: E402
 from hapticdesk.plugins.ui.server import TOKEN_COOKIE, UiServer  # noqa: E402
-from hapticdesk.registry import load_registry  # noqa: E402
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 LOCAL = "http://127.0.0.1:8765"

@@ -13,10 +13,10 @@ pytest.importorskip("httpx")
 
 from starlette.testclient import TestClient  # noqa: E402
 
-from hapticdesk.files.profile import load_profile  # noqa: E402
-from hapticdesk.files.recording import write_recording  # noqa: E402
+from hapticdesk.files.profile_reader import load_profile  # noqa: E402
+from hapticdesk.files.recording_io import write_recording  # noqa: E402
+from hapticdesk.plugin_loading import load_registry  # noqa: E402
 from hapticdesk.plugins.ui.server import UiServer  # noqa: E402
-from hapticdesk.registry import load_registry  # noqa: E402
 from hapticdesk.runtime.assembly import build_scene  # noqa: E402
 from hapticdesk.runtime.service import Runtime  # noqa: E402
 from hapticdesk.sim import load_scene, simulate  # noqa: E402

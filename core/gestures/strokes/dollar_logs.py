@@ -16,7 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hapticdesk.files.yamlfile import ConfigError, regular_file_size
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.file_safety import regular_file_size
 
 #: log name -> built-in template name
 SHAPE_NAMES = {

@@ -8,10 +8,10 @@ from pathlib import Path
 import hapticdesk_notify
 import pytest
 
-from hapticdesk.files.yamlfile import ConfigError
+from hapticdesk.errors import ConfigError
 from hapticdesk.gestures.event import GestureEvent
-from hapticdesk.gestures.layout import load_layout
-from hapticdesk.registry import load_registry
+from hapticdesk.gestures.layout_reader import load_layout
+from hapticdesk.plugin_loading import load_registry
 from hapticdesk.runtime.dispatcher import ActionContext
 
 LAYOUT = """\

@@ -191,6 +191,7 @@ function onContact(m) {
   $("rphase").textContent = m.phase || "—";
   if (recordingFromDesk) recordDeskSample(m, touching, located);
   setupContact(m);
+  weightContact(m);
   drawForce(m.t);
 }
 
@@ -735,6 +736,124 @@ $("setup-finish").addEventListener("click", async () => {
     `natural frequency: ${result.natural_frequency_hz ?? "— (" + result.frequency_reason + ")"} Hz`;
   $("setup-snippet").textContent = result.profile_snippet || "";
   drawMarks(result.points, result.measured.map((p, k) => (result.placed[k] ? p : null)));
+});
+
+// --- set-up with a known weight (load cells) ---------------------------------------------------
+// Spots and cells in cm, the check in mm, whatever the layout's units: they are marked and
+// measured with a ruler, and a check of a few millimetres read in metres says nothing.
+
+let weightSpots = null;   // the spots shown (metres), in the order the weight goes on them
+let weightPlaced = null;  // weights put down since Start (a touch beginning), or null
+let weightTouching = false;
+const cm = (metres) => `${(metres * 100).toFixed(1)} cm`;
+const mm = (metres) => `${(metres * 1000).toFixed(1)} mm`;
+const errorText = (result) => result.errors.map((e) => e.message).join("\n");
+
+async function weightApi(path, options = {}) {
+  const r = await api(path, options);
+  try { return await r.json(); } catch {
+    return { ok: false, errors: [{ message: `the desk answered ${r.status} ${r.statusText}` }] };
+  }
+}
+
+function showWeightSpots(spots, located = null) {
+  weightSpots = spots;
+  $("weight-spots").replaceChildren(...spots.map(([x, y]) => {
+    const li = document.createElement("li"); li.textContent = `x ${cm(x)}, y ${cm(y)}`; return li;
+  }));
+  drawMarks(spots, located);
+}
+
+function clearWeightResult() {
+  for (const id of ["weight-error", "weight-check", "weight-profile"]) $(id).textContent = "";
+  $("weight-cells").replaceChildren();
+  $("weight-mass").classList.remove("invalid"); $("weight-count").classList.remove("invalid");
+}
+
+function weightError(result) {
+  const message = errorText(result);
+  $("weight-error").textContent = message;
+  if (message.includes("mass_kg")) $("weight-mass").classList.add("invalid");
+  if (message.includes("`count`")) $("weight-count").classList.add("invalid");
+}
+
+function massValue() {  // a number when it is one; else the text, for the desk to name
+  const text = $("weight-mass").value.trim().replace(",", ".");
+  const n = Number(text);
+  return text !== "" && Number.isFinite(n) ? n : text;
+}
+
+$("weight-show").addEventListener("click", async () => {
+  clearWeightResult();
+  const result = await weightApi("api/setup/weight/spots?count=" + encodeURIComponent($("weight-count").value));
+  if (!result.ok) { weightError(result); return; }
+  showWeightSpots(result.spots_m);
+});
+
+$("weight-start").addEventListener("click", async () => {
+  clearWeightResult();
+  const result = await weightApi("api/setup/weight/start", { method: "POST",
+    headers: { "Content-Type": "application/json" },
+    body: JSON.stringify({ mass_kg: massValue(), count: Number($("weight-count").value) }) });
+  if (!result.ok) { weightPlaced = null; $("weight-status").textContent = ""; weightError(result); return; }
+  showWeightSpots(result.spots_m);
+  weightPlaced = 0; weightTouching = false;
+  $("weight-status").textContent =
+    `desk empty; put the ${result.mass_kg} kg weight on spot 1 of ${result.spots_m.length}`;
+});
+
+// what the person is at, from the live view (the fit reads the raw readings, not this)
+function weightContact(m) {
+  if (weightPlaced === null || !weightSpots) return;
+  const touching = m.phase === "touch" || m.phase === "hold";
+  const put = touching && !weightTouching;
+  weightTouching = touching;
+  if (!put) return;
+  weightPlaced += 1;
+  const n = weightSpots.length;
+  $("weight-status").textContent = weightPlaced < n
+    ? `spot ${weightPlaced}: still for 2 s, lift it off, then spot ${weightPlaced + 1} of ${n}`
+    : `spot ${n}: still for 2 s, lift it off, then Finish`;
+}
+
+$("weight-finish").addEventListener("click", async () => {
+  weightPlaced = null;
+  clearWeightResult();
+  $("weight-status").textContent = "fitting…";
+  const result = await weightApi("api/setup/weight/finish", { method: "POST" });
+  if (!result.ok) { $("weight-status").textContent = ""; weightError(result); return; }
+  $("weight-status").textContent = `read ${result.captured_s} s, fitted on ${result.spots_used} spots`;
+  const loo = result.leave_one_out.map((c) => c.error_m).filter((e) => e !== null);
+  const check = $("weight-check");
+  if (result.check) {
+    const before = result.check_before_m === null ? "" : ` (${mm(result.check_before_m)} with the profile as it was)`;
+    check.textContent = `check spot ${result.check_index + 1}, not in the fit: placed ` +
+      `${mm(result.check.error_m)} from its mark${before}: ` +
+      (result.passed ? "good" : `more than ${mm(result.tolerance_m)}, do the set-up again`);
+  } else {
+    check.textContent = `${result.spots_m.length} spots: none left to check the fit on (use 4 or 5); ` +
+      `each spot left out in turn was placed within ${loo.length ? mm(Math.max(...loo)) : "—"}`;
+  }
+  check.className = result.passed ? "" : "failed";
+  const head = document.createElement("tr");
+  for (const text of ["cell", "gain", "x", "y", "moved"]) {
+    const th = document.createElement("th"); th.textContent = text; head.appendChild(th);
+  }
+  $("weight-cells").replaceChildren(head, ...result.cells.map((c) => {
+    const tr = document.createElement("tr");
+    const moved = Math.hypot(c.position_m[0] - c.profile_position_m[0], c.position_m[1] - c.profile_position_m[1]);
+    const percent = ((c.gain - 1) * 100).toFixed(1);  // the gain against the profile's
+    const gain = `${Number(percent) < 0 ? "−" : "+"}${percent.replace("-", "")} %`;
+    for (const text of [c.channel, gain, cm(c.position_m[0]), cm(c.position_m[1]), mm(moved)]) {
+      const td = document.createElement("td"); td.textContent = text; tr.appendChild(td);
+    }
+    return tr;
+  }));
+  $("weight-profile").textContent = result.profile_path
+    ? `wrote ${result.profile_path}: use it with --desk ${result.profile_path} (or desk: in the layout)`
+    : result.note;
+  showWeightSpots(result.spots_m,
+    result.leave_one_out.map((c) => (c.located_m.includes(null) ? null : c.located_m)));
 });
 
 connect();

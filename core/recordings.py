@@ -1,5 +1,8 @@
 """Read any recording a user hands us: CSV, NPZ, a CAN log decoded through the profile, or a
-C3D file's force plates (:mod:`.forceplate`)."""
+C3D file's force plates (:mod:`hapticdesk.files.forceplate`).
+
+It stands above :mod:`hapticdesk.files` and :mod:`hapticdesk.canbus` because it picks between
+them by the file's kind; the files layer itself reads no CAN log."""
 
 from __future__ import annotations
 
@@ -8,15 +11,12 @@ from pathlib import Path
 
 import numpy as np
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.c3d import is_c3d
+from hapticdesk.files.file_safety import regular_file_size
 from hapticdesk.files.profile import DeskProfile
-from hapticdesk.files.recording import (
-    RECORDING_SUFFIXES,
-    Recording,
-    RecordingBlocks,
-    read_recording,
-)
-from hapticdesk.files.yamlfile import ConfigError, regular_file_size
+from hapticdesk.files.recording import Recording
+from hapticdesk.files.recording_io import RECORDING_SUFFIXES, RecordingBlocks, read_recording
 
 # a recording's sample interval may differ from its profile's by this share (a sensor's clock,
 # the jitter of CAN timestamps); beyond it the filters and windows, made for the profile's
@@ -101,7 +101,8 @@ def _read(path: str | Path, profile: DeskProfile) -> Recording:
     # before the CAN log's own checks: a missing file is said so, not taken for a CAN log
     # the profile cannot decode
     regular_file_size(path, "the recording")
-    from hapticdesk.canbus.logs import is_can_log, read_can_log  # (python-can: lazily)
+    from hapticdesk.canbus.logs.desk_samples import read_can_log
+    from hapticdesk.canbus.logs.formats import is_can_log  # (python-can: lazily)
 
     if profile.can is None and not is_can_log(path):
         raise ConfigError(

@@ -1,0 +1,176 @@
+"""Which sample each frame belongs to: its *sample key* (see :mod:`.assembler`).
+
+:class:`CounterKeys` (``assemble: counter``) unwraps the frames' shared counter over its
+wrap-around, the frame times telling a wrap from a long gap; a frame more than
+:data:`REORDER_DEPTH` samples behind the newest is LATE. :class:`TimeKeys` (``assemble:
+time``) starts a sample at each poll of the first-polled board, else at a pause longer than
+``frame_gap_s``, else (a log without times) at a frame kind out of the order the kinds
+first came in; an ATI board's second reply frame is paired with its first. Both carry their
+state from push to push, so any split of the frames gives the same keys.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hapticdesk.canbus.dbc_signals import frame_words
+from hapticdesk.canbus.decoding import DeskDecoding
+from hapticdesk.canbus.frames import FrameArray
+from hapticdesk.canbus.stats import CanStats
+
+REORDER_DEPTH = 3  # with counters, a sample is given up once a frame this many samples newer came
+LATE = np.iinfo(np.int64).min  # the key of a frame that came too late for its sample
+#: a frame whose time is this many sample periods before the latest frame's went back in time
+TIME_BACK_PERIODS = 1.0
+
+
+def count_time_back(stats: CanStats, dt: np.ndarray, rate: float) -> None:
+    """Count the frames whose time went back (``dt`` from the frame before) in ``stats``."""
+    with np.errstate(invalid="ignore"):
+        stats.time_back += int(np.count_nonzero(dt < -TIME_BACK_PERIODS / rate))
+
+
+class CounterKeys:
+    """Sample keys from counters; every frame kind has one and all share it."""
+
+    def __init__(self, decoding: DeskDecoding, rate: float, stats: CanStats) -> None:
+        self.decoding = decoding
+        self.rate = rate
+        self.stats = stats
+        self._prev_counter: int | None = None
+        self._prev_key = 0
+        self._prev_t = np.nan
+        self._newest_key = np.iinfo(np.int64).min + REORDER_DEPTH
+
+    def keys(self, frames: FrameArray, kind: np.ndarray) -> np.ndarray:
+        """The sample key of each frame (``kind`` its kind index); LATE for a frame that
+        came more than REORDER_DEPTH samples after its sample's newer ones."""
+        modulus = int(self.decoding.counter_modulus or 0)
+        counter = np.zeros(len(kind), dtype=np.int64)
+        for k in np.unique(kind):
+            sel = kind == k
+            layout = self.decoding.kinds[k].counter
+            assert layout is not None
+            counter[sel] = layout.raw(frame_words(frames.data[sel])).astype(np.int64)
+        if self._prev_counter is None:
+            self._prev_counter, self._prev_key, self._prev_t = (
+                int(counter[0]),
+                int(counter[0]),
+                frames.t[0],
+            )
+        prev_c = np.concatenate([[self._prev_counter], counter[:-1]])
+        # the latest time seen before each frame: a frame whose time went back (a corrupt or
+        # merged log) neither counts as a wrap of the counter nor moves the clock for the
+        # frames after it (0.5 % of them had made 1.6 million samples "lost" and no tap)
+        clock = np.fmax.accumulate(np.concatenate([[self._prev_t], frames.t]))
+        prev_t = clock[:-1]
+        dt = frames.t - prev_t
+        count_time_back(self.stats, dt, self.rate)
+        # Within half its range the counter alone decides (host clocks stall and burst, and a
+        # fast replay is not on the sample clock); across a longer pause the time says how
+        # many wraps were missed.
+        half = modulus // 2
+        periods = np.where(np.isfinite(dt), dt * self.rate, 0.0)
+        expected = np.where(periods >= half, np.rint(periods), 0).astype(np.int64)
+        delta = expected + np.mod(counter - prev_c - expected + half, modulus) - half
+        keys = self._prev_key + np.cumsum(delta)
+        self._prev_counter, self._prev_key, self._prev_t = (
+            int(counter[-1]),
+            int(keys[-1]),
+            clock[-1],
+        )
+        # A frame more than REORDER_DEPTH samples behind the newest one before it is late,
+        # whether or not its sample has been given out yet: so a log read at once and a bus
+        # read frame by frame agree, and a sensor whose counter went its own way (a reboot)
+        # is never merged into other samples.
+        newest = np.maximum.accumulate(np.concatenate([[self._newest_key], keys]))[:-1]
+        self._newest_key = max(self._newest_key, int(keys.max()))
+        return np.where(keys <= newest - REORDER_DEPTH, LATE, keys)
+
+
+class TimeKeys:
+    """Sample keys by time: polls, pauses between frames, or the order of frame kinds."""
+
+    def __init__(
+        self, decoding: DeskDecoding, rate: float, frame_gap_s: float, stats: CanStats
+    ) -> None:
+        self.decoding = decoding
+        self.rate = rate
+        self.frame_gap_s = frame_gap_s
+        self.stats = stats
+        self.n_kinds = len(decoding.kinds)
+        self.cluster = 0  # the key of the last sample begun
+        self.polled = False  # a poll request has been seen: polls start samples
+        self._lead_request: int | None = None
+        self._prev_t = np.nan
+        self._prev_rank = -1
+        self._rank = np.full(self.n_kinds + 1, -1, dtype=np.int64)
+        self._next_rank = 0
+        # per reply whose frames come in order (ATI 0x0 then 0x1): the key of the last first
+        # frame still waiting for its second, if any
+        self._open_first: dict[int, int | None] = {a: None for a in decoding.second_halves.values()}
+
+    def keys(self, frames: FrameArray, kind: np.ndarray) -> np.ndarray:
+        """The sample key of each frame (``kind`` its kind index, n_kinds for a poll)."""
+        is_request = kind == self.n_kinds
+        if self._lead_request is None and is_request.any():
+            # the board polled first in each round starts a sample
+            self._lead_request = int(frames.ident[np.argmax(is_request)])
+        after_polls = self.polled | (np.cumsum(is_request) > 0)
+        prev_t = np.concatenate([[self._prev_t], frames.t[:-1]])
+        dt = frames.t - prev_t
+        count_time_back(self.stats, dt, self.rate)
+        # ranks of kinds in the order they first appeared (for logs without times)
+        new = np.unique(kind[(self._rank[kind] < 0) & ~is_request])
+        if len(new):
+            first = np.array([np.argmax(kind == k) for k in new])
+            for k in new[np.argsort(first)]:
+                self._rank[k] = self._next_rank
+                self._next_rank += 1
+        rank = np.where(is_request, -1, self._rank[kind])
+        prev_rank = np.concatenate([[self._prev_rank], rank[:-1]])
+        with np.errstate(invalid="ignore"):
+            by_poll = is_request & (frames.ident == self._lead_request)
+            by_gap = np.where(
+                np.isfinite(dt), dt > self.frame_gap_s, (rank <= prev_rank) & (rank >= 0)
+            )
+        boundary = np.where(after_polls, by_poll, by_gap)
+        keys = self.cluster + np.cumsum(boundary)
+        self.cluster = int(keys[-1])
+        self._prev_t = frames.t[-1]
+        self._prev_rank = int(rank[-1])
+        self.polled = bool(after_polls[-1])
+        for second, first in self.decoding.second_halves.items():
+            self._pair_halves(keys, kind, first, second)
+        return keys
+
+    def _pair_halves(self, keys: np.ndarray, kind: np.ndarray, first: int, second: int) -> None:
+        """Give each second frame of a reply its first frame's key, in place.
+
+        A board sends the two frames of a reply in order, but traffic of higher priority can
+        delay the second until after the host's next poll, which starts the next sample: by
+        its poll it would land there (doubled) and void two samples. So a second frame takes
+        the key of the last first frame before it that has no second yet, if that first
+        frame is of its own poll round or the one before (any older is not its reply's).
+        """
+        a_pos = np.flatnonzero(kind == first)
+        b_pos = np.flatnonzero(kind == second)
+        carried = self._open_first[first]
+        if len(b_pos):
+            # the first frame before each second one: its index in a_pos, -1 an earlier push's
+            prev = np.searchsorted(a_pos, b_pos) - 1
+            a_keys = keys[a_pos] if len(a_pos) else np.zeros(1, np.int64)
+            owner = np.where(prev >= 0, a_keys[np.maximum(prev, 0)], carried or 0)
+            # one second frame per first frame: a second after the same first keeps its key
+            takes = np.concatenate([[True], prev[1:] != prev[:-1]])
+            takes &= (prev >= 0) | (carried is not None)
+            takes &= (owner >= keys[b_pos] - 1) & (owner <= keys[b_pos])
+            keys[b_pos[takes]] = owner[takes]
+            answered = set(prev[takes].tolist())
+        else:
+            answered = set()
+        if len(a_pos):
+            last = len(a_pos) - 1
+            self._open_first[first] = None if last in answered else int(keys[a_pos[last]])
+        elif -1 in answered:
+            self._open_first[first] = None

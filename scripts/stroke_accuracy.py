@@ -10,8 +10,9 @@ the stroke recognizer does it, then classified:
 - with the built-in templates;
 - with user templates only: 1, then 3 per shape, recorded the same way in a separate
   session (the person drawing each shape once or three times for `hapticdesk strokes record`);
-- shapes that are not in the set (S, Z, spiral, figure eight, scribbles) show how often
-  something else is taken for a shape.
+- shapes that are not in the set (S, Z, spiral, figure eight, scribbles, partial strokes:
+  half a circle and a pigtail given up before its loop, and taps dragged just over a stroke's
+  least size) show how often something else is taken for a shape.
 
 Prints a Markdown table to paste into the README. ``--synthetic`` skips the simulator and
 adds noise to the drawn paths instead (when the simulator is not available).
@@ -58,8 +59,27 @@ def others(rng: np.random.Generator, size_m: float) -> dict[str, np.ndarray]:
     )
     zed = np.array([[0, 1], [1, 1], [0, 0], [1, 0]], dtype=float)
     walk = np.cumsum(rng.normal(size=(14, 2)), axis=0)
-    out = {"S": s_curve, "Z": zed, "spiral": spiral, "figure_eight": eight, "scribble": walk}
-    return {k: normalised(resample(v, 200), size_m) for k, v in out.items()}
+    # partial strokes: a shape given up part way (half a circle, a pigtail before its loop
+    # closes, from where its $1 drawing starts)
+    start = math.radians(rng.uniform(60.0, 120.0))
+    a = start + np.linspace(0.0, math.pi, 100)
+    half_circle = np.column_stack([np.cos(a), np.sin(a)])
+    pigtail = SHAPES["pigtail"].variants[0]
+    part_pigtail = pigtail[: int(len(pigtail) * rng.uniform(0.45, 0.6))]
+    out = {
+        "S": s_curve,
+        "Z": zed,
+        "spiral": spiral,
+        "figure_eight": eight,
+        "scribble": walk,
+        "half_circle": half_circle,
+        "part_pigtail": part_pigtail,
+    }
+    drawn = {k: normalised(resample(v, 200), size_m) for k, v in out.items()}
+    # a tap whose finger wandered just over a stroke's least size (min_size 4 cm) as it slid
+    drag = np.cumsum(rng.normal(size=(5, 2)), axis=0)
+    drawn["dragged_tap"] = normalised(resample(drag, 200), float(rng.uniform(0.04, 0.055)))
+    return drawn
 
 
 def drawings(rng: np.random.Generator, per_shape: int, with_others: bool, style: int | None = None):
@@ -165,9 +185,15 @@ def score(templates: TemplateSet, labels: list[str], paths: list[np.ndarray]) ->
     ]
     right = sum(v == lab for v, (lab, _) in zip(verdicts, shapes, strict=True))
     rejected = sum(v is None for v in verdicts)
-    accepted_other = sum(
-        p is not None and templates.classify(p, MIN_SCORE, MAX_ROTATION).shape is not None
-        for p in others_
+    other_labels = [lab for lab in labels if lab.startswith("other:")]
+    taken_as = [
+        None if p is None else templates.classify(p, MIN_SCORE, MAX_ROTATION).shape for p in others_
+    ]
+    accepted_other = sum(v is not None for v in taken_as)
+    taken = Counter(
+        (lab.removeprefix("other:"), v)
+        for lab, v in zip(other_labels, taken_as, strict=True)
+        if v is not None
     )
     wrong = Counter(
         (lab, v) for v, (lab, _) in zip(verdicts, shapes, strict=True) if v not in (None, lab)
@@ -180,6 +206,7 @@ def score(templates: TemplateSet, labels: list[str], paths: list[np.ndarray]) ->
         "others": len(others_),
         "others_accepted": 100 * accepted_other / max(1, len(others_)),
         "confusions": ", ".join(f"{a}→{b} {n}" for (a, b), n in wrong.most_common(4)),
+        "others_taken": ", ".join(f"{a}→{b} {n}" for (a, b), n in taken.most_common()),
     }
 
 
@@ -357,6 +384,9 @@ def main() -> None:
             f"| {who} | {name} | {r['right']:.1f} % | {r['rejected']:.1f} % | {r['wrong']:.1f} % | "
             f"{r['others_accepted']:.0f} % of {r['others']} | {r['confusions'] or '—'} |"
         )
+    print("\nNon-shapes taken for a shape, by kind:\n")
+    for who, name, r in rows:
+        print(f"- {who}, {name}: {r['others_taken'] or 'none'}")
 
 
 if __name__ == "__main__":

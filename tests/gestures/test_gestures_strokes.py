@@ -270,3 +270,32 @@ def test_a_compensated_desks_strokes_keep_their_corners():
 
     # (13 mm from the corner with the calm σ, 22 mm with the heavy one the wobble test chose)
     assert corner_gap(legs) < 0.7 * corner_gap(plain)
+
+
+def test_a_desk_whose_mass_sits_on_its_sensors_keeps_the_calm_smoothing():
+    """Load cells just under the top see the sway only through the centre of mass's few
+    millimetres above them: the profile says so (its centre of mass, or its top, above the
+    sensors), and such a desk's strokes get the calm σ without any flag; the same cells
+    under a tall frame, or the paper's desk, keep the heavy σ."""
+    from dataclasses import replace
+
+    from hapticdesk.files.profile_reader import load_profile
+    from hapticdesk.gestures.recognizers.stroke import (
+        calm_smoothing_s,
+        smoothing_s,
+        sway_compensated,
+        sway_reaches_path,
+    )
+
+    for name in ("kitamura2017-loadcells-1khz", "kitamura2017-loadcells-80hz", "balance-board"):
+        desk = load_profile(name)
+        assert not sway_compensated(desk)  # (no shear: the legs' compensation is off)
+        assert not sway_reaches_path(desk)
+        assert smoothing_s(desk) == calm_smoothing_s(desk)
+    cells = load_profile("kitamura2017-loadcells-80hz")
+    tall = replace(cells, center_of_mass_m=np.array([0.0, 0.0, 0.703 + 0.6]))
+    assert sway_reaches_path(tall) and smoothing_s(tall) > 2 * calm_smoothing_s(tall)
+    # without a centre of mass, the top's height above the sensors bounds the lever
+    assert not sway_reaches_path(replace(cells, center_of_mass_m=None))
+    plain = load_profile("kitamura2017").with_estimation(sway_compensation=False)
+    assert sway_reaches_path(plain) and smoothing_s(plain) > 2 * calm_smoothing_s(plain)

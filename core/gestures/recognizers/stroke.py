@@ -40,6 +40,11 @@ CALM_CYCLES = 0.47
 #: this RMS or more: 12-30 mm for the $1 logs traced on the simulated desk, ≤ 1.3 mm for a
 #: clean trace with 0.5 mm noise
 SWAY_RMS_M = 0.005
+#: the least of that wobble on the paper's desk (the $1 logs traced at their real speed), and
+#: its lever (:func:`sway_lever_m`: its profile gives no centre of mass, so its top's height
+#: above the sensors): the sway's offset of the located point grows with the lever
+PAPER_SWAY_RMS_M = 0.012
+PAPER_SWAY_LEVER_M = 0.733
 _WOBBLE_SIGMA_S = 0.015
 #: the smoothing's σ is at most the stroke's duration divided by this
 MAX_SIGMA_SHARE_INV = 4.0
@@ -50,14 +55,15 @@ _GRID_S = 0.005  # strokes are resampled to this time step before smoothing
 
 def smoothing_s(desk: DeskProfile) -> float:
     """σ in seconds of the Gaussian that smooths a swaying stroke on ``desk``; on a desk whose
-    sway the estimator takes out (:func:`sway_compensated`), the calm σ.
+    sway the estimator takes out (:func:`sway_compensated`) or whose located path barely
+    sways (:func:`sway_reaches_path` false: sensors just under the top), the calm σ.
 
     Why not judge each path by its wobble there too: a fast stroke's corners move tens of
     millimetres within the calm σ, so a clean fast stroke looks like a swaying one and got the
     heavy σ, which rounded the corners the built-in shapes are told apart by (the $1 logs at
     their real speed, legs as the accelerometer: built-in templates 78.2 → 87.4 % right,
     3 own 93.5 → 92.1 %)."""
-    if sway_compensated(desk):
+    if sway_compensated(desk) or not sway_reaches_path(desk):
         return calm_smoothing_s(desk)
     return SWAY_CYCLES / (desk.natural_frequency_hz or DEFAULT_NATURAL_FREQUENCY_HZ)
 
@@ -67,6 +73,38 @@ def sway_compensated(desk: DeskProfile) -> bool:
     accelerometer, or the legs as one (:func:`compensates`: ``estimation.sway_compensation``,
     on for ``fused`` unless set, with a known sway frequency)."""
     return desk.accelerometer is not None or compensates(desk)
+
+
+def sway_lever_m(desk: DeskProfile) -> float | None:
+    """Height of the swaying mass above the sensors, metres: the profile's centre of mass
+    (``desk.center_of_mass_m``) above the sensors' mean height, else its first surface's (the
+    mass is under the top, so this bounds it); None when the profile gives neither."""
+    if not desk.sensors:
+        return None
+    base = float(np.mean([s.position[2] for s in desk.sensors]))
+    if desk.center_of_mass_m is not None:
+        return abs(float(desk.center_of_mass_m[2]) - base)
+    if desk.surfaces:
+        return abs(float(desk.surfaces[0].origin[2]) - base)
+    return None
+
+
+def sway_reaches_path(desk: DeskProfile) -> bool:
+    """Whether the desk's sway moves the located path enough to need the heavy smoothing.
+
+    The sway's inertial force m·a acts at the desk's centre of mass; at the sensors it is a
+    moment m·a·h about them (h: :func:`sway_lever_m`), which the located point takes as
+    h·m·a/F of offset. On the paper's desk (sensors under 0.73 m legs, h = PAPER_SWAY_LEVER_M)
+    what the calm σ leaves of it is PAPER_SWAY_RMS_M or more on every $1 stroke traced at
+    real speed; scaled by h, a desk whose expected wobble stays under ``SWAY_RMS_M`` (the
+    level at which a path counts as swaying) keeps the calm σ: load cells just under the top
+    (h 17-22 mm: under 1 mm) or any desk whose mass sits on its sensors. Without a lever in
+    the profile, the paper's desk is assumed. A stiff desk (high ``natural_frequency_hz``)
+    gets short σs either way: both are in periods of f_n."""
+    lever = sway_lever_m(desk)
+    if lever is None:
+        return True
+    return PAPER_SWAY_RMS_M * lever / PAPER_SWAY_LEVER_M >= SWAY_RMS_M
 
 
 def calm_smoothing_s(desk: DeskProfile) -> float:

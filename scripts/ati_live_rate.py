@@ -1,10 +1,14 @@
 """How fast can the live ATI path poll a desk of NETCANOEM boards? (issue 11 item 19)
 
 Emulated boards answer polls on a python-can bus; a live CAN source polls them at the
-profile's rate for a few seconds. Prints the samples per second delivered, the share of
-samples with missing data (NaN) and the decoder's counts.
+profile's rate for a few seconds, and each block read is estimated as ``hapticdesk run``
+does (``--estimate METHOD``, the profile's by default; ``none`` to only read). Prints the
+samples per second delivered, the share of samples with missing data (NaN), the decoder's
+counts and the share of the time spent estimating (issue 29: the estimator's compiled
+kernels release the GIL, so the poller and the emulator run meanwhile).
 
     python scripts/ati_live_rate.py --rate 1200 --boards 4 --bus virtual
+    python scripts/ati_live_rate.py --rate 1200 --boards 4 --bus virtual --estimate none
     python scripts/ati_live_rate.py --rate 1200 --boards 4 --bus udp_multicast
 
 ``virtual`` runs the emulator in this process (a thread: it shares the GIL with the poller
@@ -43,6 +47,12 @@ def main() -> int:
     parser.add_argument("--boards", type=int, default=4, choices=[3, 4])
     parser.add_argument("--seconds", type=float, default=3.0)
     parser.add_argument("--bus", choices=["virtual", "udp_multicast"], default="virtual")
+    parser.add_argument(
+        "--estimate",
+        choices=["profile", "none", "force", "diff", "switched", "fused"],
+        default="profile",
+        help="estimate each block read with this method (profile: the profile's; none: no)",
+    )
     args = parser.parse_args()
 
     from hapticdesk.canbus.config_reader import can_config
@@ -95,12 +105,24 @@ def main() -> int:
              "--recording", str(recording), "--bus", f"udp_multicast:{channel}", "--loop"]
         )  # fmt: skip
         time.sleep(1.5)  # its interpreter and imports
+    estimator = None
+    if args.estimate != "none":
+        from hapticdesk.estimator import ContactEstimator
+
+        # (built, its kernels compiled or loaded, before the clock starts)
+        method = None if args.estimate == "profile" else args.estimate
+        estimator = ContactEstimator(profile, method=method)
     source = CanSource(f"can:{args.bus}:{channel}", profile, calibration_timeout_s=2.0)
     got = []
+    estimating = 0.0
     start = time.monotonic()
     try:
         for block in source.blocks():
             got.append(block.wrench)
+            if estimator is not None:
+                began = time.perf_counter()
+                estimator.push(block.t, block.wrench, block.accel)
+                estimating += time.perf_counter() - began
             if time.monotonic() - start > args.seconds:
                 break
     finally:
@@ -117,8 +139,13 @@ def main() -> int:
     nan = np.isnan(w).any(axis=(1, 2))
     print(
         f"{args.boards} board(s) polled at {args.rate:g} Hz over {args.bus} for {wall:.1f} s: "
-        f"{len(w)} samples ({len(w) / wall:.0f}/s), {nan.mean() * 100 if len(w) else 0:.1f} % "
-        "with missing data"
+        f"{len(w)} samples ({len(w) / wall:.0f}/s), {nan.mean() * 100 if len(w) else 0:.2f} % "
+        "with missing data; "
+        + (
+            "not estimated"
+            if estimator is None
+            else f"estimated ({estimator.method}) in {estimating:.2f} s ({estimating / wall:.1%})"
+        )
     )
     for line in source.stats.summary():
         print("  " + line)

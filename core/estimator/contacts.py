@@ -32,6 +32,8 @@ MULTI_LAG_S = 0.08
 # the desk has an accelerometer but this sample's reading is missing or saturated: its
 # inertial force is not removed (hapticdesk.estimator.inertia)
 FLAG_NO_ACCEL = 128
+#: the flags of a sample the estimator skips: it holds the last good sample's wrench instead
+BAD_SAMPLE = FLAG_NAN | FLAG_SATURATED | FLAG_TIME_BACK | FLAG_STUCK
 FLAG_NAMES = {
     FLAG_NAN: "nan",
     FLAG_SATURATED: "saturated",
@@ -53,7 +55,13 @@ def _left_out() -> np.ndarray:
 
 @dataclass
 class ContactBlock:
-    """Estimator output for k input samples."""
+    """Estimator output for k input samples.
+
+    A block that :meth:`ContactEstimator.push <hapticdesk.estimator.ContactEstimator.push>`
+    returns is a view of the estimator's own output columns: it holds until the next push to
+    the same estimator, which writes over it. Use it (feed it on, read it) before the next
+    push; keep it with :meth:`copy`.
+    """
 
     t: np.ndarray  # (k,) float64
     in_contact: np.ndarray  # (k,) bool: the fast path says a finger is on the desk
@@ -162,6 +170,10 @@ class ContactBlock:
             drag_x=np.zeros(k),
             drag_y=np.zeros(k),
         )
+
+    def copy(self) -> ContactBlock:
+        """The block with arrays of its own (an estimator's block holds until its next push)."""
+        return ContactBlock(**{f.name: getattr(self, f.name).copy() for f in fields(self)})
 
     def take(self, index: np.ndarray | slice) -> ContactBlock:
         """A sub-block (boolean mask, index array or slice; a slice gives views, so writing

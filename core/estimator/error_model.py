@@ -5,8 +5,8 @@ x = (h·F_x − M_y)/F_z (paper eq. 5 / 7). Noise of amplitude a on F_z (with M_
 the computed x between x·F/(F + a) and x·F/(F − a): an error range that grows as 1/F. The
 same with the differentiated force (paper eq. 12 / 16), where Ḟ_z ≈ −45 N/s at touch and the
 differentiated noise is small, gives a far narrower range. Every number here is computed by
-:func:`hapticdesk.estimator.geometry.intersect`, the code the estimator runs, on a wrench built for
-the case — not by a formula copied beside the paper's figures.
+:func:`hapticdesk.estimator.intersection.intersect`, the code the estimator runs, on a wrench
+built for the case — not by a formula copied beside the paper's figures.
 """
 
 from __future__ import annotations
@@ -14,7 +14,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import brentq
 
-from hapticdesk.estimator.geometry import SurfaceFrame, intersect
+from hapticdesk.estimator.geometry import SurfaceFrame
+from hapticdesk.estimator.intersection import intersect
 from hapticdesk.files.profile import Surface
 
 PAPER_X_M = 0.2  # the contact's distance from the centre in §3.1

@@ -151,7 +151,10 @@ def rigid_motion(rows: np.ndarray, weights: np.ndarray) -> np.ndarray:
 
 
 class InertiaStage:
-    """Removes the inertial wrench from the resultant wrench, block or single sample.
+    """The readings checked, and the inertial wrench removed from a whole resultant wrench at
+    once: the model the kernel runs per sample (``_inertial`` in
+    :mod:`hapticdesk.estimator.kernel`), for the analyses that look at the compensated wrench
+    itself (its balance, the ring left after a swipe).
 
     Stateless: each sample's correction depends on its own reading only.
     """
@@ -210,28 +213,10 @@ class InertiaStage:
                 raw[:, at] -= gain @ (accel[at] - self.settings.rest).T
         return flags
 
-    def wrench_one(self, accel: np.ndarray | None) -> np.ndarray | None:
-        """:meth:`process` for one sample: the inertial wrench (6,) its readings ``accel``
-        (A,) give, from the usable ones as :meth:`process` does, to subtract from its
-        resultant; None where :meth:`process` would flag the sample (the block path does).
-        Needs no state, so it can be asked before any stage's state moves on."""
-        if accel is None:
-            return None
-        row = np.asarray(accel, dtype=float).reshape(-1)
-        if row.shape != (self.settings.n_axes,):
-            return None
-        axes = self.usable_axes(row)
-        if axes.all():
-            return inertial_wrench(self.settings, row)
-        gain = self.settings.gain_from(axes)
-        if gain is None:
-            return None
-        return gain @ (np.where(axes, row, self.settings.rest) - self.settings.rest)
-
 
 def inertial_wrench(settings: InertiaSettings, accel: np.ndarray) -> np.ndarray:
     """The desk's inertial wrench ``[m a; m c × a]`` (..., 6) about P_o for readings
-    (..., A): the one definition both paths use (see the module docstring)."""
+    (..., A) (see the module docstring)."""
     return (accel - settings.rest) @ settings.gain.T
 
 

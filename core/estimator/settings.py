@@ -1,9 +1,10 @@
 """The estimator's settings: everything fixed for one desk, derived once from its profile.
 
 The user's :class:`EstimationSettings` (thresholds, cut-offs, durations) become what the
-stages compute with: the wrench map, the channels' ratings, the surfaces prepared for
-intersection, the filters' second-order sections and noise gains, window lengths in samples.
-Frozen, apart from every stage's state (STYLE.md 7, 13).
+stages compute with: the channels→wrench matrix, the channels' limits, the surfaces prepared
+for intersection, the filters' second-order sections and noise gains, window lengths in
+samples. Frozen, apart from every stage's state (STYLE.md 7, 13); flattened once into the
+kernel's parameter arrays by :mod:`hapticdesk.estimator.params`.
 """
 
 from __future__ import annotations
@@ -44,13 +45,10 @@ class EstimatorSettings:
     sample_rate_hz: float
     n_sensors: int
     moment_channels: np.ndarray  # (C,) bool: the raw channels that measure a moment
-    wrench_map: np.ndarray  # (6, 6S): paper eqs. (1)–(4)
-    wrench_map_t: np.ndarray  # (6S, 6): its transpose, contiguous (the batch path's layout)
-    range_flat: np.ndarray  # (6S,) each channel's rating
-    inv_range2: np.ndarray  # (6S,) 1 / rating²
+    wrench_map: np.ndarray  # (6, C): the channels to [F_o; M_o], paper eqs. (1)–(4)
+    range_flat: np.ndarray  # (C,) each channel's limit: at or beyond it, it is saturated
     frames: list[SurfaceFrame]
     normals: np.ndarray  # (n_surfaces, 3)
-    normals_list: list[list[float]]
     lp_sos: np.ndarray  # the conventional low-pass
     diff_sos: np.ndarray  # the differentiated wrench's low-pass
     det_sos: np.ndarray  # the fast (detection) low-pass
@@ -116,12 +114,9 @@ class EstimatorSettings:
             n_sensors=len(profile.sensors),
             moment_channels=profile.moment_channels(),
             wrench_map=np.ascontiguousarray(mapping),
-            wrench_map_t=np.ascontiguousarray(mapping.T),
             range_flat=range_flat,
-            inv_range2=1.0 / range_flat**2,
             frames=[SurfaceFrame.of(surf) for surf in profile.surfaces],
             normals=normals,
-            normals_list=normals.tolist(),
             lp_sos=lp_sos,
             diff_sos=diff_sos,
             det_sos=det_sos,

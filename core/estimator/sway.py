@@ -27,9 +27,9 @@ delay small (``SPAN_S``, a few degrees at the sway frequency) and averages what 
 lets through. The differentiated candidate (paper eq. 8) is a difference of the
 same low-passed wrench and so is corrected with it.
 
-Stateful: the last ``2·SPAN_S`` of the low-passed horizontal force, so the output is the
-same for any split of the input; a gap restarts it like the filters (as if the desk had been
-still).
+Stateful: the last ``2·SPAN_S`` of the low-passed horizontal force (a ring in the kernel's
+state, ``_sway`` in :mod:`hapticdesk.estimator.kernel`); a gap restarts it like the filters
+(as if the desk had been still).
 
 Measured on the simulated desks (README "Sway compensation"): the translating model
 recovers the accelerometer's reading with the gain the model predicts.
@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -86,55 +85,3 @@ class SwaySettings:
         span = max(1, round(SPAN_S * fs))
         omega = 2.0 * math.pi * profile.natural_frequency_hz
         return cls(moment_lever=lever, scale=(fs / span) ** 2 / omega**2, span=span)
-
-
-class SwayStage:
-    """Adds the inertial wrench, estimated from the low-passed force's curvature, to a
-    packed low-passed wrench (3, k) complex (force + 1j·moment), in place."""
-
-    def __init__(self, settings: SwaySettings) -> None:
-        self.settings = settings
-        self.history: np.ndarray | None = None  # (2, 2·span): the last samples of F_h
-        self._lever: list[list[float]] = settings.moment_lever.tolist()
-
-    def restart(self, packed: np.ndarray | list[complex]) -> None:
-        """As if the force in ``packed`` (3,) had been read forever (no curvature)."""
-        f = np.array([packed[0].real, packed[1].real])
-        self.history = np.repeat(f[:, None], 2 * self.settings.span, axis=1)
-
-    def process(self, lp: np.ndarray) -> None:
-        """Correct ``lp`` (3, k) packed, in place; the correction of sample n uses F_h at
-        n, n − span and n − 2·span (a central second difference, ``span`` samples late)."""
-        s = self.settings
-        if lp.shape[1] == 0:
-            return
-        f = lp.real[:2].copy()
-        if self.history is None:
-            self.restart(lp[:, 0])
-        assert self.history is not None
-        line = np.concatenate([self.history, f], axis=1)
-        n2 = 2 * s.span
-        curvature = line[:, n2:] - 2.0 * line[:, s.span : -s.span] + line[:, :-n2]
-        curvature *= s.scale  # F̈_h / ω_n²
-        lp[:2] += curvature
-        lp += 1j * (s.moment_lever @ curvature)
-        self.history = line[:, -n2:]
-
-    def process_one(self, lp: list[Any]) -> list[Any]:
-        """:meth:`process` for one sample on plain numbers (the single-sample path)."""
-        s = self.settings
-        if self.history is None:
-            self.restart(lp)
-        assert self.history is not None
-        h = self.history
-        fx, fy = lp[0].real, lp[1].real
-        cx = (fx - 2.0 * float(h[0, s.span]) + float(h[0, 0])) * s.scale
-        cy = (fy - 2.0 * float(h[1, s.span]) + float(h[1, 0])) * s.scale
-        h[:, :-1] = h[:, 1:]
-        h[0, -1], h[1, -1] = fx, fy
-        (l00, l01), (l10, l11), (l20, l21) = self._lever
-        return [
-            lp[0] + cx + 1j * (l00 * cx + l01 * cy),
-            lp[1] + cy + 1j * (l10 * cx + l11 * cy),
-            lp[2] + 1j * (l20 * cx + l21 * cy),
-        ]

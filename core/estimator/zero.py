@@ -10,8 +10,15 @@ finger holds that still, fingers tremble and wander) joins it already after
 ``object_settle_s``, the zero then the mean over the windows that showed it still; when the
 load later steps back to the zero from before an object joined it (the object lifted), that
 zero is restored at once. The desk is judged on windows of ``WINDOW_S``; a zero decided at
-the end of a window applies from the next sample on, whatever the block boundaries, so
-streaming equals batch.
+the end of a window applies from the next sample on.
+
+The kernel (:mod:`hapticdesk.estimator.kernel`, ``_window_add``) fills each window and, at
+its end, measures it — the spread of its low-passed force, its mean wrench, its share of bad
+samples. Once tared, a window that is not still only ends a still run and the resting, and
+a still window of the idle desk (nothing absorbed, a load under ``drift_max_n``) goes on with
+the still run and follows the drift: the kernel judges both itself (logging the idle ones for
+the yardsticks, :meth:`ZeroStage.read_idle_windows`); any other leaves the loop
+(``EV_WINDOW``) and :meth:`ZeroStage.window` judges it here, on plain floats.
 """
 
 from __future__ import annotations
@@ -22,9 +29,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hapticdesk.estimator.contacts import FLAG_GAP
+from hapticdesk.estimator import kernel as k
 from hapticdesk.estimator.notices import Notice, add_notice, log
-from hapticdesk.estimator.samples import BAD_SAMPLE
 from hapticdesk.estimator.settings import EstimatorSettings
 
 # A load still within these multiples of the idle desk's own unsteadiness is an object, not a
@@ -76,43 +82,23 @@ OBJECT_NOISE_FLOOR_N = 1e-4
 # of the object's weight (or ``still_n``, whichever is larger) of that zero
 LIFT_TOLERANCE = 0.2
 
-ZeroSegments = tuple[np.ndarray, np.ndarray]  # starts (n,), (8, n): [F; M], set time, resting
-
-
-def window_spreads(lp_w: np.ndarray, block: int) -> np.ndarray:
-    """How far each window's low-passed force spreads, its largest axis (n,), from windows
-    ``lp_w`` (3, n, w): over means of ``block`` samples (``EstimatorSettings.still_block``,
-    1 unless the sway is compensated: see ``SWAY_STILL_MEAN_S``)."""
-    if block > 1:
-        three, n, w = lp_w.shape
-        lp_w = lp_w.reshape(three, n, w // block, block).mean(axis=3)
-    return (lp_w.max(axis=2) - lp_w.min(axis=2)).max(axis=0)
-
 
 class ZeroState:
-    """The current zero, the unfinished window and the tare / stillness state machine."""
+    """The current zero and the tare / stillness state machine.
 
-    def __init__(self, window: int) -> None:
-        self.zero: np.ndarray | None = None  # (6,), None before the tare
-        self.zero_list: list[float] = []  # the same as plain floats
-        self.zero_t = 0.0  # when the zero was last set, for the drift since then
-        # the load has been as still as an object put down since the last window judged
-        # (``object_pending``): recognizers wait for the verdict before a hold fires
-        self.resting = False
-        self.segment: ZeroSegments = (np.zeros(1, int), np.array(self.column())[:, None])
+    What the kernel shares — the zero, when it was set, the window count, the still run and
+    its means, whether the load is resting, how many objects are absorbed — lives in the
+    kernel's state arrays (``kernel.S_*``, ``kernel.J_*``: the kernel judges the idle desk's
+    windows itself); the properties here read and write them there. The rest is Python's:
+    the tare's windows, the idle desk's yardsticks (from the windows the kernel logs), the
+    object rule's windows and the objects absorbed."""
+
+    def __init__(self, sf: np.ndarray, si: np.ndarray, pi: np.ndarray) -> None:
+        self._sf, self._si = sf, si
+        self._ring_at, self._ring = int(pi[k.I_SO_STILL_MEANS]), int(pi[k.I_STILL_RING])
         self.noise: np.ndarray | None = None  # (6, 6) measured at the tare
-        self.win_lp = np.zeros((3, window))  # the current, unfinished window
-        self.win_raw = np.zeros((6, window))
-        self.win_bad = np.zeros(window, bool)
-        self.win_fill = 0
-        self.last_window_t = float("nan")
         self.tare_raw: list[np.ndarray] = []
         self.tare_means: list[list[float]] = []
-        self.windows_seen = 0
-        self.still_run = 0
-        self.still_lo: list[float] = [0.0, 0.0, 0.0]
-        self.still_hi: list[float] = [0.0, 0.0, 0.0]
-        self.still_means: list[list[float]] = []
         self.tare_spreads: list[float] = []
         # the idle desk's unsteadiness: the IDLE_QUANTILE of its recent window spreads, and of
         # how far its window means strayed over an object's wait (``n_object`` windows) in a row
@@ -121,177 +107,174 @@ class ZeroState:
         self.idle_spreads: list[float] = []  # the last IDLE_WINDOWS of each
         self.idle_wanders: list[float] = []
         self.idle_tail: list[tuple[int, list[float]]] = []  # (window index, force mean) of the last
-        self.window_index = 0  # windows judged so far, still or not (which are in a row)
-        self.object_run = 0  # windows the load has been as still as the idle desk
-        # the last of them judged (spread, force mean less the zero), and whether their means
-        # stayed within the allowed wander
+        # the last windows of an object run (spread, force mean less the zero), and whether
+        # their means stayed within the allowed wander
         self.object_windows: list[tuple[float, tuple[float, float, float]]] = []
         self.object_resting = False
         # objects absorbed into the zero, last on top: (the zero before it, its weight |F|)
         self.objects: list[tuple[list[float], float]] = []
 
-    def column(self) -> list[float]:
-        """The zero (6,), the time it was set and whether the load is resting (0 or 1), as
-        one column; the zero and its time NaN before the tare."""
-        if self.zero is None:
-            return [math.nan] * 7 + [float(self.resting)]
-        return [*self.zero_list, self.zero_t, float(self.resting)]
+    @property
+    def tared(self) -> bool:
+        return bool(self._si[k.J_TARED])
+
+    @property
+    def zero(self) -> np.ndarray | None:
+        """The zero (6,), None before the tare."""
+        return self._sf[k.S_ZERO : k.S_ZERO + 6].copy() if self.tared else None
+
+    @property
+    def zero_list(self) -> list[float]:
+        return list(self._sf[k.S_ZERO : k.S_ZERO + 6].tolist())
+
+    @property
+    def zero_t(self) -> float:
+        """When the zero was last set, for the drift since then."""
+        return float(self._sf[k.S_ZERO_T])
+
+    @property
+    def zero_version(self) -> int:
+        """How many times the zero was set."""
+        return int(self._si[k.J_ZERO_VERSION])
+
+    def set_zero(self, zero: np.ndarray | list[float], t: float) -> None:
+        self._sf[k.S_ZERO : k.S_ZERO + 6] = [float(z) for z in zero]
+        self._sf[k.S_ZERO_T] = t
+        self._si[k.J_TARED] = 1
+        self._si[k.J_ZERO_VERSION] += 1
+
+    def _int(name: int) -> property:  # type: ignore[misc]  # (a slot of the kernel's si)
+        return property(
+            lambda self: int(self._si[name]),
+            lambda self, value: self._si.__setitem__(name, int(value)),
+        )
+
+    #: windows judged on (each before the tare, the still ones after); windows ended so far,
+    #: still or not (which are in a row); still windows in a row with the load not moved; windows
+    #: the load has been as still as the idle desk
+    windows_seen = _int(k.J_WINDOWS_SEEN)
+    window_index = _int(k.J_WINDOW_INDEX)
+    still_run = _int(k.J_STILL_RUN)
+    object_run = _int(k.J_OBJECT_RUN)
+    del _int
+
+    @property
+    def resting(self) -> bool:
+        """The load has been as still as an object put down since the last window judged
+        (``object_pending``): recognizers wait for the verdict before a hold fires."""
+        return bool(self._si[k.J_RESTING])
+
+    @resting.setter
+    def resting(self, value: bool) -> None:
+        self._si[k.J_RESTING] = int(value)
+
+    @property
+    def still_lo(self) -> list[float]:
+        """The still run's lowest window mean of the force less the zero (3)."""
+        return list(self._sf[k.S_STILL_LO : k.S_STILL_LO + 3].tolist())
+
+    @still_lo.setter
+    def still_lo(self, values: list[float]) -> None:
+        self._sf[k.S_STILL_LO : k.S_STILL_LO + 3] = values
+
+    @property
+    def still_hi(self) -> list[float]:
+        return list(self._sf[k.S_STILL_HI : k.S_STILL_HI + 3].tolist())
+
+    @still_hi.setter
+    def still_hi(self, values: list[float]) -> None:
+        self._sf[k.S_STILL_HI : k.S_STILL_HI + 3] = values
+
+    def clear_still_means(self) -> None:
+        self._si[k.J_STILL_COUNT] = 0
+
+    def push_still_mean(self, mean: list[float]) -> None:
+        """The mean wrench (6) of one more still window of the run."""
+        si, pos = self._si, int(self._si[k.J_STILL_POS])
+        at = self._ring_at + 6 * pos
+        self._sf[at : at + 6] = mean
+        si[k.J_STILL_POS] = pos + 1 if pos + 1 < self._ring else 0
+        si[k.J_STILL_COUNT] = min(int(si[k.J_STILL_COUNT]) + 1, self._ring)
+
+    def last_still_means(self, n: int) -> list[list[float]]:
+        """The means of the run's last ``n`` still windows (fewer if the run is shorter)."""
+        n = min(n, int(self._si[k.J_STILL_COUNT]))
+        pos = int(self._si[k.J_STILL_POS])
+        rows = []
+        for j in range(n):
+            at = self._ring_at + 6 * ((pos - n + j) % self._ring)
+            rows.append(self._sf[at : at + 6].tolist())
+        return rows
+
+    def count_objects(self) -> None:
+        """How many objects are absorbed, for the kernel (it judges no window while any is:
+        their lift is Python's)."""
+        self._si[k.J_OBJECTS] = len(self.objects)
 
     @property
     def object_pending(self) -> bool:
         """After a window: an object run is under way and its windows stay within the allowed
         wander, so the load is resting until the verdict."""
-        return self.zero is not None and self.object_run > 0 and self.object_resting
-
-    def set_resting(self, resting: bool) -> None:
-        """Whether the load is resting (see ``resting``) from the next sample on."""
-        if resting != self.resting:
-            self.resting = resting
-            self.segment = (np.zeros(1, int), np.array(self.column())[:, None])
-
-    def set_zero(self, zero: np.ndarray | list[float], t: float) -> None:
-        self.zero_list = [float(z) for z in zero]
-        self.zero = np.array(self.zero_list)
-        self.zero_t = t
-        self.segment = (np.zeros(1, int), np.array(self.column())[:, None])
+        return self.tared and self.object_run > 0 and self.object_resting
 
 
 class ZeroStage:
-    """The zero for each sample, from the low-passed force and the raw wrench."""
+    """Judges the windows of the zero (the tare, drift, objects), one at a time."""
 
-    def __init__(self, settings: EstimatorSettings, notices: list[Notice]) -> None:
+    def __init__(
+        self,
+        settings: EstimatorSettings,
+        notices: list[Notice],
+        sf: np.ndarray,
+        si: np.ndarray,
+        pi: np.ndarray,
+    ) -> None:
+        """``sf``, ``si``, ``pi``: the kernel's state and parameters (see ZeroState)."""
         self.settings = settings
         self.notices = notices
-        self.state = ZeroState(settings.window)
+        self.state = ZeroState(sf, si, pi)
+        self._log_at, self._log = int(pi[k.I_SO_IDLE_LOG]), int(pi[k.I_IDLE_LOG])
         self.window_s = settings.window / settings.sample_rate_hz
         # the idle desk's wander is measured over as many windows as an object waits
         self.wander_windows = max(2, settings.n_object)
-        # `zeroed`: the readings come zeroed, the zero is 0 from the first sample on and stays
-        self.fixed = settings.user.zeroed
+        if settings.user.zeroed:
+            # the readings come zeroed: the kernel sets the zero to 0 at the first good sample
+            # and judges no window; the noise is the profile's (Covariances.of)
+            self.state.noise = np.zeros((6, 6))
 
-    def process_one(self, t: float, lp_force: list[float], raw: list[float]) -> None:
-        """:meth:`process` for one good sample once tared: remembered, and where it ends a
-        window, the window judged by the same code as a block's (so a zero it sets takes
-        effect from the next sample on, as in a block) — one window's work, not a block's."""
-        if self.fixed:
-            return
-        st, w = self.state, self.settings.window
-        m = st.win_fill
-        st.win_lp[:, m] = lp_force
-        st.win_raw[:, m] = raw
-        st.win_bad[m] = False
-        if m + 1 < w:
-            st.win_fill = m + 1
-        else:
-            self._window_one(t)
-            st.win_fill = 0
-        st.last_window_t = t
-
-    def _window_one(self, t: float) -> None:
-        """:meth:`_windows` for the one window a single sample ends, with as few numpy calls
-        as it takes: at a window's end (5 times a second) they run cold, and the general
-        code's dozen took about 125 µs there against 21 µs warm. The same reductions (a
-        window's max and min, its mean), so the same values as a block's."""
-        st, s = self.state, self.settings.user
-        st.window_index += 1
-        spread = float(window_spreads(st.win_lp[:, None, :], self.settings.still_block)[0])
-        bad = bool(np.count_nonzero(st.win_bad) / len(st.win_bad) > 0.1)  # (as _windows)
-        if st.zero is not None and (bad or spread >= s.still_n):
-            st.still_run = st.object_run = 0  # not still: ends a still run (see _windows)
-            st.set_resting(False)
-            return
-        self._window_done(spread, bad, st.win_raw.mean(axis=1).tolist(), st.win_raw, t)
-        st.set_resting(st.object_pending)
-
-    def process(
-        self, t: np.ndarray, lp_force: np.ndarray, raw: np.ndarray, flags: np.ndarray
-    ) -> ZeroSegments:
-        """The zero in force for each sample, as segments: ``starts`` (n,) sample indices
-        where a zero (or whether the load rests) takes effect and ``zeros`` (8, n), [F; M],
-        the time it was set (NaN before the tare) and the load resting (0 or 1)."""
-        st, w = self.state, self.settings.window
-        if self.fixed:
-            if st.zero is None:  # (the noise is the profile's: see Covariances.of)
-                st.set_zero(np.zeros(6), float(t[0]))
-                st.noise = np.zeros((6, 6))
-            return st.segment
-        m, k = st.win_fill, len(t)
-        bad = (flags & (BAD_SAMPLE | FLAG_GAP)) != 0
-        if m + k < w:  # the block ends inside the current window: only remember it
-            st.win_lp[:, m : m + k] = lp_force
-            st.win_raw[:, m : m + k] = raw
-            st.win_bad[m : m + k] = bad
-            st.win_fill = m + k
-            st.last_window_t = float(t[-1])
-            return st.segment
-        if m:
-            all_lp = np.concatenate([st.win_lp[:, :m], lp_force], axis=1)
-            all_raw = np.concatenate([st.win_raw[:, :m], raw], axis=1)
-            all_bad = np.concatenate([st.win_bad[:m], bad])
-        else:  # windows start with the block: no copies
-            all_lp, all_raw, all_bad = lp_force, raw, bad
-        n_full = all_lp.shape[1] // w
-        starts, zeros = [0], [st.column()]
-        if n_full:
-            self._windows(t, all_lp, all_raw, all_bad, n_full, starts, zeros)
-            cut = n_full * w
-            rest = all_lp.shape[1] - cut
-            st.win_lp[:, :rest] = all_lp[:, cut:]
-            st.win_raw[:, :rest] = all_raw[:, cut:]
-            st.win_bad[:rest] = all_bad[cut:]
-            st.win_fill = rest
-        st.last_window_t = float(t[-1])
-        return np.array(starts), np.array(zeros).T
-
-    def _windows(
-        self,
-        t: np.ndarray,
-        all_lp: np.ndarray,
-        all_raw: np.ndarray,
-        all_bad: np.ndarray,
-        n_full: int,
-        starts: list[int],
-        zeros: list[list[float]],
+    def window(
+        self, spread: float, bad: bool, mean: list[float], raw: np.ndarray, t_end: float
     ) -> None:
-        """Judge the ``n_full`` complete windows; append where a new zero takes effect."""
-        st, w = self.state, self.settings.window
-        m = st.win_fill
-        cut = n_full * w
-        lp_w = all_lp[:, :cut].reshape(3, n_full, w)
-        spread: list[float] = window_spreads(lp_w, self.settings.still_block).tolist()
-        means = all_raw[:, :cut].reshape(6, n_full, w).mean(axis=2)
-        # a window is unusable for the zero when more than a tenth of it was held over
-        bad_share = all_bad[:cut].reshape(n_full, w).mean(axis=1)
-        any_bad = (bad_share > 0.1).tolist()
-        ends = np.arange(1, n_full + 1) * w - 1 - m  # block index of each window's end
-        t_end = np.where(ends >= 0, t[np.maximum(ends, 0)], st.last_window_t).tolist()
-        mean_rows = means.T.tolist()
-        # Once tared, a window that is not still only ends a still run: the loop (over
-        # 0.2 s windows, not samples) visits the still ones and notes the breaks.
-        still_n = self.settings.user.still_n
-        still = [not b and sp < still_n for b, sp in zip(any_bad, spread, strict=True)]
-        previous = -1
-        for j in range(n_full):
-            st.window_index += 1
-            if st.zero is not None and not still[j]:
-                if st.resting:  # (the load moved: no longer resting, from the next sample)
-                    st.set_resting(False)
-                    starts.append(int(ends[j]) + 1)
-                    zeros.append(st.column())
-                continue
-            if st.zero is not None and j != previous + 1:
-                st.still_run = st.object_run = 0  # windows in between were not still
-            previous = j
-            before, resting = st.zero, st.resting
-            self._window_done(
-                spread[j], any_bad[j], mean_rows[j], all_raw[:, j * w : (j + 1) * w], t_end[j]
-            )
-            st.set_resting(st.object_pending)
-            if st.zero is not before or st.resting != resting:
-                starts.append(int(ends[j]) + 1)
-                zeros.append(st.column())
-        if previous != n_full - 1:
-            st.still_run = st.object_run = 0  # the block ended on windows that were not still
+        """Judge one window the kernel leaves to Python (every one before the tare; after,
+        a still one whose load is no idle desk's, or with an object absorbed): the spread of
+        its low-passed force (its largest axis, over means of ``still_block`` samples),
+        whether over a tenth of it was held over (bad samples, a gap), its mean wrench (6),
+        its wrench (6, w) (read only before the tare; kept then) and its last sample's time.
+        The kernel counted it (``window_index``)."""
+        st = self.state
+        self.read_idle_windows()
+        self._window_done(spread, bad, mean, raw, t_end)
+        st.resting = st.object_pending
+        st.count_objects()
+
+    def read_idle_windows(self) -> None:
+        """The idle windows the kernel judged since the last call join the yardsticks, in
+        order (the last ``IDLE_WINDOWS`` and a wander's tail are all that count: the kernel
+        keeps that many)."""
+        si, sf = self.state._si, self.state._sf
+        n = int(si[k.J_IDLE_LOG_N])
+        if n == 0:
+            return
+        st = self.state
+        if n == self._log:  # (maybe more were logged: those the log kept are the ones that count)
+            st.idle_spreads, st.idle_wanders = [], []
+        pos = int(si[k.J_IDLE_LOG_POS])
+        for j in range(n):
+            at = self._log_at + 5 * ((pos - n + j) % self._log)
+            spread, fx, fy, fz, index = sf[at : at + 5].tolist()
+            self._idle_window(spread, [fx, fy, fz], int(index), yardsticks=False)
+        self._yardsticks()  # (once for the lot: only the last windows' count)
+        si[k.J_IDLE_LOG_N] = 0
 
     def _window_done(
         self, spread: float, bad: bool, mean: list[float], raw: np.ndarray, t_end: float
@@ -299,12 +282,10 @@ class ZeroStage:
         """Advance the tare / stillness state machine by one window (plain floats: it is hot)."""
         st, s = self.state, self.settings.user
         st.windows_seen += 1
-        if st.zero is None:
+        if not st.tared:
             self._tare_window(spread, bad, mean, raw, t_end)
             return
-        if bad or spread >= s.still_n:  # (only before the tare: see _windows)
-            st.still_run = st.object_run = 0
-            return
+        # (a tared window the kernel leaves to Python is still: see ZeroStage.window)
         if st.objects and self._lifted(mean, t_end):
             return
         z = st.zero_list
@@ -316,10 +297,10 @@ class ZeroStage:
                 st.still_run = 0  # the load moved: a new still run starts here
         if st.still_run == 0:
             lo, hi = list(f), list(f)
-            st.still_means = []
+            st.clear_still_means()
         st.still_lo, st.still_hi = lo, hi
         st.still_run += 1
-        st.still_means.append(mean)
+        st.push_still_mean(mean)
         load = math.sqrt(f[0] ** 2 + f[1] ** 2 + f[2] ** 2)
         if load < s.drift_max_n:  # the idle desk: a window of its own unsteadiness
             self._idle_window(spread, mean[:3], st.window_index)
@@ -335,7 +316,7 @@ class ZeroStage:
             # the new zero: the mean over the windows that showed it an object, not the last
             # one alone (a desk swaying at 4–5 Hz moves a 0.2 s window's mean moment enough
             # to put a press 2–3 mm off); their means are within the allowed wander
-            held = st.still_means[-len(st.object_windows) :]
+            held = st.last_still_means(len(st.object_windows))
             st.set_zero([math.fsum(c) / len(held) for c in zip(*held, strict=True)], t_end)
             held_s = len(held) * self.window_s
         else:
@@ -382,10 +363,13 @@ class ZeroStage:
         spreads = sorted(window_spread for window_spread, _ in st.object_windows)
         return still and st.object_run >= wait and spreads[len(spreads) // 2] < limit
 
-    def _idle_window(self, spread: float, mean: list[float], index: int) -> None:
+    def _idle_window(
+        self, spread: float, mean: list[float], index: int, yardsticks: bool = True
+    ) -> None:
         """One more window of the idle desk (``index``: its number, see ``window_index``):
         its spread, and how far the force means of the last ``wander_windows`` in a row
-        strayed, update the yardsticks of stillness."""
+        strayed, update the yardsticks of stillness (``yardsticks`` False: the caller
+        updates them once after several windows)."""
         st = self.state
         st.idle_spreads.append(spread)
         tail = [(i, m) for i, m in st.idle_tail if index - i < self.wander_windows]
@@ -396,7 +380,14 @@ class ZeroStage:
         for values in (st.idle_spreads, st.idle_wanders):
             if len(values) > IDLE_WINDOWS:
                 del values[0]
-        st.quiet_spread = _quantile(st.idle_spreads, IDLE_QUANTILE)
+        if yardsticks:
+            self._yardsticks()
+
+    def _yardsticks(self) -> None:
+        """The quiet spread and wander: quantiles of the idle desk's last windows."""
+        st = self.state
+        if st.idle_spreads:
+            st.quiet_spread = _quantile(st.idle_spreads, IDLE_QUANTILE)
         if st.idle_wanders:
             st.quiet_wander = _quantile(st.idle_wanders, IDLE_QUANTILE)
 
@@ -426,7 +417,7 @@ class ZeroStage:
         zero never builds up between touches)."""
         st, n_drift = self.state, self.settings.n_drift
         if st.still_run >= n_drift:
-            recent = st.still_means[-n_drift:]
+            recent = st.last_still_means(n_drift)
             columns = zip(*recent, strict=True)
             st.set_zero([math.fsum(c) / len(recent) for c in columns], t_end)
             st.still_run = 0
@@ -461,7 +452,7 @@ class ZeroStage:
         """Before the tare: collect quiet windows; tare over ``tare_s`` of them."""
         st, s, n_tare = self.state, self.settings.user, self.settings.n_tare
         if not bad and spread < s.tare_quiet_n:
-            st.tare_raw.append(raw)
+            st.tare_raw.append(raw.copy())
             st.tare_means.append(mean[:3])
             st.tare_spreads.append(spread)
             if len(st.tare_raw) > n_tare:
@@ -470,7 +461,11 @@ class ZeroStage:
                 st.tare_spreads.pop(0)
             if np.ptp(np.array(st.tare_means), axis=0).max() >= s.tare_quiet_n:
                 # each window was quiet, but the load moved between them: start again here
-                st.tare_raw, st.tare_means, st.tare_spreads = [raw], [mean[:3]], [spread]
+                st.tare_raw, st.tare_means, st.tare_spreads = (
+                    [st.tare_raw[-1]],
+                    [mean[:3]],
+                    [spread],
+                )
         else:
             st.tare_raw, st.tare_means, st.tare_spreads = [], [], []
         if len(st.tare_raw) >= n_tare:
@@ -506,32 +501,3 @@ def _quantile(values: list[float], q: float) -> float:
     """The ``q`` quantile of ``values`` by nearest rank (plain floats: a window's end is hot)."""
     ordered = sorted(values)
     return ordered[min(len(ordered) - 1, int(q * len(ordered)))]
-
-
-def subtract_zero(
-    t: np.ndarray, det: np.ndarray, lp: np.ndarray, segments: ZeroSegments, det_full: bool
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The zero taken off the fast wrench (a new array) and the low-passed one (in place),
-    segment by segment (it is piecewise constant). Returns the tared fast wrench, the age of
-    the zero at each sample (s), where a zero was known and where the load was resting."""
-    starts, zeros = segments
-    k = len(t)
-    ends = [*starts[1:].tolist(), k]
-    tared_zero = ~np.isnan(zeros[0])
-    fast = det.copy()
-    packed_zeros = zeros[:3] + 1j * zeros[3:6]
-    fast_zeros = packed_zeros if det_full else zeros[:3]
-    tared = np.ones(k, bool)
-    resting = np.zeros(k, bool)
-    age = np.empty(k)  # time since the zero in force was set
-    for a, b, j in zip(starts.tolist(), ends, range(len(ends)), strict=True):
-        if zeros[7, j]:
-            resting[a:b] = True
-        if tared_zero[j]:
-            fast[:, a:b] -= fast_zeros[:, j : j + 1]
-            lp[:, a:b] -= packed_zeros[:, j : j + 1]
-            age[a:b] = t[a:b] - zeros[6, j]
-        else:
-            tared[a:b] = False
-            age[a:b] = 0.0
-    return fast, age, tared, resting

@@ -74,7 +74,7 @@ def test_emulator_source_estimator_matches_the_recording_path(
     def done(blocks):
         nonlocal count
         block = blocks[-1]
-        contacts.append(estimator.push(block.t, block.wrench))
+        contacts.append(estimator.push(block.t, block.wrench).copy())  # (a view till the next)
         count += len(block.t)
         return count >= len(rec)
 

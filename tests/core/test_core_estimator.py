@@ -43,9 +43,11 @@ def all_finite(block: ContactBlock) -> bool:
 
 
 def split_push(est: ContactEstimator, t, w, cuts) -> ContactBlock:
+    """The blocks of pushes cut at ``cuts``, each copied as it comes (a block holds until the
+    estimator's next push)."""
     bounds = [0, *sorted(cuts), len(t)]
     return ContactBlock.concat(
-        [est.push(t[a:b], w[a:b]) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+        [est.push(t[a:b], w[a:b]).copy() for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
     )
 
 
@@ -86,34 +88,17 @@ def test_streaming_in_any_blocks_equals_batch(noisy_presses, cuts, method):
 
 @pytest.mark.parametrize("method", METHODS)
 def test_single_sample_pushes_equal_batch(noisy_presses, method):
-    # a one-sample push takes a plain-float path for the candidates: it must agree
+    # a one-sample push goes through the kernel's one-sample entry: it must agree
     desk = load_profile("kitamura2017")
     t, w = noisy_presses
     batch = ContactEstimator(desk, method=method).push(t, w)
-    est = ContactEstimator(desk, method=method)
-    stream = ContactBlock.concat([est.push(t[i : i + 1], w[i : i + 1]) for i in range(len(t))])
+    stream = split_push(ContactEstimator(desk, method=method), t, w, range(1, len(t)))
     for f in fields(ContactBlock):
         a, b = getattr(batch, f.name), getattr(stream, f.name)
         if a.dtype.kind == "f":
             np.testing.assert_allclose(b, a, rtol=1e-9, atol=1e-9, err_msg=f.name)
         else:
             np.testing.assert_array_equal(b, a, err_msg=f.name)
-
-
-@pytest.mark.parametrize("method", METHODS)
-def test_single_sample_pushes_take_no_slow_path_once_tared(noisy_presses, method, monkeypatch):
-    # issue 15 item 7: a zero window's end (every 240th sample) took the general block path
-    desk = load_profile("kitamura2017")
-    t, w = noisy_presses
-    est = ContactEstimator(desk, method=method)
-    est.push(t[:3100], w[:3100])  # tared, and after the NaN burst (bad samples go the long way)
-    assert est.tared
-    general = []
-    real_push = est._push
-    monkeypatch.setattr(est, "_push", lambda *a: general.append(1) or real_push(*a))
-    for i in range(3100, 3100 + 3 * est.stage_settings.window):
-        est.push(t[i : i + 1], w[i : i + 1])
-    assert general == []
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -325,9 +310,7 @@ def test_trace_keeps_both_candidates_and_changes_nothing(noisy_presses):
     t, w = noisy_presses
     plain = ContactEstimator(desk, method="switched").push(t, w)
     est = ContactEstimator(desk, method="switched", trace=True)
-    traced = ContactBlock.concat(
-        [est.push(t[i : i + 500], w[i : i + 500]) for i in range(0, len(t), 500)]
-    )
+    traced = split_push(est, t, w, range(500, len(t), 500))
     for f in fields(ContactBlock):
         np.testing.assert_allclose(getattr(traced, f.name), getattr(plain, f.name), atol=1e-9)
     trace = CandidateTrace.concat(est.traces)
@@ -340,30 +323,31 @@ def test_trace_keeps_both_candidates_and_changes_nothing(noisy_presses):
     np.testing.assert_allclose(point[0, used], plain.x[good_contact][used])
 
 
-@pytest.mark.parametrize("method", METHODS)
-def test_a_long_push_goes_through_in_pieces_with_the_same_output(
-    noisy_presses, method, monkeypatch
+def test_a_block_holds_until_the_next_push_and_a_copy_or_a_long_one_is_kept(
+    noisy_presses, monkeypatch
 ):
-    # a push longer than BATCH_CHUNK is cut into pieces (for the CPU caches): the output and
-    # the notices must be those of one piece
-    import hapticdesk.estimator as estimator
+    # push returns views of the estimator's own output columns (no per-sample arrays are
+    # built): the next push writes over them. A push longer than KEPT_COLUMNS gets columns
+    # of its own, so the block of a whole recording is the caller's to keep.
+    from hapticdesk.estimator import contact_estimator
 
     desk = load_profile("kitamura2017")
     t, w = noisy_presses
-    whole = ContactEstimator(desk, method=method)
-    one_piece = whole.push(t, w)
-    monkeypatch.setattr(estimator, "BATCH_CHUNK", 997)
-    pieces_est = ContactEstimator(desk, method=method)
-    pieces = pieces_est.push(t, w)
-    assert len(t) > 5 * 997
-    for f in fields(ContactBlock):
-        a, b = getattr(one_piece, f.name), getattr(pieces, f.name)
-        if a.dtype.kind == "f":
-            np.testing.assert_allclose(b, a, rtol=1e-9, atol=1e-9, err_msg=f.name)
-        else:
-            np.testing.assert_array_equal(b, a, err_msg=f.name)
-    assert [(n.t, n.kind) for n in pieces_est.notices] == [(n.t, n.kind) for n in whole.notices]
-    assert [n.t for n in pieces_est.notices] == sorted(n.t for n in pieces_est.notices)
+    est = ContactEstimator(desk)
+    first = est.push(t[:1000], w[:1000])
+    kept = first.copy()
+    np.testing.assert_array_equal(first.t, t[:1000])
+    again = est.push(t[1000:2000], w[1000:2000])
+    assert again is first  # the same view for a push of the same length
+    np.testing.assert_array_equal(first.t, t[1000:2000])
+    np.testing.assert_array_equal(kept.t, t[:1000])
+    one = est.push(t[2000:2001], w[2000:2001])
+    assert est.push(t[2001:2002], w[2001:2002]) is one  # the reused one-sample record
+    monkeypatch.setattr(contact_estimator, "KEPT_COLUMNS", 997)
+    whole = ContactEstimator(desk)
+    long = whole.push(t, w)
+    whole.push(t[:1000] + t[-1] + 1.0, w[:1000])
+    np.testing.assert_array_equal(long.t, t)
 
 
 def test_an_unrated_channel_cannot_overflow_the_sums(paper_desk, press_recording):
@@ -378,9 +362,7 @@ def test_an_unrated_channel_cannot_overflow_the_sums(paper_desk, press_recording
     w[2600:2610, 0, 4] = -1e308
     for k in (len(t), 1):
         est = ContactEstimator(desk, method="fused")
-        block = ContactBlock.concat(
-            [est.push(t[i : i + k], w[i : i + k]) for i in range(0, len(t), k)]
-        )
+        block = split_push(est, t, w, range(k, len(t), k))
         sat = np.flatnonzero(block.flags & FLAG_SATURATED)
         assert sat.tolist() == [2500, *range(2600, 2610)]
         assert all_finite(block) and block.located.sum() > 100
@@ -394,7 +376,7 @@ def test_the_first_sample_is_never_a_gap(paper_desk):
     w[5, 0, 0] = np.nan  # the first block of five is clean, the whole is not
     whole = ContactEstimator(paper_desk, settings=s).push(t, w)
     est = ContactEstimator(paper_desk, settings=s)
-    split = ContactBlock.concat([est.push(t[:5], w[:5]), est.push(t[5:], w[5:])])
+    split = split_push(est, t, w, [5])
     assert not whole.flags[0] & FLAG_GAP
     np.testing.assert_array_equal(split.flags, whole.flags)
 
@@ -409,7 +391,7 @@ def test_noise_free_single_sample_pushes_equal_batch(paper_desk, press_recording
     t, w, _ = press_recording(paper_desk, POINTS[:2])
     batch = ContactEstimator(paper_desk, settings=s).push(t, w)
     est = ContactEstimator(paper_desk, settings=s)
-    single = ContactBlock.concat([est.push(t[i : i + 1], w[i : i + 1]) for i in range(len(t))])
+    single = split_push(est, t, w, range(1, len(t)))
     np.testing.assert_array_equal(single.located, batch.located)
     assert batch.located.sum() > 100
     np.testing.assert_allclose(single.sigma_m, batch.sigma_m, rtol=1e-6, atol=1e-12)

@@ -5,7 +5,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hapticdesk.estimator.geometry import SurfaceFrame, intersect
+from hapticdesk.estimator.geometry import SurfaceFrame
+from hapticdesk.estimator.intersection import intersect
 from hapticdesk.files.profile import DeskProfile, SensorSpec, Surface
 from hapticdesk.files.rigid_body import rotation_matrix
 
@@ -131,15 +132,13 @@ def test_overlapping_surfaces_the_one_reached_first_wins():
 
 def test_shear_is_the_drag_along_the_surface_over_the_press_into_it():
     from hapticdesk.estimator.contacts import SHEAR_CAP
-    from hapticdesk.estimator.geometry import shear_ratio, shear_ratio_one
+    from hapticdesk.estimator.kernel import shear_of
 
     forces = np.array([[3.0, 4.0, -10.0], [3.0, 4.0, -10.0], [0.0, 0.0, 0.0], [2.0, 0.0, 0.0]])
     normals = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0]])
     # a top pressed with 10 N and dragged with 5 N; an upright panel pushed with 4 N and
     # dragged with sqrt(109) N; no force; a force along the surface alone (capped, finite)
     want = [0.5, np.sqrt(109.0) / 4.0, 0.0, SHEAR_CAP]
-    into = np.einsum("ki,ki->k", forces, normals)
-    np.testing.assert_allclose(shear_ratio(into, np.linalg.norm(forces, axis=1)), want, rtol=1e-12)
     for f, n, w in zip(forces, normals, want, strict=True):
-        one = shear_ratio_one(float(f @ n), float(np.linalg.norm(f)))
+        one = shear_of(float(f @ n), float(np.linalg.norm(f)), SHEAR_CAP)
         assert one == pytest.approx(w, rel=1e-12)

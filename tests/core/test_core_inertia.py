@@ -167,7 +167,7 @@ def test_streaming_with_an_accelerometer_equals_batch(accel_desk, kita):
     cuts = [0, 1_500, 1_501, 3_999, 4_000, 4_001, 4_002, 6_000, k]
     parts = []
     for a, b in zip(cuts[:-1], cuts[1:], strict=True):
-        parts.append(est.push(t[a:b], wrench[a:b], accel[a:b]))
+        parts.append(est.push(t[a:b], wrench[a:b], accel[a:b]).copy())
     streamed = type(batch).concat(parts)
     for name in ("in_contact", "located", "flags", "surface", "phase"):
         np.testing.assert_array_equal(getattr(streamed, name), getattr(batch, name))
@@ -182,8 +182,10 @@ def test_single_sample_pushes_with_an_accelerometer_equal_batch(accel_desk, kita
     accel[3_200, 1] = np.nan
     batch = ContactEstimator(accel_desk).push(t, wrench, accel)
     est = ContactEstimator(accel_desk)
-    parts = [est.push(t[:k0], wrench[:k0], accel[:k0])]
-    parts += [est.push(t[i : i + 1], wrench[i : i + 1], accel[i : i + 1]) for i in range(k0, k1)]
+    parts = [est.push(t[:k0], wrench[:k0], accel[:k0]).copy()]
+    parts += [
+        est.push(t[i : i + 1], wrench[i : i + 1], accel[i : i + 1]).copy() for i in range(k0, k1)
+    ]
     streamed = type(batch).concat(parts)
     assert batch.in_contact[k0:k1].any()
     np.testing.assert_array_equal(streamed.flags, batch.flags)
@@ -293,7 +295,7 @@ def test_sources_carry_the_readings_to_the_estimator(accel_desk, tmp_path):
     write_recording(path, short)
     source = open_replay(str(path), accel_desk, speed=0)
     est = ContactEstimator(accel_desk)
-    blocks = [est.push(b.t, b.wrench, b.accel) for b in source.blocks()]
+    blocks = [est.push(b.t, b.wrench, b.accel).copy() for b in source.blocks()]
     source.close()
     streamed = type(blocks[0]).concat(blocks)
     batch = estimate(accel_desk, short)

@@ -103,7 +103,8 @@ def test_streaming_equals_batch(desk, scene, cuts):
     est = ContactEstimator(desk)
     bounds = [0, *cuts, k]
     parts = [
-        est.push(rec.t[a:b], rec.wrench[a:b]) for a, b in zip(bounds[:-1], bounds[1:], strict=True)
+        est.push(rec.t[a:b], rec.wrench[a:b]).copy()
+        for a, b in zip(bounds[:-1], bounds[1:], strict=True)
     ]
     _equal(ContactBlock.concat(parts), batch)
 
@@ -116,9 +117,9 @@ def test_single_sample_pushes_equal_batch(desk, scene):
     batch = ContactEstimator(desk).push(rec.t[:k2], rec.wrench[:k2])
     assert (batch.flags[k0:k1] & FLAG_MULTI).any() and batch.located2[k0:k1].any()
     est = ContactEstimator(desk)
-    parts = [est.push(rec.t[:k0], rec.wrench[:k0])]
-    parts += [est.push(rec.t[i : i + 1], rec.wrench[i : i + 1]) for i in range(k0, k1)]
-    parts.append(est.push(rec.t[k1:k2], rec.wrench[k1:k2]))
+    parts = [est.push(rec.t[:k0], rec.wrench[:k0]).copy()]
+    parts += [est.push(rec.t[i : i + 1], rec.wrench[i : i + 1]).copy() for i in range(k0, k1)]
+    parts.append(est.push(rec.t[k1:k2], rec.wrench[k1:k2]).copy())
     _equal(ContactBlock.concat(parts), batch)
 
 
@@ -133,9 +134,9 @@ def test_a_gap_restarts_the_stage_and_every_split_agrees(desk, scene):
     assert batch.flags[gap_at] & FLAG_GAP
     assert (batch.flags & FLAG_MULTI).any()  # the second pair, after the gap
     est = ContactEstimator(desk)
-    parts = [est.push(t[:2_900], rec.wrench[:2_900])]
-    parts += [est.push(t[i : i + 1], rec.wrench[i : i + 1]) for i in range(2_900, 3_400)]
-    parts.append(est.push(t[3_400:], rec.wrench[3_400:k]))
+    parts = [est.push(t[:2_900], rec.wrench[:2_900]).copy()]
+    parts += [est.push(t[i : i + 1], rec.wrench[i : i + 1]).copy() for i in range(2_900, 3_400)]
+    parts.append(est.push(t[3_400:], rec.wrench[3_400:k]).copy())
     _equal(ContactBlock.concat(parts), batch)
 
 
@@ -164,9 +165,9 @@ def test_an_outline_that_is_no_rectangle_and_bad_samples_give_no_crash(desk, sce
 
 def _one_at_a_time(est: ContactEstimator, t, wrench, a: int, b: int) -> ContactBlock:
     """A batch up to ``a``, single samples to ``b``, a batch to the end."""
-    parts = [est.push(t[:a], wrench[:a])]
-    parts += [est.push(t[j : j + 1], wrench[j : j + 1]) for j in range(a, b)]
-    parts.append(est.push(t[b:], wrench[b:]))
+    parts = [est.push(t[:a], wrench[:a]).copy()]
+    parts += [est.push(t[j : j + 1], wrench[j : j + 1]).copy() for j in range(a, b)]
+    parts.append(est.push(t[b:], wrench[b:]).copy())
     return ContactBlock.concat(parts)
 
 
@@ -226,7 +227,7 @@ def test_the_minimum_distance_is_the_desks_own_stray(desk):
     parts, a = [], 0
     while a < len(rec.t):
         b = min(len(rec.t), a + int(rng.integers(1, 400)))
-        parts.append(streamed.push(rec.t[a:b], rec.wrench[a:b]))
+        parts.append(streamed.push(rec.t[a:b], rec.wrench[a:b]).copy())
         a = b
     np.testing.assert_array_equal(ContactBlock.concat(parts).flags, block.flags)
     assert streamed.second_finger is not None
@@ -234,8 +235,8 @@ def test_the_minimum_distance_is_the_desks_own_stray(desk):
     # one sample at a time over four presses' ends (the single-sample queue), then the rest
     one = ContactEstimator(desk)
     cut = int(np.searchsorted(rec.t, 2.0 + 4 * 6.0))
-    parts = [one.push(rec.t[i : i + 1], rec.wrench[i : i + 1]) for i in range(cut)]
-    parts.append(one.push(rec.t[cut:], rec.wrench[cut:]))
+    parts = [one.push(rec.t[i : i + 1], rec.wrench[i : i + 1]).copy() for i in range(cut)]
+    parts.append(one.push(rec.t[cut:], rec.wrench[cut:]).copy())
     np.testing.assert_array_equal(ContactBlock.concat(parts).flags, block.flags)
     assert one.second_finger is not None
     assert one.second_finger.min_apart_m == pytest.approx(stage.min_apart_m, rel=1e-9)
@@ -254,16 +255,13 @@ def test_a_minimum_learnt_low_is_learnt_afresh_when_most_contacts_are_flagged(de
     half of the last contacts with a change are flagged, it starts again from 7 cm."""
     from hapticdesk.estimator import multitouch
 
-    stage = multitouch.SecondFingerStage(desk)
+    stage = multitouch.SecondFingerStage()
     for _ in range(10):  # ten presses whose own change strayed 1.5 cm at most
-        stage.contact_stray = 0.015
-        stage._end_contact()
+        stage.contact_ended(False, 0.015)
     assert stage.min_apart_m == multitouch.MIN_APART_FLOOR_M
     for _ in range(10):  # as many flagged: half, still trusted
-        stage.flagged = True
-        stage._end_contact()
+        stage.contact_ended(True, 0.0)
     assert stage.min_apart_m == multitouch.MIN_APART_FLOOR_M
-    stage.flagged = True
-    stage._end_contact()
+    stage.contact_ended(True, 0.0)
     assert stage.min_apart_m == multitouch.MIN_APART_M
     assert len(stage.strays) == 0

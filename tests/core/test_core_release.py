@@ -101,17 +101,19 @@ def _fast_force(levels_n: list[tuple[float, float]], fs: float) -> np.ndarray:
     return np.interp(t, times, values)
 
 
-def _contacts(detector_of, force: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
-    """In contact per sample for ``force`` through a fresh detector, as one block and one
-    sample at a time."""
+def _contacts(estimator: ContactEstimator, force: np.ndarray, fs: float) -> np.ndarray:
+    """In contact per sample for the vertical fast force ``force`` (and its slope), through
+    the kernel's detector with the state of a fresh ``estimator``."""
+    from hapticdesk.estimator import kernel as k
+
     slope = np.gradient(force) * fs
-    f_det = np.zeros((3, len(force)))
-    f_det[2] = force
-    block = detector_of().process(f_det, force, slope, None)
-    single = detector_of()
-    one = [single.process_one([0.0, 0.0, f], [0.0, 0.0, d], [0.0, 0.0, d])[0] for f, d in
-           zip(force.tolist(), slope.tolist(), strict=True)]  # fmt: skip
-    return block, np.array(one)
+    pf, pi = estimator.params.pf, estimator.params.pi
+    sf, si = estimator.state
+    out = []
+    for f, d in zip(force.tolist(), slope.tolist(), strict=True):
+        sf[k.S_SLOPE : k.S_SLOPE + 3] = sf[k.S_RELEASE : k.S_RELEASE + 3] = (0.0, 0.0, d)
+        out.append(k.detect(pf, pi, sf, si, 0.0, 0.0, f, abs(f))[0])
+    return np.array(out)
 
 
 def _touch_downs(in_contact: np.ndarray) -> int:
@@ -124,22 +126,13 @@ def test_a_force_that_flattens_after_a_predicted_release_does_not_touch_down_aga
     touched down again for 10-15 ms and the tap's button fired twice. Re-armed only below the
     release level, a touch-down in between needs the hysteresis on top (2.5 N): a finger
     pressing again does."""
-    from hapticdesk.estimator.detector import TouchDetector
-
-    settings = ContactEstimator(paper_desk).stage_settings
-    fs = settings.sample_rate_hz
-
-    def detector():
-        return TouchDetector(settings)
-
+    fs = paper_desk.sample_rate_hz
     tap = [(0.0, 0.0), (0.06, 2.2), (0.065, 2.05), (0.07, 2.005), (0.085, 2.01), (0.14, 0.0)]
-    block, one = _contacts(detector, _fast_force(tap, fs), fs)
-    assert _touch_downs(block) == 1
-    np.testing.assert_array_equal(block, one)
+    inside = _contacts(ContactEstimator(paper_desk), _fast_force(tap, fs), fs)
+    assert _touch_downs(inside) == 1
     # released early (the prediction) and not touched down on the flat part
-    assert not block[int(0.072 * fs) : int(0.085 * fs)].any()
+    assert not inside[int(0.072 * fs) : int(0.085 * fs)].any()
 
     again = tap[:-1] + [(0.11, 3.2), (0.2, 3.2), (0.26, 0.0)]
-    block, one = _contacts(detector, _fast_force(again, fs), fs)
-    assert _touch_downs(block) == 2  # a real second press is one
-    np.testing.assert_array_equal(block, one)
+    inside = _contacts(ContactEstimator(paper_desk), _fast_force(again, fs), fs)
+    assert _touch_downs(inside) == 2  # a real second press is one

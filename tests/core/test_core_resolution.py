@@ -8,7 +8,7 @@ import pytest
 
 from hapticdesk.estimator import ContactEstimator
 from hapticdesk.estimator.candidates import Covariances
-from hapticdesk.estimator.resolution import CONFIRM_CHANGES, Resolution, rounding_deficit
+from hapticdesk.estimator.resolution import CONFIRM_CHANGES, rounding_deficit
 from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.sim import Scene, simulate
 from hapticdesk.sim.actions import Idle, Tap
@@ -36,7 +36,7 @@ def test_the_step_is_learned_exactly_dithered_or_not(noise):
     taps move them: either way each channel's step is its rating/2000 (paper Table 2)."""
     desk = load_profile("kitamura2017")
     estimator = taps_on(desk, noise)
-    learned = estimator.samples.resolution.step
+    learned = estimator.resolution_step
     rating = estimator.stage_settings.range_flat
     assert learned == pytest.approx(rating / 2000, rel=1e-9)
     # and the estimator's covariances hold the rounding the tare did not see: all of it for
@@ -47,8 +47,8 @@ def test_the_step_is_learned_exactly_dithered_or_not(noise):
     with_steps = Covariances.of(settings, measured, learned).lp[0]
     plain = Covariances.of(settings, measured).lp[0]
     grown = np.trace(with_steps) / np.trace(plain)
-    assert estimator.candidates.covs is not None
-    assert np.trace(estimator.candidates.covs.lp[0]) == pytest.approx(np.trace(with_steps))
+    assert estimator.covariances is not None
+    assert np.trace(estimator.covariances.lp[0]) == pytest.approx(np.trace(with_steps))
     quiet = noise < 0.26  # below it, the simulator's 1/2000 rounding is not dithered
     assert grown > 100 if quiet else grown < 1.05
 
@@ -58,13 +58,14 @@ def test_readings_off_a_grid_add_nothing():
     are those of the measured noise alone."""
     desk = load_profile("kitamura2017")
     estimator = taps_on(desk, 0.4, resolution=0.0)
-    resolution = estimator.samples.resolution
+    step = estimator.resolution_step
     noise = estimator.zeroing.state.noise
     assert noise is not None
     measured_sd = np.sqrt(np.diag(noise)).min()
-    assert 0 < resolution.step.max() < 0.05 * measured_sd
+    # (the smallest of a channel's first CONFIRM_CHANGES changes: 6 % of the noise here)
+    assert 0 < step.max() < 0.1 * measured_sd
     settings = estimator.stage_settings
-    with_steps = Covariances.of(settings, noise, resolution.step)
+    with_steps = Covariances.of(settings, noise, step)
     without = Covariances.of(settings, noise)
     for a, b in zip(with_steps.lp + with_steps.diff, without.lp + without.diff, strict=True):
         assert a == pytest.approx(b, rel=1e-6, abs=1e-15)
@@ -82,21 +83,27 @@ def test_the_deficit_is_the_rounding_a_quiet_tare_did_not_see():
 
 
 def test_a_channel_stops_learning_once_its_step_is_confirmed():
-    resolution = Resolution(2)
+    """A channel on a 0.1 grid learns 0.1 and, once CONFIRM_CHANGES changes confirm it, no
+    smaller change; a channel that never changed has no step and learns the first change."""
+    desk = load_profile("kitamura2017")
+    n = 3 * CONFIRM_CHANGES
     rng = np.random.default_rng(1)
-    rows = np.column_stack(
-        [
-            np.round(rng.normal(0, 0.3, 3 * CONFIRM_CHANGES) / 0.1) * 0.1,
-            np.zeros(3 * CONFIRM_CHANGES),
-        ]
-    )
-    resolution.observe(rows[:10])
-    assert resolution.changed() and resolution.used[0] >= 0.1 - 1e-12
-    for row in rows[10:]:
-        resolution.observe_one(row)
-    assert resolution.step[0] == pytest.approx(0.1)
-    assert resolution.step[1] == 0.0  # never changed: no step, still learning
-    assert list(resolution.learning) == [1]
-    resolution.observe(np.array([[0.0, 0.0], [0.0, 0.02], [0.0, 0.06]]))
-    assert resolution.step[1] == pytest.approx(0.02)
-    assert resolution.changed() and not resolution.changed()
+    readings = np.zeros((n + 3, len(desk.sensors), 6))
+    readings[:, :, 2] = 34.0  # the desk's weight, on its four legs
+    readings[:n, 0, 0] = np.round(rng.normal(0, 0.3, n) / 0.1) * 0.1
+    readings[:, :, 3:] = rng.normal(0, 0.01, (n + 3, len(desk.sensors), 3))  # (not stuck)
+    readings[n:, 0, 0] = readings[n - 1, 0, 0] + np.array([0.02, 0.0, 0.02])
+    readings[n + 1 :, 1, 1] = [0.02, 0.06]
+    t = np.arange(n + 3) / desk.sample_rate_hz
+    estimator = ContactEstimator(desk)
+    estimator.push(t[:10], readings[:10])
+    assert estimator.resolution_step[0] >= 0.1 - 1e-12
+    for i in range(10, n):  # one by one: the same as in a block
+        estimator.push(t[i : i + 1], readings[i : i + 1])
+    step = estimator.resolution_step
+    assert step[0] == pytest.approx(0.1)
+    assert step[7] == 0.0  # never changed: no step, still learning
+    estimator.push(t[n:], readings[n:])
+    step = estimator.resolution_step
+    assert step[0] == pytest.approx(0.1)  # confirmed: the smaller change does not count
+    assert step[7] == pytest.approx(0.02)

@@ -88,7 +88,9 @@ def test_streaming_equals_batch(accel_desk, shapes, cuts):
     assert batch.located.any()
     est = ContactEstimator(desk)
     bounds = [0, *cuts, k]
-    parts = [est.push(t[a:b], wrench[a:b]) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+    parts = [
+        est.push(t[a:b], wrench[a:b]).copy() for a, b in zip(bounds[:-1], bounds[1:], strict=True)
+    ]
     streamed = ContactBlock.concat(parts)
     for name in ("in_contact", "located", "flags", "phase"):
         np.testing.assert_array_equal(getattr(streamed, name), getattr(batch, name))
@@ -102,8 +104,8 @@ def test_single_sample_pushes_equal_batch(accel_desk, shapes):
     t, wrench = shapes.t[:k1], shapes.wrench[:k1]
     batch = ContactEstimator(desk).push(t, wrench)
     est = ContactEstimator(desk)
-    parts = [est.push(t[:k0], wrench[:k0])]
-    parts += [est.push(t[i : i + 1], wrench[i : i + 1]) for i in range(k0, k1)]
+    parts = [est.push(t[:k0], wrench[:k0]).copy()]
+    parts += [est.push(t[i : i + 1], wrench[i : i + 1]).copy() for i in range(k0, k1)]
     streamed = ContactBlock.concat(parts)
     assert batch.in_contact[k0:k1].any()
     np.testing.assert_array_equal(streamed.in_contact, batch.in_contact)

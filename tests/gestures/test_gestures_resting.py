@@ -127,7 +127,7 @@ def test_resting_is_the_same_streamed_one_sample_at_a_time(desk):
     batch = ContactEstimator(desk).push(rec.t, rec.wrench)
     assert batch.resting.any() and not (batch.resting & ~batch.in_contact).any()
     streamed = ContactEstimator(desk)
-    one = [streamed.push(rec.t[i : i + 1], rec.wrench[i : i + 1]) for i in range(len(rec.t))]
+    one = [streamed.push(rec.t[i : i + 1], rec.wrench[i : i + 1]).copy() for i in range(len(rec.t))]
     np.testing.assert_array_equal(np.concatenate([b.resting for b in one]), batch.resting)
 
 
@@ -150,6 +150,6 @@ def test_resting_is_the_same_in_any_blocks(desk):
     cuts = np.unique(rng.integers(1, len(rec.t), 400))
     est = ContactEstimator(desk)
     bounds = zip([0, *cuts], [*cuts, len(rec.t)], strict=True)
-    parts = [est.push(rec.t[a:b], rec.wrench[a:b]) for a, b in bounds]
+    parts = [est.push(rec.t[a:b], rec.wrench[a:b]).copy() for a, b in bounds]
     np.testing.assert_array_equal(np.concatenate([p.resting for p in parts]), batch.resting)
     np.testing.assert_array_equal(np.concatenate([p.in_contact for p in parts]), batch.in_contact)

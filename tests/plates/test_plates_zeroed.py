@@ -79,7 +79,8 @@ def test_zeroed_streams_as_it_batches():
     rng = np.random.default_rng(0)
     while start < len(t):
         end = min(len(t), start + int(rng.integers(1, 40)))
-        parts.append(streamed.push(t[start:end], wrench[start:end]))
+        # (push returns a view, valid till the next push)
+        parts.append(streamed.push(t[start:end], wrench[start:end]).copy())
         start = end
     x = np.concatenate([p.x for p in parts])
     assert np.array_equal(np.concatenate([p.located for p in parts]), whole.located)

@@ -17,7 +17,8 @@ import pytest
 
 from hapticdesk.bench.accuracy import find_presses
 from hapticdesk.estimator import ContactEstimator, estimate
-from hapticdesk.estimator.detector import ring_guard
+from hapticdesk.estimator import kernel as k
+from hapticdesk.estimator.detector import upright_surfaces
 from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.gestures.engine import GestureEngine
 from hapticdesk.gestures.layout_reader import load_layout
@@ -32,15 +33,10 @@ def contact_starts(in_contact: np.ndarray) -> int:
     return int(np.count_nonzero(in_contact & ~np.concatenate([[False], in_contact[:-1]])))
 
 
-def test_ring_guard_is_the_decaying_peak_hold() -> None:
-    rng = np.random.default_rng(0)
-    pull = np.maximum(rng.normal(size=(2, 3000)), 0.0) * (rng.random((2, 3000)) < 0.01)
-    start, decay = np.array([3.0, 0.0]), 0.999
-    expected, held = np.empty_like(pull), start.copy()
-    for k in range(pull.shape[1]):
-        held = np.maximum(pull[:, k], held * decay)
-        expected[:, k] = held
-    assert np.allclose(ring_guard(pull, start, decay), expected, rtol=1e-12, atol=1e-12)
+def guard(est: ContactEstimator) -> np.ndarray:
+    """The ring guard of each upright surface (N), from the estimator's state."""
+    at, n = int(est.params.pi[k.I_SO_GUARD]), int(est.params.pi[k.I_N_UP])
+    return est.state.sf[at : at + n].copy()
 
 
 @pytest.fixture(scope="module")
@@ -91,8 +87,8 @@ def test_sample_by_sample_the_guard_holds_the_same(pushes) -> None:
         one.push(t[k : k + 1], w[k : k + 1]).in_contact[0] for k in range(part.start, part.stop)
     ]
     assert np.array_equal(np.array(singles), block.in_contact[part])
-    assert max(whole.detector.ring) > 0.5  # the guard is up, decaying
-    assert np.allclose(one.detector.ring, whole.detector.ring, rtol=1e-9)
+    assert max(guard(whole)) > 0.5  # the guard is up, decaying
+    assert np.allclose(guard(one), guard(whole), rtol=1e-9)
 
 
 def test_the_guard_is_the_same_for_any_split_into_blocks(pushes) -> None:
@@ -106,10 +102,11 @@ def test_the_guard_is_the_same_for_any_split_into_blocks(pushes) -> None:
     cuts = np.sort(rng.choice(np.arange(1, n), size=40, replace=False))
     split = ContactEstimator(panel)
     parts = [
-        split.push(t[a:b], w[a:b]).in_contact for a, b in zip([0, *cuts], [*cuts, n], strict=True)
+        split.push(t[a:b], w[a:b]).in_contact.copy()
+        for a, b in zip([0, *cuts], [*cuts, n], strict=True)
     ]
     assert np.array_equal(np.concatenate(parts), expected)
-    assert np.allclose(split.detector.ring, whole.detector.ring, rtol=1e-9, atol=1e-12)
+    assert np.allclose(guard(split), guard(whole), rtol=1e-9, atol=1e-12)
 
 
 @pytest.mark.parametrize("seed", [0, 1])
@@ -131,8 +128,11 @@ def test_presses_on_the_panel_touch_down_once_each(seed) -> None:
 
 def test_the_top_of_a_desk_without_a_panel_is_not_guarded() -> None:
     """No upright surface, no guard: the paper desk's detector is unchanged."""
-    assert len(ContactEstimator(load_profile("kitamura2017")).detector.upright) == 0
-    assert list(ContactEstimator(evaluation.panel_desk()).detector.upright) == [1]
+    assert (
+        upright_surfaces(ContactEstimator(load_profile("kitamura2017")).stage_settings.normals)
+        == []
+    )
+    assert upright_surfaces(ContactEstimator(evaluation.panel_desk()).stage_settings.normals) == [1]
 
 
 @pytest.fixture(scope="module")

@@ -1,0 +1,503 @@
+"""The contact estimator: raw channels in, contact samples out, one compiled pass per sample.
+
+:class:`ContactEstimator` holds one desk's parameters (its settings flattened once,
+:mod:`.params`), a run's state arrays and the output columns, and runs the kernel
+(:mod:`.kernel`) over each push: a block through its loop entry, a single sample through its
+one-sample entry. Between samples it handles what the kernel leaves to Python — notices, the
+zero's windows (:mod:`.zero`), the covariances made at the tare and when a resolution step is
+learned (:mod:`.candidates`), the accelerometers' gain for partial readings
+(:mod:`.inertia`), the second finger's fit and stray (:mod:`.multitouch`) — and resumes.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, fields, replace
+
+import numpy as np
+
+from hapticdesk.estimator import kernel as k
+from hapticdesk.estimator.candidates import Covariances
+from hapticdesk.estimator.contacts import ContactBlock
+from hapticdesk.estimator.inertia import InertiaSettings, InertiaStage, accelerometer_readings
+from hapticdesk.estimator.multitouch import SecondFingerStage, fit_second_point
+from hapticdesk.estimator.notices import NoticeList, add_notice
+from hapticdesk.estimator.params import Params, State, new_state, params_of
+from hapticdesk.estimator.samples import tell_live, tell_noise_free, tell_stuck, tell_time_back
+from hapticdesk.estimator.settings import EstimatorSettings
+from hapticdesk.estimator.zero import ZeroStage
+from hapticdesk.files.profile import METHODS, DeskProfile, EstimationSettings
+from hapticdesk.files.recording import Recording
+
+__all__ = ["CandidateTrace", "ContactEstimator", "estimate"]
+
+#: a push of up to this many samples is written into output columns the estimator keeps and
+#: reuses (so a stream of pushes allocates nothing); a longer one gets columns of its own
+KEPT_COLUMNS = 65536
+
+
+@dataclass(frozen=True)
+class CandidateTrace:
+    """Both candidates for the samples in contact of one push (``trace=True``).
+
+    ``force_n``: |F_o| after the conventional low-pass; ``rate_n_s``: the differentiated force
+    magnitude (paper Fig. 3, its sign is the motion); points (3, n) in the desk frame with
+    their validity and 1-σ uncertainty: P_er from the force, P_ed from its derivative.
+    """
+
+    t: np.ndarray
+    force_n: np.ndarray
+    rate_n_s: np.ndarray
+    force_point: np.ndarray
+    force_valid: np.ndarray
+    force_sigma_m: np.ndarray
+    diff_point: np.ndarray
+    diff_valid: np.ndarray
+    diff_sigma_m: np.ndarray
+    fast_point: np.ndarray  # from the fast (detection) low-pass: the third `fused` candidate
+    fast_valid: np.ndarray
+    fast_sigma_m: np.ndarray
+
+    @classmethod
+    def concat(cls, traces: list[CandidateTrace]) -> CandidateTrace:
+        """Join the traces of several pushes."""
+        if not traces:
+            z = np.zeros(0)
+            none = np.zeros((3, 0))
+            return cls(
+                z, z, z, none, z.astype(bool), z, none, z.astype(bool), z, none, z.astype(bool), z
+            )
+        return cls(
+            **{
+                f.name: np.concatenate([getattr(tr, f.name) for tr in traces], axis=-1)
+                for f in fields(cls)
+            }
+        )
+
+    @classmethod
+    def of(cls, rows: np.ndarray, at: np.ndarray) -> CandidateTrace:
+        """The trace of the samples ``at`` from the output columns' trace rows."""
+        trace = rows[k.N_OUT_F :, at]
+        per = [k.TRACE_CANDIDATES + k.TRACE_PER_CANDIDATE * j for j in range(3)]
+        parts = []
+        for p in per:
+            parts += [trace[p : p + 3], trace[p + 3] > 0.5, trace[p + 4]]
+        return cls(rows[k.OUT_T, at], trace[k.TRACE_FORCE], trace[k.TRACE_RATE], *parts)
+
+
+class _Columns:
+    """Output columns for up to ``capacity`` samples, and the blocks that view them."""
+
+    def __init__(self, capacity: int, rows: int) -> None:
+        self.capacity = capacity
+        self.f = np.zeros((rows, capacity))
+        self.b = np.zeros((k.N_OUT_B, capacity), np.int8)
+        self.s = np.full(capacity, -1, np.int16)
+        self._block: ContactBlock | None = None  # the view of the last length asked
+
+    def block(self, n: int) -> ContactBlock:
+        """The first ``n`` columns as a contact block (views: the same object for the same n)."""
+        cached = self._block
+        if cached is not None and len(cached.t) == n:
+            return cached
+        f, b = self.f, self.b
+        block = ContactBlock(
+            t=f[k.OUT_T, :n],
+            in_contact=b[k.OUT_B_IN_CONTACT, :n].view(bool),
+            located=b[k.OUT_B_LOCATED, :n].view(bool),
+            surface=self.s[:n],
+            x=f[k.OUT_X, :n],
+            y=f[k.OUT_Y, :n],
+            z=f[k.OUT_Z, :n],
+            force_n=f[k.OUT_FORCE, :n],
+            source=b[k.OUT_B_SOURCE, :n],
+            phase=b[k.OUT_B_PHASE, :n],
+            sigma_m=f[k.OUT_SIGMA, :n],
+            flags=b[k.OUT_B_FLAGS, :n].view(np.uint8),
+            located2=b[k.OUT_B_LOCATED2, :n].view(bool),
+            x2=f[k.OUT_X2, :n],
+            y2=f[k.OUT_Y2, :n],
+            z2=f[k.OUT_Z2, :n],
+            resting=b[k.OUT_B_RESTING, :n].view(bool),
+            shear=f[k.OUT_SHEAR, :n],
+            drag_x=f[k.OUT_DRAG_X, :n],
+            drag_y=f[k.OUT_DRAG_Y, :n],
+        )
+        self._block = block
+        return block
+
+
+class ContactEstimator:
+    """Streaming contact estimator for one desk (the module docstring).
+
+    ``push(t, wrench)`` takes k samples (k ≥ 0): ``t`` (k,) seconds and ``wrench`` the raw
+    channels, (k, C), or (k, S, 6) for six-axis sensors in their own frames (the same
+    memory); it returns a :class:`ContactBlock` for exactly those samples, a view of the
+    estimator's output columns that holds until the next push (copy it to keep it).
+    """
+
+    def __init__(
+        self,
+        profile: DeskProfile,
+        method: str | None = None,
+        settings: EstimationSettings | None = None,
+        trace: bool = False,
+    ) -> None:
+        """``trace``: also keep both candidates of every sample in contact in :attr:`traces`
+        (for research: the paper's D_er and D_ed, threshold derivation, plots)."""
+        settings = settings or profile.estimation
+        self.trace = trace
+        self.traces: list[CandidateTrace] = []
+        if method is not None:
+            if method not in METHODS:
+                raise ValueError(f"method must be one of {', '.join(METHODS)}, found {method!r}")
+            settings = replace(settings, method=method)
+        self.profile = profile
+        self.settings = settings
+        self.method = settings.method
+        self.stage_settings = EstimatorSettings.of(profile, settings, trace)
+        #: the vibration compensation's settings; None for a desk without an accelerometer
+        self.inertia_settings = InertiaSettings.of(profile)
+        self._inertia = (
+            None if self.inertia_settings is None else InertiaStage(self.inertia_settings)
+        )
+        self.params: Params = params_of(self.stage_settings, self.inertia_settings)
+        self.sample_rate_hz = profile.sample_rate_hz
+        #: how far the located points run behind a moving finger: the force low-pass's
+        #: delay (the gesture engine carries a swipe's end on by it)
+        self.position_delay_s = self.stage_settings.position_delay_s
+        self.notices = NoticeList()  # bounded: see NoticeList
+        self._n_channels = self.stage_settings.wrench_map.shape[1]
+        # (k, S, 6) samples of a desk of six-axis sensors are its channels as they are
+        self._sensor_shape = (len(profile.sensors), 6) if profile.six_axis_only else None
+        n_axes = 0 if self.inertia_settings is None else self.inertia_settings.n_axes
+        self._no_readings = np.zeros((1, n_axes))  # (the kernels' accel when there is none)
+        self._record = _Columns(1, self.params.out_rows)  # the one-sample record
+        self._columns = _Columns(0, self.params.out_rows)
+        self._second_finger_on = settings.second_finger
+        k.warm()
+        self.reset()
+
+    # --- state ----------------------------------------------------------------------------
+
+    def reset(self) -> None:
+        """Forget everything: filters, zero and contact state (a new run)."""
+        self.state: State = new_state(self.params)
+        self.zeroing = self._zero_stage()
+        self.covariances: Covariances | None = None  # made at the tare
+        self._accel_missing = False  # in a spell of samples without accelerometer readings
+        self.second_finger: SecondFingerStage | None = None
+        self._second_finger_afresh(self._second_finger_on)
+
+    def use_second_finger(self, on: bool) -> None:
+        """Run the second-finger stage (:mod:`.multitouch`) from the next sample on, or stop
+        it: on when a layout binds a gesture that reads a second finger, whatever the
+        profile's ``second_finger`` says. Turned on, it starts afresh; asked for what it
+        already does, nothing changes."""
+        if on != self._second_finger_on:
+            self._second_finger_on = on
+            self._second_finger_afresh(on)
+
+    def _second_finger_afresh(self, on: bool) -> None:
+        sf, si = self.state
+        self.second_finger = SecondFingerStage() if on else None
+        si[k.J_MT_ON] = int(on)
+        for slot in (k.J_MT_STARTED, k.J_MT_COUNT, k.J_MT_POS, k.J_MT_PREV_IN, k.J_MT_FLAGGED):
+            si[slot] = 0
+        si[k.J_MT_LANDING] = si[k.J_MT_HAS_SECOND] = 0
+        sf[k.S_MT_STRAY] = 0.0
+        if self.second_finger is not None:
+            sf[k.S_MT_MIN_APART] = self.second_finger.min_apart_m
+
+    def retare(self) -> None:
+        """Forget the zero and take it again over the next ``tare_s`` of a still desk (as at
+        the start); the filters keep their state, so no transient follows. Contacts are
+        reported again once the new zero is set."""
+        sf, si = self.state
+        for slot in (
+            *(k.J_TARED, k.J_RESTING, k.J_RESTING_OFF, k.J_WIN_FILL, k.J_IN_CONTACT, k.J_BLOCKED),
+            *(k.J_WINDOW_INDEX, k.J_WINDOWS_SEEN, k.J_STILL_RUN, k.J_STILL_POS, k.J_STILL_COUNT),
+            *(k.J_OBJECT_RUN, k.J_OBJECTS, k.J_ZERO_VERSION, k.J_IDLE_LOG_N, k.J_IDLE_LOG_POS),
+        ):
+            si[slot] = 0
+        self.zeroing = self._zero_stage()
+        self.covariances = None  # made again from the new tare's noise
+        guard = self.params.slot(k.I_SO_GUARD)
+        sf[guard : guard + int(self.params.pi[k.I_N_UP])] = 0.0
+
+    def _zero_stage(self) -> ZeroStage:
+        sf, si = self.state
+        return ZeroStage(self.stage_settings, self.notices, sf, si, self.params.pi)
+
+    @property
+    def tared(self) -> bool:
+        return bool(self.state.si[k.J_TARED])
+
+    @property
+    def zero(self) -> np.ndarray | None:
+        """The current zero of [F_o; M_o] (6,), or None before the tare."""
+        return self.state.sf[k.S_ZERO : k.S_ZERO + 6].copy() if self.tared else None
+
+    @property
+    def resolution_step(self) -> np.ndarray:
+        """Each channel's resolution step learned so far (C,), 0 where none yet
+        (resolution.py)."""
+        at = self.params.slot(k.I_SO_STEP)
+        return self.state.sf[at : at + self._n_channels].copy()
+
+    # --- a push ---------------------------------------------------------------------------
+
+    def push(
+        self, t: np.ndarray, wrench: np.ndarray, accel: np.ndarray | None = None
+    ) -> ContactBlock:
+        """Estimate contacts for k more samples. See the class docstring.
+
+        ``accel`` (k, A): the desk's accelerometer readings (its profile's columns, m/s²),
+        used only when the profile has an accelerometer; without them such a desk's samples
+        are estimated uncompensated and flagged ``FLAG_NO_ACCEL``."""
+        if not (type(t) is np.ndarray and t.dtype == np.float64 and t.ndim == 1):
+            t = np.ascontiguousarray(t, dtype=np.float64).reshape(-1)
+        elif not t.flags.c_contiguous:
+            t = np.ascontiguousarray(t)
+        n = len(t)
+        x = self._channels(wrench, n)
+        readings = self._readings(accel, n)
+        if n == 0:
+            return ContactBlock.empty()
+        if self._inertia is not None:
+            self._note_accelerometer(float(t[0]), readings is not None)
+        noticed = self.notices.total
+        given = readings is not None
+        a = self._no_readings if readings is None else readings
+        if n == 1:
+            block = self._step(float(t[0]), x, a[0], given)
+        else:
+            block = self._run(t, x, a, given, n)
+        if self.state.si[k.J_IDLE_LOG_N]:
+            # the idle windows the kernel judged join zero.py's yardsticks now, a few µs
+            # each, rather than all at the next window Python judges (over 100 µs at once)
+            self.zeroing.read_idle_windows()
+        if self.notices.total - noticed > 1:  # in time order, however the stages found them
+            new = self.notices.since(noticed)
+            self.notices[len(self.notices) - len(new) :] = sorted(new, key=lambda notice: notice.t)
+        return block
+
+    def _channels(self, wrench: np.ndarray, n: int) -> np.ndarray:
+        """The raw channels (n, C), C-contiguous float64 (a view where they already are):
+        (k, C), or (k, S, 6) for a desk of six-axis sensors (``DeskProfile.flat_channels``,
+        which names the shapes expected otherwise)."""
+        w = wrench
+        if not (type(w) is np.ndarray and w.dtype == np.float64 and w.flags.c_contiguous):
+            w = np.ascontiguousarray(wrench, dtype=np.float64)
+        if w.shape == (n, self._n_channels):
+            return w
+        if w.shape[1:] == self._sensor_shape and len(w) == n:
+            # (k, S, 6) of a six-axis desk: its channels are a view (DeskProfile.flat_channels
+            # costs more than a single sample's estimate)
+            return w.reshape(n, self._n_channels)
+        w = np.ascontiguousarray(self.profile.flat_channels(w))
+        if len(w) != n:
+            raise ValueError(
+                f"{n} sample times but {len(w)} samples for desk {self.profile.name!r}"
+            )
+        return w
+
+    def _readings(self, accel: np.ndarray | None, n: int) -> np.ndarray | None:
+        """The accelerometer's readings (n, A), C-contiguous, or None (none, or a desk without
+        an accelerometer: nothing changes)."""
+        if self._inertia is None:
+            return None
+        checked = self._inertia.check(accel, n)
+        return None if checked is None else np.ascontiguousarray(checked)
+
+    def _step(self, t: float, x: np.ndarray, a: np.ndarray, given: bool) -> ContactBlock:
+        """One sample (``x`` (1, C)) through the kernel's one-sample entry, into the reused
+        record."""
+        rec = self._record
+        pf, pi = self.params.pf, self.params.pi
+        sf, si = self.state
+        while True:
+            events = k.run_step(t, x, a, given, pf, pi, sf, si, rec.f, rec.b, rec.s)
+            if not events:
+                break
+            self._handle(events, rec, 0, a)
+            if si[k.J_RESUME] == k.RESUME_NEXT:
+                break
+        if self.trace and rec.b[k.OUT_B_TRACED, 0]:
+            self.traces.append(CandidateTrace.of(rec.f, np.array([0])))
+        return rec.block(1)
+
+    def _run(
+        self, t: np.ndarray, x: np.ndarray, a: np.ndarray, given: bool, n: int
+    ) -> ContactBlock:
+        """A block through the kernel's loop entry, into the output columns."""
+        cols = self._columns
+        if n > cols.capacity:
+            cols = _Columns(n, self.params.out_rows)
+            if n <= KEPT_COLUMNS:
+                self._columns = cols
+        pf, pi = self.params.pf, self.params.pi
+        sf, si = self.state
+        i = 0
+        while True:
+            events = k.run_block(t, x, a, given, pf, pi, sf, si, cols.f, cols.b, cols.s, i, n)
+            if not events:
+                break
+            at = int(si[k.J_EVENT_AT])
+            self._handle(events, cols, at, a[at] if given else a[0])
+            i = at + 1 if si[k.J_RESUME] == k.RESUME_NEXT else at
+        if self.trace:
+            traced = np.flatnonzero(cols.b[k.OUT_B_TRACED, :n])
+            if len(traced):
+                self.traces.append(CandidateTrace.of(cols.f, traced))
+        return cols.block(n)
+
+    # --- what the kernel leaves to Python -------------------------------------------------
+
+    def _handle(self, events: int, cols: _Columns, col: int, readings: np.ndarray) -> None:
+        """The events one sample raised (kernel.EV_*), in the order the stages meet them."""
+        sf, si = self.state
+        if events & k.EV_PARTIAL_ACCEL:
+            self._partial_gain(readings)
+            return
+        if events & k.EV_TIME_BACK:
+            tell_time_back(
+                self.notices, float(sf[k.S_EV_T]), float(sf[k.S_EV_LATEST]), int(si[k.J_TIME_BACK])
+            )
+        if events & k.EV_NOISE_FREE:
+            tell_noise_free()
+        if events & k.EV_STUCK:
+            tell_stuck(self.notices, float(sf[k.S_STUCK_SINCE]))
+        if events & k.EV_LIVE:
+            tell_live(
+                self.notices,
+                float(sf[k.S_EV_T]),
+                float(sf[k.S_STUCK_SINCE]),
+                float(sf[k.S_LAST_STUCK_T]),
+            )
+        if events & k.EV_GAP:
+            add_notice(
+                self.notices,
+                float(sf[k.S_EV_T]),
+                "gap",
+                "gap in sample times: filters restarted",
+                logging.WARNING,
+            )
+        if events & k.EV_COVS:
+            self._make_covariances()
+        if events & k.EV_WINDOW:
+            self._window()
+        if events & k.EV_CONTACT_END:
+            assert self.second_finger is not None
+            self.second_finger.contact_ended(
+                bool(si[k.J_MT_END_FLAGGED]), float(sf[k.S_MT_END_STRAY])
+            )
+            sf[k.S_MT_MIN_APART] = self.second_finger.min_apart_m
+        if events & k.EV_FIT:
+            self._fit_second(cols, col)
+
+    def _window(self) -> None:
+        """A zero window ended that Python judges (zero.py: the tare, an object, its lift);
+        at the tare the covariances are made."""
+        sf, si = self.state
+        w = int(self.params.pi[k.I_WINDOW])
+        tared = self.zeroing.state.tared
+        raw = self.params.slot(k.I_SO_WIN_RAW)
+        spread, *mean, t_end = sf[k.S_WIN_SPREAD : k.S_WIN_T_END + 1].tolist()
+        self.zeroing.window(
+            spread,
+            int(si[k.J_WIN_BADS]) / w > 0.1,  # more than a tenth held over: no use for the zero
+            mean,
+            sf[raw : raw + 6 * w].reshape(6, w),
+            t_end,
+        )
+        if not tared and self.zeroing.state.tared:
+            k.steps_changed(self.params.pf, self.params.pi, sf, si)  # (the steps they use)
+            self._make_covariances()
+
+    def _make_covariances(self) -> None:
+        """The candidates' covariances from the tare's noise and the resolution steps the
+        kernel uses now, into its state (candidates.py)."""
+        noise = self.zeroing.state.noise
+        if noise is None:
+            return
+        sf = self.state.sf
+        used = self.params.slot(k.I_SO_USED)
+        self.covariances = Covariances.of(
+            self.stage_settings, noise, sf[used : used + self._n_channels].copy()
+        )
+        packed = self.covariances.packed().ravel()
+        at = self.params.slot(k.I_SO_COVS)
+        sf[at : at + len(packed)] = packed
+
+    def _partial_gain(self, readings: np.ndarray) -> None:
+        """Several accelerometers, some readings not usable: the gain from the usable ones
+        (inertia.py), or none usable, for the kernel to use while the same ones are."""
+        sf, si = self.state
+        assert self._inertia is not None and self.inertia_settings is not None
+        usable = self._inertia.usable_axes(readings)
+        gain = self.inertia_settings.gain_from(usable)
+        # (the kernel keeps this gain for the same usable readings: one bit each)
+        si[k.J_PARTIAL_PATTERN] = sum(1 << int(j) for j in np.flatnonzero(usable)) + 1
+        if gain is None:
+            si[k.J_PARTIAL] = 2
+            return
+        at = self.params.slot(k.I_SO_PARTIAL_GAIN)
+        sf[at : at + gain.size] = gain.ravel()
+        si[k.J_PARTIAL] = 1
+
+    def _fit_second(self, cols: _Columns, col: int) -> None:
+        """The second finger's landing window is full: its point fitted (multitouch.py), on
+        the board, from this sample on."""
+        sf, si = self.state
+        rows = int(si[k.J_MT_ROWS])
+        at = self.params.slot(k.I_SO_LANDING)
+        board = self.profile.surfaces[0]
+        second = fit_second_point(
+            sf[k.S_MT_FIRST : k.S_MT_FIRST + 3].copy(),
+            np.asarray(board.normal, float),
+            sf[at : at + 6 * rows].reshape(rows, 6),
+        )
+        if second is None:
+            return
+        rel = second - board.origin
+        if not k.contains(
+            self.params.pf, self.params.pi, 0, float(rel @ board.u_axis), float(rel @ board.v_axis)
+        ):
+            return
+        sf[k.S_MT_SECOND : k.S_MT_SECOND + 3] = second
+        si[k.J_MT_HAS_SECOND] = 1
+        cols.f[k.OUT_X2, col], cols.f[k.OUT_Y2, col], cols.f[k.OUT_Z2, col] = second
+        cols.b[k.OUT_B_LOCATED2, col] = 1
+
+    def _note_accelerometer(self, t: float, given: bool) -> None:
+        """A warning when a desk with an accelerometer gets samples without its readings (a
+        recording without its columns, a source that does not pass them): they are estimated
+        uncompensated, and only the ``no_accel`` flag would say so. Once per spell."""
+        if given or self._accel_missing:
+            self._accel_missing = not given
+            return
+        self._accel_missing = True
+        assert self.inertia_settings is not None
+        add_notice(
+            self.notices,
+            t,
+            "no_accel",
+            f"no accelerometer readings ({', '.join(self.inertia_settings.columns)}) come with "
+            f"the samples of desk {self.profile.name!r}: its sway is not compensated (the "
+            "samples are flagged no_accel)",
+            logging.WARNING,
+        )
+
+
+def estimate(profile: DeskProfile, recording: Recording, method: str | None = None) -> ContactBlock:
+    """Batch estimation of a whole recording (identical to streaming it in any blocks); the
+    block is the caller's own."""
+    if recording.sensor_names != profile.sensor_names:
+        raise ValueError(
+            f"the recording's sensors {recording.sensor_names} are not the desk's "
+            f"{profile.sensor_names}"
+        )
+    accel = accelerometer_readings(profile, recording.extra)
+    estimator = ContactEstimator(profile, method=method)
+    return estimator.push(recording.t, recording.wrench, accel)

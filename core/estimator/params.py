@@ -1,0 +1,296 @@
+"""The estimator's settings as the kernel's flat arrays: parameters once, state per run.
+
+:func:`params_of` turns one desk's :class:`~hapticdesk.estimator.settings.EstimatorSettings`
+(and its accelerometers' settings) into the parameter arrays ``pf`` (float64) and ``pi``
+(int64) of :mod:`hapticdesk.estimator.kernel`: the fixed slots it names, then the desk-sized
+parts (the channels→wrench matrix, the filters' sections, the surfaces…) at offsets kept in
+``pi``; the sizes of the state's desk-sized parts are laid out the same way, and
+:func:`new_state` makes a run's state arrays ``sf`` (float64) and ``si`` (int64) from them.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from hapticdesk.estimator import kernel as k
+from hapticdesk.estimator.contacts import SHEAR_CAP, UNCERTAINTY_CAP_M
+from hapticdesk.estimator.detector import RING_MEMORY_S, upright_surfaces
+from hapticdesk.estimator.filters import butter_lowpass_sos, sosfilt_zi
+from hapticdesk.estimator.geometry import EDGE_TOLERANCE_M, VAR_CAP, SurfaceFrame
+from hapticdesk.estimator.inertia import InertiaSettings
+from hapticdesk.estimator.methods import DET_FLOOR, DIFF_INFO_RATIO
+from hapticdesk.estimator.multitouch import (
+    LAG_S,
+    LANDING_S,
+    LOWPASS_HZ,
+    MAX_FIRST_MOVE_M,
+    MIN_APART_M,
+    MIN_NORMAL_SHARE,
+    MIN_STEP_N,
+    MIN_STEP_SHARE,
+)
+from hapticdesk.estimator.resolution import CONFIRM_CHANGES, STEP_CHANGE
+from hapticdesk.estimator.samples import LIVE_AGAIN_S, NOISE_CHECK_S, NOISE_FREE_REPEATS, STUCK_RUN
+from hapticdesk.estimator.settings import EstimatorSettings
+from hapticdesk.estimator.zero import IDLE_WINDOWS
+from hapticdesk.files.profile import METHODS
+
+
+class State(NamedTuple):
+    """A run's state: the kernel's ``sf`` and ``si`` (a snapshot is a copy of both)."""
+
+    sf: np.ndarray
+    si: np.ndarray
+
+
+class _Packer:
+    """Lays desk-sized parts out after an array's fixed slots."""
+
+    def __init__(self, fixed: int) -> None:
+        self.size = fixed
+        self.parts: list[tuple[int, np.ndarray]] = []
+
+    def put(self, values: np.ndarray | list[float] | list[int]) -> int:
+        """Place ``values`` (flattened, row-major); returns their offset."""
+        flat = np.ravel(np.asarray(values))
+        at = self.size
+        self.parts.append((at, flat))
+        self.size += len(flat)
+        return at
+
+    def room(self, size: int) -> int:
+        """Reserve ``size`` slots (zeros); returns their offset."""
+        return self.put(np.zeros(size))
+
+    def array(self, dtype: type, fixed: Mapping[int, float]) -> np.ndarray:
+        out: np.ndarray = np.zeros(self.size, dtype)
+        for slot, value in fixed.items():
+            out[slot] = value
+        for at, flat in self.parts:
+            out[at : at + len(flat)] = flat
+        return out
+
+
+@dataclass(frozen=True, eq=False)
+class Params:
+    """One desk's parameter arrays, and how to make its state."""
+
+    pf: np.ndarray
+    pi: np.ndarray
+    sf_size: int
+    si_size: int
+    sf_fixed: dict[int, float]  # the state's initial values, where not zero
+    si_fixed: dict[int, int]
+    out_rows: int  # float rows of the output columns (more in trace mode)
+
+    def slot(self, name: int) -> int:
+        """An offset the parameters keep (``kernel.I_*O_*``)."""
+        return int(self.pi[name])
+
+
+def _surface_parts(frames: list[SurfaceFrame], pf: _Packer, pi: _Packer) -> tuple[int, int]:
+    """Each surface's record in ``pf`` (SURF_F floats) and ``pi`` (SURF_I ints)."""
+    floats, ints, polygons = [], [], []
+    for frame in frames:
+        s = frame.surface
+        record = np.zeros(k.SURF_F)
+        record[k.SURF_ROWS : k.SURF_ROWS + 18] = np.ravel(frame.transform[2:5])
+        record[k.SURF_ORIGIN : k.SURF_ORIGIN + 3] = s.origin
+        record[k.SURF_U : k.SURF_U + 3] = s.u_axis
+        record[k.SURF_V : k.SURF_V + 3] = s.v_axis
+        record[k.SURF_NORMAL : k.SURF_NORMAL + 3] = s.normal
+        record[k.SURF_BOUNDS : k.SURF_BOUNDS + 4] = frame.bounds
+        floats.append(record)
+        polygons.append(np.ravel(frame.polygon))
+        ints.append([int(frame.is_rectangle), int(frame.desk_xy), 0, len(frame.polygon)])
+    surf_f = pf.put(np.concatenate(floats) if floats else np.zeros(0))
+    for j, polygon in enumerate(polygons):
+        ints[j][k.SURF_POLY] = pf.put(polygon)
+    surf_i = pi.put(np.ravel(np.array(ints, dtype=np.int64)) if ints else np.zeros(0, np.int64))
+    return surf_f, surf_i
+
+
+def geometry_params(
+    frames: list[SurfaceFrame], min_normal_cos: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The parameters :func:`kernel.intersect` reads, for ``frames`` alone."""
+    pf, pi = _Packer(k.N_PF_FIXED), _Packer(k.N_PI)
+    surf_f, surf_i = _surface_parts(frames, pf, pi)
+    fixed_f = {
+        k.P_MIN_COS: min_normal_cos,
+        k.P_VAR_CAP: VAR_CAP,
+        k.P_EDGE_TOLERANCE: EDGE_TOLERANCE_M,
+    }
+    fixed_i = {k.I_N_SURF: len(frames), k.I_PO_SURF: surf_f, k.I_IO_SURF: surf_i}
+    return pf.array(np.float64, fixed_f), pi.array(np.int64, fixed_i)
+
+
+def params_of(s: EstimatorSettings, inertia: InertiaSettings | None) -> Params:
+    """The kernel's parameters for the desk of ``s`` (and its accelerometers, ``inertia``)."""
+    user, fs = s.user, s.sample_rate_hz
+    c_n = s.wrench_map.shape[1]
+    pf, pi = _Packer(k.N_PF_FIXED), _Packer(k.N_PI)
+    sf, si = _Packer(k.N_SF_FIXED), _Packer(k.N_SI_FIXED)
+    mt_sos = butter_lowpass_sos(min(LOWPASS_HZ, 0.45 * fs), fs)  # (as the fast path's)
+    filters = {"lp": s.lp_sos, "diff": s.diff_sos, "det": s.det_sos, "mt": mt_sos}
+    ns = len(s.lp_sos)
+    if any(len(sos) != ns for sos in filters.values()):
+        raise ValueError("the estimator's filters must have as many sections each")
+    sos_at = {name: pf.put(sos) for name, sos in filters.items()}
+    zi_at = {name: pf.put(sosfilt_zi(sos)) for name, sos in filters.items()}
+    surf_f, surf_i = _surface_parts(s.frames, pf, pi)
+    upright = upright_surfaces(s.normals)
+    n_a = 0 if inertia is None else inertia.n_axes
+    lag = max(1, round(LAG_S * fs))
+    landing = max(1, round(LANDING_S * fs))
+    span = s.sway.span if s.sway is not None else 0
+    window = s.window
+    check_n = max(STUCK_RUN + 1, round(NOISE_CHECK_S * fs))
+    # the still run's means the zero stage reads back (the drift's, an object's wait), and
+    # the idle windows whose yardsticks count (zero.py)
+    still_ring = max(s.n_drift, s.n_object + 1)
+    idle_log = IDLE_WINDOWS + max(2, s.n_object)
+    live_n = max(1, round(LIVE_AGAIN_S * fs))
+    fixed_f = {
+        k.P_MAX_GAP: user.max_gap_s,
+        k.P_CONTACT: user.contact_force_n,
+        k.P_HYSTERESIS: user.release_hysteresis_n,
+        k.P_RELEASE_SLOPE: user.release_slope_n_s,
+        k.P_DET_DELAY: s.det_delay_s,
+        k.P_PHASE_RATE: user.phase_rate_n_s,
+        k.P_MIN_COS: user.min_normal_cos,
+        k.P_MAX_SIGMA: user.max_sigma_m,
+        k.P_SPEED: user.contact_speed_m_s,
+        k.P_TOUCH_THRESHOLD: user.touch_threshold_n,
+        k.P_RELEASE_THRESHOLD: user.release_threshold_n,
+        k.P_DIFF_SCALE: s.diff_scale,
+        k.P_RATE_SCALE: s.rate_scale,
+        k.P_RELEASE_SCALE: s.release_scale,
+        k.P_RING_DECAY: math.exp(-1.0 / (RING_MEMORY_S * fs)),
+        k.P_SWAY_SCALE: s.sway.scale if s.sway is not None else 0.0,
+        k.P_DIFF_INFO_RATIO: DIFF_INFO_RATIO,
+        k.P_VAR_CAP: VAR_CAP,
+        k.P_DET_FLOOR: DET_FLOOR,
+        k.P_EDGE_TOLERANCE: EDGE_TOLERANCE_M,
+        k.P_SHEAR_CAP: SHEAR_CAP,
+        k.P_UNCERTAINTY_CAP: UNCERTAINTY_CAP_M,
+        k.P_STEP_CHANGE: STEP_CHANGE,
+        k.P_MT_MIN_STEP: MIN_STEP_N,
+        k.P_MT_MIN_STEP_SHARE: MIN_STEP_SHARE,
+        k.P_MT_MIN_NORMAL_SHARE: MIN_NORMAL_SHARE,
+        k.P_MT_MAX_FIRST_MOVE: MAX_FIRST_MOVE_M,
+        k.P_STILL_N: user.still_n,
+        k.P_DRIFT_MAX: user.drift_max_n,
+    }
+    fixed_i = {
+        k.I_C: c_n,
+        k.I_A: n_a,
+        k.I_MULTI_ACCEL: int(inertia is not None and inertia.rows is not None),
+        k.I_N_SURF: len(s.frames),
+        k.I_N_UP: len(upright),
+        k.I_METHOD: METHODS.index(s.method),
+        k.I_DET_FULL: int(s.det_full),
+        k.I_SHARED_LP: int(s.shared_lp),
+        k.I_TRACE: int(s.trace),
+        k.I_NS: ns,
+        k.I_N_DIFF: s.n_diff,
+        k.I_N_RATE: s.n_rate,
+        k.I_N_RELEASE: s.n_release,
+        k.I_SPAN: span,
+        k.I_WINDOW: window,
+        k.I_STILL_BLOCK: s.still_block,
+        k.I_STUCK_RUN: STUCK_RUN,
+        k.I_CHECK_N: check_n,
+        k.I_NOISE_FREE_REPEATS: NOISE_FREE_REPEATS,
+        k.I_LIVE_N: live_n,
+        k.I_CONFIRM: CONFIRM_CHANGES,
+        k.I_MT_LAG: lag,
+        k.I_MT_LANDING: landing,
+        k.I_MT_BOARD: 0 if s.frames else -1,
+        k.I_N_DRIFT: s.n_drift if user.drift_settle_s > 0 else 0,
+        k.I_STILL_RING: still_ring,
+        k.I_IDLE_LOG: idle_log,
+        k.I_ZEROED: int(user.zeroed),
+        k.I_PO_MAP: pf.put(s.wrench_map.T),  # (by channel: see kernel.I_PO_MAP)
+        k.I_PO_LIMIT: pf.put(s.range_flat),
+        k.I_PO_LP_SOS: sos_at["lp"],
+        k.I_PO_DIFF_SOS: sos_at["diff"],
+        k.I_PO_DET_SOS: sos_at["det"],
+        k.I_PO_MT_SOS: sos_at["mt"],
+        k.I_PO_LP_ZI: zi_at["lp"],
+        k.I_PO_DIFF_ZI: zi_at["diff"],
+        k.I_PO_DET_ZI: zi_at["det"],
+        k.I_PO_MT_ZI: zi_at["mt"],
+        k.I_PO_SURF: surf_f,
+        k.I_PO_LEVER: pf.put(s.sway.moment_lever if s.sway is not None else np.zeros(6)),
+        k.I_PO_GAIN: pf.put(inertia.gain if inertia is not None else np.zeros(0)),
+        k.I_PO_REST: pf.put(inertia.rest if inertia is not None else np.zeros(0)),
+        k.I_PO_ALIMIT: pf.put(inertia.limit if inertia is not None else np.zeros(0)),
+        k.I_IO_UP: pi.put(np.asarray(upright, np.int64)),
+        k.I_IO_SURF: surf_i,
+        k.I_SO_LP_ZI: sf.room(6 * ns * 2),
+        k.I_SO_DIFF_ZI: sf.room(6 * ns * 2),
+        k.I_SO_DET_ZI: sf.room(6 * ns * 2),
+        k.I_SO_MT_ZI: sf.room(6 * ns * 2),
+        k.I_SO_DELAY: sf.room(s.n_diff * 6),
+        k.I_SO_DET_RING: sf.room(s.n_rate * 3),
+        k.I_SO_SWAY: sf.room(2 * span * 2),
+        k.I_SO_SWAY_DIFF: sf.room(2 * span * 2),
+        k.I_SO_WIN_LP: sf.room(3 * window),
+        k.I_SO_WIN_RAW: sf.room(6 * window),
+        k.I_SO_GUARD: sf.room(len(upright)),
+        k.I_SO_COVS: sf.room(max(1, len(s.frames)) * 4 * 6),
+        k.I_SO_STEP: sf.room(c_n),
+        k.I_SO_USED: sf.room(c_n),
+        k.I_SO_LAST_ROW: sf.room(c_n),
+        k.I_SO_PREV_ROW: sf.room(c_n),
+        k.I_SO_MT_HIST: sf.room((2 * lag + 1) * k.MT_F),
+        k.I_SO_LANDING: sf.room((2 * lag + 1 + landing) * 6),
+        k.I_SO_PARTIAL_GAIN: sf.room(6 * n_a),
+        k.I_SO_TRACE: sf.room(k.TRACE_ROWS),
+        k.I_SO_STILL_MEANS: sf.room(6 * still_ring),
+        k.I_SO_IDLE_LOG: sf.room(5 * idle_log),
+        k.I_JO_CHANGES: si.room(c_n),
+        k.I_JO_LEARNING: si.put(np.ones(c_n, np.int64)),
+        k.I_JO_WIN_BAD: si.room(window),
+        k.I_JO_MT_HIST: si.room((2 * lag + 1) * k.MT_I),
+    }
+    state_f = {
+        k.S_LAST_T: -math.inf,
+        k.S_MAX_T: -math.inf,
+        k.S_STUCK_SINCE: math.nan,
+        k.S_LAST_STUCK_T: math.nan,
+        k.S_MT_MIN_APART: MIN_APART_M,
+    }
+    state_i = {k.J_STUCK_CHECK: -1, k.J_LIVE: live_n, k.J_N_LEARNING: c_n}
+    # the state's desk-sized parts and their initial values (the learning flags)
+    sf_parts, si_parts = sf, si
+    params = Params(
+        pf=pf.array(np.float64, fixed_f),
+        pi=pi.array(np.int64, fixed_i),
+        sf_size=sf_parts.size,
+        si_size=si_parts.size,
+        sf_fixed=state_f,
+        si_fixed={
+            **state_i,
+            **{at + j: int(v) for at, flat in si_parts.parts for j, v in enumerate(flat) if v},
+        },
+        out_rows=k.N_OUT_F + (k.TRACE_ROWS if s.trace else 0),
+    )
+    return params
+
+
+def new_state(params: Params) -> State:
+    """A run's state as it starts: nothing seen, nothing tared."""
+    sf = np.zeros(params.sf_size)
+    si = np.zeros(params.si_size, np.int64)
+    for slot, value in params.sf_fixed.items():
+        sf[slot] = value
+    for slot, value in params.si_fixed.items():
+        si[slot] = value
+    return State(sf, si)

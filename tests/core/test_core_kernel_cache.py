@@ -1,0 +1,125 @@
+"""Where the estimator's compiled kernels come from (issue 29 item 4): numba is imported only
+where estimation happens; the compiled kernels are cached beside the package, or in the
+user's cache directory when the package's folder cannot be written; the first compile says
+so once on stderr. Checked in fresh interpreters, by what they import and print."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+MESSAGE = "compiling the estimator's kernels, once"
+
+PROBE = """
+import contextlib, io, json, sys
+from hapticdesk.cli import main
+out = io.StringIO()
+with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):
+    try:
+        main({argv!r})
+    except SystemExit:
+        pass
+print(json.dumps([m for m in ("numba", "llvmlite") if m in sys.modules]))
+"""
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["--help"],
+        ["check", str(ROOT / "examples" / "layouts" / "buttons.yaml")],
+        ["strokes", "classify", str(ROOT / "examples" / "strokes")],
+    ],
+    ids=["help", "check", "strokes"],
+)
+def test_commands_that_do_not_estimate_never_import_numba(argv: list[str]) -> None:
+    done = subprocess.run(
+        [sys.executable, "-c", PROBE.format(argv=argv)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=True,
+    )
+    assert json.loads(done.stdout.splitlines()[-1]) == []
+
+
+def test_numba_loads_with_the_estimator_not_with_its_package() -> None:
+    code = """
+import json, sys
+import hapticdesk.estimator, hapticdesk.estimator.contacts, hapticdesk.gestures.engine
+before = [m for m in ("numba", "scipy.signal") if m in sys.modules]
+from hapticdesk.estimator import ContactEstimator
+from hapticdesk.files.profile_reader import load_profile
+ContactEstimator(load_profile("kitamura2017"))
+print(json.dumps([before, "numba" in sys.modules, "scipy.signal" in sys.modules]))
+"""
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=600, check=True
+    )
+    # (an estimator's filters are designed without scipy.signal: over a second of start-up)
+    assert json.loads(done.stdout.splitlines()[-1]) == [[], True, False]
+
+
+ESTIMATE = """
+import sys, time
+import numpy as np
+import hapticdesk
+assert hapticdesk.__file__.startswith(sys.argv[1]), hapticdesk.__file__
+from hapticdesk.estimator import ContactEstimator
+from hapticdesk.files.profile_reader import load_profile
+start = time.perf_counter()
+est = ContactEstimator(load_profile(sys.argv[2]))
+block = est.push(np.arange(10) / 1200.0, np.zeros((10, 4, 6)))
+print(len(block), time.perf_counter() - start)
+"""
+
+
+@pytest.mark.slow
+def test_a_read_only_package_caches_its_kernels_in_the_user_cache(tmp_path: Path) -> None:
+    """A copy of the package whose folder cannot be written (its ``__pycache__`` a file, as
+    root can write anywhere): numba's in-tree cache fails over to the user's cache directory
+    (XDG_CACHE_HOME), where the second run finds the kernels: only the first compiles, and
+    says so once."""
+    package = tmp_path / "site" / "hapticdesk"
+    shutil.copytree(
+        ROOT / "core", package, ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.nb*")
+    )
+    (package / "estimator" / "__pycache__").write_text("not a folder")
+    for folder in (package / "estimator", package):
+        folder.chmod(0o555)
+    env = {
+        **os.environ,
+        "PYTHONPATH": str(tmp_path / "site"),
+        "XDG_CACHE_HOME": str(tmp_path / "cache"),
+    }
+    env.pop("NUMBA_CACHE_DIR", None)
+    profile = str(ROOT / "profiles" / "kitamura2017.yaml")
+
+    def run() -> subprocess.CompletedProcess[str]:
+        return subprocess.run(
+            [sys.executable, "-c", ESTIMATE, str(package), profile],
+            capture_output=True,
+            text=True,
+            timeout=1200,
+            env=env,
+            check=True,
+        )
+
+    try:
+        first, second = run(), run()
+    finally:
+        for folder in (package, package / "estimator"):
+            folder.chmod(0o755)
+    assert first.stderr.count(MESSAGE) == 1, first.stderr
+    assert MESSAGE not in second.stderr, second.stderr
+    cached = list((tmp_path / "cache" / "numba").rglob("kernel.run_block-*.nbi"))
+    assert cached, "no kernel cached in the user's cache directory"
+    assert first.stdout.split()[0] == second.stdout.split()[0] == "10"
+    assert float(second.stdout.split()[1]) < float(first.stdout.split()[1])

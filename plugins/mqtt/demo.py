@@ -24,6 +24,7 @@ from typing import Any, NamedTuple, TextIO
 import hapticdesk
 from hapticdesk.errors import ConfigError
 from hapticdesk.plugin_loading import load_registry
+from hapticdesk.plugins.mqtt.oneshot import first_clean_connect
 from hapticdesk.plugins.mqtt.settings import parse_broker_url
 from hapticdesk.runtime.assembly import build_scene
 from hapticdesk.runtime.dispatcher import Lane
@@ -193,10 +194,11 @@ def run(args: argparse.Namespace) -> int:
         broker = EmbeddedBroker().start()
         url = broker.url
         print(f"embedded MQTT broker on {url} (MQTT 3.1.1)", file=out)
-    link_log = logging.getLogger("hapticdesk.plugins.mqtt.link")
+    # the first clean connection finds (and says) that a broker speaks 3.1.1 only
+    fallback_log = logging.getLogger(first_clean_connect.__module__)
     quiet = _ExpectedFallback(url) if broker is not None else None
     if quiet is not None:
-        link_log.addFilter(quiet)
+        fallback_log.addFilter(quiet)
     lamp = None
     counted = GestureCount()
     try:
@@ -208,7 +210,7 @@ def run(args: argparse.Namespace) -> int:
         lamp.final()
     finally:
         if quiet is not None:
-            link_log.removeFilter(quiet)
+            fallback_log.removeFilter(quiet)
         if lamp is not None:
             lamp.stop()
         if broker is not None:

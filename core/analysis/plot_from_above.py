@@ -5,18 +5,12 @@ points fill a small part of the top. Drawn by :mod:`hapticdesk.analysis.plotting
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from hapticdesk.analysis.plot_style import SOURCE_COLOURS, TRUTH_COLOUR
-from hapticdesk.estimator.contacts import (
-    SOURCE_DIFF,
-    SOURCE_FORCE,
-    SOURCE_FUSED,
-    SOURCE_NAMES,
-    ContactBlock,
-)
+from hapticdesk.analysis.plot_style import SOURCE_COLOURS, SOURCES_DRAWN, TRUTH_COLOUR
+from hapticdesk.estimator.contacts import SOURCE_NAMES, ContactBlock
 from hapticdesk.files.profile import DeskProfile
 
 if TYPE_CHECKING:
@@ -41,7 +35,7 @@ def desk_panel(
             label="true path",
         )
     located = sel[block.located[sel]]
-    _scatter_by_source(ax, block, located)
+    _scatter_by_source(ax, block, located, size=3, key=True)
     lo, hi = outline.min(axis=0), outline.max(axis=0)
     margin = 0.05 * float((hi - lo).max())
     ax.set_xlim(lo[0] - margin, hi[0] + margin)
@@ -87,23 +81,32 @@ def _draw_outlines(ax: Axes, profile: DeskProfile) -> np.ndarray:
     return np.vstack(corners)
 
 
-def _scatter_by_source(ax: Axes, block: ContactBlock, located: np.ndarray) -> None:
-    """The located points, coloured and counted by the candidate each came from."""
-    for source in (SOURCE_FORCE, SOURCE_DIFF, SOURCE_FUSED):
+def _scatter_by_source(
+    ax: Axes, block: ContactBlock, located: np.ndarray, *, size: float, key: bool
+) -> None:
+    """The located points, coloured by the candidate each came from; with ``key`` each
+    candidate is counted in the legend and the most numerous drawn on top."""
+    for source in SOURCES_DRAWN:
         at = located[block.source[located] == source]
-        if len(at):
-            ax.scatter(
-                block.x[at],
-                block.y[at],
-                s=3,
-                color=SOURCE_COLOURS[source],
-                label=f"{SOURCE_NAMES[source]} ({len(at):,})",
-                rasterized=True,
-                linewidths=0,
+        if not len(at):
+            continue
+        keyed: dict[str, Any] = {}
+        if key:
+            keyed = {
+                "label": f"{SOURCE_NAMES[source]} ({len(at):,})",
                 # the most numerous on top: the rarer candidates' points lie around them,
                 # where they stay visible (the force's 56,431 had been hidden under 15,230)
-                zorder=2 + len(at) / max(len(located), 1),
-            )
+                "zorder": 2 + len(at) / max(len(located), 1),
+            }
+        ax.scatter(
+            block.x[at],
+            block.y[at],
+            s=size,
+            color=SOURCE_COLOURS[source],
+            rasterized=True,
+            linewidths=0,
+            **keyed,
+        )
 
 
 def _zoom_inset(
@@ -129,17 +132,7 @@ def _zoom_inset(
     inset = ax.inset_axes((0.03 if right else 0.61, 0.04 if top else 0.56, 0.36, 0.36))
     if "true_x" in truth and "true_y" in truth:
         inset.plot(truth["true_x"][sel], truth["true_y"][sel], color=TRUTH_COLOUR, linewidth=1.0)
-    for source in (SOURCE_FORCE, SOURCE_DIFF, SOURCE_FUSED):
-        at = located[block.source[located] == source]
-        if len(at):
-            inset.scatter(
-                block.x[at],
-                block.y[at],
-                s=4,
-                color=SOURCE_COLOURS[source],
-                rasterized=True,
-                linewidths=0,
-            )
+    _scatter_by_source(inset, block, located, size=4, key=False)
     inset.set_xlim(mid[0] - half, mid[0] + half)
     inset.set_ylim(mid[1] - half, mid[1] + half)
     inset.set_aspect("equal")

@@ -11,6 +11,8 @@ from hapticdesk.estimator.contacts import SOURCE_DIFF, SOURCE_FORCE, SOURCE_FUSE
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
 
+#: the candidates, in the order they are drawn and counted
+SOURCES_DRAWN = (SOURCE_FORCE, SOURCE_DIFF, SOURCE_FUSED)
 SOURCE_COLOURS = {SOURCE_FORCE: "#1f77b4", SOURCE_DIFF: "#ff7f0e", SOURCE_FUSED: "#2ca02c"}
 TRUTH_COLOUR = "#222222"
 

@@ -26,15 +26,10 @@ import numpy as np
 
 from hapticdesk.analysis.plot_from_above import desk_panel
 from hapticdesk.analysis.plot_over_time import bench_panels, distance_panel, force_panel
+from hapticdesk.analysis.plot_style import SOURCES_DRAWN
 from hapticdesk.errors import ConfigError
 from hapticdesk.estimator import CandidateTrace, ContactEstimator
-from hapticdesk.estimator.contacts import (
-    SOURCE_DIFF,
-    SOURCE_FORCE,
-    SOURCE_FUSED,
-    SOURCE_NAMES,
-    ContactBlock,
-)
+from hapticdesk.estimator.contacts import SOURCE_NAMES, ContactBlock
 from hapticdesk.estimator.inertia import accelerometer_readings
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.recording import Recording
@@ -175,5 +170,5 @@ def _located_by_source(block: ContactBlock, sel: np.ndarray) -> dict[str, int]:
     """The located samples among ``sel``, counted per candidate name."""
     return {
         SOURCE_NAMES[s]: int(np.count_nonzero(block.located[sel] & (block.source[sel] == s)))
-        for s in (SOURCE_FORCE, SOURCE_DIFF, SOURCE_FUSED)
+        for s in SOURCES_DRAWN
     }

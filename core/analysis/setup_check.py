@@ -21,7 +21,7 @@ presses and is not checked.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -290,9 +290,16 @@ def _position_fix(profile: DeskProfile, held: HeldPresses, residual: np.ndarray)
     return _PositionFix(SetupFinding("", "position", message))
 
 
+class _Placed(NamedTuple):
+    """Where the estimator put each press ((K, 2); 0 where it did not) and whether it did."""
+
+    measured: np.ndarray
+    placed: np.ndarray
+
+
 def _placed(
     profile: DeskProfile, t: np.ndarray, wrench: np.ndarray, windows: list[slice]
-) -> tuple[np.ndarray, np.ndarray]:
+) -> _Placed:
     """Where the estimator puts each press (median over its hold of the located samples)."""
     from hapticdesk.estimator import ContactEstimator
 
@@ -304,7 +311,7 @@ def _placed(
         if ok.any():
             measured[k] = np.median(contacts.x[w][ok]), np.median(contacts.y[w][ok])
             placed[k] = True
-    return measured, placed
+    return _Placed(measured, placed)
 
 
 def report_dict(report: SetupReport) -> dict[str, Any]:

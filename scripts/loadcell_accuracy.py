@@ -53,12 +53,9 @@ from tap_accuracy import (  # (beside this)
     true_touches,
 )
 
-from hapticdesk.analysis.known_weight import (
-    calibrate,
-    calibrated_profile,
-    spots_from_recording,
-    suggested_spots,
-)
+from hapticdesk.analysis.calibrated_profile import calibrated_profile
+from hapticdesk.analysis.known_weight import calibrate, suggested_spots
+from hapticdesk.analysis.weight_rests import spots_from_recording
 from hapticdesk.estimator import estimate
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.profile_reader import load_profile, profile_from_mapping

@@ -23,6 +23,7 @@ those are usually left as the profile has them.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from scipy import signal
@@ -117,8 +118,8 @@ def fit_inertia(
     if not usable.any():
         return InertiaFit(nothing, no, 0, "no usable accelerometer reading in the recording")
     block = ContactEstimator(profile).push(recording.t, recording.wrench, accel)
-    points, unknown, presses = _press_points(block, fs)
-    if presses == 0:
+    pressed = _press_points(block, fs)
+    if pressed.presses == 0:
         return InertiaFit(nothing, no, 0, "no press held still long enough")
     readings = np.where(usable[:, None], accel, settings.rest) - settings.rest
     motion = readings @ rigid_motion(settings.rows, settings.weights).T
@@ -132,14 +133,20 @@ def fit_inertia(
         ).T
     )
     force = known[:, :3] - wrench[:, :3]  # the finger's, f
-    left = wrench[:, 3:] - known[:, 3:] + np.cross(points, force)  # = I_c θ̈
+    left = wrench[:, 3:] - known[:, 3:] + np.cross(pressed.points, force)  # = I_c θ̈
     left[~usable] = 0.0
     spin = np.where(usable[:, None], t_acc, 0.0)
     sos = signal.butter(2, BAND_HZ, btype="band", fs=fs, output="sos")
     left = signal.sosfiltfilt(sos, np.nan_to_num(left), axis=0)
     spin = signal.sosfiltfilt(sos, spin, axis=0)
-    left[unknown] = 0.0  # (out of the sums below)
-    spin[unknown] = 0.0
+    left[pressed.unknown] = 0.0  # (out of the sums below)
+    spin[pressed.unknown] = 0.0
+    return _fit_moments(left, spin, pressed.presses)
+
+
+def _fit_moments(left: np.ndarray, spin: np.ndarray, presses: int) -> InertiaFit:
+    """Per axis, I = the slope of I_c θ̈ (``left``) against θ̈ (``spin``), both band-passed
+    (k, 3), kept where they correlate by :data:`MIN_CORRELATION` or more."""
     moments: list[float | None] = []
     correlation = []
     for axis in range(3):
@@ -159,10 +166,18 @@ def fit_inertia(
     )
 
 
-def _press_points(block: ContactBlock, fs: float) -> tuple[np.ndarray, np.ndarray, int]:
+class _PressPoints(NamedTuple):
     """Per sample, the point (3,) of the press around it (where it held still), zero away
-    from presses; where a touch without such a point is too near to fit (k,) bool; and how
-    many presses gave a point."""
+    from presses (``points`` (k, 3)); where a touch without such a point is too near to fit
+    (``unknown`` (k,) bool); and how many presses gave a point."""
+
+    points: np.ndarray
+    unknown: np.ndarray
+    presses: int
+
+
+def _press_points(block: ContactBlock, fs: float) -> _PressPoints:
+    """Where each press held still, for the samples around it (:class:`_PressPoints`)."""
     k = len(block)
     points = np.zeros((k, 3))
     unknown = np.zeros(k, bool)
@@ -181,4 +196,4 @@ def _press_points(block: ContactBlock, fs: float) -> tuple[np.ndarray, np.ndarra
         point = [float(np.median(getattr(block, name)[hold])) for name in ("x", "y", "z")]
         points[max(0, a - pad) : min(k, e + pad)] = point
         presses += 1
-    return points, unknown, presses
+    return _PressPoints(points, unknown, presses)

@@ -19,28 +19,23 @@ probable correction given the spots and a prior at the profile's nominal values 
 estimate), so with three to five spots it moves the profile only as far as the weight shows.
 
 Each spot's readings are the means over the weight's still rest, less the empty desk's on
-either side of it (:func:`spots_from_recording`), so a zero that drifts between spots does not
-count. :func:`calibrate` fits on all spots but the check spot, and places the weight at the
-check spot with the fitted cells: the distance to the mark is the set-up's own error. The
-result becomes a profile (:func:`calibrated_profile`) and a YAML file the reader accepts
-(:func:`write_calibrated_profile`; each cell becomes ``channels: [fz]`` with a
-``calibration`` column holding its gain, comments kept where ruamel.yaml is installed).
+either side of it (:func:`hapticdesk.analysis.weight_rests.spots_from_recording`), so a zero
+that drifts between spots does not count. :func:`calibrate` fits on all spots but the check
+spot, and places the weight at the check spot with the fitted cells: the distance to the mark
+is the set-up's own error. The result becomes a profile and a YAML file the reader accepts
+(:mod:`hapticdesk.analysis.calibrated_profile`).
 """
 
 from __future__ import annotations
 
-import io
 import math
-from dataclasses import dataclass, replace
-from pathlib import Path
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import STANDARD_GRAVITY, DeskProfile
-from hapticdesk.files.profile_reader import profile_from_mapping
-from hapticdesk.files.yamlfile import load_marked_yaml
 
 #: prior spread of a cell's gain around the profile's (a cheap cell's rated output: ±10 %)
 GAIN_SD = 0.1
@@ -53,20 +48,6 @@ PLACEMENT_SD_M = 0.003
 READING_SD = 0.002
 #: a check spot placed further than this from its mark says the set-up should be redone
 CHECK_TOLERANCE_M = 0.005
-#: a spot's rest: the part of its bump that the first and last share of are trimmed from
-TRIM_SHARE = 0.2
-#: the empty desk read on either side of a rest over this long
-BASELINE_S = 1.5
-#: still stretches: readings smoothed over SMOOTH_S changing slower than this share of the
-#: weight a second (putting it down changes them by all of it in well under a second), this
-#: far from any change, at least MIN_STILL_S long
-STILL_SHARE_PER_S = 0.2
-SMOOTH_S = 0.1
-BASELINE_MARGIN_S = 0.3
-MIN_STILL_S = 0.4
-#: still stretches in a row whose readings differ by less than this share of the weight are
-#: one rest (cut by the desk ringing), more: the weight was slid to the next spot
-SAME_REST_SHARE = 0.05
 #: spots are suggested this far from the cells' centroid towards each cell
 SUGGESTED_REACH = 0.6
 #: the largest weight that makes sense on a desk top, and the smallest a cell resolves
@@ -219,7 +200,7 @@ def fit_cells(
     weigh the spots against the profile (``gain_sd``, ``position_sd_m`` of the prior;
     ``placement_sd_m`` of where the weight sat, ``reading_sd`` of how much it read)."""
     load_cell_channels(profile)
-    _check_mass(mass_kg)
+    check_mass(mass_kg)
     if not spots:
         raise ConfigError(None, "the fit needs the weight on at least one spot")
     weight = mass_kg * STANDARD_GRAVITY
@@ -316,262 +297,11 @@ def suggested_spots(profile: DeskProfile, count: int = 4) -> np.ndarray:
     return out
 
 
-def spots_from_recording(
-    profile: DeskProfile,
-    t: np.ndarray,
-    channels: np.ndarray,
-    points: np.ndarray,
-    mass_kg: float,
-) -> list[WeightSpot]:
-    """The weight's rests in a recording (t (n,), raw channels (n, C)) that starts with an
-    empty desk, one rest per spot of ``points`` (K, 2) in order: each rest's mean readings
-    less the empty desk's, read on either side of it and taken at the rest's time (a zero
-    drifting linearly between them cancels).
-
-    The recording is cut where the readings change (the weight put down or lifted: it
-    changes the readings by W in a fraction of a second, a zero drifts by far less), into
-    still stretches; a still stretch reading at least half the weight more than the empty
-    one before it is a rest."""
-    load_cell_channels(profile)
-    _check_mass(mass_kg)
-    t = np.asarray(t, dtype=float)
-    channels = profile.flat_channels(channels)
-    points = np.asarray(points, dtype=float).reshape(-1, 2)
-    if len(t) < 10 or len(t) != len(channels):
-        raise ConfigError(None, "the recording is too short for a set-up with a weight")
-    weight = mass_kg * STANDARD_GRAVITY
-    alpha = np.abs(nominal_terms(profile)[0])  # sign-blind: a cell read upside down counts
-    rate = 1.0 / float(np.median(np.diff(t)))
-    stretches = _still_stretches(channels * alpha, rate, weight)
-    if not stretches:
-        raise ConfigError(None, "the desk was never still: nothing to read the weight from")
-    # each rest: the stretches it spans (a knock or the desk ringing can cut one in two:
-    # still stretches reading the same load in a row are one rest), first to last
-    rests: list[list[int]] = []
-    kinds: list[str] = []
-    for i, (a, b) in enumerate(stretches):
-        level = channels[a:b].mean(axis=0)
-        if i == 0:
-            kinds.append("empty")
-            continue
-        ref = _nearest_empty(channels, stretches, kinds)
-        loaded = float(np.abs((level - ref) * alpha).sum()) >= 0.5 * weight
-        kinds.append("rest" if loaded else "empty")
-        if not loaded:
-            continue
-        if kinds[i - 1] == "rest":
-            pa, pb = stretches[i - 1]
-            before = channels[pa:pb].mean(axis=0)
-            if float(np.abs((level - before) * alpha).sum()) < SAME_REST_SHARE * weight:
-                rests[-1].append(i)
-                continue
-        rests.append([i])
-    if len(rests) != len(points):
-        raise ConfigError(
-            None,
-            f"expected the {mass_kg:g} kg weight on {len(points)} spots one after another, "
-            f"found it {len(rests)} times: start with the desk empty, put the weight on each "
-            "marked spot in turn and lift it off between them",
-        )
-    width = max(1, int(round(BASELINE_S * rate)))
-    out = []
-    for k, members in enumerate(rests):
-        parts = []
-        for i in members:
-            a, b = stretches[i]
-            trim = int((b - a) * TRIM_SHARE)
-            parts.append(np.arange(a + trim, max(b - trim, a + trim + 1)))
-        held = np.concatenate(parts)
-        rest = channels[held].mean(axis=0)
-        first, last = members[0], members[-1]
-        sides = []
-        if kinds[first - 1] == "empty":
-            pa, pb = stretches[first - 1]
-            sides.append((t[max(pa, pb - width) : pb].mean(), channels[max(pa, pb - width) : pb]))
-        if last + 1 < len(stretches) and kinds[last + 1] == "empty":
-            na, nb = stretches[last + 1]
-            sides.append((t[na : min(nb, na + width)].mean(), channels[na : min(nb, na + width)]))
-        if not sides:
-            raise ConfigError(
-                None,
-                f"spot {k + 1}: the desk was not still and empty around the weight's rest at "
-                f"t = {t[held[0]]:.2f} s: lift the weight off for a second or two between spots",
-            )
-        times = np.array([when for when, _ in sides])
-        means = np.array([values.mean(axis=0) for _, values in sides])
-        if len(sides) == 2 and times[1] > times[0]:
-            share = (t[held].mean() - times[0]) / (times[1] - times[0])
-            baseline = means[0] + share * (means[1] - means[0])
-        else:
-            baseline = means.mean(axis=0)
-        out.append(WeightSpot((float(points[k, 0]), float(points[k, 1])), rest - baseline))
-    return out
-
-
-def _still_stretches(forces: np.ndarray, rate: float, weight: float) -> list[tuple[int, int]]:
-    """(start, stop) of the stretches where the channels (as newtons) change slower than
-    :data:`STILL_SHARE_PER_S` of the weight a second, at least :data:`MIN_STILL_S` long and
-    :data:`BASELINE_MARGIN_S` clear of any change."""
-    width = max(1, int(round(SMOOTH_S * rate)))
-    kernel = np.ones(width) / width
-    smooth = np.column_stack(
-        [np.convolve(forces[:, j], kernel, mode="same") for j in range(forces.shape[1])]
-    )
-    # the change over one smoothing width (N/s, sign-blind): its noise does not grow with the
-    # rate, as a sample-to-sample difference's would (1 kHz cells read "never still")
-    step = np.zeros_like(smooth)
-    step[width:] = smooth[width:] - smooth[:-width]
-    step[:width] = step[width] if len(step) > width else 0.0
-    change = np.abs(step).sum(axis=1) * rate / width
-    moving = change > STILL_SHARE_PER_S * weight
-    margin = max(1, int(round(BASELINE_MARGIN_S * rate)))
-    near = np.convolve(moving.astype(float), np.ones(2 * margin + 1), mode="same") > 0
-    # (the smoothing's own edges are not a change)
-    near[:width] = near[width] if len(near) > width else near[:width]
-    near[-width:] = near[-width - 1] if len(near) > width else near[-width:]
-    still = np.concatenate([[False], ~near, [False]])
-    edges = np.flatnonzero(np.diff(still.astype(np.int8)))
-    shortest = max(1, int(round(MIN_STILL_S * rate)))
-    return [
-        (int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True) if b - a >= shortest
-    ]
-
-
-def _nearest_empty(
-    channels: np.ndarray, stretches: list[tuple[int, int]], kinds: list[str]
-) -> np.ndarray:
-    """The readings of the last empty stretch so far (its end: the nearest in time)."""
-    for (a, b), kind in zip(reversed(stretches[: len(kinds)]), reversed(kinds), strict=True):
-        if kind == "empty":
-            return channels[max(a, b - 10) : b].mean(axis=0)
-    raise AssertionError("the first stretch is empty by definition")
-
-
-def _check_mass(mass_kg: float) -> None:
+def check_mass(mass_kg: float) -> None:
+    """Raise :class:`ConfigError` unless the known weight is a mass a desk and its cells can
+    take (:data:`MIN_MASS_KG` to :data:`MAX_MASS_KG`)."""
     if not (MIN_MASS_KG <= mass_kg <= MAX_MASS_KG):
         raise ConfigError(
             "--mass-kg",
             f"the known weight must be {MIN_MASS_KG:g} to {MAX_MASS_KG:g} kg, found {mass_kg:g}",
         )
-
-
-# --- the calibrated profile --------------------------------------------------------------------
-
-
-def cell_calibrations(fit: CellFit) -> list[tuple[float, float, float, float]]:
-    """Per sensor (in order): its new (x, y, z) and the ``calibration`` number of its fz
-    channel (newtons of its own axis per unit of its reading) that give the fitted α."""
-    out = []
-    for j, sensor in enumerate(fit.profile.sensors):
-        axis = sensor.sign * float(sensor.rotation[2, 2])  # ±1: upright or upside down
-        x, y = (float(v) for v in fit.positions[j])
-        out.append((x, y, float(sensor.position[2]), float(fit.newtons_per_unit[j]) / axis))
-    return out
-
-
-def calibrated_profile(fit: CellFit) -> DeskProfile:
-    """The profile with the fitted cells (each a calibrated one-channel sensor ``fz``)."""
-    sensors = []
-    for sensor, (x, y, z, number) in zip(fit.profile.sensors, cell_calibrations(fit), strict=True):
-        column = np.zeros((6, 1))
-        column[2, 0] = number
-        limits = sensor.channel_limits()
-        sensors.append(
-            replace(
-                sensor,
-                position=np.array([x, y, z]),
-                channels=("fz",),
-                calibration=column,
-                channel_range=limits if np.isfinite(limits).all() else None,
-                force_range=None,
-                moment_range=None,
-            )
-        )
-    return replace(fit.profile, sensors=tuple(sensors))
-
-
-def calibrated_yaml(source_text: str, fit: CellFit, header: str = "") -> str:
-    """``source_text`` (the profile's YAML) with each cell calibrated: ``position``, and
-    ``channels: [fz]`` with its ``calibration`` in place of ``kind``/``axes``; a ``range``
-    becomes the channel's. Comments are kept with ruamel.yaml, else the file is rewritten
-    by PyYAML (a note at the top says so). ``header``: comment lines put first."""
-    cells = {s.name: c for s, c in zip(fit.profile.sensors, cell_calibrations(fit), strict=True)}
-    try:
-        from ruamel.yaml import YAML
-        from ruamel.yaml.comments import CommentedMap, CommentedSeq
-    except ImportError:
-        return _plain_yaml(source_text, cells, header)
-    yaml = YAML()
-    yaml.preserve_quotes = True
-    yaml.width = 4096  # a sensor's flow mapping stays on its line
-    yaml.indent(mapping=2, sequence=4, offset=2)  # the profiles' own "  - {...}"
-    doc = yaml.load(source_text)
-
-    def flow(values: list[Any]) -> CommentedSeq:
-        seq = CommentedSeq(values)
-        seq.fa.set_flow_style()
-        return seq
-
-    for item in doc["sensors"]:
-        x, y, z, number = cells[str(item["name"])]
-        _calibrate_item(item, x, y, z, number, flow, CommentedMap)
-    out = io.StringIO()
-    yaml.dump(doc, out)
-    return _with_header(out.getvalue(), header)
-
-
-def _calibrate_item(
-    item: Any, x: float, y: float, z: float, number: float, seq: Any, mapping: Any
-) -> None:
-    """One sensor entry of the YAML made the calibrated cell (in place)."""
-    limit = None
-    if "range" in item and "force_n" in item["range"]:
-        rated = item["range"]["force_n"]
-        limit = float(rated[2] if isinstance(rated, list) else rated)
-    for key in ("kind", "axes", "channels", "calibration", "range"):
-        if key in item:
-            del item[key]
-    item["position"] = seq([_round(x, 6), _round(y, 6), _round(z, 6)])  # to a micrometre
-    item["channels"] = seq(["fz"])
-    item["calibration"] = seq([seq([v]) for v in (0, 0, _round(number, 6), 0, 0, 0)])
-    if limit is not None:
-        rng = mapping()
-        rng["channels"] = seq([_round(limit, 6)])
-        if hasattr(rng, "fa"):
-            rng.fa.set_flow_style()
-        item["range"] = rng
-
-
-def _round(value: float, digits: int = 5) -> float:
-    return float(round(value, digits))
-
-
-def _plain_yaml(
-    source_text: str, cells: dict[str, tuple[float, float, float, float]], header: str
-) -> str:
-    import yaml
-
-    doc = yaml.safe_load(source_text)
-    for item in doc["sensors"]:
-        x, y, z, number = cells[str(item["name"])]
-        _calibrate_item(item, x, y, z, number, list, dict)
-    note = "# (rewritten without its comments: pip install ruamel.yaml to keep them)\n"
-    return _with_header(note + yaml.safe_dump(doc, sort_keys=False), header)
-
-
-def _with_header(text: str, header: str) -> str:
-    if not header:
-        return text
-    lines = [f"# {line}".rstrip() for line in header.splitlines()]
-    return "\n".join(lines) + "\n" + text
-
-
-def write_calibrated_profile(
-    source: Path, fit: CellFit, output: Path, header: str = ""
-) -> DeskProfile:
-    """Write :func:`calibrated_yaml` of the profile file ``source`` to ``output``, after
-    reading it back as a profile (the reader must accept what is written); returns it."""
-    text = calibrated_yaml(Path(source).read_text(encoding="utf-8"), fit, header)
-    checked = profile_from_mapping(load_marked_yaml(Path(output), text), Path(output))
-    Path(output).write_text(text, encoding="utf-8")
-    return checked

@@ -21,7 +21,7 @@ presses and is not checked.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -100,6 +100,35 @@ def press_windows(force: np.ndarray, t: np.ndarray, count: int, min_n: float) ->
     return out
 
 
+@dataclass(frozen=True)
+class HeldPresses:
+    """Each press's held load per sensor in the desk frame, tared and averaged over its hold
+    (``windows``): ``fz`` (K, S) the vertical force, ``fxy`` (K, S, 2) the horizontal one,
+    ``moments`` (K, S, 3)."""
+
+    windows: list[slice]
+    fz: np.ndarray
+    fxy: np.ndarray
+    moments: np.ndarray
+
+    def sign_corrected(self, flips: np.ndarray) -> HeldPresses:
+        """The loads with each sensor's sign multiplied by ``flips`` (S,) (±1)."""
+        per_axis = flips[None, :, None]
+        return replace(
+            self, fz=self.fz * flips, fxy=self.fxy * per_axis, moments=self.moments * per_axis
+        )
+
+
+@dataclass(frozen=True)
+class _PositionFix:
+    """What the moment balance says of the sensors' positions: a finding (None: they
+    balance), and the one sensor moved (its index and new (x, y); -1 and None: none)."""
+
+    finding: SetupFinding | None
+    sensor: int = -1
+    position: np.ndarray | None = None
+
+
 def check_setup(
     profile: DeskProfile,
     t: np.ndarray,
@@ -113,6 +142,40 @@ def check_setup(
     (n,), ``wrench`` (n, S, 6) sensor frames, the first ``tare_s`` a quiet desk."""
     points = np.asarray(points, dtype=float).reshape(-1, 2)
     sensors = profile.sensors
+    held = _held_presses(profile, t, wrench, len(points), tare_s, min_force_n)
+    share = held.fz / np.abs(held.fz).sum(axis=1, keepdims=True)
+    flips = np.where(np.median(share, axis=0) < -0.02, -1.0, 1.0)
+    findings = _sign_findings(profile, flips)
+    held = held.sign_corrected(flips)
+    findings += _tilt_findings(profile, held)
+    corrected_sensors = [
+        replace(s, reports=("load" if s.reports == "reaction" else "reaction")) if f < 0 else s
+        for s, f in zip(sensors, flips, strict=True)
+    ]
+    fitted = np.array([s.position[:2] for s in sensors])
+    fix = _position_fix(profile, held, _moment_imbalance(profile, held, points))
+    if fix.finding is not None:
+        findings.append(fix.finding)
+    if fix.position is not None:
+        fitted[fix.sensor] = fix.position
+        position = np.array([*fix.position, sensors[fix.sensor].position[2]])
+        corrected_sensors[fix.sensor] = replace(corrected_sensors[fix.sensor], position=position)
+    measured, placed = _placed(profile, t, wrench, held.windows)
+    residual = np.where(placed, np.hypot(*(measured - points).T), np.inf)
+    corrected = replace(profile, sensors=tuple(corrected_sensors)) if findings else None
+    return SetupReport(points, measured, placed, residual, fitted, findings, corrected)
+
+
+def _held_presses(
+    profile: DeskProfile,
+    t: np.ndarray,
+    wrench: np.ndarray,
+    count: int,
+    tare_s: float,
+    min_force_n: float,
+) -> HeldPresses:
+    """The ``count`` presses' held loads, tared over the first ``tare_s`` (a quiet desk)."""
+    sensors = profile.sensors
     quiet = t < t[0] + tare_s
     if quiet.sum() < 10:
         raise ConfigError(None, f"the recording needs {tare_s:g} s of a quiet desk first")
@@ -123,16 +186,20 @@ def check_setup(
     f_desk = np.einsum("sij,nsj->nsi", rot, tared[:, :, :3]) * sign
     m_desk = np.einsum("sij,nsj->nsi", rot, tared[:, :, 3:]) * sign
     magnitude = np.abs(f_desk[:, :, 2]).sum(axis=1)  # sign-blind: a flipped sensor still counts
-    windows = press_windows(magnitude, t, len(points), min_force_n)
-    fz = np.array([f_desk[w, :, 2].mean(axis=0) for w in windows])  # (K, S)
-    fxy = np.array([f_desk[w, :, :2].mean(axis=0) for w in windows])  # (K, S, 2)
+    windows = press_windows(magnitude, t, count, min_force_n)
+    return HeldPresses(
+        windows,
+        np.array([f_desk[w, :, 2].mean(axis=0) for w in windows]),
+        np.array([f_desk[w, :, :2].mean(axis=0) for w in windows]),
+        np.array([m_desk[w].mean(axis=0) for w in windows]),
+    )
 
-    findings: list[SetupFinding] = []
-    flips = np.ones(len(sensors))
-    share = fz / np.abs(fz).sum(axis=1, keepdims=True)
-    for i, s in enumerate(sensors):
-        if np.median(share[:, i]) < -0.02:
-            flips[i] = -1.0
+
+def _sign_findings(profile: DeskProfile, flips: np.ndarray) -> list[SetupFinding]:
+    """A finding per sensor whose vertical force opposes the others' (``flips`` -1)."""
+    findings = []
+    for s, flip in zip(profile.sensors, flips, strict=True):
+        if flip < 0:
             other = "load" if s.reports == "reaction" else "reaction"
             findings.append(
                 SetupFinding(
@@ -142,14 +209,17 @@ def check_setup(
                     "mounted upside down: roll 180 in rotation_rpy_deg)",
                 )
             )
-    fz, fxy = fz * flips, fxy * flips[None, :, None]
-    load = fz.sum(axis=1)  # W_k, the press's force (vertical)
-    # tilt: the vertical load of a sensor seen partly in the horizontal plane
-    for i, s in enumerate(sensors):
-        vertical = np.abs(fz[:, i]).sum()
+    return findings
+
+
+def _tilt_findings(profile: DeskProfile, held: HeldPresses) -> list[SetupFinding]:
+    """A finding per sensor whose vertical load shows partly in the horizontal plane."""
+    findings = []
+    for i, s in enumerate(profile.sensors):
+        vertical = np.abs(held.fz[:, i]).sum()
         if vertical <= 0:
             continue
-        horizontal = np.linalg.norm(fxy[:, i, :].sum(axis=0) * np.sign(fz[:, i]).mean())
+        horizontal = np.linalg.norm(held.fxy[:, i, :].sum(axis=0) * np.sign(held.fz[:, i]).mean())
         angle = float(np.degrees(np.arctan2(horizontal, vertical)))
         if angle > TILT_TOLERANCE_DEG:
             findings.append(
@@ -160,20 +230,19 @@ def check_setup(
                     "roll and pitch in its rotation_rpy_deg",
                 )
             )
-    # positions: Σ_i x_i fz_ik = x_k W_k + Σ_i My_ik and Σ_i y_i fz_ik = y_k W_k - Σ_i Mx_ik.
-    # On a rigid desk the legs' vertical forces are an affine function of the point pressed,
-    # so with four legs the columns of fz are dependent and positions cannot all be solved
-    # for. What can: which one sensor, moved, explains the imbalance the presses leave.
-    corrected_sensors = [
-        replace(s, reports=("load" if s.reports == "reaction" else "reaction")) if f < 0 else s
-        for s, f in zip(sensors, flips, strict=True)
-    ]
-    # the finger's force is not quite vertical: its horizontal part acts at the board's height
-    f3 = np.concatenate([fxy, fz[:, :, None]], axis=2)  # (K, S, 3), sign-corrected
-    m3 = np.array([m_desk[w].mean(axis=0) for w in windows]) * flips[None, :, None]
+    return findings
+
+
+def _moment_imbalance(profile: DeskProfile, held: HeldPresses, points: np.ndarray) -> np.ndarray:
+    """(K, 2) the moment imbalance (N·m) each press leaves with the profile's positions.
+
+    Σ_i x_i fz_ik = x_k W_k + Σ_i My_ik and Σ_i y_i fz_ik = y_k W_k - Σ_i Mx_ik; the
+    finger's force is not quite vertical: its horizontal part acts at the board's height."""
+    sensors = profile.sensors
+    f3 = np.concatenate([held.fxy, held.fz[:, :, None]], axis=2)  # (K, S, 3), sign-corrected
     height = float(profile.surfaces[0].origin[2])
     p3 = np.column_stack([points, np.full(len(points), height)])
-    rhs = np.cross(p3, f3.sum(axis=1)) - m3.sum(axis=1)  # Σ r_i × F_i must equal this
+    rhs = np.cross(p3, f3.sum(axis=1)) - held.moments.sum(axis=1)  # Σ r_i × F_i must equal this
     z = np.array([s.position[2] for s in sensors])
     target = np.stack(
         [
@@ -183,51 +252,54 @@ def check_setup(
         axis=1,
     )  # (K, 2)
     positions = np.array([s.position[:2] for s in sensors])
-    residual = target - fz @ positions  # (K, 2): moment imbalance, N·m
+    return target - held.fz @ positions
+
+
+def _position_fix(profile: DeskProfile, held: HeldPresses, residual: np.ndarray) -> _PositionFix:
+    """The one sensor whose move explains the moment imbalance ``residual`` (> 90 %).
+
+    On a rigid desk the legs' vertical forces are an affine function of the point pressed,
+    so with four legs the columns of fz are dependent and positions cannot all be solved
+    for. What can: which one sensor, moved, explains the imbalance the presses leave."""
+    sensors = profile.sensors
+    load = held.fz.sum(axis=1)  # W_k, the press's force (vertical)
     lever = np.sqrt(np.mean(np.sum((residual / load[:, None]) ** 2, axis=1)))  # metres
-    fitted = positions.copy()
-    if lever > POSITION_TOLERANCE_M / 2:
-        best, best_left, best_shift = -1, np.inf, np.zeros(2)
-        for i in range(len(sensors)):
-            column = fz[:, i]
-            shift = column @ residual / max(float(column @ column), 1e-12)  # (2,)
-            left = float(np.sum((residual - np.outer(column, shift)) ** 2))
-            if left < best_left:
-                best, best_left, best_shift = i, left, shift
-        explained = 1.0 - best_left / float(np.sum(residual**2))
-        s = sensors[best]
-        off = float(np.hypot(*best_shift))
-        if explained > 0.9 and off > POSITION_TOLERANCE_M:
-            fitted[best] += best_shift
-            findings.append(
-                SetupFinding(
-                    s.name,
-                    "position",
-                    f"{s.name} is at ({fitted[best, 0]:.3f}, {fitted[best, 1]:.3f}) m by the "
-                    f"presses, {off * 100:.1f} cm from the profile's "
-                    f"({s.position[0]:.3f}, {s.position[1]:.3f})",
-                )
-            )
-            position = np.array([fitted[best, 0], fitted[best, 1], s.position[2]])
-            corrected_sensors[best] = replace(corrected_sensors[best], position=position)
-        else:
-            findings.append(
-                SetupFinding(
-                    "",
-                    "position",
-                    f"the presses leave a {lever * 100:.1f} cm lever-arm imbalance no single "
-                    "sensor's position explains: measure the sensors' positions again",
-                )
-            )
-    measured, placed = _placed(profile, t, wrench, windows)
-    residual = np.where(placed, np.hypot(*(measured - points).T), np.inf)
-    corrected = replace(profile, sensors=tuple(corrected_sensors)) if findings else None
-    return SetupReport(points, measured, placed, residual, fitted, findings, corrected)
+    if lever <= POSITION_TOLERANCE_M / 2:
+        return _PositionFix(None)
+    best, best_left, best_shift = -1, np.inf, np.zeros(2)
+    for i in range(len(sensors)):
+        column = held.fz[:, i]
+        shift = column @ residual / max(float(column @ column), 1e-12)  # (2,)
+        left = float(np.sum((residual - np.outer(column, shift)) ** 2))
+        if left < best_left:
+            best, best_left, best_shift = i, left, shift
+    explained = 1.0 - best_left / float(np.sum(residual**2))
+    s = sensors[best]
+    off = float(np.hypot(*best_shift))
+    if explained > 0.9 and off > POSITION_TOLERANCE_M:
+        moved = np.asarray(s.position[:2], dtype=float) + best_shift
+        message = (
+            f"{s.name} is at ({moved[0]:.3f}, {moved[1]:.3f}) m by the presses, "
+            f"{off * 100:.1f} cm from the profile's ({s.position[0]:.3f}, {s.position[1]:.3f})"
+        )
+        return _PositionFix(SetupFinding(s.name, "position", message), best, moved)
+    message = (
+        f"the presses leave a {lever * 100:.1f} cm lever-arm imbalance no single "
+        "sensor's position explains: measure the sensors' positions again"
+    )
+    return _PositionFix(SetupFinding("", "position", message))
+
+
+class _Placed(NamedTuple):
+    """Where the estimator put each press ((K, 2); 0 where it did not) and whether it did."""
+
+    measured: np.ndarray
+    placed: np.ndarray
 
 
 def _placed(
     profile: DeskProfile, t: np.ndarray, wrench: np.ndarray, windows: list[slice]
-) -> tuple[np.ndarray, np.ndarray]:
+) -> _Placed:
     """Where the estimator puts each press (median over its hold of the located samples)."""
     from hapticdesk.estimator import ContactEstimator
 
@@ -239,7 +311,7 @@ def _placed(
         if ok.any():
             measured[k] = np.median(contacts.x[w][ok]), np.median(contacts.y[w][ok])
             placed[k] = True
-    return measured, placed
+    return _Placed(measured, placed)
 
 
 def report_dict(report: SetupReport) -> dict[str, Any]:

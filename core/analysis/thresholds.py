@@ -37,7 +37,7 @@ thresholds (F_tth = 5.67 N, F_rth = 11.8 N), so that is the suggested value.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, replace
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -144,6 +144,27 @@ class ThresholdReport:
         }
 
 
+@dataclass(frozen=True)
+class PressTrace:
+    """One press's traced samples: times, |F_o|, its rate (the motion's sign), the
+    force-based point (3, n), and the distances D_er and D_ed (NaN where no point)."""
+
+    t: np.ndarray
+    force_n: np.ndarray
+    rate_n_s: np.ndarray
+    force_point: np.ndarray
+    d_er: np.ndarray
+    d_ed: np.ndarray
+
+
+class _Crossing(NamedTuple):
+    """Where a criterion triggered (the force and time; None when it never did) and why."""
+
+    force_n: float | None
+    t: float | None
+    reason: str
+
+
 def derive_thresholds(
     profile: DeskProfile,
     recording: Recording,
@@ -167,52 +188,14 @@ def derive_thresholds(
             str(profile.path or profile.name),
             "the desk has no surfaces: thresholds need a surface to locate presses on",
         )
-    base = profile.estimation
-    floor_n = base.contact_force_n
-    settings = replace(
-        base,
-        detect_lowpass_hz=base.force_lowpass_hz,
-        release_hysteresis_n=min(GATE_HYSTERESIS_N, base.release_hysteresis_n),
-        release_slope_n_s=0.0,  # gated on the low-passed force itself, not a prediction
-    )
-    estimator = ContactEstimator(profile, method="switched", settings=settings, trace=True)
-    block = estimator.push(recording.t, recording.wrench)
-    trace = CandidateTrace.concat(estimator.traces)
-    traced = np.flatnonzero(block.in_contact & ((block.flags & BAD_SAMPLE) == 0))
-    if len(traced) != len(trace.t):  # the estimator's trace contract; never expected
-        raise RuntimeError("the estimator's trace does not match its samples in contact")
-
-    # presses: runs of samples in contact; each traced sample gets its run's number
-    inc = block.in_contact
-    run_starts = inc & ~np.concatenate([[False], inc[:-1]])
-    run_of = np.cumsum(run_starts)[traced]
-    cuts = (np.flatnonzero(np.diff(run_of)) + 1).tolist()
-    bounds = [0, *cuts, len(run_of)] if len(run_of) else [0]
-
-    centre = profile.surfaces[0].origin
-    d_er = np.linalg.norm(trace.force_point - centre[:, None], axis=0)
-    d_ed = np.linalg.norm(trace.diff_point - centre[:, None], axis=0)
-    d_er[~trace.force_valid] = np.nan
-    d_ed[~trace.diff_valid] = np.nan
+    floor_n = profile.estimation.contact_force_n
+    estimator = _gated_estimator(profile)
+    presses = _press_traces(profile, estimator, recording)
     half = max(1, round(slope_window_s * profile.sample_rate_hz / 2))
-
-    results = []
-    for number, (a, b) in enumerate(zip(bounds[:-1], bounds[1:], strict=True)):
-        results.append(
-            _one_press(
-                number + 1,
-                trace.t[a:b],
-                trace.force_n[a:b],
-                trace.rate_n_s[a:b],
-                trace.force_point[:, a:b],
-                d_er[a:b],
-                d_ed[a:b],
-                half,
-                floor_n,
-                converged_m_s,
-                diverged_m,
-            )
-        )
+    results = [
+        _one_press(number + 1, press, half, floor_n, converged_m_s, diverged_m)
+        for number, press in enumerate(presses)
+    ]
     n = len(results)
     touch = [p.touch_n for p in results if p.touch_n is not None]
     release = [p.release_n for p in results if p.release_n is not None]
@@ -234,85 +217,135 @@ def derive_thresholds(
     )
 
 
+def _gated_estimator(profile: DeskProfile) -> ContactEstimator:
+    """The switched estimator with its contact gate on the conventional low-passed |F_o|
+    (module doc), tracing its candidates."""
+    base = profile.estimation
+    settings = replace(
+        base,
+        detect_lowpass_hz=base.force_lowpass_hz,
+        release_hysteresis_n=min(GATE_HYSTERESIS_N, base.release_hysteresis_n),
+        release_slope_n_s=0.0,  # gated on the low-passed force itself, not a prediction
+    )
+    return ContactEstimator(profile, method="switched", settings=settings, trace=True)
+
+
+def _press_traces(
+    profile: DeskProfile, estimator: ContactEstimator, recording: Recording
+) -> list[PressTrace]:
+    """Run ``estimator`` over ``recording`` and cut its trace into presses: runs of samples
+    in contact."""
+    block = estimator.push(recording.t, recording.wrench)
+    trace = CandidateTrace.concat(estimator.traces)
+    traced = np.flatnonzero(block.in_contact & ((block.flags & BAD_SAMPLE) == 0))
+    if len(traced) != len(trace.t):  # the estimator's trace contract; never expected
+        raise RuntimeError("the estimator's trace does not match its samples in contact")
+    # each traced sample gets its run's number
+    inc = block.in_contact
+    run_starts = inc & ~np.concatenate([[False], inc[:-1]])
+    run_of = np.cumsum(run_starts)[traced]
+    cuts = (np.flatnonzero(np.diff(run_of)) + 1).tolist()
+    bounds = [0, *cuts, len(run_of)] if len(run_of) else [0]
+    centre = profile.surfaces[0].origin
+    d_er = np.linalg.norm(trace.force_point - centre[:, None], axis=0)
+    d_ed = np.linalg.norm(trace.diff_point - centre[:, None], axis=0)
+    d_er[~trace.force_valid] = np.nan
+    d_ed[~trace.diff_valid] = np.nan
+    return [
+        PressTrace(
+            trace.t[a:b],
+            trace.force_n[a:b],
+            trace.rate_n_s[a:b],
+            trace.force_point[:, a:b],
+            d_er[a:b],
+            d_ed[a:b],
+        )
+        for a, b in zip(bounds[:-1], bounds[1:], strict=True)
+    ]
+
+
 def _one_press(
     number: int,
-    t: np.ndarray,
-    force: np.ndarray,
-    rate: np.ndarray,
-    point: np.ndarray,
-    d_er: np.ndarray,
-    d_ed: np.ndarray,
+    press: PressTrace,
     half: int,
     floor_n: float,
     converged_m_s: float,
     diverged_m: float,
 ) -> PressThresholds:
-    """Both criteria on one press's traced samples (all arrays over the press)."""
+    """Both criteria on one press's traced samples."""
+    force = press.force_n
     peak = int(np.argmax(force))
-    strong = force >= floor_n
-    slope = local_slope(t, d_er, half)
-
-    # touching: from touch-down to the first sample where the motion turns to releasing
-    falling = np.flatnonzero(rate < 0)
-    touch_end = int(falling[0]) if len(falling) else len(t)
-    touch_n = touch_t = None
-    touching = np.flatnonzero(strong[:touch_end])
-    if len(touching) == 0:
-        touch_reason = f"no touching phase at or above {floor_n:g} N"
-    else:
-        converged = np.abs(slope[touching]) <= converged_m_s  # NaN (no point) is not
-        if not converged[-1]:
-            touch_reason = (
-                f"D_er still moving at the end of touching (|dD_er/dt| > {converged_m_s:g} m/s)"
-            )
-        else:
-            unsettled = np.flatnonzero(~converged)
-            at = touching[int(unsettled[-1]) + 1 if len(unsettled) else 0]
-            touch_n, touch_t = float(force[at]), float(t[at])
-            # at once: D_er was settled at the first sample that counts, so F_tth is only
-            # bounded by the contact force
-            touch_reason = "converged" if len(unsettled) else "converged at once"
-
-    # releasing: the final run of samples with the motion negative
-    rising = np.flatnonzero(rate >= 0)
-    release_start = int(rising[-1]) + 1 if len(rising) else 0
-    release_n = release_t = None
-    releasing = release_start + np.flatnonzero(strong[release_start:])
-    if len(releasing) == 0:
-        release_reason = f"no releasing phase at or above {floor_n:g} N"
-    else:
-        er, ed = d_er[releasing], d_ed[releasing]
-        with np.errstate(invalid="ignore"):
-            gap = np.abs(er - ed)
-            agreed = gap < diverged_m  # both points exist and lie close
-            # no force-based point at all has diverged too (its line left the surface)
-            diverged = np.isnan(er) | (gap >= diverged_m)
-        last_agreed = np.flatnonzero(agreed)
-        if len(last_agreed) == 0:
-            release_reason = "D_ed never agreed with D_er while releasing (no reference)"
-        else:
-            after = int(last_agreed[-1]) + 1
-            onset = np.flatnonzero(diverged[after:])
-            if len(onset) == 0:
-                release_reason = f"D_er did not diverge before the force fell below {floor_n:g} N"
-            else:
-                at = releasing[after + int(onset[0])]
-                release_n, release_t = float(force[at]), float(t[at])
-                release_reason = "diverged"
+    touch = _touch_crossing(press, half, floor_n, converged_m_s)
+    release = _release_crossing(press, floor_n, diverged_m)
     return PressThresholds(
         index=number,
-        t_start=float(t[0]),
-        t_end=float(t[-1]),
+        t_start=float(press.t[0]),
+        t_end=float(press.t[-1]),
         peak_n=float(force[peak]),
-        x=float(point[0, peak]),
-        y=float(point[1, peak]),
-        touch_n=touch_n,
-        touch_t=touch_t,
-        touch_reason=touch_reason,
-        release_n=release_n,
-        release_t=release_t,
-        release_reason=release_reason,
+        x=float(press.force_point[0, peak]),
+        y=float(press.force_point[1, peak]),
+        touch_n=touch.force_n,
+        touch_t=touch.t,
+        touch_reason=touch.reason,
+        release_n=release.force_n,
+        release_t=release.t,
+        release_reason=release.reason,
     )
+
+
+def _touch_crossing(
+    press: PressTrace, half: int, floor_n: float, converged_m_s: float
+) -> _Crossing:
+    """F_tth: |F_o| where D_er has converged for the rest of the touching phase, from
+    touch-down to the first sample where the motion turns to releasing."""
+    force, t = press.force_n, press.t
+    slope = local_slope(t, press.d_er, half)
+    falling = np.flatnonzero(press.rate_n_s < 0)
+    touch_end = int(falling[0]) if len(falling) else len(t)
+    touching = np.flatnonzero(force[:touch_end] >= floor_n)
+    if len(touching) == 0:
+        return _Crossing(None, None, f"no touching phase at or above {floor_n:g} N")
+    converged = np.abs(slope[touching]) <= converged_m_s  # NaN (no point) is not
+    if not converged[-1]:
+        return _Crossing(
+            None,
+            None,
+            f"D_er still moving at the end of touching (|dD_er/dt| > {converged_m_s:g} m/s)",
+        )
+    unsettled = np.flatnonzero(~converged)
+    at = touching[int(unsettled[-1]) + 1 if len(unsettled) else 0]
+    # at once: D_er was settled at the first sample that counts, so F_tth is only
+    # bounded by the contact force
+    reason = "converged" if len(unsettled) else "converged at once"
+    return _Crossing(float(force[at]), float(t[at]), reason)
+
+
+def _release_crossing(press: PressTrace, floor_n: float, diverged_m: float) -> _Crossing:
+    """F_rth: |F_o| at the first diverged sample after D_er and D_ed last agreed, in the
+    final run of samples with the motion negative."""
+    force, t = press.force_n, press.t
+    rising = np.flatnonzero(press.rate_n_s >= 0)
+    release_start = int(rising[-1]) + 1 if len(rising) else 0
+    releasing = release_start + np.flatnonzero(force[release_start:] >= floor_n)
+    if len(releasing) == 0:
+        return _Crossing(None, None, f"no releasing phase at or above {floor_n:g} N")
+    er, ed = press.d_er[releasing], press.d_ed[releasing]
+    with np.errstate(invalid="ignore"):
+        gap = np.abs(er - ed)
+        agreed = gap < diverged_m  # both points exist and lie close
+        # no force-based point at all has diverged too (its line left the surface)
+        diverged = np.isnan(er) | (gap >= diverged_m)
+    last_agreed = np.flatnonzero(agreed)
+    if len(last_agreed) == 0:
+        return _Crossing(None, None, "D_ed never agreed with D_er while releasing (no reference)")
+    after = int(last_agreed[-1]) + 1
+    onset = np.flatnonzero(diverged[after:])
+    if len(onset) == 0:
+        return _Crossing(
+            None, None, f"D_er did not diverge before the force fell below {floor_n:g} N"
+        )
+    at = releasing[after + int(onset[0])]
+    return _Crossing(float(force[at]), float(t[at]), "diverged")
 
 
 def local_slope(t: np.ndarray, y: np.ndarray, half: int) -> np.ndarray:

@@ -25,6 +25,7 @@ falls below 2 N. Both in ms, per press.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -153,84 +154,137 @@ def measure_accuracy(
     t = block.t
     true_fn = np.asarray(truth["true_fn"], dtype=float)
     presses = find_presses(true_fn, contact_force_n)
-    true_x, true_y, true_z, ends = truth_with_release(block, truth, presses)
-    err = np.hypot(block.x - np.nan_to_num(true_x), block.y - np.nan_to_num(true_y))
-    if true_z is not None:  # on one horizontal board z is the same for both: err unchanged
-        err = np.hypot(err, block.z - np.nan_to_num(true_z))
-    parts: dict[str, list[np.ndarray]] = {"touch": [], "hold": [], "release": []}
-    common_parts: dict[str, list[np.ndarray]] = {"touch": [], "hold": [], "release": []}
-    counts = {"touch": [0, 0], "hold": [0, 0], "release": [0, 0]}  # located, total
-    touch_delay, release_delay, first_point = [], [], []
+    held = truth_with_release(block, truth, presses)
+    err = np.hypot(block.x - np.nan_to_num(held.x), block.y - np.nan_to_num(held.y))
+    if held.z is not None:  # on one horizontal board z is the same for both: err unchanged
+        err = np.hypot(err, block.z - np.nan_to_num(held.z))
+    tally = _PhaseTally()
+    delays = _PressDelays()
     at_times: dict[str, list[float]] = {
         f"{phase}{sign}{ms}": []
         for phase, sign in (("touch", "+"), ("release", "-"))
         for ms in AT_MS
     }
-    missed = 0
-    in_contact = block.in_contact
-    for p, end in zip(presses, ends, strict=True):
+    for p, end in zip(presses, held.ends, strict=True):
+        tally.add(p, end, err, block.located, common)
+        _add_errors_at_times(at_times, t, true_fn, p, err, block.located, contact_force_n)
+        delays.add(p, t, true_fn, block, contact_force_n)
+    return Accuracy(
+        tally.phase("touch"),
+        tally.phase("hold"),
+        tally.phase("release"),
+        np.array(delays.touch),
+        np.array(delays.release),
+        np.array(delays.first_point),
+        len(presses),
+        delays.missed,
+        _false_touches(block.in_contact, presses),
+        common=tally.common_errors() if common is not None else {},
+        at_times={k: np.array(v) for k, v in at_times.items()},
+    )
+
+
+PHASES = ("touch", "hold", "release")
+
+
+@dataclass
+class _PhaseTally:
+    """Per phase, the errors of the located samples (and of the ``common`` ones, those
+    every compared method locates) and how many samples it had and located."""
+
+    parts: dict[str, list[np.ndarray]] = field(default_factory=lambda: {n: [] for n in PHASES})
+    common: dict[str, list[np.ndarray]] = field(default_factory=lambda: {n: [] for n in PHASES})
+    located: dict[str, int] = field(default_factory=lambda: dict.fromkeys(PHASES, 0))
+    total: dict[str, int] = field(default_factory=lambda: dict.fromkeys(PHASES, 0))
+
+    def add(
+        self,
+        p: Press,
+        end: int,
+        err: np.ndarray,
+        located: np.ndarray,
+        common: np.ndarray | None,
+    ) -> None:
+        """Press ``p``'s samples, its release running until ``end`` (or its true stop)."""
         for name, a, b in (
             ("touch", p.start, p.half_up),
             ("hold", p.half_up, p.half_down),
             ("release", p.half_down, max(end, p.stop)),
         ):
-            located = block.located[a:b]
-            parts[name].append(err[a:b][located])
+            here = located[a:b]
+            self.parts[name].append(err[a:b][here])
             if common is not None:
-                common_parts[name].append(err[a:b][common[a:b]])
-            counts[name][0] += int(located.sum())
-            counts[name][1] += b - a
-        down = _crossing(t, true_fn, p.start, contact_force_n)
-        up = _crossing(t, true_fn, p.stop, contact_force_n)
-        for ms in AT_MS:
-            for key, when, lo, hi in (
-                (f"touch+{ms}", down + ms / 1e3, p.start, p.stop),
-                (f"release-{ms}", up - ms / 1e3, p.start, p.stop),
-            ):
-                i = int(np.searchsorted(t, when))
-                if lo <= i < hi:  # a tap shorter than the offset has no such point
-                    at_times[key].append(float(err[i]) if block.located[i] else np.inf)
+                self.common[name].append(err[a:b][common[a:b]])
+            self.located[name] += int(here.sum())
+            self.total[name] += b - a
+
+    def phase(self, name: str) -> PhaseErrors:
+        """One phase's errors and the share of its samples located."""
+        total = self.total[name]
+        errors = np.concatenate(self.parts[name]) if self.parts[name] else np.zeros(0)
+        return PhaseErrors(errors, self.located[name] / total if total else 0.0)
+
+    def common_errors(self) -> dict[str, np.ndarray]:
+        """Per phase, the errors on the samples every compared method locates."""
+        return {k: np.concatenate(v) for k, v in self.common.items()}
+
+
+@dataclass
+class _PressDelays:
+    """Per press the estimator called a contact: its touch-down, first-point and release
+    delays (ms); and how many presses it missed."""
+
+    touch: list[float] = field(default_factory=list)
+    release: list[float] = field(default_factory=list)
+    first_point: list[float] = field(default_factory=list)
+    missed: int = 0
+
+    def add(
+        self, p: Press, t: np.ndarray, true_fn: np.ndarray, block: ContactBlock, level: float
+    ) -> None:
+        """Press ``p``'s delays against the true crossings of ``level``."""
+        in_contact = block.in_contact
         on = np.flatnonzero(in_contact[p.start : p.stop])
         if len(on) == 0:
-            missed += 1
-            continue
-        touch_delay.append(
-            (t[p.start + on[0]] - _crossing(t, true_fn, p.start, contact_force_n)) * 1e3
-        )
+            self.missed += 1
+            return
+        self.touch.append((t[p.start + on[0]] - _crossing(t, true_fn, p.start, level)) * 1e3)
         loc = np.flatnonzero(block.located[p.start : p.stop])
         if len(loc):
-            first_point.append((t[p.start + loc[0]] - t[p.start]) * 1e3)
+            self.first_point.append((t[p.start + loc[0]] - t[p.start]) * 1e3)
         off = np.flatnonzero(~in_contact[p.stop :])
         if len(off):
-            release_delay.append(
-                (t[p.stop + off[0]] - _crossing(t, true_fn, p.stop, contact_force_n)) * 1e3
-            )
-    truth_on = np.zeros(len(t), bool)
-    for p in presses:  # a reported contact within 0.3 s of a true press belongs to it
+            self.release.append((t[p.stop + off[0]] - _crossing(t, true_fn, p.stop, level)) * 1e3)
+
+
+def _add_errors_at_times(
+    at_times: dict[str, list[float]],
+    t: np.ndarray,
+    true_fn: np.ndarray,
+    p: Press,
+    err: np.ndarray,
+    located: np.ndarray,
+    level: float,
+) -> None:
+    """Press ``p``'s error :data:`AT_MS` after the true touch-down and before the true
+    release (inf where not located; none where the press is shorter than the offset)."""
+    down = _crossing(t, true_fn, p.start, level)
+    up = _crossing(t, true_fn, p.stop, level)
+    for ms in AT_MS:
+        for key, when in ((f"touch+{ms}", down + ms / 1e3), (f"release-{ms}", up - ms / 1e3)):
+            i = int(np.searchsorted(t, when))
+            if p.start <= i < p.stop:  # a tap shorter than the offset has no such point
+                at_times[key].append(float(err[i]) if located[i] else np.inf)
+
+
+def _false_touches(in_contact: np.ndarray, presses: list[Press]) -> int:
+    """Contacts reported where no press was (a contact starting within 0.3 s of a true press
+    belongs to it)."""
+    truth_on = np.zeros(len(in_contact), bool)
+    for p in presses:
         truth_on[max(0, p.start - 360) : p.stop + 360] = True
     starts = np.flatnonzero(in_contact & ~np.concatenate([[False], in_contact[:-1]]))
-    false_touches = int(np.count_nonzero(~truth_on[starts]))
-
-    def phase(name: str) -> PhaseErrors:
-        located, total = counts[name]
-        errors = np.concatenate(parts[name]) if parts[name] else np.zeros(0)
-        return PhaseErrors(errors, located / total if total else 0.0)
-
-    return Accuracy(
-        phase("touch"),
-        phase("hold"),
-        phase("release"),
-        np.array(touch_delay),
-        np.array(release_delay),
-        np.array(first_point),
-        len(presses),
-        missed,
-        false_touches,
-        common={k: np.concatenate(v) for k, v in common_parts.items()}
-        if common is not None
-        else {},
-        at_times={k: np.array(v) for k, v in at_times.items()},
-    )
+    return int(np.count_nonzero(~truth_on[starts]))
 
 
 def common_located(blocks: list[ContactBlock]) -> np.ndarray:
@@ -241,12 +295,21 @@ def common_located(blocks: list[ContactBlock]) -> np.ndarray:
     return mask
 
 
+class TruthWithRelease(NamedTuple):
+    """The true point per sample (``x``, ``y``, and ``z`` when the truth has it) held at the
+    last point touched after each press, and where each press's release ends (``ends``)."""
+
+    x: np.ndarray
+    y: np.ndarray
+    z: np.ndarray | None
+    ends: list[int]
+
+
 def truth_with_release(
     block: ContactBlock, truth: dict[str, np.ndarray], presses: list[Press]
-) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, list[int]]:
-    """The true point per sample (x, y, and z when the truth has it), held at the last point
-    touched until the estimator ends the contact (at most 0.5 s); and where each press's
-    release ends."""
+) -> TruthWithRelease:
+    """The true point per sample, held at the last point touched until the estimator ends
+    the contact (at most 0.5 s); and where each press's release ends."""
     t = block.t
     true_x = np.asarray(truth["true_x"], dtype=float).copy()
     true_y = np.asarray(truth["true_y"], dtype=float).copy()
@@ -261,7 +324,7 @@ def truth_with_release(
         if true_z is not None:
             true_z[p.stop : end] = true_z[p.stop - 1]
         ends.append(end)
-    return true_x, true_y, true_z, ends
+    return TruthWithRelease(true_x, true_y, true_z, ends)
 
 
 def _crossing(t: np.ndarray, f: np.ndarray, index: int, level: float) -> float:

@@ -61,10 +61,10 @@ def _candidate_errors(
     block = est.push(rec.t, rec.wrench)
     trace = CandidateTrace.concat(est.traces)
     presses = find_presses(rec.extra["true_fn"], settings.contact_force_n)
-    true_x, true_y, _, _ = truth_with_release(block, rec.extra, presses)
+    held = truth_with_release(block, rec.extra, presses)
     index = np.searchsorted(rec.t, trace.t)
     centre = profile.surfaces[0].origin[:2]
-    d_true = np.hypot(true_x[index] - centre[0], true_y[index] - centre[1])
+    d_true = np.hypot(held.x[index] - centre[0], held.y[index] - centre[1])
     d_er = np.hypot(trace.force_point[0] - centre[0], trace.force_point[1] - centre[1])
     d_ed = np.hypot(trace.diff_point[0] - centre[0], trace.diff_point[1] - centre[1])
     ok = np.isfinite(d_true) & trace.force_valid & trace.diff_valid

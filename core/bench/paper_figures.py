@@ -45,6 +45,16 @@ def draw_figure2(path: Path, bands: list[dict[str, Any]]) -> None:
     raw and the low-passed noise and for the differentiated force (the paper's Fig. 2, computed
     through our geometry: :mod:`hapticdesk.estimator.error_model`); (b) on the simulator,
     the p95 of |D error| of D_er and D_ed at release, by force band (``bands``)."""
+    fig = _figure(12.0, 4.8)
+    ax, sim = fig.subplots(1, 2)
+    _error_model_panel(ax)
+    _release_bands_panel(sim, bands)
+    fig.suptitle("Fig. 2: error of the computed contact point, force against differentiated force")
+    _save(fig, path)
+
+
+def _error_model_panel(ax: Any) -> None:
+    """Fig. 2 (a): the error ranges of the force's and the differentiated force's points."""
     forces = np.geomspace(1.0, 20.0, 200)
     curves = error_model.figure2_curves(forces)
     raw = np.array(
@@ -54,8 +64,6 @@ def draw_figure2(path: Path, bands: list[dict[str, Any]]) -> None:
         ]
     )
     crossing = error_model.crossover_force()
-    fig = _figure(12.0, 4.8)
-    ax, sim = fig.subplots(1, 2)
     ax.plot(forces, raw * 1e3, color=FORCE_COLOUR, ls="--", label="force, raw noise ±0.4 N")
     ax.plot(
         forces,
@@ -87,6 +95,9 @@ def draw_figure2(path: Path, bands: list[dict[str, Any]]) -> None:
     ax.grid(alpha=0.3, which="both")
     _plain_log_ticks(ax)
 
+
+def _release_bands_panel(sim: Any, bands: list[dict[str, Any]]) -> None:
+    """Fig. 2 (b): the p95 of |D error| of D_er and D_ed at release, by force band."""
     shown = [b for b in bands if b["samples"] > 0]
     edges = [f"{b['from_n']:g}–{b['to_n']:g}\nn = {b['samples']:,}" for b in shown]
     width = 0.38
@@ -107,8 +118,6 @@ def draw_figure2(path: Path, bands: list[dict[str, Any]]) -> None:
     _plain_log_ticks(sim, x_too=False)
     sim.tick_params(axis="x", labelsize=8)
     sim.set_ylim(bottom=1.0)
-    fig.suptitle("Fig. 2: error of the computed contact point, force against differentiated force")
-    _save(fig, path)
 
 
 def draw_figure8(path: Path, numbers: dict[str, Any]) -> None:
@@ -171,47 +180,9 @@ def draw_figure16(path: Path, rec: Recording, blocks: dict[str, ContactBlock]) -
     hi = np.array([np.nanmax(tx), np.nanmax(ty)])
     margin = 0.12 * float((hi - lo).max())
     titles = {"force": "(a) conventional (force)", "switched": "(b) proposed (switched)"}
-    names = {
-        SOURCE_FORCE: ("from force", FORCE_COLOUR),
-        SOURCE_DIFF: ("from differentiated force", DIFF_COLOUR),
-        SOURCE_FUSED: ("fused", "tab:red"),
-    }
     for ax, (method, block) in zip(axes, blocks.items(), strict=True):
-        ax.plot(tx, ty, color="black", lw=1, label="true path", zorder=3)
-        # the true point of each sample, held through a lift (no truth once the finger is up)
-        held_x, held_y = _held(tx), _held(ty)
-        off = block.located & (np.hypot(block.x - held_x, block.y - held_y) > OFF_CHARACTER_M)
-        notes = []
-        for source, (name, colour) in names.items():
-            sel = block.located & (block.source == source)
-            if sel.any():
-                ax.scatter(
-                    block.x[sel],
-                    block.y[sel],
-                    s=2,
-                    color=colour,
-                    label=name,
-                    rasterized=True,
-                    linewidths=0,
-                )
-            far = off & (block.source == source)
-            if far.any():
-                worst = float(np.max(np.hypot(block.x - held_x, block.y - held_y)[far]))
-                notes.append(f"{int(far.sum())} {name}, up to {100 * worst:.0f} cm off")
+        _traced_panel(ax, block, tx, ty)
         ax.set_title(titles.get(method, method), fontsize=10, loc="left")
-        ax.set_xlabel("x (m)")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8, markerscale=4, loc="upper right")
-        if notes:
-            ax.text(
-                0.02,
-                0.02,
-                f"points > {100 * OFF_CHARACTER_M:.0f} cm from the true one:\n" + "\n".join(notes),
-                transform=ax.transAxes,
-                fontsize=8,
-                va="bottom",
-                bbox={"facecolor": "white", "edgecolor": "#cccccc", "alpha": 0.9},
-            )
     axes[0].set_ylabel("y (m)")
     # (the character's name, not its glyph: the fonts matplotlib brings have no CJK)
     fig.suptitle("Fig. 16: the character kita traced at 3.4 cm/s (simulated)")
@@ -220,6 +191,53 @@ def draw_figure16(path: Path, rec: Recording, blocks: dict[str, ContactBlock]) -
     for ax in axes:
         _equal_scale(ax, lo - margin, hi + margin)
     _save(fig, path)
+
+
+#: Fig. 16's candidates: the name and colour of each
+TRACED_SOURCES = {
+    SOURCE_FORCE: ("from force", FORCE_COLOUR),
+    SOURCE_DIFF: ("from differentiated force", DIFF_COLOUR),
+    SOURCE_FUSED: ("fused", "tab:red"),
+}
+
+
+def _traced_panel(ax: Any, block: ContactBlock, tx: np.ndarray, ty: np.ndarray) -> None:
+    """One method's panel of Fig. 16: the true path (``tx``, ``ty``), the located points by
+    candidate, and the points off the character counted in the corner."""
+    ax.plot(tx, ty, color="black", lw=1, label="true path", zorder=3)
+    # the true point of each sample, held through a lift (no truth once the finger is up)
+    held_x, held_y = _held(tx), _held(ty)
+    off = block.located & (np.hypot(block.x - held_x, block.y - held_y) > OFF_CHARACTER_M)
+    notes = []
+    for source, (name, colour) in TRACED_SOURCES.items():
+        sel = block.located & (block.source == source)
+        if sel.any():
+            ax.scatter(
+                block.x[sel],
+                block.y[sel],
+                s=2,
+                color=colour,
+                label=name,
+                rasterized=True,
+                linewidths=0,
+            )
+        far = off & (block.source == source)
+        if far.any():
+            worst = float(np.max(np.hypot(block.x - held_x, block.y - held_y)[far]))
+            notes.append(f"{int(far.sum())} {name}, up to {100 * worst:.0f} cm off")
+    ax.set_xlabel("x (m)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, markerscale=4, loc="upper right")
+    if notes:
+        ax.text(
+            0.02,
+            0.02,
+            f"points > {100 * OFF_CHARACTER_M:.0f} cm from the true one:\n" + "\n".join(notes),
+            transform=ax.transAxes,
+            fontsize=8,
+            va="bottom",
+            bbox={"facecolor": "white", "edgecolor": "#cccccc", "alpha": 0.9},
+        )
 
 
 def _equal_scale(ax: Any, lo: np.ndarray, hi: np.ndarray) -> None:

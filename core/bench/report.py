@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -73,6 +74,51 @@ LABEL_OFFSETS = [
 ]
 
 
+#: each method's colour on the Pareto plot
+METHOD_COLOURS = {
+    "force": "tab:blue",
+    "diff": "tab:orange",
+    "switched": "tab:green",
+    "fused": "tab:red",
+}
+#: the Pareto plot's panels: the error column each shows, and its title
+PARETO_PANELS = (
+    ("touch+50ms_p95_mm", "50 ms after touch-down"),
+    ("touch_p95_common_mm", "touch, samples all methods locate"),
+    ("release_p95_common_mm", "release until the contact ends"),
+)
+#: the run time the Pareto plot sets the errors against
+COST_KEY = "us_per_sample_stream"
+
+
+@dataclass(frozen=True)
+class RunTimes:
+    """Each row's run time (µs per sample, the median over the rounds) and its range."""
+
+    median: np.ndarray
+    low: np.ndarray
+    high: np.ndarray
+
+    @classmethod
+    def of(cls, rows: list[dict[str, Any]]) -> RunTimes:
+        """The run times of the bench's ``rows`` (:data:`COST_KEY` and its ``_min``/``_max``)."""
+        return cls(
+            np.array([r[COST_KEY] for r in rows], dtype=float),
+            np.array([r.get(f"{COST_KEY}_min", r[COST_KEY]) for r in rows], dtype=float),
+            np.array([r.get(f"{COST_KEY}_max", r[COST_KEY]) for r in rows], dtype=float),
+        )
+
+
+@dataclass(frozen=True)
+class NumberedPoints:
+    """The points drawn on one panel (data coordinates) and the number each is to carry."""
+
+    ax: Any
+    xs: np.ndarray
+    ys: np.ndarray
+    names: list[str]
+
+
 def plot_pareto(rows: list[dict[str, Any]], path: Path) -> None:
     """Error at equal coverage against µs per sample (single-sample streaming): each point
     the median run time with a bar over its range across the rounds, the Pareto front
@@ -85,86 +131,101 @@ def plot_pareto(rows: list[dict[str, Any]], path: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    fig = plt.figure(figsize=(15, 5.4), layout="constrained")
+    panels = PARETO_PANELS
+    grid = fig.add_gridspec(1, len(panels) + 1, width_ratios=[1] * len(panels) + [0.8])
+    times = RunTimes.of(rows)
+    numbered = [
+        _pareto_panel(fig.add_subplot(grid[0, n]), rows, key, title, times)
+        for n, (key, title) in enumerate(panels)
+    ]
+    _method_key(fig.add_subplot(grid[0, -1]), rows)
+    fig.suptitle(
+        "hapticdesk bench: error at equal coverage against run time "
+        "(the paper's experiment, simulated with the paper's noise)"
+    )
+    # the layout fixed first: the numbers are placed where the points end up
+    fig.draw_without_rendering()
+    fig.set_layout_engine("none")
+    for points in numbered:
+        place_labels(points.ax, points.xs, points.ys, points.names, fontsize=7)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _pareto_panel(
+    ax: Any, rows: list[dict[str, Any]], key: str, title: str, times: RunTimes
+) -> NumberedPoints:
+    """One panel: the error column ``key`` against the run times, the front drawn."""
+    cost, low, high = times.median, times.low, times.high
+    err = np.array([np.nan if r.get(key) is None else r[key] for r in rows], dtype=float)
+    shown = np.flatnonzero(np.isfinite(err) & (err > 0))
+    lo_lim, hi_lim = _robust_log_limits(err[shown])
+    drawn = np.clip(err, lo_lim, hi_lim)
+    for i in shown:
+        colour = METHOD_COLOURS.get(rows[i]["method"], "grey")
+        ax.errorbar(
+            cost[i],
+            drawn[i],
+            xerr=[[cost[i] - low[i]], [high[i] - cost[i]]],
+            fmt="none",
+            ecolor=colour,
+            alpha=0.5,
+            lw=1.0,
+            capsize=2,
+            zorder=2,
+        )
+        outside = err[i] > hi_lim or err[i] < lo_lim
+        ax.scatter(
+            cost[i],
+            drawn[i],
+            color=colour,
+            s=36,
+            marker=("^" if err[i] > hi_lim else "v") if outside else "o",
+            zorder=3,
+            clip_on=False,
+        )
+    front = sorted(pareto_front(rows, key, COST_KEY), key=lambda i: cost[i])
+    if front:
+        ax.step(cost[front], drawn[front], where="post", color="black", lw=1.0, zorder=1)
+        ax.scatter(cost[front], drawn[front], s=110, facecolors="none", edgecolors="black", lw=0.8)
+    inside = err[shown][(err[shown] >= lo_lim) & (err[shown] <= hi_lim)]
+    _log_error_axis(ax, inside, lo_lim, hi_lim)
+    ax.set_title(title, fontsize=10)
+    names = [
+        f"{i + 1}" if lo_lim <= err[i] <= hi_lim else f"{i + 1}: {err[i]:.0f} mm" for i in shown
+    ]
+    return NumberedPoints(ax, cost[shown], drawn[shown], names)
+
+
+def _log_error_axis(ax: Any, inside: np.ndarray, lo_lim: float, hi_lim: float) -> None:
+    """The panel's axes: a logarithmic error axis from ``lo_lim`` to ``hi_lim`` with plain
+    numbers as ticks (``inside``: the errors drawn within it), run time across."""
     from matplotlib.ticker import FixedLocator, FuncFormatter, LogLocator, MaxNLocator
 
-    colours = {
-        "force": "tab:blue",
-        "diff": "tab:orange",
-        "switched": "tab:green",
-        "fused": "tab:red",
-    }
-    panels = (
-        ("touch+50ms_p95_mm", "50 ms after touch-down"),
-        ("touch_p95_common_mm", "touch, samples all methods locate"),
-        ("release_p95_common_mm", "release until the contact ends"),
-    )
-    cost_key = "us_per_sample_stream"
-    fig = plt.figure(figsize=(15, 5.4), layout="constrained")
-    grid = fig.add_gridspec(1, len(panels) + 1, width_ratios=[1] * len(panels) + [0.8])
     plain = FuncFormatter(lambda v, _: f"{v:g}")
-    cost = np.array([r[cost_key] for r in rows], dtype=float)
-    low = np.array([r.get(f"{cost_key}_min", r[cost_key]) for r in rows], dtype=float)
-    high = np.array([r.get(f"{cost_key}_max", r[cost_key]) for r in rows], dtype=float)
-    numbered: list[tuple[Any, np.ndarray, np.ndarray, list[str]]] = []
-    for n, (key, title) in enumerate(panels):
-        ax = fig.add_subplot(grid[0, n])
-        err = np.array([np.nan if r.get(key) is None else r[key] for r in rows], dtype=float)
-        shown = np.flatnonzero(np.isfinite(err) & (err > 0))
-        lo_lim, hi_lim = _robust_log_limits(err[shown])
-        drawn = np.clip(err, lo_lim, hi_lim)
-        for i in shown:
-            colour = colours.get(rows[i]["method"], "grey")
-            ax.errorbar(
-                cost[i],
-                drawn[i],
-                xerr=[[cost[i] - low[i]], [high[i] - cost[i]]],
-                fmt="none",
-                ecolor=colour,
-                alpha=0.5,
-                lw=1.0,
-                capsize=2,
-                zorder=2,
-            )
-            outside = err[i] > hi_lim or err[i] < lo_lim
-            ax.scatter(
-                cost[i],
-                drawn[i],
-                color=colour,
-                s=36,
-                marker=("^" if err[i] > hi_lim else "v") if outside else "o",
-                zorder=3,
-                clip_on=False,
-            )
-        front = sorted(pareto_front(rows, key, cost_key), key=lambda i: cost[i])
-        if front:
-            ax.step(cost[front], drawn[front], where="post", color="black", lw=1.0, zorder=1)
-            ax.scatter(
-                cost[front], drawn[front], s=110, facecolors="none", edgecolors="black", lw=0.8
-            )
-        ax.set_yscale("log")
-        ax.set_ylim(lo_lim, hi_lim)
-        inside = err[shown][(err[shown] >= lo_lim) & (err[shown] <= hi_lim)]
-        if len(inside) and inside.max() < 10 * inside.min():
-            # within one decade 1-2-5 leaves a single labelled tick: evenly spaced plain ones
-            even = MaxNLocator(nbins=6, steps=[1, 2, 2.5, 5, 10]).tick_values(lo_lim, hi_lim)
-            ax.yaxis.set_major_locator(FixedLocator(even))
-        else:
-            ax.yaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
-        ax.yaxis.set_major_formatter(plain)
-        ax.yaxis.set_minor_formatter(FuncFormatter(lambda v, _: ""))
-        ax.xaxis.set_major_formatter(plain)
-        ax.set_xlabel("µs per sample, single-sample push")
-        ax.set_ylabel("error p95 (mm)")
-        ax.set_title(title, fontsize=10)
-        ax.grid(alpha=0.3, which="both")
-        names = [
-            f"{i + 1}" if lo_lim <= err[i] <= hi_lim else f"{i + 1}: {err[i]:.0f} mm" for i in shown
-        ]
-        numbered.append((ax, cost[shown], drawn[shown], names))
-    key_ax = fig.add_subplot(grid[0, -1])
+    ax.set_yscale("log")
+    ax.set_ylim(lo_lim, hi_lim)
+    if len(inside) and inside.max() < 10 * inside.min():
+        # within one decade 1-2-5 leaves a single labelled tick: evenly spaced plain ones
+        even = MaxNLocator(nbins=6, steps=[1, 2, 2.5, 5, 10]).tick_values(lo_lim, hi_lim)
+        ax.yaxis.set_major_locator(FixedLocator(even))
+    else:
+        ax.yaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+    ax.yaxis.set_major_formatter(plain)
+    ax.yaxis.set_minor_formatter(FuncFormatter(lambda v, _: ""))
+    ax.xaxis.set_major_formatter(plain)
+    ax.set_xlabel("µs per sample, single-sample push")
+    ax.set_ylabel("error p95 (mm)")
+    ax.grid(alpha=0.3, which="both")
+
+
+def _method_key(key_ax: Any, rows: list[dict[str, Any]]) -> None:
+    """The key beside the panels: the methods' colours, then each point's number and row."""
     key_ax.axis("off")
     # the colours' legend beside the numbered key, off the data (on a panel it hid points)
-    for method, colour in colours.items():
+    for method, colour in METHOD_COLOURS.items():
         key_ax.scatter([], [], color=colour, label=method)
     key_ax.plot([], [], color="grey", lw=1.0, marker="|", label="run time: min–max of the rounds")
     key_ax.plot([], [], color="black", lw=1.0, label="Pareto front")
@@ -179,17 +240,6 @@ def plot_pareto(rows: list[dict[str, Any]], path: Path) -> None:
         family="monospace",
         transform=key_ax.transAxes,
     )
-    fig.suptitle(
-        "hapticdesk bench: error at equal coverage against run time "
-        "(the paper's experiment, simulated with the paper's noise)"
-    )
-    # the layout fixed first: the numbers are placed where the points end up
-    fig.draw_without_rendering()
-    fig.set_layout_engine("none")
-    for ax, xs, ys, names in numbered:
-        place_labels(ax, xs, ys, names, fontsize=7)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
 
 
 def _robust_log_limits(values: np.ndarray) -> tuple[float, float]:

@@ -17,15 +17,15 @@ import json
 from datetime import date
 from pathlib import Path
 
+from hapticdesk.analysis.calibrated_profile import write_calibrated_profile
 from hapticdesk.analysis.known_weight import (
     CHECK_TOLERANCE_M,
     Calibration,
     calibrate,
     load_cell_channels,
-    spots_from_recording,
     suggested_spots,
-    write_calibrated_profile,
 )
+from hapticdesk.analysis.weight_rests import spots_from_recording
 from hapticdesk.commands.output_path import cannot_write, check_output_path
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile_reader import load_profile, resolve_profile_path

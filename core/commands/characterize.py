@@ -12,13 +12,8 @@ from __future__ import annotations
 import argparse
 import json
 
-from hapticdesk.analysis.characterize import (
-    CUTOFF_RATIO,
-    ChannelDrift,
-    ChannelNoise,
-    Characterization,
-    characterize,
-)
+from hapticdesk.analysis.characterize import CUTOFF_RATIO, Characterization, characterize
+from hapticdesk.analysis.quiet_windows import ChannelDrift, ChannelNoise
 from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.recordings import read_any_recording
 

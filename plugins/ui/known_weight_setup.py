@@ -7,9 +7,9 @@ The page asks for the weight's mass and how many spots (3 to 5), draws the spots
 readings while the person puts the weight on each spot in turn and lifts it off between them
 (:class:`~hapticdesk.plugins.ui.setup_api.BlockRecorder`). Finish reads the rests from the
 recording and fits as ``hapticdesk calibrate`` does, through the same functions
-(:func:`~hapticdesk.analysis.known_weight.spots_from_recording`,
+(:func:`~hapticdesk.analysis.weight_rests.spots_from_recording`,
 :func:`~hapticdesk.analysis.known_weight.calibrate`,
-:func:`~hapticdesk.analysis.known_weight.write_calibrated_profile`): no second fit here.
+:func:`~hapticdesk.analysis.calibrated_profile.write_calibrated_profile`): no second fit here.
 
 Routes (behind the guard like the rest of the API: :mod:`.guard`)::
 
@@ -110,15 +110,15 @@ class WeightSession(BlockRecorder):
         that cannot be read (a spot with no weight on it, the desk never still)."""
         import numpy as np
 
+        from hapticdesk.analysis.calibrated_profile import write_calibrated_profile
         from hapticdesk.analysis.known_weight import (
             CHECK_TOLERANCE_M,
             CellFit,
             calibrate,
             check_spot,
             nominal_terms,
-            spots_from_recording,
-            write_calibrated_profile,
         )
+        from hapticdesk.analysis.weight_rests import spots_from_recording
         from hapticdesk.commands.calibrate import profile_header
         from hapticdesk.commands.output_path import cannot_write
 

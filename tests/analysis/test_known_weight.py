@@ -13,18 +13,20 @@ from typing import Any
 import numpy as np
 import pytest
 
+from hapticdesk.analysis.calibrated_profile import (
+    calibrated_profile,
+    calibrated_yaml,
+    write_calibrated_profile,
+)
 from hapticdesk.analysis.known_weight import (
     CellFit,
     WeightSpot,
     calibrate,
-    calibrated_profile,
-    calibrated_yaml,
     check_spot,
     fit_cells,
-    spots_from_recording,
     suggested_spots,
-    write_calibrated_profile,
 )
+from hapticdesk.analysis.weight_rests import spots_from_recording
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.profile_reader import builtin_profile_path, load_profile

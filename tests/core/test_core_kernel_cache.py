@@ -123,3 +123,41 @@ def test_a_read_only_package_caches_its_kernels_in_the_user_cache(tmp_path: Path
     assert cached, "no kernel cached in the user's cache directory"
     assert first.stdout.split()[0] == second.stdout.split()[0] == "10"
     assert float(second.stdout.split()[1]) < float(first.stdout.split()[1])
+
+
+WARM = """
+import sys
+import hapticdesk
+assert hapticdesk.__file__.startswith(sys.argv[1]), hapticdesk.__file__
+from hapticdesk.estimator import kernel
+kernel.warm()
+"""
+
+
+@pytest.mark.slow
+def test_a_change_in_any_kernel_module_compiles_the_kernels_anew(tmp_path: Path) -> None:
+    """numba stamps a cache by its own function's file only, while an entry (kernel.py)
+    holds the code and the frozen constants of the other kernel modules: a change in one of
+    them (here kernel_slots.py) must not load the entries' stale cache."""
+    package = tmp_path / "site" / "hapticdesk"
+    shutil.copytree(
+        ROOT / "core", package, ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.nb*")
+    )
+    env = {**os.environ, "PYTHONPATH": str(tmp_path / "site")}
+    env.pop("NUMBA_CACHE_DIR", None)
+
+    def warm() -> str:
+        return subprocess.run(
+            [sys.executable, "-c", WARM, str(package)],
+            capture_output=True,
+            text=True,
+            timeout=1200,
+            env=env,
+            check=True,
+        ).stderr
+
+    assert warm().count(MESSAGE) == 1
+    assert MESSAGE not in warm()
+    slots = package / "estimator" / "kernel_slots.py"
+    slots.write_text(slots.read_text() + "# changed\n")
+    assert warm().count(MESSAGE) == 1

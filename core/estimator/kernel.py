@@ -94,19 +94,16 @@ from hapticdesk.estimator.kernel_slots import (
     EV_PARTIAL_ACCEL,
     EV_STUCK,
     EV_TIME_BACK,
-    EV_WINDOW,
     I_A,
     I_C,
     I_CHECK_N,
     I_CONFIRM,
     I_DET_FULL,
-    I_IDLE_LOG,
     I_IO_SURF,
     I_IO_UP,
     I_JO_CHANGES,
     I_JO_LEARNING,
     I_JO_MT_HIST,
-    I_JO_WIN_BAD,
     I_LIVE_N,
     I_METHOD,
     I_MT_BOARD,
@@ -114,7 +111,6 @@ from hapticdesk.estimator.kernel_slots import (
     I_MT_LANDING,
     I_MULTI_ACCEL,
     I_N_DIFF,
-    I_N_DRIFT,
     I_N_RATE,
     I_N_RELEASE,
     I_N_SURF,
@@ -142,7 +138,6 @@ from hapticdesk.estimator.kernel_slots import (
     I_SO_DET_ZI,
     I_SO_DIFF_ZI,
     I_SO_GUARD,
-    I_SO_IDLE_LOG,
     I_SO_LANDING,
     I_SO_LAST_ROW,
     I_SO_LP_ZI,
@@ -151,19 +146,13 @@ from hapticdesk.estimator.kernel_slots import (
     I_SO_PARTIAL_GAIN,
     I_SO_PREV_ROW,
     I_SO_STEP,
-    I_SO_STILL_MEANS,
     I_SO_SWAY,
     I_SO_SWAY_DIFF,
     I_SO_TRACE,
     I_SO_USED,
-    I_SO_WIN_LP,
-    I_SO_WIN_RAW,
     I_SPAN,
-    I_STILL_BLOCK,
-    I_STILL_RING,
     I_STUCK_RUN,
     I_TRACE,
-    I_WINDOW,
     I_ZEROED,
     J_BLOCKED,
     J_DELAY_POS,
@@ -173,8 +162,6 @@ from hapticdesk.estimator.kernel_slots import (
     J_FLAGS,
     J_HAVE_LAST_ROW,
     J_HAVE_PREV,
-    J_IDLE_LOG_N,
-    J_IDLE_LOG_POS,
     J_IN_CONTACT,
     J_LIVE,
     J_MT_COUNT,
@@ -189,8 +176,6 @@ from hapticdesk.estimator.kernel_slots import (
     J_MT_ROWS,
     J_MT_STARTED,
     J_N_LEARNING,
-    J_OBJECT_RUN,
-    J_OBJECTS,
     J_PARTIAL,
     J_PARTIAL_PATTERN,
     J_REPEATS,
@@ -200,18 +185,11 @@ from hapticdesk.estimator.kernel_slots import (
     J_SEEN,
     J_SEEN_REPEATS,
     J_STARTED,
-    J_STILL_COUNT,
-    J_STILL_POS,
-    J_STILL_RUN,
     J_STUCK_CHECK,
     J_SWAY_DIFF_POS,
     J_SWAY_POS,
     J_TARED,
     J_TIME_BACK,
-    J_WIN_BADS,
-    J_WIN_FILL,
-    J_WINDOW_INDEX,
-    J_WINDOWS_SEEN,
     J_ZERO_VERSION,
     METHOD_DIFF,
     METHOD_FORCE,
@@ -252,7 +230,6 @@ from hapticdesk.estimator.kernel_slots import (
     P_DET_FLOOR,
     P_DIFF_INFO_RATIO,
     P_DIFF_SCALE,
-    P_DRIFT_MAX,
     P_EDGE_TOLERANCE,
     P_HYSTERESIS,
     P_MAX_GAP,
@@ -271,7 +248,6 @@ from hapticdesk.estimator.kernel_slots import (
     P_SHEAR_CAP,
     P_SPEED,
     P_STEP_CHANGE,
-    P_STILL_N,
     P_SWAY_SCALE,
     P_TOUCH_THRESHOLD,
     P_UNCERTAINTY_CAP,
@@ -296,14 +272,9 @@ from hapticdesk.estimator.kernel_slots import (
     S_RAW,
     S_RELEASE,
     S_SLOPE,
-    S_STILL_HI,
-    S_STILL_LO,
     S_STUCK_SINCE,
     S_TARED_Q,
     S_TARED_W,
-    S_WIN_MEAN,
-    S_WIN_SPREAD,
-    S_WIN_T_END,
     S_ZERO,
     S_ZERO_T,
     SURF_BOUNDS,
@@ -324,48 +295,9 @@ from hapticdesk.estimator.kernel_slots import (
     TRACE_ROWS,
     Candidate,
 )
+from hapticdesk.estimator.kernel_zero import window_add
 
 # --- small pieces -------------------------------------------------------------------------------
-
-
-@compiled
-def pairwise_sum(a: np.ndarray, start: int, n: int, stride: int) -> float:
-    """Σ a[start + j·stride] for j < n, summed as numpy sums a contiguous axis (pairwise, 8
-    lanes), so a window's mean is numpy's to the last bit."""
-    if n < 8:
-        res = 0.0
-        for j in range(n):
-            res += a[start + j * stride]
-        return res
-    if n <= 128:
-        r0 = a[start]
-        r1 = a[start + stride]
-        r2 = a[start + 2 * stride]
-        r3 = a[start + 3 * stride]
-        r4 = a[start + 4 * stride]
-        r5 = a[start + 5 * stride]
-        r6 = a[start + 6 * stride]
-        r7 = a[start + 7 * stride]
-        j = 8
-        while j < n - (n % 8):
-            b = start + j * stride
-            r0 += a[b]
-            r1 += a[b + stride]
-            r2 += a[b + 2 * stride]
-            r3 += a[b + 3 * stride]
-            r4 += a[b + 4 * stride]
-            r5 += a[b + 5 * stride]
-            r6 += a[b + 6 * stride]
-            r7 += a[b + 7 * stride]
-            j += 8
-        res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
-        while j < n:
-            res += a[start + j * stride]
-            j += 1
-        return res
-    n2 = n // 2
-    n2 -= n2 % 8
-    return pairwise_sum(a, start, n2, stride) + pairwise_sum(a, start + n2 * stride, n - n2, stride)
 
 
 @inlined
@@ -890,162 +822,6 @@ def _filters(pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray) -> 
     si[J_DELAY_POS] = pos + 1 if pos + 1 < n_diff else 0
 
 
-# --- stage 3: the zero's windows ----------------------------------------------------------------
-
-
-@inlined
-def _window_add(
-    t: float,
-    flags: int,
-    first_good: bool,
-    pf: np.ndarray,
-    pi: np.ndarray,
-    sf: np.ndarray,
-    si: np.ndarray,
-) -> int:
-    """The sample in flight into the zero's window (its low-passed force, its wrench, whether
-    it is bad); at the window's end its spread, mean and last time go to S_WIN_* and
-    EV_WINDOW is returned, unless the desk is tared and the window is not still. Before the
-    first good sample there is no wrench (the filters have not started: zeros); that sample
-    stands in for those before it in its window, as if the input had started with it."""
-    w = pi[I_WINDOW]
-    win_lp = sf[pi[I_SO_WIN_LP] : pi[I_SO_WIN_LP] + 3 * w]
-    win_raw = sf[pi[I_SO_WIN_RAW] : pi[I_SO_WIN_RAW] + 6 * w]
-    win_bad = si[pi[I_JO_WIN_BAD] : pi[I_JO_WIN_BAD] + w]
-    m = si[J_WIN_FILL]
-    for j in range(m if first_good else 0):
-        for lane in range(3):
-            win_lp[lane * w + j] = sf[S_LP + lane]
-        for lane in range(6):
-            win_raw[lane * w + j] = sf[S_RAW + lane]
-    for lane in range(3):
-        win_lp[lane * w + m] = sf[S_LP + lane]
-    for lane in range(6):
-        win_raw[lane * w + m] = sf[S_RAW + lane]
-    win_bad[m] = 1 if flags & (BAD_SAMPLE | FLAG_GAP) else 0
-    m += 1
-    if m < w:
-        si[J_WIN_FILL] = m
-        return 0
-    si[J_WIN_FILL] = 0
-    bads = 0
-    for j in range(w):
-        bads += win_bad[j]
-    si[J_WIN_BADS] = bads
-    lp_at, raw_at = pi[I_SO_WIN_LP], pi[I_SO_WIN_RAW]  # (offsets, for the sums below)
-    # the spread of the low-passed force (its largest axis), over means of I_STILL_BLOCK
-    # samples (zero.window_spreads); numpy's sums, so the same values to the bit
-    block = pi[I_STILL_BLOCK]
-    spread = 0.0
-    for lane in range(3):
-        lo, hi = math.inf, -math.inf
-        for j in range(0, w, block):
-            value = (
-                sf[lp_at + lane * w + j]
-                if block == 1
-                else pairwise_sum(sf, lp_at + lane * w + j, block, 1) / block
-            )
-            lo, hi = min(lo, value), max(hi, value)
-        spread = max(spread, hi - lo)
-    si[J_WINDOW_INDEX] += 1
-    if si[J_TARED] and (bads / w > 0.1 or spread >= pf[P_STILL_N]):
-        # once tared, a window that is not still (or mostly held over) only ends a still run
-        # and the resting, from the next sample on (zero.py)
-        si[J_STILL_RUN] = si[J_OBJECT_RUN] = 0
-        si[J_RESTING_OFF] = 1
-        return 0
-    sf[S_WIN_SPREAD] = spread
-    for lane in range(6):
-        sf[S_WIN_MEAN + lane] = pairwise_sum(sf, raw_at + lane * w, w, 1) / w
-    sf[S_WIN_T_END] = t
-    if si[J_TARED] and _idle_window(spread, t, pf, pi, sf, si):
-        return 0
-    return EV_WINDOW
-
-
-@inlined
-def _idle_window(
-    spread: float, t_end: float, pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray
-) -> bool:
-    """A still window of a tared desk with nothing absorbed, whose load is lighter than
-    P_DRIFT_MAX: the idle desk, judged here as ZeroStage._window_done does (the still run
-    goes on or starts again where the load moved, the window joins the idle desk's yardsticks
-    — logged for zero.py —, and after I_N_DRIFT such windows the zero follows the drift: the
-    mean of their means). Returns False, changing nothing, for any other window (Python's)."""
-    if si[J_OBJECTS] or pi[I_N_DRIFT] == 0:
-        return False
-    f0 = sf[S_WIN_MEAN] - sf[S_ZERO]
-    f1 = sf[S_WIN_MEAN + 1] - sf[S_ZERO + 1]
-    f2 = sf[S_WIN_MEAN + 2] - sf[S_ZERO + 2]
-    if not math.sqrt(f0 * f0 + f1 * f1 + f2 * f2) < pf[P_DRIFT_MAX]:
-        return False
-    si[J_WINDOWS_SEEN] += 1
-    lo, hi = sf[S_STILL_LO : S_STILL_LO + 3], sf[S_STILL_HI : S_STILL_HI + 3]
-    moved = False
-    if si[J_STILL_RUN]:
-        width = 0.0
-        for lane, f in enumerate((f0, f1, f2)):
-            width = max(width, max(hi[lane], f) - min(lo[lane], f))
-        moved = width >= pf[P_STILL_N]
-        if moved:
-            si[J_STILL_RUN] = 0  # the load moved: a new still run starts here
-    if si[J_STILL_RUN] == 0:
-        lo[0] = hi[0] = f0
-        lo[1] = hi[1] = f1
-        lo[2] = hi[2] = f2
-        si[J_STILL_COUNT] = 0
-    else:
-        for lane, f in enumerate((f0, f1, f2)):
-            lo[lane], hi[lane] = min(lo[lane], f), max(hi[lane], f)
-    ring = pi[I_STILL_RING]
-    at = pi[I_SO_STILL_MEANS] + 6 * si[J_STILL_POS]
-    for lane in range(6):
-        sf[at + lane] = sf[S_WIN_MEAN + lane]
-    si[J_STILL_POS] = si[J_STILL_POS] + 1 if si[J_STILL_POS] + 1 < ring else 0
-    si[J_STILL_COUNT] = min(si[J_STILL_COUNT] + 1, ring)
-    si[J_STILL_RUN] += 1
-    log = pi[I_SO_IDLE_LOG] + 5 * si[J_IDLE_LOG_POS]
-    sf[log] = spread
-    sf[log + 1], sf[log + 2], sf[log + 3] = sf[S_WIN_MEAN], sf[S_WIN_MEAN + 1], sf[S_WIN_MEAN + 2]
-    sf[log + 4] = si[J_WINDOW_INDEX]
-    si[J_IDLE_LOG_POS] = si[J_IDLE_LOG_POS] + 1 if si[J_IDLE_LOG_POS] + 1 < pi[I_IDLE_LOG] else 0
-    si[J_IDLE_LOG_N] = min(si[J_IDLE_LOG_N] + 1, pi[I_IDLE_LOG])
-    si[J_OBJECT_RUN] = 0
-    n = pi[I_N_DRIFT]
-    if si[J_STILL_RUN] >= n:  # the drift followed: the mean of the last n windows' means
-        for lane in range(6):
-            first = si[J_STILL_POS] - n
-            if first < 0:
-                first += ring
-            sf[S_ZERO + lane] = _exact_mean(sf, pi[I_SO_STILL_MEANS] + lane, first, n, ring)
-        sf[S_ZERO_T] = t_end
-        si[J_ZERO_VERSION] += 1
-        si[J_STILL_RUN] = 0
-    si[J_RESTING_OFF] = 1  # (no object run: the load is not resting)
-    return True
-
-
-@inlined
-def _exact_mean(sf: np.ndarray, base: int, first: int, n: int, ring: int) -> float:
-    """The mean of n values sf[base + 6·((first + j) mod ring)], summed with Neumaier's
-    compensation: for the default two windows the correctly rounded sum, as zero.py's
-    math.fsum; for more, the same to rounding."""
-    total = 0.0
-    small = 0.0
-    for j in range(n):
-        at = first + j
-        if at >= ring:
-            at -= ring
-        x = sf[base + 6 * at]
-        t = total + x
-        if abs(total) >= abs(x):
-            small += (total - t) + x
-        else:
-            small += (x - t) + total
-        total = t
-    return (total + small) / n
-
-
 # --- stage 4: the detector ----------------------------------------------------------------------
 
 
@@ -1512,7 +1288,7 @@ def _front(
     si[J_FLAGS] = flags
     if zeroed:
         return events
-    return events | _window_add(t, flags, first_good, pf, pi, sf, si)
+    return events | window_add(t, flags, first_good, pf, pi, sf, si)
 
 
 @inlined

@@ -12,7 +12,7 @@ load later steps back to the zero from before an object joined it (the object li
 zero is restored at once. The desk is judged on windows of ``WINDOW_S``; a zero decided at
 the end of a window applies from the next sample on.
 
-The kernel (:mod:`hapticdesk.estimator.kernel`, ``_window_add``) fills each window and, at
+The kernel (:func:`hapticdesk.estimator.kernel_zero.window_add`) fills each window and, at
 its end, measures it — the spread of its low-passed force, its mean wrench, its share of bad
 samples. Once tared, a window that is not still only ends a still run and the resting, and
 a still window of the idle desk (nothing absorbed, a load under ``drift_max_n``) goes on with

@@ -17,6 +17,7 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 
 from hapticdesk.estimator import kernel as k
+from hapticdesk.estimator import kernel_geometry
 from hapticdesk.estimator import kernel_slots as slots
 from hapticdesk.estimator.candidates import Covariances
 from hapticdesk.estimator.contacts import ContactBlock
@@ -490,7 +491,7 @@ class ContactEstimator:
         if second is None:
             return
         rel = second - board.origin
-        if not k.contains(
+        if not kernel_geometry.contains(
             self.params.pf, self.params.pi, 0, float(rel @ board.u_axis), float(rel @ board.v_axis)
         ):
             return

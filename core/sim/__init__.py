@@ -7,7 +7,8 @@
 
 Modules: :mod:`~hapticdesk.sim.desk` (rigid desk on spring legs, exact discretisation),
 :mod:`~hapticdesk.sim.sensors` (noise, resolution, saturation, drift),
-:mod:`~hapticdesk.sim.human` (force and contact over time), :mod:`~hapticdesk.sim.actions`
+:mod:`~hapticdesk.sim.human` (the person's distributions) and
+:mod:`~hapticdesk.sim.touch_track` (force and contact over time), :mod:`~hapticdesk.sim.actions`
 and :mod:`~hapticdesk.sim.scene` (what happens when), :mod:`~hapticdesk.sim.paths` (paths),
 :mod:`~hapticdesk.sim.timeline` (a scene made concrete), :mod:`~hapticdesk.sim.simulator`.
 See docs/simulator.md.

@@ -5,7 +5,8 @@
     rec = simulate(profile, scene, seed=0)                          # a Recording with truth
     src = SimSource(profile, scene, seed=0, block_size=12)          # a Source of blocks
 
-Modules: :mod:`~hapticdesk.sim.desk` (rigid desk on spring legs, exact discretisation),
+Modules: :mod:`~hapticdesk.sim.desk` (rigid desk on spring legs),
+:mod:`~hapticdesk.sim.discrete_desk` (its exact discretisation),
 :mod:`~hapticdesk.sim.sensors` (noise, resolution, saturation, drift),
 :mod:`~hapticdesk.sim.human` (the person's distributions) and
 :mod:`~hapticdesk.sim.touch_track` (force and contact over time), :mod:`~hapticdesk.sim.actions`

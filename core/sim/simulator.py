@@ -80,15 +80,8 @@ class SimulationRun:
         cells: LoadCellParameters | None = None,
     ) -> None:
         effects = effects or SimEffects()
-        if not noise:
-            effects = SimEffects(
-                dynamics=effects.dynamics,
-                noise=False,
-                drift=False,
-                quantisation=effects.quantisation,
-                saturation=effects.saturation,
-                desk_weight=effects.desk_weight,
-            )
+        if not noise:  # no random sensor error: noise, offset and drift
+            effects = replace(effects, noise=False, drift=False)
         self.profile = profile
         self.scene = scene
         self.seed = int(scene.seed if seed is None else seed)
@@ -98,33 +91,9 @@ class SimulationRun:
         #: the load cells' model (a desk of sensors other than six-axis ones), else None
         self.cells: LoadCellModel | None = None
         if profile.six_axis_only:
-            if cells is not None:
-                raise ValueError(
-                    f"desk {profile.name!r} stands on six-axis sensors: give `sensors` "
-                    "(SensorParameters), not `cells`"
-                )
-            self.timeline = Timeline(profile, scene, self.seed)
-            self.sensor_model = SensorModel(profile, sensors, quantisation=effects.quantisation)
-            self.n_samples = self.timeline.n_samples
+            self._on_six_axis_sensors(sensors, cells)
         else:
-            if sensors is not None:
-                raise ValueError(
-                    f"desk {profile.name!r} has sensors other than six-axis ones: give `cells` "
-                    "(LoadCellParameters), not `sensors`"
-                )
-            cells = cells or LoadCellParameters.for_rate(self.fs)
-            points = oversampling(self.fs, profile.channel_count, cells.sampling)
-            conversions = Conversions.of(
-                cells.sampling,
-                profile.channel_count,
-                points,
-                cells.clock_tolerance,
-                stream(self.seed, STREAM_CLOCKS),
-            )
-            self.cells = LoadCellModel(profile, cells, conversions)
-            fine = replace(profile, sample_rate_hz=self.fs * points)
-            self.timeline = Timeline(fine, scene, self.seed)
-            self.n_samples = (self.timeline.n_samples - 1) // points + 1
+            self._on_load_cells(sensors, cells)
         self._base = self.model.weight() if effects.desk_weight else np.zeros(6)
         drift_model = self.cells if self.cells is not None else self.sensor_model
         self._drift = (
@@ -135,6 +104,45 @@ class SimulationRun:
         #: the per-sample columns of :meth:`chunks`' third item: the ground truth, then the
         #: accelerometers' readings when the desk has some (recordings' extra columns)
         self.columns: tuple[str, ...] = TRUTH_COLUMNS + tuple(profile.accelerometer_columns())
+
+    def _on_six_axis_sensors(
+        self, sensors: SensorParameters | None, cells: LoadCellParameters | None
+    ) -> None:
+        """The timeline at the desk's rate and the six-axis sensors' model."""
+        profile = self.profile
+        if cells is not None:
+            raise ValueError(
+                f"desk {profile.name!r} stands on six-axis sensors: give `sensors` "
+                "(SensorParameters), not `cells`"
+            )
+        self.timeline = Timeline(profile, self.scene, self.seed)
+        self.sensor_model = SensorModel(profile, sensors, quantisation=self.effects.quantisation)
+        self.n_samples = self.timeline.n_samples
+
+    def _on_load_cells(
+        self, sensors: SensorParameters | None, cells: LoadCellParameters | None
+    ) -> None:
+        """The load cells' model with their conversions and the timeline on the finer grid
+        the conversions average."""
+        profile = self.profile
+        if sensors is not None:
+            raise ValueError(
+                f"desk {profile.name!r} has sensors other than six-axis ones: give `cells` "
+                "(LoadCellParameters), not `sensors`"
+            )
+        cells = cells or LoadCellParameters.for_rate(self.fs)
+        points = oversampling(self.fs, profile.channel_count, cells.sampling)
+        conversions = Conversions.of(
+            cells.sampling,
+            profile.channel_count,
+            points,
+            cells.clock_tolerance,
+            stream(self.seed, STREAM_CLOCKS),
+        )
+        self.cells = LoadCellModel(profile, cells, conversions)
+        fine = replace(profile, sample_rate_hz=self.fs * points)
+        self.timeline = Timeline(fine, self.scene, self.seed)
+        self.n_samples = (self.timeline.n_samples - 1) // points + 1
 
     def chunks(self) -> Iterator[tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]]:
         """Yield ``(t, wrench, columns)`` chunk by chunk, from the start: ``columns`` maps

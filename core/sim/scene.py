@@ -34,6 +34,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 from hapticdesk.errors import ConfigError, Position
 from hapticdesk.files.marked_values import MarkedDict
@@ -118,9 +119,7 @@ def scene_from_mapping(doc: MarkedDict, path: Path) -> Scene:
     objects = _objects(doc, unit)
     return Scene(
         _timeline(doc, unit, path),
-        quiet_s=times.quiet_s,
-        tail_s=times.tail_s,
-        duration_s=times.duration_s,
+        **times._asdict(),
         surface=surface,
         objects=objects,
         human=human,
@@ -132,8 +131,9 @@ def scene_from_mapping(doc: MarkedDict, path: Path) -> Scene:
     )
 
 
-@dataclass(frozen=True)
-class _SceneTimes:
+class _SceneTimes(NamedTuple):
+    """A scene's times, as :class:`Scene` names them."""
+
     quiet_s: float
     tail_s: float
     duration_s: float | None

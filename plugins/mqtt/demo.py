@@ -26,7 +26,7 @@ from hapticdesk.errors import ConfigError
 from hapticdesk.plugin_loading import load_registry
 from hapticdesk.plugins.mqtt.settings import parse_broker_url
 from hapticdesk.runtime.assembly import build_scene
-from hapticdesk.runtime.dispatcher import Lane
+from hapticdesk.runtime.lane import Lane
 from hapticdesk.runtime.run_report import RunReport
 from hapticdesk.runtime.service import Runtime
 

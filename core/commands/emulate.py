@@ -52,10 +52,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import can
 
+    from hapticdesk.canbus.bus_spec import bus_cannot_open
     from hapticdesk.canbus.config_reader import can_config
     from hapticdesk.canbus.emulator import CanEmulator
     from hapticdesk.canbus.frame_encoder import encoder_for
-    from hapticdesk.canbus.source import bus_cannot_open
 
     check_speed(args.speed)  # as `run` paces a replay
     interface, sep, channel = args.bus.partition(":")

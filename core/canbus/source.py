@@ -26,8 +26,9 @@ from typing import Any
 from hapticdesk.canbus.assembler import NOTICES_KEPT, AssembledBlock, FrameAssembler
 from hapticdesk.canbus.ati_bus import AtiBoards
 from hapticdesk.canbus.bus_spec import CanSourceError, bus_cannot_open, parse_spec
+from hapticdesk.canbus.config import CanConfig
 from hapticdesk.canbus.config_reader import can_config
-from hapticdesk.canbus.decoding import build_decoding
+from hapticdesk.canbus.decoding import DeskDecoding, build_decoding
 from hapticdesk.canbus.frames import FrameArray
 from hapticdesk.canbus.stats import CanNotice, CanStats
 from hapticdesk.files.profile import DeskProfile
@@ -58,10 +59,7 @@ class CanSource(Source):
         self.profile = profile
         self.config = can_config(profile)
         self.interface, self.channel = parse_spec(spec, self.config)
-        self.bus_kwargs: dict[str, Any] = dict(self.config.bus_options)
-        if bitrate or self.config.bitrate:
-            self.bus_kwargs["bitrate"] = bitrate or self.config.bitrate
-        self.bus_kwargs.update(bus_options or {})
+        self.bus_kwargs = _bus_arguments(self.config, bitrate, bus_options)
         self.frame_sink = frame_sink
         self._bus_factory = bus_factory
         # the most recent ones: a bus that keeps failing must not grow this for the whole run
@@ -85,18 +83,10 @@ class CanSource(Source):
             closing=self._closing,
         )
         try:
-            self._bus = self._open_bus()
-            calibrations = self.ati_boards.read_calibrations(
-                self._send,
-                lambda timeout_s: self._bus.recv(timeout=timeout_s),
-                self.frame_sink,
-                calibration_timeout_s,
-            )
-            decoding = build_decoding(self.config, profile, calibrations)
+            decoding = self._open_and_calibrate(calibration_timeout_s)
         except BaseException:
             self.close()
             raise
-        self.calibrations = calibrations
         self.assembler = FrameAssembler(
             decoding,
             profile.sample_rate_hz,
@@ -109,6 +99,17 @@ class CanSource(Source):
         capacity = self.ati_boards.capacity_notice(self.bus_kwargs.get("bitrate"), self.interface)
         if capacity is not None:
             self._notice("capacity", capacity)
+
+    def _open_and_calibrate(self, timeout_s: float) -> DeskDecoding:
+        """Open the bus and read the ATI boards' calibrations: the desk's decoding."""
+        self._bus = self._open_bus()
+        self.calibrations = self.ati_boards.read_calibrations(
+            self._send,
+            lambda wait_s: self._bus.recv(timeout=wait_s),
+            self.frame_sink,
+            timeout_s,
+        )
+        return build_decoding(self.config, self.profile, self.calibrations)
 
     @property
     def stats(self) -> CanStats:
@@ -275,6 +276,18 @@ class CanSource(Source):
         """Stop polling and release the bus."""
         self.ati_boards.stop_polling()
         self._shutdown_bus()
+
+
+def _bus_arguments(
+    config: CanConfig, bitrate: int | None, bus_options: dict[str, Any] | None
+) -> dict[str, Any]:
+    """python-can's arguments for the bus: the profile's ``bus_options`` and bit rate, under
+    those given to the source."""
+    out: dict[str, Any] = dict(config.bus_options)
+    if bitrate or config.bitrate:
+        out["bitrate"] = bitrate or config.bitrate
+    out.update(bus_options or {})
+    return out
 
 
 def open_can_source(spec: str, profile: DeskProfile, **options: Any) -> CanSource:

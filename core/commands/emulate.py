@@ -62,6 +62,7 @@ class _BusAddress(NamedTuple):
 def run(args: argparse.Namespace) -> int:
     import can  # (a missing python-can is named before any work)
 
+    from hapticdesk.canbus.bus_spec import bus_cannot_open
     from hapticdesk.canbus.config_reader import can_config
     from hapticdesk.canbus.emulator import CanEmulator
     from hapticdesk.canbus.frame_encoder import encoder_for

@@ -27,7 +27,7 @@ from hapticdesk.plugin_loading import load_registry
 from hapticdesk.plugins.mqtt.oneshot import first_clean_connect
 from hapticdesk.plugins.mqtt.settings import parse_broker_url
 from hapticdesk.runtime.assembly import build_scene
-from hapticdesk.runtime.dispatcher import Lane
+from hapticdesk.runtime.lane import Lane
 from hapticdesk.runtime.run_report import RunReport
 from hapticdesk.runtime.service import Runtime
 

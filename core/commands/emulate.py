@@ -62,7 +62,6 @@ class _BusAddress(NamedTuple):
 def run(args: argparse.Namespace) -> int:
     import can  # (a missing python-can is named before any work)
 
-    from hapticdesk.canbus.bus_spec import bus_cannot_open
     from hapticdesk.canbus.config_reader import can_config
     from hapticdesk.canbus.emulator import CanEmulator
     from hapticdesk.canbus.frame_encoder import encoder_for
@@ -138,7 +137,7 @@ def _samples(args: argparse.Namespace, profile: DeskProfile) -> Recording:
 def _open_bus(bus_class: Callable[..., Any], address: _BusAddress, bitrate: int | None) -> Any:
     """The python-can bus (``can.Bus``) to send on (a virtual bus keeps the frames' sample
     times)."""
-    from hapticdesk.canbus.source import bus_cannot_open
+    from hapticdesk.canbus.bus_spec import bus_cannot_open
 
     kwargs: dict[str, Any] = {"interface": address.interface, "channel": address.channel}
     if address.interface == "virtual":  # frames keep their sample times, whatever the speed

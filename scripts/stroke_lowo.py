@@ -2,7 +2,7 @@
 """Leave-one-writer-out: the stroke recognizer's choices made on four writers of the $1 logs
 and measured on the fifth, all five ways, per speed, with a plain Protractor beside.
 
-The choices (``unistroke.ScoreChoices``) and how each is made on the four training writers:
+The choices (``stroke_similarity.ScoreChoices``) and how each is made on the four training writers:
 
 - ``direction_weight`` (the warped directions' share of the score, the rest Protractor's
   cosine) and ``form_weight`` (whether and how much a difference in form costs): the pair
@@ -21,7 +21,7 @@ The choices (``unistroke.ScoreChoices``) and how each is made on the four traini
   time): chosen on no writer at all.
 
 The nearest shape is the one whose ⌊√n⌋ best templates of the n people drew score highest
-on average (``unistroke.neighbourhood``): a fixed rule, not a choice.
+on average (``stroke_verdict.neighbourhood``): a fixed rule, not a choice.
 
 Each held-out writer is then measured with the choices its four made: writer-independent
 (the four writers' 1,920 strokes as templates), the writer's own 3 templates a shape
@@ -56,17 +56,15 @@ from stroke_accuracy import others, trace_synthetic  # noqa: E402
 from hapticdesk.gestures.options import GESTURE_OPTIONS  # noqa: E402
 from hapticdesk.gestures.strokes.dollar_logs import SPEEDS, read_logs  # noqa: E402
 from hapticdesk.gestures.strokes.shapes import normalised, resample  # noqa: E402
-from hapticdesk.gestures.strokes.unistroke import (  # noqa: E402
+from hapticdesk.gestures.strokes.stroke_similarity import (  # noqa: E402
     DEFAULT_CHOICES,
-    Nearest,
     ScoreChoices,
     Similarity,
-    agreement,
-    builtin_templates,
-    nearest,
     similarity,
     stroke_features,
 )
+from hapticdesk.gestures.strokes.stroke_verdict import Nearest, agreement, nearest  # noqa: E402
+from hapticdesk.gestures.strokes.unistroke import builtin_templates  # noqa: E402
 
 MIN_SCORE = GESTURE_OPTIONS["stroke"]["min_score"].default
 MAX_ROTATION = GESTURE_OPTIONS["stroke"]["max_rotation_deg"].default
@@ -464,7 +462,7 @@ def main() -> None:
         f for f in asdict(DEFAULT_CHOICES) if len({getattr(c, f) for c in chosen.values()}) == 1
     ]
     print(f"- on all five: {_choices_text(shipped)}")
-    print(f"- shipped (unistroke.DEFAULT_CHOICES): {_choices_text(DEFAULT_CHOICES)}")
+    print(f"- shipped (stroke_similarity.DEFAULT_CHOICES): {_choices_text(DEFAULT_CHOICES)}")
     same = "are" if shipped == DEFAULT_CHOICES else "are NOT"
     print(
         f"\nThe folds agree on: {', '.join(fields) or 'nothing'}; the shipped choices {same} "

@@ -72,7 +72,7 @@ def main() -> int:
     from hapticdesk.plugin_loading import load_registry
     from hapticdesk.plugins.ui.server import UiServer
     from hapticdesk.runtime.assembly import build_scene
-    from hapticdesk.runtime.dispatcher import Lane
+    from hapticdesk.runtime.lane import Lane
     from hapticdesk.runtime.service import Runtime
 
     total_s = 3 + 2 * args.rounds * args.phase_s + 5

@@ -132,12 +132,7 @@ class BoardClock:
                 times[run], kept[run] = t, True
                 if step.max() > self.period_units:  # (rare) samples lost, maybe a gap
                     lost += self._losses(step, t, lines[run], events)
-                    steps_s = np.diff(t, prepend=self._t)
-                    gaps = steps_s > self.max_gap_s
-                    for k in np.flatnonzero(gaps):
-                        at = int(lines[i + k])
-                        events.append(ClockEvent("gap", float(t[k]), at, seconds=steps_s[k]))
-                    fresh[run] = gaps
+                    fresh[run] = self._gaps(t, lines[run], events)
                 self._stamp, self._board = int(stamps[i + n_ok - 1]), int(board[-1])
                 self._host, self._t = float(host_t[i + n_ok - 1]), float(t[-1])
                 i += n_ok
@@ -161,6 +156,15 @@ class BoardClock:
             dropped[i] = OUT_OF_SEQUENCE
             i += 1
         return Placement(times[kept], dropped[: m - held], fresh[kept], held, lost, events)
+
+    def _gaps(self, t: np.ndarray, lines: np.ndarray, events: list[ClockEvent]) -> np.ndarray:
+        """Which of the samples placed at ``t`` (after the last one given out) come over
+        ``max_gap_s`` after the one before: each such gap is said in ``events``."""
+        steps_s = np.diff(t, prepend=self._t)
+        gaps = steps_s > self.max_gap_s
+        for k in np.flatnonzero(gaps):
+            events.append(ClockEvent("gap", float(t[k]), int(lines[k]), seconds=steps_s[k]))
+        return gaps
 
     def _follows(self, stamp: int | None, host: float, nxt: int, nxt_host: float) -> bool:
         """Whether stamp ``nxt`` plausibly comes after ``stamp`` (forward, not ahead of the

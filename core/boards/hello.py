@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 from hapticdesk.errors import ConfigError
 
@@ -92,6 +93,43 @@ def with_checksum(content: str) -> str:
 def parse_hello(text: str, where: str) -> BoardHello:
     """The hello in ``text`` (one line, checksum removed); ConfigError naming ``where`` (the
     port and line) and what was expected."""
+    given = _hello_words(text, where)
+    rate = _number(given["rate"], "rate", where)
+    if not 0 < rate <= 1e6:
+        raise ConfigError(
+            where, f"hello: `rate` must be above 0 and at most 1e6 Hz, found {rate:g}"
+        )
+    channels = tuple(given["channels"].split(","))
+    if not all(c and c.isprintable() for c in channels) or len(channels) > MAX_CHANNELS:
+        raise ConfigError(
+            where,
+            f"hello: `channels` must be 1 to {MAX_CHANNELS} names separated by commas, "
+            f"found `{given['channels'][:80]}`",
+        )
+    stamp = given.get("stamp", "seq")
+    if stamp not in STAMPS:
+        raise ConfigError(
+            where, f"hello: `stamp` must be one of {', '.join(STAMPS)}, found `{stamp}`"
+        )
+    offsets = _offsets(given, len(channels), where)
+    check = given.get("checksum")
+    if check not in (None, "xor"):
+        raise ConfigError(where, f"hello: `checksum` can only be `xor`, found `{check}`")
+    return BoardHello(
+        rate_hz=rate,
+        channels=channels,
+        stamp=stamp,
+        offsets_us=offsets.offsets_us,
+        offsets_per_line=offsets.per_line,
+        checksum_required=check == "xor",
+        wrap=_wrap(given, where),
+        board=given.get("board", ""),
+    )
+
+
+def _hello_words(text: str, where: str) -> dict[str, str]:
+    """The hello's ``KEY=VALUE`` words by key, after its magic word; each key known and
+    given once, ``rate`` and ``channels`` given."""
     words = text.split()
     if not words or words[0] != MAGIC:
         found = words[0] if words else "nothing"
@@ -111,25 +149,19 @@ def parse_hello(text: str, where: str) -> BoardHello:
     for key in ("rate", "channels"):
         if key not in given:
             raise ConfigError(where, f"hello: missing `{key}=` (the hello was: {text[:120]})")
-    rate = _number(given["rate"], "rate", where)
-    if not 0 < rate <= 1e6:
-        raise ConfigError(
-            where, f"hello: `rate` must be above 0 and at most 1e6 Hz, found {rate:g}"
-        )
-    channels = tuple(given["channels"].split(","))
-    if not all(c and c.isprintable() for c in channels) or len(channels) > MAX_CHANNELS:
-        raise ConfigError(
-            where,
-            f"hello: `channels` must be 1 to {MAX_CHANNELS} names separated by commas, "
-            f"found `{given['channels'][:80]}`",
-        )
-    stamp = given.get("stamp", "seq")
-    if stamp not in STAMPS:
-        raise ConfigError(
-            where, f"hello: `stamp` must be one of {', '.join(STAMPS)}, found `{stamp}`"
-        )
-    offsets: tuple[float, ...] | None = None
-    per_line = False
+    return given
+
+
+class _Offsets(NamedTuple):
+    """When each channel was sampled: fixed offsets after the stamp (µs, one a channel), or
+    on every line (``per_line``), or neither (all at the stamp)."""
+
+    offsets_us: tuple[float, ...] | None
+    per_line: bool
+
+
+def _offsets(given: dict[str, str], channels: int, where: str) -> _Offsets:
+    """The hello's ``offsets=line`` or ``offsets_us=...`` (at most one of them)."""
     if "offsets" in given:
         if given["offsets"] != "line":
             raise ConfigError(
@@ -137,42 +169,35 @@ def parse_hello(text: str, where: str) -> BoardHello:
             )
         if "offsets_us" in given:
             raise ConfigError(where, "hello: give `offsets=line` or `offsets_us=...`, not both")
-        per_line = True
-    elif "offsets_us" in given:
-        offsets = tuple(_number(v, "offsets_us", where) for v in given["offsets_us"].split(","))
-        if len(offsets) != len(channels):
-            raise ConfigError(
-                where,
-                f"hello: `offsets_us` must give one offset per channel ({len(channels)}), "
-                f"found {len(offsets)}",
-            )
-        if not all(0 <= v < MAX_OFFSET_US for v in offsets):
-            raise ConfigError(
-                where,
-                "hello: each of `offsets_us` must be 0 or more (the stamp is the first "
-                f"channel's time) and under {MAX_OFFSET_US:g} µs, found {given['offsets_us']}",
-            )
-    check = given.get("checksum")
-    if check not in (None, "xor"):
-        raise ConfigError(where, f"hello: `checksum` can only be `xor`, found `{check}`")
-    wrap = DEFAULT_WRAP
-    if "wrap" in given:
-        w = _number(given["wrap"], "wrap", where)
-        if w != int(w) or not 2**8 <= w <= 10**MAX_STAMP_DIGITS:
-            raise ConfigError(
-                where, f"hello: `wrap` must be a whole number from 256 to 1e12, found {w:g}"
-            )
-        wrap = int(w)
-    return BoardHello(
-        rate_hz=rate,
-        channels=channels,
-        stamp=stamp,
-        offsets_us=offsets,
-        offsets_per_line=per_line,
-        checksum_required=check == "xor",
-        wrap=wrap,
-        board=given.get("board", ""),
-    )
+        return _Offsets(None, True)
+    if "offsets_us" not in given:
+        return _Offsets(None, False)
+    offsets = tuple(_number(v, "offsets_us", where) for v in given["offsets_us"].split(","))
+    if len(offsets) != channels:
+        raise ConfigError(
+            where,
+            f"hello: `offsets_us` must give one offset per channel ({channels}), "
+            f"found {len(offsets)}",
+        )
+    if not all(0 <= v < MAX_OFFSET_US for v in offsets):
+        raise ConfigError(
+            where,
+            "hello: each of `offsets_us` must be 0 or more (the stamp is the first "
+            f"channel's time) and under {MAX_OFFSET_US:g} µs, found {given['offsets_us']}",
+        )
+    return _Offsets(offsets, False)
+
+
+def _wrap(given: dict[str, str], where: str) -> int:
+    """Where the board's stamp wraps around (``wrap=``, DEFAULT_WRAP without)."""
+    if "wrap" not in given:
+        return DEFAULT_WRAP
+    w = _number(given["wrap"], "wrap", where)
+    if w != int(w) or not 2**8 <= w <= 10**MAX_STAMP_DIGITS:
+        raise ConfigError(
+            where, f"hello: `wrap` must be a whole number from 256 to 1e12, found {w:g}"
+        )
+    return int(w)
 
 
 def _number(text: str, key: str, where: str) -> float:

@@ -109,21 +109,7 @@ def serial_settings(profile: DeskProfile, spec: str) -> SerialSettings:
     """The settings for reading ``profile``'s board from ``spec`` (the text after
     ``serial:``), the spec's options over the profile's ``serial:`` section."""
     port, given = spec_mapping(spec)
-    section = profile.serial
-    merged = MarkedDict()
-    if section is not None:
-        section = require_mapping(section, str(profile.path or profile.name), "`serial`")
-        check_keys(section, SECTION_KEYS, "the profile's `serial`")
-        merged.update(section)
-        merged.position = section.position
-        merged.key_positions = dict(section.key_positions)
-        merged.value_positions = dict(section.value_positions)
-    else:
-        merged.position, merged.key_positions, merged.value_positions = given.position, {}, {}
-    check_keys(given, SECTION_KEYS - {"port"}, "the `serial:` source's options")
-    merged.update(given)
-    merged.key_positions.update(given.key_positions)
-    merged.value_positions.update(given.value_positions)
+    merged = _merged_options(profile, given)
     port = port or str(merged.get("port") or "")
     if not port:
         raise ConfigError(
@@ -170,6 +156,27 @@ def serial_settings(profile: DeskProfile, spec: str) -> SerialSettings:
         simultaneous=simultaneous,
         **waits,
     )
+
+
+def _merged_options(profile: DeskProfile, given: MarkedDict) -> MarkedDict:
+    """The profile's ``serial:`` section with the spec's options (``given``) over it, each
+    key checked and keeping where it was written."""
+    section = profile.serial
+    merged = MarkedDict()
+    if section is not None:
+        section = require_mapping(section, str(profile.path or profile.name), "`serial`")
+        check_keys(section, SECTION_KEYS, "the profile's `serial`")
+        merged.update(section)
+        merged.position = section.position
+        merged.key_positions = dict(section.key_positions)
+        merged.value_positions = dict(section.value_positions)
+    else:
+        merged.position, merged.key_positions, merged.value_positions = given.position, {}, {}
+    check_keys(given, SECTION_KEYS - {"port"}, "the `serial:` source's options")
+    merged.update(given)
+    merged.key_positions.update(given.key_positions)
+    merged.value_positions.update(given.value_positions)
+    return merged
 
 
 def _per_channel(mapping: MarkedDict, key: str, n: int, default: float) -> np.ndarray:

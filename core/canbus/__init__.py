@@ -8,7 +8,9 @@
 :mod:`~hapticdesk.canbus.ati_netcanoem` the ATI NETCANOEM protocol;
 :mod:`~hapticdesk.canbus.decoding` frame kinds and sensor readings of a desk;
 :mod:`~hapticdesk.canbus.assembler` frames into samples;
-:mod:`~hapticdesk.canbus.source` the live CAN source;
+:mod:`~hapticdesk.canbus.source` the live CAN source (its bus named by
+:mod:`~hapticdesk.canbus.bus_spec`, its ATI boards asked and polled by
+:mod:`~hapticdesk.canbus.ati_bus`);
 :mod:`~hapticdesk.canbus.logs` CAN logs, one module per format (read, replay, write);
 :mod:`~hapticdesk.canbus.frame_encoder` a desk's samples as frames;
 :mod:`~hapticdesk.canbus.emulator` those frames on a bus. See docs/can.md.

@@ -7,6 +7,7 @@ import json
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 from hapticdesk.commands.output_path import cannot_write, check_output_path
 from hapticdesk.errors import ConfigError
@@ -48,7 +49,21 @@ MAX_SEEDS = 20
 
 
 def run(args: argparse.Namespace) -> int:
-    # before minutes of work: matplotlib would refuse a format only when it draws
+    _check_arguments(args)  # before minutes of work
+    profile = load_profile(args.desk)
+    if args.paper:
+        return _paper(args, profile)
+    info = _measure(args, profile)
+    if args.json:
+        print(json.dumps(info, indent=1))
+    else:
+        _print_table(info, args.plot)
+    return 0
+
+
+def _check_arguments(args: argparse.Namespace) -> None:
+    """The outputs and the seeds, checked before the work."""
+    # matplotlib would refuse a format only when it draws
     for flag, path in (("--plot", args.plot), ("--paper-png", args.paper_png)):
         if path is not None:
             check_output_path(path, flag, (".png",), "the plot")
@@ -66,10 +81,12 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(
             "--seeds", f"must be 1 to {MAX_SEEDS} simulated sessions, found {args.seeds}"
         )
-    profile = load_profile(args.desk)
-    if args.paper:
-        return _paper(args, profile)
-    from hapticdesk.bench.report import plot_pareto, table
+
+
+def _measure(args: argparse.Namespace, profile: DeskProfile) -> dict[str, Any]:
+    """Every method's errors and run time on the paper's experiment simulated (the plot
+    drawn if asked), with how they were measured."""
+    from hapticdesk.bench.report import plot_pareto
     from hapticdesk.bench.runner import (
         COST_ROUNDS,
         WARMUP_ROUNDS,
@@ -98,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
     )
     if args.plot:
         plot_pareto(rows, args.plot)
-    info = {
+    return {
         "desk": profile.name,
         "scene": "paper-experiment (9 points × 3 presses)",
         "seeds": seeds,
@@ -111,25 +128,27 @@ def run(args: argparse.Namespace) -> int:
         },
         "methods": rows,
     }
-    if args.json:
-        print(json.dumps(info, indent=1))
-    else:
-        print(
-            f"hapticdesk bench: {profile.name}, the paper's experiment simulated with the "
-            f"paper's noise, {seeds} session(s), {info['samples']} samples"
-        )
-        print(
-            "errors in mm against the truth, p95: at +20/+50 ms after the true touch-down and "
-            "-20 ms before the true release (a point not reported is a miss: 'miss' when over "
-            "5 % are), then on the samples all four methods locate (touch, hold, release until "
-            "the contact ends); delays in ms after the true force crosses 2 N; run time the "
-            f"median of {COST_ROUNDS} rounds after a warm-up, each timing every configuration "
-            "in turn, with its range\n"
-        )
-        print(table(rows))
-        if args.plot:
-            print(f"\nplot: {args.plot}")
-    return 0
+
+
+def _print_table(info: dict[str, Any], plot: Path | None) -> None:
+    from hapticdesk.bench.report import table
+
+    rounds = info["run_time"]["rounds"]
+    print(
+        f"hapticdesk bench: {info['desk']}, the paper's experiment simulated with the "
+        f"paper's noise, {info['seeds']} session(s), {info['samples']} samples"
+    )
+    print(
+        "errors in mm against the truth, p95: at +20/+50 ms after the true touch-down and "
+        "-20 ms before the true release (a point not reported is a miss: 'miss' when over "
+        "5 % are), then on the samples all four methods locate (touch, hold, release until "
+        "the contact ends); delays in ms after the true force crosses 2 N; run time the "
+        f"median of {rounds} rounds after a warm-up, each timing every configuration "
+        "in turn, with its range\n"
+    )
+    print(table(info["methods"]))
+    if plot:
+        print(f"\nplot: {plot}")
 
 
 def _paper(args: argparse.Namespace, profile: DeskProfile) -> int:

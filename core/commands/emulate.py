@@ -17,11 +17,14 @@ import argparse
 import json
 import sys
 import time
-from typing import Any
+from collections.abc import Callable
+from typing import Any, NamedTuple
 
 from hapticdesk.commands import bit_rate, seed_number
 from hapticdesk.errors import ConfigError
+from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.profile_reader import load_profile
+from hapticdesk.files.recording import Recording
 from hapticdesk.files.recording_io import read_recording
 from hapticdesk.runtime.pacing import check_speed
 
@@ -49,31 +52,26 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print a JSON summary")
 
 
+class _BusAddress(NamedTuple):
+    """``--bus INTERFACE:CHANNEL`` read."""
+
+    interface: str
+    channel: str
+
+
 def run(args: argparse.Namespace) -> int:
-    import can
+    import can  # (a missing python-can is named before any work)
 
     from hapticdesk.canbus.config_reader import can_config
     from hapticdesk.canbus.emulator import CanEmulator
     from hapticdesk.canbus.frame_encoder import encoder_for
-    from hapticdesk.canbus.source import bus_cannot_open
 
     check_speed(args.speed)  # as `run` paces a replay
-    interface, sep, channel = args.bus.partition(":")
-    if not sep or not interface:
-        raise ConfigError(
-            "--bus", f"expected INTERFACE:CHANNEL (e.g. virtual:desk), found {args.bus!r}"
-        )
+    address = _bus_address(args.bus)
     profile = load_profile(args.desk)
     config = can_config(profile) if profile.can is not None else None
     encoder, used = encoder_for(profile, config, args.encoding)
-    if args.recording:
-        rec = read_recording(args.recording, profile.sensor_names)
-    else:
-        from hapticdesk.sim import load_scene, simulate
-
-        rec = simulate(profile, load_scene(args.scene), args.seed)
-    if not len(rec):
-        raise ConfigError(args.recording or args.scene, "nothing to send: no samples")
+    rec = _samples(args, profile)
     if used is not config:
         bases = ", ".join(
             f"{n}: {{ati_netcanoem: {{base: 0x{s.base:02X}}}}}" for n, s in used.sensors.items()
@@ -82,15 +80,7 @@ def run(args: argparse.Namespace) -> int:
             f"emulating ATI boards; decode them with  can: {{sensors: {{{bases}}}}}",
             file=sys.stderr,
         )
-    kwargs: dict[str, Any] = {"interface": interface, "channel": channel}
-    if interface == "virtual":  # frames keep their sample times, whatever the speed
-        kwargs["preserve_timestamps"] = True
-    if args.bitrate:
-        kwargs["bitrate"] = args.bitrate
-    try:
-        bus = can.Bus(**kwargs)
-    except Exception as err:
-        raise ConfigError("--bus", bus_cannot_open(interface, channel, err)) from None
+    bus = _open_bus(can.Bus, address, args.bitrate)
     from hapticdesk.estimator.inertia import accelerometer_readings
 
     accel = accelerometer_readings(profile, rec.extra)  # None: the desk has no accelerometer
@@ -122,3 +112,41 @@ def run(args: argparse.Namespace) -> int:
             f"on {args.bus} in {summary['seconds']:.2f} s"
         )
     return 0
+
+
+def _bus_address(bus: str) -> _BusAddress:
+    interface, sep, channel = bus.partition(":")
+    if not sep or not interface:
+        raise ConfigError("--bus", f"expected INTERFACE:CHANNEL (e.g. virtual:desk), found {bus!r}")
+    return _BusAddress(interface, channel)
+
+
+def _samples(args: argparse.Namespace, profile: DeskProfile) -> Recording:
+    """The recording to send, or the scene simulated; refused when empty."""
+    if args.recording:
+        rec = read_recording(args.recording, profile.sensor_names)
+    else:
+        from hapticdesk.sim import load_scene, simulate
+
+        rec = simulate(profile, load_scene(args.scene), args.seed)
+    if not len(rec):
+        raise ConfigError(args.recording or args.scene, "nothing to send: no samples")
+    return rec
+
+
+def _open_bus(bus_class: Callable[..., Any], address: _BusAddress, bitrate: int | None) -> Any:
+    """The python-can bus (``can.Bus``) to send on (a virtual bus keeps the frames' sample
+    times)."""
+    from hapticdesk.canbus.bus_spec import bus_cannot_open
+
+    kwargs: dict[str, Any] = {"interface": address.interface, "channel": address.channel}
+    if address.interface == "virtual":  # frames keep their sample times, whatever the speed
+        kwargs["preserve_timestamps"] = True
+    if bitrate:
+        kwargs["bitrate"] = bitrate
+    try:
+        return bus_class(**kwargs)
+    except Exception as err:
+        raise ConfigError(
+            "--bus", bus_cannot_open(address.interface, address.channel, err)
+        ) from None

@@ -1,10 +1,12 @@
 """Files a command writes, checked before the work that fills them: a folder, a missing folder
 or a format that cannot be written is a clear error at once, not a traceback after the work.
 What the check cannot foresee (no permission, a full disk) is :func:`cannot_write`'s error,
-which ``contacts``, ``simulate`` and ``record`` share."""
+which ``contacts``, ``simulate`` and ``record`` share; what a full disk cut short is removed
+(:func:`remove_partial`)."""
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 
 from hapticdesk.errors import ConfigError
@@ -31,3 +33,17 @@ def check_output_path(
 def cannot_write(path: Path | str, err: OSError) -> ConfigError:
     """The error for an output that could not be written after all."""
     return ConfigError(str(path), f"cannot write: {err.strerror or err}")
+
+
+def remove_partial(output: Path) -> None:
+    """A recording cut short by a full disk is removed: a reader would take the part for
+    the whole (b5a43bd left truncated recordings behind)."""
+    with contextlib.suppress(OSError):
+        output.unlink(missing_ok=True)
+
+
+def partial_removed(output: Path, err: OSError) -> ConfigError:
+    """The error for an output that could not be written and was removed."""
+    return ConfigError(
+        str(output), f"cannot write: {err.strerror or err} (the partial file was removed)"
+    )

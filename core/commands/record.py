@@ -6,24 +6,24 @@ chooses what is written: ``.csv``/``.npz`` the decoded samples (the recording fo
 ``.asc``/``.blf``/``.log``/``.trc`` the raw CAN frames through python-can's loggers (with the
 ATI calibration exchange and polls, so the log decodes on its own). Ctrl-C ends a live
 recording and keeps everything recorded so far; a replayed recording with a bad line keeps
-the samples before it and exits 1.
+the samples before it and exits 1. A live bus is captured by :mod:`.record_bus`.
 """
 
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import sys
-import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from hapticdesk.commands import bit_rate, seed_number
-from hapticdesk.commands.output_path import cannot_write
+from hapticdesk.commands.output_path import partial_removed, remove_partial
+from hapticdesk.commands.record_bus import capture_bus
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.profile_reader import load_profile
@@ -94,160 +94,113 @@ def run(args: argparse.Namespace) -> int:
     return 1 if summary.get("failed") else 0
 
 
-# --- a live bus -------------------------------------------------------------------------------
-
-
 def _record_bus(args: argparse.Namespace, profile: DeskProfile, output: Path) -> dict[str, Any]:
-    import can
-
-    from hapticdesk.canbus.source import open_can_source
-
     raw = output.suffix.lower() in LOG_SUFFIXES
-    writer: Any = None
-    lock = threading.Lock()
-    frames = 0
-    lost_frames = 0
-    write_failed: OSError | None = None
-
-    def sink(messages: list[Any]) -> None:
-        # on the bus reader's thread: a log that cannot be written (a full disk) is said
-        # once and dropped, and the frames from then on counted, but the reader goes on
-        nonlocal frames, lost_frames, write_failed, writer
-        with lock:
-            if writer is None:
-                lost_frames += len(messages) if write_failed is not None else 0
-                return
-            try:
-                for msg in messages:
-                    writer.on_message_received(msg)
-            except OSError as err:
-                write_failed = err
-                lost_frames += len(messages)
-                print(f"hapticdesk record: {cannot_write(output, err)}", file=sys.stderr)
-                with contextlib.suppress(OSError):
-                    writer.stop()
-                writer = None
-                return
-            frames += len(messages)
-
-    if raw:
-        try:
-            writer = can.Logger(str(output))
-        except (OSError, ValueError) as err:
-            raise ConfigError(str(output), f"cannot write: {err}") from None
-    options: dict[str, Any] = {"frame_sink": sink if raw else None}
-    if args.bitrate:
-        options["bitrate"] = args.bitrate
-    ts: list[np.ndarray] = []
-    ws: list[np.ndarray] = []
-    stopped_by: BaseException | None = None
-    try:
-        source = open_can_source(args.source, profile, **options)
-    except BaseException:
-        if writer is not None:
-            writer.stop()
-        raise
-    timer = None
-    if args.seconds is not None:
-        timer = threading.Timer(args.seconds, source.close)
-        timer.daemon = True
-        timer.start()
-    try:
-        for block in source.blocks():
-            ts.append(block.t)
-            ws.append(block.wrench)
-    except KeyboardInterrupt:
-        pass  # Ctrl-C is how a live recording ends
-    except ConfigError as err:  # a silent sensor with `stop`, a lost bus: keep what we have
-        stopped_by = err
-    finally:
-        if timer is not None:
-            timer.cancel()
-        source.close()
-        with lock:
-            if writer is not None:
-                try:
-                    writer.stop()
-                except OSError as err:  # (its last buffer: the disk is full)
-                    write_failed = err
-                writer = None
-    if write_failed is not None:
-        _remove_partial(output)
-        raise ConfigError(
-            str(output),
-            f"cannot write: {write_failed.strerror or write_failed} ({frames} frames written, "
-            f"{lost_frames} more not; the partial log was removed)",
-        )
-    t = np.concatenate(ts) if ts else np.zeros(0)
-    wrench = np.concatenate(ws) if ws else np.zeros((0, len(profile.sensors), 6))
+    capture = capture_bus(args, profile, output, raw)
     if not raw:
-        _write(output, Recording(t, wrench, profile.sensor_names))
-    summary = _summary(t, source.stats.summary())
-    if raw:
-        summary["frames"] = frames
-    if stopped_by is not None:
-        print(f"hapticdesk record: stopped: {stopped_by}", file=sys.stderr)
-        summary["stopped"] = str(stopped_by)
+        _write(output, Recording(capture.t, capture.wrench, profile.sensor_names))
+    summary = _summary(capture.t, capture.problems)
+    if capture.frames is not None:
+        summary["frames"] = capture.frames
+    if capture.stopped_by is not None:
+        print(f"hapticdesk record: stopped: {capture.stopped_by}", file=sys.stderr)
+        summary["stopped"] = str(capture.stopped_by)
     return summary
 
 
 # --- files and simulations ----------------------------------------------------------------
 
 
+@dataclass(frozen=True)
+class _Read:
+    """A replayed or simulated recording, the reader's problem lines (the totals first) and
+    the bad line that stopped a replay early, if one did."""
+
+    recording: Recording
+    problems: list[str]
+    stopped_by: ConfigError | None = None
+
+
 def _record_file(
     kind: str, argument: str, args: argparse.Namespace, profile: DeskProfile, output: Path
 ) -> dict[str, Any]:
-    stopped_by: ConfigError | None = None
     if not argument:
         raise ConfigError("--source", f"{kind} needs a file: {kind}:FILE")
     path = Path(argument).expanduser()
     if not path.is_file():
         raise ConfigError("--source", f"{kind}: no such file {argument}")
     raw = output.suffix.lower() in LOG_SUFFIXES
-    if kind == "replay" and path.suffix.lower() not in RECORDING_SUFFIXES:
-        from hapticdesk.canbus.logs.desk_samples import decode_can_log
-        from hapticdesk.canbus.logs.formats import read_frames
-        from hapticdesk.canbus.logs.writer import write_frames
-
-        if raw:  # a CAN log into another format: frames as they are
-            limit = args.seconds
-            first: list[float] = []
-
-            def frames() -> Any:
-                for chunk in read_frames(path):
-                    if limit is not None and len(chunk):
-                        if not first:
-                            first.append(
-                                float(np.nanmin(chunk.t)) if np.isfinite(chunk.t).any() else 0.0
-                            )
-                        chunk = chunk.take(~(chunk.t - first[0] >= limit))
-                    yield chunk
-
-            n = _write_frames(output, frames(), write_frames)
-            decoded = decode_can_log(output, profile)
-            summary = _summary(decoded.recording.t, decoded.stats.summary())
-            summary["frames"] = n
-            return summary
-        decoded = decode_can_log(path, profile)
-        rec, problems = decoded.recording, decoded.stats.summary()
-    elif kind == "replay":
-        rec, stopped_by = _read_until_error(path, profile)
-        problems = []
-    else:
-        from hapticdesk.sim import load_scene, simulate
-
-        rec, problems = simulate(profile, load_scene(path), args.seed), []
-    if args.seconds is not None:
-        keep = rec.t - rec.t[0] < args.seconds if len(rec) else np.zeros(0, bool)
-        rec = Recording(
-            rec.t[keep],
-            rec.wrench[keep],
-            rec.sensor_names,
-            {k: v[keep] for k, v in rec.extra.items()},
-        )
+    is_can_log = kind == "replay" and path.suffix.lower() not in RECORDING_SUFFIXES
+    if is_can_log and raw:  # a CAN log into another format: frames as they are
+        return _copy_can_log(path, args.seconds, profile, output)
+    read = _read_file(kind, path, args.seed, profile, is_can_log)
+    rec = _first_seconds(read.recording, args.seconds)
     if not raw:
         _write(output, rec)
-        return _stopped(_summary(rec.t, problems), stopped_by, len(rec))
+        return _stopped(_summary(rec.t, read.problems), read.stopped_by, len(rec))
+    summary = _summary(rec.t, read.problems)
+    summary["frames"] = _encode_to_log(rec, profile, output)
+    return _stopped(summary, read.stopped_by, len(rec))
+
+
+def _read_file(
+    kind: str, path: Path, seed: int | None, profile: DeskProfile, is_can_log: bool
+) -> _Read:
+    """A CAN log decoded, a recording read (up to a bad line) or a scene simulated."""
+    if is_can_log:
+        from hapticdesk.canbus.logs.desk_samples import decode_can_log
+
+        decoded = decode_can_log(path, profile)
+        return _Read(decoded.recording, decoded.stats.summary())
+    if kind == "replay":
+        rec, stopped_by = _read_until_error(path, profile)
+        return _Read(rec, [], stopped_by)
+    from hapticdesk.sim import load_scene, simulate
+
+    return _Read(simulate(profile, load_scene(path), seed), [])
+
+
+def _first_seconds(rec: Recording, seconds: float | None) -> Recording:
+    """The first ``seconds`` of ``rec`` (all of it when None)."""
+    if seconds is None:
+        return rec
+    keep = rec.t - rec.t[0] < seconds if len(rec) else np.zeros(0, bool)
+    return Recording(
+        rec.t[keep],
+        rec.wrench[keep],
+        rec.sensor_names,
+        {k: v[keep] for k, v in rec.extra.items()},
+    )
+
+
+def _copy_can_log(
+    path: Path, seconds: float | None, profile: DeskProfile, output: Path
+) -> dict[str, Any]:
+    """A CAN log's frames written in ``output``'s format, its first ``seconds`` if given."""
+    from hapticdesk.canbus.logs.desk_samples import decode_can_log
+    from hapticdesk.canbus.logs.formats import read_frames
+    from hapticdesk.canbus.logs.writer import write_frames
+
+    first: list[float] = []
+
+    def frames() -> Any:
+        for chunk in read_frames(path):
+            if seconds is not None and len(chunk):
+                if not first:
+                    first.append(float(np.nanmin(chunk.t)) if np.isfinite(chunk.t).any() else 0.0)
+                chunk = chunk.take(~(chunk.t - first[0] >= seconds))
+            yield chunk
+
+    n = _write_frames(output, frames(), write_frames)
+    decoded = decode_can_log(output, profile)
+    summary = _summary(decoded.recording.t, decoded.stats.summary())
+    summary["frames"] = n
+    return summary
+
+
+def _encode_to_log(rec: Recording, profile: DeskProfile, output: Path) -> int:
+    """``rec`` encoded as the desk's CAN frames (its calibration exchange first, with polls)
+    into the log ``output``; returns the frames written."""
     from hapticdesk.canbus.config_reader import can_config
     from hapticdesk.canbus.frame_encoder import FrameEncoder
     from hapticdesk.canbus.logs.writer import write_frames
@@ -258,10 +211,7 @@ def _record_file(
     start = encoder.calibration_frames(t0 - 0.01)
     accel = accelerometer_readings(profile, rec.extra)
     body = encoder.encode(rec.t + t0, rec.wrench, polls=True, accel=accel)
-    n = _write_frames(output, [start, body], write_frames)
-    summary = _summary(rec.t, problems)
-    summary["frames"] = n
-    return _stopped(summary, stopped_by, len(rec))
+    return _write_frames(output, [start, body], write_frames)
 
 
 def _stopped(summary: dict[str, Any], err: ConfigError | None, kept: int) -> dict[str, Any]:
@@ -296,29 +246,16 @@ def _write_frames(output: Path, frames: Any, write: Any) -> int:
     try:
         return int(write(output, frames))
     except OSError as err:
-        _remove_partial(output)
-        raise _partial_removed(output, err) from None
+        remove_partial(output)
+        raise partial_removed(output, err) from None
 
 
 def _write(output: Path, rec: Recording) -> None:
     try:
         write_recording(output, rec)
     except OSError as err:
-        _remove_partial(output)
-        raise _partial_removed(output, err) from None
-
-
-def _remove_partial(output: Path) -> None:
-    """A recording cut short by a full disk is removed: a reader would take the part for
-    the whole (b5a43bd left truncated recordings behind)."""
-    with contextlib.suppress(OSError):
-        output.unlink(missing_ok=True)
-
-
-def _partial_removed(output: Path, err: OSError) -> ConfigError:
-    return ConfigError(
-        str(output), f"cannot write: {err.strerror or err} (the partial file was removed)"
-    )
+        remove_partial(output)
+        raise partial_removed(output, err) from None
 
 
 def _summary(t: np.ndarray, problems: list[str]) -> dict[str, Any]:

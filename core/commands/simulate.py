@@ -8,15 +8,17 @@ import argparse
 import json
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
 from hapticdesk.commands import seed_number
 from hapticdesk.commands.output_path import cannot_write
 from hapticdesk.errors import ConfigError
+from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.files.recording_io import RECORDING_SUFFIXES, write_recording
-from hapticdesk.sim.loadcells import with_total_amplitude
+from hapticdesk.sim.loadcells import LoadCellParameters, with_total_amplitude
 from hapticdesk.sim.scene import load_scene
 from hapticdesk.sim.sensors import SensorParameters
 from hapticdesk.sim.simulator import SimEffects, simulate
@@ -73,18 +75,7 @@ def run(args: argparse.Namespace) -> int:
         relative = scene.path.parent if scene.path is not None else None
         profile = load_profile(scene.desk or DEFAULT_DESK, relative_to=relative)
     effects = SimEffects.ideal() if args.ideal else SimEffects(dynamics=not args.static)
-    sensors = None
-    cells = None
-    if args.noise_amplitude is not None:
-        if not 0 <= args.noise_amplitude <= MAX_NOISE_N:  # (NaN too)
-            raise ConfigError(
-                "--noise-amplitude",
-                f"must be 0 to {MAX_NOISE_N:g} N, found {args.noise_amplitude}",
-            )
-        if profile.six_axis_only:
-            sensors = SensorParameters(noise_amplitude_n=args.noise_amplitude)
-        else:  # load cells: the same amplitude on the total F_z, shared by the cells
-            cells = with_total_amplitude(profile, args.noise_amplitude)
+    noise = _noise_amplitude(args.noise_amplitude, profile)
     start = time.perf_counter()
     rec = simulate(
         profile,
@@ -92,8 +83,8 @@ def run(args: argparse.Namespace) -> int:
         args.seed,
         noise=not args.no_noise,
         effects=effects,
-        sensors=sensors,
-        cells=cells,
+        sensors=noise.sensors,
+        cells=noise.cells,
     )
     seconds = time.perf_counter() - start
     try:
@@ -123,3 +114,21 @@ def run(args: argparse.Namespace) -> int:
             f"seed {seed}"
         )
     return 0
+
+
+class _SensorNoise(NamedTuple):
+    """``--noise-amplitude`` as the simulator takes it: six-axis sensors' parameters or load
+    cells' (the same amplitude on the total F_z, shared by the cells); None: the defaults."""
+
+    sensors: SensorParameters | None = None
+    cells: LoadCellParameters | None = None
+
+
+def _noise_amplitude(amplitude: float | None, profile: DeskProfile) -> _SensorNoise:
+    if amplitude is None:
+        return _SensorNoise()
+    if not 0 <= amplitude <= MAX_NOISE_N:  # (NaN too)
+        raise ConfigError("--noise-amplitude", f"must be 0 to {MAX_NOISE_N:g} N, found {amplitude}")
+    if profile.six_axis_only:
+        return _SensorNoise(sensors=SensorParameters(noise_amplitude_n=amplitude))
+    return _SensorNoise(cells=with_total_amplitude(profile, amplitude))

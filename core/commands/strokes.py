@@ -20,8 +20,9 @@ import json
 import os
 import re
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.strokefile import (
@@ -32,6 +33,11 @@ from hapticdesk.files.strokefile import (
     write_stroke,
 )
 from hapticdesk.gestures.options import GESTURE_OPTIONS
+
+if TYPE_CHECKING:  # (imported when the command runs: `--help` stays light)
+    from hapticdesk.estimator import ContactEstimator
+    from hapticdesk.gestures.strokes.capture import CapturedStroke, StrokeCapture
+    from hapticdesk.runtime.source import Source
 
 _STROKE = GESTURE_OPTIONS["stroke"]
 
@@ -199,24 +205,18 @@ def record(args: argparse.Namespace) -> int:
     estimator = ContactEstimator(layout.desk)
     saved: list[Path] = []
     source = open_source(args.source, layout.desk, registry, speed=args.speed)
-    t_last = None
     try:
         try:
             folder.mkdir(parents=True, exist_ok=True)
         except OSError as err:
             raise ConfigError(str(folder), f"cannot create it: {err.strerror or err}") from None
-        for block in source.blocks():
-            if len(block.t) == 0:
-                continue
-            t_last = float(block.t[-1])
-            for stroke in capture.feed(estimator.push(block.t, block.wrench, block.accel)):
-                saved.append(_save(stroke, folder, args.name, templates, options))
-            if args.count and len(saved) >= args.count:
-                break
-        else:
-            if t_last is not None:
-                for stroke in capture.flush(t_last):
-                    saved.append(_save(stroke, folder, args.name, templates, options))
+        _capture_strokes(
+            source,
+            capture,
+            estimator,
+            args.count,
+            lambda stroke: saved.append(_save(stroke, folder, args.name, templates, options)),
+        )
     except KeyboardInterrupt:
         print("stopped; the strokes drawn so far are saved", file=sys.stderr)
     finally:
@@ -234,6 +234,31 @@ def record(args: argparse.Namespace) -> int:
         )
         print(f"to use them, add to {layout.path}:  {hint}", file=sys.stderr)
     return 0 if saved else 1
+
+
+def _capture_strokes(
+    source: Source,
+    capture: StrokeCapture,
+    estimator: ContactEstimator,
+    count: int,
+    keep: Callable[[CapturedStroke], None],
+) -> None:
+    """Every stroke drawn on ``source`` handed to ``keep``, until ``count`` (0: the source's
+    end, when a stroke still open is closed)."""
+    kept = 0
+    t_last = None
+    for block in source.blocks():
+        if len(block.t) == 0:
+            continue
+        t_last = float(block.t[-1])
+        for stroke in capture.feed(estimator.push(block.t, block.wrench, block.accel)):
+            keep(stroke)
+            kept += 1
+        if count and kept >= count:
+            return
+    if t_last is not None:
+        for stroke in capture.flush(t_last):
+            keep(stroke)
 
 
 def _save(stroke: Any, folder: Path, name: str, templates: Any, options: dict[str, Any]) -> Path:

@@ -23,7 +23,8 @@ from hapticdesk.gestures.arbitration import ORDER, claims, rank
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.layout import Layout
 from hapticdesk.gestures.recognizer import Recognizer
-from hapticdesk.gestures.touch import Touch, TouchTracker
+from hapticdesk.gestures.touch import Touch
+from hapticdesk.gestures.touch_tracker import TouchTracker
 
 
 def _default_recognizers() -> Mapping[str, Any]:

@@ -19,8 +19,9 @@ from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.registry import Registry
 from hapticdesk.runtime.binding_events import check_bindings
 from hapticdesk.runtime.control import ControlQueue
-from hapticdesk.runtime.dispatcher import ActionContext, Dispatcher, Lane, Route
+from hapticdesk.runtime.dispatcher import ActionContext, Dispatcher, Route
 from hapticdesk.runtime.isolation import ProcessAction, action_use_validator, split_isolation
+from hapticdesk.runtime.lane import Lane
 from hapticdesk.runtime.observe import ContactObservers
 from hapticdesk.runtime.source import Source
 from hapticdesk.runtime.source_spec import open_source

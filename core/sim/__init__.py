@@ -5,9 +5,11 @@
     rec = simulate(profile, scene, seed=0)                          # a Recording with truth
     src = SimSource(profile, scene, seed=0, block_size=12)          # a Source of blocks
 
-Modules: :mod:`~hapticdesk.sim.desk` (rigid desk on spring legs, exact discretisation),
+Modules: :mod:`~hapticdesk.sim.desk` (rigid desk on spring legs),
+:mod:`~hapticdesk.sim.discrete_desk` (its exact discretisation),
 :mod:`~hapticdesk.sim.sensors` (noise, resolution, saturation, drift),
-:mod:`~hapticdesk.sim.human` (force and contact over time), :mod:`~hapticdesk.sim.actions`
+:mod:`~hapticdesk.sim.human` (the person's distributions) and
+:mod:`~hapticdesk.sim.touch_track` (force and contact over time), :mod:`~hapticdesk.sim.actions`
 and :mod:`~hapticdesk.sim.scene` (what happens when), :mod:`~hapticdesk.sim.paths` (paths),
 :mod:`~hapticdesk.sim.timeline` (a scene made concrete), :mod:`~hapticdesk.sim.simulator`.
 See docs/simulator.md.

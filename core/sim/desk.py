@@ -40,21 +40,22 @@ load at its own time): the discrete model comes from the matrix exponential of t
 matrix ``[[A, B], [0, 0]]`` (``scipy.linalg.expm``), so modes far above the sample rate
 neither blow up nor need a smaller step. The discrete recursion is diagonalised and each
 mode runs as a first-order ``scipy.signal.lfilter`` with carried state: vectorised, and
-identical for any split into blocks.
+identical for any split into blocks (:mod:`.discrete_desk`).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import scipy.linalg
 import scipy.optimize
-import scipy.signal
 
 from hapticdesk.files.profile import STANDARD_GRAVITY, DeskProfile, SensorSpec
 from hapticdesk.files.rigid_body import skew, spatial_inertia
+from hapticdesk.sim.discrete_desk import DiscreteDesk
 
 DEFAULT_MASS_KG = 13.7  # the paper's desk (Table 1)
 DEFAULT_SWAY_HZ = 5.9  # the paper's desk (§3.2)
@@ -110,6 +111,14 @@ class DeskParameters:
     legs: str = "auto"
 
 
+class _LegLevers(NamedTuple):
+    """What placing the legs gives their springs: the spring point's height above the sensor
+    and the rotational stiffness ratio (both 0 on pinned legs)."""
+
+    spring_height_m: float
+    rotation_ratio: float
+
+
 class DeskModel:
     """The continuous-time model of a desk described by a profile (see the module docstring).
 
@@ -121,10 +130,14 @@ class DeskModel:
         params = params or DeskParameters()
         self.profile = profile
         self.params = params
-        sensors = profile.sensors
-        n = len(sensors)
-        positions = np.array([s.position for s in sensors], dtype=float)
-        height = profile.top_height_m()
+        self._set_frequencies(profile, params)
+        self._set_inertia(profile, params)
+        levers = self._place_legs(profile, params)
+        self._set_leg_springs(params, levers)
+        self._set_readout(profile.sensors)
+
+    def _set_frequencies(self, profile: DeskProfile, params: DeskParameters) -> None:
+        """The mass and the two mode frequencies, given or the profile's, checked."""
         self.mass_kg = float(params.mass_kg or profile.mass_kg or DEFAULT_MASS_KG)
         self.sway_frequency_hz = float(
             params.sway_frequency_hz or profile.natural_frequency_hz or DEFAULT_SWAY_HZ
@@ -141,6 +154,8 @@ class DeskModel:
                 f"frequency ({self.sway_frequency_hz:g})"
             )
 
+    def _set_inertia(self, profile: DeskProfile, params: DeskParameters) -> None:
+        """The centre of mass and the spatial inertia about the origin."""
         com = (
             np.array(params.center_of_mass, dtype=float)
             if params.center_of_mass is not None
@@ -154,29 +169,48 @@ class DeskModel:
         # spatial inertia about the origin for small motions (d, θ): momentum = M [ḋ; θ̇]
         self.mass_matrix = spatial_inertia(self.mass_kg, com, inertia)
 
+    def _place_legs(self, profile: DeskProfile, params: DeskParameters) -> _LegLevers:
+        """Clamped or pinned legs, their spring points and the transfers T_i to them."""
+        sensors = profile.sensors
+        positions = np.array([s.position for s in sensors], dtype=float)
         if params.legs not in LEG_KINDS:
             raise ValueError(f"legs must be one of {', '.join(LEG_KINDS)}, found {params.legs!r}")
         self.pinned = params.legs == "pinned" or (
             params.legs == "auto" and not any(measures_moment(s) for s in sensors)
         )
         h_spring = params.leg_spring_height_m
-        h_spring = 0.5 * height if h_spring is None else float(h_spring)
+        h_spring = 0.5 * profile.top_height_m() if h_spring is None else float(h_spring)
         rotation_ratio = params.leg_rotation_ratio
         if self.pinned:  # the spring is the pin at the cell: no lever, no moment
             h_spring, rotation_ratio = 0.0, 0.0
         self.spring_points = positions + np.array([0.0, 0.0, h_spring])
         # T_i: desk motion about the origin -> displacement and rotation at spring point i
-        self._transfer = np.zeros((n, 6, 6))
+        self._transfer = np.zeros((len(sensors), 6, 6))
         for i, s in enumerate(self.spring_points):
             self._transfer[i] = np.eye(6)
             self._transfer[i, :3, 3:] = -skew(s)
+        return _LegLevers(h_spring, rotation_ratio)
 
+    def _set_leg_springs(self, params: DeskParameters, levers: _LegLevers) -> None:
+        """Each leg's stiffness and damping, the sway stiffness solved for the lowest mode."""
+        n = len(self.spring_points)
         # vertical stiffness from the vertical mode of the desk as one mass on all legs
         k_vertical = self.mass_kg * (2 * math.pi * self.vertical_frequency_hz) ** 2 / n
-        rot_ratio = rotation_ratio * max(h_spring, 0.05) ** 2
+        rot_ratio = levers.rotation_ratio * max(levers.spring_height_m, 0.05) ** 2
         sway_unit = np.array([1.0, 1.0, 0.0, rot_ratio, rot_ratio, rot_ratio])
         vert_unit = np.array([0.0, 0.0, k_vertical, 0.0, 0.0, 0.0])
         target = 2 * math.pi * self.sway_frequency_hz
+        k_h = self._sway_stiffness(sway_unit, vert_unit, target)
+        leg_sway = k_h * sway_unit
+        self.leg_stiffness = leg_sway + vert_unit  # (6,) diagonal of each K_i
+        beta_sway = 2 * params.sway_damping / target
+        beta_vert = 2 * params.vertical_damping / (2 * math.pi * self.vertical_frequency_hz)
+        self.leg_damping = beta_sway * leg_sway + beta_vert * vert_unit
+        self.stiffness = self._assemble(self.leg_stiffness)
+        self.damping = self._assemble(self.leg_damping)
+
+    def _sway_stiffness(self, sway_unit: np.ndarray, vert_unit: np.ndarray, target: float) -> float:
+        """The legs' sway stiffness that puts the lowest mode at ``target`` rad/s."""
 
         def lowest(log_k: float) -> float:
             k = self._assemble(math.exp(log_k) * sway_unit + vert_unit)
@@ -189,16 +223,11 @@ class DeskModel:
             raise ValueError(
                 f"cannot place the lowest mode at {self.sway_frequency_hz:g} Hz with these legs"
             )
-        k_h = math.exp(scipy.optimize.brentq(lowest, lo, hi, xtol=1e-13, rtol=1e-14))
-        leg_sway = k_h * sway_unit
-        self.leg_stiffness = leg_sway + vert_unit  # (6,) diagonal of each K_i
-        beta_sway = 2 * params.sway_damping / target
-        beta_vert = 2 * params.vertical_damping / (2 * math.pi * self.vertical_frequency_hz)
-        self.leg_damping = beta_sway * leg_sway + beta_vert * vert_unit
-        self.stiffness = self._assemble(self.leg_stiffness)
-        self.damping = self._assemble(self.leg_damping)
+        return math.exp(scipy.optimize.brentq(lowest, lo, hi, xtol=1e-13, rtol=1e-14))
 
-        # readings: leg spring wrench -> at the sensor -> sensor frame and sign
+    def _set_readout(self, sensors: tuple[SensorSpec, ...]) -> None:
+        """Readings: leg spring wrench -> at the sensor -> sensor frame and sign."""
+        n = len(sensors)
         readout = np.zeros((n, 6, 6))
         for i, s in enumerate(sensors):
             move = np.eye(6)
@@ -263,112 +292,8 @@ class DeskModel:
 
     def discretize(self, dt: float) -> DiscreteDesk:
         """The exact zero-order-hold discrete model for sample time ``dt``."""
-        return DiscreteDesk(self, dt)
-
-
-class DiscreteDesk:
-    """``x[k] = Ad x[k-1] + Bd u[k]``, readings ``y[k] = Cy x[k]``, run mode by mode.
-
-    The state is scaled, ``x̃ = [q; q̇/ω_max]``, so position and velocity have comparable
-    magnitudes in the matrix exponential even with modes 10⁴ times apart.
-    """
-
-    def __init__(self, model: DeskModel, dt: float) -> None:
-        if not dt > 0:
-            raise ValueError(f"the sample time must be positive, found {dt}")
-        self.model = model
-        self.dt = float(dt)
-        a, b = model.state_matrices()
-        omega = float(np.max(np.abs(np.linalg.eigvals(a))))
-        scale = np.concatenate([np.ones(6), np.full(6, omega)])  # x = scale * x̃
-        a_s = a * scale[None, :] / scale[:, None]
-        b_s = b / scale[:, None]
-        aug = np.zeros((18, 18))
-        aug[:12, :12] = a_s * dt
-        aug[:12, 12:] = b_s * dt
-        phi = scipy.linalg.expm(aug)  # ZOH: exact for an input held over each sample
-        self.ad = phi[:12, :12]
-        self.bd = phi[:12, 12:]
-        self._scale = scale
-        self.cy = np.hstack([model.read_q, model.read_v]) * scale[None, :]  # (6S, 12)
-
-        lam, vec = np.linalg.eig(self.ad)
-        self._modal = bool(np.linalg.cond(vec) < 1e10)
-        if self._modal:
-            vec_inv = np.linalg.inv(vec)
-            self.poles = lam
-            self._to_modal = vec_inv
-            self._from_modal = vec
-            self._b_modal = vec_inv @ self.bd  # (12, 6)
-            self._c_modal = self.cy @ vec  # (6S, 12)
-
-    def initial_state(self, load: np.ndarray) -> np.ndarray:
-        """The state at rest under a constant load (6,): the discrete model's fixed point, to
-        start :meth:`run` from."""
-        x = np.linalg.solve(np.eye(12) - self.ad, self.bd @ np.asarray(load, dtype=float))
-        return self._to_internal(x)
-
-    def _to_internal(self, x: np.ndarray) -> np.ndarray:
-        return self._to_modal @ x if self._modal else x.astype(complex)
-
-    def run(self, loads: np.ndarray, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Readings (k, S, 6) for loads (k, 6); returns the state to continue from.
-
-        Each sample's load is held over the sample interval that ends at it (a zero-order
-        hold aligned so a reading responds to the load at its own time, not one sample
-        late). ``state`` comes from :meth:`initial_state` or a previous ``run``; running two
-        blocks in turn equals running them joined.
-        """
-        loads = np.asarray(loads, dtype=float)
-        k = len(loads)
-        x, state = self._states(loads, state)
-        flat = (x @ self._c_modal.T).real if self._modal else (x @ self.cy.T).real
-        return flat.reshape(k, self.model.n_sensors, 6), state
-
-    def motion(self, loads: np.ndarray, state: np.ndarray) -> np.ndarray:
-        """The desk's motion ``[q, q̇]`` (k, 12) at each sample (for tests and accelerometers)."""
-        x, _ = self._states(np.asarray(loads, dtype=float), state)
-        return self._physical(x)
-
-    def run_moving(
-        self, loads: np.ndarray, state: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`run` that also gives the motion ``[q, q̇]`` (k, 12) of each sample (for an
-        accelerometer on the desk), from one pass over the modes."""
-        loads = np.asarray(loads, dtype=float)
-        k = len(loads)
-        x, state = self._states(loads, state)
-        flat = (x @ self._c_modal.T).real if self._modal else (x @ self.cy.T).real
-        return flat.reshape(k, self.model.n_sensors, 6), self._physical(x), state
-
-    def _physical(self, x: np.ndarray) -> np.ndarray:
-        """Internal states (k, 12) -> ``[q, q̇]`` in metres, radians and their rates."""
-        if self._modal:
-            x = (x @ self._from_modal.T).real
-        return np.asarray(x.real) * self._scale
-
-    def _states(self, loads: np.ndarray, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """States after each sample, ``x[n] = Ad x[n-1] + Bd u[n]`` from ``x[-1] = state``
-        (modal coordinates when diagonalised). Returns them and the last one."""
-        k = len(loads)
-        if k == 0:
-            return np.zeros((0, 12), dtype=complex), state
-        if self._modal:
-            drive = loads @ self._b_modal.T  # (k, 12) complex
-            z = np.empty((k, 12), dtype=complex)
-            for j, pole in enumerate(self.poles):
-                # one first-order recursion per mode, z[n] = pole·z[n-1] + drive[n]
-                z[:, j], _ = scipy.signal.lfilter(
-                    [1.0], np.array([1.0, -pole]), drive[:, j], zi=pole * state[j : j + 1]
-                )
-            return z, z[-1].copy()
-        # A defective (non-diagonalisable) system: fall back to the plain recursion.
-        xs = np.empty((k, 12))
-        x = state.real.copy()
-        for n in range(k):
-            x = self.ad @ x + self.bd @ loads[n]
-            xs[n] = x
-        return xs, x.astype(complex)
+        a, b = self.state_matrices()
+        return DiscreteDesk(a, b, np.hstack([self.read_q, self.read_v]), dt)
 
 
 def _check_positive(**values: float) -> None:

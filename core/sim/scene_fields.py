@@ -1,10 +1,12 @@
 """Reading a scene's fields with their place (file:line:column in every error): lists, texts,
-whole numbers, flags, points and paths in the scene's unit, the human model's overrides.
-Used by :mod:`.scene`."""
+whole numbers, flags, points and paths in the scene's unit, the human model's overrides, and
+one action's fields (:class:`ActionFields`). Used by :mod:`.scene`, :mod:`.scene_steps` and
+:mod:`.scene_strokes`."""
 
 from __future__ import annotations
 
-from dataclasses import fields
+from dataclasses import dataclass, fields
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -13,6 +15,13 @@ from hapticdesk.errors import ConfigError, Position
 from hapticdesk.files.marked_values import MarkedDict, MarkedList, as_number
 from hapticdesk.files.validators import check_keys, number, require_mapping, vector
 from hapticdesk.sim.human import HumanModel
+from hapticdesk.sim.scene_limits import (
+    MAX_FORCE_N,
+    MAX_FORCE_RATE_N_S,
+    MAX_SCENE_S,
+    MAX_SPEED_M_S,
+    MIN_SPEED_M_S,
+)
 
 
 def field_list(m: MarkedDict, key: str, what: str) -> MarkedList:
@@ -105,3 +114,40 @@ def field_human(value: Any, where: Position) -> HumanModel:
         else:
             values[key] = number(m, key, "`human`", minimum=0.0)
     return HumanModel(**values)
+
+
+@dataclass(frozen=True)
+class ActionFields:
+    """One timeline action's mapping ``p``, named ``what`` in errors, in the scene's ``unit``
+    (metres per unit); ``path`` is the scene file (relative files are read beside it)."""
+
+    p: MarkedDict
+    what: str
+    unit: float
+    path: Path
+
+    def optional(self, key: str, *, positive: bool = True) -> float | None:
+        """A time, force or force rate if given, bounded by its kind (by the key's ending)."""
+        if key not in self.p:
+            return None
+        # a time (`hold_s`, `duration_s`) at most a day; a force and its rate (above)
+        largest = {"_n_per_s": MAX_FORCE_RATE_N_S, "_s": MAX_SCENE_S, "_n": MAX_FORCE_N}
+        longest = next((v for end, v in largest.items() if key.endswith(end)), None)
+        return number(
+            self.p, key, self.what, minimum=0.0, exclusive_minimum=positive, maximum=longest
+        )
+
+    def speed(self) -> float | None:
+        """The finger's speed if given, in m/s."""
+        if "speed" not in self.p:
+            return None
+        lo, hi = MIN_SPEED_M_S / self.unit, MAX_SPEED_M_S / self.unit  # in the scene's units
+        return number(self.p, "speed", self.what, minimum=lo, maximum=hi) * self.unit
+
+    def point(self, key: str) -> tuple[float, float]:
+        """A point [u, v] in metres."""
+        return field_point(self.p, key, self.what, self.unit)
+
+    def surface(self) -> str | None:
+        """The touched surface if given."""
+        return field_surface(self.p, self.what)

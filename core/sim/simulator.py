@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass, fields, replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -64,6 +65,16 @@ class SimEffects:
         return cls(**{f.name: f.name == "desk_weight" for f in fields(cls)})
 
 
+class DeskSamples(NamedTuple):
+    """A stretch of the timeline on the desk."""
+
+    loads: np.ndarray  #: (k, 6) about the origin, the desk's weight included
+    truth: dict[str, np.ndarray]  #: the ground-truth columns
+    true: np.ndarray  #: the sensors' true readings (k, S, 6)
+    motion: np.ndarray | None  #: the desk's motion [q, q̇] (k, 12) where an accelerometer needs it
+    state: np.ndarray | None  #: the desk's state to carry to the next stretch
+
+
 class SimulationRun:
     """One run of a scene on a desk with a seed; produces chunks on demand."""
 
@@ -80,15 +91,8 @@ class SimulationRun:
         cells: LoadCellParameters | None = None,
     ) -> None:
         effects = effects or SimEffects()
-        if not noise:
-            effects = SimEffects(
-                dynamics=effects.dynamics,
-                noise=False,
-                drift=False,
-                quantisation=effects.quantisation,
-                saturation=effects.saturation,
-                desk_weight=effects.desk_weight,
-            )
+        if not noise:  # no random sensor error: noise, offset and drift
+            effects = replace(effects, noise=False, drift=False)
         self.profile = profile
         self.scene = scene
         self.seed = int(scene.seed if seed is None else seed)
@@ -98,33 +102,9 @@ class SimulationRun:
         #: the load cells' model (a desk of sensors other than six-axis ones), else None
         self.cells: LoadCellModel | None = None
         if profile.six_axis_only:
-            if cells is not None:
-                raise ValueError(
-                    f"desk {profile.name!r} stands on six-axis sensors: give `sensors` "
-                    "(SensorParameters), not `cells`"
-                )
-            self.timeline = Timeline(profile, scene, self.seed)
-            self.sensor_model = SensorModel(profile, sensors, quantisation=effects.quantisation)
-            self.n_samples = self.timeline.n_samples
+            self._on_six_axis_sensors(sensors, cells)
         else:
-            if sensors is not None:
-                raise ValueError(
-                    f"desk {profile.name!r} has sensors other than six-axis ones: give `cells` "
-                    "(LoadCellParameters), not `sensors`"
-                )
-            cells = cells or LoadCellParameters.for_rate(self.fs)
-            points = oversampling(self.fs, profile.channel_count, cells.sampling)
-            conversions = Conversions.of(
-                cells.sampling,
-                profile.channel_count,
-                points,
-                cells.clock_tolerance,
-                stream(self.seed, STREAM_CLOCKS),
-            )
-            self.cells = LoadCellModel(profile, cells, conversions)
-            fine = replace(profile, sample_rate_hz=self.fs * points)
-            self.timeline = Timeline(fine, scene, self.seed)
-            self.n_samples = (self.timeline.n_samples - 1) // points + 1
+            self._on_load_cells(sensors, cells)
         self._base = self.model.weight() if effects.desk_weight else np.zeros(6)
         drift_model = self.cells if self.cells is not None else self.sensor_model
         self._drift = (
@@ -136,6 +116,45 @@ class SimulationRun:
         #: accelerometers' readings when the desk has some (recordings' extra columns)
         self.columns: tuple[str, ...] = TRUTH_COLUMNS + tuple(profile.accelerometer_columns())
 
+    def _on_six_axis_sensors(
+        self, sensors: SensorParameters | None, cells: LoadCellParameters | None
+    ) -> None:
+        """The timeline at the desk's rate and the six-axis sensors' model."""
+        profile = self.profile
+        if cells is not None:
+            raise ValueError(
+                f"desk {profile.name!r} stands on six-axis sensors: give `sensors` "
+                "(SensorParameters), not `cells`"
+            )
+        self.timeline = Timeline(profile, self.scene, self.seed)
+        self.sensor_model = SensorModel(profile, sensors, quantisation=self.effects.quantisation)
+        self.n_samples = self.timeline.n_samples
+
+    def _on_load_cells(
+        self, sensors: SensorParameters | None, cells: LoadCellParameters | None
+    ) -> None:
+        """The load cells' model with their conversions and the timeline on the finer grid
+        the conversions average."""
+        profile = self.profile
+        if sensors is not None:
+            raise ValueError(
+                f"desk {profile.name!r} has sensors other than six-axis ones: give `cells` "
+                "(LoadCellParameters), not `sensors`"
+            )
+        cells = cells or LoadCellParameters.for_rate(self.fs)
+        points = oversampling(self.fs, profile.channel_count, cells.sampling)
+        conversions = Conversions.of(
+            cells.sampling,
+            profile.channel_count,
+            points,
+            cells.clock_tolerance,
+            stream(self.seed, STREAM_CLOCKS),
+        )
+        self.cells = LoadCellModel(profile, cells, conversions)
+        fine = replace(profile, sample_rate_hz=self.fs * points)
+        self.timeline = Timeline(fine, self.scene, self.seed)
+        self.n_samples = (self.timeline.n_samples - 1) // points + 1
+
     def chunks(self) -> Iterator[tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]]:
         """Yield ``(t, wrench, columns)`` chunk by chunk, from the start: ``columns`` maps
         each of :attr:`columns` to its values; ``wrench`` is (k, S, 6) for a desk of six-axis
@@ -146,12 +165,13 @@ class SimulationRun:
         state = None
         for c, k0 in enumerate(range(0, self.n_samples, CHUNK)):
             k1 = min(k0 + CHUNK, self.n_samples)
-            loads, truth, true, motion, state = self._desk(k0, k1, state)
+            desk = self._desk(k0, k1, state)
+            state, truth = desk.state, desk.truth
             t = np.arange(k0, k1) / self.fs
             if self.accelerometer is not None:
-                truth.update(self._accelerometer(loads, motion, c))
+                truth.update(self._accelerometer(desk.loads, desk.motion, c))
             wrench = self.sensor_model.apply(
-                true,
+                desk.true,
                 t,
                 noise_rng=stream(self.seed, STREAM_NOISE, c) if self.effects.noise else None,
                 drift=self._drift,
@@ -160,17 +180,13 @@ class SimulationRun:
             )
             yield t, wrench, truth
 
-    def _desk(
-        self, k0: int, k1: int, state: np.ndarray | None
-    ) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray, np.ndarray | None, np.ndarray | None]:
-        """The timeline's samples k0 … k1-1 on the desk: (loads (k, 6) with the desk's
-        weight, truth, the sensors' true readings (k, S, 6), the desk's motion where an
-        accelerometer needs it, the state to carry; ``state`` None: at rest under the first
-        load)."""
+    def _desk(self, k0: int, k1: int, state: np.ndarray | None) -> DeskSamples:
+        """The timeline's samples k0 … k1-1 on the desk (``state`` None: at rest under the
+        first load)."""
         loads, truth = self.timeline.render(k0, k1)
         loads += self._base
         if self._discrete is None:
-            return loads, truth, self.model.static_readings(loads), None, state
+            return DeskSamples(loads, truth, self.model.static_readings(loads), None, state)
         if state is None:
             state = self._discrete.initial_state(loads[0])
         motion = None
@@ -178,7 +194,7 @@ class SimulationRun:
             true, motion, state = self._discrete.run_moving(loads, state)
         else:
             true, state = self._discrete.run(loads, state)
-        return loads, truth, true, motion, state
+        return DeskSamples(loads, truth, true, motion, state)
 
     def _cell_chunks(
         self, cells: LoadCellModel
@@ -192,18 +208,19 @@ class SimulationRun:
         for c, k0 in enumerate(range(0, self.n_samples, CHUNK)):
             k1 = min(k0 + CHUNK, self.n_samples)
             a, b = k0 * points, min(k1 * points, n_fine)
-            loads, truth, true, motion, state = self._desk(a, b, state)
-            fine = cells.channels(true)
+            desk = self._desk(a, b, state)
+            state = desk.state
+            fine = cells.channels(desk.true)
             if history is None:  # the desk stood still under its first load before
                 history = np.repeat(fine[:1], cells.conversions.history, axis=0)
             k = np.arange(k0, k1)
             converted = cells.convert(fine, a, history, k)
             history = np.concatenate([history, fine])[-cells.conversions.history :]
             t = k / self.fs
-            columns = {name: values[::points] for name, values in truth.items()}
+            columns = {name: values[::points] for name, values in desk.truth.items()}
             if self.accelerometer is not None:
-                moving = None if motion is None else motion[::points]
-                columns.update(self._accelerometer(loads[::points], moving, c))
+                moving = None if desk.motion is None else desk.motion[::points]
+                columns.update(self._accelerometer(desk.loads[::points], moving, c))
             readings, creep = cells.apply(
                 converted,
                 t,

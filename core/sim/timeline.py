@@ -28,8 +28,8 @@ from hapticdesk.sim.actions import (
     TouchStep,
 )
 from hapticdesk.sim.desk import STANDARD_GRAVITY, point_load
-from hapticdesk.sim.human import Touch, touch_track
 from hapticdesk.sim.scene import Scene
+from hapticdesk.sim.touch_track import Touch, touch_track
 
 #: the most samples all the touches of a scene may have together (each touch's track is held
 #: for the whole run, 40 bytes a sample: 400 MB)

@@ -287,7 +287,10 @@ class Announcer:
         while True:
             self._wake.wait()
             self._wake.clear()
-            if self._pending and self._wait_ready():
+            # `while`, not `if`: a switch seen during an announcement asks for another, which
+            # must go out before a close that came meanwhile ends the thread (a short run that
+            # switched its layout had left Home Assistant with the old layout's triggers)
+            while self._pending and self._wait_ready():
                 self._pending = False
                 try:
                     self._announce()

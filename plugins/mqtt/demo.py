@@ -24,10 +24,10 @@ from typing import Any, NamedTuple, TextIO
 import hapticdesk
 from hapticdesk.errors import ConfigError
 from hapticdesk.plugin_loading import load_registry
-from hapticdesk.plugins.mqtt.oneshot import first_clean_connect
+from hapticdesk.plugins.mqtt.oneshot import log as fallback_log
 from hapticdesk.plugins.mqtt.settings import parse_broker_url
 from hapticdesk.runtime.assembly import build_scene
-from hapticdesk.runtime.dispatcher import Lane
+from hapticdesk.runtime.lane import Lane
 from hapticdesk.runtime.run_report import RunReport
 from hapticdesk.runtime.service import Runtime
 
@@ -194,8 +194,8 @@ def run(args: argparse.Namespace) -> int:
         broker = EmbeddedBroker().start()
         url = broker.url
         print(f"embedded MQTT broker on {url} (MQTT 3.1.1)", file=out)
-    # the first clean connection finds (and says) that a broker speaks 3.1.1 only
-    fallback_log = logging.getLogger(first_clean_connect.__module__)
+    # (the first clean connection finds, and says on its module's log, that a broker speaks
+    # 3.1.1 only)
     quiet = _ExpectedFallback(url) if broker is not None else None
     if quiet is not None:
         fallback_log.addFilter(quiet)

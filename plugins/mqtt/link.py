@@ -19,24 +19,20 @@ there. Delivery is tracked by message id in ``on_publish`` (the ledger: :mod:`.o
 - When the queue is full the **oldest** command is dropped (and counted and logged): after a
   long outage the latest commands are the ones that still say what the person wants now.
 
-While the broker cannot be reached the connection is tried again every
-:data:`RECONNECT_MAX_S` at most (a local attempt costs a refused SYN), so a broker that comes
-back is used within a second; publishing does not shorten or lengthen that wait. A broker that
-*refuses the login* (bad user name or password, not authorised) is not retried: that is a
-configuration error, said once, and every command is reported as not delivered.
-Announcements (availability, discovery) are coalesced by topic and bounded, so a chatty
-``homeassistant/status`` cannot grow them. On every connect the subscriptions go first and the
-birth (``online``, the discovery configs kept) only once the broker has granted them: whoever
-acts on seeing the desk ``online`` (Home Assistant's select) reaches it (:mod:`.presence`).
-The password never
-appears in ``repr`` or the log.
+While the broker cannot be reached the connection is tried again within a second
+(:mod:`.reconnect`, which also says each outage once). A broker that *refuses the login* (bad
+user name or password, not authorised) is not retried: that is a configuration error, said
+once, and every command is reported as not delivered. Announcements (availability, discovery)
+are coalesced by topic and bounded, so a chatty ``homeassistant/status`` cannot grow them. On
+every connect the subscriptions go first and the birth (``online``, the discovery configs kept)
+only once the broker has granted them: whoever acts on seeing the desk ``online`` (Home
+Assistant's select) reaches it (:mod:`.presence`). The password never appears in ``repr`` or
+the log.
 """
 
 from __future__ import annotations
 
-import contextlib
 import logging
-import socket
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -45,17 +41,22 @@ from typing import Any
 
 from hapticdesk.plugins.mqtt.message import Message, encode_payload
 from hapticdesk.plugins.mqtt.oneshot import Refused, first_clean_connect, login_refused
-from hapticdesk.plugins.mqtt.outbox import LinkStats, Outbox, delivery_report
-from hapticdesk.plugins.mqtt.paho_clients import lasting_session, message_expiry, new_client
+from hapticdesk.plugins.mqtt.outbox import LinkStats, Outbox, delivery_failure, delivery_report
+from hapticdesk.plugins.mqtt.paho_clients import connect_lasting, message_expiry, new_client
 from hapticdesk.plugins.mqtt.presence import Presence
+from hapticdesk.plugins.mqtt.reconnect import (
+    RECONNECT_MAX_S,
+    RECONNECT_MIN_S,
+    OutageLog,
+    connect_with_backoff,
+    drop_connection,
+)
 from hapticdesk.plugins.mqtt.settings import MqttSettings
 
 log = logging.getLogger(__name__)
 
 #: a message in flight this long on a live connection lost its acknowledgement: reconnect
 ACK_TIMEOUT_S = 10.0
-# retry a lost broker quickly: the issue's 30 s back-off left a returned broker unused
-RECONNECT_MIN_S, RECONNECT_MAX_S = 0.1, 0.5
 
 
 class MqttLink:
@@ -88,7 +89,7 @@ class MqttLink:
         # set when close begins: nothing is taken after it, the goodbye is the last message
         self._sealed = False
         self._ever_connected = threading.Event()
-        self._outage_logged = False
+        self._outage = OutageLog(settings.url)
         self.refused: str | None = None  # why the broker refused the login, if it did
         #: paho's protocol constant in use: MQTT 5 until the broker turns it down (``auto``)
         self.protocol = mqtt.MQTTv311 if settings.protocol == "3.1.1" else mqtt.MQTTv5
@@ -173,18 +174,13 @@ class MqttLink:
     @property
     def failure(self) -> str | None:
         """After :meth:`close`: why commands were not delivered (None when all were)."""
-        s = self.stats
-        if self.refused is not None:
-            return f"{self.settings.url} refused the login ({self.refused})"
-        if s.pending or s.dropped:
-            return f"{s.pending + s.dropped} MQTT command(s) not delivered to {self.settings.url}"
-        return None
+        return delivery_failure(self.settings.url, self.stats, self.refused)
 
     @property
     def undelivered(self) -> int:
         """After :meth:`close`: commands queued but never delivered (dropped from the full
         queue, or still waiting at the end); the run's summary says so."""
-        return self.stats.pending + self.stats.dropped
+        return self.stats.undelivered
 
     def flush(self, timeout: float) -> bool:
         """Wait until every queued command is acknowledged; False after ``timeout``."""
@@ -231,9 +227,9 @@ class MqttLink:
                 self._refuse(str(reason))
                 client.disconnect()  # no retry: the same credentials will be refused again
                 return
-            if not self._outage_logged:
-                log.error("MQTT: %s refused the connection: %s", self.settings.url, reason)
-                self._outage_logged = True
+            self._outage.once(
+                logging.ERROR, "MQTT: %s refused the connection: %s", self.settings.url, reason
+            )
             return
         with self._cond:
             # connected before the subscriptions are read, under one lock: a subscribe() from
@@ -249,11 +245,7 @@ class MqttLink:
             _, mid = client.subscribe(wanted)
             with self._cond:
                 self._presence.subscribing(mid, wanted)
-        if self._outage_logged:
-            log.warning("MQTT: connected to %s again", self.settings.url)
-            self._outage_logged = False
-        else:
-            log.info("MQTT: connected to %s", self.settings.url)
+        self._outage.connected()
         self._ever_connected.set()
 
     def _on_disconnect(
@@ -263,20 +255,18 @@ class MqttLink:
             self._connected = False
             self._presence.disconnected()
             waiting = self._outbox.disconnected()
-        if not self._closing and not self._outage_logged:
-            log.warning(
+        if not self._closing:
+            self._outage.once(
+                logging.WARNING,
                 "MQTT: lost the connection to %s (%s); reconnecting, %d command(s) are kept "
                 "and sent when it is back",
                 self.settings.url,
                 reason,
                 waiting,
             )
-            self._outage_logged = True
 
     def _on_connect_fail(self, client: Any, userdata: Any) -> None:
-        if not self._outage_logged:
-            log.warning("MQTT: cannot reach %s; retrying", self.settings.url)
-            self._outage_logged = True
+        self._outage.once(logging.WARNING, "MQTT: cannot reach %s; retrying", self.settings.url)
 
     def _on_subscribe(self, client: Any, userdata: Any, mid: int, reasons: Any, props: Any) -> None:
         with self._cond:
@@ -303,13 +293,7 @@ class MqttLink:
     def _refuse(self, reason: str) -> None:
         """The broker refused the login: say it once, stop trying, keep nothing waiting."""
         if self.refused is None:
-            log.error(
-                "MQTT: %s refused the login (%s); check `username` and the password "
-                "(`password_env`/`password_file`) of the layout's `mqtt:`; MQTT commands are "
-                "not delivered in this run",
-                self.settings.url,
-                reason,
-            )
+            self._outage.login_refused(reason)
         with self._cond:
             self.refused = reason  # commands still queue (bounded); close() reports them
             self._cond.notify_all()
@@ -330,15 +314,19 @@ class MqttLink:
         return client
 
     def _run(self) -> None:
-        if not self._clean_start():
+        # the clean first connection (see the module docstring), retried with back-off
+        started = connect_with_backoff(
+            self._try_clean_connect,
+            self._cond,
+            lambda: self._closing,
+            self._outage,
+            self.settings.queue_size,
+        )
+        if isinstance(started, Refused):
+            self._refuse(started.reason)
+        if started is not True:
             return
-        s = self.settings
-        if self.protocol == self._mqtt.MQTTv5:
-            self._client.connect_async(
-                s.host, s.port, s.keepalive, clean_start=False, properties=lasting_session()
-            )
-        else:
-            self._client.connect_async(s.host, s.port, s.keepalive)
+        connect_lasting(self._client, self.settings, mqtt5=self.mqtt5)
         self._client.loop_start()
         while True:
             with self._cond:
@@ -354,7 +342,7 @@ class MqttLink:
                 if message is None:
                     if self._closing:
                         return
-                    self._reconnect(stalled)
+                    drop_connection(self._client, stalled, self.settings.url, ACK_TIMEOUT_S)
                     continue
             self._send(message)
 
@@ -365,20 +353,6 @@ class MqttLink:
         message then waits in flight for ever, and with the window full every gesture after
         it waited too."""
         return self._outbox.late(ACK_TIMEOUT_S) if self._connected else 0
-
-    def _reconnect(self, stalled: int) -> None:
-        """Drop the connection under paho (it reconnects by itself): on the resumed session
-        it sends what is in flight again, as MQTT has a client do only then."""
-        log.warning(
-            "MQTT: %d message(s) to %s unacknowledged for %g s; reconnecting to send them again",
-            stalled,
-            self.settings.url,
-            ACK_TIMEOUT_S,
-        )
-        sock = self._client.socket()
-        if sock is not None:
-            with contextlib.suppress(OSError):
-                sock.shutdown(socket.SHUT_RDWR)
 
     def _send(self, message: Message) -> None:
         try:
@@ -403,35 +377,6 @@ class MqttLink:
                 self._outbox.put_back(message)
                 self._connected = self._connected and info.rc != mqtt.MQTT_ERR_NO_CONN
                 self._cond.wait(0.05)
-
-    def _clean_start(self) -> bool:
-        """Connect once with a clean session (see the module docstring), retrying with back-off."""
-        delay = RECONNECT_MIN_S
-        while True:
-            error = self._try_clean_connect()
-            if error is None:
-                return True
-            if isinstance(error, Refused):
-                self._refuse(error.reason)
-                return False
-            if not self._outage_logged:
-                log.warning(
-                    "MQTT: cannot connect to %s (%s); commands are kept (up to %d) and sent "
-                    "when it can be reached",
-                    self.settings.url,
-                    error,
-                    self.settings.queue_size,
-                )
-                self._outage_logged = True
-            # wait the whole delay: a publish also notifies the condition, and must neither
-            # shorten this wait nor (as it did) make the back-off climb to its maximum
-            retry_at = time.monotonic() + delay
-            with self._cond:
-                while not self._closing and time.monotonic() < retry_at:
-                    self._cond.wait(retry_at - time.monotonic())
-                if self._closing:
-                    return False
-            delay = min(delay * 2, RECONNECT_MAX_S)
 
     @property
     def _expiry(self) -> Any:

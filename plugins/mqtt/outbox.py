@@ -37,6 +37,12 @@ class LinkStats:
     dropped: int = 0  # pushed out of a full queue
     pending: int = 0  # queued or in flight when the link closed
 
+    @property
+    def undelivered(self) -> int:
+        """After the link closed: commands queued but never delivered (dropped from the full
+        queue, or still waiting at the end)."""
+        return self.pending + self.dropped
+
 
 class Outbox:
     """The commands and control messages of a link to ``url``: waiting (at most
@@ -180,6 +186,16 @@ class Outbox:
     def lost_commands(self) -> list[Message]:
         """The commands in flight or waiting (when the link closes)."""
         return [m for m in list(self.inflight.values()) + list(self.queue) if m.command]
+
+
+def delivery_failure(url: str, stats: LinkStats, refused: str | None) -> str | None:
+    """Why a closed link's commands were not delivered (None when all were): the login
+    ``refused``, or how many were not."""
+    if refused is not None:
+        return f"{url} refused the login ({refused})"
+    if stats.undelivered:
+        return f"{stats.undelivered} MQTT command(s) not delivered to {url}"
+    return None
 
 
 def delivery_report(

@@ -74,3 +74,16 @@ def lasting_session() -> Any:
     session = Properties(PacketTypes.CONNECT)
     session.SessionExpiryInterval = SESSION_NEVER_EXPIRES
     return session
+
+
+def connect_lasting(client: Any, settings: MqttSettings, *, mqtt5: bool) -> None:
+    """Start connecting ``client`` (made with ``clean_session=False``) to the layout's broker,
+    asking it to keep the session (:func:`lasting_session` on MQTT 5) so that what is in flight
+    when the connection drops is sent again on reconnect."""
+    s = settings
+    if mqtt5:
+        client.connect_async(
+            s.host, s.port, s.keepalive, clean_start=False, properties=lasting_session()
+        )
+    else:
+        client.connect_async(s.host, s.port, s.keepalive)

@@ -53,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     from hapticdesk.plugins.mqtt.demo import examples_dir
     from hapticdesk.plugins.ui.server import UiServer
     from hapticdesk.runtime.assembly import build_scene
-    from hapticdesk.runtime.dispatcher import Lane
+    from hapticdesk.runtime.lane import Lane
     from hapticdesk.runtime.service import Runtime
 
     examples = examples_dir()

@@ -10,11 +10,12 @@ import warnings
 import numpy as np
 import pytest
 
+from hapticdesk.canbus.bus_spec import CanSourceError
 from hapticdesk.canbus.frames import FrameArray
 from hapticdesk.canbus.logs.desk_samples import decode_can_log
 from hapticdesk.canbus.logs.formats import read_frames
 from hapticdesk.canbus.logs.writer import write_frames
-from hapticdesk.canbus.source import CanSourceError, open_can_source
+from hapticdesk.canbus.source import open_can_source
 from hapticdesk.cli import main
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.recording import Recording

@@ -11,10 +11,11 @@ import numpy as np
 import pytest
 from can.interfaces.virtual import VirtualBus
 
+from hapticdesk.canbus.bus_spec import CanSourceError
 from hapticdesk.canbus.config_reader import can_config
 from hapticdesk.canbus.emulator import CanEmulator
 from hapticdesk.canbus.frame_encoder import FrameEncoder
-from hapticdesk.canbus.source import CanSourceError, open_can_source
+from hapticdesk.canbus.source import open_can_source
 from hapticdesk.canbus.stats import SensorSilentError
 from hapticdesk.estimator import ContactEstimator, estimate
 from hapticdesk.estimator.contacts import ContactBlock, contact_events

@@ -178,7 +178,7 @@ def test_a_bad_log_is_named_at_its_line_and_column(tmp_path, monkeypatch):
 def test_a_stroke_nearest_a_built_in_template_asks_more():
     """Built-in templates are not compared by form, so a stroke nearest one asks min_score +
     builtin_extra (chosen so that at most 1 % of strokes that are no shape are taken)."""
-    from hapticdesk.gestures.strokes.unistroke import DEFAULT_CHOICES
+    from hapticdesk.gestures.strokes.stroke_similarity import DEFAULT_CHOICES
 
     BUILTIN_EXTRA_SCORE = DEFAULT_CHOICES.builtin_extra
 
@@ -200,13 +200,12 @@ def test_a_stroke_nearest_a_built_in_template_asks_more():
 def test_the_lowo_scripts_verdicts_are_the_recognizers(medium):
     """scripts/stroke_lowo.py judges from one big score matrix (similarity, agreement,
     nearest); a TemplateSet of the same templates gives the same verdicts."""
-    from hapticdesk.gestures.strokes.unistroke import (
+    from hapticdesk.gestures.strokes.stroke_similarity import (
         DEFAULT_CHOICES,
-        agreement,
-        judge,
         similarity,
         stroke_features,
     )
+    from hapticdesk.gestures.strokes.stroke_verdict import agreement, judge
 
     strokes = medium["s03"]
     templates = [s for s in strokes if s.repetition <= 3]
@@ -259,7 +258,7 @@ def test_the_nearest_shape_is_the_one_of_its_best_few_templates():
     neighbours): one template of A drawn like B does not take B's strokes; with a person's
     three templates a shape (k = 1) the best template decides, as before; a built-in
     template counts by its own score."""
-    from hapticdesk.gestures.strokes.unistroke import nearest
+    from hapticdesk.gestures.strokes.stroke_verdict import nearest
 
     def verdict(names: list[str], scores: list[float], ideal: list[bool] | None = None):
         ideal_ = np.zeros(len(names), bool) if ideal is None else np.asarray(ideal)
@@ -312,7 +311,8 @@ def test_the_margin_made_on_four_writers_expects_a_new_one_to_differ():
     sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "scripts"))
     import stroke_lowo
 
-    from hapticdesk.gestures.strokes.unistroke import DEFAULT_CHOICES, Nearest
+    from hapticdesk.gestures.strokes.stroke_similarity import DEFAULT_CHOICES
+    from hapticdesk.gestures.strokes.stroke_verdict import Nearest
 
     def protocols(distances: dict[str, np.ndarray]) -> stroke_lowo.Protocols:
         """Unknown shapes whose nearest shape asks 1 - margin: each is accepted when its

@@ -385,7 +385,7 @@ def test_a_tap_well_inside_a_button_is_taken_however_uncertain_within_reason(mak
 
 
 def test_a_touch_is_placed_as_well_as_its_samples_not_their_count(make_layout, timeline):
-    from hapticdesk.gestures.touch import TouchTracker
+    from hapticdesk.gestures.touch_tracker import TouchTracker
 
     layout = make_layout(TWO_BUTTONS)
     tracker = TouchTracker(layout.desk)

@@ -272,3 +272,28 @@ def test_back_from_the_device_config_it_is_migrated_and_expires_unemptied(
     assert f"{NODE}/lamp_tap/config" in retained(broker, "homeassistant/#")
     time.sleep(max(0.0, gone + MIGRATE_EXPIRY_S + 1.0 - time.monotonic()))
     assert device not in retained(broker, "homeassistant/#")
+
+
+def test_a_switch_seen_during_an_announcement_is_announced_before_the_close_ends_it():
+    """The run ends (close) while the first announcement is under way and a layout switch
+    asks for another: that one still goes out (it was dropped: the thread saw the close after
+    the first and returned, and Home Assistant kept the old layout's triggers)."""
+    from hapticdesk.plugins.mqtt.announce import Announcer
+    from hapticdesk.plugins.mqtt.settings import MqttSettings
+
+    announcer = Announcer(
+        MqttSettings(host="127.0.0.1", port=1, client_id="n"), node="n", mode="entity",
+        configs=lambda: [], keep=lambda step: None,
+    )  # fmt: skip
+    made: list[int] = []
+
+    def announce() -> None:
+        made.append(len(made))
+        if len(made) == 1:  # the switch and the run's end, both while the first is under way
+            announcer.layout_changed()
+            announcer._closing = True
+
+    announcer._announce = announce  # type: ignore[method-assign]
+    announcer.start()
+    announcer.close(timeout=5)
+    assert made == [0, 1]

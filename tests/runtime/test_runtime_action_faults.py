@@ -16,7 +16,7 @@ import pytest
 
 from hapticdesk.errors import ConfigError
 from hapticdesk.plugin_loading import load_registry
-from hapticdesk.runtime.dispatcher import Lane
+from hapticdesk.runtime.lane import Lane
 
 from .test_runtime_actions import TAP, build, load
 

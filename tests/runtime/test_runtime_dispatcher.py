@@ -6,7 +6,8 @@ import threading
 import time
 
 from hapticdesk.gestures.event import GestureEvent
-from hapticdesk.runtime.dispatcher import MAX_ABANDONED, ActionContext, Dispatcher, Lane, Route
+from hapticdesk.runtime.dispatcher import ActionContext, Dispatcher, Route
+from hapticdesk.runtime.lane import MAX_ABANDONED, Lane
 
 
 def tap(i: int, region: str = "lamp") -> GestureEvent:

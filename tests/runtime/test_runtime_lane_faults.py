@@ -11,7 +11,8 @@ import time
 import pytest
 
 from hapticdesk.gestures.event import GestureEvent
-from hapticdesk.runtime.dispatcher import MAX_ABANDONED, Dispatcher, Lane, Route
+from hapticdesk.runtime.dispatcher import Dispatcher, Route
+from hapticdesk.runtime.lane import MAX_ABANDONED, Lane
 
 
 def tap(i: int) -> GestureEvent:

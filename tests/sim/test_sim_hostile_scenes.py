@@ -11,7 +11,7 @@ import pytest
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.profile_reader import load_profile
-from hapticdesk.sim import human, simulator, timeline
+from hapticdesk.sim import simulator, timeline, touch_track
 from hapticdesk.sim.scene import load_scene
 from hapticdesk.sim.simulator import SimSource, simulate
 from hapticdesk.sim.timeline import Timeline
@@ -99,7 +99,7 @@ def test_repeat_and_the_expanded_timeline_are_bounded(tmp_path: Path) -> None:
 def test_one_touch_track_is_bounded_in_samples(
     tmp_path: Path, desk: DeskProfile, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(human, "MAX_TOUCH_SAMPLES", 2_000)  # 1.67 s at 1.2 kHz
+    monkeypatch.setattr(touch_track, "MAX_TOUCH_SAMPLES", 2_000)  # 1.67 s at 1.2 kHz
     scene = load_scene(
         scene_file(tmp_path, "timeline:\n  - long_press: {point: [0, 0], hold_s: 3}\n")
     )

@@ -7,7 +7,7 @@ import pytest
 
 from hapticdesk.sim import Drag, HumanModel, LongPress, Press, Ramp, Stroke, Swipe, Tap, shape_path
 from hapticdesk.sim.actions import TouchStep
-from hapticdesk.sim.human import Touch, touch_track
+from hapticdesk.sim.touch_track import Touch, touch_track
 
 FS = 1200.0
 STILL = HumanModel(tremor=0.0, wander=0.0, roll_m=0.0, aim_sd_m=0.0, tangential=0.0)

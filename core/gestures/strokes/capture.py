@@ -18,7 +18,8 @@ from hapticdesk.gestures.recognizers.stroke import (
     smoothing_s,
     stroke_path,
 )
-from hapticdesk.gestures.touch import Touch, TouchTracker
+from hapticdesk.gestures.touch import Touch
+from hapticdesk.gestures.touch_tracker import TouchTracker
 
 _KEEP_EVERY = 4  # of the smoothed path's 5 ms steps
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -63,9 +64,46 @@ def read_logged_stroke(path: str | Path) -> LoggedStroke:
 
     Read with expat, which gives each ``<Point>`` its place in the file (ElementTree's tree
     keeps none), from a regular file of at most :data:`MAX_LOG_BYTES`."""
+    path = Path(path)
+    elements = _elements(path)
+    root = elements[0]
+    name = root.attributes.get("Name", "")
+    base = name.rstrip("0123456789")
+    if root.tag != "Gesture" or base not in SHAPE_NAMES:
+        raise ConfigError(
+            root.where, f'expected <Gesture Name="<shape><rep>"> of a $1 shape, found {name!r}'
+        )
+    xyt = _point_rows([e for e in elements[1:] if e.tag == "Point"])
+    if len(xyt) < 2:
+        raise ConfigError(root.where, f"a stroke needs 2 or more points, found {len(xyt)}")
+    points = np.column_stack([xyt[:, 0], -xyt[:, 1]]) * METRES_PER_PIXEL  # y down -> y away
+    subject = root.attributes.get("Subject", "0")
+    if not subject.isdigit():
+        raise ConfigError(root.where, f"Subject is a number, found {subject!r}")
+    return LoggedStroke(
+        shape=SHAPE_NAMES[base],
+        subject=f"s{int(subject):02d}",
+        speed=root.attributes.get("Speed", "unknown"),
+        repetition=int(name[len(base) :] or 0),
+        t=(xyt[:, 2] - xyt[0, 2]) / 1000.0,
+        points=points,
+    )
+
+
+class _Element(NamedTuple):
+    """An XML element of a log: its tag and attributes, and where it begins
+    (``file:line:column``)."""
+
+    tag: str
+    attributes: dict[str, str]
+    where: str
+
+
+def _elements(path: Path) -> list[_Element]:
+    """The log's elements in order (at least one); a ConfigError where the file is not
+    well-formed XML, or is not a regular file of at most :data:`MAX_LOG_BYTES`."""
     from xml.parsers import expat
 
-    path = Path(path)
     size = regular_file_size(path, "the $1 gesture log")
     if size > MAX_LOG_BYTES:
         raise ConfigError(
@@ -73,13 +111,14 @@ def read_logged_stroke(path: str | Path) -> LoggedStroke:
             f"{size:,} bytes; a $1 gesture log (a few hundred points) is at most {MAX_LOG_BYTES:,}",
         )
     parser = expat.ParserCreate()
-    elements: list[tuple[str, dict[str, str], int, int]] = []  # (tag, attributes, line, column)
-
-    def start(tag: str, attributes: dict[str, str]) -> None:
-        elements.append((tag, attributes, parser.CurrentLineNumber, parser.CurrentColumnNumber))
+    elements: list[_Element] = []
 
     def place(line: int, column: int) -> str:
         return f"{path}:{line}:{column + 1}"
+
+    def start(tag: str, attributes: dict[str, str]) -> None:
+        where = place(parser.CurrentLineNumber, parser.CurrentColumnNumber)
+        elements.append(_Element(tag, attributes, where))
 
     parser.StartElementHandler = start
     try:
@@ -92,40 +131,25 @@ def read_logged_stroke(path: str | Path) -> LoggedStroke:
         where = place(parser.ErrorLineNumber, parser.ErrorColumnNumber)
         message = expat.ErrorString(err.code)
         raise ConfigError(where, f"not a readable $1 gesture log: {message}") from None
-    tag, root, *root_at = elements[0]
-    root_place = place(*root_at)
-    name = root.get("Name", "")
-    base = name.rstrip("0123456789")
-    if tag != "Gesture" or base not in SHAPE_NAMES:
-        raise ConfigError(
-            root_place, f'expected <Gesture Name="<shape><rep>"> of a $1 shape, found {name!r}'
-        )
-    marks = [(attributes, at) for tag, attributes, *at in elements[1:] if tag == "Point"]
+    return elements
+
+
+def _point_rows(marks: list[_Element]) -> np.ndarray:
+    """(n, 3) X, Y and T of the ``<Point>`` elements ``marks``, each numeric and finite."""
     rows = []
-    for point, at in marks:
+    for point in marks:
+        given = point.attributes
         try:
-            rows.append((float(point["X"]), float(point["Y"]), float(point["T"])))
+            rows.append((float(given["X"]), float(given["Y"]), float(given["T"])))
         except (KeyError, ValueError) as err:
-            raise ConfigError(place(*at), f"a <Point> needs numeric X, Y and T: {err}") from None
+            raise ConfigError(point.where, f"a <Point> needs numeric X, Y and T: {err}") from None
     xyt = np.array(rows).reshape(-1, 3)
     bad = np.flatnonzero(~np.isfinite(xyt).all(axis=1))
     if len(bad):
-        at = marks[bad[0]][1]
-        raise ConfigError(place(*at), f"a <Point> needs finite X, Y and T, found {xyt[bad[0]]}")
-    if len(xyt) < 2:
-        raise ConfigError(root_place, f"a stroke needs 2 or more points, found {len(xyt)}")
-    points = np.column_stack([xyt[:, 0], -xyt[:, 1]]) * METRES_PER_PIXEL  # y down -> y away
-    subject = root.get("Subject", "0")
-    if not subject.isdigit():
-        raise ConfigError(root_place, f"Subject is a number, found {subject!r}")
-    return LoggedStroke(
-        shape=SHAPE_NAMES[base],
-        subject=f"s{int(subject):02d}",
-        speed=root.get("Speed", "unknown"),
-        repetition=int(name[len(base) :] or 0),
-        t=(xyt[:, 2] - xyt[0, 2]) / 1000.0,
-        points=points,
-    )
+        raise ConfigError(
+            marks[bad[0]].where, f"a <Point> needs finite X, Y and T, found {xyt[bad[0]]}"
+        )
+    return xyt
 
 
 def read_logs(folder: str | Path) -> Iterator[LoggedStroke]:

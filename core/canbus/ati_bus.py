@@ -1,0 +1,207 @@
+"""The desk's ATI boards on a live CAN bus: their calibration asked for at start, then one poll
+round per sample period from a thread of its own (the NETCANOEM protocol: ati_netcanoem.py).
+
+The bus itself (opening, sending, reconnecting, reading) is the live source's (source.py): it
+gives :class:`AtiBoards` a way to send a request and to receive a frame, and tells it of the
+frames it reads (:meth:`AtiBoards.saw`), so the poller sends a round only after the previous
+round's replies came.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable, Mapping
+from typing import Any, NamedTuple
+
+from hapticdesk.canbus import ati_netcanoem as ati
+from hapticdesk.canbus.bus_spec import CanSourceError
+from hapticdesk.canbus.config import AtiSensor
+
+log = logging.getLogger("hapticdesk.canbus.source")
+
+#: a request and where its replies go: ``send(ident, payload)`` sends one request (its frame
+#: logged), ``recv(timeout_s)`` the next python-can message or None
+SendRequest = Callable[[int, bytes], None]
+ReceiveFrame = Callable[[float], Any]
+
+
+class _Request(NamedTuple):
+    """One calibration request to a board: its frame, and the board it asks (for errors)."""
+
+    ident: int
+    payload: bytes
+    name: str
+    base: int
+
+
+class AtiBoards:
+    """The ATI boards of a live CAN source: calibration at start, polls while it runs.
+
+    ``spec`` names the source in errors; ``send_poll(ident)`` sends one poll frame (queued for
+    the reader first, so a reply is never assembled before its poll); ``closing`` is set when
+    the source closes (the poller stops).
+    """
+
+    def __init__(
+        self,
+        sensors: Mapping[str, AtiSensor],
+        sample_rate_hz: float,
+        *,
+        spec: str,
+        send_poll: Callable[[int], None],
+        closing: threading.Event,
+    ) -> None:
+        self.sensors = dict(sensors)
+        self.sample_rate_hz = sample_rate_hz
+        self.spec = spec
+        self._send_poll = send_poll
+        self._closing = closing
+        self.poll_ids = [ati.frame_id(s.base, ati.OP_GAUGES_A) for s in self.sensors.values()]
+        # the last reply frame of a poll round (the last board's second frame, the lowest
+        # priority of them): the reader tells the poller when it came
+        self._round_end_id = (
+            ati.frame_id(list(self.sensors.values())[-1].base, ati.OP_GAUGES_B)
+            if self.poll_ids
+            else None
+        )
+        self._round_answered = threading.Event()
+        self._poll_id_set = frozenset(self.poll_ids)
+        self._poller: threading.Thread | None = None
+
+    # --- calibration at start -------------------------------------------------------------
+
+    def read_calibrations(
+        self,
+        send: SendRequest,
+        recv: ReceiveFrame,
+        frame_sink: Callable[[list[Any]], None] | None,
+        timeout_s: float,
+    ) -> dict[str, ati.AtiCalibration]:
+        """Each board's calibration from the bus, where the profile does not give it (a
+        ``slot`` is selected on the board either way); a board that does not answer is a
+        :class:`CanSourceError`."""
+        out: dict[str, ati.AtiCalibration] = {}
+        for name, sensor in self.sensors.items():
+            if sensor.calibration is not None and sensor.slot is None:
+                continue
+            collector = ati.CalibrationCollector(sensor.base)
+            for ident, payload in ati.calibration_requests(sensor.base, sensor.slot):
+                request = _Request(ident, payload, name, sensor.base)
+                self._ask(collector, request, send, recv, frame_sink, timeout_s)
+            cal = collector.calibration()
+            if sensor.calibration is not None:
+                continue  # the profile's wins; we only selected the slot
+            if cal is None:
+                raise CanSourceError(
+                    self.spec,
+                    f"ATI sensor `{name}` (base 0x{sensor.base:02X}) gave no usable "
+                    f"calibration ({', '.join(collector.missing()) or 'singular matrix'})",
+                )
+            log.info("ATI sensor %s: serial %s, units %s", name, cal.serial, collector.units)
+            out[name] = cal
+        return out
+
+    def _ask(
+        self,
+        collector: ati.CalibrationCollector,
+        request: _Request,
+        send: SendRequest,
+        recv: ReceiveFrame,
+        frame_sink: Callable[[list[Any]], None] | None,
+        timeout_s: float,
+    ) -> None:
+        """Send one request and feed replies to ``collector`` until the answer is in."""
+        ident, payload = request.ident, request.payload
+        opcode = ident & 0xF
+        for _attempt in range(3):
+            collector.feed(ident, payload)  # replies are read against the request
+            send(ident, payload)
+            before = (len(collector.rows), collector.counts, collector.units, collector.serial)
+            deadline = time.monotonic() + timeout_s
+            while time.monotonic() < deadline:
+                msg = recv(max(0.0, deadline - time.monotonic()))
+                if msg is None:
+                    break
+                if frame_sink is not None:
+                    frame_sink([msg])
+                if not msg.is_error_frame and not msg.is_extended_id:
+                    collector.feed(msg.arbitration_id, bytes(msg.data))
+                now = (len(collector.rows), collector.counts, collector.units, collector.serial)
+                if now != before or (opcode == ati.OP_ACTIVE_CAL and msg.arbitration_id == ident):
+                    return
+            if opcode in (ati.OP_UNITS, ati.OP_SERIAL):
+                return  # older firmware may not answer these; N and N·m are then assumed
+        raise CanSourceError(
+            self.spec,
+            f"ATI sensor `{request.name}` (base 0x{request.base:02X}) did not answer request "
+            f"0x{ident:03X} within {timeout_s:g} s (3 tries); check power, wiring, bit rate and "
+            "`base`, or give `calibration` in the profile",
+        )
+
+    def capacity_notice(self, bitrate: float | None, interface: str) -> str | None:
+        """What to say at start when the boards cannot be polled at the desk's rate on this
+        bus (None when they can, or when the bus has no bit rate to run out of)."""
+        if not self.poll_ids or not bitrate or interface in ("virtual", "udp_multicast"):
+            return None  # no bit rate to run out of (software buses are bound by the host)
+        boards = len(self.poll_ids)
+        most = ati.max_poll_rate(boards, float(bitrate))
+        if self.sample_rate_hz <= most:
+            return None
+        return (
+            f"{boards} ATI board(s) polled at {self.sample_rate_hz:g} Hz need "
+            f"{boards * ati.SAMPLE_BITS * self.sample_rate_hz / 1000:.0f} "
+            f"kbit/s (a poll and two replies, {ati.SAMPLE_BITS} bits a board); the bus "
+            f"runs at {float(bitrate) / 1000:g} kbit/s and carries at most ~{most:.0f} "
+            "samples/s: lower `sample_rate_hz` or raise the bit rate (board opcode 0xE)"
+        )
+
+    # --- polling while the source runs ----------------------------------------------------
+
+    def start_polling(self) -> None:
+        """Start the poller thread (nothing to poll: none)."""
+        if self.poll_ids:
+            self._poller = threading.Thread(target=self._poll, name="ati-poller", daemon=True)
+            self._poller.start()
+
+    def stop_polling(self) -> None:
+        """Wait for the poller to end (the source set ``closing``), at most a second."""
+        if self._poller is not None and self._poller is not threading.current_thread():
+            self._poller.join(timeout=1.0)
+
+    def saw(self, msg: Any) -> bool:
+        """Tell the poller of a frame the reader read; False for our own poll echoed back
+        (udp_multicast loops them: it is taken from the queue of sent polls, in order; twice
+        would split samples), which the reader leaves out."""
+        if msg.arbitration_id == self._round_end_id and len(msg.data):
+            self._round_answered.set()
+        return bool(msg.data) or msg.arbitration_id not in self._poll_id_set
+
+    def _poll(self) -> None:
+        """Request one sample of every ATI board per period, on a deadline clock.
+
+        A round is not sent before the previous one's replies came (or two periods after it
+        was sent, for a board that missed its poll): polls that overrun their replies (a host
+        thread that stalled, then caught up) would put two rounds' replies after the second
+        poll, and void both samples. So a stall costs samples (counted as lost), never
+        whole samples' data.
+        """
+        period = 1.0 / self.sample_rate_hz
+        next_due = time.monotonic()
+        while not self._closing.is_set():
+            self._round_answered.clear()
+            for ident in self.poll_ids:
+                try:
+                    self._send_poll(ident)
+                except Exception as err:  # the reader reconnects; keep the rhythm
+                    log.debug("poll not sent: %s", err)
+                    break
+            sent_at = time.monotonic()
+            next_due += period
+            self._round_answered.wait(max(next_due, sent_at + period) + period - sent_at)
+            wait = next_due - time.monotonic()
+            if wait > 0:
+                self._closing.wait(wait)
+            elif wait < -period:
+                next_due = time.monotonic()  # fell behind: skip, do not burst

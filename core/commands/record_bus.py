@@ -1,0 +1,138 @@
+"""``record --source can:…``: capturing a live CAN bus until Ctrl-C or ``--seconds``, the
+decoded samples kept in memory and, for a log output, every raw frame handed to python-can's
+logger on the bus reader's thread (a log the disk cannot hold is removed, the frames counted)."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import sys
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hapticdesk.commands.output_path import cannot_write, remove_partial
+from hapticdesk.errors import ConfigError
+from hapticdesk.files.profile import DeskProfile
+
+
+@dataclass(frozen=True)
+class BusCapture:
+    """What a bus gave: samples ``t`` (k,) and ``wrench`` (k, S, 6), the source's problem
+    lines (the totals first), the frames logged (None when no log was written) and the error
+    that stopped it early, if one did."""
+
+    t: np.ndarray
+    wrench: np.ndarray
+    problems: list[str]
+    frames: int | None
+    stopped_by: ConfigError | None
+
+
+class _FrameLog:
+    """Raw frames into a python-can logger, from the bus reader's thread: a log that cannot
+    be written (a full disk) is said once and dropped, and the frames from then on counted,
+    but the reader goes on."""
+
+    def __init__(self, output: Path, writer: Any) -> None:
+        self.output = output
+        self.writer = writer
+        self.lock = threading.Lock()
+        self.frames = 0
+        self.lost_frames = 0
+        self.write_failed: OSError | None = None
+
+    def sink(self, messages: list[Any]) -> None:
+        with self.lock:
+            if self.writer is None:
+                self.lost_frames += len(messages) if self.write_failed is not None else 0
+                return
+            try:
+                for msg in messages:
+                    self.writer.on_message_received(msg)
+            except OSError as err:
+                self.write_failed = err
+                self.lost_frames += len(messages)
+                print(f"hapticdesk record: {cannot_write(self.output, err)}", file=sys.stderr)
+                with contextlib.suppress(OSError):
+                    self.writer.stop()
+                self.writer = None
+                return
+            self.frames += len(messages)
+
+    def stop(self) -> None:
+        with self.lock:
+            if self.writer is not None:
+                try:
+                    self.writer.stop()
+                except OSError as err:  # (its last buffer: the disk is full)
+                    self.write_failed = err
+                self.writer = None
+
+    def check(self) -> None:
+        """Raise if the log could not be written (the partial log removed)."""
+        if self.write_failed is not None:
+            remove_partial(self.output)
+            raise ConfigError(
+                str(self.output),
+                f"cannot write: {self.write_failed.strerror or self.write_failed} "
+                f"({self.frames} frames written, {self.lost_frames} more not; the partial log "
+                "was removed)",
+            )
+
+
+def capture_bus(
+    args: argparse.Namespace, profile: DeskProfile, output: Path, raw: bool
+) -> BusCapture:
+    """Read the bus ``args.source`` until Ctrl-C, ``args.seconds`` or an error that stops it;
+    ``raw``: log every frame to ``output`` as well."""
+    import can
+
+    from hapticdesk.canbus.source import open_can_source
+
+    log: _FrameLog | None = None
+    if raw:
+        try:
+            log = _FrameLog(output, can.Logger(str(output)))
+        except (OSError, ValueError) as err:
+            raise ConfigError(str(output), f"cannot write: {err}") from None
+    options: dict[str, Any] = {"frame_sink": log.sink if log is not None else None}
+    if args.bitrate:
+        options["bitrate"] = args.bitrate
+    try:
+        source = open_can_source(args.source, profile, **options)
+    except BaseException:
+        if log is not None:
+            log.stop()
+        raise
+    ts: list[np.ndarray] = []
+    ws: list[np.ndarray] = []
+    stopped_by: ConfigError | None = None
+    timer = None
+    if args.seconds is not None:
+        timer = threading.Timer(args.seconds, source.close)
+        timer.daemon = True
+        timer.start()
+    try:
+        for block in source.blocks():
+            ts.append(block.t)
+            ws.append(block.wrench)
+    except KeyboardInterrupt:
+        pass  # Ctrl-C is how a live recording ends
+    except ConfigError as err:  # a silent sensor with `stop`, a lost bus: keep what we have
+        stopped_by = err
+    finally:
+        if timer is not None:
+            timer.cancel()
+        source.close()
+        if log is not None:
+            log.stop()
+    if log is not None:
+        log.check()
+    t = np.concatenate(ts) if ts else np.zeros(0)
+    wrench = np.concatenate(ws) if ws else np.zeros((0, len(profile.sensors), 6))
+    frames = log.frames if log is not None else None
+    return BusCapture(t, wrench, source.stats.summary(), frames, stopped_by)

@@ -4,7 +4,9 @@ P_er from the low-passed force and P_ed from the differentiated force (and, for 
 one from the fast wrench), each the intersection of its line of action with the surfaces
 (paper eqs. 5, 12; :mod:`hapticdesk.estimator.geometry`), each with a covariance propagated
 from the noise measured at the tare, plus the zero's drift since it was set and, for P_ed,
-the term eq. (11) drops (a finger drifting at ``contact_speed_m_s``).
+the term eq. (11) drops (a finger drifting at ``contact_speed_m_s``). The zero's rounding
+offset, which all of them share, is kept apart (``Covariances.rounding``): the kernel adds it
+to the located point's 1-σ at the touch's force, after the method has chosen and weighed.
 
 The per-sample work is ``_locate`` in :mod:`hapticdesk.estimator.kernel`; here the
 covariances it propagates are made, at the tare and again when a channel's resolution step
@@ -18,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hapticdesk.estimator.geometry import pack_cov
-from hapticdesk.estimator.resolution import rounding_deficit
+from hapticdesk.estimator.resolution import rounding_deficit, zero_rounding
 from hapticdesk.estimator.settings import EstimatorSettings
 
 
@@ -31,13 +33,22 @@ class Covariances:
     diff: list[np.ndarray]
     det: list[np.ndarray]
     drift: list[np.ndarray]  # the zero's drift per second², growing as (age · rate)²
+    # the zero's rounding offset (resolution.zero_rounding): shared by every candidate and
+    # every sample until the next tare, so not in the fusion's weights but added to the
+    # located point's (a floor growing as 1/F that no averaging lowers)
+    rounding: list[np.ndarray]
 
     @classmethod
     def of(
-        cls, settings: EstimatorSettings, measured: np.ndarray, step: np.ndarray | None = None
+        cls,
+        settings: EstimatorSettings,
+        measured: np.ndarray,
+        step: np.ndarray | None = None,
+        rest_var: np.ndarray | None = None,
     ) -> Covariances:
-        """From the noise ``measured`` at the tare (6, 6) and the channels' resolution steps
-        (C,) learned so far (resolution.py; None or 0: none)."""
+        """From the noise ``measured`` at the tare (6, 6), the channels' resolution steps
+        (C,) learned so far (resolution.py; None or 0: none) and their variance at rest (C,;
+        None: not measured, no rounding offset)."""
         s, m = settings.user, settings.wrench_map
         if s.noise_force_n > 0 or s.noise_moment_nm > 0:
             per_channel = np.where(settings.moment_channels, s.noise_moment_nm, s.noise_force_n)
@@ -64,10 +75,20 @@ class Covariances:
         drift = [f.project_cov(drift_cov) for f in frames]
         diff = [f.project_cov(cov * settings.gain_diff) for f in frames]
         det = [f.project_cov(cov * settings.gain_det) for f in frames]
-        return cls(lp, diff, det, drift)
+        offset = (
+            np.zeros((6, 6))
+            if step is None or rest_var is None
+            else zero_rounding(m, step, rest_var)
+        )
+        return cls(lp, diff, det, drift, [f.project_cov(offset) for f in frames])
 
     def packed(self) -> np.ndarray:
         """(n_surfaces, 4, 6): per surface its lp, diff, det and drift covariances, each as
         :func:`~hapticdesk.estimator.geometry.pack_cov` (the kernel's COV_* order)."""
         per_surface = zip(self.lp, self.diff, self.det, self.drift, strict=True)
         return np.array([[pack_cov(c) for c in covs] for covs in per_surface]).reshape(-1, 4, 6)
+
+    def packed_rounding(self) -> np.ndarray:
+        """(n_surfaces, 6): per surface the zero's rounding offset, packed as
+        :meth:`packed` (the kernel's I_SO_ROUND)."""
+        return np.array([pack_cov(c) for c in self.rounding]).reshape(-1, 6)

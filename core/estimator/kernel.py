@@ -80,7 +80,14 @@ from hapticdesk.estimator.contacts import (
     SOURCE_FUSED,
 )
 from hapticdesk.estimator.kernel_compile import compiled, inlined
-from hapticdesk.estimator.kernel_geometry import contains, intersect, shear_of, surface_at, to_desk
+from hapticdesk.estimator.kernel_geometry import (
+    contains,
+    intersect,
+    rounding_floor,
+    shear_of,
+    surface_at,
+    to_desk,
+)
 from hapticdesk.estimator.kernel_slots import (
     COV_DET,
     COV_DIFF,
@@ -131,6 +138,7 @@ from hapticdesk.estimator.kernel_slots import (
     I_PO_MT_SOS,
     I_PO_MT_ZI,
     I_PO_REST,
+    I_REST_N,
     I_SHARED_LP,
     I_SO_COVS,
     I_SO_DELAY,
@@ -145,6 +153,7 @@ from hapticdesk.estimator.kernel_slots import (
     I_SO_MT_ZI,
     I_SO_PARTIAL_GAIN,
     I_SO_PREV_ROW,
+    I_SO_REST_SQ,
     I_SO_STEP,
     I_SO_SWAY,
     I_SO_SWAY_DIFF,
@@ -179,6 +188,7 @@ from hapticdesk.estimator.kernel_slots import (
     J_PARTIAL,
     J_PARTIAL_PATTERN,
     J_REPEATS,
+    J_REST_N,
     J_RESTING,
     J_RESTING_OFF,
     J_RESUME,
@@ -487,8 +497,12 @@ def _samples(
 @inlined
 def _learn_steps(x: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray) -> None:
     """Each channel's smallest change between good readings (its resolution step), until
-    I_CONFIRM changes confirm it (resolution.py)."""
-    if si[J_N_LEARNING] == 0:
+    I_CONFIRM changes confirm it, and the squared changes of its first I_REST_N readings
+    out of contact (resolution.py)."""
+    # (and, for I_REST_N readings out of contact, their changes: the channels' noise)
+    rest = si[J_REST_N] < pi[I_REST_N] and si[J_IN_CONTACT] == 0
+    if si[J_N_LEARNING] == 0 and not rest:
+        si[J_HAVE_LAST_ROW] = 0  # (the row kept goes stale)
         return
     c_n = pi[I_C]
     last = sf[pi[I_SO_LAST_ROW] : pi[I_SO_LAST_ROW] + c_n]
@@ -496,6 +510,11 @@ def _learn_steps(x: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray) 
     changes = si[pi[I_JO_CHANGES] : pi[I_JO_CHANGES] + c_n]
     learning = si[pi[I_JO_LEARNING] : pi[I_JO_LEARNING] + c_n]
     if si[J_HAVE_LAST_ROW]:
+        if rest:
+            squares = sf[pi[I_SO_REST_SQ] : pi[I_SO_REST_SQ] + c_n]
+            for c in range(c_n):
+                squares[c] += (x[c] - last[c]) ** 2
+            si[J_REST_N] += 1
         for c in range(c_n):
             if not learning[c]:
                 continue
@@ -741,6 +760,8 @@ def detect(
 def _emit(
     pf: np.ndarray,
     pi: np.ndarray,
+    sf: np.ndarray,
+    w: int,
     c: Candidate,
     source: int,
     out_f: np.ndarray,
@@ -748,10 +769,13 @@ def _emit(
     out_s: np.ndarray,
     col: int,
 ) -> None:
-    """A chosen candidate into the outputs."""
+    """A chosen candidate into the outputs; its 1-σ with the zero's rounding offset at the
+    force of the tared wrench sf[w:w+6] (:func:`rounding_floor`), which its choice and
+    weights leave out (an error every candidate shares)."""
     x, y, z = to_desk(pf, pi, c[0], c[1], c[2])
     out_f[OUT_X, col], out_f[OUT_Y, col], out_f[OUT_Z, col] = x, y, z
-    out_f[OUT_SIGMA, col] = math.sqrt(c[3] + c[4])
+    floor = rounding_floor(pf, pi, sf, w, c[0], c[1], c[2])
+    out_f[OUT_SIGMA, col] = math.sqrt(c[3] + c[4] + floor)
     out_b[OUT_B_LOCATED, col] = 1
     out_b[OUT_B_SOURCE, col] = source
     out_s[col] = c[0]
@@ -787,6 +811,7 @@ def _locate(
     tared fast wrench (S_TARED_Q); then ``force``, ``diff``, ``switched`` (Fig. 3 with
     F_tth, F_rth) or ``fused`` (the inverse-covariance combination, no threshold)."""
     method, trace = pi[I_METHOD], pi[I_TRACE] == 1
+    wf = S_TARED_Q if method == METHOD_FUSED else S_TARED_W  # (the floor's force, in _emit)
     cap = pf[P_VAR_CAP]
     none = (-1, 0.0, 0.0, cap, cap, 0.0)
     covs = pi[I_SO_COVS]
@@ -834,15 +859,15 @@ def _locate(
     max_sigma = pf[P_MAX_SIGMA]
     if method == METHOD_FORCE:
         if cf[0] >= 0 and f_mag >= pf[P_CONTACT]:
-            _emit(pf, pi, cf, SOURCE_FORCE, out_f, out_b, out_s, col)
+            _emit(pf, pi, sf, wf, cf, SOURCE_FORCE, out_f, out_b, out_s, col)
     elif method == METHOD_DIFF:
         if cd[0] >= 0 and math.sqrt(cd[3] + cd[4]) <= max_sigma:
-            _emit(pf, pi, cd, SOURCE_DIFF, out_f, out_b, out_s, col)
+            _emit(pf, pi, sf, wf, cd, SOURCE_DIFF, out_f, out_b, out_s, col)
     elif method == METHOD_SWITCHED:
         if cd[0] >= 0 and want_d:  # step 3
-            _emit(pf, pi, cd, SOURCE_DIFF, out_f, out_b, out_s, col)
+            _emit(pf, pi, sf, wf, cd, SOURCE_DIFF, out_f, out_b, out_s, col)
         elif f_mag >= pf[P_CONTACT] and cf[0] >= 0:  # step 4
-            _emit(pf, pi, cf, SOURCE_FORCE, out_f, out_b, out_s, col)
+            _emit(pf, pi, sf, wf, cf, SOURCE_FORCE, out_f, out_b, out_s, col)
     else:
         var_f = cf[3] + cf[4]
         if cf[0] >= 0:
@@ -857,14 +882,14 @@ def _locate(
         if cd[0] < 0 and cq[0] < 0:
             # the low-passed force's candidate alone (most samples of a held press): as it is
             if cf[0] >= 0 and var_f <= max_sigma * max_sigma:
-                _emit(pf, pi, cf, SOURCE_FORCE, out_f, out_b, out_s, col)
+                _emit(pf, pi, sf, wf, cf, SOURCE_FORCE, out_f, out_b, out_s, col)
         else:
             fused, members = _fuse(pf, cf, cd, cq)
             if fused[0] >= 0 and math.sqrt(fused[3] + fused[4]) <= max_sigma:
                 source = SOURCE_FUSED
                 if members == 1:  # one candidate alone: say which
                     source = SOURCE_DIFF if cd[0] >= 0 and cd[0] == fused[0] else SOURCE_FORCE
-                _emit(pf, pi, fused, source, out_f, out_b, out_s, col)
+                _emit(pf, pi, sf, wf, fused, source, out_f, out_b, out_s, col)
 
 
 # --- stage 7: the second finger -----------------------------------------------------------------

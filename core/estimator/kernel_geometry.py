@@ -20,6 +20,7 @@ from hapticdesk.estimator.kernel_slots import (
     I_IO_SURF,
     I_N_SURF,
     I_PO_SURF,
+    I_SO_ROUND,
     P_EDGE_TOLERANCE,
     P_MIN_COS,
     P_VAR_CAP,
@@ -166,6 +167,23 @@ def intersect(
         if n_surf == 1:
             break
     return best
+
+
+@inlined
+def rounding_floor(
+    pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, w: int, s: int, u: float, v: float
+) -> float:
+    """var_u + var_v that the zero's rounding offset (the packed covariance of surface ``s``
+    at sf[I_SO_ROUND + 6·s]: resolution.zero_rounding) gives the point (u, v) at the force
+    F'z of the tared wrench sf[w:w+6]: a floor growing as 1/F, the same for every sample
+    until the next tare, so no averaging of samples lowers it."""
+    r = pf[surface_at(pi, s) : surface_at(pi, s) + SURF_F]
+    fz = r[0] * sf[w] + r[1] * sf[w + 1] + r[2] * sf[w + 2]
+    fz += r[3] * sf[w + 3] + r[4] * sf[w + 4] + r[5] * sf[w + 5]
+    fz = max(abs(fz), 1e-9)
+    at = pi[I_SO_ROUND] + 6 * s
+    var_u, var_v, _ = _point_covariance(sf, at, -1, s, 0.0, u, v, fz, 0.0, pf[P_VAR_CAP])
+    return var_u + var_v
 
 
 @inlined

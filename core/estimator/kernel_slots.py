@@ -95,6 +95,7 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     I_STILL_RING,  # still windows' means kept (the last of a still run)
     I_IDLE_LOG,  # idle windows the kernel judged, kept for Python's yardsticks
     I_ZEROED,  # the readings come zeroed: the zero is 0 from the first good sample, no windows
+    I_REST_N,  # rest readings whose changes measure each channel's noise (resolution.py)
     # offsets into pf
     I_PO_MAP,  # (C, 6) channels -> [F_o; M_o]: the matrix (6, C) stored by channel
     I_PO_LIMIT,  # (C,) a channel at or beyond this is saturated
@@ -137,13 +138,15 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     I_SO_TRACE,  # (TRACE_ROWS,) the traced candidates of the sample in flight
     I_SO_STILL_MEANS,  # (I_STILL_RING, 6): a ring of the still run's window means
     I_SO_IDLE_LOG,  # (I_IDLE_LOG, 5): a ring of idle windows: spread, force mean (3), index
+    I_SO_ROUND,  # (N_SURF, 6): the zero's rounding offset, packed as the covariances
+    I_SO_REST_SQ,  # (C,): the squared changes of each channel's rest readings, summed
     # offsets into si
     I_JO_CHANGES,  # (C,) each
     I_JO_LEARNING,
     I_JO_WIN_BAD,  # (WINDOW,)
     I_JO_MT_HIST,  # (2·LAG + 1, MT_I)
     N_PI,
-) = range(72)
+) = range(75)
 # a surface in pf: the rows of F'z, M'x, M'y of its wrench transform, origin, axes, normal,
 # bounds of its outline; in pi: whether the outline is a rectangle, whether (u, v) are the
 # desk's (x, y), where its polygon's vertices are in pf and how many
@@ -230,8 +233,9 @@ N_SF_FIXED = 84
     J_MT_ROWS,
     J_MT_HAS_SECOND,
     J_MT_END_FLAGGED,
+    J_REST_N,  # rest readings compared so far (up to I_REST_N)
     N_SI_FIXED,
-) = range(49)
+) = range(50)
 # the second-finger stage's history of each sample: smoothed wrench and contact (floats), and
 # its located, surface and in-contact (ints)
 MT_W, MT_X, MT_Y, MT_Z, MT_FORCE, MT_F = 0, 6, 7, 8, 9, 10

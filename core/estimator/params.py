@@ -34,7 +34,7 @@ from hapticdesk.estimator.multitouch import (
     MIN_STEP_N,
     MIN_STEP_SHARE,
 )
-from hapticdesk.estimator.resolution import CONFIRM_CHANGES, STEP_CHANGE
+from hapticdesk.estimator.resolution import CONFIRM_CHANGES, REST_NOISE_S, STEP_CHANGE
 from hapticdesk.estimator.samples import LIVE_AGAIN_S, NOISE_CHECK_S, NOISE_FREE_REPEATS, STUCK_RUN
 from hapticdesk.estimator.settings import EstimatorSettings
 from hapticdesk.estimator.zero import IDLE_WINDOWS
@@ -216,6 +216,7 @@ def params_of(s: EstimatorSettings, inertia: InertiaSettings | None) -> Params:
         slots.I_STILL_RING: still_ring,
         slots.I_IDLE_LOG: idle_log,
         slots.I_ZEROED: int(user.zeroed),
+        slots.I_REST_N: round(REST_NOISE_S * fs),
         slots.I_PO_MAP: pf.put(s.wrench_map.T),  # (by channel: see kernel_slots.I_PO_MAP)
         slots.I_PO_LIMIT: pf.put(s.range_flat),
         slots.I_PO_LP_SOS: sos_at["lp"],
@@ -255,6 +256,8 @@ def params_of(s: EstimatorSettings, inertia: InertiaSettings | None) -> Params:
         slots.I_SO_TRACE: sf.room(slots.TRACE_ROWS),
         slots.I_SO_STILL_MEANS: sf.room(6 * still_ring),
         slots.I_SO_IDLE_LOG: sf.room(5 * idle_log),
+        slots.I_SO_ROUND: sf.room(max(1, len(s.frames)) * 6),
+        slots.I_SO_REST_SQ: sf.room(c_n),
         slots.I_JO_CHANGES: si.room(c_n),
         slots.I_JO_LEARNING: si.put(np.ones(c_n, np.int64)),
         slots.I_JO_WIN_BAD: si.room(window),

@@ -1,0 +1,276 @@
+"""One sample through every stage, compiled: the order the stages run in, in two halves.
+
+:func:`_sample` is what both entries of :mod:`hapticdesk.estimator.kernel` run for a sample,
+from where si[J_RESUME] says after an event: :func:`_front`, its first half (its flags and
+wrench, stages 1 and 1b; the filter bank, stage 2; the zero's window, stage 3), then
+:func:`_back`, its second (the filtered wrenches less the zero: the detector, stage 4; the
+candidates and the method's point, stages 5 and 6, with the shear and the drag; the second
+finger, stage 7), into the output columns. The paper's equations are cited in the stages'
+modules (``kernel_channels``, ``kernel_filters``, ``kernel_methods``, ``kernel_multitouch``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from hapticdesk.estimator.contacts import (
+    BAD_SAMPLE,
+    FLAG_GAP,
+    FLAG_NO_ACCEL,
+    FLAG_NOT_TARED,
+    PHASE_HOLD,
+    PHASE_RELEASE,
+    PHASE_TOUCH,
+)
+from hapticdesk.estimator.kernel_channels import _samples, steps_changed
+from hapticdesk.estimator.kernel_compile import inlined
+from hapticdesk.estimator.kernel_detector import detect
+from hapticdesk.estimator.kernel_filters import _filters, _restart_filters
+from hapticdesk.estimator.kernel_geometry import shear_of, surface_at
+from hapticdesk.estimator.kernel_inertia import _inertial
+from hapticdesk.estimator.kernel_methods import _locate
+from hapticdesk.estimator.kernel_multitouch import _second_finger
+from hapticdesk.estimator.kernel_slots import (
+    EV_COVS,
+    EV_GAP,
+    EV_PARTIAL_ACCEL,
+    I_A,
+    I_DET_FULL,
+    I_IO_SURF,
+    I_MULTI_ACCEL,
+    I_PO_ALIMIT,
+    I_PO_GAIN,
+    I_SO_PARTIAL_GAIN,
+    I_SO_TRACE,
+    I_TRACE,
+    I_ZEROED,
+    J_DIRTY,
+    J_FLAGS,
+    J_MT_ON,
+    J_PARTIAL,
+    J_PARTIAL_PATTERN,
+    J_RESTING,
+    J_RESTING_OFF,
+    J_RESUME,
+    J_STARTED,
+    J_TARED,
+    J_ZERO_VERSION,
+    N_OUT_F,
+    OUT_B_FLAGS,
+    OUT_B_IN_CONTACT,
+    OUT_B_LOCATED,
+    OUT_B_LOCATED2,
+    OUT_B_PHASE,
+    OUT_B_RESTING,
+    OUT_B_SOURCE,
+    OUT_B_TRACED,
+    OUT_DRAG_X,
+    OUT_DRAG_Y,
+    OUT_FORCE,
+    OUT_SHEAR,
+    OUT_SIGMA,
+    OUT_T,
+    OUT_X,
+    P_PHASE_RATE,
+    P_SHEAR_CAP,
+    P_UNCERTAINTY_CAP,
+    RESUME_AGAIN,
+    RESUME_BACK,
+    RESUME_NEXT,
+    S_DET,
+    S_DIFF,
+    S_EV_T,
+    S_LAST_GOOD,
+    S_LP,
+    S_RAW,
+    S_TARED_Q,
+    S_TARED_W,
+    S_ZERO,
+    S_ZERO_T,
+    SURF_DESK_XY,
+    SURF_F,
+    SURF_I,
+    SURF_NORMAL,
+    TRACE_ROWS,
+)
+from hapticdesk.estimator.kernel_zero import window_add
+
+
+@inlined
+def _front(
+    t: float,
+    x: np.ndarray,
+    a: np.ndarray,
+    given: bool,
+    pf: np.ndarray,
+    pi: np.ndarray,
+    sf: np.ndarray,
+    si: np.ndarray,
+) -> int:
+    """The first half of a sample: its flags and wrench (stages 1, 1b), the filters
+    (stage 2) and the zero's window (stage 3). Leaves the sample in flight in S_RAW, S_LP,
+    S_DET, S_DIFF, S_SLOPE, S_RELEASE and J_FLAGS; returns its events."""
+    n_a = pi[I_A]
+    accel = 0  # 0: no inertial wrench; 1: from all readings; 2: from the usable ones
+    no_accel = n_a > 0 and not given
+    if n_a > 0 and given:
+        pattern = 0  # which readings are usable (finite, inside the range), one bit each
+        alimit = pi[I_PO_ALIMIT]
+        for j in range(n_a):
+            if abs(a[j]) < pf[alimit + j]:
+                pattern |= 1 << j
+        if pattern == (1 << n_a) - 1:
+            accel = 1
+        elif not pi[I_MULTI_ACCEL]:
+            no_accel = True  # one accelerometer: uncompensated, flagged
+        elif si[J_PARTIAL_PATTERN] != pattern + 1:
+            return EV_PARTIAL_ACCEL  # its gain from Python (before anything moves on)
+        elif si[J_PARTIAL] == 1:
+            accel = 2  # from the usable readings (a board lost for good costs nothing more)
+        else:
+            no_accel = True
+    flags, events = _samples(t, x, pf, pi, sf, si)
+    first_good = False
+    zeroed = pi[I_ZEROED] == 1
+    if flags == 0 or flags == FLAG_GAP:
+        first_good = si[J_STARTED] == 0
+        si[J_STARTED] = 1
+        if zeroed and not si[J_TARED]:
+            # readings that come zeroed: the zero is 0 from here on (never tared, no drift, no
+            # object); the covariances from the profile's noise (zero.py), before this sample
+            # is located
+            for r in range(6):
+                sf[S_ZERO + r] = 0.0
+            sf[S_ZERO_T] = t
+            si[J_TARED] = 1
+            si[J_ZERO_VERSION] += 1
+            si[J_DIRTY] = 1
+            steps_changed(pf, pi, sf, si)  # (the steps the covariances use)
+            events |= EV_COVS
+        elif steps_changed(pf, pi, sf, si):
+            events |= EV_COVS
+    started = si[J_STARTED] == 1
+    for r in range(6):
+        sf[S_RAW + r] = sf[S_LAST_GOOD + r] if started else 0.0
+    if accel == 1:
+        _inertial(a, pf, pf, pi, sf, pi[I_PO_GAIN], False)
+    elif accel == 2:
+        _inertial(a, sf, pf, pi, sf, pi[I_SO_PARTIAL_GAIN], True)
+    if no_accel:
+        flags |= FLAG_NO_ACCEL
+    if started:
+        if first_good:
+            _restart_filters(pf, pi, sf, si)
+        elif flags & FLAG_GAP:
+            _restart_filters(pf, pi, sf, si)
+            sf[S_EV_T] = t
+            events |= EV_GAP
+        _filters(pf, pi, sf, si)
+    else:
+        for r in range(6):
+            sf[S_LP + r] = sf[S_DET + r] = sf[S_DIFF + r] = 0.0
+    si[J_FLAGS] = flags
+    if zeroed:
+        return events
+    return events | window_add(t, flags, first_good, pf, pi, sf, si)
+
+
+@inlined
+def _back(
+    t: float,
+    pf: np.ndarray,
+    pi: np.ndarray,
+    sf: np.ndarray,
+    si: np.ndarray,
+    out_f: np.ndarray,
+    out_b: np.ndarray,
+    out_s: np.ndarray,
+    col: int,
+) -> int:
+    """The second half of a sample: contact and position from the filtered wrenches less the
+    zero (stages 4–6), the outputs, the second finger (stage 7). Returns its events."""
+    flags = si[J_FLAGS]
+    out_f[OUT_T, col] = t
+    for row in range(OUT_X, N_OUT_F):
+        out_f[row, col] = 0.0
+    out_f[OUT_SIGMA, col] = pf[P_UNCERTAINTY_CAP]
+    out_b[OUT_B_LOCATED, col] = out_b[OUT_B_LOCATED2, col] = 0
+    out_b[OUT_B_SOURCE, col] = out_b[OUT_B_PHASE, col] = out_b[OUT_B_TRACED, col] = 0
+    out_s[col] = -1
+    inside = False
+    if si[J_TARED]:
+        det_full = pi[I_DET_FULL] == 1
+        for r in range(6):
+            sf[S_TARED_W + r] = sf[S_LP + r] - sf[S_ZERO + r]
+            sf[S_TARED_Q + r] = sf[S_DET + r] - sf[S_ZERO + r] if det_full or r < 3 else 0.0
+        fx, fy, fz = sf[S_TARED_Q], sf[S_TARED_Q + 1], sf[S_TARED_Q + 2]
+        mag = math.sqrt(fx * fx + fy * fy + fz * fz)
+        inside, slope = detect(pf, pi, sf, si, fx, fy, fz, mag)
+        out_f[OUT_FORCE, col] = mag
+        if inside and flags & BAD_SAMPLE == 0:
+            # the phase from the fast path's slope, which does not wait for the 166 ms window
+            rate = pf[P_PHASE_RATE]
+            out_b[OUT_B_PHASE, col] = (
+                PHASE_TOUCH if slope > rate else PHASE_RELEASE if slope < -rate else PHASE_HOLD
+            )
+            _locate(t, mag, pf, pi, sf, out_f, out_b, out_s, col)
+            if pi[I_TRACE]:
+                out_b[OUT_B_TRACED, col] = 1
+                at = pi[I_SO_TRACE]
+                for row in range(TRACE_ROWS):
+                    out_f[N_OUT_F + row, col] = sf[at + row]
+            if out_b[OUT_B_LOCATED, col]:
+                # the shear from the fast force and the surface's normal; the finger's drag
+                # along a horizontal board (F is the desk's reaction: the force along it)
+                s = out_s[col]
+                at, n = surface_at(pi, s), SURF_NORMAL
+                surf = pf[at : at + SURF_F]
+                into = fx * surf[n] + fy * surf[n + 1] + fz * surf[n + 2]
+                out_f[OUT_SHEAR, col] = shear_of(into, mag, pf[P_SHEAR_CAP])
+                if pi[pi[I_IO_SURF] + s * SURF_I + SURF_DESK_XY]:
+                    out_f[OUT_DRAG_X, col] = into * surf[n] - fx
+                    out_f[OUT_DRAG_Y, col] = into * surf[n + 1] - fy
+    else:
+        flags |= FLAG_NOT_TARED
+    out_b[OUT_B_IN_CONTACT, col] = 1 if inside else 0
+    out_b[OUT_B_RESTING, col] = 1 if inside and si[J_RESTING] else 0
+    out_b[OUT_B_FLAGS, col] = flags  # (int8 holds the uint8 bits: read as uint8)
+    if si[J_MT_ON] and si[J_STARTED]:
+        return _second_finger(pf, pi, sf, si, flags, out_f, out_b, out_s, col)
+    return 0
+
+
+@inlined
+def _sample(
+    t: float,
+    x: np.ndarray,
+    a: np.ndarray,
+    given: bool,
+    pf: np.ndarray,
+    pi: np.ndarray,
+    sf: np.ndarray,
+    si: np.ndarray,
+    out_f: np.ndarray,
+    out_b: np.ndarray,
+    out_s: np.ndarray,
+    col: int,
+) -> int:
+    """One sample through every stage, from where si[J_RESUME] says; returns the events it
+    raised (0: none)."""
+    resume = si[J_RESUME]
+    si[J_RESUME] = RESUME_NEXT
+    events = 0
+    if resume != RESUME_BACK:
+        events = _front(t, x, a, given, pf, pi, sf, si)
+        if events & EV_PARTIAL_ACCEL:
+            si[J_RESUME] = RESUME_AGAIN
+            return events
+        if events & EV_COVS:  # the sample's own candidates use them: after Python made them
+            si[J_RESUME] = RESUME_BACK
+            return events
+    events |= _back(t, pf, pi, sf, si, out_f, out_b, out_s, col)
+    if si[J_RESTING_OFF]:
+        si[J_RESTING_OFF] = si[J_RESTING] = 0
+    return events

@@ -104,11 +104,39 @@ def _samples(
                 events |= EV_TIME_BACK
         else:
             sf[S_MAX_T] = t
+    stuck, told = _stuck_check(t, x, prev, repeat, finite, pi, sf, si)
+    flags |= stuck
+    events |= told
+    if flags:
+        return flags, events
+    if sf[S_LAST_T] > -math.inf and t - sf[S_LAST_T] > pf[P_MAX_GAP]:
+        flags |= FLAG_GAP
+    sf[S_LAST_T] = t
+    _learn_steps(x, pi, sf, si)
+    _wrench(x, pf, pi, sf)
+    return flags, events
+
+
+@inlined
+def _stuck_check(
+    t: float,
+    x: np.ndarray,
+    prev: np.ndarray,
+    repeat: bool,
+    finite: bool,
+    pi: np.ndarray,
+    sf: np.ndarray,
+    si: np.ndarray,
+) -> tuple[int, int]:
+    """Whether the input sticks (``repeat``: the sample equals ``prev``, the one before, which
+    it then becomes). Returns (FLAG_STUCK or 0, events)."""
+    flags = 0
+    events = 0
     # a stuck input repeats its last sample bit for bit; a noise-free one does so all the
     # time, so the first CHECK_N samples decide whether to look at all
     check = si[J_STUCK_CHECK]
     if check != 0:
-        for c in range(c_n):
+        for c in range(pi[I_C]):
             prev[c] = x[c]
         si[J_HAVE_PREV] = 1
         if check < 0:
@@ -134,15 +162,15 @@ def _samples(
                 if si[J_LIVE] == pi[I_LIVE_N]:
                     sf[S_EV_T] = t
                     events |= EV_LIVE
-    if flags:
-        return flags, events
-    if sf[S_LAST_T] > -math.inf and t - sf[S_LAST_T] > pf[P_MAX_GAP]:
-        flags |= FLAG_GAP
-    sf[S_LAST_T] = t
-    _learn_steps(x, pi, sf, si)
-    # paper eqs. (1)–(4): [F_o; M_o] = M x, the matrix stored by channel (C, 6), its six
-    # sums side by side and each split in two (even and odd channels) so that no long chain
-    # of additions waits on itself
+    return flags, events
+
+
+@inlined
+def _wrench(x: np.ndarray, pf: np.ndarray, pi: np.ndarray, sf: np.ndarray) -> None:
+    """A good sample's resultant [F_o; M_o] = M x about P_o (paper eqs. 1–4) into S_LAST_GOOD."""
+    c_n = pi[I_C]
+    # the matrix stored by channel (C, 6), its six sums side by side and each split in two
+    # (even and odd channels) so that no long chain of additions waits on itself
     m = pf[pi[I_PO_MAP] : pi[I_PO_MAP] + 6 * c_n]
     f0 = f1 = f2 = m0 = m1 = m2 = 0.0
     g0 = g1 = g2 = n0 = n1 = n2 = 0.0
@@ -172,7 +200,6 @@ def _samples(
         m2 += m[a + 5] * v
     sf[S_LAST_GOOD], sf[S_LAST_GOOD + 1], sf[S_LAST_GOOD + 2] = f0 + g0, f1 + g1, f2 + g2
     sf[S_LAST_GOOD + 3], sf[S_LAST_GOOD + 4], sf[S_LAST_GOOD + 5] = m0 + n0, m1 + n1, m2 + n2
-    return flags, events
 
 
 @inlined

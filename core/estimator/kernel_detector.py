@@ -54,6 +54,37 @@ def detect(
     inv = 1.0 / mag if mag > 0 else 0.0
     slope = (fx * sf[S_SLOPE] + fy * sf[S_SLOPE + 1] + fz * sf[S_SLOPE + 2]) * inv
     falling = (fx * sf[S_RELEASE] + fy * sf[S_RELEASE + 1] + fz * sf[S_RELEASE + 2]) * inv
+    pressing, holding = _pressing(pf, pi, sf, fx, fy, fz, mag)
+    threshold, hysteresis, steep = pf[P_CONTACT], pf[P_HYSTERESIS], pf[P_RELEASE_SLOPE]
+    through = 0 < steep < -falling and mag + falling * pf[P_DET_DELAY] < threshold
+    above = pressing and mag >= threshold and not through
+    below = not holding or mag < threshold - hysteresis or through
+    low = threshold - hysteresis
+    if mag < low:
+        si[J_BLOCKED] = 0
+    elif si[J_BLOCKED] and mag < threshold + hysteresis:
+        above = False
+    was = si[J_IN_CONTACT] == 1
+    now = above or (was and not below)
+    si[J_IN_CONTACT] = 1 if now else 0
+    if was and not now and mag >= low:
+        si[J_BLOCKED] = 1
+    return now, slope
+
+
+@inlined
+def _pressing(
+    pf: np.ndarray,
+    pi: np.ndarray,
+    sf: np.ndarray,
+    fx: float,
+    fy: float,
+    fz: float,
+    mag: float,
+) -> tuple[bool, bool]:
+    """Whether the tared fast force (its magnitude ``mag``) pushes into a surface, within
+    P_MIN_COS of its normal: (pressing, with the ring guard's pull taken off on an upright
+    surface; holding, without it). Neither without surfaces."""
     n_surf = pi[I_N_SURF]
     least = pf[P_MIN_COS] * mag
     pressing = holding = False
@@ -82,18 +113,4 @@ def detect(
                         along -= held
                 top = max(top, along)
             pressing = top >= least
-    threshold, hysteresis, steep = pf[P_CONTACT], pf[P_HYSTERESIS], pf[P_RELEASE_SLOPE]
-    through = 0 < steep < -falling and mag + falling * pf[P_DET_DELAY] < threshold
-    above = pressing and mag >= threshold and not through
-    below = not holding or mag < threshold - hysteresis or through
-    low = threshold - hysteresis
-    if mag < low:
-        si[J_BLOCKED] = 0
-    elif si[J_BLOCKED] and mag < threshold + hysteresis:
-        above = False
-    was = si[J_IN_CONTACT] == 1
-    now = above or (was and not below)
-    si[J_IN_CONTACT] = 1 if now else 0
-    if was and not now and mag >= low:
-        si[J_BLOCKED] = 1
-    return now, slope
+    return pressing, holding

@@ -168,26 +168,7 @@ def _locate(
     want_d = False
     rate = 0.0
     if trace or method != METHOD_FORCE:
-        q = S_TARED_Q
-        inv_mag = 1.0 / mag if mag > 0 else 1.0
-        rate = (
-            sf[q] * sf[S_DIFF] + sf[q + 1] * sf[S_DIFF + 1] + sf[q + 2] * sf[S_DIFF + 2]
-        ) * inv_mag
-        motion = 1.0 if rate >= 0 else -1.0
-        d_mag = math.sqrt(sf[S_DIFF] ** 2 + sf[S_DIFF + 1] ** 2 + sf[S_DIFF + 2] ** 2)
-        model = (f_mag * pf[P_SPEED] / max(d_mag, 1e-9)) ** 2  # eq. (11)'s dropped term
-        want_d = True
-        if method == METHOD_SWITCHED:  # P_ed only at small forces (paper Fig. 3, steps 3–4)
-            threshold = pf[P_TOUCH_THRESHOLD] if motion > 0 else pf[P_RELEASE_THRESHOLD]
-            want_d = f_mag >= pf[P_CONTACT] and (f_mag <= threshold or cf[0] < 0)
-        elif method == METHOD_FUSED:
-            # the model term alone (in both variances) makes most of P_ed far less sure than
-            # P_er while a press is held: fused would leave those out (P_DIFF_INFO_RATIO)
-            want_d = cf[0] < 0 or 2.0 * min(model, cap) <= pf[P_DIFF_INFO_RATIO] * (cf[3] + cf[4])
-        if want_d or trace:
-            cd = intersect(
-                pf, pi, sf, S_DIFF, motion, sf, covs + 6 * COV_DIFF, -1, 0.0, model, d_mag
-            )
+        cd, want_d, rate = _diff_candidate(mag, f_mag, cf, pf, pi, sf)
     if trace or method == METHOD_FUSED:
         cq = intersect(
             pf, pi, sf, S_TARED_Q, 1.0, sf, covs + 6 * COV_DET, covs + 6 * COV_DRIFT, age2, 0.0, mag
@@ -198,6 +179,58 @@ def _locate(
         _trace(pf, pi, sf, 0, cf)
         _trace(pf, pi, sf, 1, cd)
         _trace(pf, pi, sf, 2, cq)
+    _choose(pf, pi, cf, cd, cq, f_mag, want_d, out_f, out_b, out_s, col)
+
+
+@inlined
+def _diff_candidate(
+    mag: float, f_mag: float, cf: Candidate, pf: np.ndarray, pi: np.ndarray, sf: np.ndarray
+) -> tuple[Candidate, bool, float]:
+    """P_ed from the differentiated wrench (S_DIFF), made where the method wants it or the
+    trace shows it (none otherwise); ``mag`` and ``f_mag`` the fast and the low-passed
+    force's magnitudes, ``cf`` P_er. Returns (P_ed, whether the method wants it, the rate
+    of the force along the fast force)."""
+    method, trace = pi[I_METHOD], pi[I_TRACE] == 1
+    cap = pf[P_VAR_CAP]
+    cd = (-1, 0.0, 0.0, cap, cap, 0.0)
+    q = S_TARED_Q
+    inv_mag = 1.0 / mag if mag > 0 else 1.0
+    rate = (sf[q] * sf[S_DIFF] + sf[q + 1] * sf[S_DIFF + 1] + sf[q + 2] * sf[S_DIFF + 2]) * inv_mag
+    motion = 1.0 if rate >= 0 else -1.0
+    d_mag = math.sqrt(sf[S_DIFF] ** 2 + sf[S_DIFF + 1] ** 2 + sf[S_DIFF + 2] ** 2)
+    model = (f_mag * pf[P_SPEED] / max(d_mag, 1e-9)) ** 2  # eq. (11)'s dropped term
+    want_d = True
+    if method == METHOD_SWITCHED:  # P_ed only at small forces (paper Fig. 3, steps 3–4)
+        threshold = pf[P_TOUCH_THRESHOLD] if motion > 0 else pf[P_RELEASE_THRESHOLD]
+        want_d = f_mag >= pf[P_CONTACT] and (f_mag <= threshold or cf[0] < 0)
+    elif method == METHOD_FUSED:
+        # the model term alone (in both variances) makes most of P_ed far less sure than
+        # P_er while a press is held: fused would leave those out (P_DIFF_INFO_RATIO)
+        want_d = cf[0] < 0 or 2.0 * min(model, cap) <= pf[P_DIFF_INFO_RATIO] * (cf[3] + cf[4])
+    if want_d or trace:
+        covs = pi[I_SO_COVS]
+        cd = intersect(pf, pi, sf, S_DIFF, motion, sf, covs + 6 * COV_DIFF, -1, 0.0, model, d_mag)
+    return cd, want_d, rate
+
+
+@inlined
+def _choose(
+    pf: np.ndarray,
+    pi: np.ndarray,
+    cf: Candidate,
+    cd: Candidate,
+    cq: Candidate,
+    f_mag: float,
+    want_d: bool,
+    out_f: np.ndarray,
+    out_b: np.ndarray,
+    out_s: np.ndarray,
+    col: int,
+) -> None:
+    """The method's point from the candidates (P_er ``cf``, P_ed ``cd``, the fast ``cq``;
+    ``f_mag`` the low-passed force's magnitude, ``want_d`` whether the method wants P_ed)
+    into the outputs, if any is sure enough."""
+    method = pi[I_METHOD]
     max_sigma = pf[P_MAX_SIGMA]
     if method == METHOD_FORCE:
         if cf[0] >= 0 and f_mag >= pf[P_CONTACT]:
@@ -211,24 +244,43 @@ def _locate(
         elif f_mag >= pf[P_CONTACT] and cf[0] >= 0:  # step 4
             _emit(pf, pi, cf, SOURCE_FORCE, out_f, out_b, out_s, col)
     else:
-        var_f = cf[3] + cf[4]
-        if cf[0] >= 0:
-            # the fast and the low-passed candidates share their noise (one is filtered from
-            # the other's input), so they are not fused: the fast one stands in where it is
-            # the surer; a differentiated one P_DIFF_INFO_RATIO times less sure than the
-            # force's adds under 4 % of the information: it is left out
-            if cq[0] >= 0 and not cq[3] + cq[4] < var_f:
-                cq = none
-            if cd[0] >= 0 and not cd[3] + cd[4] <= pf[P_DIFF_INFO_RATIO] * var_f:
-                cd = none
-        if cd[0] < 0 and cq[0] < 0:
-            # the low-passed force's candidate alone (most samples of a held press): as it is
-            if cf[0] >= 0 and var_f <= max_sigma * max_sigma:
-                _emit(pf, pi, cf, SOURCE_FORCE, out_f, out_b, out_s, col)
-        else:
-            fused, members = _fuse(pf, cf, cd, cq)
-            if fused[0] >= 0 and math.sqrt(fused[3] + fused[4]) <= max_sigma:
-                source = SOURCE_FUSED
-                if members == 1:  # one candidate alone: say which
-                    source = SOURCE_DIFF if cd[0] >= 0 and cd[0] == fused[0] else SOURCE_FORCE
-                _emit(pf, pi, fused, source, out_f, out_b, out_s, col)
+        _choose_fused(pf, pi, cf, cd, cq, out_f, out_b, out_s, col)
+
+
+@inlined
+def _choose_fused(
+    pf: np.ndarray,
+    pi: np.ndarray,
+    cf: Candidate,
+    cd: Candidate,
+    cq: Candidate,
+    out_f: np.ndarray,
+    out_b: np.ndarray,
+    out_s: np.ndarray,
+    col: int,
+) -> None:
+    """``fused``'s point: the candidates that add information, combined (:func:`_fuse`)."""
+    cap = pf[P_VAR_CAP]
+    none = (-1, 0.0, 0.0, cap, cap, 0.0)
+    max_sigma = pf[P_MAX_SIGMA]
+    var_f = cf[3] + cf[4]
+    if cf[0] >= 0:
+        # the fast and the low-passed candidates share their noise (one is filtered from
+        # the other's input), so they are not fused: the fast one stands in where it is
+        # the surer; a differentiated one P_DIFF_INFO_RATIO times less sure than the
+        # force's adds under 4 % of the information: it is left out
+        if cq[0] >= 0 and not cq[3] + cq[4] < var_f:
+            cq = none
+        if cd[0] >= 0 and not cd[3] + cd[4] <= pf[P_DIFF_INFO_RATIO] * var_f:
+            cd = none
+    if cd[0] < 0 and cq[0] < 0:
+        # the low-passed force's candidate alone (most samples of a held press): as it is
+        if cf[0] >= 0 and var_f <= max_sigma * max_sigma:
+            _emit(pf, pi, cf, SOURCE_FORCE, out_f, out_b, out_s, col)
+    else:
+        fused, members = _fuse(pf, cf, cd, cq)
+        if fused[0] >= 0 and math.sqrt(fused[3] + fused[4]) <= max_sigma:
+            source = SOURCE_FUSED
+            if members == 1:  # one candidate alone: say which
+                source = SOURCE_DIFF if cd[0] >= 0 and cd[0] == fused[0] else SOURCE_FORCE
+            _emit(pf, pi, fused, source, out_f, out_b, out_s, col)

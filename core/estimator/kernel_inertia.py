@@ -14,10 +14,46 @@ import numpy as np
 from hapticdesk.estimator.kernel_compile import inlined
 from hapticdesk.estimator.kernel_slots import (
     I_A,
+    I_MULTI_ACCEL,
     I_PO_ALIMIT,
     I_PO_REST,
+    J_PARTIAL,
+    J_PARTIAL_PATTERN,
     S_RAW,
 )
+
+#: how a sample's inertial wrench is made (:func:`_accel_use`): not at all, from all its
+#: readings, from the usable ones (the gain of partial readings), or not yet: Python first
+#: makes the gain of its pattern of usable readings (``EV_PARTIAL_ACCEL``)
+ACCEL_OFF, ACCEL_ALL, ACCEL_USABLE, ACCEL_ASK = range(4)
+
+
+@inlined
+def _accel_use(
+    a: np.ndarray, given: bool, pf: np.ndarray, pi: np.ndarray, si: np.ndarray
+) -> tuple[int, bool]:
+    """How the sample's inertial wrench is made from its readings ``a`` (if ``given``): an
+    ``ACCEL_*`` code; and whether the sample goes uncompensated (FLAG_NO_ACCEL)."""
+    n_a = pi[I_A]
+    accel = ACCEL_OFF
+    no_accel = n_a > 0 and not given
+    if n_a > 0 and given:
+        pattern = 0  # which readings are usable (finite, inside the range), one bit each
+        alimit = pi[I_PO_ALIMIT]
+        for j in range(n_a):
+            if abs(a[j]) < pf[alimit + j]:
+                pattern |= 1 << j
+        if pattern == (1 << n_a) - 1:
+            accel = ACCEL_ALL
+        elif not pi[I_MULTI_ACCEL]:
+            no_accel = True  # one accelerometer: uncompensated, flagged
+        elif si[J_PARTIAL_PATTERN] != pattern + 1:
+            accel = ACCEL_ASK
+        elif si[J_PARTIAL] == 1:
+            accel = ACCEL_USABLE  # (a board lost for good costs nothing more)
+        else:
+            no_accel = True
+    return accel, no_accel
 
 
 @inlined

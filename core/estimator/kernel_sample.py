@@ -29,34 +29,33 @@ from hapticdesk.estimator.kernel_compile import inlined
 from hapticdesk.estimator.kernel_detector import detect
 from hapticdesk.estimator.kernel_filters import _filters, _restart_filters
 from hapticdesk.estimator.kernel_geometry import shear_of, surface_at
-from hapticdesk.estimator.kernel_inertia import _inertial
+from hapticdesk.estimator.kernel_inertia import (
+    ACCEL_ALL,
+    ACCEL_ASK,
+    ACCEL_USABLE,
+    _accel_use,
+    _inertial,
+)
 from hapticdesk.estimator.kernel_methods import _locate
 from hapticdesk.estimator.kernel_multitouch import _second_finger
 from hapticdesk.estimator.kernel_slots import (
     EV_COVS,
     EV_GAP,
     EV_PARTIAL_ACCEL,
-    I_A,
     I_DET_FULL,
     I_IO_SURF,
-    I_MULTI_ACCEL,
-    I_PO_ALIMIT,
     I_PO_GAIN,
     I_SO_PARTIAL_GAIN,
     I_SO_TRACE,
     I_TRACE,
     I_ZEROED,
-    J_DIRTY,
     J_FLAGS,
     J_MT_ON,
-    J_PARTIAL,
-    J_PARTIAL_PATTERN,
     J_RESTING,
     J_RESTING_OFF,
     J_RESUME,
     J_STARTED,
     J_TARED,
-    J_ZERO_VERSION,
     N_OUT_F,
     OUT_B_FLAGS,
     OUT_B_IN_CONTACT,
@@ -88,14 +87,13 @@ from hapticdesk.estimator.kernel_slots import (
     S_TARED_Q,
     S_TARED_W,
     S_ZERO,
-    S_ZERO_T,
     SURF_DESK_XY,
     SURF_F,
     SURF_I,
     SURF_NORMAL,
     TRACE_ROWS,
 )
-from hapticdesk.estimator.kernel_zero import window_add
+from hapticdesk.estimator.kernel_zero import window_add, zero_from_start
 
 
 @inlined
@@ -112,25 +110,9 @@ def _front(
     """The first half of a sample: its flags and wrench (stages 1, 1b), the filters
     (stage 2) and the zero's window (stage 3). Leaves the sample in flight in S_RAW, S_LP,
     S_DET, S_DIFF, S_SLOPE, S_RELEASE and J_FLAGS; returns its events."""
-    n_a = pi[I_A]
-    accel = 0  # 0: no inertial wrench; 1: from all readings; 2: from the usable ones
-    no_accel = n_a > 0 and not given
-    if n_a > 0 and given:
-        pattern = 0  # which readings are usable (finite, inside the range), one bit each
-        alimit = pi[I_PO_ALIMIT]
-        for j in range(n_a):
-            if abs(a[j]) < pf[alimit + j]:
-                pattern |= 1 << j
-        if pattern == (1 << n_a) - 1:
-            accel = 1
-        elif not pi[I_MULTI_ACCEL]:
-            no_accel = True  # one accelerometer: uncompensated, flagged
-        elif si[J_PARTIAL_PATTERN] != pattern + 1:
-            return EV_PARTIAL_ACCEL  # its gain from Python (before anything moves on)
-        elif si[J_PARTIAL] == 1:
-            accel = 2  # from the usable readings (a board lost for good costs nothing more)
-        else:
-            no_accel = True
+    accel, no_accel = _accel_use(a, given, pf, pi, si)
+    if accel == ACCEL_ASK:
+        return EV_PARTIAL_ACCEL  # its gain from Python (before anything moves on)
     flags, events = _samples(t, x, pf, pi, sf, si)
     first_good = False
     zeroed = pi[I_ZEROED] == 1
@@ -138,25 +120,16 @@ def _front(
         first_good = si[J_STARTED] == 0
         si[J_STARTED] = 1
         if zeroed and not si[J_TARED]:
-            # readings that come zeroed: the zero is 0 from here on (never tared, no drift, no
-            # object); the covariances from the profile's noise (zero.py), before this sample
-            # is located
-            for r in range(6):
-                sf[S_ZERO + r] = 0.0
-            sf[S_ZERO_T] = t
-            si[J_TARED] = 1
-            si[J_ZERO_VERSION] += 1
-            si[J_DIRTY] = 1
-            steps_changed(pf, pi, sf, si)  # (the steps the covariances use)
+            zero_from_start(t, pf, pi, sf, si)
             events |= EV_COVS
         elif steps_changed(pf, pi, sf, si):
             events |= EV_COVS
     started = si[J_STARTED] == 1
     for r in range(6):
         sf[S_RAW + r] = sf[S_LAST_GOOD + r] if started else 0.0
-    if accel == 1:
+    if accel == ACCEL_ALL:
         _inertial(a, pf, pf, pi, sf, pi[I_PO_GAIN], False)
-    elif accel == 2:
+    elif accel == ACCEL_USABLE:
         _inertial(a, sf, pf, pi, sf, pi[I_SO_PARTIAL_GAIN], True)
     if no_accel:
         flags |= FLAG_NO_ACCEL

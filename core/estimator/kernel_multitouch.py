@@ -140,6 +140,15 @@ def _mt_landing(pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray) 
         and sf[fn + MT_FORCE] - sf[fb + MT_FORCE] >= pf[P_MT_MIN_STEP]
     ):
         return -1.0
+    return _mt_apart(pf, pi, sf, fn, fb)
+
+
+@inlined
+def _mt_apart(pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, fn: int, fb: int) -> float:
+    """How far from the first finger (its point in the history's row at ``fb``) the change of
+    the smoothed wrench from that row to the row at ``fn`` lies: its line of action met with
+    the board's plane (paper eqs. 1–2); −1 where the change is no single force on the board,
+    pressing down, large enough for the force before it."""
     dfx, dfy, dfz = sf[fn] - sf[fb], sf[fn + 1] - sf[fb + 1], sf[fn + 2] - sf[fb + 2]
     dmx, dmy, dmz = sf[fn + 3] - sf[fb + 3], sf[fn + 4] - sf[fb + 4], sf[fn + 5] - sf[fb + 5]
     step = math.sqrt(dfx * dfx + dfy * dfy + dfz * dfz)
@@ -194,6 +203,40 @@ def _second_finger(
     events = 0
     if flags & FLAG_GAP or not si[J_MT_STARTED]:
         events |= _mt_restart(pf, pi, sf, si)
+    pos = _mt_record(pf, pi, sf, si, out_f, out_b, out_s, col)
+    inside = out_b[OUT_B_IN_CONTACT, col] == 1
+    apart = _mt_landing(pf, pi, sf, si)
+    if not inside:
+        if si[J_MT_PREV_IN]:
+            events |= _mt_end_contact(sf, si)
+        si[J_MT_PREV_IN] = 0
+        return events
+    si[J_MT_PREV_IN] = 1
+    if not si[J_MT_FLAGGED]:
+        if apart < 0 or apart < sf[S_MT_MIN_APART]:
+            sf[S_MT_STRAY] = max(sf[S_MT_STRAY], max(apart, 0.0))
+            return events
+        si[J_MT_FLAGGED] = 1
+        out_b[OUT_B_FLAGS, col] |= FLAG_MULTI
+        _mt_land(pi, sf, si, pos)
+        return events
+    out_b[OUT_B_FLAGS, col] |= FLAG_MULTI
+    return events | _mt_follow(pi, sf, si, pos, out_f, out_b, col)
+
+
+@inlined
+def _mt_record(
+    pf: np.ndarray,
+    pi: np.ndarray,
+    sf: np.ndarray,
+    si: np.ndarray,
+    out_f: np.ndarray,
+    out_b: np.ndarray,
+    out_s: np.ndarray,
+    col: int,
+) -> int:
+    """The sample in flight into the history (a ring of 2·I_MT_LAG + 1 rows): its smoothed
+    wrench, the first finger's point and force from the outputs. Returns its row."""
     ns = pi[I_NS]
     lag = pi[I_MT_LAG]
     size = 2 * lag + 1
@@ -214,41 +257,51 @@ def _second_finger(
     si[ints + MT_SURFACE] = out_s[col]
     si[ints + MT_INSIDE] = 1 if inside else 0
     si[J_MT_COUNT] = min(si[J_MT_COUNT] + 1, size)
-    apart = _mt_landing(pf, pi, sf, si)
-    if not inside:
-        if si[J_MT_PREV_IN]:
-            events |= _mt_end_contact(sf, si)
-        si[J_MT_PREV_IN] = 0
-        return events
-    si[J_MT_PREV_IN] = 1
-    if not si[J_MT_FLAGGED]:
-        if apart < 0 or apart < sf[S_MT_MIN_APART]:
-            sf[S_MT_STRAY] = max(sf[S_MT_STRAY], max(apart, 0.0))
-            return events
-        # landed: its fit window holds the smoothed wrench from 2·lag before to I_MT_LANDING
-        # after; the first finger's point is where it was a lag before
-        si[J_MT_FLAGGED] = 1
-        out_b[OUT_B_FLAGS, col] |= FLAG_MULTI
-        before = pos - lag if pos >= lag else pos - lag + size
-        fb = pi[I_SO_MT_HIST] + MT_F * before
-        sf[S_MT_FIRST], sf[S_MT_FIRST + 1], sf[S_MT_FIRST + 2] = (
-            sf[fb + MT_X],
-            sf[fb + MT_Y],
-            sf[fb + MT_Z],
-        )
-        rows = si[J_MT_COUNT]
-        landing = pi[I_SO_LANDING]
-        for j in range(rows):
-            at = pos - rows + 1 + j
-            if at < 0:
-                at += size
-            for lane in range(6):
-                sf[landing + 6 * j + lane] = sf[pi[I_SO_MT_HIST] + MT_F * at + lane]
-        si[J_MT_ROWS] = rows
-        si[J_MT_LANDING] = 1
-        si[J_MT_NEED] = pi[I_MT_LANDING]
-        return events
-    out_b[OUT_B_FLAGS, col] |= FLAG_MULTI
+    return pos
+
+
+@inlined
+def _mt_land(pi: np.ndarray, sf: np.ndarray, si: np.ndarray, pos: int) -> None:
+    """A second finger landed at the history's row ``pos``: the fit window starts."""
+    lag = pi[I_MT_LAG]
+    size = 2 * lag + 1
+    # landed: its fit window holds the smoothed wrench from 2·lag before to I_MT_LANDING
+    # after; the first finger's point is where it was a lag before
+    before = pos - lag if pos >= lag else pos - lag + size
+    fb = pi[I_SO_MT_HIST] + MT_F * before
+    sf[S_MT_FIRST], sf[S_MT_FIRST + 1], sf[S_MT_FIRST + 2] = (
+        sf[fb + MT_X],
+        sf[fb + MT_Y],
+        sf[fb + MT_Z],
+    )
+    rows = si[J_MT_COUNT]
+    landing = pi[I_SO_LANDING]
+    for j in range(rows):
+        at = pos - rows + 1 + j
+        if at < 0:
+            at += size
+        for lane in range(6):
+            sf[landing + 6 * j + lane] = sf[pi[I_SO_MT_HIST] + MT_F * at + lane]
+    si[J_MT_ROWS] = rows
+    si[J_MT_LANDING] = 1
+    si[J_MT_NEED] = pi[I_MT_LANDING]
+
+
+@inlined
+def _mt_follow(
+    pi: np.ndarray,
+    sf: np.ndarray,
+    si: np.ndarray,
+    pos: int,
+    out_f: np.ndarray,
+    out_b: np.ndarray,
+    col: int,
+) -> int:
+    """A sample after the landing (the history's row ``pos``): into the fit window until it
+    is full (EV_FIT, Python fits the point), then the second point into the outputs.
+    Returns the events."""
+    events = 0
+    hist = pi[I_SO_MT_HIST] + MT_F * pos
     if si[J_MT_LANDING]:
         landing = pi[I_SO_LANDING] + 6 * si[J_MT_ROWS]
         for lane in range(6):

@@ -195,16 +195,7 @@ def _back(
                 for row in range(TRACE_ROWS):
                     out_f[N_OUT_F + row, col] = sf[at + row]
             if out_b[OUT_B_LOCATED, col]:
-                # the shear from the fast force and the surface's normal; the finger's drag
-                # along a horizontal board (F is the desk's reaction: the force along it)
-                s = out_s[col]
-                at, n = surface_at(pi, s), SURF_NORMAL
-                surf = pf[at : at + SURF_F]
-                into = fx * surf[n] + fy * surf[n + 1] + fz * surf[n + 2]
-                out_f[OUT_SHEAR, col] = shear_of(into, mag, pf[P_SHEAR_CAP])
-                if pi[pi[I_IO_SURF] + s * SURF_I + SURF_DESK_XY]:
-                    out_f[OUT_DRAG_X, col] = into * surf[n] - fx
-                    out_f[OUT_DRAG_Y, col] = into * surf[n + 1] - fy
+                _shear_and_drag(pf, pi, fx, fy, fz, mag, out_f, out_s, col)
     else:
         flags |= FLAG_NOT_TARED
     out_b[OUT_B_IN_CONTACT, col] = 1 if inside else 0
@@ -213,6 +204,32 @@ def _back(
     if si[J_MT_ON] and si[J_STARTED]:
         return _second_finger(pf, pi, sf, si, flags, out_f, out_b, out_s, col)
     return 0
+
+
+@inlined
+def _shear_and_drag(
+    pf: np.ndarray,
+    pi: np.ndarray,
+    fx: float,
+    fy: float,
+    fz: float,
+    mag: float,
+    out_f: np.ndarray,
+    out_s: np.ndarray,
+    col: int,
+) -> None:
+    """The outputs of a located sample's tared fast force (``mag`` its magnitude) on its
+    surface out_s[col]: the shear, and the finger's drag along a horizontal board."""
+    # the shear from the fast force and the surface's normal; the finger's drag
+    # along a horizontal board (F is the desk's reaction: the force along it)
+    s = out_s[col]
+    at, n = surface_at(pi, s), SURF_NORMAL
+    surf = pf[at : at + SURF_F]
+    into = fx * surf[n] + fy * surf[n + 1] + fz * surf[n + 2]
+    out_f[OUT_SHEAR, col] = shear_of(into, mag, pf[P_SHEAR_CAP])
+    if pi[pi[I_IO_SURF] + s * SURF_I + SURF_DESK_XY]:
+        out_f[OUT_DRAG_X, col] = into * surf[n] - fx
+        out_f[OUT_DRAG_Y, col] = into * surf[n + 1] - fy
 
 
 @inlined

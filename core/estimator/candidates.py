@@ -8,7 +8,7 @@ the term eq. (11) drops (a finger drifting at ``contact_speed_m_s``). The zero's
 offset, which all of them share, is kept apart (``Covariances.rounding``): the kernel adds it
 to the located point's 1-σ at the touch's force, after the method has chosen and weighed.
 
-The per-sample work is ``_locate`` in :mod:`hapticdesk.estimator.kernel`; here the
+The per-sample work is ``_locate`` in :mod:`hapticdesk.estimator.kernel_methods`; here the
 covariances it propagates are made, at the tare and again when a channel's resolution step
 is learned (:class:`Covariances`), and packed into the kernel's state.
 """

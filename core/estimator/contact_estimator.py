@@ -383,6 +383,9 @@ class ContactEstimator:
 
     def _handle(self, events: int, cols: _Columns, col: int, readings: np.ndarray) -> None:
         """The events one sample raised (kernel_slots.EV_*), in the order the stages meet them."""
+        if events == slots.EV_WINDOW:  # (the most frequent: a few a minute)
+            self._window()
+            return
         sf, si = self.state
         if events & slots.EV_PARTIAL_ACCEL:
             self._partial_gain(readings)
@@ -429,19 +432,8 @@ class ContactEstimator:
     def _window(self) -> None:
         """A zero window ended that Python judges (zero.py: the tare, an object, its lift);
         at the tare the covariances are made."""
-        sf, si = self.state
-        w = int(self.params.pi[slots.I_WINDOW])
-        tared = self.zeroing.state.tared
-        raw = self.params.slot(slots.I_SO_WIN_RAW)
-        spread, *mean, t_end = sf[slots.S_WIN_SPREAD : slots.S_WIN_T_END + 1].tolist()
-        self.zeroing.window(
-            spread,
-            int(si[slots.J_WIN_BADS]) / w > 0.1,  # more than a tenth held over: no use for the zero
-            mean,
-            sf[raw : raw + 6 * w].reshape(6, w),
-            t_end,
-        )
-        if not tared and self.zeroing.state.tared:
+        if self.zeroing.window():
+            sf, si = self.state
             k.steps_changed(self.params.pf, self.params.pi, sf, si)  # (the steps they use)
             self._make_covariances()
 

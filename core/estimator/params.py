@@ -37,7 +37,7 @@ from hapticdesk.estimator.multitouch import (
 from hapticdesk.estimator.resolution import CONFIRM_CHANGES, STEP_CHANGE
 from hapticdesk.estimator.samples import LIVE_AGAIN_S, NOISE_CHECK_S, NOISE_FREE_REPEATS, STUCK_RUN
 from hapticdesk.estimator.settings import EstimatorSettings
-from hapticdesk.estimator.zero import IDLE_WINDOWS
+from hapticdesk.estimator.yardsticks import IDLE_WINDOWS
 from hapticdesk.files.profile import METHODS
 
 

@@ -33,27 +33,41 @@ SLOW_US = 100.0
 MINUTE_S = 60.0
 
 
-def measure(scene_name: str) -> dict[str, object]:
-    """One minute of single-sample pushes in this process: per-push CPU µs, the slow ones'
-    events, and the µs of Python's part of each window's end."""
+def simulated(scene_name: str, path: Path) -> None:
+    """The scene on the paper's desk, simulated once (seed 0) into ``path`` (.npz): every
+    tree measured pushes the same samples."""
+    import numpy as np
+
+    from hapticdesk.bench.scenes import desk_day, paper_experiment
+    from hapticdesk.files.profile_reader import load_profile
+    from hapticdesk.sim import simulate
+
+    desk = load_profile("kitamura2017")
+    scene = paper_experiment() if scene_name == "paper" else desk_day(minutes=1.5)
+    rec = simulate(desk, scene, seed=0)
+    stop = int((2.0 + MINUTE_S) * desk.sample_rate_hz)
+    np.savez(path, t=rec.t[:stop], wrench=rec.wrench[:stop])
+
+
+def measure(path: Path) -> dict[str, object]:
+    """One minute of single-sample pushes of the samples in ``path`` in this process:
+    per-push CPU µs, the slow ones' events, and the µs of Python's part of each window's
+    end."""
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
     import numpy as np
 
-    from hapticdesk.bench.scenes import desk_day, paper_experiment
     from hapticdesk.estimator import ContactEstimator
     from hapticdesk.estimator import kernel_slots as slots
     from hapticdesk.files.profile_reader import load_profile
-    from hapticdesk.sim import simulate
 
     names = {getattr(slots, n): n[3:] for n in dir(slots) if n.startswith("EV_")}
     desk = load_profile("kitamura2017")
-    scene = paper_experiment() if scene_name == "paper" else desk_day(minutes=1.5)
-    rec = simulate(desk, scene, seed=0)
+    with np.load(path) as samples:
+        t = np.ascontiguousarray(samples["t"])
+        wrench = np.ascontiguousarray(samples["wrench"])
     start = int(2.0 * desk.sample_rate_hz)  # after the tare
-    stop = start + int(MINUTE_S * desk.sample_rate_hz)
-    t = np.ascontiguousarray(rec.t[:stop])
-    wrench = np.ascontiguousarray(rec.wrench[:stop])
+    stop = len(t)
     ContactEstimator(desk).push(t[:start], wrench[:start])  # (compiled or loaded: warm)
 
     est = ContactEstimator(desk)
@@ -96,7 +110,7 @@ def measure(scene_name: str) -> dict[str, object]:
     }
 
 
-def run_in(core: Path | None, scene: str) -> dict[str, object]:
+def run_in(core: Path | None, samples: Path) -> dict[str, object]:
     """:func:`measure` in a fresh process, importing ``hapticdesk`` from ``core`` (None: the
     installed one)."""
     env = dict(os.environ)
@@ -105,7 +119,7 @@ def run_in(core: Path | None, scene: str) -> dict[str, object]:
             os.symlink(core.resolve(), Path(tmp) / "hapticdesk")
             env["PYTHONPATH"] = tmp + os.pathsep + env.get("PYTHONPATH", "")
         out = subprocess.run(
-            [sys.executable, __file__, "--worker", "--scene", scene],
+            [sys.executable, __file__, "--worker", str(samples)],
             env=env,
             check=True,
             capture_output=True,
@@ -119,17 +133,20 @@ def main() -> None:
     parser.add_argument("--scene", choices=("paper", "day"), default="paper")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--against", type=Path, help="another checkout's core/ to compare")
-    parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--worker", type=Path, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker:
-        print(json.dumps(measure(args.scene)))
+        print(json.dumps(measure(args.worker)))
         return
     here = Path(__file__).resolve().parents[1] / "core"
     trees = {"this": here, **({"against": args.against / "core"} if args.against else {})}
     runs: dict[str, list[dict[str, object]]] = {name: [] for name in trees}
-    for _ in range(args.repeats):
-        for name, core in trees.items():
-            runs[name].append(run_in(None if name == "this" else core, args.scene))
+    with tempfile.TemporaryDirectory() as tmp:
+        samples = Path(tmp) / "minute.npz"
+        simulated(args.scene, samples)
+        for _ in range(args.repeats):
+            for name, core in trees.items():
+                runs[name].append(run_in(None if name == "this" else core, samples))
     print(
         f"scene `{args.scene}`, a minute of single-sample pushes after the tare, CPU time of "
         f"the thread, {args.repeats} runs each (in turn), medians over the runs"

@@ -79,6 +79,9 @@ class ObjectVerdict(NamedTuple):
     is_object: bool  # held long enough as still as an object: it is one
 
 
+NO_OBJECT = ObjectVerdict(0, False)  # (the verdict on most windows: made once)
+
+
 class ObjectRun:
     """The last windows of a load as still as the idle desk (the run's length is the
     kernel's ``J_OBJECT_RUN``), and whether the load rests (its means within the allowed
@@ -92,10 +95,18 @@ class ObjectRun:
         self.windows: list[ObjectWindow] = []
         self.resting = False
 
-    def still(self, run: int, window: ObjectWindow, load: float, idle: Yardsticks) -> ObjectVerdict:
-        """One more window of a load (``run``: the object run so far): is it held long
-        enough as still as the idle desk to be an object? (A finger's tremor
-        and slow wander move it more.) Judged on the last ``n_object`` windows (one more
+    def still(
+        self,
+        run: int,
+        spread: float,
+        force: tuple[float, float, float],
+        load: float,
+        idle: Yardsticks,
+    ) -> ObjectVerdict:
+        """One more window of a load (``run``: the object run so far; the window's
+        ``spread``, its mean ``force`` less the zero and that force's size ``load``): is it
+        held long enough as still as the idle desk to be an object? (A finger's tremor and
+        slow wander move it more.) Judged on the last ``n_object`` windows (one more
         under LIGHT_LOAD_N): their means within the allowed wander of each other, their upper
         median spread within the limit, and none over OBJECT_SPIKE times it (one noisy window
         of the desk's own does not start the wait again). Also notes whether the load is
@@ -106,14 +117,14 @@ class ObjectRun:
             not n_object
             or load < self.drift_max_n  # (drift, also when drift is not followed)
             or idle.quiet_spread < OBJECT_NOISE_FLOOR_N
-            or window.spread >= OBJECT_SPIKE * limit
+            or spread >= OBJECT_SPIKE * limit
         ):
-            return ObjectVerdict(0, False)
+            return NO_OBJECT
         if run == 0:
             self.windows = []
         run += 1
         wait = n_object + 1 if load < LIGHT_LOAD_N else n_object
-        self.windows.append(window)
+        self.windows.append(ObjectWindow(spread, force))
         del self.windows[:-wait]
         strayed = wander([w.force for w in self.windows])
         allowed = max(OBJECT_WANDER_FACTOR * idle.quiet_wander, HEAVY_WANDER_SHARE * load)

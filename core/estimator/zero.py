@@ -63,7 +63,7 @@ from hapticdesk.estimator.kernel_slots import (
 )
 from hapticdesk.estimator.notices import Notice, add_notice, log
 from hapticdesk.estimator.settings import EstimatorSettings
-from hapticdesk.estimator.still_objects import AbsorbedObject, ObjectRun, ObjectWindow, lifted
+from hapticdesk.estimator.still_objects import AbsorbedObject, ObjectRun, lifted
 from hapticdesk.estimator.tare import Tare
 from hapticdesk.estimator.yardsticks import Yardsticks
 from hapticdesk.estimator.zero_state import ZeroState
@@ -178,9 +178,7 @@ class ZeroStage:
                 ints[J_OBJECT_RUN] = 0
                 self._follow_drift(floats, ints, load, t_end)
                 return
-        verdict = st.object_run.still(
-            ints[J_OBJECT_RUN], ObjectWindow(spread, f), load, st.yardsticks
-        )
+        verdict = st.object_run.still(ints[J_OBJECT_RUN], spread, f, load, st.yardsticks)
         ints[J_OBJECT_RUN] = verdict.run
         if not verdict.is_object and ints[J_STILL_RUN] % self._n_settle:
             return

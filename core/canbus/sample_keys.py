@@ -101,7 +101,18 @@ class TimeKeys:
         self.n_kinds = len(decoding.kinds)
         self.cluster = 0  # the key of the last sample begun
         self.polled = False  # a poll request has been seen: polls start samples
-        self._lead_request: int | None = None
+        # polled boards in the order their polls first came (a round polls them in order)
+        self._poll_order = np.zeros(0, np.uint32)  # poll identifiers, sorted
+        self._poll_rank = np.zeros(0, np.int64)  # ... and each one's place in a round
+        self._prev_poll_rank = np.iinfo(np.int64).max
+        # each polled board's reply kinds (its first and second frame: both carry the poll's
+        # identifier's board) and the key of its latest poll, carried from push to push
+        self._reply_kinds: dict[int, tuple[int, int]] = {
+            int(decoding.kinds[first].ident): (first, second)
+            for second, first in decoding.second_halves.items()
+            if int(decoding.kinds[first].ident) in decoding.request_sensor
+        }
+        self._last_poll_key: dict[int, int] = {}
         self._prev_t = np.nan
         self._prev_rank = -1
         self._rank = np.full(self.n_kinds + 1, -1, dtype=np.int64)
@@ -113,9 +124,6 @@ class TimeKeys:
     def keys(self, frames: FrameArray, kind: np.ndarray) -> np.ndarray:
         """The sample key of each frame (``kind`` its kind index, n_kinds for a poll)."""
         is_request = kind == self.n_kinds
-        if self._lead_request is None and is_request.any():
-            # the board polled first in each round starts a sample
-            self._lead_request = int(frames.ident[np.argmax(is_request)])
         after_polls = self.polled | (np.cumsum(is_request) > 0)
         prev_t = np.concatenate([[self._prev_t], frames.t[:-1]])
         dt = frames.t - prev_t
@@ -129,8 +137,8 @@ class TimeKeys:
                 self._next_rank += 1
         rank = np.where(is_request, -1, self._rank[kind])
         prev_rank = np.concatenate([[self._prev_rank], rank[:-1]])
+        by_poll = self._round_starts(frames.ident, is_request)
         with np.errstate(invalid="ignore"):
-            by_poll = is_request & (frames.ident == self._lead_request)
             by_gap = np.where(
                 np.isfinite(dt), dt > self.frame_gap_s, (rank <= prev_rank) & (rank >= 0)
             )
@@ -140,9 +148,56 @@ class TimeKeys:
         self._prev_t = frames.t[-1]
         self._prev_rank = int(rank[-1])
         self.polled = bool(after_polls[-1])
+        self._key_replies_by_poll(keys, kind, frames.ident, is_request)
         for second, first in self.decoding.second_halves.items():
             self._pair_halves(keys, kind, first, second)
         return keys
+
+    def _round_starts(self, ident: np.ndarray, is_request: np.ndarray) -> np.ndarray:
+        """Where a poll round starts: at a poll of a board polled no later in a round than
+        the board of the poll before (the first-polled board's poll, as a rule; a later
+        board's when the host left the boards before it out of a round, e.g. one that still
+        owed its reply)."""
+        out = np.zeros(len(ident), dtype=bool)
+        if not is_request.any():
+            return out
+        polls = ident[is_request].astype(np.uint32)
+        new = np.setdiff1d(polls, self._poll_order)
+        if len(new):  # ranks in the order the boards' polls first came
+            first = np.array([np.argmax(polls == p) for p in new])
+            known = dict(zip(self._poll_order.tolist(), self._poll_rank.tolist(), strict=True))
+            for p in new[np.argsort(first)]:
+                known[int(p)] = len(known)
+            self._poll_order = np.array(sorted(known), dtype=np.uint32)
+            self._poll_rank = np.array([known[p] for p in sorted(known)], dtype=np.int64)
+        rank = self._poll_rank[np.searchsorted(self._poll_order, polls)]
+        before = np.concatenate([[self._prev_poll_rank], rank[:-1]])
+        out[is_request] = rank <= before
+        self._prev_poll_rank = int(rank[-1])
+        return out
+
+    def _key_replies_by_poll(
+        self, keys: np.ndarray, kind: np.ndarray, ident: np.ndarray, is_request: np.ndarray
+    ) -> None:
+        """Give each reply of a polled board the key of its own board's latest poll, in place.
+
+        A host that never polls a board again before its reply came (the live source's
+        poller) makes that exact: a reply that comes late, after other boards' later polls,
+        still lands in the sample it was asked for (or is dropped as late when that sample
+        was given out), never in a later sample as if it had been taken then."""
+        for poll_id, (first, second) in self._reply_kinds.items():
+            poll_pos = np.flatnonzero(is_request & (ident == poll_id))
+            reply_pos = np.flatnonzero((kind == first) | (kind == second))
+            carried = self._last_poll_key.get(poll_id)
+            if len(reply_pos) and (len(poll_pos) or carried is not None):
+                before = np.searchsorted(poll_pos, reply_pos) - 1
+                own = keys[poll_pos[np.maximum(before, 0)]] if len(poll_pos) else 0
+                polled = before >= 0
+                if carried is None:
+                    reply_pos, own, polled = reply_pos[polled], np.asarray(own)[polled], True
+                keys[reply_pos] = np.where(polled, own, carried or 0)
+            if len(poll_pos):
+                self._last_poll_key[poll_id] = int(keys[poll_pos[-1]])
 
     def _pair_halves(self, keys: np.ndarray, kind: np.ndarray, first: int, second: int) -> None:
         """Give each second frame of a reply its first frame's key, in place.

@@ -345,6 +345,8 @@ class FrameAssembler:
         s.error_frames += int(np.count_nonzero(codes == ERROR_FRAME))
         s.remote_frames += int(np.count_nonzero(codes == REMOTE_FRAME))
         for code, table in ((FOREIGN, s.foreign), (WRONG_LENGTH, s.wrong_length)):
+            if not (codes == code).any():
+                continue
             ids, counts = np.unique(frames.ident[codes == code], return_counts=True)
             for ident, count in zip(ids.tolist(), counts.tolist(), strict=True):
                 table[ident] = table.get(ident, 0) + count

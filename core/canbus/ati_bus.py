@@ -1,10 +1,12 @@
 """The desk's ATI boards on a live CAN bus: their calibration asked for at start, then one poll
 round per sample period from a thread of its own (the NETCANOEM protocol: ati_netcanoem.py).
 
-The bus itself (opening, sending, reconnecting, reading) is the live source's (source.py): it
-gives :class:`AtiBoards` a way to send a request and to receive a frame, and tells it of the
-frames it reads (:meth:`AtiBoards.saw`), so the poller sends a round only after the previous
-round's replies came.
+The bus itself (opening, sending, reconnecting) is the live source's (source.py): it gives
+:class:`AtiBoards` a way to send a poll and to receive a frame. The poller thread reads the
+bus itself between its rounds (the source's receive hands each frame to
+:meth:`AtiBoards.saw`, which counts the boards' replies, and keeps it for the reader), so it
+knows at once when a round was answered, with no other thread to wake: a round trip is one
+thread switch to the boards and one back, not a relay through the reader.
 """
 
 from __future__ import annotations
@@ -56,12 +58,14 @@ class AtiBoards:
         *,
         spec: str,
         send_poll: Callable[[int], None],
+        receive: Callable[[float], None],
         closing: threading.Event,
     ) -> None:
         self.sensors = dict(sensors)
         self.sample_rate_hz = sample_rate_hz
         self.spec = spec
         self._send_poll = send_poll
+        self._receive = receive
         self._closing = closing
         self.poll_ids = [ati.frame_id(s.base, ati.OP_GAUGES_A) for s in self.sensors.values()]
         # each board's last reply frame (its second, 0x1): the reader counts them (saw), so
@@ -69,8 +73,10 @@ class AtiBoards:
         self._reply_ends = {
             ati.frame_id(s.base, ati.OP_GAUGES_B): b for b, s in enumerate(self.sensors.values())
         }
-        self._heard = [0] * len(self.poll_ids)  # replies heard per board (the reader's count)
-        self._reply_came = threading.Event()
+        # replies heard per board: the reader counts, the poller reads (no wake-up between
+        # them: a thread woken by one holding the GIL is a convoy, a sixth of the reader's
+        # time at 1.2 kHz in py-spy; the poller looks when its round is due)
+        self._heard = [0] * len(self.poll_ids)
         self._poll_id_set = frozenset(self.poll_ids)
         self._poller: threading.Thread | None = None
 
@@ -182,7 +188,6 @@ class AtiBoards:
         board = self._reply_ends.get(ident)
         if board is not None and len(msg.data):
             self._heard[board] += 1
-            self._reply_came.set()
         return bool(msg.data) or ident not in self._poll_id_set
 
     def _poll(self) -> None:
@@ -236,15 +241,16 @@ class AtiBoards:
                 sent[b] += 1
                 sent_at[b] = now
             next_due += period
-            while not self._closing.is_set():  # the replies the next round waits for
-                self._reply_came.clear()
+            while not self._closing.is_set():  # read until due and the round is answered
                 now = time.monotonic()
-                until = [sent_at[b] + reply_timeout for b in boards if waited[b] and owing(b)]
-                if not until or now >= min(until):
+                # the replies that may yet come hold the round back (the receive counts them)
+                owed = [
+                    sent_at[b] + reply_timeout
+                    for b in boards
+                    if waited[b] and owing(b) and now < sent_at[b] + reply_timeout
+                ]
+                if now >= next_due and not owed:
                     break
-                self._reply_came.wait(min(until) - now)
-            wait = next_due - time.monotonic()
-            if wait > 0:
-                self._closing.wait(wait)
-            elif wait < -period:
+                self._receive((next_due if now < next_due else min(owed)) - now)
+            if time.monotonic() - next_due > period:
                 next_due = time.monotonic()  # fell behind: skip, do not burst

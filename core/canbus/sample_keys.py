@@ -20,6 +20,7 @@ from hapticdesk.canbus.stats import CanStats
 
 REORDER_DEPTH = 3  # with counters, a sample is given up once a frame this many samples newer came
 LATE = np.iinfo(np.int64).min  # the key of a frame that came too late for its sample
+_NO_POLL = -1  # (sample keys by time are >= 0)
 #: a frame whose time is this many sample periods before the latest frame's went back in time
 TIME_BACK_PERIODS = 1.0
 
@@ -162,7 +163,12 @@ class TimeKeys:
         if not is_request.any():
             return out
         polls = ident[is_request].astype(np.uint32)
-        new = np.setdiff1d(polls, self._poll_order)
+        known_at = np.minimum(np.searchsorted(self._poll_order, polls), len(self._poll_order) - 1)
+        new = (
+            np.unique(polls[self._poll_order[known_at] != polls])
+            if len(self._poll_order)
+            else np.unique(polls)
+        )
         if len(new):  # ranks in the order the boards' polls first came
             first = np.array([np.argmax(polls == p) for p in new])
             known = dict(zip(self._poll_order.tolist(), self._poll_rank.tolist(), strict=True))
@@ -183,19 +189,20 @@ class TimeKeys:
 
         A host that never polls a board again before its reply came (the live source's
         poller) makes that exact: a reply that comes late, after other boards' later polls,
-        still lands in the sample it was asked for (or is dropped as late when that sample
-        was given out), never in a later sample as if it had been taken then."""
+        still lands in the sample it was asked for, never in a later sample as if it had been
+        taken then. One that comes more than a round after its poll is LATE: its sample is
+        given out by then when frames are pushed as they come, so in any split."""
         for poll_id, (first, second) in self._reply_kinds.items():
             poll_pos = np.flatnonzero(is_request & (ident == poll_id))
             reply_pos = np.flatnonzero((kind == first) | (kind == second))
-            carried = self._last_poll_key.get(poll_id)
-            if len(reply_pos) and (len(poll_pos) or carried is not None):
-                before = np.searchsorted(poll_pos, reply_pos) - 1
-                own = keys[poll_pos[np.maximum(before, 0)]] if len(poll_pos) else 0
-                polled = before >= 0
-                if carried is None:
-                    reply_pos, own, polled = reply_pos[polled], np.asarray(own)[polled], True
-                keys[reply_pos] = np.where(polled, own, carried or 0)
+            if len(reply_pos):
+                # the key of each reply's latest poll: [0] that of a push before, if any
+                carried = self._last_poll_key.get(poll_id, _NO_POLL)
+                poll_keys = np.concatenate([[carried], keys[poll_pos]])
+                own = poll_keys[np.searchsorted(poll_pos, reply_pos)]
+                asked = own != _NO_POLL  # (before any poll of its board: keyed by time)
+                own = np.where(own < keys[reply_pos] - 1, LATE, own)
+                keys[reply_pos[asked]] = own[asked]
             if len(poll_pos):
                 self._last_poll_key[poll_id] = int(keys[poll_pos[-1]])
 

@@ -192,7 +192,7 @@ def test_the_poller_waits_for_a_slow_board_instead_of_voiding_samples(
     w = np.concatenate(got)[:, 0]
     whole = ~np.isnan(w).any(axis=1)
     assert len(w) >= 20 and whole.mean() >= 0.9, (len(w), whole.mean())
-    assert source.stats.duplicates <= 4
+    assert source.stats.duplicates == 0  # (a board owing a reply is not polled again)
 
 
 def test_the_bus_capacity_is_stated():

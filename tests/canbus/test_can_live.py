@@ -129,7 +129,16 @@ def test_ati_bench_calibration_and_polls_on_the_bus(bench, profile_text, virtual
     np.testing.assert_array_equal(
         source.calibrations["ft"].matrix, encoder.calibrations["ft"].matrix
     )
-    blocks = read_until(source, lambda _: not thread.is_alive(), timeout_s=10)
+    ended_at: list[int] = []
+
+    def one_block_after_the_end(blocks) -> bool:
+        """The board answered its last poll a block ago (that poll is read with a block
+        after the one in which the board's thread ended)."""
+        if not ended_at and not thread.is_alive():
+            ended_at.append(len(blocks))
+        return bool(ended_at) and len(blocks) > ended_at[0]
+
+    blocks = read_until(source, one_block_after_the_end, timeout_s=10)
     emulator.stop()
     thread.join(2)
     bus.shutdown()

@@ -108,12 +108,17 @@ class TimeKeys:
         self._prev_poll_rank = np.iinfo(np.int64).max
         # each polled board's reply kinds (its first and second frame: both carry the poll's
         # identifier's board) and the key of its latest poll, carried from push to push
-        self._reply_kinds: dict[int, tuple[int, int]] = {
-            int(decoding.kinds[first].ident): (first, second)
+        boards = [
+            (int(decoding.kinds[first].ident), first, second)
             for second, first in decoding.second_halves.items()
             if int(decoding.kinds[first].ident) in decoding.request_sensor
-        }
-        self._last_poll_key: dict[int, int] = {}
+        ]
+        boards.sort()
+        self._polled_ids = np.array([b[0] for b in boards], dtype=np.uint32)  # sorted
+        self._board_of_kind = np.full(self.n_kinds + 1, -1, dtype=np.int64)  # (+1: polls)
+        for b, (_, first, second) in enumerate(boards):
+            self._board_of_kind[[first, second]] = b
+        self._last_poll_key = np.full(len(boards), _NO_POLL, dtype=np.int64)
         self._prev_t = np.nan
         self._prev_rank = -1
         self._rank = np.full(self.n_kinds + 1, -1, dtype=np.int64)
@@ -192,19 +197,37 @@ class TimeKeys:
         still lands in the sample it was asked for, never in a later sample as if it had been
         taken then. One that comes more than a round after its poll is LATE: its sample is
         given out by then when frames are pushed as they come, so in any split."""
-        for poll_id, (first, second) in self._reply_kinds.items():
-            poll_pos = np.flatnonzero(is_request & (ident == poll_id))
-            reply_pos = np.flatnonzero((kind == first) | (kind == second))
-            if len(reply_pos):
-                # the key of each reply's latest poll: [0] that of a push before, if any
-                carried = self._last_poll_key.get(poll_id, _NO_POLL)
-                poll_keys = np.concatenate([[carried], keys[poll_pos]])
-                own = poll_keys[np.searchsorted(poll_pos, reply_pos)]
-                asked = own != _NO_POLL  # (before any poll of its board: keyed by time)
-                own = np.where(own < keys[reply_pos] - 1, LATE, own)
-                keys[reply_pos[asked]] = own[asked]
-            if len(poll_pos):
-                self._last_poll_key[poll_id] = int(keys[poll_pos[-1]])
+        n_boards = len(self._polled_ids)
+        if not n_boards:
+            return
+        poll_pos = np.flatnonzero(is_request)
+        at = np.minimum(np.searchsorted(self._polled_ids, ident[poll_pos]), n_boards - 1)
+        known = self._polled_ids[at] == ident[poll_pos]
+        poll_pos, poll_board = poll_pos[known], at[known]
+        reply_pos = np.flatnonzero(self._board_of_kind[kind] >= 0)
+        if len(reply_pos):
+            # every board's latest poll before it (a push before's first), for all boards at
+            # once: the events sorted by board, then place; each reply takes the last poll's
+            board = np.concatenate(
+                [np.arange(n_boards), poll_board, self._board_of_kind[kind[reply_pos]]]
+            )
+            place = np.concatenate([np.full(n_boards, -1), poll_pos, reply_pos])
+            key = np.concatenate(
+                [self._last_poll_key, keys[poll_pos], np.zeros(len(reply_pos), np.int64)]
+            )
+            is_poll = np.arange(len(board)) < n_boards + len(poll_pos)
+            order = np.lexsort((place, board))
+            latest = np.maximum.accumulate(np.where(is_poll[order], np.arange(len(order)), 0))
+            own_sorted = key[order][latest]
+            own = np.empty_like(own_sorted)
+            own[order] = own_sorted
+            own = own[n_boards + len(poll_pos) :]
+            asked = own != _NO_POLL  # (before any poll of its board: keyed by time)
+            own = np.where(own < keys[reply_pos] - 1, LATE, own)
+            keys[reply_pos[asked]] = own[asked]
+        if len(poll_pos):  # each board's latest poll, for the next push
+            last = len(poll_board) - 1 - np.unique(poll_board[::-1], return_index=True)[1]
+            self._last_poll_key[poll_board[last]] = keys[poll_pos[last]]
 
     def _pair_halves(self, keys: np.ndarray, kind: np.ndarray, first: int, second: int) -> None:
         """Give each second frame of a reply its first frame's key, in place.

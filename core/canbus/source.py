@@ -210,7 +210,7 @@ class CanSource(Source):
             msg = bus.recv(timeout=max(0.0, timeout_s))
             if msg is not None and msg.is_error_frame and msg.arbitration_id & CAN_ERR_BUSOFF:
                 raise can.CanOperationError("bus-off")
-        except (can.CanError, OSError) as err:  # the reader reconnects
+        except Exception as err:  # raised by the reader: a python-can error reconnects
             if self._bus is bus and not self._closing.is_set():
                 self._failure = (bus, err)
             return

@@ -202,36 +202,24 @@ def test_bus_off_then_reconnect(can_desk, make_samples, dbc_tolerance, virtual_c
     assert (np.abs(got[valid] - wrench[idx[valid]]) <= dbc_tolerance).all()
 
 
-def test_ati_bus_off_then_reconnect(bench, profile_text, virtual_channel):
+def test_ati_bus_off_then_reconnect(bench_board, virtual_channel):
     """The poller thread reads the bus: the failure it meets is the reader's to reconnect,
     and polling goes on over the new bus."""
-    bench = profile_text(
-        Path(str(bench.path)).read_text().replace("sample_rate_hz: 500", "sample_rate_hz: 200"),
-        "bench.yaml",
-    )
-    n = 2000
-    wrench = np.random.default_rng(5).normal(0, 20, (n, 1, 6))
-    wrench[:, :, 3:] *= 0.02
-    board_bus = can.Bus(interface="virtual", channel=virtual_channel)
-    emulator = CanEmulator(
-        FrameEncoder(can_config(bench), bench), np.arange(n) / 200, wrench, board_bus
-    )
-    thread = emulator.start()
+    board = bench_board(rate=200, n=2000, seed=5)
     FlakyBus.fail_after, FlakyBus.opened = 40, 0  # (after the calibration's replies)
     source = open_can_source(
-        f"can:virtual:{virtual_channel}", bench, bus_factory=lambda **kw: FlakyBus(**kw)
+        f"can:virtual:{virtual_channel}", board.profile, bus_factory=lambda **kw: FlakyBus(**kw)
     )
     try:
-        blocks = read_until(source, lambda _: source.reconnects and emulator.stats.polls > 150)
+        polled = board.emulator.stats
+        blocks = read_until(source, lambda _: source.reconnects and polled.polls > 150)
     finally:
-        emulator.stop()
-        thread.join(2)
-        board_bus.shutdown()
+        board.stop()
     assert FlakyBus.opened == 2 and source.reconnects == 1
     got = np.concatenate([b.wrench for b in blocks])[:, 0]
     ok = ~np.isnan(got).any(axis=1)
     assert ok.sum() >= 100 and source.stats.duplicates == 0
-    diff = np.abs(got[ok][:, None, :] - wrench[None, :, 0, :]).max(axis=2)
+    diff = np.abs(got[ok][:, None, :] - board.wrench[None, :, 0, :]).max(axis=2)
     assert (diff.min(axis=1) < 0.05).all()  # each sample given out is one the board sent
 
 

@@ -17,9 +17,12 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 
 from hapticdesk.estimator import kernel as k
+from hapticdesk.estimator import kernel_geometry
+from hapticdesk.estimator import kernel_slots as slots
 from hapticdesk.estimator.candidates import Covariances
 from hapticdesk.estimator.contacts import ContactBlock
 from hapticdesk.estimator.inertia import InertiaSettings, InertiaStage, accelerometer_readings
+from hapticdesk.estimator.kernel_channels import steps_changed
 from hapticdesk.estimator.multitouch import SecondFingerStage, fit_second_point
 from hapticdesk.estimator.notices import NoticeList, add_notice
 from hapticdesk.estimator.params import Params, State, new_state, params_of
@@ -77,12 +80,12 @@ class CandidateTrace:
     @classmethod
     def of(cls, rows: np.ndarray, at: np.ndarray) -> CandidateTrace:
         """The trace of the samples ``at`` from the output columns' trace rows."""
-        trace = rows[k.N_OUT_F :, at]
-        per = [k.TRACE_CANDIDATES + k.TRACE_PER_CANDIDATE * j for j in range(3)]
+        trace = rows[slots.N_OUT_F :, at]
+        per = [slots.TRACE_CANDIDATES + slots.TRACE_PER_CANDIDATE * j for j in range(3)]
         parts = []
         for p in per:
             parts += [trace[p : p + 3], trace[p + 3] > 0.5, trace[p + 4]]
-        return cls(rows[k.OUT_T, at], trace[k.TRACE_FORCE], trace[k.TRACE_RATE], *parts)
+        return cls(rows[slots.OUT_T, at], trace[slots.TRACE_FORCE], trace[slots.TRACE_RATE], *parts)
 
 
 class _Columns:
@@ -91,7 +94,7 @@ class _Columns:
     def __init__(self, capacity: int, rows: int) -> None:
         self.capacity = capacity
         self.f = np.zeros((rows, capacity))
-        self.b = np.zeros((k.N_OUT_B, capacity), np.int8)
+        self.b = np.zeros((slots.N_OUT_B, capacity), np.int8)
         self.s = np.full(capacity, -1, np.int16)
         self._block: ContactBlock | None = None  # the view of the last length asked
 
@@ -102,26 +105,26 @@ class _Columns:
             return cached
         f, b = self.f, self.b
         block = ContactBlock(
-            t=f[k.OUT_T, :n],
-            in_contact=b[k.OUT_B_IN_CONTACT, :n].view(bool),
-            located=b[k.OUT_B_LOCATED, :n].view(bool),
+            t=f[slots.OUT_T, :n],
+            in_contact=b[slots.OUT_B_IN_CONTACT, :n].view(bool),
+            located=b[slots.OUT_B_LOCATED, :n].view(bool),
             surface=self.s[:n],
-            x=f[k.OUT_X, :n],
-            y=f[k.OUT_Y, :n],
-            z=f[k.OUT_Z, :n],
-            force_n=f[k.OUT_FORCE, :n],
-            source=b[k.OUT_B_SOURCE, :n],
-            phase=b[k.OUT_B_PHASE, :n],
-            sigma_m=f[k.OUT_SIGMA, :n],
-            flags=b[k.OUT_B_FLAGS, :n].view(np.uint8),
-            located2=b[k.OUT_B_LOCATED2, :n].view(bool),
-            x2=f[k.OUT_X2, :n],
-            y2=f[k.OUT_Y2, :n],
-            z2=f[k.OUT_Z2, :n],
-            resting=b[k.OUT_B_RESTING, :n].view(bool),
-            shear=f[k.OUT_SHEAR, :n],
-            drag_x=f[k.OUT_DRAG_X, :n],
-            drag_y=f[k.OUT_DRAG_Y, :n],
+            x=f[slots.OUT_X, :n],
+            y=f[slots.OUT_Y, :n],
+            z=f[slots.OUT_Z, :n],
+            force_n=f[slots.OUT_FORCE, :n],
+            source=b[slots.OUT_B_SOURCE, :n],
+            phase=b[slots.OUT_B_PHASE, :n],
+            sigma_m=f[slots.OUT_SIGMA, :n],
+            flags=b[slots.OUT_B_FLAGS, :n].view(np.uint8),
+            located2=b[slots.OUT_B_LOCATED2, :n].view(bool),
+            x2=f[slots.OUT_X2, :n],
+            y2=f[slots.OUT_Y2, :n],
+            z2=f[slots.OUT_Z2, :n],
+            resting=b[slots.OUT_B_RESTING, :n].view(bool),
+            shear=f[slots.OUT_SHEAR, :n],
+            drag_x=f[slots.OUT_DRAG_X, :n],
+            drag_y=f[slots.OUT_DRAG_Y, :n],
         )
         self._block = block
         return block
@@ -201,13 +204,19 @@ class ContactEstimator:
     def _second_finger_afresh(self, on: bool) -> None:
         sf, si = self.state
         self.second_finger = SecondFingerStage() if on else None
-        si[k.J_MT_ON] = int(on)
-        for slot in (k.J_MT_STARTED, k.J_MT_COUNT, k.J_MT_POS, k.J_MT_PREV_IN, k.J_MT_FLAGGED):
+        si[slots.J_MT_ON] = int(on)
+        for slot in (
+            slots.J_MT_STARTED,
+            slots.J_MT_COUNT,
+            slots.J_MT_POS,
+            slots.J_MT_PREV_IN,
+            slots.J_MT_FLAGGED,
+        ):
             si[slot] = 0
-        si[k.J_MT_LANDING] = si[k.J_MT_HAS_SECOND] = 0
-        sf[k.S_MT_STRAY] = 0.0
+        si[slots.J_MT_LANDING] = si[slots.J_MT_HAS_SECOND] = 0
+        sf[slots.S_MT_STRAY] = 0.0
         if self.second_finger is not None:
-            sf[k.S_MT_MIN_APART] = self.second_finger.min_apart_m
+            sf[slots.S_MT_MIN_APART] = self.second_finger.min_apart_m
 
     def retare(self) -> None:
         """Forget the zero and take it again over the next ``tare_s`` of a still desk (as at
@@ -215,15 +224,34 @@ class ContactEstimator:
         reported again once the new zero is set."""
         sf, si = self.state
         for slot in (
-            *(k.J_TARED, k.J_RESTING, k.J_RESTING_OFF, k.J_WIN_FILL, k.J_IN_CONTACT, k.J_BLOCKED),
-            *(k.J_WINDOW_INDEX, k.J_WINDOWS_SEEN, k.J_STILL_RUN, k.J_STILL_POS, k.J_STILL_COUNT),
-            *(k.J_OBJECT_RUN, k.J_OBJECTS, k.J_ZERO_VERSION, k.J_IDLE_LOG_N, k.J_IDLE_LOG_POS),
+            *(
+                slots.J_TARED,
+                slots.J_RESTING,
+                slots.J_RESTING_OFF,
+                slots.J_WIN_FILL,
+                slots.J_IN_CONTACT,
+                slots.J_BLOCKED,
+            ),
+            *(
+                slots.J_WINDOW_INDEX,
+                slots.J_WINDOWS_SEEN,
+                slots.J_STILL_RUN,
+                slots.J_STILL_POS,
+                slots.J_STILL_COUNT,
+            ),
+            *(
+                slots.J_OBJECT_RUN,
+                slots.J_OBJECTS,
+                slots.J_ZERO_VERSION,
+                slots.J_IDLE_LOG_N,
+                slots.J_IDLE_LOG_POS,
+            ),
         ):
             si[slot] = 0
         self.zeroing = self._zero_stage()
         self.covariances = None  # made again from the new tare's noise
-        guard = self.params.slot(k.I_SO_GUARD)
-        sf[guard : guard + int(self.params.pi[k.I_N_UP])] = 0.0
+        guard = self.params.slot(slots.I_SO_GUARD)
+        sf[guard : guard + int(self.params.pi[slots.I_N_UP])] = 0.0
 
     def _zero_stage(self) -> ZeroStage:
         sf, si = self.state
@@ -231,18 +259,18 @@ class ContactEstimator:
 
     @property
     def tared(self) -> bool:
-        return bool(self.state.si[k.J_TARED])
+        return bool(self.state.si[slots.J_TARED])
 
     @property
     def zero(self) -> np.ndarray | None:
         """The current zero of [F_o; M_o] (6,), or None before the tare."""
-        return self.state.sf[k.S_ZERO : k.S_ZERO + 6].copy() if self.tared else None
+        return self.state.sf[slots.S_ZERO : slots.S_ZERO + 6].copy() if self.tared else None
 
     @property
     def resolution_step(self) -> np.ndarray:
         """Each channel's resolution step learned so far (C,), 0 where none yet
         (resolution.py)."""
-        at = self.params.slot(k.I_SO_STEP)
+        at = self.params.slot(slots.I_SO_STEP)
         return self.state.sf[at : at + self._n_channels].copy()
 
     # --- a push ---------------------------------------------------------------------------
@@ -273,7 +301,7 @@ class ContactEstimator:
             block = self._step(float(t[0]), x, a[0], given)
         else:
             block = self._run(t, x, a, given, n)
-        if self.state.si[k.J_IDLE_LOG_N]:
+        if self.state.si[slots.J_IDLE_LOG_N]:
             # the idle windows the kernel judged join zero.py's yardsticks now, a few µs
             # each, rather than all at the next window Python judges (over 100 µs at once)
             self.zeroing.read_idle_windows()
@@ -321,9 +349,9 @@ class ContactEstimator:
             if not events:
                 break
             self._handle(events, rec, 0, a)
-            if si[k.J_RESUME] == k.RESUME_NEXT:
+            if si[slots.J_RESUME] == slots.RESUME_NEXT:
                 break
-        if self.trace and rec.b[k.OUT_B_TRACED, 0]:
+        if self.trace and rec.b[slots.OUT_B_TRACED, 0]:
             self.traces.append(CandidateTrace.of(rec.f, np.array([0])))
         return rec.block(1)
 
@@ -343,11 +371,11 @@ class ContactEstimator:
             events = k.run_block(t, x, a, given, pf, pi, sf, si, cols.f, cols.b, cols.s, i, n)
             if not events:
                 break
-            at = int(si[k.J_EVENT_AT])
+            at = int(si[slots.J_EVENT_AT])
             self._handle(events, cols, at, a[at] if given else a[0])
-            i = at + 1 if si[k.J_RESUME] == k.RESUME_NEXT else at
+            i = at + 1 if si[slots.J_RESUME] == slots.RESUME_NEXT else at
         if self.trace:
-            traced = np.flatnonzero(cols.b[k.OUT_B_TRACED, :n])
+            traced = np.flatnonzero(cols.b[slots.OUT_B_TRACED, :n])
             if len(traced):
                 self.traces.append(CandidateTrace.of(cols.f, traced))
         return cols.block(n)
@@ -355,64 +383,67 @@ class ContactEstimator:
     # --- what the kernel leaves to Python -------------------------------------------------
 
     def _handle(self, events: int, cols: _Columns, col: int, readings: np.ndarray) -> None:
-        """The events one sample raised (kernel.EV_*), in the order the stages meet them."""
+        """The events one sample raised (kernel_slots.EV_*), in the order the stages meet them."""
         sf, si = self.state
-        if events & k.EV_PARTIAL_ACCEL:
+        if events & slots.EV_PARTIAL_ACCEL:
             self._partial_gain(readings)
             return
-        if events & k.EV_TIME_BACK:
+        if events & slots.EV_TIME_BACK:
             tell_time_back(
-                self.notices, float(sf[k.S_EV_T]), float(sf[k.S_EV_LATEST]), int(si[k.J_TIME_BACK])
+                self.notices,
+                float(sf[slots.S_EV_T]),
+                float(sf[slots.S_EV_LATEST]),
+                int(si[slots.J_TIME_BACK]),
             )
-        if events & k.EV_NOISE_FREE:
+        if events & slots.EV_NOISE_FREE:
             tell_noise_free()
-        if events & k.EV_STUCK:
-            tell_stuck(self.notices, float(sf[k.S_STUCK_SINCE]))
-        if events & k.EV_LIVE:
+        if events & slots.EV_STUCK:
+            tell_stuck(self.notices, float(sf[slots.S_STUCK_SINCE]))
+        if events & slots.EV_LIVE:
             tell_live(
                 self.notices,
-                float(sf[k.S_EV_T]),
-                float(sf[k.S_STUCK_SINCE]),
-                float(sf[k.S_LAST_STUCK_T]),
+                float(sf[slots.S_EV_T]),
+                float(sf[slots.S_STUCK_SINCE]),
+                float(sf[slots.S_LAST_STUCK_T]),
             )
-        if events & k.EV_GAP:
+        if events & slots.EV_GAP:
             add_notice(
                 self.notices,
-                float(sf[k.S_EV_T]),
+                float(sf[slots.S_EV_T]),
                 "gap",
                 "gap in sample times: filters restarted",
                 logging.WARNING,
             )
-        if events & k.EV_COVS:
+        if events & slots.EV_COVS:
             self._make_covariances()
-        if events & k.EV_WINDOW:
+        if events & slots.EV_WINDOW:
             self._window()
-        if events & k.EV_CONTACT_END:
+        if events & slots.EV_CONTACT_END:
             assert self.second_finger is not None
             self.second_finger.contact_ended(
-                bool(si[k.J_MT_END_FLAGGED]), float(sf[k.S_MT_END_STRAY])
+                bool(si[slots.J_MT_END_FLAGGED]), float(sf[slots.S_MT_END_STRAY])
             )
-            sf[k.S_MT_MIN_APART] = self.second_finger.min_apart_m
-        if events & k.EV_FIT:
+            sf[slots.S_MT_MIN_APART] = self.second_finger.min_apart_m
+        if events & slots.EV_FIT:
             self._fit_second(cols, col)
 
     def _window(self) -> None:
         """A zero window ended that Python judges (zero.py: the tare, an object, its lift);
         at the tare the covariances are made."""
         sf, si = self.state
-        w = int(self.params.pi[k.I_WINDOW])
+        w = int(self.params.pi[slots.I_WINDOW])
         tared = self.zeroing.state.tared
-        raw = self.params.slot(k.I_SO_WIN_RAW)
-        spread, *mean, t_end = sf[k.S_WIN_SPREAD : k.S_WIN_T_END + 1].tolist()
+        raw = self.params.slot(slots.I_SO_WIN_RAW)
+        spread, *mean, t_end = sf[slots.S_WIN_SPREAD : slots.S_WIN_T_END + 1].tolist()
         self.zeroing.window(
             spread,
-            int(si[k.J_WIN_BADS]) / w > 0.1,  # more than a tenth held over: no use for the zero
+            int(si[slots.J_WIN_BADS]) / w > 0.1,  # more than a tenth held over: no use for the zero
             mean,
             sf[raw : raw + 6 * w].reshape(6, w),
             t_end,
         )
         if not tared and self.zeroing.state.tared:
-            k.steps_changed(self.params.pf, self.params.pi, sf, si)  # (the steps they use)
+            steps_changed(self.params.pf, self.params.pi, sf, si)  # (the steps they use)
             self._make_covariances()
 
     def _make_covariances(self) -> None:
@@ -422,12 +453,12 @@ class ContactEstimator:
         if noise is None:
             return
         sf = self.state.sf
-        used = self.params.slot(k.I_SO_USED)
+        used = self.params.slot(slots.I_SO_USED)
         self.covariances = Covariances.of(
             self.stage_settings, noise, sf[used : used + self._n_channels].copy()
         )
         packed = self.covariances.packed().ravel()
-        at = self.params.slot(k.I_SO_COVS)
+        at = self.params.slot(slots.I_SO_COVS)
         sf[at : at + len(packed)] = packed
 
     def _partial_gain(self, readings: np.ndarray) -> None:
@@ -438,37 +469,37 @@ class ContactEstimator:
         usable = self._inertia.usable_axes(readings)
         gain = self.inertia_settings.gain_from(usable)
         # (the kernel keeps this gain for the same usable readings: one bit each)
-        si[k.J_PARTIAL_PATTERN] = sum(1 << int(j) for j in np.flatnonzero(usable)) + 1
+        si[slots.J_PARTIAL_PATTERN] = sum(1 << int(j) for j in np.flatnonzero(usable)) + 1
         if gain is None:
-            si[k.J_PARTIAL] = 2
+            si[slots.J_PARTIAL] = 2
             return
-        at = self.params.slot(k.I_SO_PARTIAL_GAIN)
+        at = self.params.slot(slots.I_SO_PARTIAL_GAIN)
         sf[at : at + gain.size] = gain.ravel()
-        si[k.J_PARTIAL] = 1
+        si[slots.J_PARTIAL] = 1
 
     def _fit_second(self, cols: _Columns, col: int) -> None:
         """The second finger's landing window is full: its point fitted (multitouch.py), on
         the board, from this sample on."""
         sf, si = self.state
-        rows = int(si[k.J_MT_ROWS])
-        at = self.params.slot(k.I_SO_LANDING)
+        rows = int(si[slots.J_MT_ROWS])
+        at = self.params.slot(slots.I_SO_LANDING)
         board = self.profile.surfaces[0]
         second = fit_second_point(
-            sf[k.S_MT_FIRST : k.S_MT_FIRST + 3].copy(),
+            sf[slots.S_MT_FIRST : slots.S_MT_FIRST + 3].copy(),
             np.asarray(board.normal, float),
             sf[at : at + 6 * rows].reshape(rows, 6),
         )
         if second is None:
             return
         rel = second - board.origin
-        if not k.contains(
+        if not kernel_geometry.contains(
             self.params.pf, self.params.pi, 0, float(rel @ board.u_axis), float(rel @ board.v_axis)
         ):
             return
-        sf[k.S_MT_SECOND : k.S_MT_SECOND + 3] = second
-        si[k.J_MT_HAS_SECOND] = 1
-        cols.f[k.OUT_X2, col], cols.f[k.OUT_Y2, col], cols.f[k.OUT_Z2, col] = second
-        cols.b[k.OUT_B_LOCATED2, col] = 1
+        sf[slots.S_MT_SECOND : slots.S_MT_SECOND + 3] = second
+        si[slots.J_MT_HAS_SECOND] = 1
+        cols.f[slots.OUT_X2, col], cols.f[slots.OUT_Y2, col], cols.f[slots.OUT_Z2, col] = second
+        cols.b[slots.OUT_B_LOCATED2, col] = 1
 
     def _note_accelerometer(self, t: float, given: bool) -> None:
         """A warning when a desk with an accelerometer gets samples without its readings (a

@@ -9,9 +9,9 @@ M' = Rᵀ (M − c × F), and the plane z' = 0 is met at
 
 The same formula holds for the differentiated wrench (Ḟ_o, Ṁ_o), paper eq. (12). Noise in
 the wrench with covariance Σ is carried to (u, v) through the Jacobian of these formulas.
-The formulas run per sample in :mod:`hapticdesk.estimator.kernel` (``intersect``); here each
-surface is prepared for them (:class:`SurfaceFrame`), and :func:`intersect` runs that same
-code over many wrenches for those who need it outside the estimator (the paper's error
+The formulas run per sample in :mod:`hapticdesk.estimator.kernel_geometry` (``intersect``); here
+each surface is prepared for them (:class:`SurfaceFrame`), and :func:`intersect` runs that
+same code over many wrenches for those who need it outside the estimator (the paper's error
 model, the tests). Nothing returned is NaN or infinite.
 """
 

@@ -1,5 +1,5 @@
 """Where the lines of action of many wrenches meet a desk's surfaces, by the estimator's own
-compiled code (``kernel.intersect``, sample by sample): for the paper's error model and the
+compiled code (``kernel_geometry.intersect``, sample by sample): for the paper's error model and the
 tests, which ask it for whole arrays. (Apart from :mod:`.geometry` because it needs the
 kernel's parameters, :mod:`.params`, which need the geometry's frames.)"""
 
@@ -24,7 +24,7 @@ def intersect(
     force_norm: np.ndarray | None = None,
 ) -> Intersection:
     """Intersect the lines of action of ``wrench`` (6, n) = [F; M] with every surface, by the
-    estimator's own code (``kernel.intersect``, sample by sample).
+    estimator's own code (``kernel_geometry.intersect``, sample by sample).
 
     ``direction_sign`` (n,) or scalar: +1 where F points like the supports' force F_o (the
     finger pushes along −F_o), −1 where it points the other way (a releasing differentiated

@@ -17,7 +17,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from hapticdesk.estimator import kernel as k
+from hapticdesk.estimator import kernel_slots as slots
 from hapticdesk.estimator.contacts import SHEAR_CAP, UNCERTAINTY_CAP_M
 from hapticdesk.estimator.detector import RING_MEMORY_S, upright_surfaces
 from hapticdesk.estimator.filters import butter_lowpass_sos, sosfilt_zi
@@ -89,7 +89,7 @@ class Params:
     out_rows: int  # float rows of the output columns (more in trace mode)
 
     def slot(self, name: int) -> int:
-        """An offset the parameters keep (``kernel.I_*O_*``)."""
+        """An offset the parameters keep (``kernel_slots.I_*O_*``)."""
         return int(self.pi[name])
 
 
@@ -98,19 +98,19 @@ def _surface_parts(frames: list[SurfaceFrame], pf: _Packer, pi: _Packer) -> tupl
     floats, ints, polygons = [], [], []
     for frame in frames:
         s = frame.surface
-        record = np.zeros(k.SURF_F)
-        record[k.SURF_ROWS : k.SURF_ROWS + 18] = np.ravel(frame.transform[2:5])
-        record[k.SURF_ORIGIN : k.SURF_ORIGIN + 3] = s.origin
-        record[k.SURF_U : k.SURF_U + 3] = s.u_axis
-        record[k.SURF_V : k.SURF_V + 3] = s.v_axis
-        record[k.SURF_NORMAL : k.SURF_NORMAL + 3] = s.normal
-        record[k.SURF_BOUNDS : k.SURF_BOUNDS + 4] = frame.bounds
+        record = np.zeros(slots.SURF_F)
+        record[slots.SURF_ROWS : slots.SURF_ROWS + 18] = np.ravel(frame.transform[2:5])
+        record[slots.SURF_ORIGIN : slots.SURF_ORIGIN + 3] = s.origin
+        record[slots.SURF_U : slots.SURF_U + 3] = s.u_axis
+        record[slots.SURF_V : slots.SURF_V + 3] = s.v_axis
+        record[slots.SURF_NORMAL : slots.SURF_NORMAL + 3] = s.normal
+        record[slots.SURF_BOUNDS : slots.SURF_BOUNDS + 4] = frame.bounds
         floats.append(record)
         polygons.append(np.ravel(frame.polygon))
         ints.append([int(frame.is_rectangle), int(frame.desk_xy), 0, len(frame.polygon)])
     surf_f = pf.put(np.concatenate(floats) if floats else np.zeros(0))
     for j, polygon in enumerate(polygons):
-        ints[j][k.SURF_POLY] = pf.put(polygon)
+        ints[j][slots.SURF_POLY] = pf.put(polygon)
     surf_i = pi.put(np.ravel(np.array(ints, dtype=np.int64)) if ints else np.zeros(0, np.int64))
     return surf_f, surf_i
 
@@ -119,14 +119,14 @@ def geometry_params(
     frames: list[SurfaceFrame], min_normal_cos: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """The parameters :func:`kernel.intersect` reads, for ``frames`` alone."""
-    pf, pi = _Packer(k.N_PF_FIXED), _Packer(k.N_PI)
+    pf, pi = _Packer(slots.N_PF_FIXED), _Packer(slots.N_PI)
     surf_f, surf_i = _surface_parts(frames, pf, pi)
     fixed_f = {
-        k.P_MIN_COS: min_normal_cos,
-        k.P_VAR_CAP: VAR_CAP,
-        k.P_EDGE_TOLERANCE: EDGE_TOLERANCE_M,
+        slots.P_MIN_COS: min_normal_cos,
+        slots.P_VAR_CAP: VAR_CAP,
+        slots.P_EDGE_TOLERANCE: EDGE_TOLERANCE_M,
     }
-    fixed_i = {k.I_N_SURF: len(frames), k.I_PO_SURF: surf_f, k.I_IO_SURF: surf_i}
+    fixed_i = {slots.I_N_SURF: len(frames), slots.I_PO_SURF: surf_f, slots.I_IO_SURF: surf_i}
     return pf.array(np.float64, fixed_f), pi.array(np.int64, fixed_i)
 
 
@@ -134,8 +134,8 @@ def params_of(s: EstimatorSettings, inertia: InertiaSettings | None) -> Params:
     """The kernel's parameters for the desk of ``s`` (and its accelerometers, ``inertia``)."""
     user, fs = s.user, s.sample_rate_hz
     c_n = s.wrench_map.shape[1]
-    pf, pi = _Packer(k.N_PF_FIXED), _Packer(k.N_PI)
-    sf, si = _Packer(k.N_SF_FIXED), _Packer(k.N_SI_FIXED)
+    pf, pi = _Packer(slots.N_PF_FIXED), _Packer(slots.N_PI)
+    sf, si = _Packer(slots.N_SF_FIXED), _Packer(slots.N_SI_FIXED)
     mt_sos = butter_lowpass_sos(min(LOWPASS_HZ, 0.45 * fs), fs)  # (as the fast path's)
     filters = {"lp": s.lp_sos, "diff": s.diff_sos, "det": s.det_sos, "mt": mt_sos}
     ns = len(s.lp_sos)
@@ -157,117 +157,117 @@ def params_of(s: EstimatorSettings, inertia: InertiaSettings | None) -> Params:
     idle_log = IDLE_WINDOWS + max(2, s.n_object)
     live_n = max(1, round(LIVE_AGAIN_S * fs))
     fixed_f = {
-        k.P_MAX_GAP: user.max_gap_s,
-        k.P_CONTACT: user.contact_force_n,
-        k.P_HYSTERESIS: user.release_hysteresis_n,
-        k.P_RELEASE_SLOPE: user.release_slope_n_s,
-        k.P_DET_DELAY: s.det_delay_s,
-        k.P_PHASE_RATE: user.phase_rate_n_s,
-        k.P_MIN_COS: user.min_normal_cos,
-        k.P_MAX_SIGMA: user.max_sigma_m,
-        k.P_SPEED: user.contact_speed_m_s,
-        k.P_TOUCH_THRESHOLD: user.touch_threshold_n,
-        k.P_RELEASE_THRESHOLD: user.release_threshold_n,
-        k.P_DIFF_SCALE: s.diff_scale,
-        k.P_RATE_SCALE: s.rate_scale,
-        k.P_RELEASE_SCALE: s.release_scale,
-        k.P_RING_DECAY: math.exp(-1.0 / (RING_MEMORY_S * fs)),
-        k.P_SWAY_SCALE: s.sway.scale if s.sway is not None else 0.0,
-        k.P_DIFF_INFO_RATIO: DIFF_INFO_RATIO,
-        k.P_VAR_CAP: VAR_CAP,
-        k.P_DET_FLOOR: DET_FLOOR,
-        k.P_EDGE_TOLERANCE: EDGE_TOLERANCE_M,
-        k.P_SHEAR_CAP: SHEAR_CAP,
-        k.P_UNCERTAINTY_CAP: UNCERTAINTY_CAP_M,
-        k.P_STEP_CHANGE: STEP_CHANGE,
-        k.P_MT_MIN_STEP: MIN_STEP_N,
-        k.P_MT_MIN_STEP_SHARE: MIN_STEP_SHARE,
-        k.P_MT_MIN_NORMAL_SHARE: MIN_NORMAL_SHARE,
-        k.P_MT_MAX_FIRST_MOVE: MAX_FIRST_MOVE_M,
-        k.P_STILL_N: user.still_n,
-        k.P_DRIFT_MAX: user.drift_max_n,
+        slots.P_MAX_GAP: user.max_gap_s,
+        slots.P_CONTACT: user.contact_force_n,
+        slots.P_HYSTERESIS: user.release_hysteresis_n,
+        slots.P_RELEASE_SLOPE: user.release_slope_n_s,
+        slots.P_DET_DELAY: s.det_delay_s,
+        slots.P_PHASE_RATE: user.phase_rate_n_s,
+        slots.P_MIN_COS: user.min_normal_cos,
+        slots.P_MAX_SIGMA: user.max_sigma_m,
+        slots.P_SPEED: user.contact_speed_m_s,
+        slots.P_TOUCH_THRESHOLD: user.touch_threshold_n,
+        slots.P_RELEASE_THRESHOLD: user.release_threshold_n,
+        slots.P_DIFF_SCALE: s.diff_scale,
+        slots.P_RATE_SCALE: s.rate_scale,
+        slots.P_RELEASE_SCALE: s.release_scale,
+        slots.P_RING_DECAY: math.exp(-1.0 / (RING_MEMORY_S * fs)),
+        slots.P_SWAY_SCALE: s.sway.scale if s.sway is not None else 0.0,
+        slots.P_DIFF_INFO_RATIO: DIFF_INFO_RATIO,
+        slots.P_VAR_CAP: VAR_CAP,
+        slots.P_DET_FLOOR: DET_FLOOR,
+        slots.P_EDGE_TOLERANCE: EDGE_TOLERANCE_M,
+        slots.P_SHEAR_CAP: SHEAR_CAP,
+        slots.P_UNCERTAINTY_CAP: UNCERTAINTY_CAP_M,
+        slots.P_STEP_CHANGE: STEP_CHANGE,
+        slots.P_MT_MIN_STEP: MIN_STEP_N,
+        slots.P_MT_MIN_STEP_SHARE: MIN_STEP_SHARE,
+        slots.P_MT_MIN_NORMAL_SHARE: MIN_NORMAL_SHARE,
+        slots.P_MT_MAX_FIRST_MOVE: MAX_FIRST_MOVE_M,
+        slots.P_STILL_N: user.still_n,
+        slots.P_DRIFT_MAX: user.drift_max_n,
     }
     fixed_i = {
-        k.I_C: c_n,
-        k.I_A: n_a,
-        k.I_MULTI_ACCEL: int(inertia is not None and inertia.rows is not None),
-        k.I_N_SURF: len(s.frames),
-        k.I_N_UP: len(upright),
-        k.I_METHOD: METHODS.index(s.method),
-        k.I_DET_FULL: int(s.det_full),
-        k.I_SHARED_LP: int(s.shared_lp),
-        k.I_TRACE: int(s.trace),
-        k.I_NS: ns,
-        k.I_N_DIFF: s.n_diff,
-        k.I_N_RATE: s.n_rate,
-        k.I_N_RELEASE: s.n_release,
-        k.I_SPAN: span,
-        k.I_WINDOW: window,
-        k.I_STILL_BLOCK: s.still_block,
-        k.I_STUCK_RUN: STUCK_RUN,
-        k.I_CHECK_N: check_n,
-        k.I_NOISE_FREE_REPEATS: NOISE_FREE_REPEATS,
-        k.I_LIVE_N: live_n,
-        k.I_CONFIRM: CONFIRM_CHANGES,
-        k.I_MT_LAG: lag,
-        k.I_MT_LANDING: landing,
-        k.I_MT_BOARD: 0 if s.frames else -1,
-        k.I_N_DRIFT: s.n_drift if user.drift_settle_s > 0 else 0,
-        k.I_STILL_RING: still_ring,
-        k.I_IDLE_LOG: idle_log,
-        k.I_ZEROED: int(user.zeroed),
-        k.I_PO_MAP: pf.put(s.wrench_map.T),  # (by channel: see kernel.I_PO_MAP)
-        k.I_PO_LIMIT: pf.put(s.range_flat),
-        k.I_PO_LP_SOS: sos_at["lp"],
-        k.I_PO_DIFF_SOS: sos_at["diff"],
-        k.I_PO_DET_SOS: sos_at["det"],
-        k.I_PO_MT_SOS: sos_at["mt"],
-        k.I_PO_LP_ZI: zi_at["lp"],
-        k.I_PO_DIFF_ZI: zi_at["diff"],
-        k.I_PO_DET_ZI: zi_at["det"],
-        k.I_PO_MT_ZI: zi_at["mt"],
-        k.I_PO_SURF: surf_f,
-        k.I_PO_LEVER: pf.put(s.sway.moment_lever if s.sway is not None else np.zeros(6)),
-        k.I_PO_GAIN: pf.put(inertia.gain if inertia is not None else np.zeros(0)),
-        k.I_PO_REST: pf.put(inertia.rest if inertia is not None else np.zeros(0)),
-        k.I_PO_ALIMIT: pf.put(inertia.limit if inertia is not None else np.zeros(0)),
-        k.I_IO_UP: pi.put(np.asarray(upright, np.int64)),
-        k.I_IO_SURF: surf_i,
-        k.I_SO_LP_ZI: sf.room(6 * ns * 2),
-        k.I_SO_DIFF_ZI: sf.room(6 * ns * 2),
-        k.I_SO_DET_ZI: sf.room(6 * ns * 2),
-        k.I_SO_MT_ZI: sf.room(6 * ns * 2),
-        k.I_SO_DELAY: sf.room(s.n_diff * 6),
-        k.I_SO_DET_RING: sf.room(s.n_rate * 3),
-        k.I_SO_SWAY: sf.room(2 * span * 2),
-        k.I_SO_SWAY_DIFF: sf.room(2 * span * 2),
-        k.I_SO_WIN_LP: sf.room(3 * window),
-        k.I_SO_WIN_RAW: sf.room(6 * window),
-        k.I_SO_GUARD: sf.room(len(upright)),
-        k.I_SO_COVS: sf.room(max(1, len(s.frames)) * 4 * 6),
-        k.I_SO_STEP: sf.room(c_n),
-        k.I_SO_USED: sf.room(c_n),
-        k.I_SO_LAST_ROW: sf.room(c_n),
-        k.I_SO_PREV_ROW: sf.room(c_n),
-        k.I_SO_MT_HIST: sf.room((2 * lag + 1) * k.MT_F),
-        k.I_SO_LANDING: sf.room((2 * lag + 1 + landing) * 6),
-        k.I_SO_PARTIAL_GAIN: sf.room(6 * n_a),
-        k.I_SO_TRACE: sf.room(k.TRACE_ROWS),
-        k.I_SO_STILL_MEANS: sf.room(6 * still_ring),
-        k.I_SO_IDLE_LOG: sf.room(5 * idle_log),
-        k.I_JO_CHANGES: si.room(c_n),
-        k.I_JO_LEARNING: si.put(np.ones(c_n, np.int64)),
-        k.I_JO_WIN_BAD: si.room(window),
-        k.I_JO_MT_HIST: si.room((2 * lag + 1) * k.MT_I),
+        slots.I_C: c_n,
+        slots.I_A: n_a,
+        slots.I_MULTI_ACCEL: int(inertia is not None and inertia.rows is not None),
+        slots.I_N_SURF: len(s.frames),
+        slots.I_N_UP: len(upright),
+        slots.I_METHOD: METHODS.index(s.method),
+        slots.I_DET_FULL: int(s.det_full),
+        slots.I_SHARED_LP: int(s.shared_lp),
+        slots.I_TRACE: int(s.trace),
+        slots.I_NS: ns,
+        slots.I_N_DIFF: s.n_diff,
+        slots.I_N_RATE: s.n_rate,
+        slots.I_N_RELEASE: s.n_release,
+        slots.I_SPAN: span,
+        slots.I_WINDOW: window,
+        slots.I_STILL_BLOCK: s.still_block,
+        slots.I_STUCK_RUN: STUCK_RUN,
+        slots.I_CHECK_N: check_n,
+        slots.I_NOISE_FREE_REPEATS: NOISE_FREE_REPEATS,
+        slots.I_LIVE_N: live_n,
+        slots.I_CONFIRM: CONFIRM_CHANGES,
+        slots.I_MT_LAG: lag,
+        slots.I_MT_LANDING: landing,
+        slots.I_MT_BOARD: 0 if s.frames else -1,
+        slots.I_N_DRIFT: s.n_drift if user.drift_settle_s > 0 else 0,
+        slots.I_STILL_RING: still_ring,
+        slots.I_IDLE_LOG: idle_log,
+        slots.I_ZEROED: int(user.zeroed),
+        slots.I_PO_MAP: pf.put(s.wrench_map.T),  # (by channel: see kernel_slots.I_PO_MAP)
+        slots.I_PO_LIMIT: pf.put(s.range_flat),
+        slots.I_PO_LP_SOS: sos_at["lp"],
+        slots.I_PO_DIFF_SOS: sos_at["diff"],
+        slots.I_PO_DET_SOS: sos_at["det"],
+        slots.I_PO_MT_SOS: sos_at["mt"],
+        slots.I_PO_LP_ZI: zi_at["lp"],
+        slots.I_PO_DIFF_ZI: zi_at["diff"],
+        slots.I_PO_DET_ZI: zi_at["det"],
+        slots.I_PO_MT_ZI: zi_at["mt"],
+        slots.I_PO_SURF: surf_f,
+        slots.I_PO_LEVER: pf.put(s.sway.moment_lever if s.sway is not None else np.zeros(6)),
+        slots.I_PO_GAIN: pf.put(inertia.gain if inertia is not None else np.zeros(0)),
+        slots.I_PO_REST: pf.put(inertia.rest if inertia is not None else np.zeros(0)),
+        slots.I_PO_ALIMIT: pf.put(inertia.limit if inertia is not None else np.zeros(0)),
+        slots.I_IO_UP: pi.put(np.asarray(upright, np.int64)),
+        slots.I_IO_SURF: surf_i,
+        slots.I_SO_LP_ZI: sf.room(6 * ns * 2),
+        slots.I_SO_DIFF_ZI: sf.room(6 * ns * 2),
+        slots.I_SO_DET_ZI: sf.room(6 * ns * 2),
+        slots.I_SO_MT_ZI: sf.room(6 * ns * 2),
+        slots.I_SO_DELAY: sf.room(s.n_diff * 6),
+        slots.I_SO_DET_RING: sf.room(s.n_rate * 3),
+        slots.I_SO_SWAY: sf.room(2 * span * 2),
+        slots.I_SO_SWAY_DIFF: sf.room(2 * span * 2),
+        slots.I_SO_WIN_LP: sf.room(3 * window),
+        slots.I_SO_WIN_RAW: sf.room(6 * window),
+        slots.I_SO_GUARD: sf.room(len(upright)),
+        slots.I_SO_COVS: sf.room(max(1, len(s.frames)) * 4 * 6),
+        slots.I_SO_STEP: sf.room(c_n),
+        slots.I_SO_USED: sf.room(c_n),
+        slots.I_SO_LAST_ROW: sf.room(c_n),
+        slots.I_SO_PREV_ROW: sf.room(c_n),
+        slots.I_SO_MT_HIST: sf.room((2 * lag + 1) * slots.MT_F),
+        slots.I_SO_LANDING: sf.room((2 * lag + 1 + landing) * 6),
+        slots.I_SO_PARTIAL_GAIN: sf.room(6 * n_a),
+        slots.I_SO_TRACE: sf.room(slots.TRACE_ROWS),
+        slots.I_SO_STILL_MEANS: sf.room(6 * still_ring),
+        slots.I_SO_IDLE_LOG: sf.room(5 * idle_log),
+        slots.I_JO_CHANGES: si.room(c_n),
+        slots.I_JO_LEARNING: si.put(np.ones(c_n, np.int64)),
+        slots.I_JO_WIN_BAD: si.room(window),
+        slots.I_JO_MT_HIST: si.room((2 * lag + 1) * slots.MT_I),
     }
     state_f = {
-        k.S_LAST_T: -math.inf,
-        k.S_MAX_T: -math.inf,
-        k.S_STUCK_SINCE: math.nan,
-        k.S_LAST_STUCK_T: math.nan,
-        k.S_MT_MIN_APART: MIN_APART_M,
+        slots.S_LAST_T: -math.inf,
+        slots.S_MAX_T: -math.inf,
+        slots.S_STUCK_SINCE: math.nan,
+        slots.S_LAST_STUCK_T: math.nan,
+        slots.S_MT_MIN_APART: MIN_APART_M,
     }
-    state_i = {k.J_STUCK_CHECK: -1, k.J_LIVE: live_n, k.J_N_LEARNING: c_n}
+    state_i = {slots.J_STUCK_CHECK: -1, slots.J_LIVE: live_n, slots.J_N_LEARNING: c_n}
     # the state's desk-sized parts and their initial values (the learning flags)
     sf_parts, si_parts = sf, si
     params = Params(
@@ -280,7 +280,7 @@ def params_of(s: EstimatorSettings, inertia: InertiaSettings | None) -> Params:
             **state_i,
             **{at + j: int(v) for at, flat in si_parts.parts for j, v in enumerate(flat) if v},
         },
-        out_rows=k.N_OUT_F + (k.TRACE_ROWS if s.trace else 0),
+        out_rows=slots.N_OUT_F + (slots.TRACE_ROWS if s.trace else 0),
     )
     return params
 

@@ -12,7 +12,7 @@ load later steps back to the zero from before an object joined it (the object li
 zero is restored at once. The desk is judged on windows of ``WINDOW_S``; a zero decided at
 the end of a window applies from the next sample on.
 
-The kernel (:mod:`hapticdesk.estimator.kernel`, ``_window_add``) fills each window and, at
+The kernel (:func:`hapticdesk.estimator.kernel_zero.window_add`) fills each window and, at
 its end, measures it — the spread of its low-passed force, its mean wrench, its share of bad
 samples. Once tared, a window that is not still only ends a still run and the resting, and
 a still window of the idle desk (nothing absorbed, a load under ``drift_max_n``) goes on with
@@ -29,7 +29,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hapticdesk.estimator import kernel as k
+from hapticdesk.estimator import kernel_slots as slots
 from hapticdesk.estimator.notices import Notice, add_notice, log
 from hapticdesk.estimator.settings import EstimatorSettings
 
@@ -88,14 +88,14 @@ class ZeroState:
 
     What the kernel shares — the zero, when it was set, the window count, the still run and
     its means, whether the load is resting, how many objects are absorbed — lives in the
-    kernel's state arrays (``kernel.S_*``, ``kernel.J_*``: the kernel judges the idle desk's
-    windows itself); the properties here read and write them there. The rest is Python's:
-    the tare's windows, the idle desk's yardsticks (from the windows the kernel logs), the
+    kernel's state arrays (``kernel_slots.S_*``, ``kernel_slots.J_*``: the kernel judges the
+    idle desk's windows itself); the properties here read and write them there. The rest is
+    Python's: the tare's windows, the idle desk's yardsticks (from the windows the kernel logs), the
     object rule's windows and the objects absorbed."""
 
     def __init__(self, sf: np.ndarray, si: np.ndarray, pi: np.ndarray) -> None:
         self._sf, self._si = sf, si
-        self._ring_at, self._ring = int(pi[k.I_SO_STILL_MEANS]), int(pi[k.I_STILL_RING])
+        self._ring_at, self._ring = int(pi[slots.I_SO_STILL_MEANS]), int(pi[slots.I_STILL_RING])
         self.noise: np.ndarray | None = None  # (6, 6) measured at the tare
         self.tare_raw: list[np.ndarray] = []
         self.tare_means: list[list[float]] = []
@@ -116,32 +116,32 @@ class ZeroState:
 
     @property
     def tared(self) -> bool:
-        return bool(self._si[k.J_TARED])
+        return bool(self._si[slots.J_TARED])
 
     @property
     def zero(self) -> np.ndarray | None:
         """The zero (6,), None before the tare."""
-        return self._sf[k.S_ZERO : k.S_ZERO + 6].copy() if self.tared else None
+        return self._sf[slots.S_ZERO : slots.S_ZERO + 6].copy() if self.tared else None
 
     @property
     def zero_list(self) -> list[float]:
-        return list(self._sf[k.S_ZERO : k.S_ZERO + 6].tolist())
+        return list(self._sf[slots.S_ZERO : slots.S_ZERO + 6].tolist())
 
     @property
     def zero_t(self) -> float:
         """When the zero was last set, for the drift since then."""
-        return float(self._sf[k.S_ZERO_T])
+        return float(self._sf[slots.S_ZERO_T])
 
     @property
     def zero_version(self) -> int:
         """How many times the zero was set."""
-        return int(self._si[k.J_ZERO_VERSION])
+        return int(self._si[slots.J_ZERO_VERSION])
 
     def set_zero(self, zero: np.ndarray | list[float], t: float) -> None:
-        self._sf[k.S_ZERO : k.S_ZERO + 6] = [float(z) for z in zero]
-        self._sf[k.S_ZERO_T] = t
-        self._si[k.J_TARED] = 1
-        self._si[k.J_ZERO_VERSION] += 1
+        self._sf[slots.S_ZERO : slots.S_ZERO + 6] = [float(z) for z in zero]
+        self._sf[slots.S_ZERO_T] = t
+        self._si[slots.J_TARED] = 1
+        self._si[slots.J_ZERO_VERSION] += 1
 
     def _int(name: int) -> property:  # type: ignore[misc]  # (a slot of the kernel's si)
         return property(
@@ -152,54 +152,54 @@ class ZeroState:
     #: windows judged on (each before the tare, the still ones after); windows ended so far,
     #: still or not (which are in a row); still windows in a row with the load not moved; windows
     #: the load has been as still as the idle desk
-    windows_seen = _int(k.J_WINDOWS_SEEN)
-    window_index = _int(k.J_WINDOW_INDEX)
-    still_run = _int(k.J_STILL_RUN)
-    object_run = _int(k.J_OBJECT_RUN)
+    windows_seen = _int(slots.J_WINDOWS_SEEN)
+    window_index = _int(slots.J_WINDOW_INDEX)
+    still_run = _int(slots.J_STILL_RUN)
+    object_run = _int(slots.J_OBJECT_RUN)
     del _int
 
     @property
     def resting(self) -> bool:
         """The load has been as still as an object put down since the last window judged
         (``object_pending``): recognizers wait for the verdict before a hold fires."""
-        return bool(self._si[k.J_RESTING])
+        return bool(self._si[slots.J_RESTING])
 
     @resting.setter
     def resting(self, value: bool) -> None:
-        self._si[k.J_RESTING] = int(value)
+        self._si[slots.J_RESTING] = int(value)
 
     @property
     def still_lo(self) -> list[float]:
         """The still run's lowest window mean of the force less the zero (3)."""
-        return list(self._sf[k.S_STILL_LO : k.S_STILL_LO + 3].tolist())
+        return list(self._sf[slots.S_STILL_LO : slots.S_STILL_LO + 3].tolist())
 
     @still_lo.setter
     def still_lo(self, values: list[float]) -> None:
-        self._sf[k.S_STILL_LO : k.S_STILL_LO + 3] = values
+        self._sf[slots.S_STILL_LO : slots.S_STILL_LO + 3] = values
 
     @property
     def still_hi(self) -> list[float]:
-        return list(self._sf[k.S_STILL_HI : k.S_STILL_HI + 3].tolist())
+        return list(self._sf[slots.S_STILL_HI : slots.S_STILL_HI + 3].tolist())
 
     @still_hi.setter
     def still_hi(self, values: list[float]) -> None:
-        self._sf[k.S_STILL_HI : k.S_STILL_HI + 3] = values
+        self._sf[slots.S_STILL_HI : slots.S_STILL_HI + 3] = values
 
     def clear_still_means(self) -> None:
-        self._si[k.J_STILL_COUNT] = 0
+        self._si[slots.J_STILL_COUNT] = 0
 
     def push_still_mean(self, mean: list[float]) -> None:
         """The mean wrench (6) of one more still window of the run."""
-        si, pos = self._si, int(self._si[k.J_STILL_POS])
+        si, pos = self._si, int(self._si[slots.J_STILL_POS])
         at = self._ring_at + 6 * pos
         self._sf[at : at + 6] = mean
-        si[k.J_STILL_POS] = pos + 1 if pos + 1 < self._ring else 0
-        si[k.J_STILL_COUNT] = min(int(si[k.J_STILL_COUNT]) + 1, self._ring)
+        si[slots.J_STILL_POS] = pos + 1 if pos + 1 < self._ring else 0
+        si[slots.J_STILL_COUNT] = min(int(si[slots.J_STILL_COUNT]) + 1, self._ring)
 
     def last_still_means(self, n: int) -> list[list[float]]:
         """The means of the run's last ``n`` still windows (fewer if the run is shorter)."""
-        n = min(n, int(self._si[k.J_STILL_COUNT]))
-        pos = int(self._si[k.J_STILL_POS])
+        n = min(n, int(self._si[slots.J_STILL_COUNT]))
+        pos = int(self._si[slots.J_STILL_POS])
         rows = []
         for j in range(n):
             at = self._ring_at + 6 * ((pos - n + j) % self._ring)
@@ -209,7 +209,7 @@ class ZeroState:
     def count_objects(self) -> None:
         """How many objects are absorbed, for the kernel (it judges no window while any is:
         their lift is Python's)."""
-        self._si[k.J_OBJECTS] = len(self.objects)
+        self._si[slots.J_OBJECTS] = len(self.objects)
 
     @property
     def object_pending(self) -> bool:
@@ -233,7 +233,7 @@ class ZeroStage:
         self.settings = settings
         self.notices = notices
         self.state = ZeroState(sf, si, pi)
-        self._log_at, self._log = int(pi[k.I_SO_IDLE_LOG]), int(pi[k.I_IDLE_LOG])
+        self._log_at, self._log = int(pi[slots.I_SO_IDLE_LOG]), int(pi[slots.I_IDLE_LOG])
         self.window_s = settings.window / settings.sample_rate_hz
         # the idle desk's wander is measured over as many windows as an object waits
         self.wander_windows = max(2, settings.n_object)
@@ -262,19 +262,19 @@ class ZeroStage:
         order (the last ``IDLE_WINDOWS`` and a wander's tail are all that count: the kernel
         keeps that many)."""
         si, sf = self.state._si, self.state._sf
-        n = int(si[k.J_IDLE_LOG_N])
+        n = int(si[slots.J_IDLE_LOG_N])
         if n == 0:
             return
         st = self.state
         if n == self._log:  # (maybe more were logged: those the log kept are the ones that count)
             st.idle_spreads, st.idle_wanders = [], []
-        pos = int(si[k.J_IDLE_LOG_POS])
+        pos = int(si[slots.J_IDLE_LOG_POS])
         for j in range(n):
             at = self._log_at + 5 * ((pos - n + j) % self._log)
             spread, fx, fy, fz, index = sf[at : at + 5].tolist()
             self._idle_window(spread, [fx, fy, fz], int(index), yardsticks=False)
         self._yardsticks()  # (once for the lot: only the last windows' count)
-        si[k.J_IDLE_LOG_N] = 0
+        si[slots.J_IDLE_LOG_N] = 0
 
     def _window_done(
         self, spread: float, bad: bool, mean: list[float], raw: np.ndarray, t_end: float

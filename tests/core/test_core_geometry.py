@@ -132,7 +132,7 @@ def test_overlapping_surfaces_the_one_reached_first_wins():
 
 def test_shear_is_the_drag_along_the_surface_over_the_press_into_it():
     from hapticdesk.estimator.contacts import SHEAR_CAP
-    from hapticdesk.estimator.kernel import shear_of
+    from hapticdesk.estimator.kernel_geometry import shear_of
 
     forces = np.array([[3.0, 4.0, -10.0], [3.0, 4.0, -10.0], [0.0, 0.0, 0.0], [2.0, 0.0, 0.0]])
     normals = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0]])

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from scipy.signal import sosfilt, sosfilt_zi
 
-from hapticdesk.estimator import ContactEstimator
-from hapticdesk.estimator import kernel as k
+from hapticdesk.estimator import ContactEstimator, kernel_zero
+from hapticdesk.estimator import kernel_slots as slots
 from hapticdesk.estimator.contacts import (
     BAD_SAMPLE,
     FLAG_GAP,
@@ -89,7 +89,9 @@ def test_any_split_gives_the_outputs_notices_and_state_of_one_pass(desk, bad_inp
     assert est.notices == whole.notices
     # every stage's state: the filters, the rings, the zero, the window, the detector
     np.testing.assert_allclose(est.state.sf, whole.state.sf, rtol=1e-12, atol=1e-12)
-    np.testing.assert_array_equal(est.state.si[: k.J_EVENT_AT], whole.state.si[: k.J_EVENT_AT])
+    np.testing.assert_array_equal(
+        est.state.si[: slots.J_EVENT_AT], whole.state.si[: slots.J_EVENT_AT]
+    )
 
 
 def test_the_sample_stage_flags_bad_samples_and_says_so(desk, bad_input):
@@ -125,7 +127,7 @@ def test_a_noise_free_input_is_not_taken_for_a_stuck_one(desk):
     rec = simulate(desk, Scene([Press((0.1, 0.1))]), seed=1, effects=SimEffects.ideal())
     est = ContactEstimator(desk)
     flags = est.push(rec.t, rec.wrench).flags.copy()
-    assert est.state.si[k.J_STUCK_CHECK] == 0 and not (flags & BAD_SAMPLE).any()
+    assert est.state.si[slots.J_STUCK_CHECK] == 0 and not (flags & BAD_SAMPLE).any()
     assert [n.kind for n in est.notices] == ["tare"]
     # while the same input, noisy at first, is checked
     noisy = rec.wrench.copy()
@@ -145,11 +147,11 @@ def test_the_filters_are_scipys_sosfilt_to_rounding(desk, noisy_presses):
     raw = w[:n].reshape(n, -1) @ desk.wrench_map().T  # (n, 6): paper eqs. (1)–(4)
     s = est.stage_settings
     sf, pi = est.state.sf, est.params.pi
-    for sos, at in ((s.lp_sos, k.I_SO_LP_ZI), (s.det_sos, k.I_SO_DET_ZI)):
+    for sos, at in ((s.lp_sos, slots.I_SO_LP_ZI), (s.det_sos, slots.I_SO_DET_ZI)):
         zi = sosfilt_zi(sos)[:, :, None] * raw[0]
         _, zf = sosfilt(sos, raw, axis=0, zi=zi)
         kernel_zi = sf[pi[at] : pi[at] + 6 * len(sos) * 2].reshape(len(sos), 2, 6)
-        lanes = 6 if at == k.I_SO_LP_ZI else 3  # (the fast path's moments: fused alone)
+        lanes = 6 if at == slots.I_SO_LP_ZI else 3  # (the fast path's moments: fused alone)
         np.testing.assert_allclose(kernel_zi[..., :lanes], zf[..., :lanes], rtol=1e-9, atol=1e-9)
 
 
@@ -157,9 +159,9 @@ def test_window_means_are_numpys_to_the_bit():
     rng = np.random.default_rng(0)
     for n in (5, 8, 24, 120, 240, 600, 1201):
         a = rng.normal(100.0, 1.0, n) * rng.choice([1.0, 1e-8, 1e8], n)
-        assert k.pairwise_sum(a, 0, n, 1) == np.sum(a)
+        assert kernel_zero.pairwise_sum(a, 0, n, 1) == np.sum(a)
         strided = np.repeat(a, 3)
-        assert k.pairwise_sum(strided, 1, n, 3) == np.sum(a)
+        assert kernel_zero.pairwise_sum(strided, 1, n, 3) == np.sum(a)
 
 
 def test_the_zero_follows_drift_and_the_detector_switches(desk, bad_input):
@@ -187,7 +189,7 @@ def test_single_sample_pushes_leave_the_loop_only_at_a_window_end(desk, noisy_pr
     window = est.stage_settings.window
     for i in range(3100, 3100 + 3 * window):
         est.push(t[i : i + 1], w[i : i + 1])
-    assert set(handled) <= {k.EV_WINDOW} and len(handled) <= 3
+    assert set(handled) <= {slots.EV_WINDOW} and len(handled) <= 3
     # the windows of a press held (not still) never leave the loop
     est.push(t[3100 + 3 * window : 3600], w[3100 + 3 * window : 3600])
     handled.clear()

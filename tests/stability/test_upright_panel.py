@@ -17,7 +17,7 @@ import pytest
 
 from hapticdesk.bench.accuracy import find_presses
 from hapticdesk.estimator import ContactEstimator, estimate
-from hapticdesk.estimator import kernel as k
+from hapticdesk.estimator import kernel_slots as slots
 from hapticdesk.estimator.detector import upright_surfaces
 from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.gestures.engine import GestureEngine
@@ -35,7 +35,7 @@ def contact_starts(in_contact: np.ndarray) -> int:
 
 def guard(est: ContactEstimator) -> np.ndarray:
     """The ring guard of each upright surface (N), from the estimator's state."""
-    at, n = int(est.params.pi[k.I_SO_GUARD]), int(est.params.pi[k.I_N_UP])
+    at, n = int(est.params.pi[slots.I_SO_GUARD]), int(est.params.pi[slots.I_N_UP])
     return est.state.sf[at : at + n].copy()
 
 

@@ -108,6 +108,28 @@ class _Pending:
         )
 
 
+def _decode_groups(
+    decoding: DeskDecoding,
+) -> tuple[np.ndarray, np.ndarray, list[tuple[Callable[[np.ndarray], np.ndarray], np.ndarray]]]:
+    """Frame kinds decoded by one function into as many fields (an ATI desk: every board's
+    first frames, then every board's second) decoded together, in one call: each kind's
+    group (-1 for poll requests, the extra last kind), its row in the group, and each
+    group's decode function with its kinds' slots."""
+    n_kinds = len(decoding.kinds)
+    groups: dict[tuple[object, int], list[int]] = {}
+    for k, kind in enumerate(decoding.kinds):
+        groups.setdefault((kind.decode, len(kind.slots)), []).append(k)
+    group_of_kind = np.full(n_kinds + 1, -1, dtype=np.int64)  # (+1: poll requests)
+    row_in_group = np.zeros(n_kinds + 1, dtype=np.int64)
+    decode_groups: list[tuple[Callable[[np.ndarray], np.ndarray], np.ndarray]] = []
+    for g, ks in enumerate(groups.values()):
+        group_of_kind[ks] = g
+        row_in_group[ks] = np.arange(len(ks))
+        slots = np.stack([decoding.kinds[k].slots for k in ks])
+        decode_groups.append((decoding.kinds[ks[0]].decode, slots))
+    return group_of_kind, row_in_group, decode_groups
+
+
 class FrameAssembler:
     """Streaming frames -> desk samples for one :class:`DeskDecoding` (see module docstring)."""
 
@@ -147,19 +169,7 @@ class FrameAssembler:
             np.array([k for k in range(n_kinds) if s in decoding.kinds[k].sensors], dtype=np.int64)
             for s in range(len(names))
         ]
-        # frame kinds decoded by one function into as many fields (an ATI desk: every board's
-        # first frames, then every board's second) are decoded together, in one call
-        groups: dict[tuple[object, int], list[int]] = {}
-        for k, kind in enumerate(decoding.kinds):
-            groups.setdefault((kind.decode, len(kind.slots)), []).append(k)
-        self._group_of_kind = np.full(n_kinds + 1, -1, dtype=np.int64)  # (+1: poll requests)
-        self._row_in_group = np.zeros(n_kinds + 1, dtype=np.int64)
-        self._decode_groups: list[tuple[Callable[[np.ndarray], np.ndarray], np.ndarray]] = []
-        for g, ks in enumerate(groups.values()):
-            self._group_of_kind[ks] = g
-            self._row_in_group[ks] = np.arange(len(ks))
-            slots = np.stack([decoding.kinds[k].slots for k in ks])
-            self._decode_groups.append((decoding.kinds[ks[0]].decode, slots))
+        self._group_of_kind, self._row_in_group, self._decode_groups = _decode_groups(decoding)
         self._pending = _Pending.empty()
         self._last_key: int | None = None  # key of the last sample given out
         self._key0: int | None = None

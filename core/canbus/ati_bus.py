@@ -43,6 +43,57 @@ class _Request(NamedTuple):
     base: int
 
 
+class _PollLedger:
+    """Per board: the polls sent, the replies heard (``heard``, counted by the receive), the
+    replies written off as lost, when it was last polled and whether its reply is waited for
+    (see :meth:`AtiBoards._poll`)."""
+
+    def __init__(self, boards: int, heard: list[int], reply_timeout_s: float) -> None:
+        self.heard = heard
+        self.reply_timeout_s = reply_timeout_s
+        self.sent = [0] * boards
+        self.written_off = [0] * boards
+        self.sent_at = [0.0] * boards
+        self.waited = [True] * boards
+
+    def owing(self, b: int) -> int:
+        """The replies board ``b`` still owes."""
+        debt = self.sent[b] - self.heard[b] - self.written_off[b]
+        if debt < 0:  # a reply taken as lost came after all
+            self.written_off[b] += debt
+            debt = 0
+        return debt
+
+    def due(self, now: float) -> list[int]:
+        """The boards to poll in this round: those that owe nothing, or whose reply is
+        written off (:data:`WRITE_OFF_S`); a board whose reply is late is no longer waited
+        for."""
+        boards = []
+        for b in range(len(self.sent)):
+            debt = self.owing(b)
+            if debt and now - self.sent_at[b] >= WRITE_OFF_S:
+                self.written_off[b] += debt  # its reply is lost
+            elif debt:
+                self.waited[b] = self.waited[b] and now - self.sent_at[b] < self.reply_timeout_s
+                continue  # its reply may still come: not asked again meanwhile
+            else:
+                self.waited[b] = True
+            boards.append(b)
+        return boards
+
+    def sent_to(self, b: int, now: float) -> None:
+        self.sent[b] += 1
+        self.sent_at[b] = now
+
+    def awaited_until(self, now: float) -> list[float]:
+        """Until when each reply still waited for may come."""
+        return [
+            self.sent_at[b] + self.reply_timeout_s
+            for b in range(len(self.sent))
+            if self.waited[b] and self.owing(b) and now < self.sent_at[b] + self.reply_timeout_s
+        ]
+
+
 class AtiBoards:
     """The ATI boards of a live CAN source: calibration at start, polls while it runs.
 
@@ -207,48 +258,22 @@ class AtiBoards:
         it missed, never bursts them.
         """
         period = 1.0 / self.sample_rate_hz
-        reply_timeout = max(REPLY_TIMEOUT_S, 2 * period)
-        boards = range(len(self.poll_ids))
-        sent = [0] * len(self.poll_ids)  # polls sent per board
-        written_off = [0] * len(self.poll_ids)  # replies taken as lost per board
-        sent_at = [0.0] * len(self.poll_ids)  # when each board was last polled
-        waited = [True] * len(self.poll_ids)  # a board's replies are waited for
-
-        def owing(b: int) -> int:
-            debt = sent[b] - self._heard[b] - written_off[b]
-            if debt < 0:  # a reply taken as lost came after all
-                written_off[b] += debt
-                debt = 0
-            return debt
-
+        ledger = _PollLedger(len(self.poll_ids), self._heard, max(REPLY_TIMEOUT_S, 2 * period))
         next_due = time.monotonic()
         while not self._closing.is_set():
             now = time.monotonic()
-            for b in boards:  # the round: every board that owes nothing
-                debt = owing(b)
-                if debt and now - sent_at[b] >= WRITE_OFF_S:
-                    written_off[b] += debt  # its reply is lost
-                elif debt:
-                    waited[b] = waited[b] and now - sent_at[b] < reply_timeout
-                    continue  # its reply may still come: not asked again meanwhile
-                else:
-                    waited[b] = True
+            for b in ledger.due(now):  # the round: every board that owes nothing
                 try:
                     self._send_poll(self.poll_ids[b])
                 except Exception as err:  # the reader reconnects; keep the rhythm
                     log.debug("poll not sent: %s", err)
                     break
-                sent[b] += 1
-                sent_at[b] = now
+                ledger.sent_to(b, now)
             next_due += period
             while not self._closing.is_set():  # read until due and the round is answered
                 now = time.monotonic()
                 # the replies that may yet come hold the round back (the receive counts them)
-                owed = [
-                    sent_at[b] + reply_timeout
-                    for b in boards
-                    if waited[b] and owing(b) and now < sent_at[b] + reply_timeout
-                ]
+                owed = ledger.awaited_until(now)
                 if now >= next_due and not owed:
                     break
                 self._receive((next_due if now < next_due else min(owed)) - now)

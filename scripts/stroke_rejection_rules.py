@@ -80,36 +80,49 @@ def shortfalls(
 
 
 def evaluate(logs: stroke_lowo.Logs, rule: tuple[str, str]) -> dict[str, dict[str, np.ndarray]]:
-    """Per writer: own-3 right and unknown accepted at each of MARGINS, writer-independent
-    right at each (arrays over MARGINS)."""
+    """Per writer, % at each of MARGINS (arrays): own-3 right ("own"), unknown accepted,
+    writer-independent right ("wi"), and of own-3 the strokes whose nearest shape is another
+    and those of the right shape below ``min_score``; and the shortfalls (not %) of the own-3
+    strokes of the right shape and of the unknown shapes, those reaching ``min_score``."""
     scores = logs.parts.score(DEFAULT_CHOICES)
     margins = np.asarray(stroke_lowo.MARGINS)
-    out: dict[str, dict[str, list[np.ndarray]]] = {}
+    # per writer and protocol: (of the right shape, best score, shortfall) of each split
+    found: dict[str, dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]]] = {
+        w: {"own": [], "unknown": [], "wi": []} for w in logs.writers
+    }
     for w, _, te, tm in stroke_lowo.own_splits(logs, logs.writers):
-        mine = out.setdefault(w, {"own": [], "unknown": [], "wi": []})
         names, among = logs.shape[tm], scores[np.ix_(tm, tm)]
         shape, best, short = shortfalls(scores[np.ix_(te, tm)], names, among, rule)
-        taken = (best >= stroke_lowo.MIN_SCORE)[:, None] & (short[:, None] <= margins)
-        mine["own"].append(taken & (shape == logs.shape[te])[:, None])
+        found[w]["own"].append((shape == logs.shape[te], best, short))
         for left_out in dict.fromkeys(logs.shape[te].tolist()):
             keep, tested = names != left_out, te[logs.shape[te] == left_out]
             _, best, short = shortfalls(
                 scores[np.ix_(tested, tm[keep])], names[keep], among[np.ix_(keep, keep)], rule
             )
-            mine["unknown"].append(
-                (best >= stroke_lowo.MIN_SCORE)[:, None] & (short[:, None] <= margins)
-            )
+            found[w]["unknown"].append((np.zeros(len(tested), bool), best, short))
     for w in logs.writers:
         te, tm = np.flatnonzero(logs.writer == w), np.flatnonzero(logs.writer != w)
         shape, best, short = shortfalls(
             scores[np.ix_(te, tm)], logs.shape[tm], scores[np.ix_(tm, tm)], rule
         )
-        taken = (best >= stroke_lowo.MIN_SCORE)[:, None] & (short[:, None] <= margins)
-        out[w]["wi"].append(taken & (shape == logs.shape[te])[:, None])
-    return {
-        w: {k: 100 * np.concatenate(v).mean(axis=0) for k, v in parts.items()}
-        for w, parts in out.items()
-    }
+        found[w]["wi"].append((shape == logs.shape[te], best, short))
+    out: dict[str, dict[str, np.ndarray]] = {}
+    for w, protocols in found.items():
+        mine = out[w] = {}
+        for protocol, parts in protocols.items():
+            right, best, short = (np.concatenate(p) for p in zip(*parts, strict=True))
+            reaches = best >= stroke_lowo.MIN_SCORE
+            taken = reaches[:, None] & (short[:, None] <= margins)
+            if protocol == "unknown":
+                mine["unknown"] = 100 * taken.mean(axis=0)
+                mine["unknown shortfall"] = short[reaches]
+                continue
+            mine[protocol] = 100 * (taken & right[:, None]).mean(axis=0)
+            if protocol == "own":
+                mine["nearest wrong"] = np.full(len(margins), 100 * np.mean(~right))
+                mine["below min_score"] = np.full(len(margins), 100 * np.mean(right & ~reaches))
+                mine["own shortfall"] = short[right & reaches]
+    return out
 
 
 def main() -> None:
@@ -124,6 +137,7 @@ def main() -> None:
         " writer-independent: mean | worst | margins (each fold; all five) |\n"
         "|---|---|---:|---:|---:|---:|---:|---:|---|"
     )
+    losses = []
     for rule in RULES:
         per = evaluate(logs, rule)
         rates = {w: per[w]["unknown"] / 100 for w in writers}
@@ -138,6 +152,29 @@ def main() -> None:
         margins = ", ".join(f"{stroke_lowo.MARGINS[chosen[w]]:g}" for w in writers)
         on_all = stroke_lowo.MARGINS[stroke_lowo.nested_margin(rates, writers)]
         print(f"| {rule[0]} | {rule[1]} | {' | '.join(cells)} | {margins}; {on_all:g} |")
+        if rule == RULES[0]:
+            for w in writers:
+                at = chosen[w]
+                wrong, below = per[w]["nearest wrong"][at], per[w]["below min_score"][at]
+                rejected = 100 - per[w]["own"][at] - wrong - below
+                margin = stroke_lowo.MARGINS[at]
+                short = per[w]["own shortfall"]
+                short = short[short > margin]
+                fall = f": {short.min():.3f}-{short.max():.3f} short" if len(short) else ""
+                losses.append(
+                    f"- {w}: {per[w]['own'][at]:.2f} % right; {wrong:.2f} % nearest another "
+                    f"shape, {below:.2f} % below min_score, {rejected:.2f} % rejected by the "
+                    f"margin ({margin:g}{fall})"
+                )
+            unknown = np.concatenate([per[w]["unknown shortfall"] for w in writers])
+            tenth, quarter, half = np.quantile(unknown, [0.1, 0.25, 0.5])
+            losses.append(
+                f"- unknown shapes (all writers) that reach min_score fall short of their "
+                f"nearest shape's agreement by less than {tenth:.3f} (a tenth), "
+                f"{quarter:.3f} (a quarter), {half:.3f} (half)"
+            )
+    print("\nA writer's own 3 templates with the shipped rule, what is lost:\n")
+    print("\n".join(losses))
     print(
         f"\n(`python scripts/stroke_rejection_rules.py {args.folder}`, "
         f"{time.perf_counter() - started:.0f} s)"

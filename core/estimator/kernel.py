@@ -79,7 +79,7 @@ from hapticdesk.estimator.contacts import (
     SOURCE_FORCE,
     SOURCE_FUSED,
 )
-from hapticdesk.estimator.kernel_compile import compiled, inlined
+from hapticdesk.estimator.kernel_compile import compiled, inlined, vectorized
 from hapticdesk.estimator.kernel_geometry import contains, intersect, shear_of, surface_at, to_desk
 from hapticdesk.estimator.kernel_slots import (
     COV_DET,
@@ -384,18 +384,24 @@ def _samples(
     c_n = pi[I_C]
     flags = 0
     events = 0
-    # one pass over the channels, without branches: finite, within its limit, equal to the
-    # sample before (a repeat, for the stuck check below)
-    finite = abs(t) < math.inf
-    saturated = False
+    # one pass over the channels, without branches: each within its limit (so finite: False
+    # for NaN too), equal to the sample before (a repeat, for the stuck check below), kept
+    # as the sample before the next (read only while the stuck check runs)
+    within = abs(t) < math.inf
     repeat = si[J_HAVE_PREV] == 1
     limit = pf[pi[I_PO_LIMIT] : pi[I_PO_LIMIT] + c_n]
     prev = sf[pi[I_SO_PREV_ROW] : pi[I_SO_PREV_ROW] + c_n]
     for c in range(c_n):
         v = x[c]
-        finite &= abs(v) < math.inf  # (False for NaN too)
-        saturated |= abs(v) >= limit[c]
+        within &= abs(v) < limit[c]
         repeat &= v == prev[c]
+        prev[c] = v
+    finite, saturated = True, False
+    if not within:  # (rare) which of the two
+        finite = abs(t) < math.inf
+        for c in range(c_n):
+            finite &= abs(x[c]) < math.inf
+            saturated |= abs(x[c]) >= limit[c]
     if not finite:
         flags |= FLAG_NAN
     else:
@@ -417,8 +423,6 @@ def _samples(
     # time, so the first CHECK_N samples decide whether to look at all
     check = si[J_STUCK_CHECK]
     if check != 0:
-        for c in range(c_n):
-            prev[c] = x[c]
         si[J_HAVE_PREV] = 1
         if check < 0:
             if repeat:
@@ -1363,7 +1367,7 @@ def warm() -> None:
     if _warm:
         return
     start = time.perf_counter()
-    with event.install_listener("numba:compile", _FirstCompile()):
+    with event.install_listener("numba:compile", _FirstCompile()), vectorized():
         for dispatcher, signature in _signatures():
             dispatcher.compile(signature)
     _warm = True

@@ -1,6 +1,7 @@
 """``hapticdesk record --source SPEC --desk D -o FILE [--seconds S]``: record a desk.
 
-SPEC: ``can:INTERFACE:CHANNEL`` (a live bus; ``can`` alone takes the profile's), ``replay:FILE``
+SPEC: ``can:INTERFACE:CHANNEL`` (a live bus; ``can`` alone takes the profile's), ``serial:PORT``
+(a board on a serial line) or any live source a plugin registers, ``replay:FILE``
 (a recording or CAN log, converted) or ``sim:SCENE.yaml`` (a simulated desk). FILE's suffix
 chooses what is written: ``.csv``/``.npz`` the decoded samples (the recording format), or
 ``.asc``/``.blf``/``.log``/``.trc`` the raw CAN frames through python-can's loggers (with the
@@ -23,7 +24,7 @@ import numpy as np
 
 from hapticdesk.commands import bit_rate, seed_number
 from hapticdesk.commands.output_path import partial_removed, remove_partial
-from hapticdesk.commands.record_bus import capture_bus
+from hapticdesk.commands.record_bus import capture_bus, capture_live
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.profile_reader import load_profile
@@ -38,7 +39,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--source",
         required=True,
-        help="can:INTERFACE:CHANNEL (or `can` for the profile's bus), replay:FILE, sim:SCENE.yaml",
+        help="can:INTERFACE:CHANNEL (or `can` for the profile's bus), serial:PORT (a board), "
+        "replay:FILE, sim:SCENE.yaml, or a plugin's kind",
     )
     parser.add_argument("--desk", required=True, help="desk profile name or path")
     parser.add_argument(
@@ -73,12 +75,8 @@ def run(args: argparse.Namespace) -> int:
         summary = _record_bus(args, profile, output)
     elif kind in ("replay", "sim"):
         summary = _record_file(kind, argument, args, profile, output)
-    else:
-        raise ConfigError(
-            "--source",
-            "record reads can:INTERFACE:CHANNEL, replay:FILE or sim:SCENE.yaml, "
-            f"found {args.source!r}",
-        )
+    else:  # a board on a serial line, or a source a plugin registers
+        summary = _record_live(args, profile, output)
     summary["output"] = str(output)
     summary["record_seconds"] = round(time.perf_counter() - start, 3)
     if args.json:
@@ -105,6 +103,35 @@ def _record_bus(args: argparse.Namespace, profile: DeskProfile, output: Path) ->
     if capture.stopped_by is not None:
         print(f"hapticdesk record: stopped: {capture.stopped_by}", file=sys.stderr)
         summary["stopped"] = str(capture.stopped_by)
+    return summary
+
+
+def _record_live(args: argparse.Namespace, profile: DeskProfile, output: Path) -> dict[str, Any]:
+    """Any other live source the registry knows (``serial:PORT``, a plugin's), its decoded
+    samples (and accelerometer readings, where it carries them) into a recording."""
+    from hapticdesk.plugin_loading import load_registry
+    from hapticdesk.runtime.source_spec import open_source, parse_source_spec
+
+    kind, _ = parse_source_spec(args.source)
+    if output.suffix.lower() in LOG_SUFFIXES:
+        raise ConfigError(
+            "--output",
+            f"raw CAN frames come only from a can: source; record {kind}: to .csv or .npz",
+        )
+    registry = load_registry()
+    source = open_source(args.source, profile, registry)
+    live = capture_live(source, args.seconds)
+    wrench = live.wrench if len(live.t) else np.zeros((0, len(profile.channel_names())))
+    extra: dict[str, np.ndarray] = {}
+    columns = profile.accelerometer_columns()
+    if live.accel is not None and columns and live.accel.shape[1] == len(columns):
+        extra = {name: live.accel[:, i] for i, name in enumerate(columns)}
+    rec = Recording(live.t, wrench, profile.sensor_names, extra, profile.channel_names())
+    _write(output, rec)
+    summary = _summary(live.t, ["", *source.summary()])
+    if live.stopped_by is not None:
+        print(f"hapticdesk record: stopped: {live.stopped_by}", file=sys.stderr)
+        summary["stopped"] = str(live.stopped_by)
     return summary
 
 

@@ -1,6 +1,7 @@
-"""``record --source can:…``: capturing a live CAN bus until Ctrl-C or ``--seconds``, the
-decoded samples kept in memory and, for a log output, every raw frame handed to python-can's
-logger on the bus reader's thread (a log the disk cannot hold is removed, the frames counted)."""
+"""``record`` from a live source: read until Ctrl-C or ``--seconds``, the samples kept in
+memory (:func:`capture_live`, any source: a board on a serial line, a plugin's); a CAN bus
+(:func:`capture_bus`) also hands every raw frame, for a log output, to python-can's logger on
+the bus reader's thread (a log the disk cannot hold is removed, the frames counted)."""
 
 from __future__ import annotations
 
@@ -17,6 +18,53 @@ import numpy as np
 from hapticdesk.commands.output_path import cannot_write, remove_partial
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile
+from hapticdesk.runtime.source import Source
+
+
+@dataclass(frozen=True)
+class LiveCapture:
+    """What a live source gave until it was stopped: samples ``t`` (k,), ``wrench`` (k, S, 6)
+    or (k, C), ``accel`` (k, A) where the source carries accelerometers, and the error that
+    stopped it early, if one did."""
+
+    t: np.ndarray
+    wrench: np.ndarray
+    accel: np.ndarray | None
+    stopped_by: ConfigError | None
+
+
+def capture_live(source: Source, seconds: float | None) -> LiveCapture:
+    """Read ``source`` until Ctrl-C, ``seconds`` or an error that stops it (kept: what came
+    before); the source is closed."""
+    ts: list[np.ndarray] = []
+    ws: list[np.ndarray] = []
+    accs: list[np.ndarray] = []
+    stopped_by: ConfigError | None = None
+    timer = None
+    if seconds is not None:
+        timer = threading.Timer(seconds, source.close)
+        timer.daemon = True
+        timer.start()
+    try:
+        for block in source.blocks():
+            if len(block.t):
+                ts.append(block.t)
+                ws.append(block.wrench)
+                if block.accel is not None:
+                    accs.append(block.accel)
+    except KeyboardInterrupt:
+        pass  # Ctrl-C is how a live recording ends
+    except ConfigError as err:  # a silent sensor with `stop`, a lost device: keep what we have
+        stopped_by = err
+    finally:
+        if timer is not None:
+            timer.cancel()
+        source.close()
+    if not ts:
+        return LiveCapture(np.zeros(0), np.zeros((0, 0)), None, stopped_by)
+    # (accelerometer readings only where every block carried them: all of them or none)
+    accel = np.concatenate(accs) if len(accs) == len(ts) else None
+    return LiveCapture(np.concatenate(ts), np.concatenate(ws), accel, stopped_by)
 
 
 @dataclass(frozen=True)
@@ -108,31 +156,13 @@ def capture_bus(
         if log is not None:
             log.stop()
         raise
-    ts: list[np.ndarray] = []
-    ws: list[np.ndarray] = []
-    stopped_by: ConfigError | None = None
-    timer = None
-    if args.seconds is not None:
-        timer = threading.Timer(args.seconds, source.close)
-        timer.daemon = True
-        timer.start()
     try:
-        for block in source.blocks():
-            ts.append(block.t)
-            ws.append(block.wrench)
-    except KeyboardInterrupt:
-        pass  # Ctrl-C is how a live recording ends
-    except ConfigError as err:  # a silent sensor with `stop`, a lost bus: keep what we have
-        stopped_by = err
+        live = capture_live(source, args.seconds)
     finally:
-        if timer is not None:
-            timer.cancel()
-        source.close()
         if log is not None:
             log.stop()
     if log is not None:
         log.check()
-    t = np.concatenate(ts) if ts else np.zeros(0)
-    wrench = np.concatenate(ws) if ws else np.zeros((0, len(profile.sensors), 6))
+    wrench = live.wrench if len(live.t) else np.zeros((0, len(profile.sensors), 6))
     frames = log.frames if log is not None else None
-    return BusCapture(t, wrench, source.stats.summary(), frames, stopped_by)
+    return BusCapture(live.t, wrench, source.stats.summary(), frames, live.stopped_by)

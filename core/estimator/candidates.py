@@ -6,7 +6,7 @@ one from the fast wrench), each the intersection of its line of action with the 
 from the noise measured at the tare, plus the zero's drift since it was set and, for P_ed,
 the term eq. (11) drops (a finger drifting at ``contact_speed_m_s``).
 
-The per-sample work is ``_locate`` in :mod:`hapticdesk.estimator.kernel`; here the
+The per-sample work is ``_locate`` in :mod:`hapticdesk.estimator.kernel_methods`; here the
 covariances it propagates are made, at the tare and again when a channel's resolution step
 is learned (:class:`Covariances`), and packed into the kernel's state.
 """

@@ -22,6 +22,7 @@ from hapticdesk.estimator import kernel_slots as slots
 from hapticdesk.estimator.candidates import Covariances
 from hapticdesk.estimator.contacts import ContactBlock
 from hapticdesk.estimator.inertia import InertiaSettings, InertiaStage, accelerometer_readings
+from hapticdesk.estimator.kernel_channels import steps_changed
 from hapticdesk.estimator.multitouch import SecondFingerStage, fit_second_point
 from hapticdesk.estimator.notices import NoticeList, add_notice
 from hapticdesk.estimator.params import Params, State, new_state, params_of
@@ -444,7 +445,7 @@ class ContactEstimator:
             t_end,
         )
         if not tared and self.zeroing.state.tared:
-            k.steps_changed(self.params.pf, self.params.pi, sf, si)  # (the steps they use)
+            steps_changed(self.params.pf, self.params.pi, sf, si)  # (the steps they use)
             self._make_covariances()
 
     def _make_covariances(self) -> None:

@@ -25,7 +25,7 @@ along it lately (the ring guard, g[k] = max(pull[k], decay · g[k−1]), forgott
 not end its press); a horizontal board is not guarded (its vertical modes are far above the
 sample rate).
 
-The per-sample work is ``_detect`` in :mod:`hapticdesk.estimator.kernel`; its state (in
+The per-sample work is ``detect`` in :mod:`hapticdesk.estimator.kernel_detector`; its state (in
 contact, re-armed, the ring guard of each upright surface) lives in the kernel's state arrays.
 """
 

@@ -1,7 +1,7 @@
 """The estimator's filters designed: second-order sections, and what they do to noise and
 delay.
 
-The filters run sample by sample in :mod:`hapticdesk.estimator.kernel` (scipy's ``sosfilt``
+The filters run sample by sample in :mod:`hapticdesk.estimator.kernel_filters` (scipy's ``sosfilt``
 recursion, its state set to steady state on the first sample and after a gap); here they
 are designed with numpy alone, step for step as scipy.signal designs them (equal to the bit,
 tests/core/test_core_filters.py), so that estimating imports no scipy.signal (over a second

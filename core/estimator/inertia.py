@@ -153,8 +153,8 @@ def rigid_motion(rows: np.ndarray, weights: np.ndarray) -> np.ndarray:
 class InertiaStage:
     """The readings checked, and the inertial wrench removed from a whole resultant wrench at
     once: the model the kernel runs per sample (``_inertial`` in
-    :mod:`hapticdesk.estimator.kernel`), for the analyses that look at the compensated wrench
-    itself (its balance, the ring left after a swipe).
+    :mod:`hapticdesk.estimator.kernel_inertia`), for the analyses that look at the compensated
+    wrench itself (its balance, the ring left after a swipe).
 
     Stateless: each sample's correction depends on its own reading only.
     """

@@ -10,20 +10,28 @@ numba stamps a cached function by the content of its own file only, while the co
 code of an entry holds the code of the functions it calls from other files and the
 constants it reads (:mod:`.kernel_slots`). So every cache made here is stamped also with
 the content of all ``kernel*.py`` files of this folder: a change in any of them makes every
-kernel compile anew, never a cache outliving the code it was made from.
+kernel compile anew, never a cache outliving the code it was made from. numba has no public
+hook for that stamp: it is set on a private attribute of numba's cache index (the numba
+versions pyproject.toml allows have it); a numba without it gets the kernels uncached,
+compiled anew in every process, and a line in the log saying so.
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
+import logging
 import os
 import tempfile
 from collections.abc import Callable, Iterator
 from typing import Any
 
+import numba
 from numba import config, njit
 from numba.misc.appdirs import AppDirs
+
+log = logging.getLogger("hapticdesk.estimator")
 
 
 def _writable(folder: str) -> bool:
@@ -68,7 +76,7 @@ def vectorized() -> Iterator[None]:
     matrix's six sums (the map cost 47 ns a sample on the paper's desk, 25 with it), the six
     lanes of a filter — without reordering any sum: the same values to the bit
     (tests/core/test_core_golden.py)."""
-    before = config.SLP_VECTORIZE
+    before = getattr(config, "SLP_VECTORIZE", 0)
     config.SLP_VECTORIZE = 1
     try:
         yield
@@ -76,23 +84,40 @@ def vectorized() -> Iterator[None]:
         config.SLP_VECTORIZE = before
 
 
-def _stamped(make: Callable[[Callable[..., Any]], Any]) -> Callable[[Callable[..., Any]], Any]:
-    """``make`` (an njit decorator) whose cache is stamped with :data:`KERNEL_SOURCES` too
-    (numba's index keeps the stamp it was saved with and ignores a cache whose stamp
-    differs; numba has no public hook for a stamp of several files)."""
+def _stamped(options: dict[str, Any]) -> Callable[[Callable[..., Any]], Any]:
+    """An njit decorator with ``options`` whose cache is stamped with :data:`KERNEL_SOURCES`
+    too (numba's index keeps the stamp it was saved with and ignores a cache whose stamp
+    differs; numba has no public hook for a stamp of several files, so this sets a private
+    attribute of numba's cache index, ``_source_stamp``, as numba 0.60–0.68 name it). Where
+    that attribute is missing (another numba), the kernels are compiled without a cache:
+    every process compiles them anew, and the log says so once."""
 
     def decorate(function: Callable[..., Any]) -> Any:
-        dispatcher = make(function)
-        index = dispatcher._cache._cache_file
+        dispatcher = njit(**options)(function)
+        index: Any = getattr(getattr(dispatcher, "_cache", None), "_cache_file", None)
+        if not hasattr(index, "_source_stamp"):
+            _no_stamp()
+            return njit(**{**options, "cache": False})(function)
         index._source_stamp = (index._source_stamp, KERNEL_SOURCES)
         return dispatcher
 
     return decorate
 
 
+@functools.cache
+def _no_stamp() -> None:
+    """Says once that the kernels are not cached (the log line of :func:`_stamped`)."""
+    log.warning(
+        "numba %s has no cache stamp hapticdesk can extend: the estimator's kernels are not "
+        "cached and compile anew in every process (~30 s); hapticdesk is tested with the "
+        "numba versions its package allows",
+        numba.__version__,
+    )
+
+
 # compiled once and cached; the GIL released while it runs (a reader thread keeps pace); IEEE
 # division (a division by zero gives inf, never an exception); no reference counting (the
 # kernel allocates nothing; see the module docstring)
 _OPTIONS: dict[str, Any] = {"cache": True, "nogil": True, "error_model": "numpy", "_nrt": False}
-compiled = _stamped(njit(**_OPTIONS))
-inlined = _stamped(njit(**_OPTIONS, forceinline=True))  # (into its callers, by LLVM)
+compiled = _stamped(_OPTIONS)
+inlined = _stamped({**_OPTIONS, "forceinline": True})  # (into its callers, by LLVM)

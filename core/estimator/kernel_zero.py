@@ -7,7 +7,8 @@ window's end, measures it (the spread of the low-passed force, the mean wrench) 
 still only ends the still run, and the idle desk's still windows are judged here
 (:func:`_idle_window`: the still run, the idle log, the drift followed). Its sums are
 numpy's (:func:`pairwise_sum`) and math.fsum's (:func:`exact_mean`) to the bit, so the
-kernel's zero equals zero.py's.
+kernel's zero equals zero.py's. Readings that come zeroed (a force plate's) have no window:
+:func:`zero_from_start` sets their zero to 0 at the first good sample.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import math
 import numpy as np
 
 from hapticdesk.estimator.contacts import BAD_SAMPLE, FLAG_GAP
+from hapticdesk.estimator.kernel_channels import steps_changed
 from hapticdesk.estimator.kernel_compile import compiled, inlined
 from hapticdesk.estimator.kernel_slots import (
     EV_WINDOW,
@@ -30,6 +32,7 @@ from hapticdesk.estimator.kernel_slots import (
     I_STILL_BLOCK,
     I_STILL_RING,
     I_WINDOW,
+    J_DIRTY,
     J_IDLE_LOG_N,
     J_IDLE_LOG_POS,
     J_OBJECT_RUN,
@@ -256,3 +259,19 @@ def pairwise_sum(a: np.ndarray, start: int, n: int, stride: int) -> float:
     n2 = n // 2
     n2 -= n2 % 8
     return pairwise_sum(a, start, n2, stride) + pairwise_sum(a, start + n2 * stride, n - n2, stride)
+
+
+@inlined
+def zero_from_start(
+    t: float, pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray
+) -> None:
+    """Readings that come zeroed (``estimation.zeroed``), at the first good sample: the zero
+    is 0 from here on (never tared, no drift, no object); the covariances are made from the
+    profile's noise (zero.py, EV_COVS) before this sample is located."""
+    for r in range(6):
+        sf[S_ZERO + r] = 0.0
+    sf[S_ZERO_T] = t
+    si[J_TARED] = 1
+    si[J_ZERO_VERSION] += 1
+    si[J_DIRTY] = 1
+    steps_changed(pf, pi, sf, si)  # (the steps the covariances use)

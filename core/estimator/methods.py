@@ -7,8 +7,8 @@ candidates are not fused with each other (they share their noise: one is filtere
 other's input): the fast one stands in where it is the surer; the candidates on the surface
 of the surest one are combined, p = (Σ Σ_i⁻¹)⁻¹ Σ Σ_i⁻¹ p_i, in closed form (2×2).
 
-The per-sample work is ``_locate`` and ``_fuse`` in :mod:`hapticdesk.estimator.kernel`; these
-are its constants.
+The per-sample work is ``_locate`` and ``_fuse`` in
+:mod:`hapticdesk.estimator.kernel_methods`; these are its constants.
 """
 
 from __future__ import annotations

@@ -26,9 +26,9 @@ finger): it sets ``FLAG_MULTI`` on the contact samples from the landing to the c
 and reports the second finger's point (``x2``, ``y2``, ``z2``, ``located2``) once its fit
 window is over. The per-sample work — the smoothing, the landing test on the change of
 wrench, the flags, the fit window — is ``_second_finger`` in
-:mod:`hapticdesk.estimator.kernel`; what it leaves to Python is here: the fit of the second
-finger's point at a landing window's end (:func:`fit_second_point`) and the desk's own stray,
-learned at each contact's end (:class:`SecondFingerStage`).
+:mod:`hapticdesk.estimator.kernel_multitouch`; what it leaves to Python is here: the fit of
+the second finger's point at a landing window's end (:func:`fit_second_point`) and the
+desk's own stray, learned at each contact's end (:class:`SecondFingerStage`).
 """
 
 from __future__ import annotations

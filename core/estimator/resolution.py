@@ -17,7 +17,7 @@ than their noise, so their "step" adds nothing. A channel stops learning after
 ``CONFIRM_CHANGES`` changes; a quiet one learns its step at the first touches (until then it
 has none, 0). Once tared, a step that is new or shrank by more than ``STEP_CHANGE`` makes the
 covariances anew, used from the sample whose reading taught it (``_learn_steps`` and
-``_steps_changed`` in :mod:`hapticdesk.estimator.kernel`).
+``steps_changed`` in :mod:`hapticdesk.estimator.kernel_channels`).
 
 Measured (``python scripts/tap_accuracy.py --desk paper --noise N``, 1,000 edge taps): a
 sensor whose noise no longer dithers its steps (below about 0.3 N on the paper desk's total

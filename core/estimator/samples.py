@@ -17,7 +17,7 @@ only for an input with fewer than ``NOISE_FREE_REPEATS`` exact repeats in its fi
 ``NOISE_CHECK_S``. A time that is not after an earlier sample's is told at the 1st, 10th,
 100th… such sample.
 
-The per-sample work is ``_samples`` in :mod:`hapticdesk.estimator.kernel`; here are its
+The per-sample work is ``_samples`` in :mod:`hapticdesk.estimator.kernel_channels`; here are its
 constants and the notices it raises.
 """
 

@@ -28,7 +28,7 @@ lets through. The differentiated candidate (paper eq. 8) is a difference of the
 same low-passed wrench and so is corrected with it.
 
 Stateful: the last ``2·SPAN_S`` of the low-passed horizontal force (a ring in the kernel's
-state, ``_sway`` in :mod:`hapticdesk.estimator.kernel`); a gap restarts it like the filters
+state, ``_sway`` in :mod:`hapticdesk.estimator.kernel_filters`); a gap restarts it like the filters
 (as if the desk had been still).
 
 Measured on the simulated desks (README "Sway compensation"): the translating model

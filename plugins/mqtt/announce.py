@@ -45,10 +45,10 @@ import logging
 import ssl
 import threading
 import time
-import uuid
 from collections.abc import Callable, Sequence
 from typing import Any
 
+from hapticdesk.plugins.mqtt.oneshot import RetainedSweep
 from hapticdesk.plugins.mqtt.paho_clients import message_expiry, new_client
 from hapticdesk.plugins.mqtt.settings import MqttSettings
 
@@ -151,7 +151,7 @@ def publish_steps(
     steps sent, or None when the broker could not be reached or did not answer (said in the
     log: the run goes on, and the link announces its configs when it connects). ``mqtt5``:
     in MQTT 5, a migration message retained for :data:`MIGRATE_EXPIRY_S` only."""
-    sweep = _Sweep([f"{prefix}/+/{node}/+/config", device_topic(prefix, node)], node)
+    sweep = RetainedSweep([f"{prefix}/+/{node}/+/config", device_topic(prefix, node)], node)
     client = _sweep_client(settings, mqtt5, sweep)
     try:
         client.connect(settings.host, settings.port, settings.keepalive)
@@ -175,32 +175,7 @@ def publish_steps(
         client.loop_stop()
 
 
-class _Sweep:
-    """What the broker retains on ``patterns``: subscribed, then a probe of our own sent
-    after them; when the probe comes back, every retained message has come before it."""
-
-    def __init__(self, patterns: list[str], node: str) -> None:
-        self.patterns = patterns
-        # a root of its own: subscribers to the desk's topics (hapticdesk/#) never see it
-        self.probe = f"hapticdesk-sweep/{node}/{uuid.uuid4().hex}"
-        self.found: dict[str, bytes] = {}
-        self.done = threading.Event()
-
-    def on_connect(self, c: Any, u: Any, flags: Any, reason: Any, props: Any) -> None:
-        if not reason.is_failure:
-            c.subscribe([*((p, 1) for p in self.patterns), (self.probe, 1)])
-
-    def on_subscribe(self, c: Any, u: Any, mid: Any, reasons: Any, props: Any) -> None:
-        c.publish(self.probe, b"", qos=1)
-
-    def on_message(self, c: Any, u: Any, message: Any) -> None:
-        if message.topic == self.probe:
-            self.done.set()
-        elif message.retain and message.payload and not self.done.is_set():
-            self.found[message.topic] = bytes(message.payload)
-
-
-def _sweep_client(settings: MqttSettings, mqtt5: bool, sweep: _Sweep) -> Any:
+def _sweep_client(settings: MqttSettings, mqtt5: bool, sweep: RetainedSweep) -> Any:
     """A paho client of its own for the announcement, with ``sweep``'s callbacks."""
     client = new_client(  # (MQTT 5: a clean start, connect's default)
         settings, mqtt5=mqtt5, clean_session=True, client_id=f"{settings.client_id}-discovery"[:128]

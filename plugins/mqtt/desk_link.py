@@ -36,6 +36,13 @@ def broker_override(context: ActionContext) -> str | None:
     return None if url is None else str(url)
 
 
+def protocol_override(context: ActionContext) -> str | None:
+    """The MQTT version a program that started the broker itself knows it speaks (the
+    demo's embedded broker: "3.1.1"), over the layout's ``protocol:``; None otherwise."""
+    protocol = context.overrides.get(SECTION, {}).get("protocol")
+    return None if protocol is None else str(protocol)
+
+
 def uses_mqtt(
     raw: Mapping[str, Any] | None, bindings: list[Binding], broker_url: str | None
 ) -> bool:
@@ -52,6 +59,7 @@ def settings_for(context: ActionContext) -> MqttSettings:
         raw.get(SECTION),
         desk=context.desk_name,
         url_override=broker_override(context),
+        protocol_override=protocol_override(context),
         relative_to=context.layout_path.parent if context.layout_path else None,
         where=raw.where(SECTION) if hasattr(raw, "where") and SECTION in raw else "the layout",
     )

@@ -10,7 +10,7 @@ import logging
 import os
 import ssl
 import threading
-import time
+import uuid
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
@@ -106,41 +106,56 @@ def clean_connect(s: MqttSettings, mqtt5: bool) -> str | Refused | None:
         client.loop_stop()
 
 
+class RetainedSweep:
+    """What the broker retains on ``patterns``: subscribed, then a probe of our own sent
+    after them; when the probe comes back, every retained message has come before it."""
+
+    def __init__(self, patterns: list[str], node: str) -> None:
+        self.patterns = patterns
+        # a root of its own: subscribers to the desk's topics (hapticdesk/#) never see it
+        self.probe = f"hapticdesk-sweep/{node}/{uuid.uuid4().hex}"
+        self.found: dict[str, bytes] = {}
+        self.done = threading.Event()
+
+    def on_connect(self, c: Any, u: Any, flags: Any, reason: Any, props: Any) -> None:
+        if not reason.is_failure:
+            c.subscribe([*((p, 1) for p in self.patterns), (self.probe, 1)])
+
+    def on_subscribe(self, c: Any, u: Any, mid: Any, reasons: Any, props: Any) -> None:
+        c.publish(self.probe, b"", qos=1)
+
+    def on_message(self, c: Any, u: Any, message: Any) -> None:
+        if message.topic == self.probe:
+            self.done.set()
+        elif message.retain and message.payload and not self.done.is_set():
+            self.found[message.topic] = bytes(message.payload)
+
+
 def retained_payload(settings: MqttSettings, topic: str, timeout_s: float = 3.0) -> bytes | None:
     """The retained message on ``topic`` (None when there is none, or the broker cannot be
     asked within ``timeout_s``). Asked under a client id of its own: connecting with the
-    desk's would push a running desk of the same name off the broker."""
+    desk's would push a running desk of the same name off the broker. Known to be complete
+    when the sweep's own probe comes back (:class:`RetainedSweep`), not after a guessed wait."""
     probe_id = f"{settings.client_id[:100]}-probe-{os.getpid()}"
     client = new_client(settings, mqtt5=False, clean_session=True, client_id=probe_id)
-    subscribed, answered = threading.Event(), threading.Event()
-    found: list[bytes] = []
+    sweep = RetainedSweep([topic], probe_id)
 
     def on_connect(c: Any, u: Any, flags: Any, reason: Any, props: Any) -> None:
-        if reason.is_failure:
-            answered.set()
-        else:
-            c.subscribe(topic, qos=1)
+        sweep.on_connect(c, u, flags, reason, props)
+        if reason.is_failure:  # (refused: there is nothing to wait for)
+            sweep.done.set()
 
-    def on_subscribe(c: Any, u: Any, mid: Any, reasons: Any, props: Any) -> None:
-        subscribed.set()
-
-    def on_message(c: Any, u: Any, message: Any) -> None:
-        if message.retain:
-            found.append(bytes(message.payload))
-            answered.set()
-
-    client.on_connect, client.on_subscribe, client.on_message = on_connect, on_subscribe, on_message
-    deadline = time.monotonic() + timeout_s
+    client.on_connect = on_connect
+    client.on_subscribe = sweep.on_subscribe
+    client.on_message = sweep.on_message
     try:
         client.connect(settings.host, settings.port, settings.keepalive)
     except (OSError, ssl.SSLError, ValueError):
         return None
     client.loop_start()
     try:
-        if subscribed.wait(timeout_s):
-            # the broker sends a retained message right after the SUBACK
-            answered.wait(min(0.5, max(0.0, deadline - time.monotonic())))
-        return found[0] if found else None
+        sweep.done.wait(timeout_s)
+        return sweep.found.get(topic)
     finally:
         client.disconnect()
         client.loop_stop()

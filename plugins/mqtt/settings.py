@@ -152,10 +152,13 @@ def settings_from_layout(
     *,
     desk: str,
     url_override: str | None = None,
+    protocol_override: str | None = None,
     relative_to: Path | None = None,
     where: Position | str = "the layout",
 ) -> MqttSettings:
-    """Check the ``mqtt:`` section (may be None) and apply ``--mqtt URL``."""
+    """Check the ``mqtt:`` section (may be None) and apply ``--mqtt URL``; a
+    ``protocol_override`` (one of :data:`PROTOCOLS`, from a program that knows its broker,
+    such as the demo's embedded one) goes over the section's ``protocol:``."""
     m = _section(section, where)
     tls, host, port, username = _broker(m, url_override)
     password = _password(m, relative_to)
@@ -194,7 +197,7 @@ def settings_from_layout(
                 maximum=MAX_QUEUE_SIZE,
             )
         ),
-        protocol=_protocol(m),
+        protocol=_protocol(m) if protocol_override is None else _known_protocol(protocol_override),
         expiry_s=int(
             number(m, "expiry_s", "`mqtt`", default=DEFAULT_EXPIRY_S, minimum=0, maximum=2**32 - 1)
         ),
@@ -291,6 +294,12 @@ def _discovery(m: MarkedDict) -> tuple[bool, str]:
         "trigger and entity, any Home Assistant) or device (one config for the desk, Home "
         f"Assistant 2024.11 or later), found {value!r}",
     )
+
+
+def _known_protocol(value: str) -> str:
+    if value not in PROTOCOLS:
+        raise ValueError(f"protocol override must be one of {PROTOCOLS}, found {value!r}")
+    return value
 
 
 def _protocol(m: MarkedDict) -> str:

@@ -185,3 +185,38 @@ def test_a_minute_at_1khz_on_a_pty(tmp_path):
     expected = [r for i, r in enumerate(p.taps) if i != p.cut_tap]
     assert [e["region"] for e in taps] == expected, (len(taps), len(expected))
     assert len(fired) == len(taps)
+
+
+def test_record_keeps_what_a_board_prints(tmp_path):
+    """`hapticdesk record --source serial:PTY -o rec.csv`: every sample the board printed is
+    in the recording, in newtons, its garbled lines dropped and said; the recording replays."""
+    from hapticdesk.files.recording_io import read_recording
+
+    n, rate = 1500, 500
+    rng = np.random.default_rng(3)
+    newtons = 40.0 + rng.normal(0, 2.0, (n, 4))
+    lines: list[str | bytes] = list(sample_lines(np.arange(n), counts(newtons)))
+    lines[700] = str(lines[700]).replace(",", ";", 1)  # one garbled line
+    hello = BoardHello(rate, ("fl_fz", "fr_fz", "bl_fz", "br_fz"), offsets_us=(0, 0, 0, 0),
+                       checksum_required=True,
+                       board="ads1256-test")  # fmt: skip
+    desk = cells_desk(tmp_path, rate=rate, extra=f"serial: {{scale: {SCALE}, zero: {ZERO}}}\n")
+    board = PtyBoard(lines, hello_line(hello), rate=rate).start()
+    out = tmp_path / "rec.csv"
+    try:
+        done = subprocess.run(
+            [sys.executable, "-m", "hapticdesk", "record", "--source", f"serial:{board.path}",
+             "--desk", str(desk.path), "-o", str(out), "--seconds", f"{n / rate + 2.5}"],
+            capture_output=True, text=True, timeout=60,
+        )  # fmt: skip
+    finally:
+        board.close()
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "Traceback" not in done.stderr
+    assert f"wrote {out}: {n - 1} samples" in done.stdout
+    assert "1 garbled lines dropped" in done.stdout
+    rec = read_recording(out, desk.sensor_names, channel_names=desk.channel_names())
+    kept = np.delete(np.arange(n), 700)
+    assert len(rec) == n - 1
+    np.testing.assert_allclose(rec.t - rec.t[0], kept / rate, atol=1e-6)
+    np.testing.assert_allclose(rec.channels, (counts(newtons)[kept] - ZERO) * SCALE, atol=1e-9)

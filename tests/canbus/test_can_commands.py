@@ -233,7 +233,7 @@ def test_record_a_scene_as_an_ati_log(tmp_path, capsys, ati_desk):
         ),
         (
             ["record", "--source", "tcp:1", "--desk", "kitamura2017-can", "-o", "x.csv"],
-            "record reads can:",
+            "unknown source kind `tcp`; installed: can, replay, serial, sim",
         ),
         (
             ["record", "--source", "can:nosuch:x", "--desk", "kitamura2017-can", "-o", "x.csv"],

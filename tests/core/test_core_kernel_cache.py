@@ -6,6 +6,7 @@ so once on stderr. Checked in fresh interpreters, by what they import and print.
 from __future__ import annotations
 
 import json
+import logging
 import os
 import shutil
 import subprocess
@@ -138,7 +139,8 @@ kernel.warm()
 def test_a_change_in_any_kernel_module_compiles_the_kernels_anew(tmp_path: Path) -> None:
     """numba stamps a cache by its own function's file only, while an entry (kernel.py)
     holds the code and the frozen constants of the other kernel modules: a change in one of
-    them (here kernel_slots.py) must not load the entries' stale cache."""
+    them (here kernel_slots.py, then a stage's module, kernel_multitouch.py) must not load
+    the entries' stale cache."""
     package = tmp_path / "site" / "hapticdesk"
     shutil.copytree(
         ROOT / "core", package, ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.nb*")
@@ -158,6 +160,61 @@ def test_a_change_in_any_kernel_module_compiles_the_kernels_anew(tmp_path: Path)
 
     assert warm().count(MESSAGE) == 1
     assert MESSAGE not in warm()
-    slots = package / "estimator" / "kernel_slots.py"
-    slots.write_text(slots.read_text() + "# changed\n")
-    assert warm().count(MESSAGE) == 1
+    for module in ("kernel_slots.py", "kernel_multitouch.py"):
+        source = package / "estimator" / module
+        source.write_text(source.read_text() + "# changed\n")
+        assert warm().count(MESSAGE) == 1, module
+        assert MESSAGE not in warm(), module
+
+
+def _twice(x: float) -> float:
+    return 2.0 * x
+
+
+def test_the_kernels_cache_is_stamped_with_every_kernel_module() -> None:
+    """On the numba versions pyproject.toml allows, every kernel's cache index carries the
+    digest of all kernel*.py files beside numba's own stamp (a numba without that private
+    attribute fails here first)."""
+    from hapticdesk.estimator import kernel, kernel_compile, kernel_multitouch
+
+    for dispatcher in (kernel.run_block, kernel.run_step, kernel_multitouch._second_finger):
+        stamp = dispatcher._cache._cache_file._source_stamp
+        assert stamp[1] == kernel_compile.KERNEL_SOURCES
+    # the digest covers the files named kernel*.py: every module compiled through
+    # kernel_compile must be one of them
+    compiling = [
+        path.name
+        for path in Path(kernel_compile.__file__).parent.glob("*.py")
+        if "kernel_compile import" in path.read_text(encoding="utf-8")
+    ]
+    assert len(compiling) >= 9
+    assert all(name.startswith("kernel") for name in compiling), compiling
+
+
+def test_a_numba_without_the_cache_stamp_compiles_the_kernels_uncached(
+    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Another numba whose cache index has no ``_source_stamp``: the kernels still compile,
+    without a cache (never one that could outlive a change of their code), and the log says
+    so once."""
+    from numba.core import caching
+
+    from hapticdesk.estimator import kernel_compile
+
+    made = caching.IndexDataCacheFile.__init__
+
+    def without_stamp(self: object, *args: object, **kwargs: object) -> None:
+        made(self, *args, **kwargs)
+        del self._source_stamp  # type: ignore[attr-defined]
+
+    monkeypatch.setattr(caching.IndexDataCacheFile, "__init__", without_stamp)
+    kernel_compile._no_stamp.cache_clear()
+    with caplog.at_level(logging.WARNING, logger="hapticdesk.estimator"):
+        compiled = kernel_compile.compiled(_twice)
+        inlined = kernel_compile.inlined(_twice)
+    kernel_compile._no_stamp.cache_clear()
+    assert compiled(2.5) == inlined(2.5) == 5.0
+    for dispatcher in (compiled, inlined):
+        assert isinstance(dispatcher._cache, caching.NullCache)
+    told = [r for r in caplog.records if "not cached" in r.getMessage()]
+    assert len(told) == 1, caplog.text

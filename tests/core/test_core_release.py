@@ -104,8 +104,8 @@ def _fast_force(levels_n: list[tuple[float, float]], fs: float) -> np.ndarray:
 def _contacts(estimator: ContactEstimator, force: np.ndarray, fs: float) -> np.ndarray:
     """In contact per sample for the vertical fast force ``force`` (and its slope), through
     the kernel's detector with the state of a fresh ``estimator``."""
-    from hapticdesk.estimator import kernel as k
     from hapticdesk.estimator import kernel_slots as slots
+    from hapticdesk.estimator.kernel_detector import detect
 
     slope = np.gradient(force) * fs
     pf, pi = estimator.params.pf, estimator.params.pi
@@ -117,7 +117,7 @@ def _contacts(estimator: ContactEstimator, force: np.ndarray, fs: float) -> np.n
             0.0,
             d,
         )
-        out.append(k.detect(pf, pi, sf, si, 0.0, 0.0, f, abs(f))[0])
+        out.append(detect(pf, pi, sf, si, 0.0, 0.0, f, abs(f))[0])
     return np.array(out)
 
 

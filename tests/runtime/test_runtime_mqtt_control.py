@@ -320,6 +320,22 @@ def test_bad_protocol_options_are_refused(broker, options, message):
         link_settings(broker, "x", **options)
 
 
+def test_a_program_that_knows_its_broker_sets_the_protocol_over_the_layout(tmp_path):
+    """The demo starts a broker that speaks MQTT 3.1.1 only: its desk asks in 3.1.1 from the
+    start, whatever the layout says (no MQTT 5 refused, no warning to hide)."""
+    from hapticdesk.files.yamlfile import load_marked_yaml
+    from hapticdesk.plugins.mqtt.settings import settings_from_layout
+
+    layout = tmp_path / "layout.yaml"
+    layout.write_text('mqtt:\n  broker: mqtt://127.0.0.1:1883\n  protocol: "5"\n')
+    section = load_marked_yaml(layout)["mqtt"]
+    assert settings_from_layout(section, desk="d").protocol == "5"
+    told = settings_from_layout(section, desk="d", protocol_override="3.1.1")
+    assert told.protocol == "3.1.1"
+    with pytest.raises(ValueError, match="protocol override"):
+        settings_from_layout(section, desk="d", protocol_override="4")
+
+
 # --- the fleet examples -----------------------------------------------------------------------
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"

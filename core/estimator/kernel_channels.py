@@ -1,0 +1,255 @@
+"""One input sample checked and mapped, compiled: its flags, its wrench, the channels' steps.
+
+Stage 1 of the kernel (:mod:`hapticdesk.estimator.kernel`), the per-sample side of
+:mod:`hapticdesk.estimator.samples` and :mod:`hapticdesk.estimator.resolution`:
+:func:`_samples` flags a sample (NaN, saturated, its time going back, a stuck input, a gap)
+and maps a good one's channels to the resultant force and moment about P_o,
+[F_o; M_o] = M x (paper eqs. 1–4); :func:`_learn_steps` learns each channel's resolution step
+from the changes between good readings, and :func:`steps_changed` says when the covariances
+must be made anew for them.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from hapticdesk.estimator.contacts import (
+    FLAG_GAP,
+    FLAG_NAN,
+    FLAG_SATURATED,
+    FLAG_STUCK,
+    FLAG_TIME_BACK,
+)
+from hapticdesk.estimator.kernel_compile import inlined
+from hapticdesk.estimator.kernel_slots import (
+    EV_LIVE,
+    EV_NOISE_FREE,
+    EV_STUCK,
+    EV_TIME_BACK,
+    I_C,
+    I_CHECK_N,
+    I_CONFIRM,
+    I_JO_CHANGES,
+    I_JO_LEARNING,
+    I_LIVE_N,
+    I_NOISE_FREE_REPEATS,
+    I_PO_LIMIT,
+    I_PO_MAP,
+    I_SO_LAST_ROW,
+    I_SO_PREV_ROW,
+    I_SO_STEP,
+    I_SO_USED,
+    I_STUCK_RUN,
+    J_DIRTY,
+    J_HAVE_LAST_ROW,
+    J_HAVE_PREV,
+    J_LIVE,
+    J_N_LEARNING,
+    J_REPEATS,
+    J_SEEN,
+    J_SEEN_REPEATS,
+    J_STUCK_CHECK,
+    J_TARED,
+    J_TIME_BACK,
+    P_MAX_GAP,
+    P_STEP_CHANGE,
+    S_EV_LATEST,
+    S_EV_T,
+    S_LAST_GOOD,
+    S_LAST_STUCK_T,
+    S_LAST_T,
+    S_MAX_T,
+    S_STUCK_SINCE,
+)
+
+
+@inlined
+def _samples(
+    t: float, x: np.ndarray, pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray
+) -> tuple[int, int]:
+    """Flags of one input sample (NaN, saturated, time back, stuck, gap) and, for a good one,
+    its resultant [F_o; M_o] = M x (paper eqs. 1–4) into S_LAST_GOOD and its channels'
+    changes into the resolution steps. Returns (flags, events)."""
+    c_n = pi[I_C]
+    flags = 0
+    events = 0
+    # one pass over the channels, without branches: each within its limit (so finite: False
+    # for NaN too), equal to the sample before (a repeat, for the stuck check below), kept
+    # as the sample before the next (read only while the stuck check runs)
+    within = abs(t) < math.inf
+    repeat = si[J_HAVE_PREV] == 1
+    limit = pf[pi[I_PO_LIMIT] : pi[I_PO_LIMIT] + c_n]
+    prev = sf[pi[I_SO_PREV_ROW] : pi[I_SO_PREV_ROW] + c_n]
+    for c in range(c_n):
+        v = x[c]
+        within &= abs(v) < limit[c]
+        repeat &= v == prev[c]
+        prev[c] = v
+    finite, saturated = True, False
+    if not within:  # (rare) which of the two
+        finite = abs(t) < math.inf
+        for c in range(c_n):
+            finite &= abs(x[c]) < math.inf
+            saturated |= abs(x[c]) >= limit[c]
+    if not finite:
+        flags |= FLAG_NAN
+    else:
+        if saturated:
+            flags |= FLAG_SATURATED
+        if t <= sf[S_MAX_T]:  # not after an earlier finite sample
+            flags |= FLAG_TIME_BACK
+            si[J_TIME_BACK] += 1
+            count = si[J_TIME_BACK]
+            mark = 1
+            while mark < count:
+                mark *= 10
+            if mark == count:
+                sf[S_EV_T], sf[S_EV_LATEST] = t, sf[S_MAX_T]
+                events |= EV_TIME_BACK
+        else:
+            sf[S_MAX_T] = t
+    stuck, told = _stuck_check(t, repeat, finite, pi, sf, si)
+    flags |= stuck
+    events |= told
+    if flags:
+        return flags, events
+    if sf[S_LAST_T] > -math.inf and t - sf[S_LAST_T] > pf[P_MAX_GAP]:
+        flags |= FLAG_GAP
+    sf[S_LAST_T] = t
+    _learn_steps(x, pi, sf, si)
+    _wrench(x, pf, pi, sf)
+    return flags, events
+
+
+@inlined
+def _stuck_check(
+    t: float,
+    repeat: bool,
+    finite: bool,
+    pi: np.ndarray,
+    sf: np.ndarray,
+    si: np.ndarray,
+) -> tuple[int, int]:
+    """Whether the input sticks (``repeat``: the sample equals the one before, which the
+    channels' pass of :func:`samples` keeps). Returns (FLAG_STUCK or 0, events)."""
+    flags = 0
+    events = 0
+    # a stuck input repeats its last sample bit for bit; a noise-free one does so all the
+    # time, so the first CHECK_N samples decide whether to look at all
+    check = si[J_STUCK_CHECK]
+    if check != 0:
+        si[J_HAVE_PREV] = 1
+        if check < 0:
+            if repeat:
+                si[J_SEEN_REPEATS] += 1
+            si[J_SEEN] += 1
+            if si[J_SEEN_REPEATS] >= pi[I_NOISE_FREE_REPEATS]:
+                si[J_STUCK_CHECK] = 0
+                events |= EV_NOISE_FREE
+            elif si[J_SEEN] >= pi[I_CHECK_N]:
+                si[J_STUCK_CHECK] = 1
+        else:
+            si[J_REPEATS] = si[J_REPEATS] + 1 if repeat and finite else 0
+            if si[J_REPEATS] >= pi[I_STUCK_RUN]:
+                flags |= FLAG_STUCK
+                if si[J_LIVE] >= pi[I_LIVE_N]:
+                    sf[S_STUCK_SINCE] = t
+                    events |= EV_STUCK
+                si[J_LIVE] = 0
+                sf[S_LAST_STUCK_T] = t
+            elif si[J_LIVE] < pi[I_LIVE_N]:
+                si[J_LIVE] += 1
+                if si[J_LIVE] == pi[I_LIVE_N]:
+                    sf[S_EV_T] = t
+                    events |= EV_LIVE
+    return flags, events
+
+
+@inlined
+def _wrench(x: np.ndarray, pf: np.ndarray, pi: np.ndarray, sf: np.ndarray) -> None:
+    """A good sample's resultant [F_o; M_o] = M x about P_o (paper eqs. 1–4) into S_LAST_GOOD."""
+    c_n = pi[I_C]
+    # the matrix stored by channel (C, 6), its six sums side by side and each split in two
+    # (even and odd channels) so that no long chain of additions waits on itself
+    m = pf[pi[I_PO_MAP] : pi[I_PO_MAP] + 6 * c_n]
+    f0 = f1 = f2 = m0 = m1 = m2 = 0.0
+    g0 = g1 = g2 = n0 = n1 = n2 = 0.0
+    for h in range(c_n // 2):
+        c = 2 * h
+        v, u = x[c], x[c + 1]
+        a, b = 6 * c, 6 * c + 6
+        f0 += m[a] * v
+        f1 += m[a + 1] * v
+        f2 += m[a + 2] * v
+        m0 += m[a + 3] * v
+        m1 += m[a + 4] * v
+        m2 += m[a + 5] * v
+        g0 += m[b] * u
+        g1 += m[b + 1] * u
+        g2 += m[b + 2] * u
+        n0 += m[b + 3] * u
+        n1 += m[b + 4] * u
+        n2 += m[b + 5] * u
+    if c_n % 2:
+        v, a = x[c_n - 1], 6 * (c_n - 1)
+        f0 += m[a] * v
+        f1 += m[a + 1] * v
+        f2 += m[a + 2] * v
+        m0 += m[a + 3] * v
+        m1 += m[a + 4] * v
+        m2 += m[a + 5] * v
+    sf[S_LAST_GOOD], sf[S_LAST_GOOD + 1], sf[S_LAST_GOOD + 2] = f0 + g0, f1 + g1, f2 + g2
+    sf[S_LAST_GOOD + 3], sf[S_LAST_GOOD + 4], sf[S_LAST_GOOD + 5] = m0 + n0, m1 + n1, m2 + n2
+
+
+@inlined
+def _learn_steps(x: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray) -> None:
+    """Each channel's smallest change between good readings (its resolution step), until
+    I_CONFIRM changes confirm it (resolution.py)."""
+    if si[J_N_LEARNING] == 0:
+        return
+    c_n = pi[I_C]
+    last = sf[pi[I_SO_LAST_ROW] : pi[I_SO_LAST_ROW] + c_n]
+    step = sf[pi[I_SO_STEP] : pi[I_SO_STEP] + c_n]
+    changes = si[pi[I_JO_CHANGES] : pi[I_JO_CHANGES] + c_n]
+    learning = si[pi[I_JO_LEARNING] : pi[I_JO_LEARNING] + c_n]
+    if si[J_HAVE_LAST_ROW]:
+        for c in range(c_n):
+            if not learning[c]:
+                continue
+            change = abs(x[c] - last[c])
+            if change > 0:
+                before = step[c]
+                now = min(before, change) if before > 0 else change
+                if now != before:
+                    step[c] = now
+                    si[J_DIRTY] = 1
+                changes[c] += 1
+                if changes[c] >= pi[I_CONFIRM]:
+                    learning[c] = 0
+                    si[J_N_LEARNING] -= 1
+    for c in range(c_n):
+        last[c] = x[c]
+    si[J_HAVE_LAST_ROW] = 1
+
+
+@inlined
+def steps_changed(pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray) -> bool:
+    """Once tared: whether a step is new or shrank by over P_STEP_CHANGE since the
+    covariances were made (the steps they use become the current ones)."""
+    if not si[J_DIRTY] or not si[J_TARED]:
+        return False
+    si[J_DIRTY] = 0
+    step, used = pi[I_SO_STEP], pi[I_SO_USED]
+    changed = False
+    for c in range(pi[I_C]):
+        if (sf[used + c] == 0 and sf[step + c] > 0) or sf[step + c] < sf[used + c] * (
+            1.0 - pf[P_STEP_CHANGE]
+        ):
+            changed = True
+    if changed:
+        for c in range(pi[I_C]):
+            sf[used + c] = sf[step + c]
+    return changed

@@ -1,0 +1,266 @@
+"""One sample through every stage, compiled: the order the stages run in, in two halves.
+
+:func:`_sample` is what both entries of :mod:`hapticdesk.estimator.kernel` run for a sample,
+from where si[J_RESUME] says after an event: :func:`_front`, its first half (its flags and
+wrench, stages 1 and 1b; the filter bank, stage 2; the zero's window, stage 3), then
+:func:`_back`, its second (the filtered wrenches less the zero: the detector, stage 4; the
+candidates and the method's point, stages 5 and 6, with the shear and the drag; the second
+finger, stage 7), into the output columns. The paper's equations are cited in the stages'
+modules (``kernel_channels``, ``kernel_filters``, ``kernel_methods``, ``kernel_multitouch``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from hapticdesk.estimator.contacts import (
+    BAD_SAMPLE,
+    FLAG_GAP,
+    FLAG_NO_ACCEL,
+    FLAG_NOT_TARED,
+    PHASE_HOLD,
+    PHASE_RELEASE,
+    PHASE_TOUCH,
+)
+from hapticdesk.estimator.kernel_channels import _samples, steps_changed
+from hapticdesk.estimator.kernel_compile import inlined
+from hapticdesk.estimator.kernel_detector import detect
+from hapticdesk.estimator.kernel_filters import _filters, _restart_filters
+from hapticdesk.estimator.kernel_geometry import shear_of, surface_at
+from hapticdesk.estimator.kernel_inertia import (
+    ACCEL_ALL,
+    ACCEL_ASK,
+    ACCEL_USABLE,
+    _accel_use,
+    _inertial,
+)
+from hapticdesk.estimator.kernel_methods import _locate
+from hapticdesk.estimator.kernel_multitouch import _second_finger
+from hapticdesk.estimator.kernel_slots import (
+    EV_COVS,
+    EV_GAP,
+    EV_PARTIAL_ACCEL,
+    I_DET_FULL,
+    I_IO_SURF,
+    I_PO_GAIN,
+    I_SO_PARTIAL_GAIN,
+    I_SO_TRACE,
+    I_TRACE,
+    I_ZEROED,
+    J_FLAGS,
+    J_MT_ON,
+    J_RESTING,
+    J_RESTING_OFF,
+    J_RESUME,
+    J_STARTED,
+    J_TARED,
+    N_OUT_F,
+    OUT_B_FLAGS,
+    OUT_B_IN_CONTACT,
+    OUT_B_LOCATED,
+    OUT_B_LOCATED2,
+    OUT_B_PHASE,
+    OUT_B_RESTING,
+    OUT_B_SOURCE,
+    OUT_B_TRACED,
+    OUT_DRAG_X,
+    OUT_DRAG_Y,
+    OUT_FORCE,
+    OUT_SHEAR,
+    OUT_SIGMA,
+    OUT_T,
+    OUT_X,
+    P_PHASE_RATE,
+    P_SHEAR_CAP,
+    P_UNCERTAINTY_CAP,
+    RESUME_AGAIN,
+    RESUME_BACK,
+    RESUME_NEXT,
+    S_DET,
+    S_DIFF,
+    S_EV_T,
+    S_LAST_GOOD,
+    S_LP,
+    S_RAW,
+    S_TARED_Q,
+    S_TARED_W,
+    S_ZERO,
+    SURF_DESK_XY,
+    SURF_F,
+    SURF_I,
+    SURF_NORMAL,
+    TRACE_ROWS,
+)
+from hapticdesk.estimator.kernel_zero import window_add, zero_from_start
+
+
+@inlined
+def _front(
+    t: float,
+    x: np.ndarray,
+    a: np.ndarray,
+    given: bool,
+    pf: np.ndarray,
+    pi: np.ndarray,
+    sf: np.ndarray,
+    si: np.ndarray,
+) -> int:
+    """The first half of a sample: its flags and wrench (stages 1, 1b), the filters
+    (stage 2) and the zero's window (stage 3). Leaves the sample in flight in S_RAW, S_LP,
+    S_DET, S_DIFF, S_SLOPE, S_RELEASE and J_FLAGS; returns its events."""
+    accel, no_accel = _accel_use(a, given, pf, pi, si)
+    if accel == ACCEL_ASK:
+        return EV_PARTIAL_ACCEL  # its gain from Python (before anything moves on)
+    flags, events = _samples(t, x, pf, pi, sf, si)
+    first_good = False
+    zeroed = pi[I_ZEROED] == 1
+    if flags == 0 or flags == FLAG_GAP:
+        first_good = si[J_STARTED] == 0
+        si[J_STARTED] = 1
+        if zeroed and not si[J_TARED]:
+            zero_from_start(t, pf, pi, sf, si)
+            events |= EV_COVS
+        elif steps_changed(pf, pi, sf, si):
+            events |= EV_COVS
+    started = si[J_STARTED] == 1
+    for r in range(6):
+        sf[S_RAW + r] = sf[S_LAST_GOOD + r] if started else 0.0
+    if accel == ACCEL_ALL:
+        _inertial(a, pf, pf, pi, sf, pi[I_PO_GAIN], False)
+    elif accel == ACCEL_USABLE:
+        _inertial(a, sf, pf, pi, sf, pi[I_SO_PARTIAL_GAIN], True)
+    if no_accel:
+        flags |= FLAG_NO_ACCEL
+    if started:
+        if first_good:
+            _restart_filters(pf, pi, sf, si)
+        elif flags & FLAG_GAP:
+            _restart_filters(pf, pi, sf, si)
+            sf[S_EV_T] = t
+            events |= EV_GAP
+        _filters(pf, pi, sf, si)
+    else:
+        for r in range(6):
+            sf[S_LP + r] = sf[S_DET + r] = sf[S_DIFF + r] = 0.0
+    si[J_FLAGS] = flags
+    if zeroed:
+        return events
+    return events | window_add(t, flags, first_good, pf, pi, sf, si)
+
+
+@inlined
+def _back(
+    t: float,
+    pf: np.ndarray,
+    pi: np.ndarray,
+    sf: np.ndarray,
+    si: np.ndarray,
+    out_f: np.ndarray,
+    out_b: np.ndarray,
+    out_s: np.ndarray,
+    col: int,
+) -> int:
+    """The second half of a sample: contact and position from the filtered wrenches less the
+    zero (stages 4–6), the outputs, the second finger (stage 7). Returns its events."""
+    flags = si[J_FLAGS]
+    out_f[OUT_T, col] = t
+    for row in range(OUT_X, N_OUT_F):
+        out_f[row, col] = 0.0
+    out_f[OUT_SIGMA, col] = pf[P_UNCERTAINTY_CAP]
+    out_b[OUT_B_LOCATED, col] = out_b[OUT_B_LOCATED2, col] = 0
+    out_b[OUT_B_SOURCE, col] = out_b[OUT_B_PHASE, col] = out_b[OUT_B_TRACED, col] = 0
+    out_s[col] = -1
+    inside = False
+    if si[J_TARED]:
+        det_full = pi[I_DET_FULL] == 1
+        for r in range(6):
+            sf[S_TARED_W + r] = sf[S_LP + r] - sf[S_ZERO + r]
+            sf[S_TARED_Q + r] = sf[S_DET + r] - sf[S_ZERO + r] if det_full or r < 3 else 0.0
+        fx, fy, fz = sf[S_TARED_Q], sf[S_TARED_Q + 1], sf[S_TARED_Q + 2]
+        mag = math.sqrt(fx * fx + fy * fy + fz * fz)
+        inside, slope = detect(pf, pi, sf, si, fx, fy, fz, mag)
+        out_f[OUT_FORCE, col] = mag
+        if inside and flags & BAD_SAMPLE == 0:
+            # the phase from the fast path's slope, which does not wait for the 166 ms window
+            rate = pf[P_PHASE_RATE]
+            out_b[OUT_B_PHASE, col] = (
+                PHASE_TOUCH if slope > rate else PHASE_RELEASE if slope < -rate else PHASE_HOLD
+            )
+            _locate(t, mag, pf, pi, sf, out_f, out_b, out_s, col)
+            if pi[I_TRACE]:
+                out_b[OUT_B_TRACED, col] = 1
+                at = pi[I_SO_TRACE]
+                for row in range(TRACE_ROWS):
+                    out_f[N_OUT_F + row, col] = sf[at + row]
+            if out_b[OUT_B_LOCATED, col]:
+                _shear_and_drag(pf, pi, fx, fy, fz, mag, out_f, out_s, col)
+    else:
+        flags |= FLAG_NOT_TARED
+    out_b[OUT_B_IN_CONTACT, col] = 1 if inside else 0
+    out_b[OUT_B_RESTING, col] = 1 if inside and si[J_RESTING] else 0
+    out_b[OUT_B_FLAGS, col] = flags  # (int8 holds the uint8 bits: read as uint8)
+    if si[J_MT_ON] and si[J_STARTED]:
+        return _second_finger(pf, pi, sf, si, flags, out_f, out_b, out_s, col)
+    return 0
+
+
+@inlined
+def _shear_and_drag(
+    pf: np.ndarray,
+    pi: np.ndarray,
+    fx: float,
+    fy: float,
+    fz: float,
+    mag: float,
+    out_f: np.ndarray,
+    out_s: np.ndarray,
+    col: int,
+) -> None:
+    """The outputs of a located sample's tared fast force (``mag`` its magnitude) on its
+    surface out_s[col]: the shear, and the finger's drag along a horizontal board."""
+    # the shear from the fast force and the surface's normal; the finger's drag
+    # along a horizontal board (F is the desk's reaction: the force along it)
+    s = out_s[col]
+    at, n = surface_at(pi, s), SURF_NORMAL
+    surf = pf[at : at + SURF_F]
+    into = fx * surf[n] + fy * surf[n + 1] + fz * surf[n + 2]
+    out_f[OUT_SHEAR, col] = shear_of(into, mag, pf[P_SHEAR_CAP])
+    if pi[pi[I_IO_SURF] + s * SURF_I + SURF_DESK_XY]:
+        out_f[OUT_DRAG_X, col] = into * surf[n] - fx
+        out_f[OUT_DRAG_Y, col] = into * surf[n + 1] - fy
+
+
+@inlined
+def _sample(
+    t: float,
+    x: np.ndarray,
+    a: np.ndarray,
+    given: bool,
+    pf: np.ndarray,
+    pi: np.ndarray,
+    sf: np.ndarray,
+    si: np.ndarray,
+    out_f: np.ndarray,
+    out_b: np.ndarray,
+    out_s: np.ndarray,
+    col: int,
+) -> int:
+    """One sample through every stage, from where si[J_RESUME] says; returns the events it
+    raised (0: none)."""
+    resume = si[J_RESUME]
+    si[J_RESUME] = RESUME_NEXT
+    events = 0
+    if resume != RESUME_BACK:
+        events = _front(t, x, a, given, pf, pi, sf, si)
+        if events & EV_PARTIAL_ACCEL:
+            si[J_RESUME] = RESUME_AGAIN
+            return events
+        if events & EV_COVS:  # the sample's own candidates use them: after Python made them
+            si[J_RESUME] = RESUME_BACK
+            return events
+    events |= _back(t, pf, pi, sf, si, out_f, out_b, out_s, col)
+    if si[J_RESTING_OFF]:
+        si[J_RESTING_OFF] = si[J_RESTING] = 0
+    return events

@@ -4,7 +4,8 @@ Every compiled function of the kernel (:mod:`hapticdesk.estimator.kernel` and th
 ``kernel_*`` modules) is made with :data:`compiled` or :data:`inlined` from here: compiled
 once and cached, the GIL released, IEEE division, no reference counting (the kernel
 allocates nothing, and every call between its functions otherwise paid for atomic
-increments of each array argument, 68 ns a call).
+increments of each array argument, 68 ns a call); the entries are compiled with LLVM's SLP
+vectorizer on (:func:`vectorized`, around ``kernel.warm``).
 
 numba stamps a cached function by the content of its own file only, while the compiled
 code of an entry holds the code of the functions it calls from other files and the
@@ -77,11 +78,11 @@ def vectorized() -> Iterator[None]:
     lanes of a filter — without reordering any sum: the same values to the bit
     (tests/core/test_core_golden.py)."""
     before = getattr(config, "SLP_VECTORIZE", 0)
-    config.SLP_VECTORIZE = 1
+    setattr(config, "SLP_VECTORIZE", 1)  # noqa: B010 (numba reads it as it compiles)
     try:
         yield
     finally:
-        config.SLP_VECTORIZE = before
+        setattr(config, "SLP_VECTORIZE", before)  # noqa: B010
 
 
 def _stamped(options: dict[str, Any]) -> Callable[[Callable[..., Any]], Any]:

@@ -18,8 +18,10 @@ class OutputColumns:
 
     def __init__(self, capacity: int, rows: int) -> None:
         self.capacity = capacity
-        self.f = np.zeros((rows, capacity))
-        self.b = np.zeros((slots.N_OUT_B, capacity), np.int8)
+        # (not zeroed: the kernel writes every row of a sample's column, the trace rows of
+        # the traced ones, and nothing reads a column before the kernel wrote it)
+        self.f = np.empty((rows, capacity))
+        self.b = np.empty((slots.N_OUT_B, capacity), np.int8)
         self.s = np.full(capacity, -1, np.int16)
         self._block: ContactBlock | None = None  # the view of the last length asked
 

@@ -2,7 +2,7 @@
 """The project's structure in numbers: its largest module, its longest function, and the circles
 among its imports (any import, at module level or inside a function).
 
-    python scripts/structure.py [--limit-lines 400] [--limit-function 60] [--list N] [--hold all|doors]
+    python scripts/structure.py [--limit-lines N] [--limit-function N] [--list N] [--hold all|doors]
 
 Counts the code that ships (core/ as ``hapticdesk``, plugins/ as ``hapticdesk.plugins``), not
 tests or scripts. Lines are physical lines of the file; a function's length runs from its

@@ -122,21 +122,28 @@ DEBUG_VARIABLE = "HAPTICDESK_DEBUG"
 #: what in it means off (anything else: on)
 OFF_WORDS = frozenset({"", "0", "false", "no", "off"})
 
-#: the packages that bring a BLAS of their own, and the module that loads it: numpy's loads
-#: with numpy, scipy's with its first compiled part (scipy.linalg, which most others import)
-BLAS_PACKAGES = {"numpy": "numpy", "scipy": "scipy.linalg"}
+#: the packages that bring a BLAS of their own. numpy's loads with numpy itself; scipy's with
+#: whichever of its compiled modules first links it (scipy.linalg's, most often), so every
+#: module of scipy loads with the variables set
+BLAS_PACKAGES = ("numpy", "scipy")
+
+
+def _loads_a_blas(name: str) -> bool:
+    return name in BLAS_PACKAGES or name.startswith("scipy.")
 
 
 class _OneBlasThread:
     """Loads numpy and scipy, when something first imports them, with one BLAS thread
     unless the user's environment says otherwise; nothing before. (Importing both at start
-    cost every command scipy.linalg, 0.15–0.7 s, whether it used scipy or not.)
+    cost every command scipy.linalg, 0.15–0.7 s, whether it used scipy or not; so did loading
+    scipy.linalg whenever scipy was imported, as numba does to check its version: 0.15 s of
+    CPU of each estimating command.)
 
     The variables are read when the library loads, so they are set just for that moment and
     taken back: programs an ``exec`` action starts must not inherit them."""
 
     def find_spec(self, name: str, path: Any, target: Any = None) -> Any:
-        if name not in BLAS_PACKAGES:
+        if not _loads_a_blas(name):
             return None
         for finder in sys.meta_path:  # the finder that would have found it
             if finder is self or not hasattr(finder, "find_spec"):
@@ -144,32 +151,40 @@ class _OneBlasThread:
             spec = finder.find_spec(name, path, target)
             if spec is not None:
                 if spec.loader is not None:  # (a Loader by its methods)
-                    wrapped: Any = _LoadingWithOneThread(spec.loader, BLAS_PACKAGES[name])
+                    wrapped: Any = _LoadingWithOneThread(spec.loader)
                     spec.loader = wrapped
                 return spec
         return None
 
 
-class _LoadingWithOneThread:
-    """A package's own loader, run with the BLAS thread variables set (see above)."""
+@contextlib.contextmanager
+def _one_blas_thread() -> Iterator[None]:
+    """The BLAS thread variables the environment does not set, set to 1 for the moment."""
+    added = [name for name in BLAS_THREAD_VARIABLES if name not in os.environ]
+    for name in added:
+        os.environ[name] = "1"
+    try:
+        yield
+    finally:
+        for name in added:
+            os.environ.pop(name, None)
 
-    def __init__(self, loader: Any, blas_module: str) -> None:
-        self.loader, self.blas_module = loader, blas_module
+
+class _LoadingWithOneThread:
+    """A module's own loader, run with the BLAS thread variables set (see above): a compiled
+    module's library is loaded as the module is created, a package's modules as it runs."""
+
+    def __init__(self, loader: Any) -> None:
+        self.loader = loader
 
     def create_module(self, spec: Any) -> Any:
-        return self.loader.create_module(spec)
+        with _one_blas_thread():
+            return self.loader.create_module(spec)
 
     def exec_module(self, module: Any) -> None:
         module.__spec__.loader = module.__loader__ = self.loader  # (resources, reloads)
-        added = [name for name in BLAS_THREAD_VARIABLES if name not in os.environ]
-        for name in added:
-            os.environ[name] = "1"
-        try:
+        with _one_blas_thread():
             self.loader.exec_module(module)
-            importlib.import_module(self.blas_module)
-        finally:
-            for name in added:
-                os.environ.pop(name, None)
 
 
 def load_blas_with_one_thread() -> None:

@@ -12,7 +12,10 @@ kernels release the GIL, so the poller and the emulator run meanwhile).
     python scripts/ati_live_rate.py --rate 1200 --boards 4 --bus udp_multicast
 
 ``virtual`` runs the emulator in this process (a thread: it shares the GIL with the poller
-and the reader); ``udp_multicast`` runs ``hapticdesk emulate`` in its own process.
+and the reader); ``udp_multicast`` runs ``hapticdesk emulate`` in its own process (python-can
+needs ``pip install msgpack`` for it). The CPU per sample delivered is printed beside the
+load average: on a shared host the rate follows the share of a core the process gets, the
+CPU per sample does much less.
 """
 
 from __future__ import annotations
@@ -116,6 +119,7 @@ def main() -> int:
     got = []
     estimating = 0.0
     start = time.monotonic()
+    cpu_start = time.process_time()  # every thread of this process: poller, reader, emulator
     try:
         for block in source.blocks():
             got.append(block.wrench)
@@ -135,6 +139,7 @@ def main() -> int:
             process.terminate()
             process.wait(5)
     wall = time.monotonic() - start
+    cpu = time.process_time() - cpu_start
     w = np.concatenate(got) if got else np.zeros((0, len(names), 6))
     nan = np.isnan(w).any(axis=(1, 2))
     print(
@@ -146,6 +151,14 @@ def main() -> int:
             if estimator is None
             else f"estimated ({estimator.method}) in {estimating:.2f} s ({estimating / wall:.1%})"
         )
+    )
+    print(
+        f"  CPU of this process {cpu:.2f} s ({cpu / wall:.0%} of one core), "
+        f"{1e6 * cpu / max(len(w), 1):.0f} µs per sample delivered"
+        + (" (the emulator's included)" if args.bus == "virtual" else "")
+        + f"; load average {Path('/proc/loadavg').read_text().split()[0]}"
+        if Path("/proc/loadavg").exists()
+        else ""
     )
     for line in source.stats.summary():
         print("  " + line)

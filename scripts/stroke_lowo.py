@@ -334,6 +334,12 @@ def margin(found: Protocols, writers: list[str], choices: ScoreChoices) -> float
         )
         for w in writers
     }
+    return MARGINS[nested_margin(rates, writers)]
+
+
+def nested_margin(rates: dict[str, np.ndarray], writers: list[str]) -> int:
+    """The index into MARGINS that :func:`margin` makes on ``writers`` from each writer's
+    unknown shapes accepted at each of MARGINS (``rates``, increasing with the margin)."""
 
     def made_on(some: list[str], target: float) -> int:
         over = np.flatnonzero(np.mean([rates[w] for w in some], axis=0) > target)
@@ -345,7 +351,7 @@ def margin(found: Protocols, writers: list[str], choices: ScoreChoices) -> float
         if np.mean(left_out) <= UNKNOWN_TARGET:
             chosen = target
             break
-    return MARGINS[made_on(writers, chosen)]
+    return made_on(writers, chosen)
 
 
 # --- measuring a held-out writer ---------------------------------------------------------------

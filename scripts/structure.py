@@ -2,13 +2,13 @@
 """The project's structure in numbers: its largest module, its longest function, and the circles
 among its imports (any import, at module level or inside a function).
 
-    python scripts/structure.py [--limit-lines 400] [--limit-function 60] [--list N] [--hold doors]
+    python scripts/structure.py [--limit-lines N] [--limit-function N] [--list N] [--hold all|doors]
 
 Counts the code that ships (core/ as ``hapticdesk``, plugins/ as ``hapticdesk.plugins``), not
 tests or scripts. Lines are physical lines of the file; a function's length runs from its
 ``def`` (decorators included) to its last line. Exits 1 when a limit is passed or a circle
-exists, or a core module imports a plugin, so CI can hold it (CI holds `--hold doors`: the
-circles and the plugin door, while the last long modules are split).
+exists, or a core module imports a plugin, so CI can hold it (CI holds `--hold all`: every
+limit, the circles and the plugin door; `--hold doors` holds only the last two).
 """
 
 from __future__ import annotations

@@ -14,6 +14,7 @@ windows' means over time, per minute, with its standard error. Used by
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -77,23 +78,31 @@ def find_quiet_windows(
     k = len(t)
     n_win = k // length
     cut = n_win * length
-    res_mean, res_var = _window_stats(resultant[:cut], n_win, length)
-    ch_mean, ch_var = _window_stats(channels[:cut], n_win, length)
+    res = _window_stats(resultant[:cut], n_win, length)
+    ch = _window_stats(channels[:cut], n_win, length)
     if np.isfinite(t).all():
         window_t = t[:cut].reshape(n_win, length).mean(axis=1)
     else:
         window_t = (np.arange(n_win) + 0.5) * length / fs
     clean = good[:cut].reshape(n_win, length).all(axis=1)
-    spread = np.sqrt(res_var)
+    spread = np.sqrt(res.var)
     if not clean.any():
         quiet = np.zeros(n_win, bool)
     else:
         floor = np.percentile(spread[clean], FLOOR_PERCENTILE, axis=0)
         # a channel whose noise is below its resolution is constant when quiet: allow for
         # the rounding error of the arithmetic instead of dividing by zero
-        tiny = 1e-9 * (np.abs(res_mean).max(axis=0) + 1.0)
+        tiny = 1e-9 * (np.abs(res.mean).max(axis=0) + 1.0)
         quiet = clean & (spread <= QUIET_FACTOR * np.maximum(floor, tiny)).all(axis=1)
-    return QuietWindows(length, window_t, res_mean, res_var, ch_mean, ch_var, quiet)
+    return QuietWindows(
+        length=length,
+        t=window_t,
+        resultant_mean=res.mean,
+        resultant_var=res.var,
+        channel_mean=ch.mean,
+        channel_var=ch.var,
+        quiet=quiet,
+    )
 
 
 def resultant_sigma(resultant: np.ndarray, windows: QuietWindows) -> np.ndarray | None:
@@ -108,7 +117,14 @@ def resultant_sigma(resultant: np.ndarray, windows: QuietWindows) -> np.ndarray 
     return np.sqrt(windows.resultant_var[windows.quiet].mean(axis=0) + step**2 / 12.0)
 
 
-def _window_stats(x: np.ndarray, n_win: int, n_w: int) -> tuple[np.ndarray, np.ndarray]:
+class _WindowStats(NamedTuple):
+    """Per window and channel (W, C): the mean and the variance about a fitted line."""
+
+    mean: np.ndarray
+    var: np.ndarray
+
+
+def _window_stats(x: np.ndarray, n_win: int, n_w: int) -> _WindowStats:
     """Per window and channel: the mean and the variance about a fitted line (ddof 2)."""
     xw = x.reshape(n_win, n_w, -1)
     mean = xw.mean(axis=1)
@@ -117,7 +133,7 @@ def _window_stats(x: np.ndarray, n_win: int, n_w: int) -> tuple[np.ndarray, np.n
     ramp2 = float(ramp @ ramp)
     slope = np.einsum("j,wjc->wc", ramp, centred) / ramp2
     ss = np.einsum("wjc,wjc->wc", centred, centred) - slope**2 * ramp2
-    return mean, np.maximum(ss, 0.0) / (n_w - 2)
+    return _WindowStats(mean, np.maximum(ss, 0.0) / (n_w - 2))
 
 
 def channel_noise(names: list[str], units: list[str], var: np.ndarray) -> list[ChannelNoise]:

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import collections
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -107,6 +108,28 @@ class _Pending:
         )
 
 
+def _decode_groups(
+    decoding: DeskDecoding,
+) -> tuple[np.ndarray, np.ndarray, list[tuple[Callable[[np.ndarray], np.ndarray], np.ndarray]]]:
+    """Frame kinds decoded by one function into as many fields (an ATI desk: every board's
+    first frames, then every board's second) decoded together, in one call: each kind's
+    group (-1 for poll requests, the extra last kind), its row in the group, and each
+    group's decode function with its kinds' slots."""
+    n_kinds = len(decoding.kinds)
+    groups: dict[tuple[object, int], list[int]] = {}
+    for k, kind in enumerate(decoding.kinds):
+        groups.setdefault((kind.decode, len(kind.slots)), []).append(k)
+    group_of_kind = np.full(n_kinds + 1, -1, dtype=np.int64)  # (+1: poll requests)
+    row_in_group = np.zeros(n_kinds + 1, dtype=np.int64)
+    decode_groups: list[tuple[Callable[[np.ndarray], np.ndarray], np.ndarray]] = []
+    for g, ks in enumerate(groups.values()):
+        group_of_kind[ks] = g
+        row_in_group[ks] = np.arange(len(ks))
+        slots = np.stack([decoding.kinds[k].slots for k in ks])
+        decode_groups.append((decoding.kinds[ks[0]].decode, slots))
+    return group_of_kind, row_in_group, decode_groups
+
+
 class FrameAssembler:
     """Streaming frames -> desk samples for one :class:`DeskDecoding` (see module docstring)."""
 
@@ -146,6 +169,7 @@ class FrameAssembler:
             np.array([k for k in range(n_kinds) if s in decoding.kinds[k].sensors], dtype=np.int64)
             for s in range(len(names))
         ]
+        self._group_of_kind, self._row_in_group, self._decode_groups = _decode_groups(decoding)
         self._pending = _Pending.empty()
         self._last_key: int | None = None  # key of the last sample given out
         self._key0: int | None = None
@@ -241,14 +265,18 @@ class FrameAssembler:
         n = len(keys)
         decoding = self.decoding
         table = np.full((n, decoding.n_fields), np.nan)
-        for k, kind in enumerate(decoding.kinds):
-            sel = p.kind == k
+        group_of = self._group_of_kind[p.kind]
+        for g, (decode, slots) in enumerate(self._decode_groups):
+            sel = group_of == g
             if sel.any():
-                table[row_of[sel][:, None], kind.slots] = kind.decode(p.data[sel])
-            doubled = presence[:, k] > 1
-            if doubled.any():
-                table[np.ix_(np.flatnonzero(doubled), kind.slots)] = np.nan
-                self.stats.duplicates += int(presence[doubled, k].sum())
+                columns = slots[self._row_in_group[p.kind[sel]]]
+                table[row_of[sel][:, None], columns] = decode(p.data[sel])
+        doubled = presence > 1
+        if doubled.any():
+            for k in np.flatnonzero(doubled.any(axis=0)).tolist():
+                rows = doubled[:, k]
+                table[np.ix_(np.flatnonzero(rows), decoding.kinds[k].slots)] = np.nan
+                self.stats.duplicates += int(presence[rows, k].sum())
         if self.assemble == "time":
             self._check_counters(p, row_of, n, table)
         held = self._hold.fill(table)
@@ -345,6 +373,8 @@ class FrameAssembler:
         s.error_frames += int(np.count_nonzero(codes == ERROR_FRAME))
         s.remote_frames += int(np.count_nonzero(codes == REMOTE_FRAME))
         for code, table in ((FOREIGN, s.foreign), (WRONG_LENGTH, s.wrong_length)):
+            if not (codes == code).any():
+                continue
             ids, counts = np.unique(frames.ident[codes == code], return_counts=True)
             for ident, count in zip(ids.tolist(), counts.tolist(), strict=True):
                 table[ident] = table.get(ident, 0) + count

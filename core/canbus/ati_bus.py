@@ -1,10 +1,12 @@
 """The desk's ATI boards on a live CAN bus: their calibration asked for at start, then one poll
 round per sample period from a thread of its own (the NETCANOEM protocol: ati_netcanoem.py).
 
-The bus itself (opening, sending, reconnecting, reading) is the live source's (source.py): it
-gives :class:`AtiBoards` a way to send a request and to receive a frame, and tells it of the
-frames it reads (:meth:`AtiBoards.saw`), so the poller sends a round only after the previous
-round's replies came.
+The bus itself (opening, sending, reconnecting) is the live source's (source.py): it gives
+:class:`AtiBoards` a way to send a poll and to receive a frame. The poller thread reads the
+bus itself between its rounds (the source's receive hands each frame to
+:meth:`AtiBoards.saw`, which counts the boards' replies, and keeps it for the reader), so it
+knows at once when a round was answered, with no other thread to wake: a round trip is one
+thread switch to the boards and one back, not a relay through the reader.
 """
 
 from __future__ import annotations
@@ -24,6 +26,11 @@ log = logging.getLogger("hapticdesk.canbus.source")
 #: a request and where its replies go: ``send(ident, payload)`` sends one request (its frame
 #: logged), ``recv(timeout_s)`` the next python-can message or None
 SendRequest = Callable[[int, bytes], None]
+
+#: how long the poller waits for a board's reply before the next round (see AtiBoards._poll)
+REPLY_TIMEOUT_S = 0.1
+#: a reply that has not come this long after its poll is lost: the board is polled again
+WRITE_OFF_S = 0.5
 ReceiveFrame = Callable[[float], Any]
 
 
@@ -34,6 +41,57 @@ class _Request(NamedTuple):
     payload: bytes
     name: str
     base: int
+
+
+class _PollLedger:
+    """Per board: the polls sent, the replies heard (``heard``, counted by the receive), the
+    replies written off as lost, when it was last polled and whether its reply is waited for
+    (see :meth:`AtiBoards._poll`)."""
+
+    def __init__(self, boards: int, heard: list[int], reply_timeout_s: float) -> None:
+        self.heard = heard
+        self.reply_timeout_s = reply_timeout_s
+        self.sent = [0] * boards
+        self.written_off = [0] * boards
+        self.sent_at = [0.0] * boards
+        self.waited = [True] * boards
+
+    def owing(self, b: int) -> int:
+        """The replies board ``b`` still owes."""
+        debt = self.sent[b] - self.heard[b] - self.written_off[b]
+        if debt < 0:  # a reply taken as lost came after all
+            self.written_off[b] += debt
+            debt = 0
+        return debt
+
+    def due(self, now: float) -> list[int]:
+        """The boards to poll in this round: those that owe nothing, or whose reply is
+        written off (:data:`WRITE_OFF_S`); a board whose reply is late is no longer waited
+        for."""
+        boards = []
+        for b in range(len(self.sent)):
+            debt = self.owing(b)
+            if debt and now - self.sent_at[b] >= WRITE_OFF_S:
+                self.written_off[b] += debt  # its reply is lost
+            elif debt:
+                self.waited[b] = self.waited[b] and now - self.sent_at[b] < self.reply_timeout_s
+                continue  # its reply may still come: not asked again meanwhile
+            else:
+                self.waited[b] = True
+            boards.append(b)
+        return boards
+
+    def sent_to(self, b: int, now: float) -> None:
+        self.sent[b] += 1
+        self.sent_at[b] = now
+
+    def awaited_until(self, now: float) -> list[float]:
+        """Until when each reply still waited for may come."""
+        return [
+            self.sent_at[b] + self.reply_timeout_s
+            for b in range(len(self.sent))
+            if self.waited[b] and self.owing(b) and now < self.sent_at[b] + self.reply_timeout_s
+        ]
 
 
 class AtiBoards:
@@ -51,22 +109,25 @@ class AtiBoards:
         *,
         spec: str,
         send_poll: Callable[[int], None],
+        receive: Callable[[float], None],
         closing: threading.Event,
     ) -> None:
         self.sensors = dict(sensors)
         self.sample_rate_hz = sample_rate_hz
         self.spec = spec
         self._send_poll = send_poll
+        self._receive = receive
         self._closing = closing
         self.poll_ids = [ati.frame_id(s.base, ati.OP_GAUGES_A) for s in self.sensors.values()]
-        # the last reply frame of a poll round (the last board's second frame, the lowest
-        # priority of them): the reader tells the poller when it came
-        self._round_end_id = (
-            ati.frame_id(list(self.sensors.values())[-1].base, ati.OP_GAUGES_B)
-            if self.poll_ids
-            else None
-        )
-        self._round_answered = threading.Event()
+        # each board's last reply frame (its second, 0x1): the reader counts them (saw), so
+        # the poller knows which board still owes a reply
+        self._reply_ends = {
+            ati.frame_id(s.base, ati.OP_GAUGES_B): b for b, s in enumerate(self.sensors.values())
+        }
+        # replies heard per board: the reader counts, the poller reads (no wake-up between
+        # them: a thread woken by one holding the GIL is a convoy, a sixth of the reader's
+        # time at 1.2 kHz in py-spy; the poller looks when its round is due)
+        self._heard = [0] * len(self.poll_ids)
         self._poll_id_set = frozenset(self.poll_ids)
         self._poller: threading.Thread | None = None
 
@@ -174,34 +235,47 @@ class AtiBoards:
         """Tell the poller of a frame the reader read; False for our own poll echoed back
         (udp_multicast loops them: it is taken from the queue of sent polls, in order; twice
         would split samples), which the reader leaves out."""
-        if msg.arbitration_id == self._round_end_id and len(msg.data):
-            self._round_answered.set()
-        return bool(msg.data) or msg.arbitration_id not in self._poll_id_set
+        ident = msg.arbitration_id
+        board = self._reply_ends.get(ident)
+        if board is not None and len(msg.data):
+            self._heard[board] += 1
+        return bool(msg.data) or ident not in self._poll_id_set
 
     def _poll(self) -> None:
         """Request one sample of every ATI board per period, on a deadline clock.
 
-        A round is not sent before the previous one's replies came (or two periods after it
-        was sent, for a board that missed its poll): polls that overrun their replies (a host
-        thread that stalled, then caught up) would put two rounds' replies after the second
-        poll, and void both samples. So a stall costs samples (counted as lost), never
-        whole samples' data.
+        A board is never polled while it owes a reply (a reply to one poll that came after
+        the next would void both samples, or land in the wrong one): the next round waits
+        for the boards' replies, up to :data:`REPLY_TIMEOUT_S` (the way back through a loaded
+        host, the reader thread, an emulator sharing the GIL, takes milliseconds at times),
+        so a slow reply costs samples (counted lost), not their data. A board whose reply
+        did not come in that time is no longer waited for, and is left out of the rounds
+        (its samples NaN) until its reply comes, or for :data:`WRITE_OFF_S` (then that reply
+        is taken as lost and the board polled again): so a dead board does not slow the
+        others, and a late reply still lands in the sample it was asked for (the assembler
+        keys each reply by its own board's poll). The clock does not drift: each round is due
+        a period after the one before; a poller late by more than a period skips the rounds
+        it missed, never bursts them.
         """
         period = 1.0 / self.sample_rate_hz
+        ledger = _PollLedger(len(self.poll_ids), self._heard, max(REPLY_TIMEOUT_S, 2 * period))
         next_due = time.monotonic()
         while not self._closing.is_set():
-            self._round_answered.clear()
-            for ident in self.poll_ids:
+            now = time.monotonic()
+            for b in ledger.due(now):  # the round: every board that owes nothing
                 try:
-                    self._send_poll(ident)
+                    self._send_poll(self.poll_ids[b])
                 except Exception as err:  # the reader reconnects; keep the rhythm
                     log.debug("poll not sent: %s", err)
                     break
-            sent_at = time.monotonic()
+                ledger.sent_to(b, now)
             next_due += period
-            self._round_answered.wait(max(next_due, sent_at + period) + period - sent_at)
-            wait = next_due - time.monotonic()
-            if wait > 0:
-                self._closing.wait(wait)
-            elif wait < -period:
+            while not self._closing.is_set():  # read until due and the round is answered
+                now = time.monotonic()
+                # the replies that may yet come hold the round back (the receive counts them)
+                owed = ledger.awaited_until(now)
+                if now >= next_due and not owed:
+                    break
+                self._receive((next_due if now < next_due else min(owed)) - now)
+            if time.monotonic() - next_due > period:
                 next_due = time.monotonic()  # fell behind: skip, do not burst

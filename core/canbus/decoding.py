@@ -165,10 +165,13 @@ class DeskDecoding:
         hit = self._keys[pos] == keys
         codes[hit] = self._codes[pos[hit]]
         rest = ~hit
-        codes[rest & np.isin(frames.ident, self._data_ids)] = WRONG_LENGTH
-        codes[rest & np.isin(frames.ident, self._protocol_ids)] = PROTOCOL
-        codes[(frames.flags & REMOTE) != 0] = REMOTE_FRAME
-        codes[(frames.flags & ERROR) != 0] = ERROR_FRAME
+        if rest.any():  # (a live desk's frames are all its own: no set lookups then)
+            codes[rest & np.isin(frames.ident, self._data_ids)] = WRONG_LENGTH
+            codes[rest & np.isin(frames.ident, self._protocol_ids)] = PROTOCOL
+        flagged = (frames.flags & (REMOTE | ERROR)) != 0
+        if flagged.any():
+            codes[(frames.flags & REMOTE) != 0] = REMOTE_FRAME
+            codes[(frames.flags & ERROR) != 0] = ERROR_FRAME
         return codes
 
 

@@ -120,54 +120,88 @@ class CanEmulator:
             index = stop
 
     def _answer_polls(self) -> None:
+        """Answer polls as the boards would: every poll waiting on the bus is answered at each
+        wake-up (one sample each, in the order they came), with replies encoded once for the
+        whole recording, so a 1.2 kHz desk of four boards costs this thread little more than
+        the bus's own sends (the replies were encoded per poll before: 40 % of its time)."""
         import can
 
         by_base = {s.base: name for name, s in self.ati.items()}
+        replies_of = {name: self._gauge_replies(name) for name in self.ati}
         index = dict.fromkeys(self.ati, 0)
-        names = self.encoder.sensor_names
         k = len(self.t)
         while not self._stop.is_set():
             if not self.loop and min(index.values()) >= k:
                 return  # every board has given its last sample
             msg = self.bus.recv(timeout=0.05)
-            if msg is None or msg.is_error_frame or msg.is_extended_id:
-                continue
-            base = msg.arbitration_id >> 4
-            name = by_base.get(base)
-            if name is None:
-                continue
-            replies: list[tuple[int, bytes]]
-            if msg.arbitration_id & 0xF == ati.OP_GAUGES_A and len(msg.data) == 0:
-                i = index[name]
-                if i >= k:
-                    if not self.loop:
-                        continue  # the recording is over: the board stays quiet
-                    i = index[name] = 0
-                s = names.index(name)
-                status = 0 if self.status is None else int(self.status[i, s])
-                gauges = self.encoder.calibrations[name].gauges_for(self.wrench[i : i + 1, s])
-                a, b = ati.encode_gauge_frames(np.array([status]), gauges)
-                replies = [
-                    (ati.frame_id(base, ati.OP_GAUGES_A), a[0].tobytes()),
-                    (ati.frame_id(base, ati.OP_GAUGES_B), b[0, :6].tobytes()),
-                ]
-                index[name] = i + 1
-                self.stats.polls += 1
-                self.stats.samples = max(self.stats.samples, i + 1)
-            else:
-                replies = ati.replies(
-                    base, msg.arbitration_id, bytes(msg.data), self.encoder.calibrations[name]
-                )
-            for ident, data in replies:
-                try:
-                    self.bus.send(
-                        can.Message(
-                            timestamp=time.time(),
-                            arbitration_id=ident,
-                            data=data,
-                            is_extended_id=False,
+            waiting = []
+            while msg is not None:
+                waiting.append(msg)
+                msg = self.bus.recv(timeout=0.0)
+            for msg in waiting:
+                if msg.is_error_frame or msg.is_extended_id:
+                    continue
+                name = by_base.get(msg.arbitration_id >> 4)
+                if name is None:
+                    continue
+                if msg.arbitration_id & 0xF == ati.OP_GAUGES_A and len(msg.data) == 0:
+                    i = index[name]
+                    if i >= k:
+                        if not self.loop:
+                            continue  # the recording is over: the board stays quiet
+                        i = 0
+                    index[name] = i + 1
+                    self.stats.polls += 1
+                    self.stats.samples = max(self.stats.samples, i + 1)
+                    replies = replies_of[name].reply(i)
+                else:
+                    base = msg.arbitration_id >> 4
+                    cal = self.encoder.calibrations[name]
+                    replies = ati.replies(base, msg.arbitration_id, bytes(msg.data), cal)
+                for ident, data in replies:
+                    try:
+                        self.bus.send(
+                            can.Message(
+                                timestamp=time.time(),
+                                arbitration_id=ident,
+                                data=data,
+                                is_extended_id=False,
+                            )
                         )
-                    )
-                    self.stats.frames += 1
-                except can.CanError as err:
-                    log.warning("emulator: could not send a reply: %s", err)
+                        self.stats.frames += 1
+                    except can.CanError as err:
+                        log.warning("emulator: could not send a reply: %s", err)
+
+    def _gauge_replies(self, name: str) -> _GaugeReplies:
+        """Board ``name``'s reply frames for every sample of the recording, encoded at once."""
+        s = self.encoder.sensor_names.index(name)
+        base = self.ati[name].base
+        w = np.asarray(self.wrench[:, s], dtype=float)
+        status = np.zeros(len(w), np.int64) if self.status is None else self.status[:, s]
+        gauges = self.encoder.calibrations[name].gauges_for(np.nan_to_num(w))
+        a, b = ati.encode_gauge_frames(np.asarray(status), gauges)
+        return _GaugeReplies(
+            ati.frame_id(base, ati.OP_GAUGES_A),
+            ati.frame_id(base, ati.OP_GAUGES_B),
+            a,
+            b[:, :6].copy(),
+            np.isfinite(w).all(axis=1),
+        )
+
+
+@dataclass
+class _GaugeReplies:
+    """One board's two reply frames for each sample of the recording: ``a`` (k, 8) and
+    ``b`` (k, 6) bytes; a sample with a NaN channel (``ok`` False) gets no reply, as the
+    frame encoder leaves such a sample's frames out (a lost reply)."""
+
+    id_a: int
+    id_b: int
+    a: np.ndarray
+    b: np.ndarray
+    ok: np.ndarray
+
+    def reply(self, i: int) -> list[tuple[int, bytes]]:
+        if not self.ok[i]:
+            return []
+        return [(self.id_a, self.a[i].tobytes()), (self.id_b, self.b[i].tobytes())]

@@ -20,6 +20,7 @@ from hapticdesk.canbus.stats import CanStats
 
 REORDER_DEPTH = 3  # with counters, a sample is given up once a frame this many samples newer came
 LATE = np.iinfo(np.int64).min  # the key of a frame that came too late for its sample
+_NO_POLL = -1  # (sample keys by time are >= 0)
 #: a frame whose time is this many sample periods before the latest frame's went back in time
 TIME_BACK_PERIODS = 1.0
 
@@ -101,7 +102,23 @@ class TimeKeys:
         self.n_kinds = len(decoding.kinds)
         self.cluster = 0  # the key of the last sample begun
         self.polled = False  # a poll request has been seen: polls start samples
-        self._lead_request: int | None = None
+        # polled boards in the order their polls first came (a round polls them in order)
+        self._poll_order = np.zeros(0, np.uint32)  # poll identifiers, sorted
+        self._poll_rank = np.zeros(0, np.int64)  # ... and each one's place in a round
+        self._prev_poll_rank = np.iinfo(np.int64).max
+        # each polled board's reply kinds (its first and second frame: both carry the poll's
+        # identifier's board) and the key of its latest poll, carried from push to push
+        boards = [
+            (int(decoding.kinds[first].ident), first, second)
+            for second, first in decoding.second_halves.items()
+            if int(decoding.kinds[first].ident) in decoding.request_sensor
+        ]
+        boards.sort()
+        self._polled_ids = np.array([b[0] for b in boards], dtype=np.uint32)  # sorted
+        self._board_of_kind = np.full(self.n_kinds + 1, -1, dtype=np.int64)  # (+1: polls)
+        for b, (_, first, second) in enumerate(boards):
+            self._board_of_kind[[first, second]] = b
+        self._last_poll_key = np.full(len(boards), _NO_POLL, dtype=np.int64)
         self._prev_t = np.nan
         self._prev_rank = -1
         self._rank = np.full(self.n_kinds + 1, -1, dtype=np.int64)
@@ -113,9 +130,6 @@ class TimeKeys:
     def keys(self, frames: FrameArray, kind: np.ndarray) -> np.ndarray:
         """The sample key of each frame (``kind`` its kind index, n_kinds for a poll)."""
         is_request = kind == self.n_kinds
-        if self._lead_request is None and is_request.any():
-            # the board polled first in each round starts a sample
-            self._lead_request = int(frames.ident[np.argmax(is_request)])
         after_polls = self.polled | (np.cumsum(is_request) > 0)
         prev_t = np.concatenate([[self._prev_t], frames.t[:-1]])
         dt = frames.t - prev_t
@@ -129,8 +143,8 @@ class TimeKeys:
                 self._next_rank += 1
         rank = np.where(is_request, -1, self._rank[kind])
         prev_rank = np.concatenate([[self._prev_rank], rank[:-1]])
+        by_poll = self._round_starts(frames.ident, is_request)
         with np.errstate(invalid="ignore"):
-            by_poll = is_request & (frames.ident == self._lead_request)
             by_gap = np.where(
                 np.isfinite(dt), dt > self.frame_gap_s, (rank <= prev_rank) & (rank >= 0)
             )
@@ -140,9 +154,80 @@ class TimeKeys:
         self._prev_t = frames.t[-1]
         self._prev_rank = int(rank[-1])
         self.polled = bool(after_polls[-1])
+        self._key_replies_by_poll(keys, kind, frames.ident, is_request)
         for second, first in self.decoding.second_halves.items():
             self._pair_halves(keys, kind, first, second)
         return keys
+
+    def _round_starts(self, ident: np.ndarray, is_request: np.ndarray) -> np.ndarray:
+        """Where a poll round starts: at a poll of a board polled no later in a round than
+        the board of the poll before (the first-polled board's poll, as a rule; a later
+        board's when the host left the boards before it out of a round, e.g. one that still
+        owed its reply)."""
+        out = np.zeros(len(ident), dtype=bool)
+        if not is_request.any():
+            return out
+        polls = ident[is_request].astype(np.uint32)
+        known_at = np.minimum(np.searchsorted(self._poll_order, polls), len(self._poll_order) - 1)
+        new = (
+            np.unique(polls[self._poll_order[known_at] != polls])
+            if len(self._poll_order)
+            else np.unique(polls)
+        )
+        if len(new):  # ranks in the order the boards' polls first came
+            first = np.array([np.argmax(polls == p) for p in new])
+            known = dict(zip(self._poll_order.tolist(), self._poll_rank.tolist(), strict=True))
+            for p in new[np.argsort(first)]:
+                known[int(p)] = len(known)
+            self._poll_order = np.array(sorted(known), dtype=np.uint32)
+            self._poll_rank = np.array([known[p] for p in sorted(known)], dtype=np.int64)
+        rank = self._poll_rank[np.searchsorted(self._poll_order, polls)]
+        before = np.concatenate([[self._prev_poll_rank], rank[:-1]])
+        out[is_request] = rank <= before
+        self._prev_poll_rank = int(rank[-1])
+        return out
+
+    def _key_replies_by_poll(
+        self, keys: np.ndarray, kind: np.ndarray, ident: np.ndarray, is_request: np.ndarray
+    ) -> None:
+        """Give each reply of a polled board the key of its own board's latest poll, in place.
+
+        A host that never polls a board again before its reply came (the live source's
+        poller) makes that exact: a reply that comes late, after other boards' later polls,
+        still lands in the sample it was asked for, never in a later sample as if it had been
+        taken then. One that comes more than a round after its poll is LATE: its sample is
+        given out by then when frames are pushed as they come, so in any split."""
+        n_boards = len(self._polled_ids)
+        if not n_boards:
+            return
+        poll_pos = np.flatnonzero(is_request)
+        at = np.minimum(np.searchsorted(self._polled_ids, ident[poll_pos]), n_boards - 1)
+        known = self._polled_ids[at] == ident[poll_pos]
+        poll_pos, poll_board = poll_pos[known], at[known]
+        reply_pos = np.flatnonzero(self._board_of_kind[kind] >= 0)
+        if len(reply_pos):
+            # every board's latest poll before it (a push before's first), for all boards at
+            # once: the events sorted by board, then place; each reply takes the last poll's
+            board = np.concatenate(
+                [np.arange(n_boards), poll_board, self._board_of_kind[kind[reply_pos]]]
+            )
+            place = np.concatenate([np.full(n_boards, -1), poll_pos, reply_pos])
+            key = np.concatenate(
+                [self._last_poll_key, keys[poll_pos], np.zeros(len(reply_pos), np.int64)]
+            )
+            is_poll = np.arange(len(board)) < n_boards + len(poll_pos)
+            order = np.lexsort((place, board))
+            latest = np.maximum.accumulate(np.where(is_poll[order], np.arange(len(order)), 0))
+            own_sorted = key[order][latest]
+            own = np.empty_like(own_sorted)
+            own[order] = own_sorted
+            own = own[n_boards + len(poll_pos) :]
+            asked = own != _NO_POLL  # (before any poll of its board: keyed by time)
+            own = np.where(own < keys[reply_pos] - 1, LATE, own)
+            keys[reply_pos[asked]] = own[asked]
+        if len(poll_pos):  # each board's latest poll, for the next push
+            last = len(poll_board) - 1 - np.unique(poll_board[::-1], return_index=True)[1]
+            self._last_poll_key[poll_board[last]] = keys[poll_pos[last]]
 
     def _pair_halves(self, keys: np.ndarray, kind: np.ndarray, first: int, second: int) -> None:
         """Give each second frame of a reply its first frame's key, in place.

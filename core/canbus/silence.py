@@ -31,6 +31,8 @@ class SilenceWatch:
 
     def watch(self, t: np.ndarray, talking: np.ndarray) -> tuple[list[CanNotice], int | None]:
         """Notice sensors that stop and come back; stop at the first silence if configured."""
+        if self._nothing_changes(t, talking):
+            return [], None
         notices: list[CanNotice] = []
         stop_at: int | None = None
         names = self.names
@@ -67,3 +69,19 @@ class SilenceWatch:
             notices = [n for n in notices if n.t < t[stop_at]]
         notices.sort(key=lambda n: n.t)
         return notices, stop_at
+
+    def _nothing_changes(self, t: np.ndarray, talking: np.ndarray) -> bool:
+        """The common case, for every sensor at once: no sensor falls silent or comes back in
+        these samples; then the state is carried here (False: :meth:`watch` looks sensor by
+        sensor, and carries it)."""
+        before = np.where(np.isnan(self._last_seen), t[0], self._last_seen)
+        seen = np.where(talking, t[:, None], -np.inf)
+        last = np.maximum(np.maximum.accumulate(seen, axis=0), before[None, :])
+        silent = ~talking & (t[:, None] - last > self.silent_timeout_s)
+        prev = np.concatenate([self._silent[None, :], silent[:-1]])
+        if (silent & ~prev).any() or (talking & prev).any():
+            return False
+        self.late_frames[talking.any(axis=0)] = 0
+        self._silent = silent[-1].copy()
+        self._last_seen = last[-1].copy()
+        return True

@@ -4,8 +4,10 @@
 (socketcan, pcan, kvaser, slcan, virtual, udp_multicast, …); the profile's ``can:`` section
 gives the defaults (interface, channel, bitrate, ``bus_options``) and the decoding. At start it
 reads each ATI board's calibration from the bus (unless the profile gives it) and then polls
-the boards at the profile's sample rate from a thread of its own (ati_bus.py); database desks
-just stream. Which bus a spec names, and the error a lost bus raises: bus_spec.py.
+the boards at the profile's sample rate from a thread of its own, which also reads the bus
+(ati_bus.py): the reader takes what it sent and read every ``BLOCK_S``. Database desks just
+stream, read on the reader's thread. Which bus a spec names, and the error a lost bus
+raises: bus_spec.py.
 
 The bus may fail: a python-can error or a bus-off error frame closes the bus and opens it
 again every ``RECONNECT_INTERVAL_S`` until ``reconnect_timeout_s`` has passed, then the source
@@ -38,6 +40,7 @@ log = logging.getLogger("hapticdesk.canbus.source")
 
 RECONNECT_INTERVAL_S = 0.2
 BLOCK_S = 0.01  # gather frames this long before assembling them
+MAX_BLOCK_FRAMES = 5000  # at most this many frames a block (a bus flooding faster waits)
 CAN_ERR_BUSOFF = 0x40  # SocketCAN error class bit in an error frame's identifier
 
 
@@ -66,7 +69,10 @@ class CanSource(Source):
         self.notices: collections.deque[CanNotice] = collections.deque(maxlen=NOTICES_KEPT)
         self.reconnects = 0
         self._lock = threading.Lock()  # guards self._bus between the poller and the reader
-        self._polls: collections.deque[Any] = collections.deque()  # sent, not yet assembled
+        # with ATI boards, the poller thread receives too: the polls it sent and the frames
+        # it read, in the order they happened, wait here for the reader
+        self._inbox: collections.deque[Any] = collections.deque()
+        self._failure: tuple[Any, BaseException] | None = None  # (bus, error) the poller met
         # (the base last: nothing to close when the spec or the section is wrong)
         super().__init__(
             profile.sensor_names, profile.sample_rate_hz, channel_count=profile.channel_count
@@ -75,11 +81,13 @@ class CanSource(Source):
         self._stop_after: BaseException | None = None  # a stop, raised after its samples
         self._quiet_since: float | None = None  # since when no frame came (None: not reading)
         self._quiet_told = False
+        self._block_due = 0.0  # when the block being gathered ends (monotonic)
         self.ati_boards = AtiBoards(
             self.config.ati_sensors,
             self.sample_rate_hz,
             spec=spec,
             send_poll=lambda ident: self._send(ident, b"", poll=True),
+            receive=self._receive,
             closing=self._closing,
         )
         try:
@@ -151,7 +159,7 @@ class CanSource(Source):
                 raise can.CanOperationError("bus is closed")
             msg.timestamp, msg.is_rx = time.time(), False
             if poll:
-                self._polls.append(msg)
+                self._inbox.append(msg)
             self._bus.send(msg)
         if not poll and self.frame_sink is not None:
             self.frame_sink([msg])
@@ -188,11 +196,40 @@ class CanSource(Source):
 
     # --- reading ------------------------------------------------------------------------
 
-    def _sent_polls(self) -> list[Any]:
-        polls = []
-        while self._polls:
-            polls.append(self._polls.popleft())
-        return polls
+    def _receive(self, timeout_s: float) -> None:
+        """The poller's read: the next frame within ``timeout_s`` into the inbox (the poller
+        counts its boards' replies as they come, with no other thread to wake); a failed
+        bus is left to the reader to reconnect."""
+        import can
+
+        bus = self._bus
+        if bus is None or self._failure is not None:
+            self._closing.wait(min(timeout_s, RECONNECT_INTERVAL_S))  # being reconnected
+            return
+        try:
+            msg = bus.recv(timeout=max(0.0, timeout_s))
+            if msg is not None and msg.is_error_frame and msg.arbitration_id & CAN_ERR_BUSOFF:
+                raise can.CanOperationError("bus-off")
+        except Exception as err:  # raised by the reader: a python-can error reconnects
+            if self._bus is bus and not self._closing.is_set():
+                self._failure = (bus, err)
+            return
+        if msg is not None and self.ati_boards.saw(msg):  # (not our own poll echoed back)
+            self._inbox.append(msg)
+
+    def _taken_from_inbox(self) -> list[Any]:
+        """What the poller thread sent and read since the last block, in order; its bus's
+        failure raised (as :meth:`_gather` raises it)."""
+        self._closing.wait(max(0.0, self._block_due - time.monotonic()))
+        self._block_due = max(self._block_due + BLOCK_S, time.monotonic())
+        batch: list[Any] = []
+        while self._inbox and len(batch) < MAX_BLOCK_FRAMES:
+            batch.append(self._inbox.popleft())
+        failure, self._failure = self._failure, None
+        if failure is not None and failure[0] is self._bus:
+            self._inbox.extendleft(reversed(batch))  # (given out after the reconnection)
+            raise failure[1]
+        return batch
 
     def read_block(self) -> WrenchBlock | None:
         """The samples completed by the frames that came within ``BLOCK_S``; a lost bus is
@@ -202,19 +239,16 @@ class CanSource(Source):
         if self._stop_after is not None:  # (the samples before it were given out)
             raise self._stop_after
         if self._quiet_since is None:  # the first read: the quiet clock and the polls start
-            self._quiet_since = time.monotonic()
+            self._quiet_since = self._block_due = time.monotonic()
             self.ati_boards.start_polling()
         try:
-            batch = self._gather()
+            batch = self._taken_from_inbox() if self.ati_boards.poll_ids else self._gather()
         except (can.CanError, OSError) as err:
             if self._closing.is_set():
                 return None
             held = self._give(self.assembler.flush())
             self._reconnect(str(err))
             return held
-        polls = self._sent_polls()
-        if polls:  # in time order with what came back, for the assembler and the sink
-            batch = sorted(batch + polls, key=lambda m: m.timestamp)
         if self.frame_sink is not None and batch:
             self.frame_sink(batch)
         if batch:
@@ -229,12 +263,13 @@ class CanSource(Source):
         return self._give(self.assembler.flush())  # closed: what is still waiting
 
     def _gather(self) -> list[Any]:
-        """The frames that came within ``BLOCK_S`` (a python-can error if the bus failed)."""
+        """The frames that came within ``BLOCK_S`` (a python-can error if the bus failed);
+        a desk that streams (no ATI boards to poll) is read here, on the reader's thread."""
         import can
 
         batch: list[Any] = []
         deadline = time.monotonic() + BLOCK_S
-        while time.monotonic() < deadline and len(batch) < 5000:
+        while time.monotonic() < deadline and len(batch) < MAX_BLOCK_FRAMES:
             bus = self._bus
             if bus is None:
                 raise can.CanOperationError("bus is closed")
@@ -243,8 +278,7 @@ class CanSource(Source):
                 break
             if msg.is_error_frame and msg.arbitration_id & CAN_ERR_BUSOFF:
                 raise can.CanOperationError("bus-off")
-            if self.ati_boards.saw(msg):  # (not our own poll echoed back)
-                batch.append(msg)
+            batch.append(msg)
         return batch
 
     def _quiet(self) -> WrenchBlock:

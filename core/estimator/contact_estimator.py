@@ -11,123 +11,33 @@ learned (:mod:`.candidates`), the accelerometers' gain for partial readings
 
 from __future__ import annotations
 
-import logging
-from dataclasses import dataclass, fields, replace
+from dataclasses import replace
 
 import numpy as np
 
 from hapticdesk.estimator import kernel as k
 from hapticdesk.estimator import kernel_geometry
 from hapticdesk.estimator import kernel_slots as slots
+from hapticdesk.estimator.candidate_trace import CandidateTrace
 from hapticdesk.estimator.candidates import Covariances
 from hapticdesk.estimator.contacts import ContactBlock
 from hapticdesk.estimator.inertia import InertiaSettings, InertiaStage, accelerometer_readings
 from hapticdesk.estimator.kernel_channels import steps_changed
 from hapticdesk.estimator.multitouch import SecondFingerStage, fit_second_point
-from hapticdesk.estimator.notices import NoticeList, add_notice
+from hapticdesk.estimator.notices import NoticeList
+from hapticdesk.estimator.output_columns import OutputColumns
 from hapticdesk.estimator.params import Params, State, new_state, params_of
-from hapticdesk.estimator.samples import tell_live, tell_noise_free, tell_stuck, tell_time_back
+from hapticdesk.estimator.samples import tell_events
 from hapticdesk.estimator.settings import EstimatorSettings
 from hapticdesk.estimator.zero import ZeroStage
 from hapticdesk.files.profile import METHODS, DeskProfile, EstimationSettings
 from hapticdesk.files.recording import Recording
 
-__all__ = ["CandidateTrace", "ContactEstimator", "estimate"]
+__all__ = ["ContactEstimator", "estimate"]
 
 #: a push of up to this many samples is written into output columns the estimator keeps and
 #: reuses (so a stream of pushes allocates nothing); a longer one gets columns of its own
 KEPT_COLUMNS = 65536
-
-
-@dataclass(frozen=True)
-class CandidateTrace:
-    """Both candidates for the samples in contact of one push (``trace=True``).
-
-    ``force_n``: |F_o| after the conventional low-pass; ``rate_n_s``: the differentiated force
-    magnitude (paper Fig. 3, its sign is the motion); points (3, n) in the desk frame with
-    their validity and 1-σ uncertainty: P_er from the force, P_ed from its derivative.
-    """
-
-    t: np.ndarray
-    force_n: np.ndarray
-    rate_n_s: np.ndarray
-    force_point: np.ndarray
-    force_valid: np.ndarray
-    force_sigma_m: np.ndarray
-    diff_point: np.ndarray
-    diff_valid: np.ndarray
-    diff_sigma_m: np.ndarray
-    fast_point: np.ndarray  # from the fast (detection) low-pass: the third `fused` candidate
-    fast_valid: np.ndarray
-    fast_sigma_m: np.ndarray
-
-    @classmethod
-    def concat(cls, traces: list[CandidateTrace]) -> CandidateTrace:
-        """Join the traces of several pushes."""
-        if not traces:
-            z = np.zeros(0)
-            none = np.zeros((3, 0))
-            return cls(
-                z, z, z, none, z.astype(bool), z, none, z.astype(bool), z, none, z.astype(bool), z
-            )
-        return cls(
-            **{
-                f.name: np.concatenate([getattr(tr, f.name) for tr in traces], axis=-1)
-                for f in fields(cls)
-            }
-        )
-
-    @classmethod
-    def of(cls, rows: np.ndarray, at: np.ndarray) -> CandidateTrace:
-        """The trace of the samples ``at`` from the output columns' trace rows."""
-        trace = rows[slots.N_OUT_F :, at]
-        per = [slots.TRACE_CANDIDATES + slots.TRACE_PER_CANDIDATE * j for j in range(3)]
-        parts = []
-        for p in per:
-            parts += [trace[p : p + 3], trace[p + 3] > 0.5, trace[p + 4]]
-        return cls(rows[slots.OUT_T, at], trace[slots.TRACE_FORCE], trace[slots.TRACE_RATE], *parts)
-
-
-class _Columns:
-    """Output columns for up to ``capacity`` samples, and the blocks that view them."""
-
-    def __init__(self, capacity: int, rows: int) -> None:
-        self.capacity = capacity
-        self.f = np.zeros((rows, capacity))
-        self.b = np.zeros((slots.N_OUT_B, capacity), np.int8)
-        self.s = np.full(capacity, -1, np.int16)
-        self._block: ContactBlock | None = None  # the view of the last length asked
-
-    def block(self, n: int) -> ContactBlock:
-        """The first ``n`` columns as a contact block (views: the same object for the same n)."""
-        cached = self._block
-        if cached is not None and len(cached.t) == n:
-            return cached
-        f, b = self.f, self.b
-        block = ContactBlock(
-            t=f[slots.OUT_T, :n],
-            in_contact=b[slots.OUT_B_IN_CONTACT, :n].view(bool),
-            located=b[slots.OUT_B_LOCATED, :n].view(bool),
-            surface=self.s[:n],
-            x=f[slots.OUT_X, :n],
-            y=f[slots.OUT_Y, :n],
-            z=f[slots.OUT_Z, :n],
-            force_n=f[slots.OUT_FORCE, :n],
-            source=b[slots.OUT_B_SOURCE, :n],
-            phase=b[slots.OUT_B_PHASE, :n],
-            sigma_m=f[slots.OUT_SIGMA, :n],
-            flags=b[slots.OUT_B_FLAGS, :n].view(np.uint8),
-            located2=b[slots.OUT_B_LOCATED2, :n].view(bool),
-            x2=f[slots.OUT_X2, :n],
-            y2=f[slots.OUT_Y2, :n],
-            z2=f[slots.OUT_Z2, :n],
-            resting=b[slots.OUT_B_RESTING, :n].view(bool),
-            shear=f[slots.OUT_SHEAR, :n],
-            drag_x=f[slots.OUT_DRAG_X, :n],
-            drag_y=f[slots.OUT_DRAG_Y, :n],
-        )
-        self._block = block
-        return block
 
 
 class ContactEstimator:
@@ -175,8 +85,8 @@ class ContactEstimator:
         self._sensor_shape = (len(profile.sensors), 6) if profile.six_axis_only else None
         n_axes = 0 if self.inertia_settings is None else self.inertia_settings.n_axes
         self._no_readings = np.zeros((1, n_axes))  # (the kernels' accel when there is none)
-        self._record = _Columns(1, self.params.out_rows)  # the one-sample record
-        self._columns = _Columns(0, self.params.out_rows)
+        self._record = OutputColumns(1, self.params.out_rows)  # the one-sample record
+        self._columns = OutputColumns(0, self.params.out_rows)
         self._second_finger_on = settings.second_finger
         k.warm()
         self.reset()
@@ -361,7 +271,7 @@ class ContactEstimator:
         """A block through the kernel's loop entry, into the output columns."""
         cols = self._columns
         if n > cols.capacity:
-            cols = _Columns(n, self.params.out_rows)
+            cols = OutputColumns(n, self.params.out_rows)
             if n <= KEPT_COLUMNS:
                 self._columns = cols
         pf, pi = self.params.pf, self.params.pi
@@ -382,38 +292,18 @@ class ContactEstimator:
 
     # --- what the kernel leaves to Python -------------------------------------------------
 
-    def _handle(self, events: int, cols: _Columns, col: int, readings: np.ndarray) -> None:
+    def _handle(self, events: int, cols: OutputColumns, col: int, readings: np.ndarray) -> None:
         """The events one sample raised (kernel_slots.EV_*), in the order the stages meet them."""
+        if events == slots.EV_WINDOW:  # (the most frequent: a few a minute)
+            self._window()
+            return
         sf, si = self.state
         if events & slots.EV_PARTIAL_ACCEL:
-            self._partial_gain(readings)
+            assert self._inertia is not None
+            gain_at = self.params.slot(slots.I_SO_PARTIAL_GAIN)
+            self._inertia.partial_gain_into(readings, sf, si, gain_at)
             return
-        if events & slots.EV_TIME_BACK:
-            tell_time_back(
-                self.notices,
-                float(sf[slots.S_EV_T]),
-                float(sf[slots.S_EV_LATEST]),
-                int(si[slots.J_TIME_BACK]),
-            )
-        if events & slots.EV_NOISE_FREE:
-            tell_noise_free()
-        if events & slots.EV_STUCK:
-            tell_stuck(self.notices, float(sf[slots.S_STUCK_SINCE]))
-        if events & slots.EV_LIVE:
-            tell_live(
-                self.notices,
-                float(sf[slots.S_EV_T]),
-                float(sf[slots.S_STUCK_SINCE]),
-                float(sf[slots.S_LAST_STUCK_T]),
-            )
-        if events & slots.EV_GAP:
-            add_notice(
-                self.notices,
-                float(sf[slots.S_EV_T]),
-                "gap",
-                "gap in sample times: filters restarted",
-                logging.WARNING,
-            )
+        tell_events(self.notices, events, sf, si)
         if events & slots.EV_COVS:
             self._make_covariances()
         if events & slots.EV_WINDOW:
@@ -430,19 +320,8 @@ class ContactEstimator:
     def _window(self) -> None:
         """A zero window ended that Python judges (zero.py: the tare, an object, its lift);
         at the tare the covariances are made."""
-        sf, si = self.state
-        w = int(self.params.pi[slots.I_WINDOW])
-        tared = self.zeroing.state.tared
-        raw = self.params.slot(slots.I_SO_WIN_RAW)
-        spread, *mean, t_end = sf[slots.S_WIN_SPREAD : slots.S_WIN_T_END + 1].tolist()
-        self.zeroing.window(
-            spread,
-            int(si[slots.J_WIN_BADS]) / w > 0.1,  # more than a tenth held over: no use for the zero
-            mean,
-            sf[raw : raw + 6 * w].reshape(6, w),
-            t_end,
-        )
-        if not tared and self.zeroing.state.tared:
+        if self.zeroing.window():
+            sf, si = self.state
             steps_changed(self.params.pf, self.params.pi, sf, si)  # (the steps they use)
             self._make_covariances()
 
@@ -466,23 +345,7 @@ class ContactEstimator:
             at = self.params.slot(slot)
             sf[at : at + len(packed)] = packed
 
-    def _partial_gain(self, readings: np.ndarray) -> None:
-        """Several accelerometers, some readings not usable: the gain from the usable ones
-        (inertia.py), or none usable, for the kernel to use while the same ones are."""
-        sf, si = self.state
-        assert self._inertia is not None and self.inertia_settings is not None
-        usable = self._inertia.usable_axes(readings)
-        gain = self.inertia_settings.gain_from(usable)
-        # (the kernel keeps this gain for the same usable readings: one bit each)
-        si[slots.J_PARTIAL_PATTERN] = sum(1 << int(j) for j in np.flatnonzero(usable)) + 1
-        if gain is None:
-            si[slots.J_PARTIAL] = 2
-            return
-        at = self.params.slot(slots.I_SO_PARTIAL_GAIN)
-        sf[at : at + gain.size] = gain.ravel()
-        si[slots.J_PARTIAL] = 1
-
-    def _fit_second(self, cols: _Columns, col: int) -> None:
+    def _fit_second(self, cols: OutputColumns, col: int) -> None:
         """The second finger's landing window is full: its point fitted (multitouch.py), on
         the board, from this sample on."""
         sf, si = self.state
@@ -514,16 +377,8 @@ class ContactEstimator:
             self._accel_missing = not given
             return
         self._accel_missing = True
-        assert self.inertia_settings is not None
-        add_notice(
-            self.notices,
-            t,
-            "no_accel",
-            f"no accelerometer readings ({', '.join(self.inertia_settings.columns)}) come with "
-            f"the samples of desk {self.profile.name!r}: its sway is not compensated (the "
-            "samples are flagged no_accel)",
-            logging.WARNING,
-        )
+        assert self._inertia is not None
+        self._inertia.tell_missing(self.notices, t, self.profile.name)
 
 
 def estimate(profile: DeskProfile, recording: Recording, method: str | None = None) -> ContactBlock:

@@ -262,18 +262,15 @@ def contact_events(block: ContactBlock, was_in_contact: bool = False) -> list[Co
                 )
             )
         elif prev:
-            events.append(
-                ContactEvent(
-                    t[i],
-                    "up",
-                    last_xy[0],
-                    last_xy[1],
-                    last_xy[2],
-                    force[i],
-                    sig[i],
-                    "release",
-                    False,
-                )
-            )
+            events.append(_lift_off(t[i], last_xy, force[i], sig[i]))
         prev = inc[i]
     return events
+
+
+def _lift_off(
+    t: float, last_xy: tuple[float, float, int], force: float, sigma: float
+) -> ContactEvent:
+    """The ``up`` event of the first sample out of contact, at the touch's last located
+    position (x, y, surface)."""
+    x, y, surface = last_xy
+    return ContactEvent(t, "up", x, y, surface, force, sigma, "release", False)

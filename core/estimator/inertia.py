@@ -45,11 +45,14 @@ desk's mass and centre of mass come from the profile (``desk.mass_kg``,
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from hapticdesk.estimator.contacts import FLAG_NO_ACCEL
+from hapticdesk.estimator.kernel_slots import J_PARTIAL, J_PARTIAL_PATTERN
+from hapticdesk.estimator.notices import Notice, add_notice
 from hapticdesk.files.profile import STANDARD_GRAVITY, AccelerometerSpec, DeskProfile
 from hapticdesk.files.recording import named_columns
 from hapticdesk.files.rigid_body import skew, spatial_inertia
@@ -179,6 +182,36 @@ class InertiaStage:
         """Which axes' readings (..., A) can be used: finite and inside the range."""
         with np.errstate(invalid="ignore"):  # NaN compares False: not usable
             return np.asarray(np.abs(accel) < self.settings.limit)
+
+    def partial_gain_into(
+        self, readings: np.ndarray, sf: np.ndarray, si: np.ndarray, gain_at: int
+    ) -> None:
+        """Several accelerometers, some ``readings`` (A,) not usable: the gain from the
+        usable ones, or none usable, into the kernel's state (``sf`` at ``gain_at``, ``si``)
+        for it to use while the same ones are."""
+        usable = self.usable_axes(readings)
+        gain = self.settings.gain_from(usable)
+        # (the kernel keeps this gain for the same usable readings: one bit each)
+        si[J_PARTIAL_PATTERN] = sum(1 << int(j) for j in np.flatnonzero(usable)) + 1
+        if gain is None:
+            si[J_PARTIAL] = 2
+            return
+        sf[gain_at : gain_at + gain.size] = gain.ravel()
+        si[J_PARTIAL] = 1
+
+    def tell_missing(self, notices: list[Notice], t: float, desk: str) -> None:
+        """A warning that samples of ``desk`` come without the accelerometer's readings (a
+        recording without its columns, a source that does not pass them): they are estimated
+        uncompensated, and only the ``no_accel`` flag would say so."""
+        add_notice(
+            notices,
+            t,
+            "no_accel",
+            f"no accelerometer readings ({', '.join(self.settings.columns)}) come with "
+            f"the samples of desk {desk!r}: its sway is not compensated (the "
+            "samples are flagged no_accel)",
+            logging.WARNING,
+        )
 
     def usable(self, accel: np.ndarray) -> np.ndarray:
         """Which readings (..., A) can be used whole: every axis finite and inside the range."""

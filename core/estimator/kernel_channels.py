@@ -79,18 +79,24 @@ def _samples(
     c_n = pi[I_C]
     flags = 0
     events = 0
-    # one pass over the channels, without branches: finite, within its limit, equal to the
-    # sample before (a repeat, for the stuck check below)
-    finite = abs(t) < math.inf
-    saturated = False
+    # one pass over the channels, without branches: each within its limit (so finite: False
+    # for NaN too), equal to the sample before (a repeat, for the stuck check below), kept
+    # as the sample before the next (read only while the stuck check runs)
+    within = abs(t) < math.inf
     repeat = si[J_HAVE_PREV] == 1
     limit = pf[pi[I_PO_LIMIT] : pi[I_PO_LIMIT] + c_n]
     prev = sf[pi[I_SO_PREV_ROW] : pi[I_SO_PREV_ROW] + c_n]
     for c in range(c_n):
         v = x[c]
-        finite &= abs(v) < math.inf  # (False for NaN too)
-        saturated |= abs(v) >= limit[c]
+        within &= abs(v) < limit[c]
         repeat &= v == prev[c]
+        prev[c] = v
+    finite, saturated = True, False
+    if not within:  # (rare) which of the two
+        finite = abs(t) < math.inf
+        for c in range(c_n):
+            finite &= abs(x[c]) < math.inf
+            saturated |= abs(x[c]) >= limit[c]
     if not finite:
         flags |= FLAG_NAN
     else:
@@ -108,7 +114,7 @@ def _samples(
                 events |= EV_TIME_BACK
         else:
             sf[S_MAX_T] = t
-    stuck, told = _stuck_check(t, x, prev, repeat, finite, pi, sf, si)
+    stuck, told = _stuck_check(t, repeat, finite, pi, sf, si)
     flags |= stuck
     events |= told
     if flags:
@@ -124,24 +130,20 @@ def _samples(
 @inlined
 def _stuck_check(
     t: float,
-    x: np.ndarray,
-    prev: np.ndarray,
     repeat: bool,
     finite: bool,
     pi: np.ndarray,
     sf: np.ndarray,
     si: np.ndarray,
 ) -> tuple[int, int]:
-    """Whether the input sticks (``repeat``: the sample equals ``prev``, the one before, which
-    it then becomes). Returns (FLAG_STUCK or 0, events)."""
+    """Whether the input sticks (``repeat``: the sample equals the one before, which the
+    channels' pass of :func:`samples` keeps). Returns (FLAG_STUCK or 0, events)."""
     flags = 0
     events = 0
     # a stuck input repeats its last sample bit for bit; a noise-free one does so all the
     # time, so the first CHECK_N samples decide whether to look at all
     check = si[J_STUCK_CHECK]
     if check != 0:
-        for c in range(pi[I_C]):
-            prev[c] = x[c]
         si[J_HAVE_PREV] = 1
         if check < 0:
             if repeat:

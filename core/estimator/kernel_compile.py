@@ -4,7 +4,8 @@ Every compiled function of the kernel (:mod:`hapticdesk.estimator.kernel` and th
 ``kernel_*`` modules) is made with :data:`compiled` or :data:`inlined` from here: compiled
 once and cached, the GIL released, IEEE division, no reference counting (the kernel
 allocates nothing, and every call between its functions otherwise paid for atomic
-increments of each array argument, 68 ns a call).
+increments of each array argument, 68 ns a call); the entries are compiled with LLVM's SLP
+vectorizer on (:func:`vectorized`, around ``kernel.warm``).
 
 numba stamps a cached function by the content of its own file only, while the compiled
 code of an entry holds the code of the functions it calls from other files and the
@@ -18,12 +19,13 @@ compiled anew in every process, and a line in the log saying so.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import logging
 import os
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import numba
@@ -65,6 +67,22 @@ def _kernel_sources() -> str:
 
 
 KERNEL_SOURCES = _kernel_sources()
+
+
+@contextlib.contextmanager
+def vectorized() -> Iterator[None]:
+    """LLVM's SLP vectorizer on while the kernels compile in this block (numba leaves it off
+    by default since numba#8705, a miscompilation in an LLVM numba no longer ships). It packs
+    the kernel's side-by-side arithmetic into vector instructions — the channels→wrench
+    matrix's six sums (the map cost 47 ns a sample on the paper's desk, 25 with it), the six
+    lanes of a filter — without reordering any sum: the same values to the bit
+    (tests/core/test_core_golden.py)."""
+    before = getattr(config, "SLP_VECTORIZE", 0)
+    setattr(config, "SLP_VECTORIZE", 1)  # noqa: B010 (numba reads it as it compiles)
+    try:
+        yield
+    finally:
+        setattr(config, "SLP_VECTORIZE", before)  # noqa: B010
 
 
 def _stamped(options: dict[str, Any]) -> Callable[[Callable[..., Any]], Any]:

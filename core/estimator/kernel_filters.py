@@ -15,7 +15,6 @@ import numpy as np
 
 from hapticdesk.estimator.kernel_compile import inlined
 from hapticdesk.estimator.kernel_slots import (
-    I_DET_FULL,
     I_N_DIFF,
     I_N_RATE,
     I_N_RELEASE,
@@ -54,26 +53,47 @@ from hapticdesk.estimator.kernel_slots import (
 
 @inlined
 def _sections(
-    pf: np.ndarray, sos: int, ns: int, sf: np.ndarray, zi: int, src: int, dst: int, lanes: int
+    pf: np.ndarray, sos: int, ns: int, sf: np.ndarray, zi: int, src: int, dst: int
 ) -> None:
-    """``lanes`` samples sf[src:src+lanes] through a cascade of ``ns`` second-order sections
-    (pf[sos:]), one lane each, into sf[dst:]: scipy's ``sosfilt`` recursion (transposed
-    direct form II), to the bit. The state sf[zi:] is (ns, 2, 6): a section's two memories
-    of the six lanes side by side, so the lanes run together."""
-    out = sf[dst : dst + 6]
+    """The six lanes sf[src:src+6] through a cascade of ``ns`` second-order sections
+    (pf[sos:]), one lane each, into sf[dst:dst+6] (``src`` may be ``dst``): scipy's
+    ``sosfilt`` recursion (transposed direct form II), to the bit. The state sf[zi:] is
+    (ns, 2, 6): a section's two memories of the six lanes side by side. Each section reads
+    its six inputs and twelve memories before it writes any, so that the six lanes run side
+    by side in vector registers (a caller that needs three lanes gets six at the same cost)."""
     for s in range(ns):
-        b = sos + 6 * s
-        b0, b1, b2, a1, a2 = pf[b], pf[b + 1], pf[b + 2], pf[b + 4], pf[b + 5]
-        z0 = sf[zi + 12 * s : zi + 12 * s + 6]
-        z1 = sf[zi + 12 * s + 6 : zi + 12 * s + 12]
+        b = pf[sos + 6 * s : sos + 6 * s + 6]
+        b0, b1, b2, a1, a2 = b[0], b[1], b[2], b[4], b[5]
+        z = sf[zi + 12 * s : zi + 12 * s + 12]
         inp = sf[src : src + 6]
-        for lane in range(lanes):
-            x = inp[lane]
-            y = b0 * x + z0[lane]
-            z0[lane] = b1 * x - a1 * y + z1[lane]
-            z1[lane] = b2 * x - a2 * y
-            out[lane] = y
+        x0, x1, x2, x3, x4, x5 = inp[0], inp[1], inp[2], inp[3], inp[4], inp[5]
+        p0, p1, p2, p3, p4, p5 = z[0], z[1], z[2], z[3], z[4], z[5]
+        q0, q1, q2, q3, q4, q5 = z[6], z[7], z[8], z[9], z[10], z[11]
+        y0, y1, y2 = b0 * x0 + p0, b0 * x1 + p1, b0 * x2 + p2
+        y3, y4, y5 = b0 * x3 + p3, b0 * x4 + p4, b0 * x5 + p5
+        z[0], z[1], z[2] = b1 * x0 - a1 * y0 + q0, b1 * x1 - a1 * y1 + q1, b1 * x2 - a1 * y2 + q2
+        z[3], z[4], z[5] = b1 * x3 - a1 * y3 + q3, b1 * x4 - a1 * y4 + q4, b1 * x5 - a1 * y5 + q5
+        z[6], z[7], z[8] = b2 * x0 - a2 * y0, b2 * x1 - a2 * y1, b2 * x2 - a2 * y2
+        z[9], z[10], z[11] = b2 * x3 - a2 * y3, b2 * x4 - a2 * y4, b2 * x5 - a2 * y5
+        out = sf[dst : dst + 6]
+        out[0], out[1], out[2], out[3], out[4], out[5] = y0, y1, y2, y3, y4, y5
         src = dst
+
+
+@inlined
+def _difference(sf: np.ndarray, src: int, delayed: np.ndarray, scale: float) -> None:
+    """Paper eq. (8) for the six lanes: (sf[src:src+6] − the same n samples ago, ``delayed``)
+    · ``scale`` into S_DIFF; ``delayed`` takes the sample in its place (read first, then
+    written: side by side in vector registers, as :func:`_sections`)."""
+    now = sf[src : src + 6]
+    x0, x1, x2, x3, x4, x5 = now[0], now[1], now[2], now[3], now[4], now[5]
+    o0, o1, o2 = delayed[0], delayed[1], delayed[2]
+    o3, o4, o5 = delayed[3], delayed[4], delayed[5]
+    d = sf[S_DIFF : S_DIFF + 6]
+    d[0], d[1], d[2] = (x0 - o0) * scale, (x1 - o1) * scale, (x2 - o2) * scale
+    d[3], d[4], d[5] = (x3 - o3) * scale, (x4 - o4) * scale, (x5 - o5) * scale
+    delayed[0], delayed[1], delayed[2] = x0, x1, x2
+    delayed[3], delayed[4], delayed[5] = x3, x4, x5
 
 
 @inlined
@@ -141,10 +161,8 @@ def _filters(pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray) -> 
     scaled, low-passed), the fast low-pass (S_DET) and its slope over I_N_RATE and
     I_N_RELEASE samples (S_SLOPE, S_RELEASE); with the sway compensated (I_SPAN > 0)."""
     ns = pi[I_NS]
-    # the fast path: its force, and its moments too where they are used
-    _sections(
-        pf, pi[I_PO_DET_SOS], ns, sf, pi[I_SO_DET_ZI], S_RAW, S_DET, 6 if pi[I_DET_FULL] else 3
-    )
+    # the fast path (its moments are used where I_DET_FULL, its force always)
+    _sections(pf, pi[I_PO_DET_SOS], ns, sf, pi[I_SO_DET_ZI], S_RAW, S_DET)
     n_rate = pi[I_N_RATE]
     pos = si[J_DET_POS]
     recent = pos + n_rate - pi[I_N_RELEASE]
@@ -165,22 +183,14 @@ def _filters(pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray) -> 
     scale = pf[P_DIFF_SCALE]
     if pi[I_SHARED_LP]:
         # a difference commutes with an LTI filter: the difference of the low-passed wrench
-        _sections(pf, pi[I_PO_LP_SOS], ns, sf, pi[I_SO_LP_ZI], S_RAW, S_LP, 6)
+        _sections(pf, pi[I_PO_LP_SOS], ns, sf, pi[I_SO_LP_ZI], S_RAW, S_LP)
         if pi[I_SPAN]:
             _sway(pf, pi, sf, si, S_LP, pi[I_SO_SWAY], J_SWAY_POS)
-        for lane in range(6):
-            x = sf[S_LP + lane]
-            sf[S_DIFF + lane] = (x - delayed[lane]) * scale  # paper eq. (8)
-            delayed[lane] = x
+        _difference(sf, S_LP, delayed, scale)  # paper eq. (8)
     else:
-        for lane in range(6):
-            x = sf[S_RAW + lane]
-            sf[S_DIFF + lane] = (x - delayed[lane]) * scale  # paper eq. (8) ...
-            delayed[lane] = x
-        _sections(
-            pf, pi[I_PO_DIFF_SOS], ns, sf, pi[I_SO_DIFF_ZI], S_DIFF, S_DIFF, 6
-        )  # ... low-passed
-        _sections(pf, pi[I_PO_LP_SOS], ns, sf, pi[I_SO_LP_ZI], S_RAW, S_LP, 6)
+        _difference(sf, S_RAW, delayed, scale)  # paper eq. (8) ...
+        _sections(pf, pi[I_PO_DIFF_SOS], ns, sf, pi[I_SO_DIFF_ZI], S_DIFF, S_DIFF)  # ... low-passed
+        _sections(pf, pi[I_PO_LP_SOS], ns, sf, pi[I_SO_LP_ZI], S_RAW, S_LP)
         if pi[I_SPAN]:
             _sway(pf, pi, sf, si, S_LP, pi[I_SO_SWAY], J_SWAY_POS)
             _sway(pf, pi, sf, si, S_DIFF, pi[I_SO_SWAY_DIFF], J_SWAY_DIFF_POS)

@@ -147,8 +147,9 @@ def intersect(
             continue
         lx = r[6] * fx + r[7] * fy + r[8] * fz_ + r[9] * mx + r[10] * my + r[11] * mz
         ly = r[12] * fx + r[13] * fy + r[14] * fz_ + r[15] * mx + r[16] * my + r[17] * mz
-        u = -(ly / fz)  # paper eq. (5) in the surface's frame
-        v = lx / fz
+        inv = 1.0 / fz  # (one division for the point and its covariance)
+        u = -(ly * inv)  # paper eq. (5) in the surface's frame
+        v = lx * inv
         if not contains(pf, pi, s, u, v):
             continue
         if n_surf > 1:
@@ -161,7 +162,7 @@ def intersect(
             var_u = var_v = cov = 0.0
         else:
             var_u, var_v, cov = _point_covariance(
-                covs, cov_at + 24 * s, drift_at, s, age2, u, v, fz, extra_var, cap
+                covs, cov_at + 24 * s, drift_at, s, age2, u, v, inv, extra_var, cap
             )
         best = (s, u, v, var_u, var_v, cov)
         if n_surf == 1:
@@ -180,9 +181,9 @@ def rounding_floor(
     r = pf[surface_at(pi, s) : surface_at(pi, s) + SURF_F]
     fz = r[0] * sf[w] + r[1] * sf[w + 1] + r[2] * sf[w + 2]
     fz += r[3] * sf[w + 3] + r[4] * sf[w + 4] + r[5] * sf[w + 5]
-    fz = max(abs(fz), 1e-9)
+    inv = 1.0 / max(abs(fz), 1e-9)
     at = pi[I_SO_ROUND] + 6 * s
-    var_u, var_v, _ = _point_covariance(sf, at, -1, s, 0.0, u, v, fz, 0.0, pf[P_VAR_CAP])
+    var_u, var_v, _ = _point_covariance(sf, at, -1, s, 0.0, u, v, inv, 0.0, pf[P_VAR_CAP])
     return var_u + var_v
 
 
@@ -195,11 +196,11 @@ def _point_covariance(
     age2: float,
     u: float,
     v: float,
-    fz: float,
+    inv_fz: float,
     extra_var: float,
     cap: float,
 ) -> tuple[float, float, float]:
-    """(var_u, var_v, cov_uv) of the point (u, v) of surface ``s`` where F'z = ``fz``: the
+    """(var_u, var_v, cov_uv) of the point (u, v) of surface ``s`` where 1 / F'z = ``inv_fz``: the
     packed covariance of (F'z, M'x, M'y) at covs[c], plus the zero's drift at ``drift_at``
     (< 0: none) times ``age2``, through the Jacobian of eq. (5), plus ``extra_var`` on both
     axes (eq. 11); capped at ``cap`` (see :func:`intersect`)."""
@@ -219,7 +220,7 @@ def _point_covariance(
         cx += covs[d + 3] * age2
         cxy += covs[d + 4] * age2
         cy += covs[d + 5] * age2
-    inv2 = 1.0 / (fz * fz)
+    inv2 = inv_fz * inv_fz
     # du = −(u dF'z + dM'y)/F'z, dv = −(v dF'z − dM'x)/F'z
     var_u = min((u * u * cz + 2 * u * czy + cy) * inv2 + extra_var, cap)
     var_v = min((v * v * cz - 2 * v * czx + cx) * inv2 + extra_var, cap)

@@ -245,7 +245,7 @@ def _mt_record(
         pos = 0
     si[J_MT_POS] = pos
     hist, ints = pi[I_SO_MT_HIST] + MT_F * pos, pi[I_JO_MT_HIST] + MT_I * pos
-    _sections(pf, pi[I_PO_MT_SOS], ns, sf, pi[I_SO_MT_ZI], S_RAW, hist, 6)
+    _sections(pf, pi[I_PO_MT_SOS], ns, sf, pi[I_SO_MT_ZI], S_RAW, hist)
     inside = out_b[OUT_B_IN_CONTACT, col] == 1
     sf[hist + MT_X], sf[hist + MT_Y], sf[hist + MT_Z] = (
         out_f[OUT_X, col],

@@ -143,7 +143,7 @@ def _idle_window(
     spread: float, t_end: float, pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray
 ) -> bool:
     """A still window of a tared desk with nothing absorbed, whose load is lighter than
-    P_DRIFT_MAX: the idle desk, judged here as ZeroStage._window_done does (the still run
+    P_DRIFT_MAX: the idle desk, judged here as ZeroStage._still_window does (the still run
     goes on or starts again where the load moved, the window joins the idle desk's yardsticks
     — logged for zero.py —, and after I_N_DRIFT such windows the zero follows the drift: the
     mean of their means). Returns False, changing nothing, for any other window (Python's)."""

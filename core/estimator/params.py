@@ -37,7 +37,7 @@ from hapticdesk.estimator.multitouch import (
 from hapticdesk.estimator.resolution import CONFIRM_CHANGES, REST_NOISE_S, STEP_CHANGE
 from hapticdesk.estimator.samples import LIVE_AGAIN_S, NOISE_CHECK_S, NOISE_FREE_REPEATS, STUCK_RUN
 from hapticdesk.estimator.settings import EstimatorSettings
-from hapticdesk.estimator.zero import IDLE_WINDOWS
+from hapticdesk.estimator.yardsticks import IDLE_WINDOWS
 from hapticdesk.files.profile import METHODS
 
 
@@ -130,33 +130,76 @@ def geometry_params(
     return pf.array(np.float64, fixed_f), pi.array(np.int64, fixed_i)
 
 
+class _Sizes(NamedTuple):
+    """The desk-sized parts' lengths the kernel's arrays are laid out with."""
+
+    channels: int  # C, the raw channels
+    axes: int  # A, the accelerometers' axes (0: none)
+    sections: int  # second-order sections of each filter
+    lag: int  # the second-finger stage's lag, in samples
+    landing: int  # ... and its landing window
+    span: int  # the sway stage's span (0: off)
+    still_ring: (
+        int  # the still run's means the zero stage reads back (the drift's, an object's wait)
+    )
+    idle_log: int  # the idle windows whose yardsticks count (zero.py)
+    live_n: int  # samples an input is live again after being stuck
+
+
 def params_of(s: EstimatorSettings, inertia: InertiaSettings | None) -> Params:
     """The kernel's parameters for the desk of ``s`` (and its accelerometers, ``inertia``)."""
-    user, fs = s.user, s.sample_rate_hz
-    c_n = s.wrench_map.shape[1]
+    fs = s.sample_rate_hz
+    sizes = _Sizes(
+        channels=s.wrench_map.shape[1],
+        axes=0 if inertia is None else inertia.n_axes,
+        sections=len(s.lp_sos),
+        lag=max(1, round(LAG_S * fs)),
+        landing=max(1, round(LANDING_S * fs)),
+        span=s.sway.span if s.sway is not None else 0,
+        still_ring=max(s.n_drift, s.n_object + 1),
+        idle_log=IDLE_WINDOWS + max(2, s.n_object),
+        live_n=max(1, round(LIVE_AGAIN_S * fs)),
+    )
     pf, pi = _Packer(slots.N_PF_FIXED), _Packer(slots.N_PI)
     sf, si = _Packer(slots.N_SF_FIXED), _Packer(slots.N_SI_FIXED)
-    mt_sos = butter_lowpass_sos(min(LOWPASS_HZ, 0.45 * fs), fs)  # (as the fast path's)
-    filters = {"lp": s.lp_sos, "diff": s.diff_sos, "det": s.det_sos, "mt": mt_sos}
-    ns = len(s.lp_sos)
-    if any(len(sos) != ns for sos in filters.values()):
-        raise ValueError("the estimator's filters must have as many sections each")
-    sos_at = {name: pf.put(sos) for name, sos in filters.items()}
-    zi_at = {name: pf.put(sosfilt_zi(sos)) for name, sos in filters.items()}
-    surf_f, surf_i = _surface_parts(s.frames, pf, pi)
-    upright = upright_surfaces(s.normals)
-    n_a = 0 if inertia is None else inertia.n_axes
-    lag = max(1, round(LAG_S * fs))
-    landing = max(1, round(LANDING_S * fs))
-    span = s.sway.span if s.sway is not None else 0
-    window = s.window
-    check_n = max(STUCK_RUN + 1, round(NOISE_CHECK_S * fs))
-    # the still run's means the zero stage reads back (the drift's, an object's wait), and
-    # the idle windows whose yardsticks count (zero.py)
-    still_ring = max(s.n_drift, s.n_object + 1)
-    idle_log = IDLE_WINDOWS + max(2, s.n_object)
-    live_n = max(1, round(LIVE_AGAIN_S * fs))
-    fixed_f = {
+    fixed_i = {
+        **_counts(s, inertia, sizes),
+        **_filter_parts(s, pf),
+        **_desk_parts(s, inertia, pf, pi),
+        **_state_parts(s, sizes, sf, si),
+    }
+    state_f = {
+        slots.S_LAST_T: -math.inf,
+        slots.S_MAX_T: -math.inf,
+        slots.S_STUCK_SINCE: math.nan,
+        slots.S_LAST_STUCK_T: math.nan,
+        slots.S_MT_MIN_APART: MIN_APART_M,
+    }
+    state_i = {
+        slots.J_STUCK_CHECK: -1,
+        slots.J_LIVE: sizes.live_n,
+        slots.J_N_LEARNING: sizes.channels,
+    }
+    return Params(
+        pf=pf.array(np.float64, _fixed_floats(s)),
+        pi=pi.array(np.int64, fixed_i),
+        sf_size=sf.size,
+        si_size=si.size,
+        sf_fixed=state_f,
+        # the state's desk-sized parts' initial values (the learning flags)
+        si_fixed={
+            **state_i,
+            **{at + j: int(v) for at, flat in si.parts for j, v in enumerate(flat) if v},
+        },
+        out_rows=slots.N_OUT_F + (slots.TRACE_ROWS if s.trace else 0),
+    )
+
+
+def _fixed_floats(s: EstimatorSettings) -> dict[int, float]:
+    """The float parameters' fixed slots (``P_*``): the user's thresholds, the derived
+    scales, the stages' constants."""
+    user, fs = s.user, s.sample_rate_hz
+    return {
         slots.P_MAX_GAP: user.max_gap_s,
         slots.P_CONTACT: user.contact_force_n,
         slots.P_HYSTERESIS: user.release_hysteresis_n,
@@ -187,38 +230,53 @@ def params_of(s: EstimatorSettings, inertia: InertiaSettings | None) -> Params:
         slots.P_STILL_N: user.still_n,
         slots.P_DRIFT_MAX: user.drift_max_n,
     }
-    fixed_i = {
-        slots.I_C: c_n,
-        slots.I_A: n_a,
+
+
+def _counts(s: EstimatorSettings, inertia: InertiaSettings | None, n: _Sizes) -> dict[int, int]:
+    """The int parameters' fixed slots that are counts, switches and lengths (``I_*``)."""
+    return {
+        slots.I_C: n.channels,
+        slots.I_A: n.axes,
         slots.I_MULTI_ACCEL: int(inertia is not None and inertia.rows is not None),
         slots.I_N_SURF: len(s.frames),
-        slots.I_N_UP: len(upright),
+        slots.I_N_UP: len(upright_surfaces(s.normals)),
         slots.I_METHOD: METHODS.index(s.method),
         slots.I_DET_FULL: int(s.det_full),
         slots.I_SHARED_LP: int(s.shared_lp),
         slots.I_TRACE: int(s.trace),
-        slots.I_NS: ns,
+        slots.I_NS: n.sections,
         slots.I_N_DIFF: s.n_diff,
         slots.I_N_RATE: s.n_rate,
         slots.I_N_RELEASE: s.n_release,
-        slots.I_SPAN: span,
-        slots.I_WINDOW: window,
+        slots.I_SPAN: n.span,
+        slots.I_WINDOW: s.window,
         slots.I_STILL_BLOCK: s.still_block,
         slots.I_STUCK_RUN: STUCK_RUN,
-        slots.I_CHECK_N: check_n,
+        slots.I_CHECK_N: max(STUCK_RUN + 1, round(NOISE_CHECK_S * s.sample_rate_hz)),
         slots.I_NOISE_FREE_REPEATS: NOISE_FREE_REPEATS,
-        slots.I_LIVE_N: live_n,
+        slots.I_LIVE_N: n.live_n,
         slots.I_CONFIRM: CONFIRM_CHANGES,
-        slots.I_MT_LAG: lag,
-        slots.I_MT_LANDING: landing,
+        slots.I_MT_LAG: n.lag,
+        slots.I_MT_LANDING: n.landing,
         slots.I_MT_BOARD: 0 if s.frames else -1,
-        slots.I_N_DRIFT: s.n_drift if user.drift_settle_s > 0 else 0,
-        slots.I_STILL_RING: still_ring,
-        slots.I_IDLE_LOG: idle_log,
-        slots.I_ZEROED: int(user.zeroed),
-        slots.I_REST_N: round(REST_NOISE_S * fs),
-        slots.I_PO_MAP: pf.put(s.wrench_map.T),  # (by channel: see kernel_slots.I_PO_MAP)
-        slots.I_PO_LIMIT: pf.put(s.range_flat),
+        slots.I_N_DRIFT: s.n_drift if s.user.drift_settle_s > 0 else 0,
+        slots.I_STILL_RING: n.still_ring,
+        slots.I_IDLE_LOG: n.idle_log,
+        slots.I_ZEROED: int(s.user.zeroed),
+        slots.I_REST_N: round(REST_NOISE_S * s.sample_rate_hz),
+    }
+
+
+def _filter_parts(s: EstimatorSettings, pf: _Packer) -> dict[int, int]:
+    """The filters' sections and their initial conditions into ``pf``; their offsets."""
+    fs = s.sample_rate_hz
+    mt_sos = butter_lowpass_sos(min(LOWPASS_HZ, 0.45 * fs), fs)  # (as the fast path's)
+    filters = {"lp": s.lp_sos, "diff": s.diff_sos, "det": s.det_sos, "mt": mt_sos}
+    if any(len(sos) != len(s.lp_sos) for sos in filters.values()):
+        raise ValueError("the estimator's filters must have as many sections each")
+    sos_at = {name: pf.put(sos) for name, sos in filters.items()}
+    zi_at = {name: pf.put(sosfilt_zi(sos)) for name, sos in filters.items()}
+    return {
         slots.I_PO_LP_SOS: sos_at["lp"],
         slots.I_PO_DIFF_SOS: sos_at["diff"],
         slots.I_PO_DET_SOS: sos_at["det"],
@@ -227,65 +285,61 @@ def params_of(s: EstimatorSettings, inertia: InertiaSettings | None) -> Params:
         slots.I_PO_DIFF_ZI: zi_at["diff"],
         slots.I_PO_DET_ZI: zi_at["det"],
         slots.I_PO_MT_ZI: zi_at["mt"],
+    }
+
+
+def _desk_parts(
+    s: EstimatorSettings, inertia: InertiaSettings | None, pf: _Packer, pi: _Packer
+) -> dict[int, int]:
+    """The desk's own parts into ``pf`` and ``pi`` (the channels→wrench matrix, the limits,
+    the surfaces, the sway's lever, the accelerometers'); their offsets."""
+    surf_f, surf_i = _surface_parts(s.frames, pf, pi)
+    return {
+        slots.I_PO_MAP: pf.put(s.wrench_map.T),  # (by channel: see kernel_slots.I_PO_MAP)
+        slots.I_PO_LIMIT: pf.put(s.range_flat),
         slots.I_PO_SURF: surf_f,
         slots.I_PO_LEVER: pf.put(s.sway.moment_lever if s.sway is not None else np.zeros(6)),
         slots.I_PO_GAIN: pf.put(inertia.gain if inertia is not None else np.zeros(0)),
         slots.I_PO_REST: pf.put(inertia.rest if inertia is not None else np.zeros(0)),
         slots.I_PO_ALIMIT: pf.put(inertia.limit if inertia is not None else np.zeros(0)),
-        slots.I_IO_UP: pi.put(np.asarray(upright, np.int64)),
+        slots.I_IO_UP: pi.put(np.asarray(upright_surfaces(s.normals), np.int64)),
         slots.I_IO_SURF: surf_i,
-        slots.I_SO_LP_ZI: sf.room(6 * ns * 2),
-        slots.I_SO_DIFF_ZI: sf.room(6 * ns * 2),
-        slots.I_SO_DET_ZI: sf.room(6 * ns * 2),
-        slots.I_SO_MT_ZI: sf.room(6 * ns * 2),
+    }
+
+
+def _state_parts(s: EstimatorSettings, n: _Sizes, sf: _Packer, si: _Packer) -> dict[int, int]:
+    """Room for the state's desk-sized parts in ``sf`` and ``si``; their offsets."""
+    window, c_n, ring = s.window, n.channels, 2 * n.lag + 1
+    return {
+        slots.I_SO_LP_ZI: sf.room(6 * n.sections * 2),
+        slots.I_SO_DIFF_ZI: sf.room(6 * n.sections * 2),
+        slots.I_SO_DET_ZI: sf.room(6 * n.sections * 2),
+        slots.I_SO_MT_ZI: sf.room(6 * n.sections * 2),
         slots.I_SO_DELAY: sf.room(s.n_diff * 6),
         slots.I_SO_DET_RING: sf.room(s.n_rate * 3),
-        slots.I_SO_SWAY: sf.room(2 * span * 2),
-        slots.I_SO_SWAY_DIFF: sf.room(2 * span * 2),
+        slots.I_SO_SWAY: sf.room(2 * n.span * 2),
+        slots.I_SO_SWAY_DIFF: sf.room(2 * n.span * 2),
         slots.I_SO_WIN_LP: sf.room(3 * window),
         slots.I_SO_WIN_RAW: sf.room(6 * window),
-        slots.I_SO_GUARD: sf.room(len(upright)),
+        slots.I_SO_GUARD: sf.room(len(upright_surfaces(s.normals))),
         slots.I_SO_COVS: sf.room(max(1, len(s.frames)) * 4 * 6),
         slots.I_SO_STEP: sf.room(c_n),
         slots.I_SO_USED: sf.room(c_n),
         slots.I_SO_LAST_ROW: sf.room(c_n),
         slots.I_SO_PREV_ROW: sf.room(c_n),
-        slots.I_SO_MT_HIST: sf.room((2 * lag + 1) * slots.MT_F),
-        slots.I_SO_LANDING: sf.room((2 * lag + 1 + landing) * 6),
-        slots.I_SO_PARTIAL_GAIN: sf.room(6 * n_a),
+        slots.I_SO_MT_HIST: sf.room(ring * slots.MT_F),
+        slots.I_SO_LANDING: sf.room((ring + n.landing) * 6),
+        slots.I_SO_PARTIAL_GAIN: sf.room(6 * n.axes),
         slots.I_SO_TRACE: sf.room(slots.TRACE_ROWS),
-        slots.I_SO_STILL_MEANS: sf.room(6 * still_ring),
-        slots.I_SO_IDLE_LOG: sf.room(5 * idle_log),
+        slots.I_SO_STILL_MEANS: sf.room(6 * n.still_ring),
+        slots.I_SO_IDLE_LOG: sf.room(5 * n.idle_log),
         slots.I_SO_ROUND: sf.room(max(1, len(s.frames)) * 6),
         slots.I_SO_REST_SQ: sf.room(c_n),
         slots.I_JO_CHANGES: si.room(c_n),
         slots.I_JO_LEARNING: si.put(np.ones(c_n, np.int64)),
         slots.I_JO_WIN_BAD: si.room(window),
-        slots.I_JO_MT_HIST: si.room((2 * lag + 1) * slots.MT_I),
+        slots.I_JO_MT_HIST: si.room(ring * slots.MT_I),
     }
-    state_f = {
-        slots.S_LAST_T: -math.inf,
-        slots.S_MAX_T: -math.inf,
-        slots.S_STUCK_SINCE: math.nan,
-        slots.S_LAST_STUCK_T: math.nan,
-        slots.S_MT_MIN_APART: MIN_APART_M,
-    }
-    state_i = {slots.J_STUCK_CHECK: -1, slots.J_LIVE: live_n, slots.J_N_LEARNING: c_n}
-    # the state's desk-sized parts and their initial values (the learning flags)
-    sf_parts, si_parts = sf, si
-    params = Params(
-        pf=pf.array(np.float64, fixed_f),
-        pi=pi.array(np.int64, fixed_i),
-        sf_size=sf_parts.size,
-        si_size=si_parts.size,
-        sf_fixed=state_f,
-        si_fixed={
-            **state_i,
-            **{at + j: int(v) for at, flat in si_parts.parts for j, v in enumerate(flat) if v},
-        },
-        out_rows=slots.N_OUT_F + (slots.TRACE_ROWS if s.trace else 0),
-    )
-    return params
 
 
 def new_state(params: Params) -> State:

@@ -18,13 +18,27 @@ only for an input with fewer than ``NOISE_FREE_REPEATS`` exact repeats in its fi
 100th… such sample.
 
 The per-sample work is ``_samples`` in :mod:`hapticdesk.estimator.kernel_channels`; here are its
-constants and the notices it raises.
+constants and the notices it raises (:func:`tell_events`).
 """
 
 from __future__ import annotations
 
 import logging
 
+import numpy as np
+
+from hapticdesk.estimator.kernel_slots import (
+    EV_GAP,
+    EV_LIVE,
+    EV_NOISE_FREE,
+    EV_STUCK,
+    EV_TIME_BACK,
+    J_TIME_BACK,
+    S_EV_LATEST,
+    S_EV_T,
+    S_LAST_STUCK_T,
+    S_STUCK_SINCE,
+)
 from hapticdesk.estimator.notices import Notice, add_notice, log
 
 STUCK_RUN = 5  # this many repeats of a sample in a row (and more) are a stuck input
@@ -73,3 +87,24 @@ def tell_live(notices: list[Notice], t: float, since: float, until: float) -> No
 def tell_noise_free() -> None:
     """The input repeats samples exactly: it gets no stuck check (a log line, no notice)."""
     log.info("the input repeats samples exactly (noise-free): no stuck-input check")
+
+
+def tell_events(notices: list[Notice], events: int, sf: np.ndarray, si: np.ndarray) -> None:
+    """The notices of the input's events one sample raised (``kernel_slots.EV_*``: time
+    back, noise-free, stuck, live again, a gap), from the kernel's state ``sf``, ``si``."""
+    if events & EV_TIME_BACK:
+        tell_time_back(notices, float(sf[S_EV_T]), float(sf[S_EV_LATEST]), int(si[J_TIME_BACK]))
+    if events & EV_NOISE_FREE:
+        tell_noise_free()
+    if events & EV_STUCK:
+        tell_stuck(notices, float(sf[S_STUCK_SINCE]))
+    if events & EV_LIVE:
+        tell_live(notices, float(sf[S_EV_T]), float(sf[S_STUCK_SINCE]), float(sf[S_LAST_STUCK_T]))
+    if events & EV_GAP:
+        add_notice(
+            notices,
+            float(sf[S_EV_T]),
+            "gap",
+            "gap in sample times: filters restarted",
+            logging.WARNING,
+        )

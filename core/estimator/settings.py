@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -78,25 +79,7 @@ class EstimatorSettings:
         """Derive the settings for ``profile`` and the (method-resolved) ``user`` settings."""
         s = user
         fs = profile.sample_rate_hz
-        limits = profile.channel_limits()
-        if limits is None:
-            limits = np.full(profile.channel_count, np.inf)
-        # an unrated channel counts as rated at UNRATED_LIMIT, so that no finite reading
-        # can overflow the resultant wrench (and put infinity into the filters)
-        range_flat = np.where(np.isfinite(limits), limits, UNRATED_LIMIT)
-        normals = (
-            np.array([surf.normal for surf in profile.surfaces])
-            if profile.surfaces
-            else np.zeros((0, 3))
-        )
-        lp_sos = butter_lowpass_sos(s.force_lowpass_hz, fs)
-        diff_sos = butter_lowpass_sos(s.diff_lowpass_hz, fs)
-        det_sos = butter_lowpass_sos(min(s.detect_lowpass_hz, 0.45 * fs), fs)
-        n_diff = max(1, round(s.diff_window_s * fs))
-        diff_scale = 1.0 / (n_diff / fs)
-        fir = np.zeros(n_diff + 1)
-        fir[0], fir[-1] = diff_scale, -diff_scale
-        long = int(8 * fs / min(s.force_lowpass_hz, s.diff_lowpass_hz)) + n_diff
+        filters = _FilterBank.of(s, fs)
         n_rate = max(1, round(RATE_WINDOW_S * fs))
         n_release = min(n_rate, max(1, round(RELEASE_WINDOW_S * fs)))
         window = max(1, round(WINDOW_S * fs))
@@ -105,7 +88,6 @@ class EstimatorSettings:
         def windows(seconds: float) -> int:
             return max(1, math.ceil(seconds / (window / fs) - 1e-9))
 
-        mapping = profile.wrench_map()
         return cls(
             user=s,
             method=s.method,
@@ -113,25 +95,15 @@ class EstimatorSettings:
             sample_rate_hz=fs,
             n_sensors=len(profile.sensors),
             moment_channels=profile.moment_channels(),
-            wrench_map=np.ascontiguousarray(mapping),
-            range_flat=range_flat,
+            wrench_map=np.ascontiguousarray(profile.wrench_map()),
+            range_flat=_range_flat(profile),
             frames=[SurfaceFrame.of(surf) for surf in profile.surfaces],
-            normals=normals,
-            lp_sos=lp_sos,
-            diff_sos=diff_sos,
-            det_sos=det_sos,
-            n_diff=n_diff,
-            diff_scale=diff_scale,
-            # a difference commutes with an LTI filter: when both low-passes are equal, the
-            # differentiated wrench is the difference of the low-passed one
-            shared_lp=bool(np.allclose(lp_sos, diff_sos)),
-            gain_lp=noise_gain(lp_sos, length=long),
-            gain_diff=noise_gain(diff_sos, fir, length=long),
-            gain_det=noise_gain(det_sos, length=long),
-            # how far the located points run behind a moving finger: the force low-pass's
-            # delay (the gesture engine carries a swipe's end on by it)
-            position_delay_s=group_delay_s(lp_sos, fs, long),
-            det_delay_s=group_delay_s(det_sos, fs, long),
+            normals=(
+                np.array([surf.normal for surf in profile.surfaces])
+                if profile.surfaces
+                else np.zeros((0, 3))
+            ),
+            **filters._asdict(),
             n_rate=n_rate,
             rate_scale=fs / n_rate,
             n_release=n_release,
@@ -149,6 +121,62 @@ class EstimatorSettings:
     def up(self) -> np.ndarray:
         """The first surface's normal (the desk's up), or +z."""
         return self.normals[0] if len(self.normals) else np.array([0.0, 0.0, 1.0])
+
+
+class _FilterBank(NamedTuple):
+    """The filters of one desk's settings (:class:`EstimatorSettings`' fields of the same
+    names)."""
+
+    lp_sos: np.ndarray
+    diff_sos: np.ndarray
+    det_sos: np.ndarray
+    n_diff: int
+    diff_scale: float
+    shared_lp: bool
+    gain_lp: float
+    gain_diff: float
+    gain_det: float
+    position_delay_s: float
+    det_delay_s: float
+
+    @classmethod
+    def of(cls, s: EstimationSettings, fs: float) -> _FilterBank:
+        """Designed from the user's cut-offs at ``fs`` Hz."""
+        lp_sos = butter_lowpass_sos(s.force_lowpass_hz, fs)
+        diff_sos = butter_lowpass_sos(s.diff_lowpass_hz, fs)
+        det_sos = butter_lowpass_sos(min(s.detect_lowpass_hz, 0.45 * fs), fs)
+        n_diff = max(1, round(s.diff_window_s * fs))
+        diff_scale = 1.0 / (n_diff / fs)
+        fir = np.zeros(n_diff + 1)
+        fir[0], fir[-1] = diff_scale, -diff_scale
+        long = int(8 * fs / min(s.force_lowpass_hz, s.diff_lowpass_hz)) + n_diff
+        return cls(
+            lp_sos=lp_sos,
+            diff_sos=diff_sos,
+            det_sos=det_sos,
+            n_diff=n_diff,
+            diff_scale=diff_scale,
+            # a difference commutes with an LTI filter: when both low-passes are equal, the
+            # differentiated wrench is the difference of the low-passed one
+            shared_lp=bool(np.allclose(lp_sos, diff_sos)),
+            gain_lp=noise_gain(lp_sos, length=long),
+            gain_diff=noise_gain(diff_sos, fir, length=long),
+            gain_det=noise_gain(det_sos, length=long),
+            # how far the located points run behind a moving finger: the force low-pass's
+            # delay (the gesture engine carries a swipe's end on by it)
+            position_delay_s=group_delay_s(lp_sos, fs, long),
+            det_delay_s=group_delay_s(det_sos, fs, long),
+        )
+
+
+def _range_flat(profile: DeskProfile) -> np.ndarray:
+    """Each channel's limit (C,): an unrated channel counts as rated at UNRATED_LIMIT, so
+    that no finite reading can overflow the resultant wrench (and put infinity into the
+    filters)."""
+    limits = profile.channel_limits()
+    if limits is None:
+        limits = np.full(profile.channel_count, np.inf)
+    return np.where(np.isfinite(limits), limits, UNRATED_LIMIT)
 
 
 def _divisor_near(n: int, target: float) -> int:

@@ -189,7 +189,9 @@ class EstimationSettings:
     drift_force_n_per_min: float = 0.05  # expected σ of a force channel's drift rate
     drift_moment_nm_per_min: float = 0.001  # ... and of a moment channel's
     still_n: float = 0.15  # "still": low-passed |F| varies less than this per window
-    max_gap_s: float = 0.05  # a gap in sample times longer than this restarts the filters
+    # a gap in sample times longer than this restarts the filters; a profile that does not
+    # give it takes at least 2.5 sample intervals (below 50 Hz: 0.125 s at 20 Hz)
+    max_gap_s: float = 0.05
     noise_force_n: float = 0.0  # per-channel noise σ if known; 0 = measure during the tare
     noise_moment_nm: float = 0.0
     # the readings come zeroed (a force plate's ZERO frames taken off by its reader, a board

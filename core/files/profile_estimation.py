@@ -1,6 +1,7 @@
 """The desk profile's ``estimation:`` read and checked, and fitted to the desk: the filters'
-cut-offs follow ``desk: natural_frequency_hz`` unless given, and every cut-off is checked
-against the sample rate at the key that set it. Part of :mod:`.profile_reader`."""
+cut-offs follow ``desk: natural_frequency_hz`` unless given, ``max_gap_s`` the sample rate
+unless given, and every cut-off is checked against the sample rate at the key that set it.
+Part of :mod:`.profile_reader`."""
 
 from __future__ import annotations
 
@@ -22,6 +23,9 @@ from hapticdesk.files.validators import (
 #: the lowest low-pass cut-off as a share of the sample rate (0.0048 Hz at 1.2 kHz): the
 #: estimator's noise gains sum impulse responses of 8 × rate / cut-off samples (2 million)
 MIN_CUTOFF_PER_RATE = 4e-6
+#: the shortest gap in sample times, in sample intervals, where ``max_gap_s`` is not given
+#: (its default, 0.05 s, is under one interval below 20 Hz)
+GAP_INTERVALS = 2.5
 #: physical bounds on `estimation` values that are not windows: beyond them a value is a
 #: typing mistake, and its square (a covariance) or inverse would overflow downstream
 MAX_ESTIMATION = {
@@ -61,6 +65,10 @@ def fit_to_desk(
         for key in ("force_lowpass_hz", "diff_lowpass_hz"):
             if key not in given:
                 settings = replace(settings, **{key: cutoff})
+    if "max_gap_s" not in given:
+        # a gap must be longer than a sample interval, or a slow desk (a 20 Hz converter)
+        # restarts its filters at every sample: two and a half intervals at least
+        settings = replace(settings, max_gap_s=max(settings.max_gap_s, GAP_INTERVALS / rate))
     _check_against_rate(settings, rate, doc, given)
     return settings
 

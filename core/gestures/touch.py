@@ -14,6 +14,7 @@ can place the release tens of centimetres away with a σ that does not say so.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -30,6 +31,14 @@ GATE_SIGMAS = 4.0
 MAX_FINGER_SPEED_M_S = 1.5
 #: outliers that last longer than this are believed after all (the touch did move there)
 GATE_RESET_S = 0.08
+
+
+class BestPoint(NamedTuple):
+    """Where a touch is, by the precision-weighted mean of its samples (:meth:`Touch.best`)."""
+
+    x: float  # desk frame, m
+    y: float
+    sigma_m: float  # the mean's 1-σ, as if the samples' errors were independent
 
 
 class Touch:
@@ -199,8 +208,8 @@ class Touch:
         """Seconds from down to up (or to the latest sample while still down)."""
         return (self.t_up if self.t_up is not None else self.t_last) - self.t_down
 
-    def best(self) -> tuple[float, float, float]:
-        """(x, y, σ): the precision-weighted mean of the located samples pressed at least
+    def best(self) -> BestPoint:
+        """The precision-weighted mean of the located samples pressed at least
         ``pressed_n`` so far (of every located sample while there is none)."""
         if not self._t:
             raise ValueError("the touch has no located sample")
@@ -208,7 +217,7 @@ class Touch:
             w, wx, wy = self._pressed_w, self._pressed_wx, self._pressed_wy
         else:
             w, wx, wy = self._sum_w, self._sum_wx, self._sum_wy
-        return wx / w, wy / w, 1.0 / math.sqrt(w)
+        return BestPoint(wx / w, wy / w, 1.0 / math.sqrt(w))
 
     def place_sigma(self) -> float:
         """How well :meth:`best` places the touch, metres (1-σ): the samples' typical σ (the

@@ -14,10 +14,19 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from hapticdesk.sim.human import HumanModel
+
+
+class TouchSamples(NamedTuple):
+    """A touch sampled at its times (what a still or a moving touch's ``sample`` gives)."""
+
+    fn: np.ndarray  # (n,) the normal force the finger applies, N
+    uv: np.ndarray  # (n, 2) the contact point in surface coordinates, m
+    tangential: np.ndarray  # (n, 2) the force along the surface (u, v), N
 
 
 def touch_rate(rng: np.random.Generator, human: HumanModel, given: float | None) -> float:

@@ -12,6 +12,7 @@ import scipy.optimize
 from hapticdesk.sim.actions import Drag, Stroke, Swipe
 from hapticdesk.sim.force_envelope import (
     ForceEnvelope,
+    TouchSamples,
     modulation,
     release_rate,
     touch_rate,
@@ -95,7 +96,7 @@ class MovingTouch:
 
     def sample(
         self, tau: np.ndarray, rng: np.random.Generator, human: HumanModel, fs: float
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    ) -> TouchSamples:
         env = self.seg.envelope(tau)
         fn = env * modulation(tau, rng, human)
         s = self._arc_at(tau - self.move_from)
@@ -106,7 +107,7 @@ class MovingTouch:
             vel = np.zeros_like(uv)
         speed = np.linalg.norm(vel, axis=1, keepdims=True)
         tangential = self.friction * fn[:, None] * vel / np.sqrt(speed**2 + self.V_STATIC**2)
-        return fn, uv, tangential
+        return TouchSamples(fn, uv, tangential)
 
 
 SWIPE_CONTACT_SHARE = 0.7  # a swipe's contact covers this share of the hand's movement

@@ -11,6 +11,7 @@ import numpy as np
 from hapticdesk.sim.actions import LongPress, Press, Ramp, Tap
 from hapticdesk.sim.force_envelope import (
     ForceEnvelope,
+    TouchSamples,
     modulation,
     release_rate,
     touch_rate,
@@ -49,11 +50,11 @@ class StillTouch:
 
     def sample(
         self, tau: np.ndarray, rng: np.random.Generator, human: HumanModel, fs: float
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    ) -> TouchSamples:
         env = self.seg.envelope(tau)
         fn = env * modulation(tau, rng, human)
         uv = self.point + (env / self.peak)[:, None] * self.roll
-        return fn, uv, fn[:, None] * self.side
+        return TouchSamples(fn, uv, fn[:, None] * self.side)
 
 
 def press_touch(action: Press, rng: np.random.Generator, human: HumanModel) -> StillTouch:

@@ -205,9 +205,7 @@ class Timeline:
         if isinstance(action, TouchStep):
             surf = self._surface(action.surface, action.where, surfaces, f"a {kind}")
             self._check_inside(surf, _touch_points(action), action.where, kind)
-            touch, duration = touch_track(
-                action, start, self.fs, rng, self.scene.human, surf, index
-            )
+            touch = touch_track(action, start, self.fs, rng, self.scene.human, surf, index)
             self.touches.append(touch)
             self._track_samples += len(touch.fn)
             if self._track_samples > MAX_TRACK_SAMPLES:
@@ -217,7 +215,7 @@ class Timeline:
                     f"by this {kind} ({MAX_TRACK_SAMPLES / self.fs:g} s at {self.fs:g} Hz), "
                     "the most a run holds",
                 )
-            return duration
+            return touch.duration_s
         if isinstance(action, PutObject):
             if action.name in placed and placed[action.name].off0 == math.inf:
                 raise ConfigError(action.where, f"object `{action.name}` is already on the desk")

@@ -26,7 +26,8 @@ class Touch:
 
     ``fn`` (n,) the normal force the finger applies (N, ≥ 0); ``uv`` (n, 2) the contact
     point in surface coordinates (m); ``tangential`` (n, 2) the force the finger applies
-    along the surface (N, in u and v).
+    along the surface (N, in u and v); ``duration_s`` how long its action lasts (the next
+    action starts after it).
     """
 
     k0: int
@@ -35,6 +36,7 @@ class Touch:
     tangential: np.ndarray
     surface: int
     action: int
+    duration_s: float
 
 
 def touch_track(
@@ -45,8 +47,8 @@ def touch_track(
     human: HumanModel,
     surface: int = 0,
     index: int = 0,
-) -> tuple[Touch, float]:
-    """Sample ``action`` starting at time ``t0`` (s) at ``fs`` Hz; returns it and its duration."""
+) -> Touch:
+    """Sample ``action`` starting at time ``t0`` (s) at ``fs`` Hz."""
     profile: StillTouch | MovingTouch
     if isinstance(action, Press):
         profile = press_touch(action, rng, human)
@@ -70,5 +72,5 @@ def touch_track(
             "at this desk's rate)",
         )
     tau = np.arange(k0, k1 + 1) / fs - t0
-    fn, uv, tangential = profile.sample(tau, rng, human, fs)
-    return Touch(k0, fn, uv, tangential, surface, index), duration
+    sampled = profile.sample(tau, rng, human, fs)
+    return Touch(k0, sampled.fn, sampled.uv, sampled.tangential, surface, index, duration)

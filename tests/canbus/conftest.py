@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -12,6 +15,7 @@ from hapticdesk.canbus.assembler import FrameAssembler
 from hapticdesk.canbus.config import CanConfig
 from hapticdesk.canbus.config_reader import can_config
 from hapticdesk.canbus.decoding import build_decoding
+from hapticdesk.canbus.emulator import CanEmulator
 from hapticdesk.canbus.frame_encoder import FrameEncoder
 from hapticdesk.canbus.frames import FrameArray
 from hapticdesk.files.profile import DeskProfile
@@ -187,3 +191,42 @@ def canopen_traffic() -> Callable[..., FrameArray]:
 def virtual_channel(request: pytest.FixtureRequest) -> str:
     """A python-can virtual channel of this test alone, so that tests never hear each other."""
     return f"hapticdesk-{request.node.nodeid}"
+
+
+@dataclass
+class BenchBoard:
+    """The bench's ATI board emulated on a virtual channel (a thread), at ``profile``'s rate."""
+
+    profile: DeskProfile
+    wrench: np.ndarray  # (n, 1, 6) what the board sends, one sample per poll
+    emulator: CanEmulator
+    thread: threading.Thread
+    bus: Any
+
+    def stop(self) -> None:
+        self.emulator.stop()
+        self.thread.join(2)
+        self.bus.shutdown()
+
+
+@pytest.fixture
+def bench_board(
+    bench: DeskProfile, profile_text: Callable[[str, str], DeskProfile], virtual_channel: str
+) -> Callable[..., BenchBoard]:
+    """Start the bench's board at ``rate`` Hz with ``n`` samples of random load (``seed``)."""
+
+    def start(rate: int, n: int, seed: int) -> BenchBoard:
+        import can
+
+        text = Path(str(bench.path)).read_text()
+        profile = profile_text(
+            text.replace("sample_rate_hz: 500", f"sample_rate_hz: {rate}"), "bench.yaml"
+        )
+        wrench = np.random.default_rng(seed).normal(0, 20, (n, 1, 6))
+        wrench[:, :, 3:] *= 0.02
+        bus = can.Bus(interface="virtual", channel=virtual_channel)
+        encoder = FrameEncoder(can_config(profile), profile)
+        emulator = CanEmulator(encoder, np.arange(n) / rate, wrench, bus)
+        return BenchBoard(profile, wrench, emulator, emulator.start(), bus)
+
+    return start

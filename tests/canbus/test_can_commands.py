@@ -125,7 +125,7 @@ def test_record_an_ati_bench_through_emulate(
             "-o",
             str(out),
             "--seconds",
-            "0.8",
+            "2",  # (200 polls: a round waits for the board's reply, slower on a loaded host)
             "--json",
         ],
         capsys,

@@ -129,7 +129,16 @@ def test_ati_bench_calibration_and_polls_on_the_bus(bench, profile_text, virtual
     np.testing.assert_array_equal(
         source.calibrations["ft"].matrix, encoder.calibrations["ft"].matrix
     )
-    blocks = read_until(source, lambda _: not thread.is_alive(), timeout_s=10)
+    ended_at: list[int] = []
+
+    def one_block_after_the_end(blocks) -> bool:
+        """The board answered its last poll a block ago (that poll is read with a block
+        after the one in which the board's thread ended)."""
+        if not ended_at and not thread.is_alive():
+            ended_at.append(len(blocks))
+        return bool(ended_at) and len(blocks) > ended_at[0]
+
+    blocks = read_until(source, one_block_after_the_end, timeout_s=10)
     emulator.stop()
     thread.join(2)
     bus.shutdown()
@@ -191,6 +200,27 @@ def test_bus_off_then_reconnect(can_desk, make_samples, dbc_tolerance, virtual_c
     # samples go on after the reconnect, and what was given out is right
     assert idx.max() > 1100 and valid.sum() > 600
     assert (np.abs(got[valid] - wrench[idx[valid]]) <= dbc_tolerance).all()
+
+
+def test_ati_bus_off_then_reconnect(bench_board, virtual_channel):
+    """The poller thread reads the bus: the failure it meets is the reader's to reconnect,
+    and polling goes on over the new bus."""
+    board = bench_board(rate=200, n=2000, seed=5)
+    FlakyBus.fail_after, FlakyBus.opened = 40, 0  # (after the calibration's replies)
+    source = open_can_source(
+        f"can:virtual:{virtual_channel}", board.profile, bus_factory=lambda **kw: FlakyBus(**kw)
+    )
+    try:
+        polled = board.emulator.stats
+        blocks = read_until(source, lambda _: source.reconnects and polled.polls > 150)
+    finally:
+        board.stop()
+    assert FlakyBus.opened == 2 and source.reconnects == 1
+    got = np.concatenate([b.wrench for b in blocks])[:, 0]
+    ok = ~np.isnan(got).any(axis=1)
+    assert ok.sum() >= 100 and source.stats.duplicates == 0
+    diff = np.abs(got[ok][:, None, :] - board.wrench[None, :, 0, :]).max(axis=2)
+    assert (diff.min(axis=1) < 0.05).all()  # each sample given out is one the board sent
 
 
 def test_a_bus_that_does_not_come_back(can_desk, profile_text, tmp_path, virtual_channel):

@@ -290,3 +290,30 @@ def test_a_top_close_to_its_sensors_is_its_own_height():
     cells = load_profile("kitamura2017-loadcells-80hz")  # cells 3 cm under the top
     assert cells.top_height_m() == pytest.approx(0.03)
     assert replace(board, surfaces=()).top_height_m() == pytest.approx(0.7)
+
+
+@pytest.mark.parametrize(
+    ("rate", "gap_s", "flagged"),
+    [(1000.0, 0.06, True), (20.0, 0.1, False), (20.0, 0.15, True)],
+)
+def test_the_gap_follows_the_sample_rate_where_the_profile_does_not_set_it(
+    tmp_path, rate, gap_s, flagged
+):
+    """``max_gap_s`` unset: max(0.05 s, 2.5 sample intervals), so a 1 kHz desk restarts its
+    filters after 60 ms without samples and a 20 Hz one (a slow converter, one sample each
+    50 ms) does not after 100 ms (two samples missed), but does after 150 ms; given, it
+    stands."""
+    from hapticdesk.estimator import ContactEstimator
+    from hapticdesk.estimator.contacts import FLAG_GAP
+
+    desk = load_profile(write(tmp_path, GOOD.replace("1000", f"{rate:g}")))
+    assert desk.estimation.max_gap_s == pytest.approx(max(0.05, 2.5 / rate))
+    t = np.arange(int(4 * rate)) / rate
+    t[len(t) // 2 :] += gap_s - 1 / rate  # one step of gap_s in the middle
+    rng = np.random.default_rng(0)
+    channels = rng.normal(0.0, 0.01, (len(t), desk.channel_count)) + 1.0
+    flags = ContactEstimator(desk).push(t, channels).flags
+    assert bool(flags[len(t) // 2] & FLAG_GAP) == flagged
+    assert not (np.delete(flags, len(t) // 2) & FLAG_GAP).any()
+    given = GOOD.replace("1000", f"{rate:g}") + "estimation:\n  max_gap_s: 0.05\n"
+    assert load_profile(write(tmp_path, given)).estimation.max_gap_s == 0.05

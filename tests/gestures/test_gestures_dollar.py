@@ -342,3 +342,46 @@ def test_the_margin_made_on_four_writers_expects_a_new_one_to_differ():
     mixed = protocols({"a": neat, "b": neat, "c": neat, "d": loose})
     nested = stroke_lowo.margin(mixed, list("abcd"), DEFAULT_CHOICES)
     assert nested < pooled(mixed) == 0.06
+
+
+@needs_logs
+def test_the_rejection_rules_script_measures_the_shipped_rule_as_the_recognizer(medium):
+    """scripts/stroke_rejection_rules.py compares rejection rules from the shortfall of a
+    stroke's statistic below its nearest shape's agreement; its first rule (the stroke's best
+    score against the lowest of the templates' best scores against each other) takes exactly
+    the strokes a TemplateSet of the same templates takes, at the shipped margin and at
+    others."""
+    import sys
+    from dataclasses import replace
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "scripts"))
+    import stroke_rejection_rules as rules
+
+    from hapticdesk.gestures.strokes.stroke_similarity import (
+        DEFAULT_CHOICES,
+        similarity,
+        stroke_features,
+    )
+
+    strokes = medium["s02"]
+    templates = [s for s in strokes if s.repetition <= 3]
+    tests = [s for s in strokes if s.repetition > 3 and s.shape not in ("v", "check")]
+    features, _ = stroke_features([s.points for s in templates + tests])
+    scores = similarity(features, features, 30.0).score(DEFAULT_CHOICES)
+    k = len(templates)
+    names = np.asarray([s.shape for s in templates], dtype=object)
+    keep = ~np.isin(names, ["v", "check"])  # their strokes are left out: some are rejected
+    shipped = rules.RULES[0]
+    shape, best, short = rules.shortfalls(
+        scores[k:, :k][:, keep], names[keep], scores[:k, :k][np.ix_(keep, keep)], shipped
+    )
+    for margin in (0.02, DEFAULT_CHOICES.margin, 0.1):
+        mine = TemplateSet(replace(DEFAULT_CHOICES, margin=margin))
+        for s in templates:
+            if s.shape not in ("v", "check"):
+                mine.add(s.shape, s.points)
+        direct = mine.classify_many([s.points for s in tests], MIN_SCORE, 30.0)
+        taken = (best >= MIN_SCORE) & (short <= margin)
+        assert [m.shape is not None for m in direct] == taken.tolist()
+        assert [m.best_shape for m in direct] == shape.tolist()
+    assert 0 < np.sum(short > 0.02) < len(short)  # the margins above do reject some

@@ -395,4 +395,4 @@ def test_a_touch_is_placed_as_well_as_its_samples_not_their_count(make_layout, t
         touch = tracker.add(event) or touch
     assert touch is not None and touch.samples > 100
     assert touch.place_sigma() == pytest.approx(0.002, rel=0.15)  # 2 mm, more on the ramps
-    assert touch.best()[2] < touch.place_sigma() / 8  # the mean's, as if independent
+    assert touch.best().sigma_m < touch.place_sigma() / 8  # the mean's, as if independent

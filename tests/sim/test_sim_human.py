@@ -15,8 +15,8 @@ STILL = HumanModel(tremor=0.0, wander=0.0, roll_m=0.0, aim_sd_m=0.0, tangential=
 
 def track(action: TouchStep, seed: int = 0, human: HumanModel | None = None) -> Touch:
     rng = np.random.default_rng(seed)
-    touch, duration = touch_track(action, 1.0, FS, rng, human or HumanModel())
-    assert len(touch.fn) == pytest.approx(duration * FS, abs=2)
+    touch = touch_track(action, 1.0, FS, rng, human or HumanModel())
+    assert len(touch.fn) == pytest.approx(touch.duration_s * FS, abs=2)
     return touch
 
 

@@ -173,7 +173,8 @@ class SwipeRecognizer(Recognizer):
             return None  # faster than a finger: a fragment of a touch, its points jumping
         if touch.moved(*start) < MEASURED_SHARE * o["min_distance"]:
             return None  # the carry-on alone made it: a still touch's noise (see above)
-        if touch.moved(*touch.best()[:2]) < STILL_SHARE * o["min_distance"]:
+        best = touch.best()
+        if touch.moved(best.x, best.y) < STILL_SHARE * o["min_distance"]:
             return None  # a still touch whose first points strayed (see above)
         # how far the path bows away from the straight line between the ends
         track = touch.track() - np.asarray(start)

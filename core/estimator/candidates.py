@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hapticdesk.estimator.geometry import pack_cov
-from hapticdesk.estimator.resolution import rounding_deficit, zero_rounding
+from hapticdesk.estimator.resolution import rounding_deficit, zero_rounding_channels
 from hapticdesk.estimator.settings import EstimatorSettings
 
 
@@ -35,8 +35,14 @@ class Covariances:
     drift: list[np.ndarray]  # the zero's drift per second², growing as (age · rate)²
     # the zero's rounding offset (resolution.zero_rounding): shared by every candidate and
     # every sample until the next tare, so not in the fusion's weights but added to the
-    # located point's (a floor growing as 1/F that no averaging lowers)
+    # located point's (a floor growing as 1/F that no averaging lowers); per surface where
+    # every channel moves under the press, its bound
     rounding: list[np.ndarray]
+    # the same per channel (C,), and the wrench's least-norm spread over the channels (C, 6):
+    # how much each channel moves under a press, so one it does not move keeps none
+    # (resolution.moved_share; the kernel's rounding_floor)
+    rounding_channels: np.ndarray
+    spread: np.ndarray
 
     @classmethod
     def of(
@@ -75,12 +81,14 @@ class Covariances:
         drift = [f.project_cov(drift_cov) for f in frames]
         diff = [f.project_cov(cov * settings.gain_diff) for f in frames]
         det = [f.project_cov(cov * settings.gain_det) for f in frames]
-        offset = (
-            np.zeros((6, 6))
+        per_channel = (
+            np.zeros(m.shape[1])
             if step is None or rest_var is None
-            else zero_rounding(m, step, rest_var)
+            else zero_rounding_channels(step, rest_var)
         )
-        return cls(lp, diff, det, drift, [f.project_cov(offset) for f in frames])
+        offset = m @ (m.T * per_channel[:, None])
+        rounding = [f.project_cov(offset) for f in frames]
+        return cls(lp, diff, det, drift, rounding, per_channel, np.linalg.pinv(m))
 
     def packed(self) -> np.ndarray:
         """(n_surfaces, 4, 6): per surface its lp, diff, det and drift covariances, each as
@@ -89,6 +97,6 @@ class Covariances:
         return np.array([[pack_cov(c) for c in covs] for covs in per_surface]).reshape(-1, 4, 6)
 
     def packed_rounding(self) -> np.ndarray:
-        """(n_surfaces, 6): per surface the zero's rounding offset, packed as
-        :meth:`packed` (the kernel's I_SO_ROUND)."""
-        return np.array([pack_cov(c) for c in self.rounding]).reshape(-1, 6)
+        """(7·C,): the zero's rounding offset per channel, then the spread (C, 6) by channel
+        (the kernel's I_SO_ROUND)."""
+        return np.concatenate([self.rounding_channels, self.spread.ravel()])

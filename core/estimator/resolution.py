@@ -86,12 +86,12 @@ def rest_variance(rho: np.ndarray | float) -> np.ndarray:
     return rho**2 + 1.0 / 12.0 - bias_variance(rho)
 
 
-def zero_rounding(wrench_map: np.ndarray, step: np.ndarray, rest_var: np.ndarray) -> np.ndarray:
-    """The covariance (6, 6) of the zero's rounding offset: the error the tare keeps on
+def zero_rounding_channels(step: np.ndarray, rest_var: np.ndarray) -> np.ndarray:
+    """The variance (C,) of each channel's zero rounding offset: the error the tare keeps on
     channels quieter than their step (``step`` (C,), 0: none) whose noise does not dither
-    the rounding out of the mean. One error for every sample until the next tare, so no
-    averaging lowers it; the differentiated force shares it while its eq. (8) window reaches
-    back to the rest before a touch (its old end is then the tare's reading).
+    the rounding out of the mean (0 elsewhere). One error for every sample until the next
+    tare, so no averaging lowers it; the differentiated force shares it while its eq. (8)
+    window reaches back to the rest before a touch (its old end is then the tare's reading).
 
     The noise in steps (ρ) is pooled over the quiet channels (rest variance ``rest_var``
     (C,), under ``DITHERED`` step², inverted through the rest variance a rounded channel
@@ -100,9 +100,29 @@ def zero_rounding(wrench_map: np.ndarray, step: np.ndarray, rest_var: np.ndarray
     it overstated the error 1.2-2.2 times in σ (six desks)."""
     quiet = (step > 0) & (rest_var < DITHERED * step**2)
     if not quiet.any():
-        return np.zeros((6, 6))
+        return np.zeros(len(step))
     pooled = float(np.mean(rest_var[quiet] / step[quiet] ** 2))
     grid = np.linspace(0.0, 1.0, 1001)
     rho = np.interp(pooled, rest_variance(grid), grid)
-    variance = np.where(quiet, bias_variance(rho) * step**2, 0.0)
+    return np.where(quiet, bias_variance(rho) * step**2, 0.0)
+
+
+def zero_rounding(wrench_map: np.ndarray, step: np.ndarray, rest_var: np.ndarray) -> np.ndarray:
+    """The covariance (6, 6) of the zero's rounding offset where every channel moves under
+    the press (:func:`zero_rounding_channels` through the map): the bound the kernel's
+    offset reaches; a channel a press moves less keeps less of it (:func:`moved_share`)."""
+    variance = zero_rounding_channels(step, rest_var)
     return wrench_map @ (wrench_map.T * variance[:, None])
+
+
+def moved_share(change: np.ndarray | float, step: np.ndarray | float) -> np.ndarray:
+    """The share of a channel's zero rounding offset a press that moves the channel by
+    ``change`` keeps. The tared reading's error is b(x₀ + Δ) − b(x₀), b the rounding's
+    bias: a channel the press does not move keeps its bias, which the tare then cancels.
+    With no noise its variance is d(1 − d)·step² (d the fraction of a step of Δ), ≈ |Δ|·step
+    for a small Δ, the bias's own step²/12 from d ≈ 0.09; a noise makes b smoother and the
+    share smaller. So min(1, 12 |Δ| / step): never below the truth for a small change, and
+    at most the whole offset (a channel moved across steps averages the press's own rounding,
+    which rounding_deficit counts). Mirrored per channel in the kernel's rounding_floor."""
+    ratio = np.abs(np.asarray(change, dtype=float)) / np.asarray(step, dtype=float)
+    return np.minimum(1.0, 12.0 * ratio)

@@ -16,6 +16,8 @@ Re-recorded since: ``sigma_m`` alone (76 arrays, every scene whose sensors round
 readings), from branch sigma: the located 1-σ now holds the zero's rounding offset
 (estimator/resolution.py ``zero_rounding``, issue 33), added after the method has chosen and
 weighed its candidates; positions, forces, located and every other field are as recorded.
+Again ``sigma_m`` alone (58 arrays), from branch sigma: each channel's share of that offset
+is what a press keeps of it (``moved_share``: a channel the press does not move keeps none).
 """
 
 from __future__ import annotations

@@ -11,6 +11,7 @@ from hapticdesk.estimator.candidates import Covariances
 from hapticdesk.estimator.resolution import (
     CONFIRM_CHANGES,
     bias_variance,
+    moved_share,
     rest_variance,
     rounding_deficit,
     zero_rounding,
@@ -141,6 +142,23 @@ def test_the_zeros_rounding_offset_is_that_of_the_quiet_channels():
     assert zero_rounding(m, half, np.zeros(24)) == pytest.approx(
         m[:, :12] @ m[:, :12].T * 0.15**2 / 12
     )
+
+
+def test_a_channel_the_press_does_not_move_keeps_none_of_the_zeros_rounding():
+    """The tared reading errs by b(x0 + change) - b(x0), b the rounding's bias: nothing for a
+    channel the press leaves on its step, about |change|·step for a small change (the exact
+    d(1 - d)·step² with no noise, measured here), all of the offset from ~1/12 step on."""
+    step = 0.15
+    assert moved_share(0.0, step) == 0.0
+    assert moved_share([step / 12, -step, 40 * step], step) == pytest.approx([1.0, 1.0, 1.0])
+    rng = np.random.default_rng(1)
+    x0 = rng.uniform(0, step, 200_000)
+    for change in (0.01 * step, 0.05 * step):
+        error = np.round((x0 + change) / step) * step - (x0 + change)
+        error -= np.round(x0 / step) * step - x0
+        kept = np.mean(error**2) / (step**2 / 12)  # of the bias's whole variance
+        assert kept == pytest.approx(12 * change / step * (1 - change / step), rel=0.05)
+        assert moved_share(change, step) >= kept  # never below the truth
 
 
 def test_a_quiet_sensors_sigma_holds_its_error_and_an_unrounded_ones_is_unchanged():

@@ -24,6 +24,12 @@ from hapticdesk.estimator.contacts import (
 from hapticdesk.estimator.kernel_compile import inlined
 from hapticdesk.estimator.kernel_geometry import intersect, rounding_floor, to_desk
 from hapticdesk.estimator.kernel_slots import (
+    C_COV_UV,
+    C_SURFACE,
+    C_U,
+    C_V,
+    C_VAR_U,
+    C_VAR_V,
     COV_DET,
     COV_DIFF,
     COV_DRIFT,
@@ -80,24 +86,24 @@ def _fuse(pf: np.ndarray, cf: Candidate, cd: Candidate, cq: Candidate) -> tuple[
     best_sigma = math.inf
     k = 0
     for c in (cf, cd, cq):
-        if c[0] >= 0:
-            sigma = math.sqrt(c[3] + c[4])
+        if c[C_SURFACE] >= 0:
+            sigma = math.sqrt(c[C_VAR_U] + c[C_VAR_V])
             if sigma < best_sigma:
                 best, best_sigma = k, sigma
         k += 1
-    surface = (cf, cd, cq)[best][0]
+    surface = (cf, cd, cq)[best][C_SURFACE]
     if surface < 0:
         return (-1, 0.0, 0.0, cap, cap, 0.0), 0
     a = b = c_ = ru = rv = 0.0
     members = 0
     for c in (cf, cd, cq):
-        take = 1.0 if c[0] >= 0 and c[0] == surface else 0.0
-        ia, ib, ic = _information(c[3], c[4], c[5], floor)
+        take = 1.0 if c[C_SURFACE] >= 0 and c[C_SURFACE] == surface else 0.0
+        ia, ib, ic = _information(c[C_VAR_U], c[C_VAR_V], c[C_COV_UV], floor)
         ia, ib, ic = ia * take, ib * take, ic * take
         members += int(take)
         a, b, c_ = a + ia, b + ib, c_ + ic
-        ru = ru + ia * c[1] + ib * c[2]
-        rv = rv + ib * c[1] + ic * c[2]
+        ru = ru + ia * c[C_U] + ib * c[C_V]
+        rv = rv + ib * c[C_U] + ic * c[C_V]
     inv_det = 1.0 / max(max(a * c_ - b * b, floor * a * c_), 1e-300)
     u = (c_ * ru - b * rv) * inv_det
     v = (a * rv - b * ru) * inv_det
@@ -120,13 +126,14 @@ def _emit(
     (:func:`rounding_floor`, at the force of the tared wrench the method locates with: the
     fast one for ``fused``), which the choice and the weights leave out (every candidate
     shares it)."""
-    x, y, z = to_desk(pf, pi, c[0], c[1], c[2])
+    x, y, z = to_desk(pf, pi, c[C_SURFACE], c[C_U], c[C_V])
     out_f[OUT_X, col], out_f[OUT_Y, col], out_f[OUT_Z, col] = x, y, z
     w = S_TARED_Q if pi[I_METHOD] == METHOD_FUSED else S_TARED_W
-    out_f[OUT_SIGMA, col] = math.sqrt(c[3] + c[4] + rounding_floor(pf, pi, sf, w, c[0], c[1], c[2]))
+    floor = rounding_floor(pf, pi, sf, w, c[C_SURFACE], c[C_U], c[C_V])
+    out_f[OUT_SIGMA, col] = math.sqrt(c[C_VAR_U] + c[C_VAR_V] + floor)
     out_b[OUT_B_LOCATED, col] = 1
     out_b[OUT_B_SOURCE, col] = source
-    out_s[col] = c[0]
+    out_s[col] = c[C_SURFACE]
 
 
 @inlined
@@ -134,11 +141,11 @@ def _trace(pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, k: int, c: Candidate)
     """One candidate of the sample in flight into the trace slots (point 0 where none)."""
     at = pi[I_SO_TRACE] + TRACE_CANDIDATES + TRACE_PER_CANDIDATE * k
     x = y = z = 0.0
-    if c[0] >= 0:
-        x, y, z = to_desk(pf, pi, c[0], c[1], c[2])
+    if c[C_SURFACE] >= 0:
+        x, y, z = to_desk(pf, pi, c[C_SURFACE], c[C_U], c[C_V])
     sf[at], sf[at + 1], sf[at + 2] = x, y, z
-    sf[at + 3] = 1.0 if c[0] >= 0 else 0.0
-    sf[at + 4] = math.sqrt(c[3] + c[4])
+    sf[at + 3] = 1.0 if c[C_SURFACE] >= 0 else 0.0
+    sf[at + 4] = math.sqrt(c[C_VAR_U] + c[C_VAR_V])
 
 
 @inlined
@@ -207,11 +214,13 @@ def _diff_candidate(
     want_d = True
     if method == METHOD_SWITCHED:  # P_ed only at small forces (paper Fig. 3, steps 3–4)
         threshold = pf[P_TOUCH_THRESHOLD] if motion > 0 else pf[P_RELEASE_THRESHOLD]
-        want_d = f_mag >= pf[P_CONTACT] and (f_mag <= threshold or cf[0] < 0)
+        want_d = f_mag >= pf[P_CONTACT] and (f_mag <= threshold or cf[C_SURFACE] < 0)
     elif method == METHOD_FUSED:
         # the model term alone (in both variances) makes most of P_ed far less sure than
         # P_er while a press is held: fused would leave those out (P_DIFF_INFO_RATIO)
-        want_d = cf[0] < 0 or 2.0 * min(model, cap) <= pf[P_DIFF_INFO_RATIO] * (cf[3] + cf[4])
+        want_d = cf[C_SURFACE] < 0 or 2.0 * min(model, cap) <= pf[P_DIFF_INFO_RATIO] * (
+            cf[C_VAR_U] + cf[C_VAR_V]
+        )
     if want_d or trace:
         covs = pi[I_SO_COVS]
         cd = intersect(pf, pi, sf, S_DIFF, motion, sf, covs + 6 * COV_DIFF, -1, 0.0, model, d_mag)
@@ -239,15 +248,15 @@ def _choose(
     method = pi[I_METHOD]
     max_sigma = pf[P_MAX_SIGMA]
     if method == METHOD_FORCE:
-        if cf[0] >= 0 and f_mag >= pf[P_CONTACT]:
+        if cf[C_SURFACE] >= 0 and f_mag >= pf[P_CONTACT]:
             _emit(pf, pi, sf, cf, SOURCE_FORCE, out_f, out_b, out_s, col)
     elif method == METHOD_DIFF:
-        if cd[0] >= 0 and math.sqrt(cd[3] + cd[4]) <= max_sigma:
+        if cd[C_SURFACE] >= 0 and math.sqrt(cd[C_VAR_U] + cd[C_VAR_V]) <= max_sigma:
             _emit(pf, pi, sf, cd, SOURCE_DIFF, out_f, out_b, out_s, col)
     elif method == METHOD_SWITCHED:
-        if cd[0] >= 0 and want_d:  # step 3
+        if cd[C_SURFACE] >= 0 and want_d:  # step 3
             _emit(pf, pi, sf, cd, SOURCE_DIFF, out_f, out_b, out_s, col)
-        elif f_mag >= pf[P_CONTACT] and cf[0] >= 0:  # step 4
+        elif f_mag >= pf[P_CONTACT] and cf[C_SURFACE] >= 0:  # step 4
             _emit(pf, pi, sf, cf, SOURCE_FORCE, out_f, out_b, out_s, col)
     else:
         _choose_fused(pf, pi, sf, cf, cd, cq, out_f, out_b, out_s, col)
@@ -270,24 +279,28 @@ def _choose_fused(
     cap = pf[P_VAR_CAP]
     none = (-1, 0.0, 0.0, cap, cap, 0.0)
     max_sigma = pf[P_MAX_SIGMA]
-    var_f = cf[3] + cf[4]
-    if cf[0] >= 0:
+    var_f = cf[C_VAR_U] + cf[C_VAR_V]
+    if cf[C_SURFACE] >= 0:
         # the fast and the low-passed candidates share their noise (one is filtered from
         # the other's input), so they are not fused: the fast one stands in where it is
         # the surer; a differentiated one P_DIFF_INFO_RATIO times less sure than the
         # force's adds under 4 % of the information: it is left out
-        if cq[0] >= 0 and not cq[3] + cq[4] < var_f:
+        if cq[C_SURFACE] >= 0 and not cq[C_VAR_U] + cq[C_VAR_V] < var_f:
             cq = none
-        if cd[0] >= 0 and not cd[3] + cd[4] <= pf[P_DIFF_INFO_RATIO] * var_f:
+        if cd[C_SURFACE] >= 0 and not cd[C_VAR_U] + cd[C_VAR_V] <= pf[P_DIFF_INFO_RATIO] * var_f:
             cd = none
-    if cd[0] < 0 and cq[0] < 0:
+    if cd[C_SURFACE] < 0 and cq[C_SURFACE] < 0:
         # the low-passed force's candidate alone (most samples of a held press): as it is
-        if cf[0] >= 0 and var_f <= max_sigma * max_sigma:
+        if cf[C_SURFACE] >= 0 and var_f <= max_sigma * max_sigma:
             _emit(pf, pi, sf, cf, SOURCE_FORCE, out_f, out_b, out_s, col)
     else:
         fused, members = _fuse(pf, cf, cd, cq)
-        if fused[0] >= 0 and math.sqrt(fused[3] + fused[4]) <= max_sigma:
+        if fused[C_SURFACE] >= 0 and math.sqrt(fused[C_VAR_U] + fused[C_VAR_V]) <= max_sigma:
             source = SOURCE_FUSED
             if members == 1:  # one candidate alone: say which
-                source = SOURCE_DIFF if cd[0] >= 0 and cd[0] == fused[0] else SOURCE_FORCE
+                source = (
+                    SOURCE_DIFF
+                    if cd[C_SURFACE] >= 0 and cd[C_SURFACE] == fused[C_SURFACE]
+                    else SOURCE_FORCE
+                )
             _emit(pf, pi, sf, fused, source, out_f, out_b, out_s, col)

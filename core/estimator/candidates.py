@@ -20,7 +20,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from hapticdesk.estimator.geometry import pack_cov
-from hapticdesk.estimator.resolution import rounding_deficit, zero_rounding_channels
+from hapticdesk.estimator.resolution import (
+    rounding_deficit,
+    zero_rounding_channels,
+    zero_rounding_noise,
+)
 from hapticdesk.estimator.settings import EstimatorSettings
 
 
@@ -38,10 +42,11 @@ class Covariances:
     # located point's (a floor growing as 1/F that no averaging lowers); per surface where
     # every channel moves under the press, its bound
     rounding: list[np.ndarray]
-    # the same per channel (C,), and the wrench's least-norm spread over the channels (C, 6):
-    # how much each channel moves under a press, so one it does not move keeps none
-    # (resolution.moved_share; the kernel's rounding_floor)
+    # the same per channel (C,), the noise in steps it was made with (C,), and the wrench's
+    # least-norm spread over the channels (C, 6): how much each channel moves under a press,
+    # so one it does not move keeps none (resolution.moved_share; the kernel's rounding_floor)
     rounding_channels: np.ndarray
+    rounding_noise: np.ndarray
     spread: np.ndarray
 
     @classmethod
@@ -51,6 +56,7 @@ class Covariances:
         measured: np.ndarray,
         step: np.ndarray | None = None,
         rest_var: np.ndarray | None = None,
+        rest_n: int = 0,
     ) -> Covariances:
         """From the noise ``measured`` at the tare (6, 6), the channels' resolution steps
         (C,) learned so far (resolution.py; None or 0: none) and their variance at rest (C,;
@@ -81,14 +87,13 @@ class Covariances:
         drift = [f.project_cov(drift_cov) for f in frames]
         diff = [f.project_cov(cov * settings.gain_diff) for f in frames]
         det = [f.project_cov(cov * settings.gain_det) for f in frames]
-        per_channel = (
-            np.zeros(m.shape[1])
-            if step is None or rest_var is None
-            else zero_rounding_channels(step, rest_var)
-        )
+        per_channel = noise = np.zeros(m.shape[1])
+        if step is not None and rest_var is not None:
+            per_channel = zero_rounding_channels(step, rest_var, rest_n)
+            noise = zero_rounding_noise(step, rest_var, rest_n)
         offset = m @ (m.T * per_channel[:, None])
         rounding = [f.project_cov(offset) for f in frames]
-        return cls(lp, diff, det, drift, rounding, per_channel, np.linalg.pinv(m))
+        return cls(lp, diff, det, drift, rounding, per_channel, noise, np.linalg.pinv(m))
 
     def packed(self) -> np.ndarray:
         """(n_surfaces, 4, 6): per surface its lp, diff, det and drift covariances, each as
@@ -97,6 +102,6 @@ class Covariances:
         return np.array([[pack_cov(c) for c in covs] for covs in per_surface]).reshape(-1, 4, 6)
 
     def packed_rounding(self) -> np.ndarray:
-        """(7·C,): the zero's rounding offset per channel, then the spread (C, 6) by channel
-        (the kernel's I_SO_ROUND)."""
-        return np.concatenate([self.rounding_channels, self.spread.ravel()])
+        """(8·C,): the zero's rounding offset per channel, its noise in steps per channel, then
+        the spread (C, 6) by channel (the kernel's I_SO_ROUND)."""
+        return np.concatenate([self.rounding_channels, self.rounding_noise, self.spread.ravel()])

@@ -336,7 +336,11 @@ class ContactEstimator:
         compared = si[slots.J_REST_N]  # (the mean square change is twice the variance)
         rest_var = sf[sq : sq + self._n_channels] / (2 * compared) if compared else None
         self.covariances = Covariances.of(
-            self.stage_settings, noise, sf[used : used + self._n_channels].copy(), rest_var
+            self.stage_settings,
+            noise,
+            sf[used : used + self._n_channels].copy(),
+            rest_var,
+            int(compared),
         )
         for slot, packed in (
             (slots.I_SO_COVS, self.covariances.packed().ravel()),

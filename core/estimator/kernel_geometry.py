@@ -39,6 +39,7 @@ from hapticdesk.estimator.kernel_slots import (
     SURF_V,
     Candidate,
 )
+from hapticdesk.estimator.resolution import NO_NOISE_RHO, SHARE_HARMONICS
 
 
 @inlined
@@ -174,6 +175,21 @@ def intersect(
 
 
 @inlined
+def _kept_share(change: float, step: float, rho: float) -> float:
+    """resolution.moved_share for one channel: the share of its zero rounding offset a press
+    that moves it by ``change`` keeps, under a noise of ``rho`` steps."""
+    d = min(abs(change) / step, 0.5)
+    if rho < NO_NOISE_RHO:
+        return min(1.0, 12.0 * d * (1.0 - d))
+    num = den = 0.0
+    for k in range(1, SHARE_HARMONICS + 1):
+        w = math.exp(-4.0 * math.pi * math.pi * k * k * rho * rho) / (k * k)
+        num += w * 4.0 * math.sin(math.pi * k * d) ** 2
+        den += w
+    return min(1.0, num / den)
+
+
+@inlined
 def rounding_floor(
     pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, w: int, s: int, u: float, v: float
 ) -> float:
@@ -181,8 +197,9 @@ def rounding_floor(
     under the tared wrench sf[w:w+6]: a floor growing as 1/F, the same for every sample
     until the next tare, so no averaging of samples lowers it. Each channel's offset
     (sf[I_SO_ROUND:], resolution.zero_rounding_channels) counts by the share the press keeps
-    (resolution.moved_share, of the channel's change under the wrench spread over the
-    channels at sf[I_SO_ROUND + C:]): a channel the press does not move cancels its own."""
+    (:func:`_kept_share` of the channel's change under the wrench spread over the channels
+    at sf[I_SO_ROUND + 2C:], at its noise at sf[I_SO_ROUND + C:]): a channel the press does
+    not move cancels its own."""
     c_n = pi[I_C]
     r = pf[surface_at(pi, s) : surface_at(pi, s) + SURF_F]
     fz = r[0] * sf[w] + r[1] * sf[w + 1] + r[2] * sf[w + 2]
@@ -194,10 +211,10 @@ def rounding_floor(
         var = sf[at + c]
         if not var > 0.0 or not sf[step + c] > 0.0:
             continue
-        k = at + c_n + 6 * c
+        k = at + 2 * c_n + 6 * c
         change = sf[k] * sf[w] + sf[k + 1] * sf[w + 1] + sf[k + 2] * sf[w + 2]
         change += sf[k + 3] * sf[w + 3] + sf[k + 4] * sf[w + 4] + sf[k + 5] * sf[w + 5]
-        var *= min(1.0, 12.0 * abs(change) / sf[step + c])
+        var *= _kept_share(change, sf[step + c], sf[at + c_n + c])
         m = pf[mp + 6 * c : mp + 6 * c + 6]
         gz = r[0] * m[0] + r[1] * m[1] + r[2] * m[2] + r[3] * m[3] + r[4] * m[4] + r[5] * m[5]
         gx = r[6] * m[0] + r[7] * m[1] + r[8] * m[2] + r[9] * m[3] + r[10] * m[4] + r[11] * m[5]

@@ -138,7 +138,7 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     I_SO_TRACE,  # (TRACE_ROWS,) the traced candidates of the sample in flight
     I_SO_STILL_MEANS,  # (I_STILL_RING, 6): a ring of the still run's window means
     I_SO_IDLE_LOG,  # (I_IDLE_LOG, 5): a ring of idle windows: spread, force mean (3), index
-    I_SO_ROUND,  # (C,) the zero's rounding offset by channel, then (C, 6) the wrench's spread
+    I_SO_ROUND,  # (C,) the zero's rounding offset by channel, (C,) its noise, (C, 6) the spread
     I_SO_REST_SQ,  # (C,): the squared changes of each channel's rest readings, summed
     # offsets into si
     I_JO_CHANGES,  # (C,) each

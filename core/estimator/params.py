@@ -333,7 +333,7 @@ def _state_parts(s: EstimatorSettings, n: _Sizes, sf: _Packer, si: _Packer) -> d
         slots.I_SO_TRACE: sf.room(slots.TRACE_ROWS),
         slots.I_SO_STILL_MEANS: sf.room(6 * n.still_ring),
         slots.I_SO_IDLE_LOG: sf.room(5 * n.idle_log),
-        slots.I_SO_ROUND: sf.room(7 * c_n),
+        slots.I_SO_ROUND: sf.room(8 * c_n),
         slots.I_SO_REST_SQ: sf.room(c_n),
         slots.I_JO_CHANGES: si.room(c_n),
         slots.I_JO_LEARNING: si.put(np.ones(c_n, np.int64)),

@@ -18,6 +18,9 @@ readings), from branch sigma: the located 1-σ now holds the zero's rounding off
 weighed its candidates; positions, forces, located and every other field are as recorded.
 Again ``sigma_m`` alone (58 arrays), from branch sigma: each channel's share of that offset
 is what a press keeps of it (``moved_share``: a channel the press does not move keeps none).
+Again ``sigma_m`` alone (68 arrays), from branch sigma: that share is the exact variance of
+the change of the rounding's bias under the noise (quadratic in a small change), and the
+noise is the likeliest for all quiet channels' rest changes (``zero_rounding_noise``).
 """
 
 from __future__ import annotations

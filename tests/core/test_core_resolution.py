@@ -166,6 +166,12 @@ def test_the_noise_is_told_from_many_channels_better_than_by_their_mean_variance
     assert np.std(likeliest) < np.std(by_mean)
 
 
+def _mean_bias(x: np.ndarray, noise: np.ndarray) -> np.ndarray:
+    """The rounding's bias at values ``x`` (steps): the mean of their rounded readings
+    through the ``noise`` (1, n) less the value."""
+    return np.mean(np.round(x[:, None] + noise), axis=1) - x
+
+
 def test_a_channel_the_press_does_not_move_keeps_none_of_the_zeros_rounding():
     """The tared reading errs by b(x0 + change) - b(x0), b the rounding's bias (the mean of
     the rounded readings less the value): nothing for a channel the press leaves on its
@@ -180,12 +186,10 @@ def test_a_channel_the_press_does_not_move_keeps_none_of_the_zeros_rounding():
     for rho in (0.0, 0.12):
         noise = rho * rng.standard_normal((1, 4000))
 
-        def bias(x: np.ndarray) -> np.ndarray:
-            return np.mean(np.round(x[:, None] + noise), axis=1) - x
-
-        whole = np.mean(bias(x0) ** 2)
+        whole = np.mean(_mean_bias(x0, noise) ** 2)
         for change in (0.01, 0.05, 0.1):
-            kept = np.mean((bias(x0 + change) - bias(x0)) ** 2) / whole
+            moved = _mean_bias(x0 + change, noise) - _mean_bias(x0, noise)
+            kept = np.mean(moved**2) / whole
             assert moved_share(change * step, step, rho) == pytest.approx(kept, rel=0.1, abs=5e-3)
 
 

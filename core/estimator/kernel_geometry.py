@@ -177,15 +177,27 @@ def intersect(
 @inlined
 def _kept_share(change: float, step: float, rho: float) -> float:
     """resolution.moved_share for one channel: the share of its zero rounding offset a press
-    that moves it by ``change`` keeps, under a noise of ``rho`` steps."""
+    that moves it by ``change`` keeps, under a noise of ``rho`` steps (its harmonics by
+    recurrence, sin((k+1)θ) = 2 cos θ sin kθ − sin (k−1)θ and exp(−a(k+1)²) = exp(−ak²)
+    exp(−a(2k+1)), until they no longer count)."""
     d = min(abs(change) / step, 0.5)
     if rho < NO_NOISE_RHO:
         return min(1.0, 12.0 * d * (1.0 - d))
+    a = 4.0 * math.pi * math.pi * rho * rho
+    theta = math.pi * d
+    two_cos, sin_k, sin_before = 2.0 * math.cos(theta), math.sin(theta), 0.0
+    damp = math.exp(-a)  # exp(-a k²) at k = 1
+    ratio, ratio_step = math.exp(-3.0 * a), math.exp(-2.0 * a)  # exp(-a (2k + 1)), its step
     num = den = 0.0
     for k in range(1, SHARE_HARMONICS + 1):
-        w = math.exp(-4.0 * math.pi * math.pi * k * k * rho * rho) / (k * k)
-        num += w * 4.0 * math.sin(math.pi * k * d) ** 2
+        w = damp / (k * k)
+        num += w * 4.0 * sin_k * sin_k
         den += w
+        if w < 1e-9 * den:
+            break
+        damp *= ratio
+        ratio *= ratio_step
+        sin_k, sin_before = two_cos * sin_k - sin_before, sin_k
     return min(1.0, num / den)
 
 

@@ -370,6 +370,12 @@ class DeskProfile:
             blocks.append(block @ s.own_wrench_matrix())
         return np.hstack(blocks)
 
+    @property
+    def measures_horizontal_force(self) -> bool:
+        """True when some sensor measures a horizontal force (the wrench map's F_x or F_y row
+        is not all zero): six-axis sensors do, load cells standing upright do not."""
+        return bool(np.any(self.wrench_map()[:2] != 0.0))
+
     def moment_channels(self) -> np.ndarray:
         """(C,) True for a raw channel that measures a moment (N·m: its nominal noise and
         drift are a moment's), False for a force (a calibrated channel counts as a moment

@@ -211,3 +211,26 @@ def test_the_idle_compensated_desk_still_follows_its_drift(noise_n):
     print(f"[sway] idle at {noise_n} N noise: zero set {updates[False]} / {updates[True]} times")
     assert updates[False] >= 25
     assert updates[True] >= 0.9 * updates[False]
+
+
+def test_never_on_a_desk_whose_sensors_measure_no_horizontal_force(tmp_path):
+    """Upright load cells measure no shear, so the stage has nothing to differentiate: auto
+    leaves it off even for `fused` with a sway frequency, and `true` in the profile is refused
+    at its line, where it would silently do nothing."""
+    text = Path(str(load_profile("kitamura2017-loadcells-1khz").path)).read_text()
+    assert "  sway_compensation: false" in text
+    auto = tmp_path / "auto.yaml"
+    auto.write_text(text.replace("  sway_compensation: false", "  sway_compensation: auto", 1))
+    cells = load_profile(auto)
+    assert cells.natural_frequency_hz and cells.estimation.method == "fused"
+    assert not cells.measures_horizontal_force
+    assert SwaySettings.of(cells, cells.estimation) is None
+    assert ContactEstimator(cells).stage_settings.sway is None
+    assert load_profile("kitamura2017").measures_horizontal_force
+    forced = tmp_path / "forced.yaml"
+    forced.write_text(text.replace("  sway_compensation: false", "  sway_compensation: true", 1))
+    with pytest.raises(ConfigError) as err:
+        load_profile(forced)
+    line = text[: text.index("  sway_compensation: false")].count("\n") + 1
+    assert f"forced.yaml:{line}:" in str(err.value)
+    assert "horizontal force" in str(err.value)

@@ -19,7 +19,7 @@ from hapticdesk.files.recording import Recording
 from hapticdesk.files.recording_io import write_recording
 
 from .test_core_recording_fuzz import NAMES, csv_texts
-from .test_core_recording_plain import _assert_same, _careful_only, _read
+from .test_core_recording_plain import _read, assert_read_as_the_careful_path_reads
 
 EXAMPLES = settings(
     max_examples=300,
@@ -103,14 +103,8 @@ def test_anything_else_is_left_to_numpy() -> None:
 def test_the_reader_with_it_reads_and_refuses_as_the_careful_path(
     tmp_path: Path, text: str, block_rows: int
 ) -> None:
-    assert "numba" in sys.modules
-    path = tmp_path / "any.csv"
-    path.write_text(text, encoding="utf-8")
-    compiled = _read(path, block_rows)
-    with pytest.MonkeyPatch.context() as patch:
-        _careful_only(patch)
-        careful = _read(path, block_rows)
-    _assert_same(compiled, careful)
+    assert "numba" in sys.modules  # (the compiled parser is used)
+    assert_read_as_the_careful_path_reads(tmp_path / "any.csv", text, block_rows)
 
 
 def test_a_written_recording_is_read_by_it_alone(

@@ -117,13 +117,13 @@ def plain_numbers(lines: list[str], width: int) -> np.ndarray | None:
     """The table of ``lines`` (each ``width`` plain decimals), or None when a cell or a line
     is anything else (numpy's ``loadtxt`` then reads the block and names any fault)."""
     global _loaded
-    text = "\n".join(lines)
+    text = "\n".join([*lines, ""])  # (each line ended: the loops stop at the last end)
     if not lines or not text.isascii():
         return None
     if not _loaded:  # (from numba's cache without readying its compiler: cached_load)
         with cache_loads():
             _parse.compile(_SIGNATURE)
         _loaded = True
-    data = np.frombuffer((text + "\n").encode("ascii"), np.uint8)
+    data = np.frombuffer(text.encode("ascii"), np.uint8)
     table = np.empty((len(lines), width))
     return table if _parse(data, width, table) else None

@@ -67,7 +67,7 @@ import numpy as np
 from numba import types
 from numba.core import event
 
-from hapticdesk.estimator.cached_load import cache_loads
+from hapticdesk.cached_load import cache_loads
 from hapticdesk.estimator.kernel_channels import steps_changed
 from hapticdesk.estimator.kernel_compile import compiled, vectorized
 from hapticdesk.estimator.kernel_geometry import contains, intersect
@@ -200,7 +200,7 @@ def warm() -> None:
     """Compile the entries for the estimator's argument types, or load them from numba's
     cache (beside this file, or the user's cache directory where this folder cannot be
     written: numba's own choice); once per process. A cached load leaves numba's compiler
-    unreadied (:func:`~.cached_load.cache_loads`: 0.3 s of CPU at start-up)."""
+    unreadied (:func:`hapticdesk.cached_load.cache_loads`: 0.3 s of CPU at start-up)."""
     global _warm
     if _warm:
         return

@@ -32,6 +32,7 @@ from hapticdesk.canbus.config import CanConfig
 from hapticdesk.canbus.config_reader import can_config
 from hapticdesk.canbus.decoding import DeskDecoding, build_decoding
 from hapticdesk.canbus.frames import FrameArray
+from hapticdesk.canbus.outgoing import OutgoingMessage
 from hapticdesk.canbus.stats import CanNotice, CanStats
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.runtime.source import Source, WrenchBlock
@@ -153,7 +154,8 @@ class CanSource(Source):
         assembled before its poll); other requests go to the frame sink at once."""
         import can
 
-        msg = can.Message(arbitration_id=ident, data=data, is_extended_id=False)
+        # (cheap to deep-copy: the virtual bus copies every message it sends)
+        msg = OutgoingMessage(arbitration_id=ident, data=data, is_extended_id=False)
         with self._lock:
             if self._bus is None:
                 raise can.CanOperationError("bus is closed")

@@ -201,22 +201,25 @@ class CanSource(Source):
     def _receive(self, timeout_s: float) -> None:
         """The poller's read: the frames waiting on the bus into the inbox, waiting up to
         ``timeout_s`` for the first (the poller counts its boards' replies as they come, with
-        no other thread to wake); a failed bus is left to the reader to reconnect."""
+        no other thread to wake); a failed bus is left to the reader to reconnect. It reads
+        for a sample period at most: a bus flooded faster than it reads still gets its polls
+        (the rest waits for the next read)."""
         import can
 
         bus = self._bus
         if bus is None or self._failure is not None:
             self._closing.wait(min(timeout_s, RECONNECT_INTERVAL_S))  # being reconnected
             return
-        saw, inbox = self.ati_boards.saw, self._inbox
+        saw, inbox, monotonic = self.ati_boards.saw, self._inbox, time.monotonic
         try:
             msg = bus.recv(timeout=max(0.0, timeout_s))
+            until = monotonic() + 1.0 / self.sample_rate_hz
             while msg is not None:  # (then what else waits: one wake-up for them all)
                 if msg.is_error_frame and msg.arbitration_id & CAN_ERR_BUSOFF:
                     raise can.CanOperationError("bus-off")
                 if saw(msg):  # (not our own poll echoed back)
                     inbox.append(msg)
-                msg = bus.recv(timeout=0.0)
+                msg = bus.recv(timeout=0.0) if monotonic() < until else None
         except Exception as err:  # raised by the reader: a python-can error reconnects
             if self._bus is bus and not self._closing.is_set():
                 self._failure = (bus, err)

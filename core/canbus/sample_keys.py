@@ -128,30 +128,34 @@ class TimeKeys:
     def keys(self, frames: FrameArray, kind: np.ndarray) -> np.ndarray:
         """The sample key of each frame (``kind`` its kind index, n_kinds for a poll)."""
         is_request = kind == self.n_kinds
-        after_polls = self.polled | (np.cumsum(is_request) > 0)
         prev_t = np.concatenate([[self._prev_t], frames.t[:-1]])
         dt = frames.t - prev_t
         count_time_back(self.stats, dt, self.rate)
         # ranks of kinds in the order they first appeared (for logs without times)
-        new = np.unique(kind[(self._rank[kind] < 0) & ~is_request])
-        if len(new):
+        unranked = (self._rank[kind] < 0) & ~is_request
+        if unranked.any():  # (a kind keeps its rank: once all came, nothing to look up)
+            new = np.unique(kind[unranked])
             first = np.array([np.argmax(kind == k) for k in new])
             for k in new[np.argsort(first)]:
                 self._rank[k] = self._next_rank
                 self._next_rank += 1
         rank = np.where(is_request, -1, self._rank[kind])
-        prev_rank = np.concatenate([[self._prev_rank], rank[:-1]])
         by_poll = self._round_starts(frames.ident, is_request)
-        with np.errstate(invalid="ignore"):
-            by_gap = np.where(
-                np.isfinite(dt), dt > self.frame_gap_s, (rank <= prev_rank) & (rank >= 0)
-            )
-        boundary = np.where(after_polls, by_poll, by_gap)
+        if self.polled:  # polls start the samples from the first poll on: no gaps to look at
+            boundary = by_poll
+        else:
+            after_polls = np.cumsum(is_request) > 0
+            prev_rank = np.concatenate([[self._prev_rank], rank[:-1]])
+            with np.errstate(invalid="ignore"):
+                by_gap = np.where(
+                    np.isfinite(dt), dt > self.frame_gap_s, (rank <= prev_rank) & (rank >= 0)
+                )
+            boundary = np.where(after_polls, by_poll, by_gap)
+            self.polled = bool(after_polls[-1])
         keys = self.cluster + np.cumsum(boundary)
         self.cluster = int(keys[-1])
         self._prev_t = frames.t[-1]
         self._prev_rank = int(rank[-1])
-        self.polled = bool(after_polls[-1])
         self._key_replies_by_poll(keys, kind, frames.ident, is_request)
         self._halves.pair(keys, kind)
         return keys

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from hapticdesk.canbus import ati_netcanoem as ati
-from hapticdesk.canbus.decoding import AtiReading, AtiReadings
+from hapticdesk.canbus.decoding import AtiReading, AtiReadings, DeskDecoding, SignalReading
 
 
 def test_side_by_side_equals_board_by_board():
@@ -40,3 +40,24 @@ def test_no_boards_leaves_everything():
     wrench = np.zeros((3, 1, 6))
     AtiReadings([]).channels(np.zeros((3, 2)), wrench, np.zeros((3, 1), bool), [{}])
     assert not wrench.any()
+
+
+def test_a_desk_of_boards_and_signal_sensors_reads_each_its_own_way():
+    """A desk whose sensors mix ATI boards and database signals (the accelerometer's, or a
+    sensor with a DBC): DeskDecoding.channels gives every reading what it gives alone."""
+    ati_a = AtiReading("a", 0, ati.example_calibration(1))
+    signals = SignalReading("s", {0: 7, 2: 8, 5: 9}, [("s.status", 10)])
+    ati_b = AtiReading("b", 11, ati.example_calibration(2))
+    decoding = DeskDecoding([], [ati_a, signals, ati_b], 18, {}, frozenset(), None)
+    rng = np.random.default_rng(7)
+    table = rng.integers(-2000, 2000, (30, 18)).astype(float)
+    table[:, [0, 11]] = rng.choice([0, 0, 1 << 3, 1 << 8], (30, 2))
+    table[:, 10] = rng.choice([0, 0, 0, 1], 30)
+    table[rng.random(table.shape) < 0.05] = np.nan
+    wrench, invalid, counts = decoding.channels(table)
+    for s, reading in enumerate(decoding.readings):
+        w, bad, status = reading.channels(table)
+        np.testing.assert_array_equal(wrench[:, s], w)
+        np.testing.assert_array_equal(invalid[:, s], bad)
+        assert counts[s] == status
+    assert invalid[:, 1].any() and invalid[:, [0, 2]].any()  # each kind's status was seen

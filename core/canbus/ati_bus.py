@@ -6,7 +6,8 @@ The bus itself (opening, sending, reconnecting) is the live source's (source.py)
 reads the bus itself when a round is due (the source's receive hands each frame to
 :meth:`AtiBoards.saw`, which counts the boards' replies, and keeps it for the reader), so it
 knows whether the round before was answered with no other thread to wake, and wakes once a
-round, not once a frame.
+round, not once a frame (at rates under 1 kHz, once more in between, so that replies wait
+at most :data:`REPLY_READ_S` to be read).
 """
 
 from __future__ import annotations
@@ -31,6 +32,9 @@ SendRequest = Callable[[int, bytes], None]
 REPLY_TIMEOUT_S = 0.1
 #: a reply that has not come this long after its poll is lost: the board is polled again
 WRITE_OFF_S = 0.5
+#: replies are read at most this long after their round (a slower rate's poller wakes for
+#: them before its next round: a round is read at the next one's start otherwise)
+REPLY_READ_S = 0.001
 ReceiveFrame = Callable[[float], Any]
 
 
@@ -271,7 +275,11 @@ class AtiBoards:
                 ledger.sent_to(b, now)
             next_due += period
             # asleep until the next round is due, then what came meanwhile is read at once
-            # (one wake-up a round, not one a frame: each costs a thread switch)
+            # (one wake-up a round, not one a frame: each costs a thread switch); at rates
+            # under 1/REPLY_READ_S, the replies are read once in between too
+            if now + REPLY_READ_S < next_due:
+                self._closing.wait(now + REPLY_READ_S - time.monotonic())
+                self._receive(0.0)
             self._closing.wait(next_due - time.monotonic())
             wait_s = 0.0
             while not self._closing.is_set():

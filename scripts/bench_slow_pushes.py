@@ -12,9 +12,12 @@ to Python (``kernel_slots.EV_*``); and the CPU time of Python's part of each zer
 A push during which the thread was switched out (its context switches, ``getrusage``, read
 outside the timed span) is counted apart, as ``preempted``: the thread's CPU clock is not
 free of the machine — the switch's own path, the caches and TLB refilled after another
-process ran, a hypervisor's steal — and on a loaded machine 40 % of such pushes take over
-100 µs of "CPU" whatever they run (a 5 µs push: 100–240 µs), against 1 in 10,000 of the
-others. Those are the machine's; the code's slow paths are the others.
+process ran, a hypervisor's steal — and on a loaded machine 15–55 % of such pushes take over
+100 µs of "CPU" whatever they run (a 5 µs push: 100–900 µs), against 1 in 2,000–70,000 of the
+others. Those are the machine's. The others are the code's or the machine's still (an
+interrupt, the host): a slow path of the code is slow at the same sample in every run (the
+same samples are pushed; printed), the machine's fall anywhere, and about as many as a
+neutral 5 µs workload's timed alike in the same process (printed).
 
 With ``--against DIR`` the same is measured for another checkout's ``core/`` (e.g. ``git
 archive <commit> core | tar -x -C DIR``), in turn with this one (A B A B …, ``--repeats``

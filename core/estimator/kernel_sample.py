@@ -179,10 +179,7 @@ def _back(
     phase = traced = 0
     mag = shear = drag_x = drag_y = 0.0
     if si[J_TARED]:
-        det_full = pi[I_DET_FULL] == 1
-        for r in range(6):
-            sf[S_TARED_W + r] = sf[S_LP + r] - sf[S_ZERO + r]
-            sf[S_TARED_Q + r] = sf[S_DET + r] - sf[S_ZERO + r] if det_full or r < 3 else 0.0
+        _tare(pi, sf)
         fx, fy, fz = sf[S_TARED_Q], sf[S_TARED_Q + 1], sf[S_TARED_Q + 2]
         mag = math.sqrt(fx * fx + fy * fy + fz * fz)
         inside, slope = detect(pf, pi, sf, si, fx, fy, fz, mag)
@@ -193,9 +190,7 @@ def _back(
             _locate(t, mag, pf, pi, sf, out_f, out_b, out_s, col)
             if pi[I_TRACE]:
                 traced = 1
-                at = pi[I_SO_TRACE]
-                for row in range(TRACE_ROWS):
-                    out_f[N_OUT_F + row, col] = sf[at + row]
+                _trace_rows(pi, sf, out_f, col)
             located = out_b[OUT_B_LOCATED, col] == 1
             if located:
                 shear, drag_x, drag_y = _shear_and_drag(pf, pi, fx, fy, fz, mag, out_s[col])
@@ -218,6 +213,24 @@ def _back(
     if si[J_MT_ON] and si[J_STARTED]:
         return _second_finger(pf, pi, sf, si, flags, out_f, out_b, out_s, col)
     return 0
+
+
+@inlined
+def _tare(pi: np.ndarray, sf: np.ndarray) -> None:
+    """The low-passed and the fast wrench of the sample in flight less the zero, into
+    S_TARED_W and S_TARED_Q (the fast one's moments only where I_DET_FULL: 0 otherwise)."""
+    det_full = pi[I_DET_FULL] == 1
+    for r in range(6):
+        sf[S_TARED_W + r] = sf[S_LP + r] - sf[S_ZERO + r]
+        sf[S_TARED_Q + r] = sf[S_DET + r] - sf[S_ZERO + r] if det_full or r < 3 else 0.0
+
+
+@inlined
+def _trace_rows(pi: np.ndarray, sf: np.ndarray, out_f: np.ndarray, col: int) -> None:
+    """The traced candidates of the sample in flight into its trace rows."""
+    at = pi[I_SO_TRACE]
+    for row in range(TRACE_ROWS):
+        out_f[N_OUT_F + row, col] = sf[at + row]
 
 
 @inlined

@@ -70,7 +70,7 @@ from numba.core import event
 
 from hapticdesk.cached_load import cache_loads
 from hapticdesk.estimator.kernel_channels import steps_changed
-from hapticdesk.estimator.kernel_compile import compiled, vectorized
+from hapticdesk.estimator.kernel_compile import compiled, unchecked_indices, vectorized
 from hapticdesk.estimator.kernel_geometry import contains, intersect
 from hapticdesk.estimator.kernel_sample import _sample
 from hapticdesk.estimator.kernel_slots import (
@@ -208,7 +208,12 @@ def warm() -> None:
     if _warm:
         return
     start = time.perf_counter()
-    with event.install_listener("numba:compile", _FirstCompile()), vectorized(), cache_loads():
+    with (
+        event.install_listener("numba:compile", _FirstCompile()),
+        vectorized(),
+        unchecked_indices(),
+        cache_loads(),
+    ):
         for dispatcher, signature in _signatures():
             dispatcher.compile(signature)
     _warm = True

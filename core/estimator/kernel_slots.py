@@ -139,8 +139,8 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     I_SO_DET_RING,  # (N_RATE, 3)
     I_SO_SWAY,  # (2·SPAN, 2) each
     I_SO_SWAY_DIFF,
-    I_SO_WIN_LP,  # (3, WINDOW)
-    I_SO_WIN_RAW,  # (6, WINDOW)
+    I_SO_WIN_LP,  # (WINDOW, 3): a sample's lanes side by side
+    I_SO_WIN_RAW,  # (WINDOW, 6)
     I_SO_GUARD,  # (N_UP,)
     I_SO_COVS,  # (N_SURF, 4, 6)
     I_SO_STEP,  # (C,) each

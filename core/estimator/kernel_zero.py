@@ -100,15 +100,17 @@ def window_add(
     win_raw = sf[pi[I_SO_WIN_RAW] : pi[I_SO_WIN_RAW] + 6 * w]
     win_bad = si[pi[I_JO_WIN_BAD] : pi[I_JO_WIN_BAD] + w]
     m = si[J_WIN_FILL]
+    # (a sample's lanes side by side, [3j + lane] and [6j + lane]: each sample writes two
+    # short runs, where lanes one after the other ([lane·w + j]) wrote nine cache lines)
     for j in range(m if first_good else 0):
         for lane in range(3):
-            win_lp[lane * w + j] = sf[S_LP + lane]
+            win_lp[3 * j + lane] = sf[S_LP + lane]
         for lane in range(6):
-            win_raw[lane * w + j] = sf[S_RAW + lane]
+            win_raw[6 * j + lane] = sf[S_RAW + lane]
     for lane in range(3):
-        win_lp[lane * w + m] = sf[S_LP + lane]
+        win_lp[3 * m + lane] = sf[S_LP + lane]
     for lane in range(6):
-        win_raw[lane * w + m] = sf[S_RAW + lane]
+        win_raw[6 * m + lane] = sf[S_RAW + lane]
     win_bad[m] = 1 if flags & (BAD_SAMPLE | FLAG_GAP) else 0
     m += 1
     if m < w:
@@ -129,7 +131,7 @@ def window_add(
         return 0
     sf[S_WIN_SPREAD] = spread
     for lane in range(6):
-        sf[S_WIN_MEAN + lane] = pairwise_sum(sf, pi[I_SO_WIN_RAW] + lane * w, w, 1) / w
+        sf[S_WIN_MEAN + lane] = pairwise_sum(sf, pi[I_SO_WIN_RAW] + lane, w, 6) / w
     sf[S_WIN_T_END] = t
     if si[J_TARED]:
         return still_window(spread, t, pf, pi, sf, si)
@@ -162,9 +164,9 @@ def _window_spread(pi: np.ndarray, sf: np.ndarray, w: int) -> float:
         lo, hi = math.inf, -math.inf
         for j in range(0, w, block):
             value = (
-                sf[lp_at + lane * w + j]
+                sf[lp_at + 3 * j + lane]
                 if block == 1
-                else pairwise_sum(sf, lp_at + lane * w + j, block, 1) / block
+                else pairwise_sum(sf, lp_at + 3 * j + lane, block, 3) / block
             )
             lo, hi = min(lo, value), max(hi, value)
         spread = max(spread, hi - lo)

@@ -91,7 +91,8 @@ class ZeroStage:
         sf, si = self._sf, self._si
         si[J_WINDOWS_SEEN] += 1
         t_end = float(sf[S_WIN_T_END])
-        raw = sf[self._raw_at : self._raw_at + 6 * self._window].reshape(6, self._window)
+        # (the kernel keeps a window's samples side by side: (w, 6); the tare copies them (6, w))
+        raw = sf[self._raw_at : self._raw_at + 6 * self._window].reshape(self._window, 6).T
         bad = si[J_WIN_BADS] / self._window > 0.1
         mean = sf[S_WIN_MEAN : S_WIN_MEAN + 6].tolist()
         taken = st.tare.add(float(sf[S_WIN_SPREAD]), bad, mean, raw)

@@ -169,6 +169,9 @@ class FrameAssembler:
             np.array([k for k in range(n_kinds) if s in decoding.kinds[k].sensors], dtype=np.int64)
             for s in range(len(names))
         ]
+        self._kind_is_sensors = np.zeros((n_kinds, len(names)), dtype=bool)
+        for s, kinds in enumerate(self._sensor_kinds):
+            self._kind_is_sensors[kinds, s] = True
         self._group_of_kind, self._row_in_group, self._decode_groups = _decode_groups(decoding)
         self._pending = _Pending.empty()
         self._last_key: int | None = None  # key of the last sample given out
@@ -281,20 +284,21 @@ class FrameAssembler:
             self._check_counters(p, row_of, n, table)
         held = self._hold.fill(table)
         t = self._times(p, row_of, keys)
-        wrench = np.empty((n, len(decoding.readings), 6))
+        wrench, invalid, counts = decoding.channels(table)
+        missing = (np.isnan(wrench).any(axis=2) & ~invalid).sum(axis=0).tolist()
+        wrench[invalid] = np.nan
+        n_invalid = invalid.sum(axis=0).tolist()
+        any_held = bool(held.any())
         for s, reading in enumerate(decoding.readings):
-            self.stats.held[reading.name] += int(held[:, reading.columns].any(axis=1).sum())
-            w, invalid, counts = reading.channels(table)
-            missing = np.isnan(w).any(axis=1) & ~invalid
-            w[invalid] = np.nan
-            wrench[:, s] = w
-            self.stats.invalid[reading.name] += int(invalid.sum())
-            self.stats.incomplete[reading.name] += int(missing.sum())
+            if any_held:
+                self.stats.held[reading.name] += int(held[:, reading.columns].any(axis=1).sum())
+            self.stats.invalid[reading.name] += n_invalid[s]
+            self.stats.incomplete[reading.name] += missing[s]
             bits = self.stats.status[reading.name]
-            for label, count in counts.items():
+            for label, count in counts[s].items():
                 bits[label] = bits.get(label, 0) + count
         self._count_lost(keys, t)
-        talking = np.stack([(presence[:, ks] > 0).any(axis=1) for ks in self._sensor_kinds], axis=1)
+        talking = (presence > 0) @ self._kind_is_sensors  # (k, S) bool: any of its kinds came
         notices, stop_at = self._silence.watch(t, talking)
         if stop_at is not None:
             t, wrench = t[:stop_at], wrench[:stop_at]

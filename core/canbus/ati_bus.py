@@ -2,11 +2,12 @@
 round per sample period from a thread of its own (the NETCANOEM protocol: ati_netcanoem.py).
 
 The bus itself (opening, sending, reconnecting) is the live source's (source.py): it gives
-:class:`AtiBoards` a way to send a poll and to receive a frame. The poller thread reads the
-bus itself between its rounds (the source's receive hands each frame to
+:class:`AtiBoards` a way to send a poll and to receive the frames waiting. The poller thread
+reads the bus itself when a round is due (the source's receive hands each frame to
 :meth:`AtiBoards.saw`, which counts the boards' replies, and keeps it for the reader), so it
-knows at once when a round was answered, with no other thread to wake: a round trip is one
-thread switch to the boards and one back, not a relay through the reader.
+knows whether the round before was answered with no other thread to wake, and wakes once a
+round, not once a frame (at rates under 1 kHz, once more in between, so that replies wait
+at most :data:`REPLY_READ_S` to be read).
 """
 
 from __future__ import annotations
@@ -31,6 +32,9 @@ SendRequest = Callable[[int, bytes], None]
 REPLY_TIMEOUT_S = 0.1
 #: a reply that has not come this long after its poll is lost: the board is polled again
 WRITE_OFF_S = 0.5
+#: replies are read at most this long after their round (a slower rate's poller wakes for
+#: them before its next round: a round is read at the next one's start otherwise)
+REPLY_READ_S = 0.001
 ReceiveFrame = Callable[[float], Any]
 
 
@@ -270,12 +274,21 @@ class AtiBoards:
                     break
                 ledger.sent_to(b, now)
             next_due += period
-            while not self._closing.is_set():  # read until due and the round is answered
+            # asleep until the next round is due, then what came meanwhile is read at once
+            # (one wake-up a round, not one a frame: each costs a thread switch); at rates
+            # under 1/REPLY_READ_S, the replies are read once in between too
+            if now + REPLY_READ_S < next_due:
+                self._closing.wait(now + REPLY_READ_S - time.monotonic())
+                self._receive(0.0)
+            self._closing.wait(next_due - time.monotonic())
+            wait_s = 0.0
+            while not self._closing.is_set():
+                self._receive(wait_s)
                 now = time.monotonic()
                 # the replies that may yet come hold the round back (the receive counts them)
                 owed = ledger.awaited_until(now)
-                if now >= next_due and not owed:
+                if not owed:
                     break
-                self._receive((next_due if now < next_due else min(owed)) - now)
+                wait_s = min(owed) - now
             if time.monotonic() - next_due > period:
                 next_due = time.monotonic()  # fell behind: skip, do not burst

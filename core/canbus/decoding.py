@@ -109,6 +109,43 @@ class AtiReading(SensorReading):
         return wrench, invalid, counts
 
 
+class AtiReadings:
+    """The ATI boards' readings side by side: :meth:`AtiReading.channels` for all at once
+    (one gather, one stacked product, one status pass instead of one of each a board)."""
+
+    def __init__(self, readings: list[tuple[int, AtiReading]]) -> None:
+        self.index = np.array([s for s, _ in readings], dtype=np.int64)
+        columns = [r.columns for _, r in readings]
+        # sg0 … sg5 from the columns status, sg0, sg2, sg4 (frame 0x0), sg1, sg3, sg5 (0x1)
+        self.gauge_columns = np.array([c[[1, 4, 2, 5, 3, 6]] for c in columns], dtype=np.int64)
+        self.status_columns = np.array([c[0] for c in columns], dtype=np.int64)
+        # each map transposed as a view, as AtiReading's product takes it (the same sums)
+        self.maps_t = (
+            np.stack([r.gauge_map for _, r in readings]).transpose(0, 2, 1) if readings else None
+        )
+
+    def channels(
+        self,
+        table: np.ndarray,
+        wrench: np.ndarray,
+        invalid: np.ndarray,
+        counts: list[dict[str, int]],
+    ) -> None:
+        """Fill the ATI readings' places of ``wrench``, ``invalid`` and ``counts``."""
+        if self.maps_t is None:
+            return
+        gauges = np.ascontiguousarray(table[:, self.gauge_columns].transpose(1, 0, 2))
+        wrench[:, self.index] = np.matmul(gauges, self.maps_t).transpose(1, 0, 2)
+        status = table[:, self.status_columns]
+        word = np.where(np.isnan(status), 0, status).astype(np.int64)
+        invalid[:, self.index] = (word & ati.CRITICAL_MASK) != 0
+        if not word.any():
+            return
+        per_bit = ((word[:, :, None] >> np.arange(16)) & 1).sum(axis=0)  # (boards, 16)
+        for j, bit in zip(*np.nonzero(per_bit), strict=True):
+            counts[int(self.index[j])][ati.status_bit_name(int(bit))] = int(per_bit[j, bit])
+
+
 @dataclass
 class DeskDecoding:
     """Everything needed to turn a desk's frames into samples."""
@@ -138,6 +175,9 @@ class DeskDecoding:
         self._data_ids = np.unique(np.array([k.ident for k in self.kinds], dtype=np.uint32))
         self._protocol_ids = np.array(sorted(self.protocol_ids), dtype=np.uint32)
         self.kind_sensors = [np.array(k.sensors, dtype=np.int64) for k in self.kinds]
+        self._ati = AtiReadings(
+            [(s, r) for s, r in enumerate(self.readings) if isinstance(r, AtiReading)]
+        )
 
     @property
     def sensor_names(self) -> list[str]:
@@ -153,6 +193,20 @@ class DeskDecoding:
             assert isinstance(reading, SignalReading)  # (accelerometers are database signals)
             out.append(sorted(reading.axis_columns))
         return out
+
+    def channels(self, table: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[dict[str, int]]]:
+        """Every reading's channels from the field table: wrench (k, R, 6), invalid (k, R)
+        and the status counts of each (as :meth:`SensorReading.channels`, the ATI boards'
+        all at once)."""
+        n = len(self.readings)
+        wrench = np.empty((len(table), n, 6))
+        invalid = np.zeros((len(table), n), dtype=bool)
+        counts: list[dict[str, int]] = [{} for _ in range(n)]
+        self._ati.channels(table, wrench, invalid, counts)
+        for s, reading in enumerate(self.readings):
+            if not isinstance(reading, AtiReading):
+                wrench[:, s], invalid[:, s], counts[s] = reading.channels(table)
+        return wrench, invalid, counts
 
     def classify(self, frames: FrameArray) -> np.ndarray:
         """Code per frame: a kind index (>= 0) or FOREIGN, WRONG_LENGTH, PROTOCOL, REQUEST, …"""

@@ -17,6 +17,7 @@ import numpy as np
 from hapticdesk.canbus import ati_netcanoem as ati
 from hapticdesk.canbus.config import AtiSensor
 from hapticdesk.canbus.frame_encoder import FrameEncoder
+from hapticdesk.canbus.outgoing import OutgoingMessage
 
 log = logging.getLogger("hapticdesk.canbus.emulator")
 
@@ -161,7 +162,7 @@ class CanEmulator:
                 for ident, data in replies:
                     try:
                         self.bus.send(
-                            can.Message(
+                            OutgoingMessage(
                                 timestamp=time.time(),
                                 arbitration_id=ident,
                                 data=data,

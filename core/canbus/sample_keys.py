@@ -123,40 +123,41 @@ class TimeKeys:
         self._prev_rank = -1
         self._rank = np.full(self.n_kinds + 1, -1, dtype=np.int64)
         self._next_rank = 0
-        # per reply whose frames come in order (ATI 0x0 then 0x1): the key of the last first
-        # frame still waiting for its second, if any
-        self._open_first: dict[int, int | None] = {a: None for a in decoding.second_halves.values()}
+        self._halves = ReplyHalves(decoding.second_halves, self.n_kinds)
 
     def keys(self, frames: FrameArray, kind: np.ndarray) -> np.ndarray:
         """The sample key of each frame (``kind`` its kind index, n_kinds for a poll)."""
         is_request = kind == self.n_kinds
-        after_polls = self.polled | (np.cumsum(is_request) > 0)
         prev_t = np.concatenate([[self._prev_t], frames.t[:-1]])
         dt = frames.t - prev_t
         count_time_back(self.stats, dt, self.rate)
         # ranks of kinds in the order they first appeared (for logs without times)
-        new = np.unique(kind[(self._rank[kind] < 0) & ~is_request])
-        if len(new):
+        unranked = (self._rank[kind] < 0) & ~is_request
+        if unranked.any():  # (a kind keeps its rank: once all came, nothing to look up)
+            new = np.unique(kind[unranked])
             first = np.array([np.argmax(kind == k) for k in new])
             for k in new[np.argsort(first)]:
                 self._rank[k] = self._next_rank
                 self._next_rank += 1
         rank = np.where(is_request, -1, self._rank[kind])
-        prev_rank = np.concatenate([[self._prev_rank], rank[:-1]])
         by_poll = self._round_starts(frames.ident, is_request)
-        with np.errstate(invalid="ignore"):
-            by_gap = np.where(
-                np.isfinite(dt), dt > self.frame_gap_s, (rank <= prev_rank) & (rank >= 0)
-            )
-        boundary = np.where(after_polls, by_poll, by_gap)
+        if self.polled:  # polls start the samples from the first poll on: no gaps to look at
+            boundary = by_poll
+        else:
+            after_polls = np.cumsum(is_request) > 0
+            prev_rank = np.concatenate([[self._prev_rank], rank[:-1]])
+            with np.errstate(invalid="ignore"):
+                by_gap = np.where(
+                    np.isfinite(dt), dt > self.frame_gap_s, (rank <= prev_rank) & (rank >= 0)
+                )
+            boundary = np.where(after_polls, by_poll, by_gap)
+            self.polled = bool(after_polls[-1])
         keys = self.cluster + np.cumsum(boundary)
         self.cluster = int(keys[-1])
         self._prev_t = frames.t[-1]
         self._prev_rank = int(rank[-1])
-        self.polled = bool(after_polls[-1])
         self._key_replies_by_poll(keys, kind, frames.ident, is_request)
-        for second, first in self.decoding.second_halves.items():
-            self._pair_halves(keys, kind, first, second)
+        self._halves.pair(keys, kind)
         return keys
 
     def _round_starts(self, ident: np.ndarray, is_request: np.ndarray) -> np.ndarray:
@@ -229,33 +230,63 @@ class TimeKeys:
             last = len(poll_board) - 1 - np.unique(poll_board[::-1], return_index=True)[1]
             self._last_poll_key[poll_board[last]] = keys[poll_pos[last]]
 
-    def _pair_halves(self, keys: np.ndarray, kind: np.ndarray, first: int, second: int) -> None:
-        """Give each second frame of a reply its first frame's key, in place.
 
-        A board sends the two frames of a reply in order, but traffic of higher priority can
-        delay the second until after the host's next poll, which starts the next sample: by
-        its poll it would land there (doubled) and void two samples. So a second frame takes
-        the key of the last first frame before it that has no second yet, if that first
-        frame is of its own poll round or the one before (any older is not its reply's).
-        """
-        a_pos = np.flatnonzero(kind == first)
-        b_pos = np.flatnonzero(kind == second)
-        carried = self._open_first[first]
-        if len(b_pos):
-            # the first frame before each second one: its index in a_pos, -1 an earlier push's
-            prev = np.searchsorted(a_pos, b_pos) - 1
-            a_keys = keys[a_pos] if len(a_pos) else np.zeros(1, np.int64)
-            owner = np.where(prev >= 0, a_keys[np.maximum(prev, 0)], carried or 0)
-            # one second frame per first frame: a second after the same first keeps its key
-            takes = np.concatenate([[True], prev[1:] != prev[:-1]])
-            takes &= (prev >= 0) | (carried is not None)
-            takes &= (owner >= keys[b_pos] - 1) & (owner <= keys[b_pos])
-            keys[b_pos[takes]] = owner[takes]
-            answered = set(prev[takes].tolist())
-        else:
-            answered = set()
-        if len(a_pos):
-            last = len(a_pos) - 1
-            self._open_first[first] = None if last in answered else int(keys[a_pos[last]])
-        elif -1 in answered:
-            self._open_first[first] = None
+class ReplyHalves:
+    """Pairs each second frame of a reply with its first (an ATI board's 0x1 after its 0x0),
+    for every board at once, carrying from push to push the first frame still waiting.
+
+    A board sends the two frames of a reply in order, but traffic of higher priority can
+    delay the second until after the host's next poll, which starts the next sample: by its
+    poll it would land there (doubled) and void two samples. So a second frame takes the key
+    of the last first frame of its kind before it that has no second yet, if that first frame
+    is of its own poll round or the one before (any older is not its reply's).
+    """
+
+    def __init__(self, second_halves: dict[int, int], n_kinds: int) -> None:
+        self.n_pairs = len(second_halves)
+        self._pair_of_first = np.full(n_kinds + 1, -1, dtype=np.int64)  # (+1: polls)
+        self._pair_of_second = np.full(n_kinds + 1, -1, dtype=np.int64)
+        for p, (second, first) in enumerate(second_halves.items()):
+            self._pair_of_first[first], self._pair_of_second[second] = p, p
+        # per pair: whether a first frame of an earlier push waits for its second, its key
+        self._open = np.zeros(self.n_pairs, dtype=bool)
+        self._open_key = np.zeros(self.n_pairs, dtype=np.int64)
+
+    def pair(self, keys: np.ndarray, kind: np.ndarray) -> None:
+        """Give each second frame its first frame's key, in place (``kind`` per frame)."""
+        a_pos = np.flatnonzero(self._pair_of_first[kind] >= 0)
+        b_pos = np.flatnonzero(self._pair_of_second[kind] >= 0)
+        if not len(a_pos) and not len(b_pos):
+            return
+        n_pairs = self.n_pairs
+        # the events of every pair, sorted by pair, then place: first the pair's carried
+        # first frame (place -1, a real one if open), then its frames of this push
+        pair = np.concatenate(
+            [
+                np.arange(n_pairs),
+                self._pair_of_first[kind[a_pos]],
+                self._pair_of_second[kind[b_pos]],
+            ]
+        )
+        place = np.concatenate([np.full(n_pairs, -1), a_pos, b_pos])
+        order = np.lexsort((place, pair))
+        n_firsts = n_pairs + len(a_pos)
+        is_first = order < n_firsts  # (or the carried one)
+        real = np.concatenate([self._open, np.ones(len(a_pos), bool), np.zeros(len(b_pos), bool)])
+        key = np.concatenate([self._open_key, keys[a_pos], keys[b_pos]])[order]
+        # the first frame before each event (the carried one before any of this push)
+        latest = np.maximum.accumulate(np.where(is_first, np.arange(len(order)), 0))
+        second = np.flatnonzero(~is_first)
+        owner = latest[second]
+        # one second frame per first frame: a second after the same first keeps its key
+        takes = is_first[second - 1] & real[order][owner]
+        takes &= (key[owner] >= key[second] - 1) & (key[owner] <= key[second])
+        at = b_pos[order[second[takes]] - n_firsts]
+        keys[at] = key[owner[takes]]
+        answered = np.zeros(len(order), dtype=bool)
+        answered[owner[takes]] = True
+        # each pair's last first frame waits for its second if none took it
+        firsts = np.flatnonzero(is_first)
+        last = firsts[np.searchsorted(pair[order][firsts], np.arange(n_pairs), side="right") - 1]
+        self._open = real[order][last] & ~answered[last]
+        self._open_key = key[last]

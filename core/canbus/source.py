@@ -32,6 +32,7 @@ from hapticdesk.canbus.config import CanConfig
 from hapticdesk.canbus.config_reader import can_config
 from hapticdesk.canbus.decoding import DeskDecoding, build_decoding
 from hapticdesk.canbus.frames import FrameArray
+from hapticdesk.canbus.outgoing import OutgoingMessage
 from hapticdesk.canbus.stats import CanNotice, CanStats
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.runtime.source import Source, WrenchBlock
@@ -153,7 +154,8 @@ class CanSource(Source):
         assembled before its poll); other requests go to the frame sink at once."""
         import can
 
-        msg = can.Message(arbitration_id=ident, data=data, is_extended_id=False)
+        # (cheap to deep-copy: the virtual bus copies every message it sends)
+        msg = OutgoingMessage(arbitration_id=ident, data=data, is_extended_id=False)
         with self._lock:
             if self._bus is None:
                 raise can.CanOperationError("bus is closed")
@@ -197,25 +199,30 @@ class CanSource(Source):
     # --- reading ------------------------------------------------------------------------
 
     def _receive(self, timeout_s: float) -> None:
-        """The poller's read: the next frame within ``timeout_s`` into the inbox (the poller
-        counts its boards' replies as they come, with no other thread to wake); a failed
-        bus is left to the reader to reconnect."""
+        """The poller's read: the frames waiting on the bus into the inbox, waiting up to
+        ``timeout_s`` for the first (the poller counts its boards' replies as they come, with
+        no other thread to wake); a failed bus is left to the reader to reconnect. It reads
+        for a sample period at most: a bus flooded faster than it reads still gets its polls
+        (the rest waits for the next read)."""
         import can
 
         bus = self._bus
         if bus is None or self._failure is not None:
             self._closing.wait(min(timeout_s, RECONNECT_INTERVAL_S))  # being reconnected
             return
+        saw, inbox, monotonic = self.ati_boards.saw, self._inbox, time.monotonic
         try:
             msg = bus.recv(timeout=max(0.0, timeout_s))
-            if msg is not None and msg.is_error_frame and msg.arbitration_id & CAN_ERR_BUSOFF:
-                raise can.CanOperationError("bus-off")
+            until = monotonic() + 1.0 / self.sample_rate_hz
+            while msg is not None:  # (then what else waits: one wake-up for them all)
+                if msg.is_error_frame and msg.arbitration_id & CAN_ERR_BUSOFF:
+                    raise can.CanOperationError("bus-off")
+                if saw(msg):  # (not our own poll echoed back)
+                    inbox.append(msg)
+                msg = bus.recv(timeout=0.0) if monotonic() < until else None
         except Exception as err:  # raised by the reader: a python-can error reconnects
             if self._bus is bus and not self._closing.is_set():
                 self._failure = (bus, err)
-            return
-        if msg is not None and self.ati_boards.saw(msg):  # (not our own poll echoed back)
-            self._inbox.append(msg)
 
     def _taken_from_inbox(self) -> list[Any]:
         """What the poller thread sent and read since the last block, in order; its bus's

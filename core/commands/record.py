@@ -96,7 +96,8 @@ def _record_bus(args: argparse.Namespace, profile: DeskProfile, output: Path) ->
     raw = output.suffix.lower() in LOG_SUFFIXES
     capture = capture_bus(args, profile, output, raw)
     if not raw:
-        _write(output, Recording(capture.t, capture.wrench, profile.sensor_names))
+        extra = _accel_columns(profile, capture.accel)
+        _write(output, Recording(capture.t, capture.wrench, profile.sensor_names, extra))
     summary = _summary(capture.t, capture.problems)
     if capture.frames is not None:
         summary["frames"] = capture.frames
@@ -122,10 +123,7 @@ def _record_live(args: argparse.Namespace, profile: DeskProfile, output: Path) -
     source = open_source(args.source, profile, registry)
     live = capture_live(source, args.seconds)
     wrench = live.wrench if len(live.t) else np.zeros((0, len(profile.channel_names())))
-    extra: dict[str, np.ndarray] = {}
-    columns = profile.accelerometer_columns()
-    if live.accel is not None and columns and live.accel.shape[1] == len(columns):
-        extra = {name: live.accel[:, i] for i, name in enumerate(columns)}
+    extra = _accel_columns(profile, live.accel)
     rec = Recording(live.t, wrench, profile.sensor_names, extra, profile.channel_names())
     _write(output, rec)
     summary = _summary(live.t, ["", *source.summary()])
@@ -133,6 +131,15 @@ def _record_live(args: argparse.Namespace, profile: DeskProfile, output: Path) -
         print(f"hapticdesk record: stopped: {live.stopped_by}", file=sys.stderr)
         summary["stopped"] = str(live.stopped_by)
     return summary
+
+
+def _accel_columns(profile: DeskProfile, accel: np.ndarray | None) -> dict[str, np.ndarray]:
+    """A live source's accelerometer readings (k, A) as the recording's columns of the
+    desk's accelerometers (none when it sent none)."""
+    columns = profile.accelerometer_columns()
+    if accel is None or not columns or accel.shape[1] != len(columns):
+        return {}
+    return {name: accel[:, i] for i, name in enumerate(columns)}
 
 
 # --- files and simulations ----------------------------------------------------------------

@@ -69,12 +69,14 @@ def capture_live(source: Source, seconds: float | None) -> LiveCapture:
 
 @dataclass(frozen=True)
 class BusCapture:
-    """What a bus gave: samples ``t`` (k,) and ``wrench`` (k, S, 6), the source's problem
+    """What a bus gave: samples ``t`` (k,) and ``wrench`` (k, S, 6), the accelerometers'
+    readings (k, A) where the desk's boards sent them (else None), the source's problem
     lines (the totals first), the frames logged (None when no log was written) and the error
     that stopped it early, if one did."""
 
     t: np.ndarray
     wrench: np.ndarray
+    accel: np.ndarray | None
     problems: list[str]
     frames: int | None
     stopped_by: ConfigError | None
@@ -165,4 +167,4 @@ def capture_bus(
         log.check()
     wrench = live.wrench if len(live.t) else np.zeros((0, len(profile.sensors), 6))
     frames = log.frames if log is not None else None
-    return BusCapture(live.t, wrench, source.stats.summary(), frames, live.stopped_by)
+    return BusCapture(live.t, wrench, live.accel, source.stats.summary(), frames, live.stopped_by)

@@ -4,9 +4,10 @@
 :mod:`.params`), a run's state arrays and the output columns, and runs the kernel
 (:mod:`.kernel`) over each push: a block through its loop entry, a single sample through its
 one-sample entry. Between samples it handles what the kernel leaves to Python — notices, the
-zero's windows (:mod:`.zero`), the covariances made at the tare and when a resolution step is
-learned (:mod:`.candidates`), the accelerometers' gain for partial readings
-(:mod:`.inertia`), the second finger's fit and stray (:mod:`.multitouch`) — and resumes.
+zero's windows before the tare and the objects absorbed or lifted after it (:mod:`.zero`),
+the covariances made at the tare and when a resolution step is learned (:mod:`.candidates`),
+the accelerometers' gain for partial readings (:mod:`.inertia`), the second finger's fit and
+stray (:mod:`.multitouch`) — and resumes.
 """
 
 from __future__ import annotations
@@ -153,8 +154,9 @@ class ContactEstimator:
                 slots.J_OBJECT_RUN,
                 slots.J_OBJECTS,
                 slots.J_ZERO_VERSION,
-                slots.J_IDLE_LOG_N,
-                slots.J_IDLE_LOG_POS,
+                slots.J_RESTING_NEXT,
+                slots.J_OBJ_RESTING,
+                slots.J_ZERO_NEXT,
             ),
         ):
             si[slot] = 0
@@ -165,7 +167,8 @@ class ContactEstimator:
 
     def _zero_stage(self) -> ZeroStage:
         sf, si = self.state
-        return ZeroStage(self.stage_settings, self.notices, sf, si, self.params.pi)
+        params = self.params
+        return ZeroStage(self.stage_settings, self.notices, params.pf, params.pi, sf, si)
 
     @property
     def tared(self) -> bool:
@@ -174,7 +177,7 @@ class ContactEstimator:
     @property
     def zero(self) -> np.ndarray | None:
         """The current zero of [F_o; M_o] (6,), or None before the tare."""
-        return self.state.sf[slots.S_ZERO : slots.S_ZERO + 6].copy() if self.tared else None
+        return self.zeroing.state.zero
 
     @property
     def resolution_step(self) -> np.ndarray:
@@ -211,10 +214,6 @@ class ContactEstimator:
             block = self._step(float(t[0]), x, a[0], given)
         else:
             block = self._run(t, x, a, given, n)
-        if self.state.si[slots.J_IDLE_LOG_N]:
-            # the idle windows the kernel judged join zero.py's yardsticks now, a few µs
-            # each, rather than all at the next window Python judges (over 100 µs at once)
-            self.zeroing.read_idle_windows()
         if self.notices.total - noticed > 1:  # in time order, however the stages found them
             new = self.notices.since(noticed)
             self.notices[len(self.notices) - len(new) :] = sorted(new, key=lambda notice: notice.t)
@@ -294,7 +293,7 @@ class ContactEstimator:
 
     def _handle(self, events: int, cols: OutputColumns, col: int, readings: np.ndarray) -> None:
         """The events one sample raised (kernel_slots.EV_*), in the order the stages meet them."""
-        if events == slots.EV_WINDOW:  # (the most frequent: a few a minute)
+        if events == slots.EV_WINDOW:  # (before the tare: five a second)
             self._window()
             return
         sf, si = self.state
@@ -308,6 +307,8 @@ class ContactEstimator:
             self._make_covariances()
         if events & slots.EV_WINDOW:
             self._window()
+        if events & (slots.EV_ABSORBED | slots.EV_LIFTED):
+            self.zeroing.objects_changed(events)
         if events & slots.EV_CONTACT_END:
             assert self.second_finger is not None
             self.second_finger.contact_ended(
@@ -318,7 +319,7 @@ class ContactEstimator:
             self._fit_second(cols, col)
 
     def _window(self) -> None:
-        """A zero window ended that Python judges (zero.py: the tare, an object, its lift);
+        """A zero window before the tare ended (zero.py; the kernel judges those after it);
         at the tare the covariances are made."""
         if self.zeroing.window():
             sf, si = self.state

@@ -24,8 +24,9 @@ The arrays (built once per estimator by :mod:`hapticdesk.estimator.params`):
 What happens rarely leaves the loop as an **event**: ``_sample`` returns the ``EV_*``
 bits it raised, the entry returns them with the sample's index in ``si[J_EVENT_AT]``, and
 Python (:class:`hapticdesk.estimator.contact_estimator.ContactEstimator`) handles them — a
-notice, a zero window's end (the tare and the object rule are judged there, five times a
-second), the covariances made anew, the second finger's fit, the stray it learns at a
+notice, a zero window's end before the tare (the tare is taken there; after it the kernel
+judges every window itself and leaves only an object absorbed or lifted, to be told), the
+covariances made anew, the second finger's fit, the stray it learns at a
 contact's end, the gain of partial accelerometer readings — then calls the entry again from
 where ``si[J_RESUME]`` says: the next sample, the second half of the same one (new
 covariances are used by the sample whose reading brought them), or the same one again
@@ -67,14 +68,15 @@ import numpy as np
 from numba import types
 from numba.core import event
 
-from hapticdesk.estimator.cached_load import cache_loads
+from hapticdesk.cached_load import cache_loads
 from hapticdesk.estimator.kernel_channels import steps_changed
-from hapticdesk.estimator.kernel_compile import compiled, vectorized
+from hapticdesk.estimator.kernel_compile import compiled, unchecked_indices, vectorized
 from hapticdesk.estimator.kernel_geometry import contains, intersect
 from hapticdesk.estimator.kernel_sample import _sample
 from hapticdesk.estimator.kernel_slots import (
     J_EVENT_AT,
 )
+from hapticdesk.estimator.kernel_yardsticks import tare_yardsticks
 
 # --- the two entries ----------------------------------------------------------------------------
 
@@ -174,6 +176,7 @@ def _signatures() -> list[tuple[Any, tuple[Any, ...]]]:
         (run_step, (types.float64, f2, f1, flag, *state, *outputs)),
         (steps_changed, state),
         (contains, (f1, i1, index, types.float64, types.float64)),
+        (tare_yardsticks, (f2, *state)),
     ]
 
 
@@ -200,12 +203,17 @@ def warm() -> None:
     """Compile the entries for the estimator's argument types, or load them from numba's
     cache (beside this file, or the user's cache directory where this folder cannot be
     written: numba's own choice); once per process. A cached load leaves numba's compiler
-    unreadied (:func:`~.cached_load.cache_loads`: 0.3 s of CPU at start-up)."""
+    unreadied (:func:`hapticdesk.cached_load.cache_loads`: 0.3 s of CPU at start-up)."""
     global _warm
     if _warm:
         return
     start = time.perf_counter()
-    with event.install_listener("numba:compile", _FirstCompile()), vectorized(), cache_loads():
+    with (
+        event.install_listener("numba:compile", _FirstCompile()),
+        vectorized(),
+        unchecked_indices(),
+        cache_loads(),
+    ):
         for dispatcher, signature in _signatures():
             dispatcher.compile(signature)
     _warm = True

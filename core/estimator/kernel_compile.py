@@ -5,7 +5,9 @@ Every compiled function of the kernel (:mod:`hapticdesk.estimator.kernel` and th
 once and cached, the GIL released, IEEE division, no reference counting (the kernel
 allocates nothing, and every call between its functions otherwise paid for atomic
 increments of each array argument, 68 ns a call); the entries are compiled with LLVM's SLP
-vectorizer on (:func:`vectorized`, around ``kernel.warm``).
+vectorizer on (:func:`vectorized`) and numba's negative-index wraparound and slice clamping
+off (:func:`unchecked_indices`: every index of the kernel is in range by construction), both
+around ``kernel.warm``.
 
 numba stamps a cached function by the content of its own file only, while the compiled
 code of an entry holds the code of the functions it calls from other files and the
@@ -30,6 +32,8 @@ from typing import Any
 
 import numba
 from numba import config, njit
+from numba.core import cgutils, event, types
+from numba.core.compiler_lock import global_compiler_lock
 from numba.misc.appdirs import AppDirs
 
 log = logging.getLogger("hapticdesk.estimator")
@@ -83,6 +87,73 @@ def vectorized() -> Iterator[None]:
         yield
     finally:
         setattr(config, "SLP_VECTORIZE", before)  # noqa: B010
+
+
+@contextlib.contextmanager
+def unchecked_indices() -> Iterator[None]:
+    """numba's negative-index wraparound and slice clamping off while the kernels compile in
+    this block. Every index and slice of the kernel is in range by construction (the offsets
+    params.py lays out, ring positions wrapped by hand, a -1 sentinel always tested before it
+    could index), so those checks only cost: about a fifth of a sample's time on the paper's
+    desk (measured, docs/performance.md), the same outputs to the bit. A slice's stop is still
+    held to the length (``a[i:]``), without a branch; a negative index or slice bound would
+    now read outside the array, so the kernel has none. numba has no public switch for this:
+    two functions of its array lowering (``arrayobj.fix_integer_index``,
+    ``slicing.fix_slice``) are swapped at the first compile in the block (a cached load
+    imports none of that lowering: 0.1 s less at start-up) until its end, under numba's
+    compiler lock, so no other code compiles meanwhile; a numba without them compiles with
+    its checks."""
+    swapped: list[tuple[Any, Any, Any, Any] | None] = []
+
+    class _Swap(event.Listener):
+        def on_start(self, ev: event.Event) -> None:
+            if not swapped:
+                swapped.append(_swap_index_fixes())
+
+        def on_end(self, ev: event.Event) -> None:
+            pass
+
+    with global_compiler_lock, event.install_listener("numba:compile", _Swap()):
+        try:
+            yield
+        finally:
+            for restore in swapped:
+                if restore is not None:
+                    arrayobj, fix_index, slicing, fix_slice = restore
+                    setattr(arrayobj, "fix_integer_index", fix_index)  # noqa: B010
+                    setattr(slicing, "fix_slice", fix_slice)  # noqa: B010
+
+
+def _swap_index_fixes() -> tuple[Any, Any, Any, Any] | None:
+    """numba's index and slice fixes swapped for ones that assume them in range (see
+    :func:`unchecked_indices`). Returns (arrayobj, its fix, slicing, its fix) to restore;
+    None where this numba has neither to swap."""
+    from numba.cpython import slicing  # (only when compiling: see unchecked_indices)
+    from numba.np import arrayobj
+
+    fix_index = getattr(arrayobj, "fix_integer_index", None)
+    fix_slice = getattr(slicing, "fix_slice", None)
+    if fix_index is None or fix_slice is None:
+        return None
+
+    def in_range_index(context: Any, builder: Any, idxty: Any, idx: Any, size: Any) -> Any:
+        if not idxty.signed:
+            return fix_index(context, builder, idxty, idx, size)
+        return context.cast(builder, idx, idxty, types.intp)
+
+    def in_range_slice(builder: Any, slice_: Any, size: Any) -> None:
+        with builder.if_else(cgutils.is_neg_int(builder, slice_.step)) as (backwards, forwards):
+            with forwards:
+                for bound in ("start", "stop"):
+                    value = getattr(slice_, bound)
+                    over = builder.icmp_signed(">", value, size)
+                    setattr(slice_, bound, builder.select(over, size, value))
+            with backwards:
+                fix_slice(builder, slice_, size)
+
+    setattr(arrayobj, "fix_integer_index", in_range_index)  # noqa: B010
+    setattr(slicing, "fix_slice", in_range_slice)  # noqa: B010
+    return arrayobj, fix_index, slicing, fix_slice
 
 
 def _stamped(options: dict[str, Any]) -> Callable[[Callable[..., Any]], Any]:

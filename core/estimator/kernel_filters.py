@@ -15,6 +15,7 @@ import numpy as np
 
 from hapticdesk.estimator.kernel_compile import inlined
 from hapticdesk.estimator.kernel_slots import (
+    I_METHOD,
     I_N_DIFF,
     I_N_RATE,
     I_N_RELEASE,
@@ -34,10 +35,12 @@ from hapticdesk.estimator.kernel_slots import (
     I_SO_SWAY,
     I_SO_SWAY_DIFF,
     I_SPAN,
+    I_TRACE,
     J_DELAY_POS,
     J_DET_POS,
     J_SWAY_DIFF_POS,
     J_SWAY_POS,
+    METHOD_FORCE,
     P_DIFF_SCALE,
     P_RATE_SCALE,
     P_RELEASE_SCALE,
@@ -181,17 +184,23 @@ def _filters(pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray) -> 
     pos = si[J_DELAY_POS]
     delayed = sf[pi[I_SO_DELAY] + 6 * pos : pi[I_SO_DELAY] + 6 * pos + 6]
     scale = pf[P_DIFF_SCALE]
+    # the differentiated wrench makes P_ed only: a `force` estimator that traces nothing never
+    # reads it, and skips it (its ring and memories are then never read either)
+    diff = pi[I_METHOD] != METHOD_FORCE or pi[I_TRACE] == 1
     if pi[I_SHARED_LP]:
         # a difference commutes with an LTI filter: the difference of the low-passed wrench
         _sections(pf, pi[I_PO_LP_SOS], ns, sf, pi[I_SO_LP_ZI], S_RAW, S_LP)
         if pi[I_SPAN]:
             _sway(pf, pi, sf, si, S_LP, pi[I_SO_SWAY], J_SWAY_POS)
-        _difference(sf, S_LP, delayed, scale)  # paper eq. (8)
+        if diff:
+            _difference(sf, S_LP, delayed, scale)  # paper eq. (8)
     else:
-        _difference(sf, S_RAW, delayed, scale)  # paper eq. (8) ...
-        _sections(pf, pi[I_PO_DIFF_SOS], ns, sf, pi[I_SO_DIFF_ZI], S_DIFF, S_DIFF)  # ... low-passed
+        if diff:
+            _difference(sf, S_RAW, delayed, scale)  # paper eq. (8), low-passed
+            _sections(pf, pi[I_PO_DIFF_SOS], ns, sf, pi[I_SO_DIFF_ZI], S_DIFF, S_DIFF)
         _sections(pf, pi[I_PO_LP_SOS], ns, sf, pi[I_SO_LP_ZI], S_RAW, S_LP)
         if pi[I_SPAN]:
             _sway(pf, pi, sf, si, S_LP, pi[I_SO_SWAY], J_SWAY_POS)
-            _sway(pf, pi, sf, si, S_DIFF, pi[I_SO_SWAY_DIFF], J_SWAY_DIFF_POS)
+            if diff:
+                _sway(pf, pi, sf, si, S_DIFF, pi[I_SO_SWAY_DIFF], J_SWAY_DIFF_POS)
     si[J_DELAY_POS] = pos + 1 if pos + 1 < n_diff else 0

@@ -72,6 +72,11 @@ from hapticdesk.estimator.kernel_slots import (
     OUT_SIGMA,
     OUT_T,
     OUT_X,
+    OUT_X2,
+    OUT_Y,
+    OUT_Y2,
+    OUT_Z,
+    OUT_Z2,
     P_PHASE_RATE,
     P_SHEAR_CAP,
     P_UNCERTAINTY_CAP,
@@ -165,45 +170,67 @@ def _back(
     """The second half of a sample: contact and position from the filtered wrenches less the
     zero (stages 4–6), the outputs, the second finger (stage 7). Returns its events."""
     flags = si[J_FLAGS]
+    # every output row of the sample written once (a row written twice, zeroed then set,
+    # cost ~6 ns a sample): the point's rows by _emit where a point is chosen, the defaults
+    # below where none is
     out_f[OUT_T, col] = t
-    for row in range(OUT_X, N_OUT_F):
-        out_f[row, col] = 0.0
-    out_f[OUT_SIGMA, col] = pf[P_UNCERTAINTY_CAP]
-    out_b[OUT_B_LOCATED, col] = out_b[OUT_B_LOCATED2, col] = 0
-    out_b[OUT_B_SOURCE, col] = out_b[OUT_B_PHASE, col] = out_b[OUT_B_TRACED, col] = 0
-    out_s[col] = -1
-    inside = False
+    out_b[OUT_B_LOCATED, col] = 0
+    inside = located = False
+    phase = traced = 0
+    mag = shear = drag_x = drag_y = 0.0
     if si[J_TARED]:
-        det_full = pi[I_DET_FULL] == 1
-        for r in range(6):
-            sf[S_TARED_W + r] = sf[S_LP + r] - sf[S_ZERO + r]
-            sf[S_TARED_Q + r] = sf[S_DET + r] - sf[S_ZERO + r] if det_full or r < 3 else 0.0
+        _tare(pi, sf)
         fx, fy, fz = sf[S_TARED_Q], sf[S_TARED_Q + 1], sf[S_TARED_Q + 2]
         mag = math.sqrt(fx * fx + fy * fy + fz * fz)
         inside, slope = detect(pf, pi, sf, si, fx, fy, fz, mag)
-        out_f[OUT_FORCE, col] = mag
         if inside and flags & BAD_SAMPLE == 0:
             # the phase from the fast path's slope, which does not wait for the 166 ms window
             rate = pf[P_PHASE_RATE]
-            out_b[OUT_B_PHASE, col] = (
-                PHASE_TOUCH if slope > rate else PHASE_RELEASE if slope < -rate else PHASE_HOLD
-            )
+            phase = PHASE_TOUCH if slope > rate else PHASE_RELEASE if slope < -rate else PHASE_HOLD
             _locate(t, mag, pf, pi, sf, out_f, out_b, out_s, col)
             if pi[I_TRACE]:
-                out_b[OUT_B_TRACED, col] = 1
-                at = pi[I_SO_TRACE]
-                for row in range(TRACE_ROWS):
-                    out_f[N_OUT_F + row, col] = sf[at + row]
-            if out_b[OUT_B_LOCATED, col]:
-                _shear_and_drag(pf, pi, fx, fy, fz, mag, out_f, out_s, col)
+                traced = 1
+                _trace_rows(pi, sf, out_f, col)
+            located = out_b[OUT_B_LOCATED, col] == 1
+            if located:
+                shear, drag_x, drag_y = _shear_and_drag(pf, pi, fx, fy, fz, mag, out_s[col])
     else:
         flags |= FLAG_NOT_TARED
+    if not located:
+        out_f[OUT_X, col] = out_f[OUT_Y, col] = out_f[OUT_Z, col] = 0.0
+        out_f[OUT_SIGMA, col] = pf[P_UNCERTAINTY_CAP]
+        out_b[OUT_B_SOURCE, col] = 0
+        out_s[col] = -1
+    out_f[OUT_FORCE, col] = mag
+    out_f[OUT_SHEAR, col], out_f[OUT_DRAG_X, col], out_f[OUT_DRAG_Y, col] = shear, drag_x, drag_y
+    out_f[OUT_X2, col] = out_f[OUT_Y2, col] = out_f[OUT_Z2, col] = 0.0  # (_second_finger's)
+    out_b[OUT_B_LOCATED2, col] = 0
+    out_b[OUT_B_PHASE, col] = phase
+    out_b[OUT_B_TRACED, col] = traced
     out_b[OUT_B_IN_CONTACT, col] = 1 if inside else 0
     out_b[OUT_B_RESTING, col] = 1 if inside and si[J_RESTING] else 0
     out_b[OUT_B_FLAGS, col] = flags  # (int8 holds the uint8 bits: read as uint8)
     if si[J_MT_ON] and si[J_STARTED]:
         return _second_finger(pf, pi, sf, si, flags, out_f, out_b, out_s, col)
     return 0
+
+
+@inlined
+def _tare(pi: np.ndarray, sf: np.ndarray) -> None:
+    """The low-passed and the fast wrench of the sample in flight less the zero, into
+    S_TARED_W and S_TARED_Q (the fast one's moments only where I_DET_FULL: 0 otherwise)."""
+    det_full = pi[I_DET_FULL] == 1
+    for r in range(6):
+        sf[S_TARED_W + r] = sf[S_LP + r] - sf[S_ZERO + r]
+        sf[S_TARED_Q + r] = sf[S_DET + r] - sf[S_ZERO + r] if det_full or r < 3 else 0.0
+
+
+@inlined
+def _trace_rows(pi: np.ndarray, sf: np.ndarray, out_f: np.ndarray, col: int) -> None:
+    """The traced candidates of the sample in flight into its trace rows."""
+    at = pi[I_SO_TRACE]
+    for row in range(TRACE_ROWS):
+        out_f[N_OUT_F + row, col] = sf[at + row]
 
 
 @inlined
@@ -214,22 +241,20 @@ def _shear_and_drag(
     fy: float,
     fz: float,
     mag: float,
-    out_f: np.ndarray,
-    out_s: np.ndarray,
-    col: int,
-) -> None:
+    s: int,
+) -> tuple[float, float, float]:
     """The outputs of a located sample's tared fast force (``mag`` its magnitude) on its
-    surface out_s[col]: the shear, and the finger's drag along a horizontal board."""
+    surface ``s``: (the shear, the finger's drag along a horizontal board in x and y; 0
+    elsewhere)."""
     # the shear from the fast force and the surface's normal; the finger's drag
     # along a horizontal board (F is the desk's reaction: the force along it)
-    s = out_s[col]
     at, n = surface_at(pi, s), SURF_NORMAL
     surf = pf[at : at + SURF_F]
     into = fx * surf[n] + fy * surf[n + 1] + fz * surf[n + 2]
-    out_f[OUT_SHEAR, col] = shear_of(into, mag, pf[P_SHEAR_CAP])
+    shear = shear_of(into, mag, pf[P_SHEAR_CAP])
     if pi[pi[I_IO_SURF] + s * SURF_I + SURF_DESK_XY]:
-        out_f[OUT_DRAG_X, col] = into * surf[n] - fx
-        out_f[OUT_DRAG_Y, col] = into * surf[n + 1] - fy
+        return shear, into * surf[n] - fx, into * surf[n + 1] - fy
+    return shear, 0.0, 0.0
 
 
 @inlined

@@ -29,6 +29,8 @@ EV_CONTACT_END = 64  # a contact ended that the second-finger stage learns from
 EV_FIT = 128  # the second finger's landing window is full: fit its place
 EV_COVS = 256  # a resolution step is new or shrank: make the covariances anew (mid-sample)
 EV_PARTIAL_ACCEL = 512  # some readings of several accelerometers are not usable (pre-sample)
+EV_ABSORBED = 1024  # a still load joined the zero (S_OBJ_*, J_OBJ_HELD): tell it
+EV_LIFTED = 2048  # the last absorbed object was lifted, its zero restored: tell it
 # where an entry resumes after an event (si[J_RESUME])
 RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
 
@@ -63,8 +65,19 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     P_MT_MAX_FIRST_MOVE,
     P_STILL_N,  # a window whose low-passed force spreads this much is not still
     P_DRIFT_MAX,  # a still load lighter than this is the idle desk's drift
+    # the object rule's constants (still_objects.py) and the yardsticks' quantile
+    P_OBJECT_STILL_FACTOR,
+    P_OBJECT_WANDER_FACTOR,
+    P_HEAVY_WANDER_SHARE,
+    P_HEAVY_SPREAD_SHARE,
+    P_OBJECT_SPIKE,
+    P_OBJECT_RESTING_KEEP,
+    P_LIGHT_LOAD,
+    P_OBJECT_NOISE_FLOOR,
+    P_LIFT_TOLERANCE,
+    P_IDLE_QUANTILE,
     N_PF_FIXED,
-) = range(30)
+) = range(40)
 # --- parameters: fixed int slots (pi) -----------------------------------------------------------
 (
     I_C,  # raw channels
@@ -93,7 +106,10 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     I_MT_BOARD,  # the second finger's surface (the first), or -1: none
     I_N_DRIFT,  # windows an idle desk rests before its drift is followed; 0: never
     I_STILL_RING,  # still windows' means kept (the last of a still run)
-    I_IDLE_LOG,  # idle windows the kernel judged, kept for Python's yardsticks
+    I_N_SETTLE,  # windows a still load is held before it joins the zero
+    I_N_OBJECT,  # windows a load as still as the idle desk waits to be an object; 0: no rule
+    I_WANDER_WINDOWS,  # the idle windows in a row a yardstick wander is taken over
+    I_IDLE_WINDOWS,  # the idle windows whose spreads and wanders make the yardsticks
     I_ZEROED,  # the readings come zeroed: the zero is 0 from the first good sample, no windows
     I_REST_N,  # rest readings whose changes measure each channel's noise (resolution.py)
     # offsets into pf
@@ -124,8 +140,8 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     I_SO_DET_RING,  # (N_RATE, 3)
     I_SO_SWAY,  # (2·SPAN, 2) each
     I_SO_SWAY_DIFF,
-    I_SO_WIN_LP,  # (3, WINDOW)
-    I_SO_WIN_RAW,  # (6, WINDOW)
+    I_SO_WIN_LP,  # (WINDOW, 3): a sample's lanes side by side
+    I_SO_WIN_RAW,  # (WINDOW, 6)
     I_SO_GUARD,  # (N_UP,)
     I_SO_COVS,  # (N_SURF, 4, 6)
     I_SO_STEP,  # (C,) each
@@ -137,7 +153,11 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     I_SO_PARTIAL_GAIN,  # (6, A)
     I_SO_TRACE,  # (TRACE_ROWS,) the traced candidates of the sample in flight
     I_SO_STILL_MEANS,  # (I_STILL_RING, 6): a ring of the still run's window means
-    I_SO_IDLE_LOG,  # (I_IDLE_LOG, 5): a ring of idle windows: spread, force mean (3), index
+    I_SO_IDLE_SPREADS,  # (I_IDLE_WINDOWS,) a ring of the idle windows' spreads
+    I_SO_IDLE_WANDERS,  # (I_IDLE_WINDOWS,) ... and of their wanders
+    I_SO_IDLE_TAIL,  # (I_WANDER_WINDOWS, 4) a ring of the last idle windows: index, force (3)
+    I_SO_OBJ_WINDOWS,  # (I_N_OBJECT + 1, 4) a ring of the object run's: spread, force (3)
+    I_SO_SCRATCH,  # (I_IDLE_WINDOWS + I_N_OBJECT + 1,) room to sort in
     I_SO_ROUND,  # (C,) the zero's rounding offset by channel, (C,) its noise, (C, 6) the spread
     I_SO_REST_SQ,  # (C,): the squared changes of each channel's rest readings, summed
     # offsets into si
@@ -146,7 +166,7 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     I_JO_WIN_BAD,  # (WINDOW,)
     I_JO_MT_HIST,  # (2·LAG + 1, MT_I)
     N_PI,
-) = range(75)
+) = range(82)
 # a surface in pf: the rows of F'z, M'x, M'y of its wrench transform, origin, axes, normal,
 # bounds of its outline; in pi: whether the outline is a rectangle, whether (u, v) are the
 # desk's (x, y), where its polygon's vertices are in pf and how many
@@ -182,7 +202,14 @@ S_TARED_W = 66  # (6,) the tared low-passed wrench
 S_TARED_Q = 72  # (6,) the tared fast wrench
 S_STILL_LO = 78  # (3,) the still run's lowest window mean of the force less the zero
 S_STILL_HI = 81  # (3,) ... and highest
-N_SF_FIXED = 84
+S_QUIET_SPREAD = 84  # the idle desk's yardsticks (yardsticks.py): its windows' spread
+S_QUIET_WANDER = 85  # ... and how far their means stray
+S_OBJ_ZERO = 86  # (6,) the last absorbed object's zero from before it (EV_ABSORBED, EV_LIFTED)
+S_OBJ_WEIGHT = 92  # ... its |F|
+S_OBJ_F = 93  # (3,) ... its force (EV_ABSORBED: put on or taken off)
+S_ZERO_NEXT = 96  # (6,) a zero decided at a window's end for the next sample on (J_ZERO_NEXT)
+S_ZERO_T_NEXT = 102  # ... and its time
+N_SF_FIXED = 103
 # --- state: fixed int slots (si) ----------------------------------------------------------------
 (
     J_STARTED,  # a good sample has been seen: the filters run
@@ -211,8 +238,6 @@ N_SF_FIXED = 84
     J_OBJECT_RUN,  # windows a load has been as still as an object (zero.py)
     J_OBJECTS,  # objects absorbed into the zero (zero.py keeps what they were)
     J_ZERO_VERSION,  # how many times the zero was set
-    J_IDLE_LOG_N,  # idle windows logged since Python read them (at most I_IDLE_LOG)
-    J_IDLE_LOG_POS,
     J_IN_CONTACT,
     J_BLOCKED,
     J_N_LEARNING,
@@ -233,9 +258,21 @@ N_SF_FIXED = 84
     J_MT_ROWS,
     J_MT_HAS_SECOND,
     J_MT_END_FLAGGED,
+    J_RESTING_NEXT,  # the window just ended found the load resting: J_RESTING from the next
+    J_IDLE_SPREADS_N,  # the idle spreads in their ring, and where the next goes
+    J_IDLE_SPREADS_POS,
+    J_IDLE_WANDERS_N,
+    J_IDLE_WANDERS_POS,
+    J_IDLE_TAIL_N,
+    J_IDLE_TAIL_POS,
+    J_OBJ_WINDOWS_N,  # the object run's windows that count (its last, at most I_N_OBJECT + 1)
+    J_OBJ_WINDOWS_POS,
+    J_OBJ_RESTING,  # the load rests: its windows so far as still as an object's
+    J_OBJ_HELD,  # EV_ABSORBED: the windows whose means made the zero (0: held settle_s)
+    J_ZERO_NEXT,  # S_ZERO_NEXT is the zero from the next sample on
     J_REST_N,  # rest readings compared so far (up to I_REST_N)
     N_SI_FIXED,
-) = range(50)
+) = range(60)
 # the second-finger stage's history of each sample: smoothed wrench and contact (floats), and
 # its located, surface and in-contact (ints)
 MT_W, MT_X, MT_Y, MT_Z, MT_FORCE, MT_F = 0, 6, 7, 8, 9, 10

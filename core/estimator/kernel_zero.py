@@ -1,14 +1,18 @@
-"""The zero's windows, compiled: each sample into the window, the window measured at its end.
+"""The zero's windows, compiled: each sample into the window, the window judged at its end.
 
 The kernel's side of :mod:`hapticdesk.estimator.zero`: :func:`window_add` fills the window
 with the sample in flight (its low-passed force, its wrench, whether it is bad) and, at the
-window's end, measures it (the spread of the low-passed force, the mean wrench) and raises
-``EV_WINDOW`` for Python (the tare, the object rule); a tared desk's window that is not
-still only ends the still run, and the idle desk's still windows are judged here
-(:func:`_idle_window`: the still run, the idle log, the drift followed). Its sums are
-numpy's (:func:`pairwise_sum`) and math.fsum's (:func:`exact_mean`) to the bit, so the
-kernel's zero equals zero.py's. Readings that come zeroed (a force plate's) have no window:
-:func:`zero_from_start` sets their zero to 0 at the first good sample.
+window's end, measures it (the spread of the low-passed force, the mean wrench). Before the
+tare it raises ``EV_WINDOW`` for Python (:mod:`.tare`); once tared, a window that is not
+still only ends the still run and the resting, and a still one is judged here whole
+(:func:`still_window`: the still run, the idle desk's yardsticks (:mod:`.kernel_yardsticks`),
+the drift followed, the object rule and an object's lift (:mod:`.kernel_objects`)), so no
+window's end leaves the compiled loop after the tare: in Python that judgment cost 60–120 µs
+of CPU (its code and data cold five times a second), over issue 29's 100 µs a push. Only a
+zero changed for an object (``EV_ABSORBED``, ``EV_LIFTED``) goes to Python, to be told. Its
+sums are numpy's and math.fsum's (:mod:`.kernel_sums`), so the kernel's zero equals the one
+Python took before. Readings that come zeroed (a force plate's)
+have no window: :func:`zero_from_start` sets their zero to 0 at the first good sample.
 """
 
 from __future__ import annotations
@@ -19,13 +23,15 @@ import numpy as np
 
 from hapticdesk.estimator.contacts import BAD_SAMPLE, FLAG_GAP
 from hapticdesk.estimator.kernel_channels import steps_changed
-from hapticdesk.estimator.kernel_compile import compiled, inlined
+from hapticdesk.estimator.kernel_compile import inlined
+from hapticdesk.estimator.kernel_objects import lifted, object_still
 from hapticdesk.estimator.kernel_slots import (
+    EV_ABSORBED,
+    EV_LIFTED,
     EV_WINDOW,
-    I_IDLE_LOG,
     I_JO_WIN_BAD,
     I_N_DRIFT,
-    I_SO_IDLE_LOG,
+    I_N_SETTLE,
     I_SO_STILL_MEANS,
     I_SO_WIN_LP,
     I_SO_WIN_RAW,
@@ -33,10 +39,13 @@ from hapticdesk.estimator.kernel_slots import (
     I_STILL_RING,
     I_WINDOW,
     J_DIRTY,
-    J_IDLE_LOG_N,
-    J_IDLE_LOG_POS,
+    J_OBJ_HELD,
+    J_OBJ_RESTING,
+    J_OBJ_WINDOWS_N,
     J_OBJECT_RUN,
     J_OBJECTS,
+    J_RESTING,
+    J_RESTING_NEXT,
     J_RESTING_OFF,
     J_STILL_COUNT,
     J_STILL_POS,
@@ -46,10 +55,14 @@ from hapticdesk.estimator.kernel_slots import (
     J_WIN_FILL,
     J_WINDOW_INDEX,
     J_WINDOWS_SEEN,
+    J_ZERO_NEXT,
     J_ZERO_VERSION,
     P_DRIFT_MAX,
     P_STILL_N,
     S_LP,
+    S_OBJ_F,
+    S_OBJ_WEIGHT,
+    S_OBJ_ZERO,
     S_RAW,
     S_STILL_HI,
     S_STILL_LO,
@@ -57,8 +70,12 @@ from hapticdesk.estimator.kernel_slots import (
     S_WIN_SPREAD,
     S_WIN_T_END,
     S_ZERO,
+    S_ZERO_NEXT,
     S_ZERO_T,
+    S_ZERO_T_NEXT,
 )
+from hapticdesk.estimator.kernel_sums import exact_mean, pairwise_sum
+from hapticdesk.estimator.kernel_yardsticks import idle_window_joins, yardsticks_update
 
 
 @inlined
@@ -72,24 +89,28 @@ def window_add(
     si: np.ndarray,
 ) -> int:
     """The sample in flight into the zero's window (its low-passed force, its wrench, whether
-    it is bad); at the window's end its spread, mean and last time go to S_WIN_* and
-    EV_WINDOW is returned, unless the desk is tared and the window is not still. Before the
-    first good sample there is no wrench (the filters have not started: zeros); that sample
-    stands in for those before it in its window, as if the input had started with it."""
+    it is bad); at the window's end its spread, mean and last time go to S_WIN_*: before the
+    tare EV_WINDOW is returned, after it a still window is judged (:func:`still_window`:
+    its events returned). Before the first good sample there is no wrench (the filters have
+    not started: zeros); that sample stands in for those before it in its window, as if the
+    input had started with it."""
+    _decided_before(sf, si)
     w = pi[I_WINDOW]
     win_lp = sf[pi[I_SO_WIN_LP] : pi[I_SO_WIN_LP] + 3 * w]
     win_raw = sf[pi[I_SO_WIN_RAW] : pi[I_SO_WIN_RAW] + 6 * w]
     win_bad = si[pi[I_JO_WIN_BAD] : pi[I_JO_WIN_BAD] + w]
     m = si[J_WIN_FILL]
+    # (a sample's lanes side by side, [3j + lane] and [6j + lane]: each sample writes two
+    # short runs, where lanes one after the other ([lane·w + j]) wrote nine cache lines)
     for j in range(m if first_good else 0):
         for lane in range(3):
-            win_lp[lane * w + j] = sf[S_LP + lane]
+            win_lp[3 * j + lane] = sf[S_LP + lane]
         for lane in range(6):
-            win_raw[lane * w + j] = sf[S_RAW + lane]
+            win_raw[6 * j + lane] = sf[S_RAW + lane]
     for lane in range(3):
-        win_lp[lane * w + m] = sf[S_LP + lane]
+        win_lp[3 * m + lane] = sf[S_LP + lane]
     for lane in range(6):
-        win_raw[lane * w + m] = sf[S_RAW + lane]
+        win_raw[6 * m + lane] = sf[S_RAW + lane]
     win_bad[m] = 1 if flags & (BAD_SAMPLE | FLAG_GAP) else 0
     m += 1
     if m < w:
@@ -104,17 +125,31 @@ def window_add(
     si[J_WINDOW_INDEX] += 1
     if si[J_TARED] and (bads / w > 0.1 or spread >= pf[P_STILL_N]):
         # once tared, a window that is not still (or mostly held over) only ends a still run
-        # and the resting, from the next sample on (zero.py)
+        # and the resting, from the next sample on
         si[J_STILL_RUN] = si[J_OBJECT_RUN] = 0
         si[J_RESTING_OFF] = 1
         return 0
     sf[S_WIN_SPREAD] = spread
     for lane in range(6):
-        sf[S_WIN_MEAN + lane] = pairwise_sum(sf, pi[I_SO_WIN_RAW] + lane * w, w, 1) / w
+        sf[S_WIN_MEAN + lane] = pairwise_sum(sf, pi[I_SO_WIN_RAW] + lane, w, 6) / w
     sf[S_WIN_T_END] = t
-    if si[J_TARED] and _idle_window(spread, t, pf, pi, sf, si):
-        return 0
-    return EV_WINDOW
+    if si[J_TARED]:
+        return still_window(spread, t, pf, pi, sf, si)
+    return EV_WINDOW  # (before the tare: Python's, tare.py)
+
+
+@inlined
+def _decided_before(sf: np.ndarray, si: np.ndarray) -> None:
+    """What the last window's end decided for the samples after it, from this one on: the
+    load resting (J_RESTING_NEXT), a new zero (J_ZERO_NEXT)."""
+    if si[J_RESTING_NEXT]:
+        si[J_RESTING] = 1
+        si[J_RESTING_NEXT] = 0
+    if si[J_ZERO_NEXT]:
+        for lane in range(6):
+            sf[S_ZERO + lane] = sf[S_ZERO_NEXT + lane]
+        sf[S_ZERO_T] = sf[S_ZERO_T_NEXT]
+        si[J_ZERO_NEXT] = 0
 
 
 @inlined
@@ -129,9 +164,9 @@ def _window_spread(pi: np.ndarray, sf: np.ndarray, w: int) -> float:
         lo, hi = math.inf, -math.inf
         for j in range(0, w, block):
             value = (
-                sf[lp_at + lane * w + j]
+                sf[lp_at + 3 * j + lane]
                 if block == 1
-                else pairwise_sum(sf, lp_at + lane * w + j, block, 1) / block
+                else pairwise_sum(sf, lp_at + 3 * j + lane, block, 3) / block
             )
             lo, hi = min(lo, value), max(hi, value)
         spread = max(spread, hi - lo)
@@ -139,30 +174,72 @@ def _window_spread(pi: np.ndarray, sf: np.ndarray, w: int) -> float:
 
 
 @inlined
-def _idle_window(
+def still_window(
     spread: float, t_end: float, pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray
-) -> bool:
-    """A still window of a tared desk with nothing absorbed, whose load is lighter than
-    P_DRIFT_MAX: the idle desk, judged here as ZeroStage._still_window does (the still run
-    goes on or starts again where the load moved, the window joins the idle desk's yardsticks
-    — logged for zero.py —, and after I_N_DRIFT such windows the zero follows the drift: the
-    mean of their means). Returns False, changing nothing, for any other window (Python's)."""
-    if si[J_OBJECTS] or pi[I_N_DRIFT] == 0:
-        return False
+) -> int:
+    """A still window of the tared desk (S_WIN_*), judged: back at the zero from before the
+    last absorbed object (lifted: that zero restored, EV_LIFTED); else the still run goes on
+    or starts again where the load moved; the idle desk's window (a load under P_DRIFT_MAX)
+    joins the yardsticks and, after I_N_DRIFT such windows, the zero follows the drift (the
+    mean of their means); any other load meets the object rule, and joins the zero when it
+    is an object or held for I_N_SETTLE windows (EV_ABSORBED). Returns the events for Python
+    (0: none, the common case). The load rests, as an object put down would, until the
+    verdict (J_RESTING from the next sample on).
+
+    A zero decided here applies from the next sample on (S_ZERO_NEXT), as it did when
+    Python judged these windows after the sample; only the idle desk's drift followed with
+    no object absorbed applies to this window's last sample already, as the kernel always
+    did (the outputs stay the golden file's to the bit)."""
+    si[J_WINDOWS_SEEN] += 1
+    if si[J_OBJECTS] and lifted(pf, sf):
+        for lane in range(6):
+            sf[S_ZERO_NEXT + lane] = sf[S_OBJ_ZERO + lane]
+        _zero_set(t_end, S_ZERO_NEXT, sf, si)
+        si[J_OBJECTS] -= 1
+        si[J_STILL_RUN] = si[J_OBJECT_RUN] = 0
+        si[J_RESTING_OFF] = 1
+        return EV_LIFTED
     f0 = sf[S_WIN_MEAN] - sf[S_ZERO]
     f1 = sf[S_WIN_MEAN + 1] - sf[S_ZERO + 1]
     f2 = sf[S_WIN_MEAN + 2] - sf[S_ZERO + 2]
-    if not math.sqrt(f0 * f0 + f1 * f1 + f2 * f2) < pf[P_DRIFT_MAX]:
-        return False
-    si[J_WINDOWS_SEEN] += 1
+    _still_run_on(f0, f1, f2, pf, pi, sf, si)
+    load = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
+    if load < pf[P_DRIFT_MAX]:  # the idle desk: a window of its own unsteadiness
+        mean = S_WIN_MEAN
+        idle_window_joins(
+            spread, sf[mean], sf[mean + 1], sf[mean + 2], si[J_WINDOW_INDEX], pi, sf, si
+        )
+        yardsticks_update(pf, pi, sf, si)
+        if pi[I_N_DRIFT]:
+            si[J_OBJECT_RUN] = 0
+            _follow_drift(t_end, pi, sf, si)
+            si[J_RESTING_OFF] = 1  # (no object run: the load is not resting)
+            return 0
+    run, is_object = object_still(si[J_OBJECT_RUN], spread, f0, f1, f2, load, pf, pi, sf, si)
+    si[J_OBJECT_RUN] = run
+    if not is_object and si[J_STILL_RUN] % pi[I_N_SETTLE]:
+        if run > 0 and si[J_OBJ_RESTING]:
+            si[J_RESTING_NEXT] = 1
+        else:
+            si[J_RESTING_OFF] = 1
+        return 0
+    _absorb(is_object, f0, f1, f2, load, t_end, pi, sf, si)
+    return EV_ABSORBED
+
+
+@inlined
+def _still_run_on(
+    f0: float, f1: float, f2: float, pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray
+) -> None:
+    """The still run goes on with this window (its force less the zero f0, f1, f2; its mean
+    wrench into the ring of I_SO_STILL_MEANS), or starts again here if the load moved by
+    P_STILL_N."""
     lo, hi = sf[S_STILL_LO : S_STILL_LO + 3], sf[S_STILL_HI : S_STILL_HI + 3]
-    moved = False
     if si[J_STILL_RUN]:
         width = 0.0
         for lane, f in enumerate((f0, f1, f2)):
             width = max(width, max(hi[lane], f) - min(lo[lane], f))
-        moved = width >= pf[P_STILL_N]
-        if moved:
+        if width >= pf[P_STILL_N]:
             si[J_STILL_RUN] = 0  # the load moved: a new still run starts here
     if si[J_STILL_RUN] == 0:
         lo[0] = hi[0] = f0
@@ -179,86 +256,81 @@ def _idle_window(
     si[J_STILL_POS] = si[J_STILL_POS] + 1 if si[J_STILL_POS] + 1 < ring else 0
     si[J_STILL_COUNT] = min(si[J_STILL_COUNT] + 1, ring)
     si[J_STILL_RUN] += 1
-    log = pi[I_SO_IDLE_LOG] + 5 * si[J_IDLE_LOG_POS]
-    sf[log] = spread
-    sf[log + 1], sf[log + 2], sf[log + 3] = sf[S_WIN_MEAN], sf[S_WIN_MEAN + 1], sf[S_WIN_MEAN + 2]
-    sf[log + 4] = si[J_WINDOW_INDEX]
-    si[J_IDLE_LOG_POS] = si[J_IDLE_LOG_POS] + 1 if si[J_IDLE_LOG_POS] + 1 < pi[I_IDLE_LOG] else 0
-    si[J_IDLE_LOG_N] = min(si[J_IDLE_LOG_N] + 1, pi[I_IDLE_LOG])
-    si[J_OBJECT_RUN] = 0
-    n = pi[I_N_DRIFT]
-    if si[J_STILL_RUN] >= n:  # the drift followed: the mean of the last n windows' means
-        for lane in range(6):
-            first = si[J_STILL_POS] - n
-            if first < 0:
-                first += ring
-            sf[S_ZERO + lane] = exact_mean(sf, pi[I_SO_STILL_MEANS] + lane, first, n, ring)
-        sf[S_ZERO_T] = t_end
-        si[J_ZERO_VERSION] += 1
-        si[J_STILL_RUN] = 0
-    si[J_RESTING_OFF] = 1  # (no object run: the load is not resting)
-    return True
 
 
 @inlined
-def exact_mean(sf: np.ndarray, base: int, first: int, n: int, ring: int) -> float:
-    """The mean of n values sf[base + 6·((first + j) mod ring)], summed with Neumaier's
-    compensation: for the default two windows the correctly rounded sum, as zero.py's
-    math.fsum; for more, the same to rounding."""
-    total = 0.0
-    small = 0.0
-    for j in range(n):
-        at = first + j
-        if at >= ring:
-            at -= ring
-        x = sf[base + 6 * at]
-        t = total + x
-        if abs(total) >= abs(x):
-            small += (total - t) + x
-        else:
-            small += (x - t) + total
-        total = t
-    return (total + small) / n
+def _follow_drift(t_end: float, pi: np.ndarray, sf: np.ndarray, si: np.ndarray) -> None:
+    """An idle, still desk: what is left is sensor drift; after I_N_DRIFT windows the zero
+    follows it (the mean of their means: often, so a drifting zero never builds up between
+    touches)."""
+    n = pi[I_N_DRIFT]
+    if si[J_STILL_RUN] >= n:
+        target = S_ZERO_NEXT if si[J_OBJECTS] else S_ZERO  # (still_window says why)
+        _zero_of_still_means(n, target, pi, sf, si)
+        _zero_set(t_end, target, sf, si)
+        si[J_STILL_RUN] = 0
 
 
-@compiled
-def pairwise_sum(a: np.ndarray, start: int, n: int, stride: int) -> float:
-    """Σ a[start + j·stride] for j < n, summed as numpy sums a contiguous axis (pairwise, 8
-    lanes), so a window's mean is numpy's to the last bit."""
-    if n < 8:
-        res = 0.0
-        for j in range(n):
-            res += a[start + j * stride]
-        return res
-    if n <= 128:
-        r0 = a[start]
-        r1 = a[start + stride]
-        r2 = a[start + 2 * stride]
-        r3 = a[start + 3 * stride]
-        r4 = a[start + 4 * stride]
-        r5 = a[start + 5 * stride]
-        r6 = a[start + 6 * stride]
-        r7 = a[start + 7 * stride]
-        j = 8
-        while j < n - (n % 8):
-            b = start + j * stride
-            r0 += a[b]
-            r1 += a[b + stride]
-            r2 += a[b + 2 * stride]
-            r3 += a[b + 3 * stride]
-            r4 += a[b + 4 * stride]
-            r5 += a[b + 5 * stride]
-            r6 += a[b + 6 * stride]
-            r7 += a[b + 7 * stride]
-            j += 8
-        res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
-        while j < n:
-            res += a[start + j * stride]
-            j += 1
-        return res
-    n2 = n // 2
-    n2 -= n2 % 8
-    return pairwise_sum(a, start, n2, stride) + pairwise_sum(a, start + n2 * stride, n - n2, stride)
+@inlined
+def _absorb(
+    is_object: bool,
+    f0: float,
+    f1: float,
+    f2: float,
+    load: float,
+    t_end: float,
+    pi: np.ndarray,
+    sf: np.ndarray,
+    si: np.ndarray,
+) -> None:
+    """A still load joins the zero: an object (the zero the mean over the windows that
+    showed it one, not the last one alone: a desk swaying at 4–5 Hz moves a 0.2 s window's
+    mean moment enough to put a press 2–3 mm off; their means are within the allowed
+    wander), or a load held for I_N_SETTLE windows (the zero its window's mean). What it
+    was added to, its weight and force go to S_OBJ_* (the last object's, for its lift and
+    for Python's notice; J_OBJ_HELD the windows averaged, 0 for a held load)."""
+    for lane in range(6):
+        sf[S_OBJ_ZERO + lane] = sf[S_ZERO + lane]
+    sf[S_OBJ_WEIGHT] = load
+    sf[S_OBJ_F], sf[S_OBJ_F + 1], sf[S_OBJ_F + 2] = f0, f1, f2
+    if is_object:
+        held = min(si[J_OBJ_WINDOWS_N], si[J_STILL_COUNT])
+        _zero_of_still_means(held, S_ZERO_NEXT, pi, sf, si)
+        si[J_OBJ_HELD] = held
+    else:
+        for lane in range(6):
+            sf[S_ZERO_NEXT + lane] = sf[S_WIN_MEAN + lane]
+        si[J_OBJ_HELD] = 0
+    _zero_set(t_end, S_ZERO_NEXT, sf, si)
+    si[J_OBJECTS] += 1
+    si[J_STILL_RUN] = si[J_OBJECT_RUN] = 0
+    si[J_RESTING_OFF] = 1
+
+
+@inlined
+def _zero_of_still_means(
+    n: int, target: int, pi: np.ndarray, sf: np.ndarray, si: np.ndarray
+) -> None:
+    """A zero (into sf[target:], S_ZERO or S_ZERO_NEXT): the mean of the still run's last
+    ``n`` window means (its ring)."""
+    ring = pi[I_STILL_RING]
+    first = si[J_STILL_POS] - n
+    if first < 0:
+        first += ring
+    for lane in range(6):
+        sf[target + lane] = exact_mean(sf, pi[I_SO_STILL_MEANS] + lane, first, n, ring)
+
+
+@inlined
+def _zero_set(t: float, target: int, sf: np.ndarray, si: np.ndarray) -> None:
+    """The zero just put in sf[target:] was set at time ``t``: at once (S_ZERO), or from the
+    next sample on (S_ZERO_NEXT)."""
+    if target == S_ZERO:
+        sf[S_ZERO_T] = t
+    else:
+        sf[S_ZERO_T_NEXT] = t
+        si[J_ZERO_NEXT] = 1
+    si[J_ZERO_VERSION] += 1
 
 
 @inlined

@@ -37,7 +37,18 @@ from hapticdesk.estimator.multitouch import (
 from hapticdesk.estimator.resolution import CONFIRM_CHANGES, REST_NOISE_S, STEP_CHANGE
 from hapticdesk.estimator.samples import LIVE_AGAIN_S, NOISE_CHECK_S, NOISE_FREE_REPEATS, STUCK_RUN
 from hapticdesk.estimator.settings import EstimatorSettings
-from hapticdesk.estimator.yardsticks import IDLE_WINDOWS
+from hapticdesk.estimator.still_objects import (
+    HEAVY_SPREAD_SHARE,
+    HEAVY_WANDER_SHARE,
+    LIFT_TOLERANCE,
+    LIGHT_LOAD_N,
+    OBJECT_NOISE_FLOOR_N,
+    OBJECT_RESTING_KEEP,
+    OBJECT_SPIKE,
+    OBJECT_STILL_FACTOR,
+    OBJECT_WANDER_FACTOR,
+)
+from hapticdesk.estimator.yardsticks import IDLE_QUANTILE, IDLE_WINDOWS
 from hapticdesk.files.profile import METHODS
 
 
@@ -142,7 +153,7 @@ class _Sizes(NamedTuple):
     still_ring: (
         int  # the still run's means the zero stage reads back (the drift's, an object's wait)
     )
-    idle_log: int  # the idle windows whose yardsticks count (zero.py)
+    wander_windows: int  # the idle windows in a row a yardstick wander is taken over
     live_n: int  # samples an input is live again after being stuck
 
 
@@ -157,7 +168,8 @@ def params_of(s: EstimatorSettings, inertia: InertiaSettings | None) -> Params:
         landing=max(1, round(LANDING_S * fs)),
         span=s.sway.span if s.sway is not None else 0,
         still_ring=max(s.n_drift, s.n_object + 1),
-        idle_log=IDLE_WINDOWS + max(2, s.n_object),
+        # the idle desk's wander is measured over as many windows as an object waits
+        wander_windows=max(2, s.n_object),
         live_n=max(1, round(LIVE_AGAIN_S * fs)),
     )
     pf, pi = _Packer(slots.N_PF_FIXED), _Packer(slots.N_PI)
@@ -229,6 +241,16 @@ def _fixed_floats(s: EstimatorSettings) -> dict[int, float]:
         slots.P_MT_MAX_FIRST_MOVE: MAX_FIRST_MOVE_M,
         slots.P_STILL_N: user.still_n,
         slots.P_DRIFT_MAX: user.drift_max_n,
+        slots.P_OBJECT_STILL_FACTOR: OBJECT_STILL_FACTOR,
+        slots.P_OBJECT_WANDER_FACTOR: OBJECT_WANDER_FACTOR,
+        slots.P_HEAVY_WANDER_SHARE: HEAVY_WANDER_SHARE,
+        slots.P_HEAVY_SPREAD_SHARE: HEAVY_SPREAD_SHARE,
+        slots.P_OBJECT_SPIKE: OBJECT_SPIKE,
+        slots.P_OBJECT_RESTING_KEEP: OBJECT_RESTING_KEEP,
+        slots.P_LIGHT_LOAD: LIGHT_LOAD_N,
+        slots.P_OBJECT_NOISE_FLOOR: OBJECT_NOISE_FLOOR_N,
+        slots.P_LIFT_TOLERANCE: LIFT_TOLERANCE,
+        slots.P_IDLE_QUANTILE: IDLE_QUANTILE,
     }
 
 
@@ -261,7 +283,10 @@ def _counts(s: EstimatorSettings, inertia: InertiaSettings | None, n: _Sizes) ->
         slots.I_MT_BOARD: 0 if s.frames else -1,
         slots.I_N_DRIFT: s.n_drift if s.user.drift_settle_s > 0 else 0,
         slots.I_STILL_RING: n.still_ring,
-        slots.I_IDLE_LOG: n.idle_log,
+        slots.I_N_SETTLE: s.n_settle,
+        slots.I_N_OBJECT: s.n_object,
+        slots.I_WANDER_WINDOWS: n.wander_windows,
+        slots.I_IDLE_WINDOWS: IDLE_WINDOWS,
         slots.I_ZEROED: int(s.user.zeroed),
         slots.I_REST_N: round(REST_NOISE_S * s.sample_rate_hz),
     }
@@ -332,7 +357,11 @@ def _state_parts(s: EstimatorSettings, n: _Sizes, sf: _Packer, si: _Packer) -> d
         slots.I_SO_PARTIAL_GAIN: sf.room(6 * n.axes),
         slots.I_SO_TRACE: sf.room(slots.TRACE_ROWS),
         slots.I_SO_STILL_MEANS: sf.room(6 * n.still_ring),
-        slots.I_SO_IDLE_LOG: sf.room(5 * n.idle_log),
+        slots.I_SO_IDLE_SPREADS: sf.room(IDLE_WINDOWS),
+        slots.I_SO_IDLE_WANDERS: sf.room(IDLE_WINDOWS),
+        slots.I_SO_IDLE_TAIL: sf.room(4 * n.wander_windows),
+        slots.I_SO_OBJ_WINDOWS: sf.room(4 * (s.n_object + 1)),
+        slots.I_SO_SCRATCH: sf.room(IDLE_WINDOWS + s.n_object + 1),
         slots.I_SO_ROUND: sf.room(8 * c_n),
         slots.I_SO_REST_SQ: sf.room(c_n),
         slots.I_JO_CHANGES: si.room(c_n),

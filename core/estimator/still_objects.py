@@ -17,15 +17,15 @@ means stray about as far as its windows spread): 193 of 336 objects joined the z
 1 s on those desks, now 306; fingers held still 3 s taken for one: 6 of 252, now 4.
 
 An object absorbed into the zero is remembered (:class:`AbsorbedObject`) until it is lifted:
-a still window back at the zero from before it (:func:`lifted`).
+a still window back at the zero from before it. The kernel applies the rule and sees the lift
+(:mod:`hapticdesk.estimator.kernel_objects`, these constants passed in its parameters), so a
+window's end never leaves the compiled loop; Python keeps the objects absorbed and words the
+notices (:mod:`hapticdesk.estimator.zero`).
 """
 
 from __future__ import annotations
 
-import math
 from typing import NamedTuple
-
-from hapticdesk.estimator.yardsticks import Yardsticks, wander
 
 OBJECT_STILL_FACTOR = 1.8
 OBJECT_WANDER_FACTOR = 2.0
@@ -58,90 +58,8 @@ OBJECT_NOISE_FLOOR_N = 1e-4
 LIFT_TOLERANCE = 0.2
 
 
-class ObjectWindow(NamedTuple):
-    """One window of a load held as still as the idle desk."""
-
-    spread: float  # of its low-passed force
-    force: tuple[float, float, float]  # its mean force less the zero
-
-
 class AbsorbedObject(NamedTuple):
     """An object that became part of the zero, until it is lifted."""
 
     zero_before: list[float]  # (6) the zero it was added to
     weight_n: float  # its |F|
-
-
-class ObjectVerdict(NamedTuple):
-    """What one more window of a still load says."""
-
-    run: int  # the object run's new length (0: the load is no object, for now)
-    is_object: bool  # held long enough as still as an object: it is one
-
-
-NO_OBJECT = ObjectVerdict(0, False)  # (the verdict on most windows: made once)
-
-
-class ObjectRun:
-    """The last windows of a load as still as the idle desk (the run's length is the
-    kernel's ``J_OBJECT_RUN``), and whether the load rests (its means within the allowed
-    wander so far)."""
-
-    def __init__(self, n_object: int, drift_max_n: float) -> None:
-        """``n_object``: the windows an object waits (0: no object rule); a load under
-        ``drift_max_n`` is drift, never an object."""
-        self.n_object = n_object
-        self.drift_max_n = drift_max_n
-        self.windows: list[ObjectWindow] = []
-        self.resting = False
-
-    def still(
-        self,
-        run: int,
-        spread: float,
-        force: tuple[float, float, float],
-        load: float,
-        idle: Yardsticks,
-    ) -> ObjectVerdict:
-        """One more window of a load (``run``: the object run so far; the window's
-        ``spread``, its mean ``force`` less the zero and that force's size ``load``): is it
-        held long enough as still as the idle desk to be an object? (A finger's tremor and
-        slow wander move it more.) Judged on the last ``n_object`` windows (one more
-        under LIGHT_LOAD_N): their means within the allowed wander of each other, their upper
-        median spread within the limit, and none over OBJECT_SPIKE times it (one noisy window
-        of the desk's own does not start the wait again). Also notes whether the load is
-        resting: its windows so far as still as an object's."""
-        n_object = self.n_object
-        limit = max(OBJECT_STILL_FACTOR * idle.quiet_spread, HEAVY_SPREAD_SHARE * load)
-        if (
-            not n_object
-            or load < self.drift_max_n  # (drift, also when drift is not followed)
-            or idle.quiet_spread < OBJECT_NOISE_FLOOR_N
-            or spread >= OBJECT_SPIKE * limit
-        ):
-            return NO_OBJECT
-        if run == 0:
-            self.windows = []
-        run += 1
-        wait = n_object + 1 if load < LIGHT_LOAD_N else n_object
-        self.windows.append(ObjectWindow(spread, force))
-        del self.windows[:-wait]
-        strayed = wander([w.force for w in self.windows])
-        allowed = max(OBJECT_WANDER_FACTOR * idle.quiet_wander, HEAVY_WANDER_SHARE * load)
-        # the resting flag, once up in this run, drops only past OBJECT_RESTING_KEEP times the
-        # allowed wander: a cup's means can stray just over it for a window or two while its
-        # landing rings out, and a hold would fire on that one window
-        keep = OBJECT_RESTING_KEEP if self.resting and run > 1 else 1.0
-        self.resting = strayed < keep * allowed
-        spreads = sorted(w.spread for w in self.windows)
-        # (a load that strays is no object, for now)
-        is_object = strayed < allowed and run >= wait and spreads[len(spreads) // 2] < limit
-        return ObjectVerdict(run, is_object)
-
-
-def lifted(absorbed: AbsorbedObject, mean: list[float], still_n: float) -> bool:
-    """A still window whose mean force (``mean``, its first 3) is back at the zero from
-    before ``absorbed``: the object was lifted."""
-    before = absorbed.zero_before
-    off = math.sqrt(sum((mean[i] - before[i]) ** 2 for i in range(3)))
-    return off < max(still_n, LIFT_TOLERANCE * absorbed.weight_n)

@@ -49,15 +49,17 @@ SPAN_S = 0.003  # the second difference's half-width: its delay costs 6° of pha
 
 def compensates(profile: DeskProfile, settings: EstimationSettings | None = None) -> bool:
     """Whether the compensation runs on ``profile`` with ``settings`` (its own estimation
-    settings by default). It needs the desk's sway frequency. ``sway_compensation: true`` or
-    ``false`` decides; unset (auto), it runs for ``fused`` on a desk without an accelerometer
+    settings by default). It needs the desk's sway frequency and sensors that measure a
+    horizontal force: never on a desk of upright load cells, whatever the settings say (the
+    profile reader refuses ``true`` there). Else ``sway_compensation: true`` or ``false``
+    decides; unset (auto), it runs for ``fused`` on a desk without an accelerometer
     (one measures the sway itself): dragged fingers make the desk ring, and without it a
     swipe at 0.5 m/s was missed one time in two and swipes in a row after the tenth nearly
     always (README "Sway compensation"). The paper's own methods stay as the paper has
     them."""
     settings = settings or profile.estimation
-    if not profile.natural_frequency_hz:
-        return False
+    if not profile.natural_frequency_hz or not profile.measures_horizontal_force:
+        return False  # (the stage reads the legs' horizontal force: load cells measure none)
     if settings.sway_compensation is not None:
         return settings.sway_compensation
     return settings.method == "fused" and not profile.accelerometers

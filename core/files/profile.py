@@ -1,10 +1,9 @@
 """Desk profiles: where the sensors stand, which surfaces can be touched, and how to estimate.
 
-The YAML format is a contract (docs/reference/profile.md); this module is the
-model it fills, and knows nothing of YAML: :mod:`.profile_reader` loads and checks a profile
-(``load_profile``), every error at ``file:line:column``. The profile also owns the one
-linear map from the stacked sensor channels to the resultant wrench about P_o (paper eqs. 1–4),
-which every consumer of sensor data uses.
+The YAML format is a contract (docs/reference/profile.md); this module is the model it fills,
+and knows nothing of YAML: :mod:`.profile_reader` loads and checks a profile (``load_profile``).
+The profile also owns the one linear map from the stacked sensor channels to the resultant
+wrench about P_o (paper eqs. 1–4), which every consumer of sensor data uses.
 """
 
 from __future__ import annotations
@@ -369,6 +368,12 @@ class DeskProfile:
             block[3:, :3] = px @ r
             blocks.append(block @ s.own_wrench_matrix())
         return np.hstack(blocks)
+
+    @property
+    def measures_horizontal_force(self) -> bool:
+        """True when a sensor measures a horizontal force (F_x or F_y of the wrench map not
+        all zero): six-axis sensors do, upright load cells do not."""
+        return bool(np.any(self.wrench_map()[:2] != 0.0))
 
     def moment_channels(self) -> np.ndarray:
         """(C,) True for a raw channel that measures a moment (N·m: its nominal noise and

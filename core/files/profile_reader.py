@@ -141,7 +141,7 @@ def profile_from_mapping(doc: MarkedDict, path: Path) -> DeskProfile:
             f"`{key}` needs the desk's mass: give `desk: {{mass_kg: ...}}` "
             "(the inertial force it removes is mass × acceleration)",
         )
-    return DeskProfile(
+    profile = DeskProfile(
         name=name,
         sample_rate_hz=rate,
         sensors=sensors,
@@ -156,6 +156,22 @@ def profile_from_mapping(doc: MarkedDict, path: Path) -> DeskProfile:
         inertia_kg_m2=body.inertia_kg_m2,
         accelerometers=accelerometers,
     )
+    _check_sway_compensation(doc, profile)
+    return profile
+
+
+def _check_sway_compensation(doc: MarkedDict, profile: DeskProfile) -> None:
+    """``sway_compensation: true`` needs a horizontal force to differentiate: refused on a
+    desk whose sensors measure none (upright load cells), where it would silently do
+    nothing."""
+    if profile.estimation.sway_compensation and not profile.measures_horizontal_force:
+        estimation = doc["estimation"]
+        raise ConfigError(
+            estimation.where("sway_compensation"),
+            "`sway_compensation: true` needs sensors that measure a horizontal force (the "
+            "legs' shear, as six-axis sensors do); this desk's sensors measure none (load "
+            "cells): set it to false or leave it out",
+        )
 
 
 def _section(doc: MarkedDict, key: str) -> MarkedDict | None:

@@ -1,11 +1,13 @@
 """A CSV recording read a block at a time: the header checked when the file is opened, each
-block of lines (:mod:`.recording_lines`) parsed by numpy's C reader, every fault named at
-its file:line:column; and written back with ``%.10g``."""
+block of lines (:mod:`.recording_lines`) parsed by a compiled parser of plain numbers
+(:mod:`.csv_numbers`, where numba is loaded) or numpy's C reader, every fault named at its
+file:line:column; and written back with ``%.10g``."""
 
 from __future__ import annotations
 
 import csv
 import re
+import sys
 from pathlib import Path
 from typing import BinaryIO
 
@@ -181,8 +183,10 @@ class CsvRecordingReader:
 
     def _parse_plain(self, lines: list[str]) -> np.ndarray | None:
         """The block's table (:func:`~.recording.recording_from_table` order) when every line
-        is plainly numeric and as wide as the header: one ``np.loadtxt`` of every column, which
-        itself refuses
+        is plainly numeric and as wide as the header: read by the compiled parser of plain
+        numbers where numba is loaded already (:mod:`.csv_numbers`: the same floats, a third
+        of the time), else (or where it leaves the block) one ``np.loadtxt`` of every column,
+        which itself refuses
         an empty or blank cell, a word and a row of another width. None otherwise, for
         :meth:`_parse_careful` to read the block again and name any fault at its
         file:line:column. (A recording as ``write_recording`` and the simulator write it,
@@ -193,8 +197,23 @@ class CsvRecordingReader:
         # the one that shows it is not)
         if not any(line.strip("\r") for line in lines):
             return None
+        width = len(self.header)
+        table = None
+        if "numba" in sys.modules:  # (loaded to estimate: the compiled parser imports nothing)
+            from hapticdesk.files.csv_numbers import plain_numbers
+
+            table = plain_numbers(lines, width)
+        if table is None:
+            table = self._loadtxt(lines)
+        if table is None or table.shape[1] != width:  # (a trailing comma: read carefully)
+            return None
+        usecols = self.needed_index + [i for _, i in self.extra]
+        return table if usecols == list(range(width)) else table[:, usecols]
+
+    def _loadtxt(self, lines: list[str]) -> np.ndarray | None:
+        """Every column of ``lines`` by numpy's parser; None at anything it refuses."""
         try:
-            table = np.loadtxt(
+            return np.loadtxt(
                 lines,
                 delimiter=",",
                 ndmin=2,
@@ -205,11 +224,6 @@ class CsvRecordingReader:
             )
         except ValueError:
             return None
-        width = len(self.header)
-        if table.shape[1] != width:  # (a trailing comma on every line: read carefully)
-            return None
-        usecols = self.needed_index + [i for _, i in self.extra]
-        return table if usecols == list(range(width)) else table[:, usecols]
 
     def _parse_careful(self, lines: list[str], first_line: int) -> np.ndarray:
         """The block's table read column by name, empty cells as NaN, text extra columns

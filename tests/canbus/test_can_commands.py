@@ -341,3 +341,36 @@ def test_emulate_ati_on_a_desk_profile_says_how_to_decode(
     captured = capsys.readouterr()
     assert "fr: {ati_netcanoem: {base: 0x21}}" in captured.err
     assert "(3 samples, ati)" in captured.out
+
+
+def test_record_a_live_bus_keeps_the_accelerometers_readings(tmp_path, capsys, virtual_channel):
+    """A desk whose accelerometer board sends ACCEL frames: recorded to CSV, its readings are
+    the recording's accelerometer columns (to the DBC's 1 mm/s² step), as `record` keeps them
+    from any other live source; before, the CAN capture dropped them."""
+    from hapticdesk.estimator.inertia import accelerometer_readings
+    from hapticdesk.files.profile_reader import load_profile
+    from hapticdesk.sim import simulate
+    from hapticdesk.sim.actions import Idle
+    from hapticdesk.sim.scene import Scene
+
+    desk = load_profile("kitamura2017-accel")
+    sim = simulate(desk, Scene([Idle(0.2)], quiet_s=0.5, tail_s=0.3), 4)
+    accel = accelerometer_readings(desk, sim.extra)
+    assert accel is not None and np.abs(accel).max() > 0.001  # the idle desk's noise at least
+    source = tmp_path / "accel.csv"
+    write_recording(source, Recording(sim.t, sim.wrench, desk.sensor_names, sim.extra))
+    out = tmp_path / "rec.csv"
+    argv = ["record", "--source", f"can:virtual:{virtual_channel}", "--desk", desk.name]
+    recorder = threading.Thread(
+        target=main, args=([*argv, "-o", str(out), "--seconds", "4", "--json"],)
+    )
+    recorder.start()
+    _wait_for_a_listener(virtual_channel)
+    emulate = ["emulate", "--desk", desk.name, "--recording", str(source)]
+    assert main([*emulate, "--bus", f"virtual:{virtual_channel}", "--json"]) == 0
+    recorder.join(10)
+    rec = read_recording(out, desk.sensor_names)
+    assert len(rec.t) == len(sim.t)
+    got = accelerometer_readings(desk, rec.extra)
+    assert got is not None, f"no accelerometer columns in {sorted(rec.extra)}"
+    np.testing.assert_allclose(got, accel, atol=0.0005 + 1e-9)

@@ -223,6 +223,43 @@ def test_ati_bus_off_then_reconnect(bench_board, virtual_channel):
     assert (diff.min(axis=1) < 0.05).all()  # each sample given out is one the board sent
 
 
+class FloodedBus(VirtualBus):
+    """A virtual bus that never runs dry once polling starts: whenever no frame waits, a
+    foreign frame (a CANopen PDO) is there, as on a bus faster than the host can read."""
+
+    flooding = False
+
+    def recv(self, timeout=None):
+        msg = super().recv(0.0 if type(self).flooding else timeout)
+        if msg is None and type(self).flooding:
+            return can.Message(arbitration_id=0x181, data=b"\x01" * 8, is_extended_id=False)
+        return msg
+
+
+def test_a_flooded_bus_still_gets_its_polls(bench_board, virtual_channel):
+    """The poller reads what waits for a sample period at most, then polls: a bus that never
+    runs dry does not stop the samples."""
+    board = bench_board(rate=200, n=2000, seed=6)
+    FloodedBus.flooding = False  # (the calibration first)
+    source = open_can_source(
+        f"can:virtual:{virtual_channel}", board.profile, bus_factory=lambda **kw: FloodedBus(**kw)
+    )
+    FloodedBus.flooding = True
+    start = time.monotonic()
+    try:
+        blocks = read_until(source, lambda _: board.emulator.stats.polls >= 100, timeout_s=10)
+    finally:
+        FloodedBus.flooding = False
+        board.stop()
+    assert board.emulator.stats.polls >= 100, board.emulator.stats  # polls went on
+    assert time.monotonic() - start < 5  # (at 200 Hz, 100 polls take 0.5 s, 1 s if halved)
+    got = np.concatenate([b.wrench for b in blocks])[:, 0]
+    ok = ~np.isnan(got).any(axis=1)
+    assert ok.sum() >= 50 and source.stats.foreign.get(0x181, 0) > 1000
+    diff = np.abs(got[ok][:, None, :] - board.wrench[None, :, 0, :]).max(axis=2)
+    assert (diff.min(axis=1) < 0.05).all()  # each sample given out is one the board sent
+
+
 def test_a_bus_that_does_not_come_back(can_desk, profile_text, tmp_path, virtual_channel):
     text = (
         Path(str(can_desk.path))

@@ -59,3 +59,20 @@ def test_the_columns_are_the_rows_a_csv_writer_writes() -> None:
     rows = list(csv.reader(io.StringIO(out.getvalue())))
     assert rows[0] == HEADER and all(len(r) == len(HEADER) for r in rows)
     assert {r[4] for r in rows[1:]} == {'top, "front"', "shelf\nboard", ""}
+
+
+def test_rows_the_columns_are_not_sure_of_are_written_by_python_in_their_places() -> None:
+    desk = load_profile("kitamura2017")
+    k = 300
+    block = ContactBlock.blank(np.arange(k) / 128.0)  # a tie at 6 decimals every other row
+    block.in_contact[:] = True
+    block.located[::3] = True
+    block.surface[block.located] = 0
+    block.x[:] = np.where(np.arange(k) % 7 == 0, 1e300, 0.25)  # too large for the columns
+    block.force_n[:] = np.linspace(-3.0, 3.0, k)
+    block.force_n[5] = np.nan
+    block.source[block.located] = 1
+    block.phase[:] = 2
+    out = io.StringIO()
+    write_contacts_csv(out, block, desk)
+    assert out.getvalue() == row_by_row(block, [s.name for s in desk.surfaces])

@@ -218,3 +218,25 @@ def test_a_numba_without_the_cache_stamp_compiles_the_kernels_uncached(
         assert isinstance(dispatcher._cache, caching.NullCache)
     told = [r for r in caplog.records if "not cached" in r.getMessage()]
     assert len(told) == 1, caplog.text
+
+
+def test_indices_go_unchecked_only_while_the_kernels_compile() -> None:
+    """kernel_compile.unchecked_indices: numba's wraparound of a negative index is off for what
+    compiles inside the block (the kernel's indices are never negative) and back for what
+    compiles after it, in the same process."""
+    import numpy as np
+    from numba import njit
+
+    from hapticdesk.estimator.kernel_compile import unchecked_indices
+
+    def at(a: np.ndarray, i: int) -> float:
+        return a[i]
+
+    whole = np.arange(5.0)
+    view = whole[1:]  # (so that the element before the view's first one is the array's)
+    with unchecked_indices():
+        inside = njit(at)
+        assert inside(view, 2) == 3.0
+        assert inside(view, -1) == 0.0  # not wrapped: the element before the view
+    after = njit(lambda a, i: a[i])
+    assert after(view, -1) == 4.0  # wrapped again: the view's last element

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from hapticdesk.estimator import ContactEstimator
+from hapticdesk.estimator import kernel_slots as slots
 from hapticdesk.files.profile_reader import load_profile
 from hapticdesk.sim import Scene, simulate
 from hapticdesk.sim.actions import Idle, LiftObject, Press, PutObject
@@ -70,6 +71,36 @@ def test_a_cup_is_absorbed_within_a_second_and_a_lift_restores_the_zero(seed):
         f"{np.round(np.array(with_cup) * 1e3, 2)}, without {np.round(np.array(without) * 1e3, 2)}"
     )
     assert max(abs(a - b) for a, b in zip(with_cup, without, strict=True)) < 2e-3
+
+
+def test_after_the_tare_only_an_objects_verdict_leaves_the_kernel():
+    """Issue 29: no window's end is judged in Python once tared (it cost 60–120 µs of a push
+    there): the kernel judges the still run, the drift, the yardsticks, the object rule and
+    the lift itself, and leaves Python only the cup's absorption and lift, to be told, on
+    the very samples where the batch decided them."""
+    desk = load_profile("kitamura2017")
+    rec = simulate(desk, cup_scene(True, 1))
+    batch = ContactEstimator(desk)
+    batch.push(rec.t, rec.wrench)
+    est = ContactEstimator(desk)
+    handled: list[tuple[float, int]] = []
+    handle = est._handle
+
+    def noting(events, *args):
+        handled.append((est.state.sf[slots.S_WIN_T_END], events))
+        handle(events, *args)
+
+    est._handle = noting
+    for i in range(len(rec.t)):
+        est.push(rec.t[i : i + 1], rec.wrench[i : i + 1])
+    tared_t = est.notices[0].t
+    zero_events = slots.EV_WINDOW | slots.EV_ABSORBED | slots.EV_LIFTED
+    after = [(t, events & zero_events) for t, events in handled if events & zero_events]
+    after = [(t, events) for t, events in after if t > tared_t]
+    assert [events for _, events in after] == [slots.EV_ABSORBED, slots.EV_LIFTED]
+    assert [n.kind for n in est.notices] == [n.kind for n in batch.notices]
+    assert [t for t, _ in after] == [n.t for n in batch.notices[1:]]
+    np.testing.assert_array_equal(est.zero, batch.zero)
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])

@@ -55,7 +55,11 @@ def _assert_same(a: Recording | str, b: Recording | str) -> None:
 def test_the_plain_path_reads_and_refuses_as_the_careful_path(
     tmp_path: Path, text: str, block_rows: int
 ) -> None:
-    path = tmp_path / "any.csv"
+    assert_read_as_the_careful_path_reads(tmp_path / "any.csv", text, block_rows)
+
+
+def assert_read_as_the_careful_path_reads(path: Path, text: str, block_rows: int) -> None:
+    """``text`` as a recording reads (or is refused) alike with and without the plain path."""
     path.write_text(text, encoding="utf-8")
     both = _read(path, block_rows)
     with pytest.MonkeyPatch.context() as patch:

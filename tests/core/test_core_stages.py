@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy.signal import sosfilt, sosfilt_zi
 
-from hapticdesk.estimator import ContactEstimator, kernel_zero
+from hapticdesk.estimator import ContactEstimator, kernel_sums
 from hapticdesk.estimator import kernel_slots as slots
 from hapticdesk.estimator.contacts import (
     BAD_SAMPLE,
@@ -159,9 +159,9 @@ def test_window_means_are_numpys_to_the_bit():
     rng = np.random.default_rng(0)
     for n in (5, 8, 24, 120, 240, 600, 1201):
         a = rng.normal(100.0, 1.0, n) * rng.choice([1.0, 1e-8, 1e8], n)
-        assert kernel_zero.pairwise_sum(a, 0, n, 1) == np.sum(a)
+        assert kernel_sums.pairwise_sum(a, 0, n, 1) == np.sum(a)
         strided = np.repeat(a, 3)
-        assert kernel_zero.pairwise_sum(strided, 1, n, 3) == np.sum(a)
+        assert kernel_sums.pairwise_sum(strided, 1, n, 3) == np.sum(a)
 
 
 def test_the_zero_follows_drift_and_the_detector_switches(desk, bad_input):

@@ -154,19 +154,27 @@ def test_extreme_input_gives_no_nan(accel_desk):
 def test_the_setting_is_read_and_a_bad_value_is_named(tmp_path):
     text = Path(str(load_profile("kitamura2017").path)).read_text()
     assert "estimation:\n" in text
-    good = tmp_path / "good.yaml"
-    good.write_text(text.replace("estimation:\n", "estimation:\n  sway_compensation: true\n", 1))
-    assert load_profile(good).estimation.sway_compensation is True
-    auto = tmp_path / "auto.yaml"
-    auto.write_text(text.replace("estimation:\n", "estimation:\n  sway_compensation: auto\n", 1))
-    assert load_profile(auto).estimation.sway_compensation is None
-    bad = tmp_path / "bad.yaml"
-    bad.write_text(text.replace("estimation:\n", "estimation:\n  sway_compensation: 1\n", 1))
+
+    def given(value: str) -> Path:
+        return _edited(
+            tmp_path, text, "estimation:\n", f"estimation:\n  sway_compensation: {value}\n"
+        )
+
+    assert load_profile(given("true")).estimation.sway_compensation is True
+    assert load_profile(given("auto")).estimation.sway_compensation is None
     with pytest.raises(ConfigError) as err:
-        load_profile(bad)
+        load_profile(given("1"))
     line = text[: text.index("estimation:\n")].count("\n") + 2
-    assert f"bad.yaml:{line}:" in str(err.value)
+    assert f"edited.yaml:{line}:" in str(err.value)
     assert "true, false or auto" in str(err.value)
+
+
+def _edited(tmp_path: Path, text: str, old: str, new: str) -> Path:
+    """A profile file of ``text`` with its first ``old`` made ``new``."""
+    assert old in text
+    path = tmp_path / "edited.yaml"
+    path.write_text(text.replace(old, new, 1))
+    return path
 
 
 @pytest.mark.parametrize("true_hz", [5.4, 6.5])
@@ -211,3 +219,22 @@ def test_the_idle_compensated_desk_still_follows_its_drift(noise_n):
     print(f"[sway] idle at {noise_n} N noise: zero set {updates[False]} / {updates[True]} times")
     assert updates[False] >= 25
     assert updates[True] >= 0.9 * updates[False]
+
+
+def test_never_on_a_desk_whose_sensors_measure_no_horizontal_force(tmp_path):
+    """Upright load cells measure no shear, so the stage has nothing to differentiate: auto
+    leaves it off even for `fused` with a sway frequency, and `true` in the profile is refused
+    at its line, where it would silently do nothing."""
+    text = Path(str(load_profile("kitamura2017-loadcells-1khz").path)).read_text()
+    off = "  sway_compensation: false"
+    cells = load_profile(_edited(tmp_path, text, off, "  sway_compensation: auto"))
+    assert cells.natural_frequency_hz and cells.estimation.method == "fused"
+    assert not cells.measures_horizontal_force
+    assert SwaySettings.of(cells, cells.estimation) is None
+    assert ContactEstimator(cells).stage_settings.sway is None
+    assert load_profile("kitamura2017").measures_horizontal_force
+    with pytest.raises(ConfigError) as err:
+        load_profile(_edited(tmp_path, text, off, "  sway_compensation: true"))
+    line = text[: text.index(off)].count("\n") + 1
+    assert f"edited.yaml:{line}:" in str(err.value)
+    assert "horizontal force" in str(err.value)

@@ -1,4 +1,8 @@
-"""The estimator's compiled kernels loaded from numba's cache without readying numba's compiler.
+"""Compiled functions (the estimator's kernels, the CSV reader's parser) loaded from numba's
+cache without readying numba's compiler. Such a function is compiled without numba's runtime
+(``_nrt=False``) and with ``error_model="numpy"``, as the kernels are: one compiled with
+numba's defaults crashed the process when loaded this way ("Symbol not found:
+NRT_MemInfo_call_dtor": the runtime is linked in by the readying left out).
 
 Before numba loads a cached function it readies its whole compiler
 (``BaseContext.refresh``): it imports every module of typing and lowering rules (``numba.np``,

@@ -1,0 +1,104 @@
+"""The object rule and an object's lift, compiled: is a still load an object put down?
+
+The kernel's side of :mod:`hapticdesk.estimator.still_objects` (which states the rule, its
+constants — here ``P_OBJECT_*``, ``P_HEAVY_*``, ``P_LIGHT_LOAD``, ``P_LIFT_TOLERANCE`` — and
+how they were chosen). Judged at a still window's end
+(:func:`hapticdesk.estimator.kernel_zero.still_window`) against the idle desk's yardsticks
+(:mod:`.kernel_yardsticks`), so the window never leaves the compiled loop; only a verdict
+that changes the zero does (``EV_ABSORBED``, ``EV_LIFTED``), for Python to word.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from hapticdesk.estimator.kernel_compile import inlined
+from hapticdesk.estimator.kernel_slots import (
+    I_N_OBJECT,
+    I_SO_OBJ_WINDOWS,
+    I_SO_SCRATCH,
+    J_OBJ_RESTING,
+    J_OBJ_WINDOWS_N,
+    J_OBJ_WINDOWS_POS,
+    P_DRIFT_MAX,
+    P_HEAVY_SPREAD_SHARE,
+    P_HEAVY_WANDER_SHARE,
+    P_LIFT_TOLERANCE,
+    P_LIGHT_LOAD,
+    P_OBJECT_NOISE_FLOOR,
+    P_OBJECT_RESTING_KEEP,
+    P_OBJECT_SPIKE,
+    P_OBJECT_STILL_FACTOR,
+    P_OBJECT_WANDER_FACTOR,
+    P_STILL_N,
+    S_OBJ_WEIGHT,
+    S_OBJ_ZERO,
+    S_QUIET_SPREAD,
+    S_QUIET_WANDER,
+    S_WIN_MEAN,
+)
+from hapticdesk.estimator.kernel_yardsticks import nth_smallest, ring_push, ring_wander
+
+
+@inlined
+def object_still(
+    run: int,
+    spread: float,
+    f0: float,
+    f1: float,
+    f2: float,
+    load: float,
+    pf: np.ndarray,
+    pi: np.ndarray,
+    sf: np.ndarray,
+    si: np.ndarray,
+) -> tuple[int, bool]:
+    """One more window of a load (``run``: the object run so far; the window's ``spread``,
+    its mean force less the zero and that force's size ``load``): is it held long enough as
+    still as the idle desk to be an object? Returns the run's new length (0: no object, for
+    now) and the verdict. Judged on the last I_N_OBJECT windows (one more under
+    P_LIGHT_LOAD): their means within the allowed wander of each other, their upper median
+    spread within the limit, none over P_OBJECT_SPIKE times it. Also notes whether the load
+    rests (J_OBJ_RESTING: its windows so far as still as an object's)."""
+    n_object = pi[I_N_OBJECT]
+    quiet_spread = sf[S_QUIET_SPREAD]
+    limit = max(pf[P_OBJECT_STILL_FACTOR] * quiet_spread, pf[P_HEAVY_SPREAD_SHARE] * load)
+    if (
+        n_object == 0
+        or load < pf[P_DRIFT_MAX]  # (drift, also when drift is not followed)
+        or quiet_spread < pf[P_OBJECT_NOISE_FLOOR]
+        or spread >= pf[P_OBJECT_SPIKE] * limit
+    ):
+        return 0, False
+    if run == 0:
+        si[J_OBJ_WINDOWS_N] = 0
+    run += 1
+    wait = n_object + 1 if load < pf[P_LIGHT_LOAD] else n_object
+    cap, at = n_object + 1, pi[I_SO_OBJ_WINDOWS]
+    k = ring_push(si, J_OBJ_WINDOWS_N, J_OBJ_WINDOWS_POS, cap, wait)
+    sf[at + 4 * k] = spread
+    sf[at + 4 * k + 1], sf[at + 4 * k + 2], sf[at + 4 * k + 3] = f0, f1, f2
+    n, pos = si[J_OBJ_WINDOWS_N], si[J_OBJ_WINDOWS_POS]
+    strayed = ring_wander(sf, at, cap, pos, n)
+    allowed = max(pf[P_OBJECT_WANDER_FACTOR] * sf[S_QUIET_WANDER], pf[P_HEAVY_WANDER_SHARE] * load)
+    # the resting flag, once up in this run, drops only past P_OBJECT_RESTING_KEEP times the
+    # allowed wander (still_objects.OBJECT_RESTING_KEEP says why)
+    keep = pf[P_OBJECT_RESTING_KEEP] if si[J_OBJ_RESTING] and run > 1 else 1.0
+    si[J_OBJ_RESTING] = 1 if strayed < keep * allowed else 0
+    median = nth_smallest(sf, at, 4, cap, pos, n, n // 2, pi[I_SO_SCRATCH])
+    # (a load that strays is no object, for now)
+    return run, strayed < allowed and run >= wait and median < limit
+
+
+@inlined
+def lifted(pf: np.ndarray, sf: np.ndarray) -> bool:
+    """The window's mean force (S_WIN_MEAN) is back at the zero from before the last
+    absorbed object (S_OBJ_ZERO; within P_LIFT_TOLERANCE of its weight, or P_STILL_N): the
+    object was lifted."""
+    d0 = sf[S_WIN_MEAN] - sf[S_OBJ_ZERO]
+    d1 = sf[S_WIN_MEAN + 1] - sf[S_OBJ_ZERO + 1]
+    d2 = sf[S_WIN_MEAN + 2] - sf[S_OBJ_ZERO + 2]
+    off = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    return off < max(pf[P_STILL_N], pf[P_LIFT_TOLERANCE] * sf[S_OBJ_WEIGHT])

@@ -23,7 +23,7 @@ from hapticdesk.files.recording import (
     needed_columns,
     recording_from_table,
 )
-from hapticdesk.files.recording_lines import MAX_LINE_CHARS, RecordingLines
+from hapticdesk.files.recording_lines import MAX_BLOCK_CHARS, MAX_LINE_CHARS, RecordingLines
 
 _EMPTY_CELL = re.compile(r"(?m)(?:^|(?<=,))[ \t]*(?=,)|(?<=,)[ \t]*$")
 
@@ -207,6 +207,9 @@ class CsvRecordingReader:
             return None
         from hapticdesk.files.csv_numbers import plain_rows
 
+        # (a block's lines hold at most MAX_BLOCK_CHARS, as read as text; a line here is at
+        # least two characters a cell)
+        rows = min(rows, MAX_BLOCK_CHARS // (2 * width) + 1)
         table, done = np.empty((rows, width)), 0
         while done < rows:
             ahead = self._lines.read_ahead(256 * (rows - done))

@@ -21,7 +21,8 @@ and walks its symbols, three quarters of a cached load's time (the estimator's e
 other code, so :func:`cache_loads` keeps the bitcode unparsed, marks only the loaded
 function's own two symbols as defined (numba looks a function's address up by them), and
 parses it should a compile start in this process, before that compile could link anything
-(:class:`_LinkOnCompile`).
+(:class:`_LinkOnCompile`; numba announces a dispatcher's compile, not a ``@cfunc``'s: one
+calling a kernel loaded so would be refused by numba as "unfit for linking", and none does).
 
 Should a kernel miss the cache and be compiled, numba's compiler is readied first and its
 own load is back (numba's ``numba:compile`` event comes before any compile starts, and the

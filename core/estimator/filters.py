@@ -73,18 +73,19 @@ def noise_gain(sos: np.ndarray, extra_fir: np.ndarray | None = None, length: int
 def _sosfilt(sos: np.ndarray, x: np.ndarray) -> np.ndarray:
     """scipy's ``sosfilt`` recursion (transposed direct form II, as the kernel runs it; the
     same values to the bit) over a design's few thousand samples, zero initial state: plain
-    Python, once per estimator, never on data."""
-    sections = [tuple(float(v) for v in row) for row in np.asarray(sos, dtype=float)]
-    memories = [[0.0, 0.0] for _ in sections]
-    out = [0.0] * len(x)
-    for n, value in enumerate(x.tolist()):
-        for (b0, b1, b2, _, a1, a2), z in zip(sections, memories, strict=True):
-            y = b0 * value + z[0]
-            z[0] = b1 * value - a1 * y + z[1]
-            z[1] = b2 * value - a2 * y
-            value = y
-        out[n] = value
-    return np.array(out)
+    Python, once per estimator, never on data. A section at a time over all the samples (the
+    same arithmetic as a sample at a time through every section, in a third of the time)."""
+    values = x.tolist()
+    for b0, b1, b2, _, a1, a2 in np.asarray(sos, dtype=float).tolist():
+        z0 = z1 = 0.0
+        out = []
+        for value in values:
+            y = b0 * value + z0
+            z0 = b1 * value - a1 * y + z1
+            z1 = b2 * value - a2 * y
+            out.append(y)
+        values = out
+    return np.array(values, dtype=float)
 
 
 def group_delay_s(sos: np.ndarray, sample_rate_hz: float, length: int) -> float:

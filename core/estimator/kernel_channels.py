@@ -22,7 +22,7 @@ from hapticdesk.estimator.contacts import (
     FLAG_STUCK,
     FLAG_TIME_BACK,
 )
-from hapticdesk.estimator.kernel_compile import inlined
+from hapticdesk.estimator.kernel_compile import inlined, inlined_entry
 from hapticdesk.estimator.kernel_slots import (
     EV_LIVE,
     EV_NOISE_FREE,
@@ -247,7 +247,7 @@ def _learn_steps(x: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray) 
     si[J_HAVE_LAST_ROW] = 1
 
 
-@inlined
+@inlined_entry
 def steps_changed(pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray) -> bool:
     """Once tared: whether a step is new or shrank by over P_STEP_CHANGE since the
     covariances were made (the steps they use become the current ones)."""

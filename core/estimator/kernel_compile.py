@@ -1,13 +1,14 @@
 """How the estimator's kernel is compiled: numba's options, where its cache goes, its stamp.
 
 Every compiled function of the kernel (:mod:`hapticdesk.estimator.kernel` and the
-``kernel_*`` modules) is made with :data:`compiled` or :data:`inlined` from here: compiled
-once and cached, the GIL released, IEEE division, no reference counting (the kernel
-allocates nothing, and every call between its functions otherwise paid for atomic
-increments of each array argument, 68 ns a call); the entries are compiled with LLVM's SLP
-vectorizer on (:func:`vectorized`) and numba's negative-index wraparound and slice clamping
-off (:func:`unchecked_indices`: every index of the kernel is in range by construction), both
-around ``kernel.warm``.
+``kernel_*`` modules) is made with :data:`compiled`, :data:`inlined` or :data:`inlined_entry`
+from here: compiled once and cached (an entry Python calls; a function only compiled code
+calls is compiled with its callers, into their caches), the GIL released, IEEE division, no
+reference counting (the kernel allocates nothing, and every call between its functions
+otherwise paid for atomic increments of each array argument, 68 ns a call); the entries are
+compiled with LLVM's SLP vectorizer on (:func:`vectorized`) and numba's negative-index
+wraparound and slice clamping off (:func:`unchecked_indices`: every index of the kernel is in
+range by construction), both around ``kernel.warm``.
 
 numba stamps a cached function by the content of its own file only, while the compiled
 code of an entry holds the code of the functions it calls from other files and the
@@ -191,5 +192,9 @@ def _no_stamp() -> None:
 # division (a division by zero gives inf, never an exception); no reference counting (the
 # kernel allocates nothing; see the module docstring)
 _OPTIONS: dict[str, Any] = {"cache": True, "nogil": True, "error_model": "numpy", "_nrt": False}
-compiled = _stamped(_OPTIONS)
-inlined = _stamped({**_OPTIONS, "forceinline": True})  # (into its callers, by LLVM)
+compiled = _stamped(_OPTIONS)  # an entry, called from Python: loaded from its cache
+# a stage's function, inlined into its callers by LLVM and compiled with them: not cached on
+# its own (its callers' caches hold its code; a cache of its own, never loaded while every
+# kernel's cache is stamped alike, cost its index at every import: ~10 ms of start-up)
+inlined = njit(**{**_OPTIONS, "cache": False, "forceinline": True})
+inlined_entry = _stamped({**_OPTIONS, "forceinline": True})  # (inlined; Python calls it too)

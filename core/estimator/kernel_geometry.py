@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from hapticdesk.estimator.kernel_compile import inlined
+from hapticdesk.estimator.kernel_compile import inlined, inlined_entry
 from hapticdesk.estimator.kernel_slots import (
     I_C,
     I_IO_SURF,
@@ -61,7 +61,7 @@ def surface_at(pi: np.ndarray, s: int) -> int:
     return pi[I_PO_SURF] + s * SURF_F
 
 
-@inlined
+@inlined_entry
 def contains(pf: np.ndarray, pi: np.ndarray, s: int, u: float, v: float) -> bool:
     """Whether (u, v) lies on surface ``s``: inside its outline or on it (edges and corners
     within P_EDGE_TOLERANCE); a crossing-number test for a polygon."""

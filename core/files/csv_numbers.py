@@ -6,9 +6,12 @@ Only the plainest cells are read here: an optional sign, digits with at most one
 optional exponent (``1.5e-05``), or ``nan``; at most 18 digits making an integer up to 2**53
 and a power of ten within 10**±22, so that the digits and the power are both exact as floats
 and one division (or multiplication) rounds their quotient correctly: the same float numpy's
-parser makes (it rounds correctly too). Anything else anywhere in the block (a blank or
-quoted cell, a space, ``inf``, a row of another width, 17 significant digits, 1e-23) and the
-block is left to numpy's ``loadtxt``, which reads it and names any fault, as before.
+parser makes (it rounds correctly too). Anything else (a blank or quoted cell, a space,
+``inf``, a row of another width, 17 significant digits, 1e-23, a CR LF line end) and the
+line is left to numpy's ``loadtxt``, which reads it and names any fault, as before: the
+reader hands the parser the bytes it read (:func:`plain_rows`: the lines read before that
+line are parsed, the block ends there) or a block of lines (:func:`plain_numbers`: all or
+none of them).
 
 Why: numpy's ``loadtxt`` took 0.13–0.19 s of ``hapticdesk contacts`` on a minute of the
 paper's experiment (72,000 lines of 34 columns), a quarter of the command; this loop takes a
@@ -26,7 +29,12 @@ from hapticdesk.cached_load import cache_loads
 # (as the estimator's kernels are compiled: a cached load leaves numba's runtime out)
 _OPTIONS: dict[str, Any] = {"cache": True, "nogil": True, "error_model": "numpy", "_nrt": False}
 _INLINED = {**_OPTIONS, "forceinline": True}  # (into the loop, by LLVM)
-_SIGNATURE = (types.Array(types.uint8, 1, "C", readonly=True), types.int64, types.float64[:, ::1])
+_SIGNATURE = (
+    types.Array(types.uint8, 1, "C", readonly=True),
+    types.int64,
+    types.int64,
+    types.float64[:, ::1],
+)
 #: the powers of ten a float holds exactly
 _POWERS = np.array([float(10**k) for k in range(23)])
 _EXACT_INTEGERS = np.uint64(2**53)  # a mantissa up to this is exact as a float
@@ -94,36 +102,52 @@ def _number(data: np.ndarray, i: int) -> tuple[float, int]:
 
 
 @njit(**_OPTIONS)
-def _parse(data: np.ndarray, width: int, table: np.ndarray) -> bool:
-    """Fill ``table`` (rows × ``width``) from ``data``, each row ``width`` plain decimals
-    separated by commas and ended by a line end; False at the first thing that is not."""
+def _parse(data: np.ndarray, width: int, time_column: int, table: np.ndarray) -> tuple[int, int]:
+    """Fill rows of ``table`` (× ``width``) from the start of ``data`` until the table is
+    full, the data ends or a row is not ``width`` plain decimals separated by commas and
+    ended by a line end, or its ``time_column`` (-1: none) is not finite. Returns the rows
+    filled and the index of ``data`` after them."""
     i = 0
     for row in range(table.shape[0]):
+        start = i
         for column in range(width):
             if i >= len(data):
-                return False
+                return row, start
             value, i = _number(data, i)
             if i < 0 or data[i] != (_COMMA if column < width - 1 else _LINE_END):
-                return False
+                return row, start
             table[row, column] = value
             i += 1
-    return i == len(data)
+        if time_column >= 0 and not np.isfinite(table[row, time_column]):
+            return row, start
+    return table.shape[0], i
 
 
 _loaded = False
 
 
-def plain_numbers(lines: list[str], width: int) -> np.ndarray | None:
-    """The table of ``lines`` (each ``width`` plain decimals), or None when a cell or a line
-    is anything else (numpy's ``loadtxt`` then reads the block and names any fault)."""
+def plain_rows(
+    data: bytes | memoryview, width: int, time_column: int, table: np.ndarray
+) -> tuple[int, int]:
+    """Rows of ``table`` (C-contiguous, ``width`` columns) read from ``data``, whole lines
+    each ended by a line end, as many as fit, up to the first that is not ``width`` plain
+    decimals with a finite time (``time_column``; -1: any): the rows filled and the bytes
+    of ``data`` they were. The rows after are left to numpy's ``loadtxt``."""
     global _loaded
-    text = "\n".join([*lines, ""])  # (each line ended: the loops stop at the last end)
-    if not lines or not text.isascii():
-        return None
     if not _loaded:  # (from numba's cache without readying its compiler: cached_load)
         with cache_loads():
             _parse.compile(_SIGNATURE)
         _loaded = True
-    data = np.frombuffer(text.encode("ascii"), np.uint8)
+    rows, used = _parse(np.frombuffer(data, np.uint8), width, time_column, table)
+    return int(rows), int(used)
+
+
+def plain_numbers(lines: list[str], width: int) -> np.ndarray | None:
+    """The table of ``lines`` (each ``width`` plain decimals), or None when a cell or a line
+    is anything else (numpy's ``loadtxt`` then reads the block and names any fault)."""
+    text = "\n".join([*lines, ""])  # (each line ended: the loops stop at the last end)
+    if not lines or not text.isascii():
+        return None
     table = np.empty((len(lines), width))
-    return table if _parse(data, width, table) else None
+    rows, _ = plain_rows(text.encode("ascii"), width, -1, table)
+    return table if rows == len(lines) else None

@@ -31,6 +31,10 @@ class RecordingLines:
         self._pending: list[str] = []
         self._pending_chars = 0
         self._tail = b""  # the start of a line whose end is not read yet
+        # complete lines read ahead as bytes (each with its end), before any decoded: from
+        # _ahead_at on, for a parser of the bytes (read_ahead); decoded when lines are taken
+        self._ahead = b""
+        self._ahead_at = 0
         self.quoted = False  # a quote seen: the plain parse reads quoted cells too
         self._started = False  # (a UTF-8 byte order mark is dropped from the first bytes)
         self._eof = False
@@ -63,31 +67,79 @@ class RecordingLines:
         that is too long or not UTF-8 ends the reading there: the lines before it are handed
         out first, then its error (:attr:`failure`).
         """
+        if self._ahead_at < len(self._ahead):  # (they come first: decoded now)
+            self._decode(self._ahead[self._ahead_at :])
+        self._ahead, self._ahead_at = b"", 0
         while len(self._pending) < rows and self._pending_chars < MAX_BLOCK_CHARS and not self._eof:
-            want = min(MAX_BLOCK_CHARS, max(1 << 16, 256 * (rows - len(self._pending))))
-            data = self._fh.read(want)
-            if not self._started:
-                self._started = True
-                data = data.removeprefix(b"\xef\xbb\xbf")
-            if not data:
-                self._eof = True
-                complete, self._tail = self._tail, b""  # (the last line, without its end)
-            else:
-                # complete lines, each with its end; a CR LF split between two reads meets
-                # again in the tail
-                data = self._tail + data
-                cut = data.rfind(b"\n") + 1
-                complete, self._tail = data[:cut], data[cut:]
-            if not self._add_plain_lines(complete):
-                parts = complete.replace(b"\r\n", b"\n").split(b"\n") if complete else []
-                if complete.endswith(b"\n"):
-                    parts.pop()  # (after the last line's end)
-                self._add_lines(parts)
+            self._decode(self._read(256 * (rows - len(self._pending))))
         lines = self._pending[:rows]
         del self._pending[:rows]
         self._pending_chars -= sum(map(len, lines))
         self.line += len(lines)
         return lines
+
+    def read_ahead(self, size: int) -> memoryview:
+        """The complete lines read ahead, as the bytes they were read as, each with its line
+        end, for a parser of plain lines (one that reads the bytes, not the lines: no line
+        decoded, split and joined again); about ``size`` bytes are read once those are used
+        up (:meth:`took` says how many were). Empty where none can be handed out so: at the
+        end of the file, while decoded lines wait, or where the bytes read are not plain
+        ASCII lines ended by LF alone (they are decoded then, and their faults named, for
+        :meth:`take`)."""
+        if self._pending or self.failure is not None:
+            return memoryview(b"")
+        if self._ahead_at == len(self._ahead) and not self._eof:
+            data = self._read(size)
+            self._ahead, self._ahead_at = b"", 0
+            if not data.isascii() or b"\r" in data or len(self._tail) > MAX_LINE_CHARS:
+                self._decode(data)
+                return memoryview(b"")
+            if data:
+                self._ahead = data if data.endswith(b"\n") else data + b"\n"  # (the last line)
+        return memoryview(self._ahead)[self._ahead_at :]
+
+    def take_line(self) -> str | None:
+        """The next line (a header), the lines after it left read ahead as bytes
+        (:meth:`read_ahead`); None where they cannot be (:meth:`take` it then)."""
+        ahead = self.read_ahead(1 << 16)
+        end = self._ahead.find(b"\n", self._ahead_at, self._ahead_at + MAX_LINE_CHARS + 1)
+        if not ahead or end < 0:
+            return None
+        line = self._ahead[self._ahead_at : end].decode("ascii")
+        self.took(1, end + 1 - self._ahead_at)
+        return line
+
+    def took(self, lines: int, size: int) -> None:
+        """The first ``lines`` lines, ``size`` bytes, of :meth:`read_ahead`'s are handed out."""
+        self._ahead_at += size
+        self.line += lines
+
+    def _read(self, size: int) -> bytes:
+        """The complete lines of about ``size`` more bytes read (at least 64 KiB, at most
+        :data:`MAX_BLOCK_CHARS`), each with its end; at the end of the file the last line,
+        without one."""
+        data = self._fh.read(min(MAX_BLOCK_CHARS, max(1 << 16, size)))
+        if not self._started:
+            self._started = True
+            data = data.removeprefix(b"\xef\xbb\xbf")
+        if not data:
+            self._eof = True
+            complete, self._tail = self._tail, b""  # (the last line, without its end)
+        else:
+            # complete lines, each with its end; a CR LF split between two reads meets
+            # again in the tail
+            data = self._tail + data
+            cut = data.rfind(b"\n") + 1
+            complete, self._tail = data[:cut], data[cut:]
+        return complete
+
+    def _decode(self, complete: bytes) -> None:
+        """Complete lines read (:meth:`_read`) decoded into the lines read ahead."""
+        if not self._add_plain_lines(complete):
+            parts = complete.replace(b"\r\n", b"\n").split(b"\n") if complete else []
+            if complete.endswith(b"\n"):
+                parts.pop()  # (after the last line's end)
+            self._add_lines(parts)
 
     def _add_plain_lines(self, data: bytes) -> bool:
         """Add the lines of ``data`` when it is ASCII and no line (nor the tail) is too long,

@@ -138,3 +138,42 @@ def test_a_written_recording_is_read_by_it_alone(
     assert (
         compiled.extra["true_x"].view(np.int64) == by_numpy.extra["true_x"].view(np.int64)
     ).all()
+
+
+@pytest.mark.parametrize("end", ["\n", ""], ids=["ended", "last line unended"])
+def test_plain_lines_are_parsed_from_the_bytes_as_read(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, end: str
+) -> None:
+    """A file of plain lines is parsed from its bytes as read, across the reads and the
+    blocks (no line decoded, split, joined and encoded again), to the same bits as numpy
+    reads it; an odd line among them is read as text, and the plain ones after it from the
+    bytes again."""
+    rng = np.random.default_rng(5)
+    k = 3000
+    rec = Recording(np.arange(k) / 1200, rng.normal(size=(k, 4, 6)), NAMES, {})
+    path = tmp_path / "plain.csv"
+    write_recording(path, rec)
+    path.write_text(path.read_text().removesuffix("\n") + end)
+    with monkeypatch.context() as patch:  # numba not loaded: numpy reads it
+        patch.delitem(sys.modules, "numba")
+        by_numpy = _read(path, 700)
+    decoded: list[int] = []
+    lines = recording_csv.RecordingLines
+    decode = lines._decode
+    monkeypatch.setattr(lines, "_decode", lambda self, data: decoded.append(len(data)))
+    compiled = _read(path, 700)
+    assert decoded == [], "lines were decoded"
+    assert not isinstance(compiled, str) and not isinstance(by_numpy, str)
+    for a, b in [(compiled.t, by_numpy.t), (compiled.wrench, by_numpy.wrench)]:
+        assert (a.view(np.int64) == b.view(np.int64)).all()
+    # one line with an empty cell (read as NaN by the careful path): the rest still read
+    text = path.read_text().split("\n")
+    cells = text[1500].split(",")
+    cells[3] = ""
+    text[1500] = ",".join(cells)
+    path.write_text("\n".join(text))
+    monkeypatch.setattr(lines, "_decode", decode)
+    odd = _read(path, 700)
+    assert not isinstance(odd, str)
+    assert np.isnan(odd.wrench[1499]).sum() == 1
+    assert (odd.t.view(np.int64) == by_numpy.t.view(np.int64)).all()

@@ -175,9 +175,9 @@ def test_the_kernels_cache_is_stamped_with_every_kernel_module() -> None:
     """On the numba versions pyproject.toml allows, every kernel's cache index carries the
     digest of all kernel*.py files beside numba's own stamp (a numba without that private
     attribute fails here first)."""
-    from hapticdesk.estimator import kernel, kernel_compile, kernel_multitouch
+    from hapticdesk.estimator import kernel, kernel_compile, kernel_geometry
 
-    for dispatcher in (kernel.run_block, kernel.run_step, kernel_multitouch._second_finger):
+    for dispatcher in (kernel.run_block, kernel.run_step, kernel_geometry.contains):
         stamp = dispatcher._cache._cache_file._source_stamp
         assert stamp[1] == kernel_compile.KERNEL_SOURCES
     # the digest covers the files named kernel*.py: every module compiled through
@@ -211,7 +211,7 @@ def test_a_numba_without_the_cache_stamp_compiles_the_kernels_uncached(
     kernel_compile._no_stamp.cache_clear()
     with caplog.at_level(logging.WARNING, logger="hapticdesk.estimator"):
         compiled = kernel_compile.compiled(_twice)
-        inlined = kernel_compile.inlined(_twice)
+        inlined = kernel_compile.inlined_entry(_twice)
     kernel_compile._no_stamp.cache_clear()
     assert compiled(2.5) == inlined(2.5) == 5.0
     for dispatcher in (compiled, inlined):

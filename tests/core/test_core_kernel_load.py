@@ -83,3 +83,36 @@ print(json.dumps(float(njit(lambda a: np.dot(a, a))(np.arange(4.0)))))
 def test_a_compile_after_the_cached_load_readies_the_compiler(warm_cache) -> None:
     done = _run(COMPILE_AFTER)
     assert json.loads(done.stdout.splitlines()[-1]) == 14.0
+
+
+LINK_AFTER = """
+import json
+from numba import njit
+from hapticdesk.estimator import kernel, kernel_geometry
+from hapticdesk.estimator.params import params_of
+from hapticdesk.estimator.settings import EstimatorSettings
+from hapticdesk.files.profile_reader import load_profile
+kernel.warm()  # (contains among the entries loaded without their bitcode for linking)
+profile = load_profile("kitamura2017")
+params = params_of(EstimatorSettings.of(profile, profile.estimation, False), None)
+
+@njit
+def calls(pf, pi, surface, u, v):  # (the types contains was loaded for: it is linked in)
+    return kernel_geometry.contains(pf, pi, surface, u, v)
+
+points = [(0.1, 0.1), (5.0, 5.0)]
+print(json.dumps([
+    [calls(params.pf, params.pi, 0, u, v), kernel_geometry.contains(params.pf, params.pi, 0, u, v)]
+    for u, v in points
+]))
+print(json.dumps([str(s) for s in kernel_geometry.contains.signatures]))
+"""
+
+
+def test_a_compile_that_calls_a_loaded_kernel_links_it_in(warm_cache) -> None:
+    """A kernel loaded without its bitcode for linking (cached_load) is linked into a later
+    compile that calls it: the bitcode is parsed when that compile starts."""
+    done = _run(LINK_AFTER)
+    results, signatures = (json.loads(line) for line in done.stdout.splitlines()[-2:])
+    assert results == [[True, True], [False, False]]
+    assert len(signatures) == 1, signatures  # (the loaded one was called, not a new one)

@@ -144,6 +144,7 @@ class FrameAssembler:
         silent_sensor: str = "continue",
         where: Position | str = "",
         hold_samples: int = 0,
+        count_lost: bool = True,
     ) -> None:
         if assemble == "counter" and decoding.counter_modulus is None:
             raise ValueError("assemble='counter' needs a counter in every frame kind")
@@ -154,6 +155,9 @@ class FrameAssembler:
         self.silent_timeout_s = silent_timeout_s
         self.silent_sensor = silent_sensor
         self.where = where
+        # False where a live poller counts the rounds it skipped (the gaps between its
+        # samples' times are not losses: a round polled late is caught up)
+        self.count_lost = count_lost
         self.stats = CanStats()
         # the most recent ones: a bus that keeps failing must not grow this for the whole run
         self.notices: collections.deque[CanNotice] = collections.deque(maxlen=NOTICES_KEPT)
@@ -343,6 +347,8 @@ class FrameAssembler:
                 self.stats.counter_mismatch += int(bad.sum())
 
     def _count_lost(self, keys: np.ndarray, t: np.ndarray) -> None:
+        if not self.count_lost:
+            return
         if self.assemble == "counter":
             prev = self._last_key if self._last_key is not None else keys[0] - 1
             steps = np.diff(np.concatenate([[prev], keys]))

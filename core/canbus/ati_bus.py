@@ -35,6 +35,11 @@ WRITE_OFF_S = 0.5
 #: replies are read at most this long after their round (a slower rate's poller wakes for
 #: them before its next round: a round is read at the next one's start otherwise)
 REPLY_READ_S = 0.001
+#: a poller woken this late (at least a period) polls the rounds it missed back to back, each
+#: as soon as the replies before it are in: a host that wakes a thread a millisecond late
+#: now and then (as a shared or a small one does) still gets every sample, at its real time;
+#: a longer stall's rounds are skipped and counted lost (a burst would flood the bus)
+CATCH_UP_S = 0.005
 ReceiveFrame = Callable[[float], Any]
 
 
@@ -134,6 +139,10 @@ class AtiBoards:
         self._heard = [0] * len(self.poll_ids)
         self._poll_id_set = frozenset(self.poll_ids)
         self._poller: threading.Thread | None = None
+        #: rounds never polled, the poller having woken too late for them (lost samples:
+        #: the poller counts, the reader takes them into its stats)
+        self.skipped_rounds = 0
+        self._skipped_taken = 0
 
     # --- calibration at start -------------------------------------------------------------
 
@@ -235,6 +244,12 @@ class AtiBoards:
         if self._poller is not None and self._poller is not threading.current_thread():
             self._poller.join(timeout=1.0)
 
+    def take_skipped(self) -> int:
+        """The rounds skipped since the last call (read once: the poller writes meanwhile)."""
+        skipped = self.skipped_rounds
+        new, self._skipped_taken = skipped - self._skipped_taken, skipped
+        return new
+
     def saw(self, msg: Any) -> bool:
         """Tell the poller of a frame the reader read; False for our own poll echoed back
         (udp_multicast loops them: it is taken from the queue of sent polls, in order; twice
@@ -258,10 +273,12 @@ class AtiBoards:
         is taken as lost and the board polled again): so a dead board does not slow the
         others, and a late reply still lands in the sample it was asked for (the assembler
         keys each reply by its own board's poll). The clock does not drift: each round is due
-        a period after the one before; a poller late by more than a period skips the rounds
-        it missed, never bursts them.
+        a period after the one before; a poller woken late polls the rounds it missed back to
+        back, up to :data:`CATCH_UP_S` of them (paced by the replies), and skips the rest of
+        a longer stall (counted in :attr:`skipped_rounds`), keeping the clock's phase.
         """
         period = 1.0 / self.sample_rate_hz
+        catch_up_s = max(period, CATCH_UP_S)
         ledger = _PollLedger(len(self.poll_ids), self._heard, max(REPLY_TIMEOUT_S, 2 * period))
         next_due = time.monotonic()
         while not self._closing.is_set():
@@ -290,5 +307,8 @@ class AtiBoards:
                 if not owed:
                     break
                 wait_s = min(owed) - now
-            if time.monotonic() - next_due > period:
-                next_due = time.monotonic()  # fell behind: skip, do not burst
+            late = time.monotonic() - next_due
+            if late > catch_up_s:  # a stall: its rounds are lost, not burst
+                missed = int(late / period)
+                self.skipped_rounds += missed
+                next_due += missed * period

@@ -96,15 +96,7 @@ class CanSource(Source):
         except BaseException:
             self.close()
             raise
-        self.assembler = FrameAssembler(
-            decoding,
-            profile.sample_rate_hz,
-            assemble=self.config.assemble,
-            frame_gap_s=self.config.frame_gap_s,
-            silent_timeout_s=self.config.silent_timeout_s,
-            silent_sensor=self.config.silent_sensor,
-            where=spec,
-        )
+        self.assembler = self._assembler(decoding)
         capacity = self.ati_boards.capacity_notice(self.bus_kwargs.get("bitrate"), self.interface)
         if capacity is not None:
             self._notice("capacity", capacity)
@@ -119,6 +111,18 @@ class CanSource(Source):
             timeout_s,
         )
         return build_decoding(self.config, self.profile, self.calibrations)
+
+    def _assembler(self, decoding: DeskDecoding) -> FrameAssembler:
+        return FrameAssembler(
+            decoding,
+            self.profile.sample_rate_hz,
+            assemble=self.config.assemble,
+            frame_gap_s=self.config.frame_gap_s,
+            silent_timeout_s=self.config.silent_timeout_s,
+            silent_sensor=self.config.silent_sensor,
+            where=self.spec,
+            count_lost=not self.ati_boards.poll_ids,  # the poller counts its skipped rounds
+        )
 
     @property
     def stats(self) -> CanStats:
@@ -256,6 +260,7 @@ class CanSource(Source):
             held = self._give(self.assembler.flush())
             self._reconnect(str(err))
             return held
+        self.stats.lost_samples += self.ati_boards.take_skipped()
         if self.frame_sink is not None and batch:
             self.frame_sink(batch)
         if batch:

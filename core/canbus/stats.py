@@ -65,7 +65,7 @@ class CanStats:
             ("frames came after their sample was given out (dropped)", self.late),
             ("frames doubled within one sample (dropped)", self.duplicates),
             ("samples whose frames carried different counters", self.counter_mismatch),
-            ("samples lost (counter or clock jumped)", self.lost_samples),
+            ("samples lost (counter or clock jumped, or not polled in time)", self.lost_samples),
             ("error frames", self.error_frames),
             ("frames came with a time before an earlier frame's", self.time_back),
         ):

@@ -123,3 +123,51 @@ def test_a_board_that_stopped_answering_does_not_slow_the_others(
     assert others_whole.mean() >= 0.99 and source.stats.duplicates == 0
     # waiting for br every round (0.1 s) would give under 15 samples/s
     assert len(w) / wall >= 60, len(w) / wall
+
+
+def run_poller(rate: float, stalls: dict[int, float], seconds: float) -> tuple[list[float], int]:
+    """A poller of one board that answers every poll at once, its host stalled for
+    ``stalls[i]`` seconds as it sends round ``i``: the rounds' times and the rounds it skipped."""
+    import threading
+    from types import SimpleNamespace
+
+    from hapticdesk.canbus import ati_netcanoem as ati
+    from hapticdesk.canbus.ati_bus import AtiBoards
+    from hapticdesk.canbus.config import AtiSensor
+
+    closing = threading.Event()
+    sent: list[float] = []
+    reply = SimpleNamespace(arbitration_id=ati.frame_id(0x20, ati.OP_GAUGES_B), data=b"\0" * 6)
+
+    def send_poll(ident: int) -> None:
+        time.sleep(stalls.get(len(sent), 0.0))
+        sent.append(time.monotonic())
+
+    def receive(timeout_s: float) -> None:
+        while boards._heard[0] < len(sent):  # the board's reply, come at once
+            boards.saw(reply)
+
+    boards = AtiBoards(
+        {"fl": AtiSensor(0x20)}, rate, spec="test", send_poll=send_poll, receive=receive,
+        closing=closing,
+    )  # fmt: skip
+    boards.start_polling()
+    time.sleep(seconds)
+    boards.stop_polling()
+    return sent, boards.skipped_rounds
+
+
+def test_a_poller_woken_late_polls_the_rounds_it_missed():
+    """A host that stalls the poller 3 ms (three rounds at 1 kHz) costs no sample: the
+    rounds missed are polled back to back after it (each sample at its real time); a
+    30 ms stall's rounds are skipped and counted, and the clock keeps its phase."""
+    rate = 1000.0
+    sent, skipped = run_poller(rate, {200: 0.003, 500: 0.03}, seconds=0.9)
+    t = np.array(sent)
+    due = (t[-1] - t[0]) * rate + 1  # the rounds due while it ran
+    # every round due was polled or counted skipped (a loaded host may stall it more)
+    assert abs(len(t) + skipped - due) <= 3, (len(t), skipped, due)
+    assert skipped >= 28, skipped  # the 30 ms stall's rounds (a loaded host's own add more)
+    gaps = np.diff(t) * rate
+    # after the 3 ms stall, its three rounds came back to back
+    assert (gaps[200:204] < 0.5).sum() >= 2, gaps[198:206]

@@ -5,7 +5,8 @@ profile's rate for a few seconds, and each block read is estimated as ``hapticde
 does (``--estimate METHOD``, the profile's by default; ``none`` to only read). Prints the
 samples per second delivered, the share of samples with missing data (NaN), the decoder's
 counts and the share of the time spent estimating (issue 29: the estimator's compiled
-kernels release the GIL, so the poller and the emulator run meanwhile).
+kernels release the GIL, so the poller and the emulator run meanwhile), and the share of
+the samples due (one a period, from the first to the last) that never came.
 
     python scripts/ati_live_rate.py --rate 1200 --boards 4 --bus virtual
     python scripts/ati_live_rate.py --rate 1200 --boards 4 --bus virtual --estimate none
@@ -117,12 +118,14 @@ def main() -> int:
         estimator = ContactEstimator(profile, method=method)
     source = CanSource(f"can:{args.bus}:{channel}", profile, calibration_timeout_s=2.0)
     got = []
+    times = []
     estimating = 0.0
     start = time.monotonic()
     cpu_start = time.process_time()  # every thread of this process: poller, reader, emulator
     try:
         for block in source.blocks():
             got.append(block.wrench)
+            times.append(block.t)
             if estimator is not None:
                 began = time.perf_counter()
                 estimator.push(block.t, block.wrench, block.accel)
@@ -160,6 +163,15 @@ def main() -> int:
         if Path("/proc/loadavg").exists()
         else ""
     )
+    if len(w) > 1:
+        # the samples due from the first to the last (the poller's clock, one a period), and
+        # the share of them that never came: rounds not polled in time, the missing samples
+        t = np.concatenate(times)
+        due = int(round((t[-1] - t[0]) * args.rate)) + 1
+        print(
+            f"  {len(w)} of {due} samples due from the first to the last delivered: "
+            f"{100 * max(due - len(w), 0) / due:.2f} % missing"
+        )
     for line in source.stats.summary():
         print("  " + line)
     return 0

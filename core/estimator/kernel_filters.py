@@ -51,6 +51,7 @@ from hapticdesk.estimator.kernel_slots import (
     S_RAW,
     S_RELEASE,
     S_SLOPE,
+    Wrench,
 )
 
 
@@ -86,10 +87,16 @@ def _sections(
 @inlined
 def _difference(sf: np.ndarray, src: int, delayed: np.ndarray, scale: float) -> None:
     """Paper eq. (8) for the six lanes: (sf[src:src+6] − the same n samples ago, ``delayed``)
-    · ``scale`` into S_DIFF; ``delayed`` takes the sample in its place (read first, then
-    written: side by side in vector registers, as :func:`_sections`)."""
+    · ``scale`` into S_DIFF; ``delayed`` takes the sample in its place."""
     now = sf[src : src + 6]
-    x0, x1, x2, x3, x4, x5 = now[0], now[1], now[2], now[3], now[4], now[5]
+    _difference_of(sf, (now[0], now[1], now[2], now[3], now[4], now[5]), delayed, scale)
+
+
+@inlined
+def _difference_of(sf: np.ndarray, now: Wrench, delayed: np.ndarray, scale: float) -> None:
+    """:func:`_difference` of the six lanes ``now`` as they are in registers (read first,
+    then written: side by side in vector registers, as :func:`_sections`)."""
+    x0, x1, x2, x3, x4, x5 = now
     o0, o1, o2 = delayed[0], delayed[1], delayed[2]
     o3, o4, o5 = delayed[3], delayed[4], delayed[5]
     d = sf[S_DIFF : S_DIFF + 6]
@@ -135,26 +142,30 @@ def _restart_filters(pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndar
 @inlined
 def _sway(
     pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray, w: int, hist: int, pos_slot: int
-) -> None:
+) -> Wrench:
     """Adds the sway's inertial wrench to the wrench sf[w:w+6] in place: the horizontal
     force's second difference over I_SPAN each way, F̈_h / ω_n², and its moment c × F̈_h
-    (sway.py); the history of F_h is a ring of 2·I_SPAN."""
+    (sway.py); the history of F_h is a ring of 2·I_SPAN. Returns the new wrench as well (in
+    registers: a stage that reads it at once from sf, six lanes wide, would wait for the
+    stores of two and one lanes to reach the cache, which a wide load cannot forward)."""
     span = pi[I_SPAN]
     n2 = 2 * span
     pos = si[pos_slot]
     mid = pos + span if pos + span < n2 else pos + span - n2
-    fx, fy = sf[w], sf[w + 1]
+    now = sf[w : w + 6]
+    fx, fy, fz, mx, my, mz = now[0], now[1], now[2], now[3], now[4], now[5]
     scale = pf[P_SWAY_SCALE]
     cx = (fx - 2.0 * sf[hist + 2 * mid] + sf[hist + 2 * pos]) * scale
     cy = (fy - 2.0 * sf[hist + 2 * mid + 1] + sf[hist + 2 * pos + 1]) * scale
     sf[hist + 2 * pos], sf[hist + 2 * pos + 1] = fx, fy
     si[pos_slot] = pos + 1 if pos + 1 < n2 else 0
     lever = pi[I_PO_LEVER]
-    sf[w] = fx + cx
-    sf[w + 1] = fy + cy
-    sf[w + 3] += pf[lever] * cx + pf[lever + 1] * cy
-    sf[w + 4] += pf[lever + 2] * cx + pf[lever + 3] * cy
-    sf[w + 5] += pf[lever + 4] * cx + pf[lever + 5] * cy
+    fx, fy = fx + cx, fy + cy
+    mx += pf[lever] * cx + pf[lever + 1] * cy
+    my += pf[lever + 2] * cx + pf[lever + 3] * cy
+    mz += pf[lever + 4] * cx + pf[lever + 5] * cy
+    now[0], now[1], now[3], now[4], now[5] = fx, fy, mx, my, mz
+    return fx, fy, fz, mx, my, mz
 
 
 @inlined
@@ -191,8 +202,10 @@ def _filters(pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray) -> 
         # a difference commutes with an LTI filter: the difference of the low-passed wrench
         _sections(pf, pi[I_PO_LP_SOS], ns, sf, pi[I_SO_LP_ZI], S_RAW, S_LP)
         if pi[I_SPAN]:
-            _sway(pf, pi, sf, si, S_LP, pi[I_SO_SWAY], J_SWAY_POS)
-        if diff:
+            swayed = _sway(pf, pi, sf, si, S_LP, pi[I_SO_SWAY], J_SWAY_POS)
+            if diff:
+                _difference_of(sf, swayed, delayed, scale)  # paper eq. (8)
+        elif diff:
             _difference(sf, S_LP, delayed, scale)  # paper eq. (8)
     else:
         if diff:

@@ -290,3 +290,5 @@ TRACE_FORCE, TRACE_RATE, TRACE_CANDIDATES, TRACE_PER_CANDIDATE, TRACE_ROWS = 0, 
 #: indices (a NamedTuple compiled to code twice as slow here: 18.7 against 9.7 ms a minute)
 Candidate = tuple[int, float, float, float, float, float]
 C_SURFACE, C_U, C_V, C_VAR_U, C_VAR_V, C_COV_UV = range(6)  # (surface -1: none)
+#: a wrench [F; M] held in registers between two stages (six floats)
+Wrench = tuple[float, float, float, float, float, float]

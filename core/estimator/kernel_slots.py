@@ -57,6 +57,7 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     P_DET_FLOOR,
     P_EDGE_TOLERANCE,
     P_SHEAR_CAP,
+    P_SHEAR_CAP_INV,  # 1 / P_SHEAR_CAP (a division a located sample does not make)
     P_UNCERTAINTY_CAP,
     P_STEP_CHANGE,
     P_MT_MIN_STEP,
@@ -77,7 +78,7 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     P_LIFT_TOLERANCE,
     P_IDLE_QUANTILE,
     N_PF_FIXED,
-) = range(40)
+) = range(41)
 # --- parameters: fixed int slots (pi) -----------------------------------------------------------
 (
     I_C,  # raw channels

@@ -184,14 +184,15 @@ def _locate(
         cf = intersect(
             pf, pi, sf, w, 1.0, sf, covs + 6 * COV_LP, covs + 6 * COV_DRIFT, age2, 0.0, f_mag
         )
+    if trace or method == METHOD_FUSED:
+        # (next to P_er's, which it does not wait for: the two run side by side)
+        cq = intersect(
+            pf, pi, sf, S_TARED_Q, 1.0, sf, covs + 6 * COV_DET, covs + 6 * COV_DRIFT, age2, 0.0, mag
+        )
     want_d = False
     rate = 0.0
     if trace or method != METHOD_FORCE:
         cd, want_d, rate = _diff_candidate(mag, f_mag, cf, pf, pi, sf)
-    if trace or method == METHOD_FUSED:
-        cq = intersect(
-            pf, pi, sf, S_TARED_Q, 1.0, sf, covs + 6 * COV_DET, covs + 6 * COV_DRIFT, age2, 0.0, mag
-        )
     if trace:
         at = pi[I_SO_TRACE]
         sf[at + TRACE_FORCE], sf[at + TRACE_RATE] = f_mag, rate

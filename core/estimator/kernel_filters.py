@@ -51,25 +51,29 @@ from hapticdesk.estimator.kernel_slots import (
     S_RAW,
     S_RELEASE,
     S_SLOPE,
+    Wrench,
 )
 
 
 @inlined
 def _sections(
     pf: np.ndarray, sos: int, ns: int, sf: np.ndarray, zi: int, src: int, dst: int
-) -> None:
+) -> Wrench:
     """The six lanes sf[src:src+6] through a cascade of ``ns`` second-order sections
     (pf[sos:]), one lane each, into sf[dst:dst+6] (``src`` may be ``dst``): scipy's
     ``sosfilt`` recursion (transposed direct form II), to the bit. The state sf[zi:] is
     (ns, 2, 6): a section's two memories of the six lanes side by side. Each section reads
     its six inputs and twelve memories before it writes any, so that the six lanes run side
-    by side in vector registers (a caller that needs three lanes gets six at the same cost)."""
+    by side in vector registers (a caller that needs three lanes gets six at the same cost).
+    Returns the output as well, in registers: a stage that reads it back at once from sf
+    in another width than it was stored in waits for the stores to reach the cache (the
+    CPU forwards a store only to a load it contains)."""
+    inp = sf[src : src + 6]
+    x0, x1, x2, x3, x4, x5 = inp[0], inp[1], inp[2], inp[3], inp[4], inp[5]
     for s in range(ns):
         b = pf[sos + 6 * s : sos + 6 * s + 6]
         b0, b1, b2, a1, a2 = b[0], b[1], b[2], b[4], b[5]
         z = sf[zi + 12 * s : zi + 12 * s + 12]
-        inp = sf[src : src + 6]
-        x0, x1, x2, x3, x4, x5 = inp[0], inp[1], inp[2], inp[3], inp[4], inp[5]
         p0, p1, p2, p3, p4, p5 = z[0], z[1], z[2], z[3], z[4], z[5]
         q0, q1, q2, q3, q4, q5 = z[6], z[7], z[8], z[9], z[10], z[11]
         y0, y1, y2 = b0 * x0 + p0, b0 * x1 + p1, b0 * x2 + p2
@@ -78,18 +82,18 @@ def _sections(
         z[3], z[4], z[5] = b1 * x3 - a1 * y3 + q3, b1 * x4 - a1 * y4 + q4, b1 * x5 - a1 * y5 + q5
         z[6], z[7], z[8] = b2 * x0 - a2 * y0, b2 * x1 - a2 * y1, b2 * x2 - a2 * y2
         z[9], z[10], z[11] = b2 * x3 - a2 * y3, b2 * x4 - a2 * y4, b2 * x5 - a2 * y5
-        out = sf[dst : dst + 6]
-        out[0], out[1], out[2], out[3], out[4], out[5] = y0, y1, y2, y3, y4, y5
-        src = dst
+        x0, x1, x2, x3, x4, x5 = y0, y1, y2, y3, y4, y5  # (the next section's input)
+    out = sf[dst : dst + 6]
+    out[0], out[1], out[2], out[3], out[4], out[5] = x0, x1, x2, x3, x4, x5
+    return x0, x1, x2, x3, x4, x5
 
 
 @inlined
-def _difference(sf: np.ndarray, src: int, delayed: np.ndarray, scale: float) -> None:
-    """Paper eq. (8) for the six lanes: (sf[src:src+6] − the same n samples ago, ``delayed``)
-    · ``scale`` into S_DIFF; ``delayed`` takes the sample in its place (read first, then
-    written: side by side in vector registers, as :func:`_sections`)."""
-    now = sf[src : src + 6]
-    x0, x1, x2, x3, x4, x5 = now[0], now[1], now[2], now[3], now[4], now[5]
+def _difference(sf: np.ndarray, now: Wrench, delayed: np.ndarray, scale: float) -> None:
+    """Paper eq. (8) for the six lanes: (``now`` − the same n samples ago, ``delayed``) ·
+    ``scale`` into S_DIFF; ``delayed`` takes ``now`` in its place (read first, then written:
+    side by side in vector registers, as :func:`_sections`)."""
+    x0, x1, x2, x3, x4, x5 = now
     o0, o1, o2 = delayed[0], delayed[1], delayed[2]
     o3, o4, o5 = delayed[3], delayed[4], delayed[5]
     d = sf[S_DIFF : S_DIFF + 6]
@@ -134,27 +138,38 @@ def _restart_filters(pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndar
 
 @inlined
 def _sway(
-    pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray, w: int, hist: int, pos_slot: int
-) -> None:
-    """Adds the sway's inertial wrench to the wrench sf[w:w+6] in place: the horizontal
-    force's second difference over I_SPAN each way, F̈_h / ω_n², and its moment c × F̈_h
-    (sway.py); the history of F_h is a ring of 2·I_SPAN."""
+    pf: np.ndarray,
+    pi: np.ndarray,
+    sf: np.ndarray,
+    si: np.ndarray,
+    w: int,
+    wrench: Wrench,
+    hist: int,
+    pos_slot: int,
+) -> Wrench:
+    """Adds the sway's inertial wrench to the wrench sf[w:w+6] in place (``wrench``: its
+    values, in registers, as :func:`_sections` returns them): the horizontal force's second
+    difference over I_SPAN each way, F̈_h / ω_n², and its moment c × F̈_h (sway.py); the
+    history of F_h is a ring of 2·I_SPAN. Returns the new wrench as well (in registers: see
+    :func:`_sections`)."""
     span = pi[I_SPAN]
     n2 = 2 * span
     pos = si[pos_slot]
     mid = pos + span if pos + span < n2 else pos + span - n2
-    fx, fy = sf[w], sf[w + 1]
+    fx, fy, fz, mx, my, mz = wrench
     scale = pf[P_SWAY_SCALE]
     cx = (fx - 2.0 * sf[hist + 2 * mid] + sf[hist + 2 * pos]) * scale
     cy = (fy - 2.0 * sf[hist + 2 * mid + 1] + sf[hist + 2 * pos + 1]) * scale
     sf[hist + 2 * pos], sf[hist + 2 * pos + 1] = fx, fy
     si[pos_slot] = pos + 1 if pos + 1 < n2 else 0
     lever = pi[I_PO_LEVER]
-    sf[w] = fx + cx
-    sf[w + 1] = fy + cy
-    sf[w + 3] += pf[lever] * cx + pf[lever + 1] * cy
-    sf[w + 4] += pf[lever + 2] * cx + pf[lever + 3] * cy
-    sf[w + 5] += pf[lever + 4] * cx + pf[lever + 5] * cy
+    fx, fy = fx + cx, fy + cy
+    mx += pf[lever] * cx + pf[lever + 1] * cy
+    my += pf[lever + 2] * cx + pf[lever + 3] * cy
+    mz += pf[lever + 4] * cx + pf[lever + 5] * cy
+    now = sf[w : w + 6]
+    now[0], now[1], now[3], now[4], now[5] = fx, fy, mx, my, mz
+    return fx, fy, fz, mx, my, mz
 
 
 @inlined
@@ -189,18 +204,21 @@ def _filters(pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray) -> 
     diff = pi[I_METHOD] != METHOD_FORCE or pi[I_TRACE] == 1
     if pi[I_SHARED_LP]:
         # a difference commutes with an LTI filter: the difference of the low-passed wrench
-        _sections(pf, pi[I_PO_LP_SOS], ns, sf, pi[I_SO_LP_ZI], S_RAW, S_LP)
+        lp = _sections(pf, pi[I_PO_LP_SOS], ns, sf, pi[I_SO_LP_ZI], S_RAW, S_LP)
         if pi[I_SPAN]:
-            _sway(pf, pi, sf, si, S_LP, pi[I_SO_SWAY], J_SWAY_POS)
+            lp = _sway(pf, pi, sf, si, S_LP, lp, pi[I_SO_SWAY], J_SWAY_POS)
         if diff:
-            _difference(sf, S_LP, delayed, scale)  # paper eq. (8)
+            _difference(sf, lp, delayed, scale)  # paper eq. (8)
     else:
+        d = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
         if diff:
-            _difference(sf, S_RAW, delayed, scale)  # paper eq. (8), low-passed
-            _sections(pf, pi[I_PO_DIFF_SOS], ns, sf, pi[I_SO_DIFF_ZI], S_DIFF, S_DIFF)
-        _sections(pf, pi[I_PO_LP_SOS], ns, sf, pi[I_SO_LP_ZI], S_RAW, S_LP)
+            raw = sf[S_RAW : S_RAW + 6]
+            now = (raw[0], raw[1], raw[2], raw[3], raw[4], raw[5])
+            _difference(sf, now, delayed, scale)  # paper eq. (8), low-passed
+            d = _sections(pf, pi[I_PO_DIFF_SOS], ns, sf, pi[I_SO_DIFF_ZI], S_DIFF, S_DIFF)
+        lp = _sections(pf, pi[I_PO_LP_SOS], ns, sf, pi[I_SO_LP_ZI], S_RAW, S_LP)
         if pi[I_SPAN]:
-            _sway(pf, pi, sf, si, S_LP, pi[I_SO_SWAY], J_SWAY_POS)
+            _sway(pf, pi, sf, si, S_LP, lp, pi[I_SO_SWAY], J_SWAY_POS)
             if diff:
-                _sway(pf, pi, sf, si, S_DIFF, pi[I_SO_SWAY_DIFF], J_SWAY_DIFF_POS)
+                _sway(pf, pi, sf, si, S_DIFF, d, pi[I_SO_SWAY_DIFF], J_SWAY_DIFF_POS)
     si[J_DELAY_POS] = pos + 1 if pos + 1 < n_diff else 0

@@ -43,14 +43,15 @@ from hapticdesk.estimator.resolution import NO_NOISE_RHO, SHARE_HARMONICS
 
 
 @inlined
-def shear_of(into: float, magnitude: float, cap: float) -> float:
+def shear_of(into: float, magnitude: float, cap: float, inv_cap: float) -> float:
     """|F_t| / |F_n| of a force whose component along a surface's unit normal is ``into``
     and whose magnitude is ``magnitude``: how much a finger drags along the surface for how
-    hard it presses into it, at most ``cap`` (finite where F_n is 0)."""
+    hard it presses into it, at most ``cap`` (``inv_cap`` its reciprocal, made once per desk;
+    finite where F_n is 0)."""
     along = magnitude * magnitude
     along -= into * into
     along = math.sqrt(max(along, 0.0))
-    pressed = max(abs(into), along * (1.0 / cap) + 1e-300)
+    pressed = max(abs(into), along * inv_cap + 1e-300)
     return min(along / pressed, cap)
 
 

@@ -35,6 +35,7 @@ from hapticdesk.estimator.kernel_slots import (
     COV_DRIFT,
     COV_LP,
     I_METHOD,
+    I_N_SURF,
     I_SO_COVS,
     I_SO_TRACE,
     I_TRACE,
@@ -78,10 +79,12 @@ def _information(vu: float, vv: float, cov: float, floor: float) -> tuple[float,
 
 
 @inlined
-def _fuse(pf: np.ndarray, cf: Candidate, cd: Candidate, cq: Candidate) -> tuple[Candidate, int]:
-    """The valid candidates on the surface of the surest one, fused: p = (Σ Σ_i⁻¹)⁻¹ Σ Σ_i⁻¹ p_i
-    in closed form (2×2). Returns the fused candidate and how many were fused."""
-    cap, floor = pf[P_VAR_CAP], pf[P_DET_FLOOR]
+def _fusion_surface(pi: np.ndarray, cf: Candidate, cd: Candidate, cq: Candidate) -> int:
+    """The surface the candidates are fused on: the surest valid one's (−1: none valid). On
+    a desk of one surface every valid candidate is on it: no ranking needed."""
+    if pi[I_N_SURF] == 1:
+        valid = cf[C_SURFACE] >= 0 or cd[C_SURFACE] >= 0 or cq[C_SURFACE] >= 0
+        return 0 if valid else -1
     best = 0
     best_sigma = math.inf
     k = 0
@@ -91,19 +94,29 @@ def _fuse(pf: np.ndarray, cf: Candidate, cd: Candidate, cq: Candidate) -> tuple[
             if sigma < best_sigma:
                 best, best_sigma = k, sigma
         k += 1
-    surface = (cf, cd, cq)[best][C_SURFACE]
+    return (cf, cd, cq)[best][C_SURFACE]
+
+
+@inlined
+def _fuse(
+    pf: np.ndarray, pi: np.ndarray, cf: Candidate, cd: Candidate, cq: Candidate
+) -> tuple[Candidate, int]:
+    """The valid candidates on the surface of the surest one, fused: p = (Σ Σ_i⁻¹)⁻¹ Σ Σ_i⁻¹ p_i
+    in closed form (2×2). Returns the fused candidate and how many were fused."""
+    cap, floor = pf[P_VAR_CAP], pf[P_DET_FLOOR]
+    surface = _fusion_surface(pi, cf, cd, cq)
     if surface < 0:
         return (-1, 0.0, 0.0, cap, cap, 0.0), 0
     a = b = c_ = ru = rv = 0.0
     members = 0
     for c in (cf, cd, cq):
-        take = 1.0 if c[C_SURFACE] >= 0 and c[C_SURFACE] == surface else 0.0
-        ia, ib, ic = _information(c[C_VAR_U], c[C_VAR_V], c[C_COV_UV], floor)
-        ia, ib, ic = ia * take, ib * take, ic * take
-        members += int(take)
-        a, b, c_ = a + ia, b + ib, c_ + ic
-        ru = ru + ia * c[C_U] + ib * c[C_V]
-        rv = rv + ib * c[C_U] + ic * c[C_V]
+        # (a candidate left out would add zeros: skipped, the same sums)
+        if c[C_SURFACE] == surface:
+            ia, ib, ic = _information(c[C_VAR_U], c[C_VAR_V], c[C_COV_UV], floor)
+            members += 1
+            a, b, c_ = a + ia, b + ib, c_ + ic
+            ru = ru + ia * c[C_U] + ib * c[C_V]
+            rv = rv + ib * c[C_U] + ic * c[C_V]
     inv_det = 1.0 / max(max(a * c_ - b * b, floor * a * c_), 1e-300)
     u = (c_ * ru - b * rv) * inv_det
     v = (a * rv - b * ru) * inv_det
@@ -177,14 +190,15 @@ def _locate(
         cf = intersect(
             pf, pi, sf, w, 1.0, sf, covs + 6 * COV_LP, covs + 6 * COV_DRIFT, age2, 0.0, f_mag
         )
+    if trace or method == METHOD_FUSED:
+        # (next to P_er's, which it does not wait for: the two run side by side)
+        cq = intersect(
+            pf, pi, sf, S_TARED_Q, 1.0, sf, covs + 6 * COV_DET, covs + 6 * COV_DRIFT, age2, 0.0, mag
+        )
     want_d = False
     rate = 0.0
     if trace or method != METHOD_FORCE:
         cd, want_d, rate = _diff_candidate(mag, f_mag, cf, pf, pi, sf)
-    if trace or method == METHOD_FUSED:
-        cq = intersect(
-            pf, pi, sf, S_TARED_Q, 1.0, sf, covs + 6 * COV_DET, covs + 6 * COV_DRIFT, age2, 0.0, mag
-        )
     if trace:
         at = pi[I_SO_TRACE]
         sf[at + TRACE_FORCE], sf[at + TRACE_RATE] = f_mag, rate
@@ -294,7 +308,7 @@ def _choose_fused(
         if cf[C_SURFACE] >= 0 and var_f <= max_sigma * max_sigma:
             _emit(pf, pi, sf, cf, SOURCE_FORCE, out_f, out_b, out_s, col)
     else:
-        fused, members = _fuse(pf, cf, cd, cq)
+        fused, members = _fuse(pf, pi, cf, cd, cq)
         if fused[C_SURFACE] >= 0 and math.sqrt(fused[C_VAR_U] + fused[C_VAR_V]) <= max_sigma:
             source = SOURCE_FUSED
             if members == 1:  # one candidate alone: say which

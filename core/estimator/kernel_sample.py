@@ -79,6 +79,7 @@ from hapticdesk.estimator.kernel_slots import (
     OUT_Z2,
     P_PHASE_RATE,
     P_SHEAR_CAP,
+    P_SHEAR_CAP_INV,
     P_UNCERTAINTY_CAP,
     RESUME_AGAIN,
     RESUME_BACK,
@@ -251,7 +252,7 @@ def _shear_and_drag(
     at, n = surface_at(pi, s), SURF_NORMAL
     surf = pf[at : at + SURF_F]
     into = fx * surf[n] + fy * surf[n + 1] + fz * surf[n + 2]
-    shear = shear_of(into, mag, pf[P_SHEAR_CAP])
+    shear = shear_of(into, mag, pf[P_SHEAR_CAP], pf[P_SHEAR_CAP_INV])
     if pi[pi[I_IO_SURF] + s * SURF_I + SURF_DESK_XY]:
         return shear, into * surf[n] - fx, into * surf[n + 1] - fy
     return shear, 0.0, 0.0

@@ -57,6 +57,7 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     P_DET_FLOOR,
     P_EDGE_TOLERANCE,
     P_SHEAR_CAP,
+    P_SHEAR_CAP_INV,  # 1 / P_SHEAR_CAP (a division a located sample does not make)
     P_UNCERTAINTY_CAP,
     P_STEP_CHANGE,
     P_MT_MIN_STEP,
@@ -77,7 +78,7 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     P_LIFT_TOLERANCE,
     P_IDLE_QUANTILE,
     N_PF_FIXED,
-) = range(40)
+) = range(41)
 # --- parameters: fixed int slots (pi) -----------------------------------------------------------
 (
     I_C,  # raw channels
@@ -294,3 +295,5 @@ TRACE_FORCE, TRACE_RATE, TRACE_CANDIDATES, TRACE_PER_CANDIDATE, TRACE_ROWS = 0, 
 #: indices (a NamedTuple compiled to code twice as slow here: 18.7 against 9.7 ms a minute)
 Candidate = tuple[int, float, float, float, float, float]
 C_SURFACE, C_U, C_V, C_VAR_U, C_VAR_V, C_COV_UV = range(6)  # (surface -1: none)
+#: a wrench [F; M] held in registers between two stages (six floats)
+Wrench = tuple[float, float, float, float, float, float]

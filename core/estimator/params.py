@@ -233,6 +233,7 @@ def _fixed_floats(s: EstimatorSettings) -> dict[int, float]:
         slots.P_DET_FLOOR: DET_FLOOR,
         slots.P_EDGE_TOLERANCE: EDGE_TOLERANCE_M,
         slots.P_SHEAR_CAP: SHEAR_CAP,
+        slots.P_SHEAR_CAP_INV: 1.0 / SHEAR_CAP,
         slots.P_UNCERTAINTY_CAP: UNCERTAINTY_CAP_M,
         slots.P_STEP_CHANGE: STEP_CHANGE,
         slots.P_MT_MIN_STEP: MIN_STEP_N,

@@ -140,5 +140,5 @@ def test_shear_is_the_drag_along_the_surface_over_the_press_into_it():
     # dragged with sqrt(109) N; no force; a force along the surface alone (capped, finite)
     want = [0.5, np.sqrt(109.0) / 4.0, 0.0, SHEAR_CAP]
     for f, n, w in zip(forces, normals, want, strict=True):
-        one = shear_of(float(f @ n), float(np.linalg.norm(f)), SHEAR_CAP)
+        one = shear_of(float(f @ n), float(np.linalg.norm(f)), SHEAR_CAP, 1.0 / SHEAR_CAP)
         assert one == pytest.approx(w, rel=1e-12)

@@ -333,7 +333,10 @@ class MqttLink:
                 message = None
                 stalled = 0
                 while message is None and not self._closing:
-                    message = self._outbox.next_message(self._connected)
+                    # nothing before the birth: between the CONNACK and the SUBACK a command
+                    # (the desk's state, say) went out before `online` (CI, once in a run)
+                    ready = self._connected and self._presence.ready.is_set()
+                    message = self._outbox.next_message(ready)
                     if message is None:
                         self._cond.wait(0.5)
                         stalled = self._stalled()

@@ -260,7 +260,6 @@ class CanSource(Source):
             held = self._give(self.assembler.flush())
             self._reconnect(str(err))
             return held
-        self.stats.lost_samples += self.ati_boards.take_skipped()
         if self.frame_sink is not None and batch:
             self.frame_sink(batch)
         if batch:
@@ -312,7 +311,10 @@ class CanSource(Source):
         return held
 
     def _give(self, block: AssembledBlock) -> WrenchBlock:
-        """The assembled samples as a block; a stop it carries is raised at the next read."""
+        """The assembled samples as a block; a stop it carries is raised at the next read.
+        The rounds the poller skipped meanwhile join the stats here, on every way out (the
+        last block, a reconnection's, a quiet one's too)."""
+        self.stats.lost_samples += self.ati_boards.take_skipped()
         self.notices.extend(block.notices)
         if block.stop is not None:
             self._stop_after = block.stop

@@ -153,7 +153,9 @@ def run_poller(rate: float, stalls: dict[int, float], seconds: float) -> tuple[l
     )  # fmt: skip
     boards.start_polling()
     time.sleep(seconds)
+    closing.set()  # as the source does when it closes: the poller ends, joined below
     boards.stop_polling()
+    assert not boards._poller.is_alive()
     return sent, boards.skipped_rounds
 
 

@@ -4,7 +4,9 @@ P_er from the low-passed force and P_ed from the differentiated force (and, for 
 one from the fast wrench), each the intersection of its line of action with the surfaces
 (paper eqs. 5, 12; :mod:`hapticdesk.estimator.geometry`), each with a covariance propagated
 from the noise measured at the tare, plus the zero's drift since it was set and, for P_ed,
-the term eq. (11) drops (a finger drifting at ``contact_speed_m_s``).
+the term eq. (11) drops (a finger drifting at ``contact_speed_m_s``). The zero's rounding
+offset, which all of them share, is kept apart (``Covariances.rounding``): the kernel adds it
+to the located point's 1-σ at the touch's force, after the method has chosen and weighed.
 
 The per-sample work is ``_locate`` in :mod:`hapticdesk.estimator.kernel_methods`; here the
 covariances it propagates are made, at the tare and again when a channel's resolution step
@@ -18,7 +20,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from hapticdesk.estimator.geometry import pack_cov
-from hapticdesk.estimator.resolution import rounding_deficit
+from hapticdesk.estimator.resolution import (
+    rounding_deficit,
+    zero_rounding_channels,
+    zero_rounding_noise,
+)
 from hapticdesk.estimator.settings import EstimatorSettings
 
 
@@ -31,13 +37,30 @@ class Covariances:
     diff: list[np.ndarray]
     det: list[np.ndarray]
     drift: list[np.ndarray]  # the zero's drift per second², growing as (age · rate)²
+    # the zero's rounding offset (resolution.zero_rounding): shared by every candidate and
+    # every sample until the next tare, so not in the fusion's weights but added to the
+    # located point's (a floor growing as 1/F that no averaging lowers); per surface where
+    # every channel moves under the press, its bound
+    rounding: list[np.ndarray]
+    # the same per channel (C,), the noise in steps it was made with (C,), and the wrench's
+    # least-norm spread over the channels (C, 6): how much each channel moves under a press,
+    # so one it does not move keeps none (resolution.moved_share; the kernel's rounding_floor)
+    rounding_channels: np.ndarray
+    rounding_noise: np.ndarray
+    spread: np.ndarray
 
     @classmethod
     def of(
-        cls, settings: EstimatorSettings, measured: np.ndarray, step: np.ndarray | None = None
+        cls,
+        settings: EstimatorSettings,
+        measured: np.ndarray,
+        step: np.ndarray | None = None,
+        rest_var: np.ndarray | None = None,
+        rest_n: int = 0,
     ) -> Covariances:
-        """From the noise ``measured`` at the tare (6, 6) and the channels' resolution steps
-        (C,) learned so far (resolution.py; None or 0: none)."""
+        """From the noise ``measured`` at the tare (6, 6), the channels' resolution steps
+        (C,) learned so far (resolution.py; None or 0: none) and their variance at rest (C,;
+        None: not measured, no rounding offset)."""
         s, m = settings.user, settings.wrench_map
         if s.noise_force_n > 0 or s.noise_moment_nm > 0:
             per_channel = np.where(settings.moment_channels, s.noise_moment_nm, s.noise_force_n)
@@ -64,10 +87,21 @@ class Covariances:
         drift = [f.project_cov(drift_cov) for f in frames]
         diff = [f.project_cov(cov * settings.gain_diff) for f in frames]
         det = [f.project_cov(cov * settings.gain_det) for f in frames]
-        return cls(lp, diff, det, drift)
+        per_channel = noise = np.zeros(m.shape[1])
+        if step is not None and rest_var is not None:
+            per_channel = zero_rounding_channels(step, rest_var, rest_n)
+            noise = zero_rounding_noise(step, rest_var, rest_n)
+        offset = m @ (m.T * per_channel[:, None])
+        rounding = [f.project_cov(offset) for f in frames]
+        return cls(lp, diff, det, drift, rounding, per_channel, noise, np.linalg.pinv(m))
 
     def packed(self) -> np.ndarray:
         """(n_surfaces, 4, 6): per surface its lp, diff, det and drift covariances, each as
         :func:`~hapticdesk.estimator.geometry.pack_cov` (the kernel's COV_* order)."""
         per_surface = zip(self.lp, self.diff, self.det, self.drift, strict=True)
         return np.array([[pack_cov(c) for c in covs] for covs in per_surface]).reshape(-1, 4, 6)
+
+    def packed_rounding(self) -> np.ndarray:
+        """(8·C,): the zero's rounding offset per channel, its noise in steps per channel, then
+        the spread (C, 6) by channel (the kernel's I_SO_ROUND)."""
+        return np.concatenate([self.rounding_channels, self.rounding_noise, self.spread.ravel()])

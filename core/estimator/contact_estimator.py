@@ -332,14 +332,23 @@ class ContactEstimator:
         noise = self.zeroing.state.noise
         if noise is None:
             return
-        sf = self.state.sf
-        used = self.params.slot(slots.I_SO_USED)
+        sf, si = self.state
+        used, sq = self.params.slot(slots.I_SO_USED), self.params.slot(slots.I_SO_REST_SQ)
+        compared = si[slots.J_REST_N]  # (the mean square change is twice the variance)
+        rest_var = sf[sq : sq + self._n_channels] / (2 * compared) if compared else None
         self.covariances = Covariances.of(
-            self.stage_settings, noise, sf[used : used + self._n_channels].copy()
+            self.stage_settings,
+            noise,
+            sf[used : used + self._n_channels].copy(),
+            rest_var,
+            int(compared),
         )
-        packed = self.covariances.packed().ravel()
-        at = self.params.slot(slots.I_SO_COVS)
-        sf[at : at + len(packed)] = packed
+        for slot, packed in (
+            (slots.I_SO_COVS, self.covariances.packed().ravel()),
+            (slots.I_SO_ROUND, self.covariances.packed_rounding().ravel()),
+        ):
+            at = self.params.slot(slot)
+            sf[at : at + len(packed)] = packed
 
     def _fit_second(self, cols: OutputColumns, col: int) -> None:
         """The second finger's landing window is full: its point fitted (multitouch.py), on

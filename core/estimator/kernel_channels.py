@@ -37,17 +37,21 @@ from hapticdesk.estimator.kernel_slots import (
     I_NOISE_FREE_REPEATS,
     I_PO_LIMIT,
     I_PO_MAP,
+    I_REST_N,
     I_SO_LAST_ROW,
     I_SO_PREV_ROW,
+    I_SO_REST_SQ,
     I_SO_STEP,
     I_SO_USED,
     I_STUCK_RUN,
     J_DIRTY,
     J_HAVE_LAST_ROW,
     J_HAVE_PREV,
+    J_IN_CONTACT,
     J_LIVE,
     J_N_LEARNING,
     J_REPEATS,
+    J_REST_N,
     J_SEEN,
     J_SEEN_REPEATS,
     J_STUCK_CHECK,
@@ -207,8 +211,11 @@ def _wrench(x: np.ndarray, pf: np.ndarray, pi: np.ndarray, sf: np.ndarray) -> No
 @inlined
 def _learn_steps(x: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray) -> None:
     """Each channel's smallest change between good readings (its resolution step), until
-    I_CONFIRM changes confirm it (resolution.py)."""
-    if si[J_N_LEARNING] == 0:
+    I_CONFIRM changes confirm it, and the squared changes of its first I_REST_N readings
+    out of contact (its noise: resolution.py)."""
+    rest = si[J_REST_N] < pi[I_REST_N] and si[J_IN_CONTACT] == 0
+    if si[J_N_LEARNING] == 0 and not rest:
+        si[J_HAVE_LAST_ROW] = 0  # (the row kept goes stale)
         return
     c_n = pi[I_C]
     last = sf[pi[I_SO_LAST_ROW] : pi[I_SO_LAST_ROW] + c_n]
@@ -216,6 +223,11 @@ def _learn_steps(x: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray) 
     changes = si[pi[I_JO_CHANGES] : pi[I_JO_CHANGES] + c_n]
     learning = si[pi[I_JO_LEARNING] : pi[I_JO_LEARNING] + c_n]
     if si[J_HAVE_LAST_ROW]:
+        if rest:
+            squares = sf[pi[I_SO_REST_SQ] : pi[I_SO_REST_SQ] + c_n]
+            for c in range(c_n):
+                squares[c] += (x[c] - last[c]) ** 2
+            si[J_REST_N] += 1
         for c in range(c_n):
             if not learning[c]:
                 continue

@@ -22,7 +22,7 @@ from hapticdesk.estimator.contacts import (
     SOURCE_FUSED,
 )
 from hapticdesk.estimator.kernel_compile import inlined
-from hapticdesk.estimator.kernel_geometry import intersect, to_desk
+from hapticdesk.estimator.kernel_geometry import intersect, rounding_floor, to_desk
 from hapticdesk.estimator.kernel_slots import (
     C_COV_UV,
     C_SURFACE,
@@ -127,6 +127,7 @@ def _fuse(
 def _emit(
     pf: np.ndarray,
     pi: np.ndarray,
+    sf: np.ndarray,
     c: Candidate,
     source: int,
     out_f: np.ndarray,
@@ -134,10 +135,15 @@ def _emit(
     out_s: np.ndarray,
     col: int,
 ) -> None:
-    """A chosen candidate into the outputs."""
+    """A chosen candidate into the outputs; its 1-σ with the zero's rounding offset
+    (:func:`rounding_floor`, at the force of the tared wrench the method locates with: the
+    fast one for ``fused``), which the choice and the weights leave out (every candidate
+    shares it)."""
     x, y, z = to_desk(pf, pi, c[C_SURFACE], c[C_U], c[C_V])
     out_f[OUT_X, col], out_f[OUT_Y, col], out_f[OUT_Z, col] = x, y, z
-    out_f[OUT_SIGMA, col] = math.sqrt(c[C_VAR_U] + c[C_VAR_V])
+    w = S_TARED_Q if pi[I_METHOD] == METHOD_FUSED else S_TARED_W
+    floor = rounding_floor(pf, pi, sf, w, c[C_SURFACE], c[C_U], c[C_V])
+    out_f[OUT_SIGMA, col] = math.sqrt(c[C_VAR_U] + c[C_VAR_V] + floor)
     out_b[OUT_B_LOCATED, col] = 1
     out_b[OUT_B_SOURCE, col] = source
     out_s[col] = c[C_SURFACE]
@@ -199,7 +205,7 @@ def _locate(
         _trace(pf, pi, sf, 0, cf)
         _trace(pf, pi, sf, 1, cd)
         _trace(pf, pi, sf, 2, cq)
-    _choose(pf, pi, cf, cd, cq, f_mag, want_d, out_f, out_b, out_s, col)
+    _choose(pf, pi, sf, cf, cd, cq, f_mag, want_d, out_f, out_b, out_s, col)
 
 
 @inlined
@@ -239,6 +245,7 @@ def _diff_candidate(
 def _choose(
     pf: np.ndarray,
     pi: np.ndarray,
+    sf: np.ndarray,
     cf: Candidate,
     cd: Candidate,
     cq: Candidate,
@@ -256,23 +263,24 @@ def _choose(
     max_sigma = pf[P_MAX_SIGMA]
     if method == METHOD_FORCE:
         if cf[C_SURFACE] >= 0 and f_mag >= pf[P_CONTACT]:
-            _emit(pf, pi, cf, SOURCE_FORCE, out_f, out_b, out_s, col)
+            _emit(pf, pi, sf, cf, SOURCE_FORCE, out_f, out_b, out_s, col)
     elif method == METHOD_DIFF:
         if cd[C_SURFACE] >= 0 and math.sqrt(cd[C_VAR_U] + cd[C_VAR_V]) <= max_sigma:
-            _emit(pf, pi, cd, SOURCE_DIFF, out_f, out_b, out_s, col)
+            _emit(pf, pi, sf, cd, SOURCE_DIFF, out_f, out_b, out_s, col)
     elif method == METHOD_SWITCHED:
         if cd[C_SURFACE] >= 0 and want_d:  # step 3
-            _emit(pf, pi, cd, SOURCE_DIFF, out_f, out_b, out_s, col)
+            _emit(pf, pi, sf, cd, SOURCE_DIFF, out_f, out_b, out_s, col)
         elif f_mag >= pf[P_CONTACT] and cf[C_SURFACE] >= 0:  # step 4
-            _emit(pf, pi, cf, SOURCE_FORCE, out_f, out_b, out_s, col)
+            _emit(pf, pi, sf, cf, SOURCE_FORCE, out_f, out_b, out_s, col)
     else:
-        _choose_fused(pf, pi, cf, cd, cq, out_f, out_b, out_s, col)
+        _choose_fused(pf, pi, sf, cf, cd, cq, out_f, out_b, out_s, col)
 
 
 @inlined
 def _choose_fused(
     pf: np.ndarray,
     pi: np.ndarray,
+    sf: np.ndarray,
     cf: Candidate,
     cd: Candidate,
     cq: Candidate,
@@ -298,7 +306,7 @@ def _choose_fused(
     if cd[C_SURFACE] < 0 and cq[C_SURFACE] < 0:
         # the low-passed force's candidate alone (most samples of a held press): as it is
         if cf[C_SURFACE] >= 0 and var_f <= max_sigma * max_sigma:
-            _emit(pf, pi, cf, SOURCE_FORCE, out_f, out_b, out_s, col)
+            _emit(pf, pi, sf, cf, SOURCE_FORCE, out_f, out_b, out_s, col)
     else:
         fused, members = _fuse(pf, pi, cf, cd, cq)
         if fused[C_SURFACE] >= 0 and math.sqrt(fused[C_VAR_U] + fused[C_VAR_V]) <= max_sigma:
@@ -309,4 +317,4 @@ def _choose_fused(
                     if cd[C_SURFACE] >= 0 and cd[C_SURFACE] == fused[C_SURFACE]
                     else SOURCE_FORCE
                 )
-            _emit(pf, pi, fused, source, out_f, out_b, out_s, col)
+            _emit(pf, pi, sf, fused, source, out_f, out_b, out_s, col)

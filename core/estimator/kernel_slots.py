@@ -112,6 +112,7 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     I_WANDER_WINDOWS,  # the idle windows in a row a yardstick wander is taken over
     I_IDLE_WINDOWS,  # the idle windows whose spreads and wanders make the yardsticks
     I_ZEROED,  # the readings come zeroed: the zero is 0 from the first good sample, no windows
+    I_REST_N,  # rest readings whose changes measure each channel's noise (resolution.py)
     # offsets into pf
     I_PO_MAP,  # (C, 6) channels -> [F_o; M_o]: the matrix (6, C) stored by channel
     I_PO_LIMIT,  # (C,) a channel at or beyond this is saturated
@@ -158,13 +159,15 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     I_SO_IDLE_TAIL,  # (I_WANDER_WINDOWS, 4) a ring of the last idle windows: index, force (3)
     I_SO_OBJ_WINDOWS,  # (I_N_OBJECT + 1, 4) a ring of the object run's: spread, force (3)
     I_SO_SCRATCH,  # (I_IDLE_WINDOWS + I_N_OBJECT + 1,) room to sort in
+    I_SO_ROUND,  # (C,) the zero's rounding offset by channel, (C,) its noise, (C, 6) the spread
+    I_SO_REST_SQ,  # (C,): the squared changes of each channel's rest readings, summed
     # offsets into si
     I_JO_CHANGES,  # (C,) each
     I_JO_LEARNING,
     I_JO_WIN_BAD,  # (WINDOW,)
     I_JO_MT_HIST,  # (2·LAG + 1, MT_I)
     N_PI,
-) = range(79)
+) = range(82)
 # a surface in pf: the rows of F'z, M'x, M'y of its wrench transform, origin, axes, normal,
 # bounds of its outline; in pi: whether the outline is a rectangle, whether (u, v) are the
 # desk's (x, y), where its polygon's vertices are in pf and how many
@@ -268,8 +271,9 @@ N_SF_FIXED = 103
     J_OBJ_RESTING,  # the load rests: its windows so far as still as an object's
     J_OBJ_HELD,  # EV_ABSORBED: the windows whose means made the zero (0: held settle_s)
     J_ZERO_NEXT,  # S_ZERO_NEXT is the zero from the next sample on
+    J_REST_N,  # rest readings compared so far (up to I_REST_N)
     N_SI_FIXED,
-) = range(59)
+) = range(60)
 # the second-finger stage's history of each sample: smoothed wrench and contact (floats), and
 # its located, surface and in-contact (ints)
 MT_W, MT_X, MT_Y, MT_Z, MT_FORCE, MT_F = 0, 6, 7, 8, 9, 10

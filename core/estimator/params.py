@@ -34,7 +34,7 @@ from hapticdesk.estimator.multitouch import (
     MIN_STEP_N,
     MIN_STEP_SHARE,
 )
-from hapticdesk.estimator.resolution import CONFIRM_CHANGES, STEP_CHANGE
+from hapticdesk.estimator.resolution import CONFIRM_CHANGES, REST_NOISE_S, STEP_CHANGE
 from hapticdesk.estimator.samples import LIVE_AGAIN_S, NOISE_CHECK_S, NOISE_FREE_REPEATS, STUCK_RUN
 from hapticdesk.estimator.settings import EstimatorSettings
 from hapticdesk.estimator.still_objects import (
@@ -289,6 +289,7 @@ def _counts(s: EstimatorSettings, inertia: InertiaSettings | None, n: _Sizes) ->
         slots.I_WANDER_WINDOWS: n.wander_windows,
         slots.I_IDLE_WINDOWS: IDLE_WINDOWS,
         slots.I_ZEROED: int(s.user.zeroed),
+        slots.I_REST_N: round(REST_NOISE_S * s.sample_rate_hz),
     }
 
 
@@ -362,6 +363,8 @@ def _state_parts(s: EstimatorSettings, n: _Sizes, sf: _Packer, si: _Packer) -> d
         slots.I_SO_IDLE_TAIL: sf.room(4 * n.wander_windows),
         slots.I_SO_OBJ_WINDOWS: sf.room(4 * (s.n_object + 1)),
         slots.I_SO_SCRATCH: sf.room(IDLE_WINDOWS + s.n_object + 1),
+        slots.I_SO_ROUND: sf.room(8 * c_n),
+        slots.I_SO_REST_SQ: sf.room(c_n),
         slots.I_JO_CHANGES: si.room(c_n),
         slots.I_JO_LEARNING: si.put(np.ones(c_n, np.int64)),
         slots.I_JO_WIN_BAD: si.room(window),

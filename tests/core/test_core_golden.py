@@ -11,6 +11,16 @@ a record, it judges every push size (``check_golden`` says why).
 A change that means to alter the outputs records the file anew, in its own commit, and says
 why; a refactor must leave it equal to 1e-9 (relative above 1), in batch and in 1- and
 7-sample pushes.
+
+Re-recorded since: ``sigma_m`` alone (76 arrays, every scene whose sensors round their
+readings), from branch sigma: the located 1-σ now holds the zero's rounding offset
+(estimator/resolution.py ``zero_rounding``, issue 33), added after the method has chosen and
+weighed its candidates; positions, forces, located and every other field are as recorded.
+Again ``sigma_m`` alone (58 arrays), from branch sigma: each channel's share of that offset
+is what a press keeps of it (``moved_share``: a channel the press does not move keeps none).
+Again ``sigma_m`` alone (68 arrays), from branch sigma: that share is the exact variance of
+the change of the rounding's bias under the noise (quadratic in a small change), and the
+noise is the likeliest for all quiet channels' rest changes (``zero_rounding_noise``).
 """
 
 from __future__ import annotations

@@ -373,8 +373,23 @@ def test_a_tap_whose_uncertainty_reaches_two_buttons_presses_neither(
 ):
     # in the 3 cm gap, 1 cm from the lamp (within its 12 mm snap) and 2 cm from the fan: placed
     # to 1 mm it is the lamp's; placed to 8 mm (each sample, and so the tap) the lamp is only
-    # about 10 times likelier than the fan (ODDS asks 30): a miss, not a guess
+    # about 110 times likelier than the fan (ODDS asks about 280): a miss, not a guess
     tl = timeline(2.0).touch(1.0, 0.12, (-0.02, 0.0), sigma_m=sigma_m, noise=False)
+    events = run(make_layout(TWO_BUTTONS), tl.block())
+    assert [e.region for e in events if e.gesture == "tap"] == fired
+
+
+@pytest.mark.parametrize(("x_m", "sigma_m", "fired"), [
+    (-0.035, 0.015, ["lamp"]),  # inside, 35 mm from the fan: odds e^5.4, ODDS ** INSIDE_SHARE
+    (-0.035, 0.03, []),  # inside but twice as uncertain: e^1.4, the fan is within reach
+    (-0.0255, 0.0108, []),  # snapped from the gap 4.5 mm out, 25.5 mm from the fan: the same
+])  # fmt: skip
+def test_a_point_outside_every_button_needs_more_odds_than_one_inside(
+    make_layout, timeline, x_m, sigma_m, fired
+):
+    # the same odds against the fan (e^5.4) fire a tap inside the lamp, not one the snap
+    # brings in from the gap: its place is off by its distance to the lamp at least
+    tl = timeline(2.0).touch(1.0, 0.12, (x_m, 0.0), sigma_m=sigma_m, noise=False)
     events = run(make_layout(TWO_BUTTONS), tl.block())
     assert [e.region for e in events if e.gesture == "tap"] == fired
 

@@ -15,12 +15,21 @@ is learned (:class:`Covariances`), and packed into the kernel's state.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 
 from hapticdesk.estimator.geometry import pack_cov
+from hapticdesk.estimator.kernel_slots import (
+    ROUND_ACTIVE,
+    ROUND_SURFACE,
+    ROUND_TABLE,
+    ROUND_TABLE_N,
+    ROUND_WHOLE,
+)
 from hapticdesk.estimator.resolution import (
+    moved_share,
     rounding_deficit,
     zero_rounding_channels,
     zero_rounding_noise,
@@ -44,10 +53,14 @@ class Covariances:
     rounding: list[np.ndarray]
     # the same per channel (C,), the noise in steps it was made with (C,), and the wrench's
     # least-norm spread over the channels (C, 6): how much each channel moves under a press,
-    # so one it does not move keeps none (resolution.moved_share; the kernel's rounding_floor)
+    # so one it does not move keeps none (resolution.moved_share; kernel_rounding.py)
     rounding_channels: np.ndarray
     rounding_noise: np.ndarray
     spread: np.ndarray
+    # per surface and channel (n_surfaces, C, 5): the channel's offset through the map into
+    # (F'z, M'x, M'y) of the surface, g, as var·(gz², gz·gx, gz·gy, gx², gy²)
+    # (settings.floor_terms): the terms of the located point's floor (kernel_rounding.py)
+    rounding_terms: np.ndarray
 
     @classmethod
     def of(
@@ -89,11 +102,14 @@ class Covariances:
         det = [f.project_cov(cov * settings.gain_det) for f in frames]
         per_channel = noise = np.zeros(m.shape[1])
         if step is not None and rest_var is not None:
-            per_channel = zero_rounding_channels(step, rest_var, rest_n)
             noise = zero_rounding_noise(step, rest_var, rest_n)
+            per_channel = zero_rounding_channels(step, rest_var, rest_n, noise)
         offset = m @ (m.T * per_channel[:, None])
         rounding = [f.project_cov(offset) for f in frames]
-        return cls(lp, diff, det, drift, rounding, per_channel, noise, np.linalg.pinv(m))
+        terms = settings.floor_terms * per_channel[:, None]
+        return cls(
+            lp, diff, det, drift, rounding, per_channel, noise, settings.channel_spread, terms
+        )
 
     def packed(self) -> np.ndarray:
         """(n_surfaces, 4, 6): per surface its lp, diff, det and drift covariances, each as
@@ -101,7 +117,27 @@ class Covariances:
         per_surface = zip(self.lp, self.diff, self.det, self.drift, strict=True)
         return np.array([[pack_cov(c) for c in covs] for covs in per_surface]).reshape(-1, 4, 6)
 
-    def packed_rounding(self) -> np.ndarray:
-        """(8·C,): the zero's rounding offset per channel, its noise in steps per channel, then
-        the spread (C, 6) by channel (the kernel's I_SO_ROUND)."""
-        return np.concatenate([self.rounding_channels, self.rounding_noise, self.spread.ravel()])
+    def packed_rounding(self, step: np.ndarray) -> np.ndarray:
+        """The kernel's I_SO_ROUND (``ROUND_*`` in kernel_slots.py) for the resolution steps
+        ``step`` (C,) the offsets were made with: how many channels keep an offset, no sums
+        kept yet, the share a press keeps over a change of 0 to ½ step (moved_share at the
+        quiet channels' one noise, zero_rounding_noise), each channel's spread in steps (0
+        where it keeps nothing) and the terms per surface and channel."""
+        keeps = (self.rounding_channels > 0) & (step > 0)
+        rho = float(self.rounding_noise[keeps].max()) if keeps.any() else 0.0
+        table = _share_table(rho)
+        spread = np.where(keeps[:, None], self.spread / np.where(keeps, step, 1.0)[:, None], 0.0)
+        head = np.zeros(ROUND_TABLE)
+        head[ROUND_ACTIVE], head[ROUND_SURFACE] = np.count_nonzero(keeps), -1.0
+        head[ROUND_WHOLE] = np.argmax(table >= table[-1])
+        norms = np.sqrt(np.sum(spread**2, axis=1))
+        # (the wrench that moves a channel by one table point at most)
+        reach = np.where(keeps, 1.0 / (2 * ROUND_TABLE_N * np.where(keeps, norms, 1.0)), 0.0)
+        return np.concatenate([head, table, spread.ravel(), reach, self.rounding_terms.ravel()])
+
+
+@functools.cache
+def _share_table(rho: float) -> np.ndarray:
+    """moved_share over a change of 0 to ½ step at ROUND_TABLE_N + 1 points, under a noise
+    of ``rho`` steps (one of zero_rounding_noise's grid: made once a process for each)."""
+    return moved_share(np.linspace(0.0, 0.5, ROUND_TABLE_N + 1), 1.0, rho)

@@ -336,16 +336,11 @@ class ContactEstimator:
         used, sq = self.params.slot(slots.I_SO_USED), self.params.slot(slots.I_SO_REST_SQ)
         compared = si[slots.J_REST_N]  # (the mean square change is twice the variance)
         rest_var = sf[sq : sq + self._n_channels] / (2 * compared) if compared else None
-        self.covariances = Covariances.of(
-            self.stage_settings,
-            noise,
-            sf[used : used + self._n_channels].copy(),
-            rest_var,
-            int(compared),
-        )
+        step = sf[used : used + self._n_channels].copy()
+        self.covariances = Covariances.of(self.stage_settings, noise, step, rest_var, int(compared))
         for slot, packed in (
             (slots.I_SO_COVS, self.covariances.packed().ravel()),
-            (slots.I_SO_ROUND, self.covariances.packed_rounding().ravel()),
+            (slots.I_SO_ROUND, self.covariances.packed_rounding(step)),
         ):
             at = self.params.slot(slot)
             sf[at : at + len(packed)] = packed

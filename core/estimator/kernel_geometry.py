@@ -17,13 +17,9 @@ import numpy as np
 
 from hapticdesk.estimator.kernel_compile import inlined, inlined_entry
 from hapticdesk.estimator.kernel_slots import (
-    I_C,
     I_IO_SURF,
     I_N_SURF,
-    I_PO_MAP,
     I_PO_SURF,
-    I_SO_ROUND,
-    I_SO_USED,
     P_EDGE_TOLERANCE,
     P_MIN_COS,
     P_VAR_CAP,
@@ -39,7 +35,6 @@ from hapticdesk.estimator.kernel_slots import (
     SURF_V,
     Candidate,
 )
-from hapticdesk.estimator.resolution import NO_NOISE_RHO, SHARE_HARMONICS
 
 
 @inlined
@@ -173,77 +168,6 @@ def intersect(
         if n_surf == 1:
             break
     return best
-
-
-@inlined
-def _kept_share(change: float, step: float, rho: float) -> float:
-    """resolution.moved_share for one channel: the share of its zero rounding offset a press
-    that moves it by ``change`` keeps, under a noise of ``rho`` steps (its harmonics by
-    recurrence, sin((k+1)θ) = 2 cos θ sin kθ − sin (k−1)θ and exp(−a(k+1)²) = exp(−ak²)
-    exp(−a(2k+1)), until they no longer count)."""
-    d = min(abs(change) / step, 0.5)
-    if rho < NO_NOISE_RHO:
-        return min(1.0, 12.0 * d * (1.0 - d))
-    a = 4.0 * math.pi * math.pi * rho * rho
-    theta = math.pi * d
-    two_cos, sin_k, sin_before = 2.0 * math.cos(theta), math.sin(theta), 0.0
-    damp = math.exp(-a)  # exp(-a k²) at k = 1
-    ratio, ratio_step = math.exp(-3.0 * a), math.exp(-2.0 * a)  # exp(-a (2k + 1)), its step
-    num = den = 0.0
-    for k in range(1, SHARE_HARMONICS + 1):
-        w = damp / (k * k)
-        num += w * 4.0 * sin_k * sin_k
-        den += w
-        if w < 1e-9 * den:
-            break
-        damp *= ratio
-        ratio *= ratio_step
-        sin_k, sin_before = two_cos * sin_k - sin_before, sin_k
-    return min(1.0, num / den)
-
-
-@inlined
-def rounding_floor(
-    pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, w: int, s: int, u: float, v: float
-) -> float:
-    """var_u + var_v that the zero's rounding offset gives the point (u, v) of surface ``s``
-    under the tared wrench sf[w:w+6]: a floor growing as 1/F, the same for every sample
-    until the next tare, so no averaging of samples lowers it. Each channel's offset
-    (sf[I_SO_ROUND:], resolution.zero_rounding_channels) counts by the share the press keeps
-    (:func:`_kept_share` of the channel's change under the wrench spread over the channels
-    at sf[I_SO_ROUND + 2C:], at its noise at sf[I_SO_ROUND + C:]): a channel the press does
-    not move cancels its own."""
-    c_n = pi[I_C]
-    r = pf[surface_at(pi, s) : surface_at(pi, s) + SURF_F]
-    fz = r[0] * sf[w] + r[1] * sf[w + 1] + r[2] * sf[w + 2]
-    fz += r[3] * sf[w + 3] + r[4] * sf[w + 4] + r[5] * sf[w + 5]
-    inv2 = 1.0 / max(fz * fz, 1e-18)
-    at, step, mp = pi[I_SO_ROUND], pi[I_SO_USED], pi[I_PO_MAP]  # (the steps it was made with)
-    cz = czx = czy = cx = cxy = cy = 0.0
-    for c in range(c_n):
-        var = sf[at + c]
-        if not var > 0.0 or not sf[step + c] > 0.0:
-            continue
-        k = at + 2 * c_n + 6 * c
-        change = sf[k] * sf[w] + sf[k + 1] * sf[w + 1] + sf[k + 2] * sf[w + 2]
-        change += sf[k + 3] * sf[w + 3] + sf[k + 4] * sf[w + 4] + sf[k + 5] * sf[w + 5]
-        var *= _kept_share(change, sf[step + c], sf[at + c_n + c])
-        m = pf[mp + 6 * c : mp + 6 * c + 6]
-        gz = r[0] * m[0] + r[1] * m[1] + r[2] * m[2] + r[3] * m[3] + r[4] * m[4] + r[5] * m[5]
-        gx = r[6] * m[0] + r[7] * m[1] + r[8] * m[2] + r[9] * m[3] + r[10] * m[4] + r[11] * m[5]
-        gy = r[12] * m[0] + r[13] * m[1] + r[14] * m[2]
-        gy += r[15] * m[3] + r[16] * m[4] + r[17] * m[5]
-        cz += var * gz * gz
-        czx += var * gz * gx
-        czy += var * gz * gy
-        cx += var * gx * gx
-        cxy += var * gx * gy
-        cy += var * gy * gy
-    # through the Jacobian of eq. (5), as _point_covariance
-    cap = pf[P_VAR_CAP]
-    var_u = min((u * u * cz + 2 * u * czy + cy) * inv2, cap)
-    var_v = min((v * v * cz - 2 * v * czx + cx) * inv2, cap)
-    return var_u + var_v
 
 
 @inlined

@@ -22,7 +22,8 @@ from hapticdesk.estimator.contacts import (
     SOURCE_FUSED,
 )
 from hapticdesk.estimator.kernel_compile import inlined
-from hapticdesk.estimator.kernel_geometry import intersect, rounding_floor, to_desk
+from hapticdesk.estimator.kernel_geometry import intersect, to_desk
+from hapticdesk.estimator.kernel_rounding import rounding_floor
 from hapticdesk.estimator.kernel_slots import (
     C_COV_UV,
     C_SURFACE,

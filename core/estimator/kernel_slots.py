@@ -159,7 +159,7 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     I_SO_IDLE_TAIL,  # (I_WANDER_WINDOWS, 4) a ring of the last idle windows: index, force (3)
     I_SO_OBJ_WINDOWS,  # (I_N_OBJECT + 1, 4) a ring of the object run's: spread, force (3)
     I_SO_SCRATCH,  # (I_IDLE_WINDOWS + I_N_OBJECT + 1,) room to sort in
-    I_SO_ROUND,  # (C,) the zero's rounding offset by channel, (C,) its noise, (C, 6) the spread
+    I_SO_ROUND,  # the zero's rounding floor (ROUND_*: kernel_rounding.py)
     I_SO_REST_SQ,  # (C,): the squared changes of each channel's rest readings, summed
     # offsets into si
     I_JO_CHANGES,  # (C,) each
@@ -174,6 +174,18 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
 SURF_ROWS, SURF_ORIGIN, SURF_U, SURF_V, SURF_NORMAL, SURF_BOUNDS, SURF_F = 0, 18, 21, 24, 27, 30, 34
 SURF_RECT, SURF_DESK_XY, SURF_POLY, SURF_N_POLY, SURF_I = 0, 1, 2, 3, 4
 COV_LP, COV_DIFF, COV_DET, COV_DRIFT = range(4)  # the covariances per surface, 6 packed each
+# the zero's rounding floor at I_SO_ROUND (made at each tare: candidates.Covariances; read by
+# kernel_rounding.py): how many channels keep an offset; the table point from which a
+# channel keeps all of it; the floor's sums kept (the surface they are for, −1: none; the
+# tared wrench they were made at; the squared distance from it they serve; the sums cz,
+# czx, czy, cx, cy); the share a press keeps at a change of d ∈ [0, ½] step (ROUND_TABLE_N +
+# 1 points); each channel's spread in steps per unit of wrench (C, 6) and the wrench that
+# moves it one table point at most (C, 0: the channel keeps none); per surface and channel
+# its offset's terms (N_SURF, C, 5)
+ROUND_ACTIVE, ROUND_WHOLE, ROUND_SURFACE, ROUND_W, ROUND_LIMIT, ROUND_SUMS = 0, 1, 2, 3, 9, 10
+ROUND_TABLE = 15
+ROUND_TABLE_N = 128
+ROUND_SPREAD = ROUND_TABLE + ROUND_TABLE_N + 1
 
 # --- state: fixed float slots (sf) --------------------------------------------------------------
 S_LAST_T = 0  # the last good sample's time

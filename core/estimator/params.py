@@ -363,7 +363,7 @@ def _state_parts(s: EstimatorSettings, n: _Sizes, sf: _Packer, si: _Packer) -> d
         slots.I_SO_IDLE_TAIL: sf.room(4 * n.wander_windows),
         slots.I_SO_OBJ_WINDOWS: sf.room(4 * (s.n_object + 1)),
         slots.I_SO_SCRATCH: sf.room(IDLE_WINDOWS + s.n_object + 1),
-        slots.I_SO_ROUND: sf.room(8 * c_n),
+        slots.I_SO_ROUND: sf.room(slots.ROUND_SPREAD + 7 * c_n + 5 * c_n * max(1, len(s.frames))),
         slots.I_SO_REST_SQ: sf.room(c_n),
         slots.I_JO_CHANGES: si.room(c_n),
         slots.I_JO_LEARNING: si.put(np.ones(c_n, np.int64)),

@@ -40,6 +40,8 @@ import functools
 import numpy as np
 from scipy.special import ndtr
 
+from hapticdesk.estimator.kernel_rounding import likeliest_noise
+
 # changes a channel's smallest change is taken over before it counts as its step: a quiet
 # channel pressed quickly moves by several steps at a time at first, a held press by one
 CONFIRM_CHANGES = 200
@@ -104,7 +106,7 @@ def zero_rounding_noise(step: np.ndarray, rest_var: np.ndarray, rest_n: int) -> 
     a step it hardly changes. So ρ is that of all the quiet channels together: the one whose
     values, anywhere between steps alike, make their changes likeliest (each channel's
     squared changes in step² as a Poisson count of mean 2·rest_n·var(ρ, x), x the value's
-    place between steps; :func:`_noise_likelihoods`). The mean variance over the channels
+    place between steps; kernel_rounding.likeliest_noise). The mean variance over the channels
     inverted through :func:`rest_variance` says the same on average but scatters: a few
     channels near a step's middle make most of it (on the eight-legged example desk it read
     ρ 0.08 to 0.13 from one recording to another, its noise being 0.124)."""
@@ -112,14 +114,16 @@ def zero_rounding_noise(step: np.ndarray, rest_var: np.ndarray, rest_n: int) -> 
     if not quiet.any() or rest_n <= 0:
         return np.zeros(len(step))
     counts = 2.0 * rest_n * rest_var[quiet] / step[quiet] ** 2
-    rho = float(_RHO_GRID[np.argmax(_noise_likelihoods(counts, rest_n))])
+    bound = np.empty(len(_RHO_GRID))
+    rho = float(_RHO_GRID[likeliest_noise(counts, *_count_means(rest_n), bound)])
     return np.where(quiet, rho, 0.0)
 
 
 # the noises (in steps) and places between two steps the likelihoods are worked out on (the
 # first as good as none: channels none of which changed at rest keep bias_variance(0) = 1/12)
 _RHO_GRID = np.concatenate([[1e-4], np.linspace(0.005, 0.7, 140)])
-_PLACES = (np.arange(100) + 0.5) / 100
+# (from a step to halfway to the next: the other half mirrors it)
+_PLACES = (np.arange(50) + 0.5) / 100
 
 
 @functools.cache
@@ -134,15 +138,12 @@ def _reading_variances() -> np.ndarray:
     return np.sum(k * k * p, axis=0) - mean**2
 
 
-def _noise_likelihoods(counts: np.ndarray, rest_n: int) -> np.ndarray:
-    """(noise,): the log-likelihood of each noise on ``_RHO_GRID`` for the channels' squared
-    changes ``counts`` (in step²) over ``rest_n`` readings, each channel's value anywhere
-    between two steps alike."""
-    mean = 2.0 * rest_n * _reading_variances() + 1e-9  # (noise, place)
-    log_p = counts[:, None, None] * np.log(mean)[None] - mean[None]  # (channel, noise, place)
-    top = log_p.max(axis=2, keepdims=True)
-    per_channel = top[..., 0] + np.log(np.mean(np.exp(log_p - top), axis=2))
-    return np.sum(per_channel, axis=0)
+@functools.cache
+def _count_means(rest_n: int) -> tuple[np.ndarray, np.ndarray]:
+    """(noise, place): the mean squared change, in step², of ``rest_n`` consecutive readings
+    and its log (once a process for each ``rest_n``: a desk's is the same at every tare)."""
+    mean = 2.0 * rest_n * _reading_variances() + 1e-9
+    return mean, np.log(mean)
 
 
 def _quiet(step: np.ndarray, rest_var: np.ndarray) -> np.ndarray:
@@ -150,14 +151,17 @@ def _quiet(step: np.ndarray, rest_var: np.ndarray) -> np.ndarray:
     return (step > 0) & (rest_var < DITHERED * step**2)
 
 
-def zero_rounding_channels(step: np.ndarray, rest_var: np.ndarray, rest_n: int) -> np.ndarray:
+def zero_rounding_channels(
+    step: np.ndarray, rest_var: np.ndarray, rest_n: int, rho: np.ndarray | None = None
+) -> np.ndarray:
     """The variance (C,) of each channel's zero rounding offset: the error the tare keeps on
-    channels quieter than their step whose noise (:func:`zero_rounding_noise`) does not
-    dither the rounding out of the mean (0 elsewhere). One error for every sample until the
-    next tare, so no averaging lowers it; the differentiated force shares it while its eq.
-    (8) window reaches back to the rest before a touch (its old end is then the tare's
-    reading)."""
-    rho = zero_rounding_noise(step, rest_var, rest_n)
+    channels quieter than their step whose noise (:func:`zero_rounding_noise`; ``rho`` if
+    made already) does not dither the rounding out of the mean (0 elsewhere). One error for
+    every sample until the next tare, so no averaging lowers it; the differentiated force
+    shares it while its eq. (8) window reaches back to the rest before a touch (its old end
+    is then the tare's reading)."""
+    if rho is None:
+        rho = zero_rounding_noise(step, rest_var, rest_n)
     return np.where(_quiet(step, rest_var), bias_variance(rho) * step**2, 0.0)
 
 

@@ -50,6 +50,11 @@ class EstimatorSettings:
     range_flat: np.ndarray  # (C,) each channel's limit: at or beyond it, it is saturated
     frames: list[SurfaceFrame]
     normals: np.ndarray  # (n_surfaces, 3)
+    # the zero's rounding floor's desk-fixed parts (candidates.Covariances, kernel_rounding.py):
+    # the wrench's least-norm spread over the channels (C, 6), and per surface each channel's
+    # column of the map in (F'z, M'x, M'y), g, as (gz², gz·gx, gz·gy, gx², gy²) (S, C, 5)
+    channel_spread: np.ndarray
+    floor_terms: np.ndarray
     lp_sos: np.ndarray  # the conventional low-pass
     diff_sos: np.ndarray  # the differentiated wrench's low-pass
     det_sos: np.ndarray  # the fast (detection) low-pass
@@ -88,6 +93,8 @@ class EstimatorSettings:
         def windows(seconds: float) -> int:
             return max(1, math.ceil(seconds / (window / fs) - 1e-9))
 
+        wrench_map = np.ascontiguousarray(profile.wrench_map())
+        frames = [SurfaceFrame.of(surf) for surf in profile.surfaces]
         return cls(
             user=s,
             method=s.method,
@@ -95,14 +102,16 @@ class EstimatorSettings:
             sample_rate_hz=fs,
             n_sensors=len(profile.sensors),
             moment_channels=profile.moment_channels(),
-            wrench_map=np.ascontiguousarray(profile.wrench_map()),
+            wrench_map=wrench_map,
             range_flat=_range_flat(profile),
-            frames=[SurfaceFrame.of(surf) for surf in profile.surfaces],
+            frames=frames,
             normals=(
                 np.array([surf.normal for surf in profile.surfaces])
                 if profile.surfaces
                 else np.zeros((0, 3))
             ),
+            channel_spread=np.linalg.pinv(wrench_map),
+            floor_terms=_floor_terms(frames, wrench_map),
             **filters._asdict(),
             n_rate=n_rate,
             rate_scale=fs / n_rate,
@@ -167,6 +176,16 @@ class _FilterBank(NamedTuple):
             position_delay_s=group_delay_s(lp_sos, fs, long),
             det_delay_s=group_delay_s(det_sos, fs, long),
         )
+
+
+def _floor_terms(frames: list[SurfaceFrame], wrench_map: np.ndarray) -> np.ndarray:
+    """(S, C, 5): per surface each channel's column of the map in (F'z, M'x, M'y), g, as
+    (gz², gz·gx, gz·gy, gx², gy²): what one channel's offset gives eq. (5)'s point."""
+    g = np.array([f.transform[2:5] @ wrench_map for f in frames]).reshape(
+        -1, 3, wrench_map.shape[1]
+    )
+    gz, gx, gy = g[:, 0], g[:, 1], g[:, 2]
+    return np.stack([gz * gz, gz * gx, gz * gy, gx * gx, gy * gy], axis=-1)
 
 
 def _range_flat(profile: DeskProfile) -> np.ndarray:

@@ -1,0 +1,179 @@
+"""The zero's rounding offset in a located point's 1-σ, compiled, at almost no cost per sample.
+
+The kernel's side of :mod:`hapticdesk.estimator.resolution` (``zero_rounding_channels``,
+``moved_share``): a channel quieter than its rounding step leaves the zero off by part of a
+step, one error for every sample until the next tare, which the located point carries as
+var_u + var_v = (Jacobian of eq. 5) · Σ_c offset_c · share_c · g_c g_cᵀ / F'z², g_c the
+channel's column of the map in (F'z, M'x, M'y) and share_c how much of its offset the press
+keeps (a channel the press does not move keeps none, one moved a sixth of a step or more all).
+
+The sums over the channels (cz, czx, czy, cx, cy) change only as the shares do, and a share
+changes only as the tared wrench does: so they are made anew only when the wrench has moved
+more than ``REUSE_MOVE`` of its size since they were made (or the point is on another
+surface, or a tare made the floor anew), and reused, scaled by 1/F'z², in between. Through a
+held press that is once; through a tap's rise and fall a few dozen times. What is reused is
+kept in the state (ROUND_SURFACE…ROUND_SUMS), so a stream pushed in pieces reuses exactly
+what a batch does. Made anew, a channel's share is read off a table over its change (the
+exact share at ROUND_TABLE_N + 1 points, made at the tare by
+:class:`~hapticdesk.estimator.candidates.Covariances`), not summed from its harmonics.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from hapticdesk.estimator.kernel_compile import compiled, inlined, inlined_entry
+from hapticdesk.estimator.kernel_geometry import surface_at
+from hapticdesk.estimator.kernel_slots import (
+    I_C,
+    I_SO_ROUND,
+    P_VAR_CAP,
+    ROUND_ACTIVE,
+    ROUND_LIMIT,
+    ROUND_SPREAD,
+    ROUND_SUMS,
+    ROUND_SURFACE,
+    ROUND_TABLE,
+    ROUND_TABLE_N,
+    ROUND_W,
+    ROUND_WHOLE,
+    SURF_F,
+)
+
+# the sums are reused while the tared wrench stays within this share of its size of where they
+# were made: a change of the press by this share changes a channel's change, and so the share
+# it keeps under noise (quadratic in a small change), by at most about twice this
+# (tests/core/test_core_rounding_floor.py: the floor's 1-σ within 5 % of the exact one)
+REUSE_MOVE = 0.02
+
+
+@inlined
+def _shares_summed(sf: np.ndarray, at: int, c_n: int, w: int, s: int) -> None:
+    """The sums cz, czx, czy, cx, cy of surface ``s`` for the tared wrench sf[w:w+6], each
+    channel's offset term by the share the press keeps (the table at ROUND_TABLE, read at the
+    channel's change in steps), into the kept sums, with the wrench and surface they are for
+    and how far from it they serve: ``REUSE_MOVE`` of its size, or, where every channel keeps
+    all of its offset, as far as the wrench can go before one keeps less."""
+    spread = at + ROUND_SPREAD
+    reach = spread + 6 * c_n  # (wrench per step of a channel's change: 1 / its spread's norm)
+    terms = reach + c_n + 5 * c_n * s
+    table = at + ROUND_TABLE
+    scale = 2.0 * ROUND_TABLE_N  # (table points per step of change; ``reach`` per point)
+    whole = sf[at + ROUND_WHOLE]  # (the table point from which a channel keeps all)
+    w0, w1, w2, w3, w4, w5 = sf[w], sf[w + 1], sf[w + 2], sf[w + 3], sf[w + 4], sf[w + 5]
+    cz = czx = czy = cx = cy = 0.0
+    margin = math.inf  # (how far the wrench can go before a channel keeps less)
+    for c in range(c_n):
+        if sf[reach + c] == 0.0:  # (a channel that keeps no offset)
+            continue
+        k = spread + 6 * c
+        change = sf[k] * w0 + sf[k + 1] * w1 + sf[k + 2] * w2
+        change += sf[k + 3] * w3 + sf[k + 4] * w4 + sf[k + 5] * w5
+        x = min(abs(change) * scale, ROUND_TABLE_N)
+        if x >= whole:
+            share = sf[table + ROUND_TABLE_N]
+            margin = min(margin, (x - whole) * sf[reach + c])
+        else:
+            i = int(x)
+            share = sf[table + i] + (x - i) * (sf[table + i + 1] - sf[table + i])
+            margin = 0.0
+        t = terms + 5 * c
+        cz += share * sf[t]
+        czx += share * sf[t + 1]
+        czy += share * sf[t + 2]
+        cx += share * sf[t + 3]
+        cy += share * sf[t + 4]
+    kept = at + ROUND_SUMS
+    sf[kept], sf[kept + 1], sf[kept + 2], sf[kept + 3], sf[kept + 4] = cz, czx, czy, cx, cy
+    sf[at + ROUND_SURFACE] = s
+    size = 0.0
+    for j in range(6):
+        sf[at + ROUND_W + j] = sf[w + j]
+        size += sf[w + j] * sf[w + j]
+    sf[at + ROUND_LIMIT] = max(REUSE_MOVE * REUSE_MOVE * size, margin * margin)
+
+
+@inlined_entry
+def rounding_floor(
+    pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, w: int, s: int, u: float, v: float
+) -> float:
+    """var_u + var_v that the zero's rounding offset gives the point (u, v) of surface ``s``
+    under the tared wrench sf[w:w+6]: a floor growing as 1/F'z, the same error for every
+    sample until the next tare, so no averaging of samples lowers it (0 where no channel
+    keeps an offset). The sums over the channels are the kept ones while the wrench stays
+    near where they were made (module docstring), else made anew."""
+    at = pi[I_SO_ROUND]
+    if sf[at + ROUND_ACTIVE] == 0.0:  # no channel rounds quieter than its step
+        return 0.0
+    kept = at + ROUND_W
+    moved = 0.0
+    for j in range(6):
+        moved += (sf[w + j] - sf[kept + j]) ** 2
+    if sf[at + ROUND_SURFACE] != s or moved > sf[at + ROUND_LIMIT]:
+        _shares_summed(sf, at, pi[I_C], w, s)
+    r = pf[surface_at(pi, s) : surface_at(pi, s) + SURF_F]
+    fz = r[0] * sf[w] + r[1] * sf[w + 1] + r[2] * sf[w + 2]
+    fz += r[3] * sf[w + 3] + r[4] * sf[w + 4] + r[5] * sf[w + 5]
+    inv2 = 1.0 / max(fz * fz, 1e-18)
+    sums = at + ROUND_SUMS
+    cz, czx, czy, cx, cy = sf[sums], sf[sums + 1], sf[sums + 2], sf[sums + 3], sf[sums + 4]
+    # through the Jacobian of eq. (5), as kernel_geometry._point_covariance
+    cap = pf[P_VAR_CAP]
+    var_u = min((u * u * cz + 2 * u * czy + cy) * inv2, cap)
+    var_v = min((v * v * cz - 2 * v * czx + cx) * inv2, cap)
+    return var_u + var_v
+
+
+@inlined
+def _channel_likelihood(k: float, mean: np.ndarray, log_mean: np.ndarray, r: int) -> float:
+    """log mean_p exp(k log μ_rp − μ_rp) (the Poisson's log k! left out: the same for every
+    noise), summed from the likeliest place down (terms under e⁻⁴⁰ of it left out)."""
+    top = -math.inf
+    for p in range(mean.shape[1]):
+        top = max(top, k * log_mean[r, p] - mean[r, p])
+    summed = 0.0
+    for p in range(mean.shape[1]):
+        t = k * log_mean[r, p] - mean[r, p] - top
+        if t > -40.0:
+            summed += math.exp(t)
+    return top + math.log(summed / mean.shape[1])
+
+
+@compiled
+def likeliest_noise(
+    counts: np.ndarray, mean: np.ndarray, log_mean: np.ndarray, bound: np.ndarray
+) -> int:
+    """At the tare (resolution.zero_rounding_noise): which of R noises makes the quiet
+    channels' squared rest changes ``counts`` (Q,) likeliest, each a Poisson count of mean
+    ``mean`` (R, P) at P places between two steps alike (``log_mean`` its log), the
+    log-likelihood of a noise being Σ_q log mean_p exp(k_q log μ − μ) (the first on a tie).
+
+    Each noise's likelihood is at most Σ_q max_p (k_q log μ − μ) (into ``bound`` (R,)), which
+    takes no exponential: the likelihoods are worked out from the highest bound down, until
+    the bound is below the likeliest so far. A handful of noises are: the whole grid in
+    numpy, (Q, R, P) arrays, took 8 ms a tare, a tenth of a minute's estimation."""
+    n_rho, n_places = mean.shape
+    for r in range(n_rho):
+        total = 0.0
+        for q in range(counts.shape[0]):
+            top = -math.inf
+            for p in range(n_places):
+                top = max(top, counts[q] * log_mean[r, p] - mean[r, p])
+            total += top
+        bound[r] = total
+    best, best_r = -math.inf, 0
+    while True:
+        r = 0
+        for j in range(1, n_rho):
+            if bound[j] > bound[r]:
+                r = j
+        if not bound[r] >= best or bound[r] == -math.inf:
+            return best_r
+        bound[r] = -math.inf
+        total = 0.0
+        for q in range(counts.shape[0]):
+            total += _channel_likelihood(counts[q], mean, log_mean, r)
+        if total > best or (total == best and r < best_r):
+            best, best_r = total, r

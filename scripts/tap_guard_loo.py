@@ -85,8 +85,23 @@ def _one_run(desk, n: int, seed: int) -> list[dict]:  # type: ignore[no-untyped-
         tap = dict(kept[(events[k].x, events[k].y)], right=k not in wrong)
         tap["error"] = math.hypot(tap["x"] - tx, tap["y"] - ty)
         tap["peak_n"] = events[k].force_n
+        tap.update(_touch_sigmas(run.contacts, start, end))
         taps.append(tap)
     return taps
+
+
+def _touch_sigmas(contacts, start: float, end: float) -> dict:  # type: ignore[no-untyped-def]
+    """The σ of the touch's located samples (the touch's time, its release's 0.1 s too): the
+    least, the one at its highest force, and its samples' count."""
+    on = (contacts.t >= start) & (contacts.t <= end + 0.1) & contacts.located
+    if not on.any():
+        return {"sigma_min": math.nan, "sigma_peak": math.nan, "located_n": 0}
+    sigma, force = contacts.sigma_m[on], contacts.force_n[on]
+    return {
+        "sigma_min": float(sigma.min()),
+        "sigma_peak": float(sigma[np.argmax(force)]),
+        "located_n": int(on.sum()),
+    }
 
 
 def one_desk(job: tuple[int, int, int]) -> dict:

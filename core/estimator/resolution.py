@@ -114,7 +114,7 @@ def zero_rounding_noise(step: np.ndarray, rest_var: np.ndarray, rest_n: int) -> 
     if not quiet.any() or rest_n <= 0:
         return np.zeros(len(step))
     counts = 2.0 * rest_n * rest_var[quiet] / step[quiet] ** 2
-    bound = np.empty(len(_RHO_GRID))
+    bound = np.empty((len(_RHO_GRID), len(counts) + 1))
     rho = float(_RHO_GRID[likeliest_noise(counts, *_count_means(rest_n), bound)])
     return np.where(quiet, rho, 0.0)
 

@@ -145,3 +145,16 @@ def accel_desk() -> DeskProfile:
 def shape_error_p95() -> Callable[..., float]:
     """How far a located path strays from the true one, its lag taken out (vibration tests)."""
     return _shape_error_p95
+
+
+@pytest.fixture(scope="session")
+def five_taps() -> object:
+    """Five 4 N taps across the paper desk's top after 2 s of rest (the rounding tests)."""
+    from hapticdesk.sim import Scene
+    from hapticdesk.sim.actions import Idle, Tap
+
+    taps = [
+        Tap(point=(0.1 * i - 0.2, 0.05 * (i % 3) - 0.05), peak_n=4.0, duration_s=0.12, wait_s=0.5)
+        for i in range(5)
+    ]
+    return Scene(actions=[Idle(duration_s=2.0), *taps])

@@ -193,23 +193,12 @@ def test_a_channel_the_press_does_not_move_keeps_none_of_the_zeros_rounding():
             assert moved_share(change * step, step, rho) == pytest.approx(kept, rel=0.1, abs=5e-3)
 
 
-def test_a_quiet_sensors_sigma_holds_its_error_and_an_unrounded_ones_is_unchanged():
+def test_a_quiet_sensors_sigma_holds_its_error_and_an_unrounded_ones_is_unchanged(five_taps):
     """The located 1-σ holds the zero's rounding offset: on the paper desk with a sensor no
     noisier than its 1/2000 rounding, each 4 N tap's samples lie within 3 σ of where the finger
     was (most lay 3-10 σ off before); with unrounded readings the offset is nothing."""
     desk = load_profile("kitamura2017")
-    scene = Scene(
-        actions=[Idle(duration_s=2.0)]
-        + [
-            Tap(
-                point=(0.1 * i - 0.2, 0.05 * (i % 3) - 0.05),
-                peak_n=4.0,
-                duration_s=0.12,
-                wait_s=0.5,
-            )
-            for i in range(5)
-        ]
-    )
+    scene = five_taps
     for resolution in (1 / 2000, 0.0):
         sensors = SensorParameters(noise_amplitude_n=0.1, resolution=resolution)
         run = simulate(desk, scene, seed=3, sensors=sensors)

@@ -18,32 +18,16 @@ from hapticdesk.estimator.resolution import (
     zero_rounding_noise,
 )
 from hapticdesk.files.profile_reader import load_profile
-from hapticdesk.sim import Scene, simulate
-from hapticdesk.sim.actions import Idle, Tap
+from hapticdesk.sim import simulate
 from hapticdesk.sim.sensors import SensorParameters
 
 
-def _taps(n: int) -> Scene:
-    return Scene(
-        actions=[Idle(duration_s=2.0)]
-        + [
-            Tap(
-                point=(0.1 * i - 0.2, 0.05 * (i % 3) - 0.05),
-                peak_n=4.0,
-                duration_s=0.12,
-                wait_s=0.4,
-            )
-            for i in range(n)
-        ]
-    )
-
-
 @pytest.fixture(scope="module")
-def quiet():
+def quiet(five_taps):
     """The paper desk with sensors no noisier than their 1/2000 rounding, tared and tapped."""
     desk = load_profile("kitamura2017")
     sensors = SensorParameters(noise_amplitude_n=0.1, resolution=1 / 2000)
-    run = simulate(desk, _taps(6), seed=3, sensors=sensors)
+    run = simulate(desk, five_taps, seed=3, sensors=sensors)
     return desk, run
 
 

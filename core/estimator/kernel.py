@@ -69,7 +69,7 @@ from numba import types
 from numba.core import event
 
 from hapticdesk.cached_load import cache_loads
-from hapticdesk.estimator.kernel_channels import steps_changed
+from hapticdesk.estimator.kernel_channels import steps_changed, wrench_of
 from hapticdesk.estimator.kernel_compile import compiled, unchecked_indices, vectorized
 from hapticdesk.estimator.kernel_geometry import contains, intersect
 from hapticdesk.estimator.kernel_sample import _sample
@@ -101,9 +101,15 @@ def run_block(
     used if ``given``) into the output columns of the same index; stops at the first
     sample that raises an event, its index in si[J_EVENT_AT]. Returns the events (0: the
     push is done). Releases the GIL."""
+    # each sample's wrench made one sample ahead: the map depends on nothing before it, so
+    # its chain of sums runs beside the sample before instead of ahead of this one's filters
+    ahead = wrench_of(x[start], pf, pi) if start < stop else (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     for i in range(start, stop):
+        mapped = ahead
+        if i + 1 < stop:
+            ahead = wrench_of(x[i + 1], pf, pi)
         a = accel[i if given else 0]
-        events = _sample(t[i], x[i], a, given, pf, pi, sf, si, out_f, out_b, out_s, i)
+        events = _sample(t[i], x[i], mapped, a, given, pf, pi, sf, si, out_f, out_b, out_s, i)
         if events:
             si[J_EVENT_AT] = i
             return events
@@ -126,7 +132,8 @@ def run_step(
 ) -> int:
     """One sample (``x`` (1, C), ``accel`` (A,), used if ``given``) into the one-sample
     record's columns; returns its events, as :func:`run_block` (si[J_EVENT_AT] 0)."""
-    events = _sample(t, x[0], accel, given, pf, pi, sf, si, out_f, out_b, out_s, 0)
+    mapped = wrench_of(x[0], pf, pi)
+    events = _sample(t, x[0], mapped, accel, given, pf, pi, sf, si, out_f, out_b, out_s, 0)
     si[J_EVENT_AT] = 0
     return events
 

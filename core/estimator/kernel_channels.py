@@ -67,26 +67,29 @@ from hapticdesk.estimator.kernel_slots import (
 
 @inlined
 def _samples(
-    t: float, x: np.ndarray, pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray
+    t: float,
+    x: np.ndarray,
+    before: np.ndarray,
+    pf: np.ndarray,
+    pi: np.ndarray,
+    sf: np.ndarray,
+    si: np.ndarray,
 ) -> tuple[int, int]:
-    """Flags of one input sample (NaN, saturated, time back, stuck, gap) and, for a good one,
-    its channels' changes into the resolution steps (its resultant is :func:`wrench_of`'s).
-    Returns (flags, events)."""
+    """Flags of one input sample (NaN, saturated, time back, stuck, gap; ``before``: the
+    channels of the sample before, :func:`keep_row`) and, for a good one, its channels'
+    changes into the resolution steps (its resultant is :func:`wrench_of`'s). Returns
+    (flags, events)."""
     c_n = pi[I_C]
-    flags = 0
-    events = 0
+    flags = events = 0
     # one pass over the channels, without branches: each within its limit (so finite: False
-    # for NaN too), equal to the sample before (a repeat, for the stuck check below), kept
-    # as the sample before the next (read only while the stuck check runs)
+    # for NaN too), equal to the sample before (a repeat, for the stuck check below)
     within = abs(t) < math.inf
     repeat = si[J_HAVE_PREV] == 1
     limit = pf[pi[I_PO_LIMIT] : pi[I_PO_LIMIT] + c_n]
-    prev = sf[pi[I_SO_PREV_ROW] : pi[I_SO_PREV_ROW] + c_n]
     for c in range(c_n):
         v = x[c]
         within &= abs(v) < limit[c]
-        repeat &= v == prev[c]
-        prev[c] = v
+        repeat &= v == before[c]
     finite, saturated = True, False
     if not within:  # (rare) which of the two
         finite = abs(t) < math.inf
@@ -120,6 +123,18 @@ def _samples(
     sf[S_LAST_T] = t
     _learn_steps(x, pi, sf, si)
     return flags, events
+
+
+@inlined
+def keep_row(x: np.ndarray, last: int, start: int, pi: np.ndarray, sf: np.ndarray) -> None:
+    """The row ``last`` of the block ``x``, the last one checked (none before ``start``), kept
+    in the state (I_SO_PREV_ROW): the stuck check compares a block's first sample with it,
+    and each other with the block's row before."""
+    if last >= start:
+        prev = sf[pi[I_SO_PREV_ROW] : pi[I_SO_PREV_ROW] + pi[I_C]]
+        row = x[last]
+        for c in range(pi[I_C]):
+            prev[c] = row[c]
 
 
 @inlined

@@ -107,6 +107,7 @@ from hapticdesk.estimator.kernel_zero import window_add, zero_from_start
 def _front(
     t: float,
     x: np.ndarray,
+    before: np.ndarray,
     mapped: Wrench,
     a: np.ndarray,
     given: bool,
@@ -115,14 +116,15 @@ def _front(
     sf: np.ndarray,
     si: np.ndarray,
 ) -> int:
-    """The first half of a sample (``mapped``: its channels' wrench, kernel_channels.wrench_of):
+    """The first half of a sample (``before``: the channels of the sample before; ``mapped``:
+    its channels' wrench, kernel_channels.wrench_of):
     its flags and wrench (stages 1, 1b), the filters
     (stage 2) and the zero's window (stage 3). Leaves the sample in flight in S_RAW, S_LP,
     S_DET, S_DIFF, S_SLOPE, S_RELEASE and J_FLAGS; returns its events."""
     accel, no_accel = _accel_use(a, given, pf, pi, si)
     if accel == ACCEL_ASK:
         return EV_PARTIAL_ACCEL  # its gain from Python (before anything moves on)
-    flags, events = _samples(t, x, pf, pi, sf, si)
+    flags, events = _samples(t, x, before, pf, pi, sf, si)
     first_good = False
     zeroed = pi[I_ZEROED] == 1
     if flags == 0 or flags == FLAG_GAP:  # a good sample: its wrench (paper eqs. 1–4) kept
@@ -267,6 +269,7 @@ def _shear_and_drag(
 def _sample(
     t: float,
     x: np.ndarray,
+    before: np.ndarray,
     mapped: Wrench,
     a: np.ndarray,
     given: bool,
@@ -279,13 +282,14 @@ def _sample(
     out_s: np.ndarray,
     col: int,
 ) -> int:
-    """One sample (``x``, its channels; ``mapped``, their wrench, :func:`wrench_of`) through
-    every stage, from where si[J_RESUME] says; returns the events it raised (0: none)."""
+    """One sample (``x``, its channels; ``before``, the sample before's, ``keep_row``;
+    ``mapped``, their wrench, ``wrench_of``) through every stage, from where si[J_RESUME]
+    says; returns the events it raised (0: none)."""
     resume = si[J_RESUME]
     si[J_RESUME] = RESUME_NEXT
     events = 0
     if resume != RESUME_BACK:
-        events = _front(t, x, mapped, a, given, pf, pi, sf, si)
+        events = _front(t, x, before, mapped, a, given, pf, pi, sf, si)
         if events & EV_PARTIAL_ACCEL:
             si[J_RESUME] = RESUME_AGAIN
             return events

@@ -69,13 +69,11 @@ from numba import types
 from numba.core import event
 
 from hapticdesk.cached_load import cache_loads
-from hapticdesk.estimator.kernel_channels import steps_changed
+from hapticdesk.estimator.kernel_channels import keep_row, steps_changed, wrench_of
 from hapticdesk.estimator.kernel_compile import compiled, unchecked_indices, vectorized
 from hapticdesk.estimator.kernel_geometry import contains, intersect
 from hapticdesk.estimator.kernel_sample import _sample
-from hapticdesk.estimator.kernel_slots import (
-    J_EVENT_AT,
-)
+from hapticdesk.estimator.kernel_slots import EV_PARTIAL_ACCEL, I_C, I_SO_PREV_ROW, J_EVENT_AT
 from hapticdesk.estimator.kernel_yardsticks import tare_yardsticks
 
 # --- the two entries ----------------------------------------------------------------------------
@@ -101,12 +99,25 @@ def run_block(
     used if ``given``) into the output columns of the same index; stops at the first
     sample that raises an event, its index in si[J_EVENT_AT]. Returns the events (0: the
     push is done). Releases the GIL."""
+    kept = sf[pi[I_SO_PREV_ROW] : pi[I_SO_PREV_ROW] + pi[I_C]]
+    # each sample's wrench made one sample ahead: the map depends on nothing before it, so
+    # its chain of sums runs beside the sample before instead of ahead of this one's filters
+    ahead = wrench_of(x[start], pf, pi) if start < stop else (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     for i in range(start, stop):
+        mapped = ahead
+        if i + 1 < stop:
+            ahead = wrench_of(x[i + 1], pf, pi)
         a = accel[i if given else 0]
-        events = _sample(t[i], x[i], a, given, pf, pi, sf, si, out_f, out_b, out_s, i)
+        before = x[i - 1] if i > start else kept  # (the sample before: keep_row)
+        events = _sample(
+            t[i], x[i], before, mapped, a, given, pf, pi, sf, si, out_f, out_b, out_s, i
+        )
         if events:
             si[J_EVENT_AT] = i
+            # (a sample that asks for its accelerometers' gain is not checked yet)
+            keep_row(x, i - 1 if events & EV_PARTIAL_ACCEL else i, start, pi, sf)
             return events
+    keep_row(x, stop - 1, start, pi, sf)
     return 0
 
 
@@ -126,7 +137,10 @@ def run_step(
 ) -> int:
     """One sample (``x`` (1, C), ``accel`` (A,), used if ``given``) into the one-sample
     record's columns; returns its events, as :func:`run_block` (si[J_EVENT_AT] 0)."""
-    events = _sample(t, x[0], accel, given, pf, pi, sf, si, out_f, out_b, out_s, 0)
+    mapped = wrench_of(x[0], pf, pi)
+    before = sf[pi[I_SO_PREV_ROW] : pi[I_SO_PREV_ROW] + pi[I_C]]  # (keep_row's)
+    events = _sample(t, x[0], before, mapped, accel, given, pf, pi, sf, si, out_f, out_b, out_s, 0)
+    keep_row(x, -1 if events & EV_PARTIAL_ACCEL else 0, 0, pi, sf)
     si[J_EVENT_AT] = 0
     return events
 

@@ -2,11 +2,11 @@
 
 Stage 1 of the kernel (:mod:`hapticdesk.estimator.kernel`), the per-sample side of
 :mod:`hapticdesk.estimator.samples` and :mod:`hapticdesk.estimator.resolution`:
-:func:`_samples` flags a sample (NaN, saturated, its time going back, a stuck input, a gap)
-and maps a good one's channels to the resultant force and moment about P_o,
-[F_o; M_o] = M x (paper eqs. 1–4); :func:`_learn_steps` learns each channel's resolution step
-from the changes between good readings, and :func:`steps_changed` says when the covariances
-must be made anew for them.
+:func:`_samples` flags a sample (NaN, saturated, its time going back, a stuck input, a gap);
+:func:`wrench_of` maps its channels to the resultant force and moment about P_o,
+[F_o; M_o] = M x (paper eqs. 1–4; the entries make it a sample ahead); :func:`_learn_steps`
+learns each channel's resolution step from the changes between good readings, and
+:func:`steps_changed` says when the covariances must be made anew for them.
 """
 
 from __future__ import annotations
@@ -61,36 +61,39 @@ from hapticdesk.estimator.kernel_slots import (
     P_STEP_CHANGE,
     S_EV_LATEST,
     S_EV_T,
-    S_LAST_GOOD,
     S_LAST_STUCK_T,
     S_LAST_T,
     S_MAX_T,
     S_STUCK_SINCE,
+    Wrench,
 )
 
 
 @inlined
 def _samples(
-    t: float, x: np.ndarray, pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray
+    t: float,
+    x: np.ndarray,
+    before: np.ndarray,
+    pf: np.ndarray,
+    pi: np.ndarray,
+    sf: np.ndarray,
+    si: np.ndarray,
 ) -> tuple[int, int]:
-    """Flags of one input sample (NaN, saturated, time back, stuck, gap) and, for a good one,
-    its resultant [F_o; M_o] = M x (paper eqs. 1–4) into S_LAST_GOOD and its channels'
-    changes into the resolution steps. Returns (flags, events)."""
+    """Flags of one input sample (NaN, saturated, time back, stuck, gap; ``before``: the
+    channels of the sample before, :func:`keep_row`) and, for a good one, its channels'
+    changes into the resolution steps (its resultant is :func:`wrench_of`'s). Returns
+    (flags, events)."""
     c_n = pi[I_C]
-    flags = 0
-    events = 0
+    flags = events = 0
     # one pass over the channels, without branches: each within its limit (so finite: False
-    # for NaN too), equal to the sample before (a repeat, for the stuck check below), kept
-    # as the sample before the next (read only while the stuck check runs)
+    # for NaN too), equal to the sample before (a repeat, for the stuck check below)
     within = abs(t) < math.inf
     repeat = si[J_HAVE_PREV] == 1
     limit = pf[pi[I_PO_LIMIT] : pi[I_PO_LIMIT] + c_n]
-    prev = sf[pi[I_SO_PREV_ROW] : pi[I_SO_PREV_ROW] + c_n]
     for c in range(c_n):
         v = x[c]
         within &= abs(v) < limit[c]
-        repeat &= v == prev[c]
-        prev[c] = v
+        repeat &= v == before[c]
     finite, saturated = True, False
     if not within:  # (rare) which of the two
         finite = abs(t) < math.inf
@@ -123,8 +126,19 @@ def _samples(
         flags |= FLAG_GAP
     sf[S_LAST_T] = t
     _learn_steps(x, pi, sf, si)
-    _wrench(x, pf, pi, sf)
     return flags, events
+
+
+@inlined
+def keep_row(x: np.ndarray, last: int, start: int, pi: np.ndarray, sf: np.ndarray) -> None:
+    """The row ``last`` of the block ``x``, the last one checked (none before ``start``), kept
+    in the state (I_SO_PREV_ROW): the stuck check compares a block's first sample with it,
+    and each other with the block's row before."""
+    if last >= start:
+        prev = sf[pi[I_SO_PREV_ROW] : pi[I_SO_PREV_ROW] + pi[I_C]]
+        row = x[last]
+        for c in range(pi[I_C]):
+            prev[c] = row[c]
 
 
 @inlined
@@ -172,8 +186,9 @@ def _stuck_check(
 
 
 @inlined
-def _wrench(x: np.ndarray, pf: np.ndarray, pi: np.ndarray, sf: np.ndarray) -> None:
-    """A good sample's resultant [F_o; M_o] = M x about P_o (paper eqs. 1–4) into S_LAST_GOOD."""
+def wrench_of(x: np.ndarray, pf: np.ndarray, pi: np.ndarray) -> Wrench:
+    """A sample's resultant [F_o; M_o] = M x about P_o (paper eqs. 1–4), whatever its flags
+    (it depends on nothing else: the entries make the next sample's while this one runs)."""
     c_n = pi[I_C]
     # the matrix stored by channel (C, 6), its six sums side by side and each split in two
     # (even and odd channels) so that no long chain of additions waits on itself
@@ -204,8 +219,7 @@ def _wrench(x: np.ndarray, pf: np.ndarray, pi: np.ndarray, sf: np.ndarray) -> No
         m0 += m[a + 3] * v
         m1 += m[a + 4] * v
         m2 += m[a + 5] * v
-    sf[S_LAST_GOOD], sf[S_LAST_GOOD + 1], sf[S_LAST_GOOD + 2] = f0 + g0, f1 + g1, f2 + g2
-    sf[S_LAST_GOOD + 3], sf[S_LAST_GOOD + 4], sf[S_LAST_GOOD + 5] = m0 + n0, m1 + n1, m2 + n2
+    return f0 + g0, f1 + g1, f2 + g2, m0 + n0, m1 + n1, m2 + n2
 
 
 @inlined

@@ -173,14 +173,12 @@ def _sway(
 
 
 @inlined
-def _filters(pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray) -> None:
-    """The sample in flight (S_RAW) through the filter bank: the conventional low-pass
-    (S_LP), the pseudo-differentiated wrench (S_DIFF, paper eq. 8: an n-sample difference,
-    scaled, low-passed), the fast low-pass (S_DET) and its slope over I_N_RATE and
-    I_N_RELEASE samples (S_SLOPE, S_RELEASE); with the sway compensated (I_SPAN > 0)."""
-    ns = pi[I_NS]
-    # the fast path (its moments are used where I_DET_FULL, its force always)
-    _sections(pf, pi[I_PO_DET_SOS], ns, sf, pi[I_SO_DET_ZI], S_RAW, S_DET)
+def _slopes(
+    pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray, f0: float, f1: float, f2: float
+) -> None:
+    """The fast force (``f0``, ``f1``, ``f2``: S_DET's, in registers as :func:`_sections`
+    returns them) less itself I_N_RATE and I_N_RELEASE samples ago, scaled, into S_SLOPE and
+    S_RELEASE; it takes its place in their ring."""
     n_rate = pi[I_N_RATE]
     pos = si[J_DET_POS]
     recent = pos + n_rate - pi[I_N_RELEASE]
@@ -188,13 +186,26 @@ def _filters(pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray) -> 
         recent -= n_rate
     oldest = sf[pi[I_SO_DET_RING] + 3 * pos : pi[I_SO_DET_RING] + 3 * pos + 3]
     then = sf[pi[I_SO_DET_RING] + 3 * recent : pi[I_SO_DET_RING] + 3 * recent + 3]
-    for lane in range(3):
-        f = sf[S_DET + lane]
-        sf[S_SLOPE + lane] = (f - oldest[lane]) * pf[P_RATE_SCALE]
-        sf[S_RELEASE + lane] = (f - then[lane]) * pf[P_RELEASE_SCALE]
-    for lane in range(3):
-        oldest[lane] = sf[S_DET + lane]
+    rate, release = pf[P_RATE_SCALE], pf[P_RELEASE_SCALE]
+    o0, o1, o2, r0, r1, r2 = oldest[0], oldest[1], oldest[2], then[0], then[1], then[2]
+    slope, falling = sf[S_SLOPE : S_SLOPE + 3], sf[S_RELEASE : S_RELEASE + 3]
+    slope[0], slope[1], slope[2] = (f0 - o0) * rate, (f1 - o1) * rate, (f2 - o2) * rate
+    falling[0], falling[1] = (f0 - r0) * release, (f1 - r1) * release
+    falling[2] = (f2 - r2) * release
+    oldest[0], oldest[1], oldest[2] = f0, f1, f2
     si[J_DET_POS] = pos + 1 if pos + 1 < n_rate else 0
+
+
+@inlined
+def _filters(pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray) -> None:
+    """The sample in flight (S_RAW) through the filter bank: the conventional low-pass
+    (S_LP), the pseudo-differentiated wrench (S_DIFF, paper eq. 8: an n-sample difference,
+    scaled, low-passed), the fast low-pass (S_DET) and its slope over I_N_RATE and
+    I_N_RELEASE samples (S_SLOPE, S_RELEASE); with the sway compensated (I_SPAN > 0)."""
+    ns = pi[I_NS]
+    # the fast path (its moments are used where I_DET_FULL, its force always)
+    det = _sections(pf, pi[I_PO_DET_SOS], ns, sf, pi[I_SO_DET_ZI], S_RAW, S_DET)
+    _slopes(pf, pi, sf, si, det[0], det[1], det[2])
     n_diff = pi[I_N_DIFF]
     pos = si[J_DELAY_POS]
     delayed = sf[pi[I_SO_DELAY] + 6 * pos : pi[I_SO_DELAY] + 6 * pos + 6]

@@ -98,6 +98,7 @@ from hapticdesk.estimator.kernel_slots import (
     SURF_I,
     SURF_NORMAL,
     TRACE_ROWS,
+    Wrench,
 )
 from hapticdesk.estimator.kernel_zero import window_add, zero_from_start
 
@@ -106,6 +107,8 @@ from hapticdesk.estimator.kernel_zero import window_add, zero_from_start
 def _front(
     t: float,
     x: np.ndarray,
+    before: np.ndarray,
+    mapped: Wrench,
     a: np.ndarray,
     given: bool,
     pf: np.ndarray,
@@ -113,16 +116,20 @@ def _front(
     sf: np.ndarray,
     si: np.ndarray,
 ) -> int:
-    """The first half of a sample: its flags and wrench (stages 1, 1b), the filters
+    """The first half of a sample (``before``: the channels of the sample before; ``mapped``:
+    its channels' wrench, kernel_channels.wrench_of):
+    its flags and wrench (stages 1, 1b), the filters
     (stage 2) and the zero's window (stage 3). Leaves the sample in flight in S_RAW, S_LP,
     S_DET, S_DIFF, S_SLOPE, S_RELEASE and J_FLAGS; returns its events."""
     accel, no_accel = _accel_use(a, given, pf, pi, si)
     if accel == ACCEL_ASK:
         return EV_PARTIAL_ACCEL  # its gain from Python (before anything moves on)
-    flags, events = _samples(t, x, pf, pi, sf, si)
+    flags, events = _samples(t, x, before, pf, pi, sf, si)
     first_good = False
     zeroed = pi[I_ZEROED] == 1
-    if flags == 0 or flags == FLAG_GAP:
+    if flags == 0 or flags == FLAG_GAP:  # a good sample: its wrench (paper eqs. 1–4) kept
+        good = sf[S_LAST_GOOD : S_LAST_GOOD + 6]
+        good[0], good[1], good[2], good[3], good[4], good[5] = mapped
         first_good = si[J_STARTED] == 0
         si[J_STARTED] = 1
         if zeroed and not si[J_TARED]:
@@ -262,6 +269,8 @@ def _shear_and_drag(
 def _sample(
     t: float,
     x: np.ndarray,
+    before: np.ndarray,
+    mapped: Wrench,
     a: np.ndarray,
     given: bool,
     pf: np.ndarray,
@@ -273,13 +282,14 @@ def _sample(
     out_s: np.ndarray,
     col: int,
 ) -> int:
-    """One sample through every stage, from where si[J_RESUME] says; returns the events it
-    raised (0: none)."""
+    """One sample (``x``, its channels; ``before``, the sample before's, ``keep_row``;
+    ``mapped``, their wrench, ``wrench_of``) through every stage, from where si[J_RESUME]
+    says; returns the events it raised (0: none)."""
     resume = si[J_RESUME]
     si[J_RESUME] = RESUME_NEXT
     events = 0
     if resume != RESUME_BACK:
-        events = _front(t, x, a, given, pf, pi, sf, si)
+        events = _front(t, x, before, mapped, a, given, pf, pi, sf, si)
         if events & EV_PARTIAL_ACCEL:
             si[J_RESUME] = RESUME_AGAIN
             return events

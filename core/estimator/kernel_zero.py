@@ -160,6 +160,18 @@ def _window_spread(pi: np.ndarray, sf: np.ndarray, w: int) -> float:
     lp_at = pi[I_SO_WIN_LP]
     block = pi[I_STILL_BLOCK]
     spread = 0.0
+    if block == 1:
+        # the three lanes' chains of min and max side by side (each lane's in the same order:
+        # the same values), where one lane after the other waited on each comparison
+        lp = sf[lp_at : lp_at + 3 * w]
+        lo0 = lo1 = lo2 = math.inf
+        hi0 = hi1 = hi2 = -math.inf
+        for j in range(w):
+            v0, v1, v2 = lp[3 * j], lp[3 * j + 1], lp[3 * j + 2]
+            lo0, hi0 = min(lo0, v0), max(hi0, v0)
+            lo1, hi1 = min(lo1, v1), max(hi1, v1)
+            lo2, hi2 = min(lo2, v2), max(hi2, v2)
+        return max(max(max(spread, hi0 - lo0), hi1 - lo1), hi2 - lo2)
     for lane in range(3):
         lo, hi = math.inf, -math.inf
         for j in range(0, w, block):

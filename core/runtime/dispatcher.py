@@ -2,6 +2,8 @@
 
 Every action use of a layout gets a *lane* (lane.py: a bounded queue and a worker thread). The
 sensing thread only matches bindings (:class:`Route`) and puts events on lanes (never blocks);
+actions that declare the same ``order_key`` take their turns in the gestures' order
+(ordering.py: one turnstile per key, shared by a reload's new lanes and the old);
 the dispatcher's watchdog thread asks each lane to give up on a call past its timeout, and
 :class:`ActionContext` is what every action factory shares of a run. At the end of a run the
 calls left behind get their timeout once more (at most half the drain, all together) before
@@ -22,6 +24,7 @@ from typing import Any, Protocol
 
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.runtime.lane import Lane, LaneStats
+from hapticdesk.runtime.ordering import Turnstiles
 
 log = logging.getLogger(__name__)
 
@@ -33,9 +36,12 @@ EARLIER_LAYOUTS = "(actions of earlier layouts)"
 class Action(Protocol):
     """What an action factory returns: called once per matching gesture event.
 
-    Optional: ``close()`` (called once at the end of a run) and ``timeout_s`` (how long one
+    Optional: ``close()`` (called once at the end of a run), ``timeout_s`` (how long one
     call may run before the dispatcher gives up on it; default
-    :data:`~hapticdesk.runtime.lane.DEFAULT_TIMEOUT_S`).
+    :data:`~hapticdesk.runtime.lane.DEFAULT_TIMEOUT_S`) and ``order_key`` (a text: actions
+    with the same key are called in the order of the gestures that matched them, each after
+    the calls before it of that key have ended or been given up on; e.g. every action that
+    commands the same device).
     """
 
     def __call__(self, event: GestureEvent) -> None: ...
@@ -167,6 +173,7 @@ class Dispatcher:
         self._retired_lock = threading.Lock()
         self._closed = threading.Event()
         self._interval = watchdog_interval_s
+        self._turnstiles = Turnstiles()
         self._watchdog = threading.Thread(target=self._watch, name="action watchdog", daemon=True)
         self._watchdog.start()
 
@@ -180,6 +187,8 @@ class Dispatcher:
         :meth:`submit`. The old routes' lanes finish what they hold within ``drain_s`` on a
         thread of their own (this never blocks) and still count in :meth:`close`'s report."""
         old = [lane for route in self.routes for lane in route.lanes]
+        for route in routes:
+            self._order(route.lanes)
         self.routes = list(routes)
         with self._retired_lock:
             self.retired.extend(old)
@@ -205,10 +214,18 @@ class Dispatcher:
         self.retired_stats.setdefault(label, LaneStats()).add(lane.stats)
 
     def add_route(self, route: Route) -> None:
+        self._order(route.lanes)
         self.routes.append(route)
 
     def add_sink(self, lane: Lane) -> None:
+        self._order([lane])
         self.sinks.append(lane)
+
+    def _order(self, lanes: list[Lane]) -> None:
+        # before the lanes take their first event, so that every ticket is in submit order
+        for lane in lanes:
+            if lane.order_key is not None:
+                lane.turnstile = self._turnstiles.for_key(lane.order_key)
 
     def submit(self, event: GestureEvent) -> None:
         """Hand ``event`` to every matching action. Never blocks; called on the sensing thread."""

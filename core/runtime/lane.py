@@ -6,7 +6,9 @@ call runs in its own ``try``; a call that runs past its timeout is given up on
 (:meth:`Lane.check_timeout`, called by the dispatcher's watchdog), counted, and a fresh worker
 starts (Python cannot kill the hung thread, it is left behind as a daemon; after
 :data:`MAX_ABANDONED` of them the lane pauses for :data:`PAUSE_S`, its events are dropped and
-counted meanwhile, and then it takes events again, which the log says).
+counted meanwhile, and then it takes events again, which the log says). An action with an
+``order_key`` waits for its turn before each call (ordering.py): the actions sharing a device
+keep the gestures' order across their lanes.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from dataclasses import dataclass, fields
 from typing import Any
 
 from hapticdesk.gestures.event import GestureEvent
+from hapticdesk.runtime.ordering import Turnstile
 
 log = logging.getLogger(__name__)
 
@@ -27,6 +30,10 @@ DEFAULT_TIMEOUT_S = 5.0
 DEFAULT_LANE_QUEUE = 256
 MAX_ABANDONED = 3  # hung calls per lane before the lane pauses
 PAUSE_S = 30.0  # how long a lane that keeps hanging takes no events (a webhook server rebooting)
+#: the longest a call waits for the calls before it of its ``order_key`` (each is given up on at
+#: its own timeout, so only a lost turn waits this long; the turns before are then given up on)
+ORDER_WAIT_S = 10.0
+_TURN_SLICE_S = 0.1  # a worker waiting for its turn looks this often whether the run ended
 _STOP = object()
 
 
@@ -63,10 +70,17 @@ class Lane:
         self.action = action
         own = getattr(action, "timeout_s", None)
         self.timeout_s = float(timeout_s or own or DEFAULT_TIMEOUT_S)
+        key = getattr(action, "order_key", None)
+        #: the actions whose calls keep the gestures' order share this text (None: no order)
+        self.order_key = key if isinstance(key, str) and key else None
+        #: the key's turnstile, given by the dispatcher (None: the lane waits for nothing)
+        self.turnstile: Turnstile | None = None
         self.stats = LaneStats()
         self._queue: queue.Queue[Any] = queue.Queue(maxsize=queue_size)
         self._lock = threading.Lock()
         self._busy_since: float | None = None
+        self._ticket: int | None = None  # the turn of the call running now
+        self._close_deadline: float | None = None
         self._generation = 0
         self._abandoned = 0
         self._paused_until: float | None = None  # given up until then (monotonic time)
@@ -90,9 +104,11 @@ class Lane:
             if self.given_up:
                 self.stats.dropped += 1
                 return False
+            ticket = self.turnstile.take() if self.turnstile is not None else None
             try:
-                self._queue.put_nowait(event)
+                self._queue.put_nowait((ticket, event))
             except queue.Full:
+                self._turn_done(ticket)
                 self.stats.dropped += 1
                 if self.stats.dropped in (1, 10, 100) or self.stats.dropped % 1000 == 0:
                     log.warning(
@@ -118,6 +134,7 @@ class Lane:
             self.stats.timed_out += 1
             self._busy_since = None
             self._generation += 1
+            self._turn_done(self._ticket)  # the calls after it of its key may go
             self._abandoned += 1
             if self._abandoned > MAX_ABANDONED:
                 self.pauses += 1
@@ -147,6 +164,7 @@ class Lane:
         """Stop taking events, let queued ones run until ``deadline``, then close the action."""
         with self._lock:
             self._closed = True
+            self._close_deadline = deadline
         if not self.given_up:
             while True:
                 try:
@@ -162,6 +180,7 @@ class Lane:
             if self._busy_since is not None:  # still inside a call at the deadline
                 self.stats.timed_out += 1
                 self._generation += 1
+                self._turn_done(self._ticket)
         # the action's close gets what is left of the deadline, no more (--drain is a promise)
         self._close_action(max(0.0, deadline - time.monotonic()))
 
@@ -206,11 +225,15 @@ class Lane:
             if item is _STOP:
                 self._stopped.set()
                 return
+            ticket, event = item
+            if not self._wait_turn(ticket):
+                continue  # the run ended while it waited: not run
             with self._lock:
                 self._busy_since = time.monotonic()
+                self._ticket = ticket
             ok = False
             try:
-                self.action(item)
+                self.action(event)
                 ok = True
             except Exception as err:
                 error = err
@@ -219,11 +242,43 @@ class Lane:
                     log.info("%s: a call that timed out has finished after all", self.label)
                     return
                 self._busy_since = None
+                self._ticket = None
+                self._turn_done(ticket)
                 if ok:
                     self.stats.ok += 1
                 else:
                     self.stats.failed += 1
                     log.warning("%s failed: %s: %s", self.label, type(error).__name__, error)
+
+    def _wait_turn(self, ticket: int | None) -> bool:
+        """Wait for the calls before ``ticket`` of this lane's key; False (counted not run) if
+        the run's drain ended first. A turn not come in :data:`ORDER_WAIT_S` is taken anyway,
+        the turns before it given up on (said in the log): a lost turn holds nothing forever."""
+        if ticket is None or self.turnstile is None:
+            return True
+        waited_until = time.monotonic() + ORDER_WAIT_S
+        while True:
+            turn = self.turnstile.wait_turn(ticket, _TURN_SLICE_S)
+            now = time.monotonic()
+            with self._lock:  # a turn come after the drain's end is not taken either
+                if self._close_deadline is not None and now >= self._close_deadline:
+                    self.stats.not_run += 1
+                    self._turn_done(ticket)
+                    return False
+            if turn:
+                return True
+            if now >= waited_until:
+                log.error(
+                    "%s: the calls before this one of `%s` did not end in %.3g s; it goes on",
+                    self.label,
+                    self.turnstile.key,
+                    ORDER_WAIT_S,
+                )
+                self.turnstile.give_way(ticket)
+
+    def _turn_done(self, ticket: int | None) -> None:
+        if ticket is not None and self.turnstile is not None:
+            self.turnstile.done(ticket)
 
     def _drain(self) -> int:
         count = 0
@@ -233,6 +288,7 @@ class Lane:
             except queue.Empty:
                 return count
             if item is not _STOP:
+                self._turn_done(item[0])  # never run: the calls after it may go
                 count += 1
 
     def _close_action(self, timeout: float) -> None:

@@ -75,6 +75,9 @@ class MqttAction:
     """Publishes the rendered payload to the rendered topic on the run's connection."""
 
     timeout_s = 2.0  # publishing only queues; it never waits for the broker
+    #: every `mqtt` action of a run publishes on the run's one connection in the order of the
+    #: gestures (each on its own lane, two gestures a moment apart could cross at a device)
+    order_key = "mqtt"
 
     def __init__(self, options: Any, context: ActionContext) -> None:
         parsed = parse_options(options, where(options, "`mqtt`"))

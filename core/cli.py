@@ -207,8 +207,8 @@ def entry() -> int:
     left out of every later collection); and once the command has returned, everything is
     frozen, so the exit ends the process without walking it (Python's exit never promised
     to finalise objects in reference cycles; files the commands write are closed by then,
-    and standard output is flushed as before). Together 0.06-0.1 s of the 0.5 s
-    ``hapticdesk contacts`` takes on a minute of data (docs/performance.md). :func:`main`
+    and standard output is flushed as before). Together about 0.1 s of CPU of
+    ``hapticdesk contacts`` on a minute of data, 0.57 → 0.46 s (docs/performance.md). :func:`main`
     itself, called within another program (the tests), leaves the collector as it was."""
     code = main(own_process=True)
     gc.freeze()

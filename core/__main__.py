@@ -1,5 +1,5 @@
 import sys
 
-from hapticdesk.cli import main
+from hapticdesk.cli import entry
 
-sys.exit(main())
+sys.exit(entry())

@@ -149,3 +149,66 @@ def test_numpy_and_scipy_load_with_one_blas_thread_when_first_imported(monkeypat
     if not counted:
         pytest.skip("numpy and scipy here do not bring OpenBLAS")
     assert counted == [1] * len(counted)
+
+
+def _press_recording(path) -> None:
+    """Three seconds of the paper's desk at rest, pressed for one in the middle."""
+    from hapticdesk.files.recording import Recording
+    from hapticdesk.files.recording_io import write_recording
+
+    t = np.arange(3600) / 1200
+    wrench = np.zeros((len(t), 4, 6))
+    wrench[:, :, 2] = 33.75
+    wrench += np.random.default_rng(1).normal(scale=0.02, size=wrench.shape)
+    wrench[(t > 1.5) & (t < 2.5), :, 2] += [6.0, 2.0, 1.0, 1.0]
+    write_recording(path, Recording(t, wrench, ["fl", "fr", "bl", "br"]))
+
+
+def test_the_program_ends_with_all_it_wrote_as_main_writes_it(tmp_path):
+    """``hapticdesk`` as a program (``cli.entry``) freezes the objects it loaded before its
+    exit, so that the exit does not walk them: what the command wrote, to its ``-o`` file
+    and to standard output, is all there, and the same as :func:`main` writes in process."""
+    import contextlib
+    import io
+
+    from hapticdesk.cli import main
+
+    recording = tmp_path / "press.csv"
+    _press_recording(recording)
+    args = ["contacts", str(recording), "--desk", "kitamura2017"]
+    in_process = io.StringIO()
+    with contextlib.redirect_stdout(in_process):
+        assert main([*args, "-o", "-"]) == 0
+    assert in_process.getvalue().count("\n") > 500  # (the press: a second of contact)
+    to_stdout = subprocess.run(
+        [sys.executable, "-m", "hapticdesk", *args, "-o", "-"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=True,
+    )
+    assert to_stdout.stdout == in_process.getvalue()
+    to_file = subprocess.run(
+        [sys.executable, "-m", "hapticdesk", *args, "-o", str(tmp_path / "out.csv")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=True,
+    )
+    assert (tmp_path / "out.csv").read_text(encoding="utf-8") == in_process.getvalue()
+    assert "touches" in to_file.stderr  # (the summary line, written at the end)
+
+
+def test_main_within_another_program_leaves_the_collector_as_it_was(tmp_path):
+    """Only the program freezes what it loaded: :func:`main` called by another program (a
+    test, a script) leaves its collector on and freezes none of its objects."""
+    import gc
+
+    from hapticdesk.cli import main
+
+    recording = tmp_path / "press.csv"
+    _press_recording(recording)
+    frozen = gc.get_freeze_count()
+    assert main(["contacts", str(recording), "--desk", "kitamura2017", "-o", "-"]) == 0
+    assert gc.isenabled()
+    assert gc.get_freeze_count() == frozen

@@ -149,19 +149,25 @@ def likeliest_noise(
     ``mean`` (R, P) at P places between two steps alike (``log_mean`` its log), the
     log-likelihood of a noise being Σ_q log mean_p exp(k_q log μ − μ) (the first on a tie).
 
-    A channel's term is at most max_p (k_q log μ − μ), which takes no exponential (into
-    ``bound`` (R, Q + 1), their sum last): the likelihoods are worked out from the highest
-    bound down, each left as soon as what it has summed and the bounds of the channels still
-    to come fall below the likeliest so far, until a bound does. The whole grid in numpy,
-    (Q, R, P) arrays, took 8 ms a tare, a tenth of a minute's estimation."""
+    A channel's term is at most max_p (k_q log μ − μ), and that at most the concave
+    k log μ − μ's largest over [min_p μ, max_p μ] (at μ = k clipped into it): one logarithm
+    a channel and noise, not one a place (into ``bound`` (R, Q + 1), their sum last; the
+    margin covers the rounding of the two logarithms). The likelihoods are worked out from
+    the highest bound down, each left as soon as what it has summed and the bounds of the
+    channels still to come fall below the likeliest so far, until a bound does. The whole
+    grid in numpy, (Q, R, P) arrays, took 8 ms a tare, a tenth of a minute's estimation;
+    the bound at every place, 0.15 ms of this search's 0.4."""
     n_rho, n_places = mean.shape
     n_q = counts.shape[0]
     for r in range(n_rho):
+        low, high = math.inf, -math.inf
+        for p in range(n_places):
+            low, high = min(low, mean[r, p]), max(high, mean[r, p])
         total = 0.0
         for q in range(n_q):
-            top = -math.inf
-            for p in range(n_places):
-                top = max(top, counts[q] * log_mean[r, p] - mean[r, p])
+            at = min(max(counts[q], low), high)
+            top = counts[q] * math.log(at) - at
+            top += 1e-9 * (1.0 + abs(top))
             bound[r, q] = top
             total += top
         bound[r, n_q] = total

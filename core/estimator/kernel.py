@@ -72,6 +72,7 @@ from hapticdesk.cached_load import cache_loads
 from hapticdesk.estimator.kernel_channels import keep_row, steps_changed, wrench_of
 from hapticdesk.estimator.kernel_compile import compiled, unchecked_indices, vectorized
 from hapticdesk.estimator.kernel_geometry import contains, intersect
+from hapticdesk.estimator.kernel_rounding import likeliest_noise
 from hapticdesk.estimator.kernel_sample import _sample
 from hapticdesk.estimator.kernel_slots import EV_PARTIAL_ACCEL, I_C, I_SO_PREV_ROW, J_EVENT_AT
 from hapticdesk.estimator.kernel_yardsticks import tare_yardsticks
@@ -191,6 +192,7 @@ def _signatures() -> list[tuple[Any, tuple[Any, ...]]]:
         (steps_changed, state),
         (contains, (f1, i1, index, types.float64, types.float64)),
         (tare_yardsticks, (f2, *state)),
+        (likeliest_noise, (f1, f2, f2, f2)),  # (at a tare, from resolution.py)
     ]
 
 

@@ -212,3 +212,41 @@ def test_main_within_another_program_leaves_the_collector_as_it_was(tmp_path):
     assert main(["contacts", str(recording), "--desk", "kitamura2017", "-o", "-"]) == 0
     assert gc.isenabled()
     assert gc.get_freeze_count() == frozen
+
+
+QUIET_TARE_PROBE = """
+import json, sys
+import numpy as np
+from hapticdesk.estimator import ContactEstimator, resolution
+from hapticdesk.files.profile_reader import load_profile
+
+searched = []
+search = resolution.likeliest_noise
+resolution.likeliest_noise = lambda *args: searched.append(1) or search(*args)
+desk = load_profile("kitamura2017")
+n, step = 3600, 0.05  # three seconds at rest, each channel rounded to 0.05 N, noise 0.3 step
+rest = np.random.default_rng(0).normal(0.0, 0.3 * step, (n, len(desk.sensors), 6))
+rest[:, :, 2] -= 30.0
+ContactEstimator(desk, method="fused").push(np.arange(n) / 1200, np.round(rest / step) * step)
+print(json.dumps({{"searched": len(searched),
+                  "loaded": [m for m in {watched!r} if m in sys.modules]}}))
+"""
+
+
+def test_a_tare_on_quiet_rounded_channels_readies_neither_scipy_nor_numba_s_compiler():
+    """The tare's noise search for the zero's rounding floor (resolution.py) runs on a cached
+    kernel loaded as the others are (kernel.warm: numba's compiler unreadied, which would
+    import scipy.linalg) and with no scipy.special (0.2 s of ``contacts``' start-up each)."""
+    watched = ("scipy.special", "scipy.linalg", "scipy.signal")
+    # the kernels in numba's cache first (a compile readies numba's compiler, scipy.linalg too)
+    warm = "from hapticdesk.estimator import kernel; kernel.warm()"
+    subprocess.run([sys.executable, "-c", warm], capture_output=True, timeout=300, check=True)
+    done = subprocess.run(
+        [sys.executable, "-c", QUIET_TARE_PROBE.format(watched=watched)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=True,
+    )
+    probe = json.loads(done.stdout.splitlines()[-1])
+    assert probe == {"searched": 1, "loaded": []}

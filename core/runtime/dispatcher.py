@@ -24,7 +24,7 @@ from typing import Any, Protocol
 
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.runtime.lane import Lane, LaneStats
-from hapticdesk.runtime.ordering import Turnstiles
+from hapticdesk.runtime.ordering import Turnstile
 
 log = logging.getLogger(__name__)
 
@@ -173,7 +173,7 @@ class Dispatcher:
         self._retired_lock = threading.Lock()
         self._closed = threading.Event()
         self._interval = watchdog_interval_s
-        self._turnstiles = Turnstiles()
+        self._turnstiles: dict[str, Turnstile] = {}  # by order_key
         self._watchdog = threading.Thread(target=self._watch, name="action watchdog", daemon=True)
         self._watchdog.start()
 
@@ -224,8 +224,9 @@ class Dispatcher:
     def _order(self, lanes: list[Lane]) -> None:
         # before the lanes take their first event, so that every ticket is in submit order
         for lane in lanes:
-            if lane.order_key is not None:
-                lane.turnstile = self._turnstiles.for_key(lane.order_key)
+            key = lane.order_key
+            if key is not None:
+                lane.turnstile = self._turnstiles.setdefault(key, Turnstile(key))
 
     def submit(self, event: GestureEvent) -> None:
         """Hand ``event`` to every matching action. Never blocks; called on the sensing thread."""

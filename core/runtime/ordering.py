@@ -49,10 +49,7 @@ class Turnstile:
             if ticket < self._serving:
                 return
             self._done_early.add(ticket)
-            while self._serving in self._done_early:
-                self._done_early.remove(self._serving)
-                self._serving += 1
-            self._turn.notify_all()
+            self._move_on()
 
     def give_way(self, ticket: int) -> None:
         """Give up on every ticket before ``ticket`` (they took too long): its turn now."""
@@ -61,22 +58,11 @@ class Turnstile:
                 return
             self._serving = ticket
             self._done_early = {t for t in self._done_early if t >= ticket}
-            while self._serving in self._done_early:
-                self._done_early.remove(self._serving)
-                self._serving += 1
-            self._turn.notify_all()
+            self._move_on()
 
-
-class Turnstiles:
-    """One :class:`Turnstile` per ``order_key`` of a run's actions."""
-
-    def __init__(self) -> None:
-        self._by_key: dict[str, Turnstile] = {}
-        self._lock = threading.Lock()
-
-    def for_key(self, key: str) -> Turnstile:
-        """The turnstile of ``key``, made the first time it is asked for."""
-        with self._lock:
-            if key not in self._by_key:
-                self._by_key[key] = Turnstile(key)
-            return self._by_key[key]
+    def _move_on(self) -> None:
+        # (under self._turn) past every ticket done early that is next, then the waiters look
+        while self._serving in self._done_early:
+            self._done_early.remove(self._serving)
+            self._serving += 1
+        self._turn.notify_all()

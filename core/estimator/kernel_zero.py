@@ -175,11 +175,7 @@ def _window_spread(pi: np.ndarray, sf: np.ndarray, w: int) -> float:
     for lane in range(3):
         lo, hi = math.inf, -math.inf
         for j in range(0, w, block):
-            value = (
-                sf[lp_at + 3 * j + lane]
-                if block == 1
-                else pairwise_sum(sf, lp_at + 3 * j + lane, block, 3) / block
-            )
+            value = pairwise_sum(sf, lp_at + 3 * j + lane, block, 3) / block
             lo, hi = min(lo, value), max(hi, value)
         spread = max(spread, hi - lo)
     return spread

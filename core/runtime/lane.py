@@ -177,6 +177,10 @@ class Lane:
             self._stopped.wait(max(0.0, deadline - time.monotonic()))
         with self._lock:
             self.stats.not_run += self._drain()
+            if not self._stopped.is_set():
+                # the drain took the stop too: an idle worker that had not got to it yet would
+                # wait on the queue for ever (one thread lost per close, a reload's too)
+                self._queue.put_nowait(_STOP)
             if self._busy_since is not None:  # still inside a call at the deadline
                 self.stats.timed_out += 1
                 self._generation += 1

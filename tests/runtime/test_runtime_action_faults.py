@@ -3,6 +3,7 @@ that answers a byte at a time, and a program that leaves children behind."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import os
@@ -39,7 +40,8 @@ class RawServer:
         self.sock.listen(8)
         self.port = self.sock.getsockname()[1]
         self.reply = reply
-        threading.Thread(target=self._serve, daemon=True).start()
+        self._accepting = threading.Thread(target=self._serve, daemon=True)
+        self._accepting.start()
 
     def _serve(self) -> None:
         while True:
@@ -71,7 +73,12 @@ class RawServer:
                 pass
 
     def close(self) -> None:
+        # a close alone does not wake a thread blocked in accept() on Linux; a shutdown does
+        with contextlib.suppress(OSError):
+            self.sock.shutdown(socket.SHUT_RDWR)
         self.sock.close()
+        self._accepting.join(5.0)
+        assert not self._accepting.is_alive(), "the test server's accept thread did not end"
 
 
 def ok(conn: socket.socket) -> None:

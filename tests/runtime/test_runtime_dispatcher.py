@@ -213,3 +213,22 @@ def test_actions_are_closed_and_shared_resources_released():
     dispatcher.close(5.0)
     assert context.close_resources() == ["resource report"]
     assert closed == ["action", "resource"]
+
+
+def test_a_dispatcher_closed_at_once_leaves_no_worker_behind():
+    # a close with no drain time (a scene built and released without running, a reload's old
+    # lanes on a starved machine) empties the queue before the idle workers take their stop:
+    # they must still end, not wait on the queue for ever (one thread lost per close)
+    before = set(threading.enumerate())
+    for _ in range(5):
+        dispatcher = Dispatcher()
+        for name in ("lamp", "fan", "blind"):
+            dispatcher.add_route(Route(name, lambda e: True, [Lane(name, Recorder())]))
+        dispatcher.close(0.0)
+    deadline = time.monotonic() + 5.0
+    while time.monotonic() < deadline:
+        left = [t for t in threading.enumerate() if t not in before and t.is_alive()]
+        if not left:
+            break
+        time.sleep(0.02)
+    assert left == []

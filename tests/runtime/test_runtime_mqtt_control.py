@@ -287,7 +287,8 @@ def test_a_broker_that_does_not_speak_mqtt5_gets_311(broker, subscribe, caplog):
             threading.Thread(target=pipe, args=(client, upstream), daemon=True).start()
             threading.Thread(target=pipe, args=(upstream, client), daemon=True).start()
 
-    threading.Thread(target=serve, daemon=True).start()
+    accepting = threading.Thread(target=serve, daemon=True)
+    accepting.start()
     sub = subscribe("lamp/#")
     settings = link_settings(broker, "old-broker")
     settings = type(settings)(**{**settings.__dict__, "port": port})
@@ -299,7 +300,11 @@ def test_a_broker_that_does_not_speak_mqtt5_gets_311(broker, subscribe, caplog):
             assert link.flush(10)
             link.close()
     finally:
+        with contextlib.suppress(OSError):  # (wakes the accept: a close alone does not)
+            server.shutdown(socket.SHUT_RDWR)
         server.close()
+    accepting.join(5.0)
+    assert not accepting.is_alive()
     assert link.protocol == mqtt.MQTTv311
     assert protocols[:2] == [5, 4]  # asked in MQTT 5, then in 3.1.1
     assert "does not speak MQTT 5" in caplog.text

@@ -3,7 +3,12 @@ legs and with eight (the simulator, stability and estimator tests all use them).
 
 from __future__ import annotations
 
+import json
+import subprocess
+import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -87,3 +92,20 @@ def press_errors() -> object:
     """``press_errors(profile, built, cells, points)``: how far presses on a load-cell desk as
     built land with ``profile`` (the set-up with a known weight's tests, analysis and page)."""
     return _press_errors
+
+
+def _python_probe(code: str, *args: str, timeout: float = 120.0) -> Any:
+    """Run ``code`` in a fresh interpreter (so what it imports starts from nothing) and return
+    its last line of output read as JSON; a child that fails shows its stderr."""
+    done = subprocess.run(
+        [sys.executable, "-c", code, *args], capture_output=True, text=True, timeout=timeout
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    return json.loads(done.stdout.splitlines()[-1])
+
+
+@pytest.fixture(scope="session")
+def python_probe() -> Callable[..., Any]:
+    """``python_probe(code, *argv, timeout=120)``: what a snippet run in a fresh interpreter
+    prints last, as JSON (the start-up and import tests ask what a new process loaded)."""
+    return _python_probe

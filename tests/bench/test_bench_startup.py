@@ -5,7 +5,6 @@ gives the measured time)."""
 
 from __future__ import annotations
 
-import json
 import subprocess
 import sys
 
@@ -32,43 +31,36 @@ print(json.dumps({{"code": code, "help": out.getvalue(), "heavy": heavy,
 """
 
 
-def _probe(argv: list[str]) -> dict:
-    done = subprocess.run(
-        [sys.executable, "-c", PROBE.format(argv=argv, heavy=HEAVY)],
-        capture_output=True,
-        text=True,
-        timeout=60,
-        check=True,
-    )
-    return json.loads(done.stdout.splitlines()[-1])
+def _probe(python_probe, argv: list[str]) -> dict:
+    return python_probe(PROBE.format(argv=argv, heavy=HEAVY), timeout=60)
 
 
-def test_help_imports_no_heavy_module_and_lists_every_command():
-    probe = _probe(["--help"])
+def test_help_imports_no_heavy_module_and_lists_every_command(python_probe):
+    probe = _probe(python_probe, ["--help"])
     assert probe["code"] == 0
     assert probe["heavy"] == []
     for name in probe["commands"]:
         assert name in probe["help"]
 
 
-def test_no_command_prints_the_list_without_heavy_imports():
-    probe = _probe([])
+def test_no_command_prints_the_list_without_heavy_imports(python_probe):
+    probe = _probe(python_probe, [])
     assert probe["code"] == 2
     assert probe["heavy"] == []
     assert "contacts" in probe["help"]
 
 
-def test_a_command_s_help_still_shows_its_own_options():
-    probe = _probe(["contacts", "--help"])
+def test_a_command_s_help_still_shows_its_own_options(python_probe):
+    probe = _probe(python_probe, ["contacts", "--help"])
     assert probe["code"] == 0
     assert "--method" in probe["help"]
     assert "switched" in probe["help"]
 
 
-def test_listing_the_plugins_loads_no_array_library():
+def test_listing_the_plugins_loads_no_array_library(python_probe):
     """`hapticdesk plugins` only reads the registry: numpy and scipy (and their BLAS) are not
     loaded for it, as they are for the commands that compute."""
-    probe = _probe(["plugins"])
+    probe = _probe(python_probe, ["plugins"])
     assert probe["code"] == 0
     assert probe["heavy"] == []
     assert "hapticdesk.plugins.mqtt" in probe["help"]
@@ -86,7 +78,9 @@ print(json.dumps({{"samples": len(given.recording.t),
 """
 
 
-def test_reading_the_desk_and_a_recording_loads_no_scipy_and_no_plugin_registry(tmp_path):
+def test_reading_the_desk_and_a_recording_loads_no_scipy_and_no_plugin_registry(
+    tmp_path, python_probe
+):
     """All that ``contacts`` and ``plot`` do before the estimator (the desk, the recording)
     imports neither scipy (0.3–1 s), nor the plugin registry (pluggy and the entry points),
     nor the force-plate reader a CSV does not need: what scipy ``contacts`` still loads is the
@@ -99,14 +93,7 @@ def test_reading_the_desk_and_a_recording_loads_no_scipy_and_no_plugin_registry(
     names = ["fl", "fr", "bl", "br"]
     write_recording(path, Recording(np.arange(k) / 1200, np.zeros((k, 4, 6)), names))
     watched = ("scipy", "pluggy", "hapticdesk.registry", "hapticdesk.files.forceplate")
-    done = subprocess.run(
-        [sys.executable, "-c", READ_PROBE.format(path=str(path), watched=watched)],
-        capture_output=True,
-        text=True,
-        timeout=60,
-        check=True,
-    )
-    probe = json.loads(done.stdout.splitlines()[-1])
+    probe = python_probe(READ_PROBE.format(path=str(path), watched=watched), timeout=60)
     assert probe == {"samples": k, "loaded": []}
 
 
@@ -132,7 +119,7 @@ print(json.dumps({
 """
 
 
-def test_numpy_and_scipy_load_with_one_blas_thread_when_first_imported(monkeypatch):
+def test_numpy_and_scipy_load_with_one_blas_thread_when_first_imported(monkeypatch, python_probe):
     """The command line no longer imports scipy.linalg at start for every command; numpy and
     scipy still get one BLAS thread each, set as they load and not left for the programs an
     ``exec`` action starts. (Checked through OpenBLAS's own count, where the wheels bring it.)"""
@@ -140,10 +127,7 @@ def test_numpy_and_scipy_load_with_one_blas_thread_when_first_imported(monkeypat
 
     for name in BLAS_THREAD_VARIABLES:
         monkeypatch.delenv(name, raising=False)
-    done = subprocess.run(
-        [sys.executable, "-c", BLAS_PROBE], capture_output=True, text=True, timeout=120, check=True
-    )
-    probe = json.loads(done.stdout.splitlines()[-1])
+    probe = python_probe(BLAS_PROBE)
     assert probe["before"] == [] and probe["left"] == []
     counted = [probe[lib] for lib in ("numpy", "scipy") if probe[lib] is not None]
     if not counted:
@@ -233,7 +217,9 @@ print(json.dumps({{"searched": len(searched),
 """
 
 
-def test_a_tare_on_quiet_rounded_channels_readies_neither_scipy_nor_numba_s_compiler():
+def test_a_tare_on_quiet_rounded_channels_readies_neither_scipy_nor_numba_s_compiler(
+    python_probe,
+):
     """The tare's noise search for the zero's rounding floor (resolution.py) runs on a cached
     kernel loaded as the others are (kernel.warm: numba's compiler unreadied, which would
     import scipy.linalg) and with no scipy.special (0.2 s of ``contacts``' start-up each)."""
@@ -241,12 +227,5 @@ def test_a_tare_on_quiet_rounded_channels_readies_neither_scipy_nor_numba_s_comp
     # the kernels in numba's cache first (a compile readies numba's compiler, scipy.linalg too)
     warm = "from hapticdesk.estimator import kernel; kernel.warm()"
     subprocess.run([sys.executable, "-c", warm], capture_output=True, timeout=300, check=True)
-    done = subprocess.run(
-        [sys.executable, "-c", QUIET_TARE_PROBE.format(watched=watched)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-        check=True,
-    )
-    probe = json.loads(done.stdout.splitlines()[-1])
+    probe = python_probe(QUIET_TARE_PROBE.format(watched=watched), timeout=300)
     assert probe == {"searched": 1, "loaded": []}

@@ -5,7 +5,6 @@ so once on stderr. Checked in fresh interpreters, by what they import and print.
 
 from __future__ import annotations
 
-import json
 import logging
 import os
 import shutil
@@ -40,18 +39,11 @@ print(json.dumps([m for m in ("numba", "llvmlite") if m in sys.modules]))
     ],
     ids=["help", "check", "strokes"],
 )
-def test_commands_that_do_not_estimate_never_import_numba(argv: list[str]) -> None:
-    done = subprocess.run(
-        [sys.executable, "-c", PROBE.format(argv=argv)],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=True,
-    )
-    assert json.loads(done.stdout.splitlines()[-1]) == []
+def test_commands_that_do_not_estimate_never_import_numba(argv: list[str], python_probe) -> None:
+    assert python_probe(PROBE.format(argv=argv)) == []
 
 
-def test_numba_loads_with_the_estimator_not_with_its_package() -> None:
+def test_numba_loads_with_the_estimator_not_with_its_package(python_probe) -> None:
     code = """
 import json, sys
 import hapticdesk.estimator, hapticdesk.estimator.contacts, hapticdesk.gestures.engine
@@ -61,11 +53,8 @@ from hapticdesk.files.profile_reader import load_profile
 ContactEstimator(load_profile("kitamura2017"))
 print(json.dumps([before, "numba" in sys.modules, "scipy.signal" in sys.modules]))
 """
-    done = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, timeout=600, check=True
-    )
     # (an estimator's filters are designed without scipy.signal: over a second of start-up)
-    assert json.loads(done.stdout.splitlines()[-1]) == [[], True, False]
+    assert python_probe(code, timeout=600) == [[], True, False]
 
 
 ESTIMATE = """

@@ -4,10 +4,6 @@ library: ``hapticdesk --help`` and a plugin that only checks its options import
 
 from __future__ import annotations
 
-import json
-import subprocess
-import sys
-
 import pytest
 
 PROBE = """
@@ -26,23 +22,16 @@ with contextlib.redirect_stdout(io.StringIO()):
 """
 
 
-def _loaded(statement: str) -> list[str]:
-    done = subprocess.run(
-        [sys.executable, "-c", PROBE.format(statement=statement)],
-        capture_output=True,
-        text=True,
-        timeout=60,
-        check=True,
-    )
-    return json.loads(done.stdout.splitlines()[-1])
+def _loaded(python_probe, statement: str) -> list[str]:
+    return python_probe(PROBE.format(statement=statement), timeout=60)
 
 
-def test_the_errors_and_the_validators_import_no_yaml():
-    assert _loaded("import hapticdesk.errors, hapticdesk.files.validators") == []
+def test_the_errors_and_the_validators_import_no_yaml(python_probe):
+    assert _loaded(python_probe, "import hapticdesk.errors, hapticdesk.files.validators") == []
 
 
-def test_help_imports_no_yaml():
-    assert "yaml" not in _loaded(HELP)
+def test_help_imports_no_yaml(python_probe):
+    assert "yaml" not in _loaded(python_probe, HELP)
 
 
 def test_loading_yaml_still_marks_positions_for_the_validators(tmp_path):

@@ -87,7 +87,7 @@ def test_the_kernels_floor_follows_the_exact_one_through_presses(quiet):
             u, v = -(rows[2] @ w) / (rows[0] @ w), (rows[1] @ w) / (rows[0] @ w)
             sf[ks.S_TARED_W : ks.S_TARED_W + 6] = w
             before = sf[at + ks.ROUND_W : at + ks.ROUND_W + 6].copy()
-            kept.append(rounding_floor(params.pf, params.pi, sf, ks.S_TARED_W, 0, u, v))
+            kept.append(rounding_floor(params.pf, params.pi, sf, ks.S_TARED_W, 0, u, v, 0.0))
             made.append(not np.array_equal(before, sf[at + ks.ROUND_W : at + ks.ROUND_W + 6]))
             exact.append(_exact_floor(estimator, w, u, v))
     ratio = np.sqrt(np.array(kept) / np.array(exact))

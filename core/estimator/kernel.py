@@ -166,7 +166,7 @@ def intersect_block(
         c = intersect(
             pf, pi, wrench[i], 0, sign[i], covs, cov_at, drift_at, age2[i], extra_var[i], norm[i]
         )
-        out[i, 0], out[i, 1], out[i, 2], out[i, 3], out[i, 4], out[i, 5] = c
+        out[i, 0], out[i, 1], out[i, 2], out[i, 3], out[i, 4], out[i, 5] = c[:6]
 
 
 # --- compiled once --------------------------------------------------------------------------

@@ -133,10 +133,10 @@ def intersect(
     covs[cov_at + 24·s] (``cov_at`` < 0: none, variances 0), plus the zero's drift at
     ``drift_at`` times ``age2`` (``drift_at`` < 0: none), carried through the Jacobian of the
     formulas, plus ``extra_var`` on both axes (the model error of eq. 11); capped at
-    P_VAR_CAP. Returns (surface or −1, u, v, var_u, var_v, cov_uv)."""
+    P_VAR_CAP. Returns (surface or −1, u, v, var_u, var_v, cov_uv, 1/F'z or 0)."""
     fx, fy, fz_, mx, my, mz = w[wo], w[wo + 1], w[wo + 2], w[wo + 3], w[wo + 4], w[wo + 5]
     cap = pf[P_VAR_CAP]
-    best = (-1, 0.0, 0.0, cap, cap, 0.0)
+    best = (-1, 0.0, 0.0, cap, cap, 0.0, 0.0)
     best_key = -math.inf
     n_surf = pi[I_N_SURF]
     for s in range(n_surf):
@@ -164,7 +164,7 @@ def intersect(
             var_u, var_v, cov = _point_covariance(
                 covs, cov_at + 24 * s, drift_at, s, age2, u, v, inv, extra_var, cap
             )
-        best = (s, u, v, var_u, var_v, cov)
+        best = (s, u, v, var_u, var_v, cov, inv)
         if n_surf == 1:
             break
     return best

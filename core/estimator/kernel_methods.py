@@ -26,6 +26,7 @@ from hapticdesk.estimator.kernel_geometry import intersect, to_desk
 from hapticdesk.estimator.kernel_rounding import rounding_floor
 from hapticdesk.estimator.kernel_slots import (
     C_COV_UV,
+    C_INV_FZ,
     C_SURFACE,
     C_U,
     C_V,
@@ -80,6 +81,13 @@ def _information(vu: float, vv: float, cov: float, floor: float) -> tuple[float,
 
 
 @inlined
+def _inv_fz_on(c: Candidate, s: int) -> float:
+    """1/F'z of candidate ``c``'s wrench on surface ``s`` where ``c`` was made on it (its
+    C_INV_FZ), else 0 (not known: the rounding floor makes it)."""
+    return c[C_INV_FZ] if c[C_SURFACE] == s else 0.0
+
+
+@inlined
 def _fusion_surface(pi: np.ndarray, cf: Candidate, cd: Candidate, cq: Candidate) -> int:
     """The surface the candidates are fused on: the surest valid one's (−1: none valid). On
     a desk of one surface every valid candidate is on it: no ranking needed."""
@@ -107,7 +115,7 @@ def _fuse(
     cap, floor = pf[P_VAR_CAP], pf[P_DET_FLOOR]
     surface = _fusion_surface(pi, cf, cd, cq)
     if surface < 0:
-        return (-1, 0.0, 0.0, cap, cap, 0.0), 0
+        return (-1, 0.0, 0.0, cap, cap, 0.0, 0.0), 0
     a = b = c_ = ru = rv = 0.0
     members = 0
     for c in (cf, cd, cq):
@@ -121,7 +129,8 @@ def _fuse(
     inv_det = 1.0 / max(max(a * c_ - b * b, floor * a * c_), 1e-300)
     u = (c_ * ru - b * rv) * inv_det
     v = (a * rv - b * ru) * inv_det
-    return (surface, u, v, min(c_ * inv_det, cap), min(a * inv_det, cap), -b * inv_det), members
+    var_u, var_v = min(c_ * inv_det, cap), min(a * inv_det, cap)
+    return (surface, u, v, var_u, var_v, -b * inv_det, 0.0), members
 
 
 @inlined
@@ -131,6 +140,7 @@ def _emit(
     sf: np.ndarray,
     c: Candidate,
     source: int,
+    inv_fz: float,
     out_f: np.ndarray,
     out_b: np.ndarray,
     out_s: np.ndarray,
@@ -138,12 +148,13 @@ def _emit(
 ) -> None:
     """A chosen candidate into the outputs; its 1-σ with the zero's rounding offset
     (:func:`rounding_floor`, at the force of the tared wrench the method locates with: the
-    fast one for ``fused``), which the choice and the weights leave out (every candidate
-    shares it)."""
+    fast one for ``fused``; ``inv_fz`` that wrench's 1/F'z on the candidate's surface where
+    a candidate made from it has it, else 0), which the choice and the weights leave out
+    (every candidate shares it)."""
     x, y, z = to_desk(pf, pi, c[C_SURFACE], c[C_U], c[C_V])
     out_f[OUT_X, col], out_f[OUT_Y, col], out_f[OUT_Z, col] = x, y, z
     w = S_TARED_Q if pi[I_METHOD] == METHOD_FUSED else S_TARED_W
-    floor = rounding_floor(pf, pi, sf, w, c[C_SURFACE], c[C_U], c[C_V])
+    floor = rounding_floor(pf, pi, sf, w, c[C_SURFACE], c[C_U], c[C_V], inv_fz)
     out_f[OUT_SIGMA, col] = math.sqrt(c[C_VAR_U] + c[C_VAR_V] + floor)
     out_b[OUT_B_LOCATED, col] = 1
     out_b[OUT_B_SOURCE, col] = source
@@ -181,7 +192,7 @@ def _locate(
     F_tth, F_rth) or ``fused`` (the inverse-covariance combination, no threshold)."""
     method, trace = pi[I_METHOD], pi[I_TRACE] == 1
     cap = pf[P_VAR_CAP]
-    none = (-1, 0.0, 0.0, cap, cap, 0.0)
+    none = (-1, 0.0, 0.0, cap, cap, 0.0, 0.0)
     covs = pi[I_SO_COVS]
     age2 = (t - sf[S_ZERO_T]) ** 2
     w = S_TARED_W
@@ -219,7 +230,7 @@ def _diff_candidate(
     of the force along the fast force)."""
     method, trace = pi[I_METHOD], pi[I_TRACE] == 1
     cap = pf[P_VAR_CAP]
-    cd = (-1, 0.0, 0.0, cap, cap, 0.0)
+    cd = (-1, 0.0, 0.0, cap, cap, 0.0, 0.0)
     q = S_TARED_Q
     inv_mag = 1.0 / mag if mag > 0 else 1.0
     rate = (sf[q] * sf[S_DIFF] + sf[q + 1] * sf[S_DIFF + 1] + sf[q + 2] * sf[S_DIFF + 2]) * inv_mag
@@ -264,15 +275,18 @@ def _choose(
     max_sigma = pf[P_MAX_SIGMA]
     if method == METHOD_FORCE:
         if cf[C_SURFACE] >= 0 and f_mag >= pf[P_CONTACT]:
-            _emit(pf, pi, sf, cf, SOURCE_FORCE, out_f, out_b, out_s, col)
+            _emit(pf, pi, sf, cf, SOURCE_FORCE, cf[C_INV_FZ], out_f, out_b, out_s, col)
     elif method == METHOD_DIFF:
+        # (the floor is at the low-passed wrench's force: P_er's where it was made)
         if cd[C_SURFACE] >= 0 and math.sqrt(cd[C_VAR_U] + cd[C_VAR_V]) <= max_sigma:
-            _emit(pf, pi, sf, cd, SOURCE_DIFF, out_f, out_b, out_s, col)
+            inv_fz = _inv_fz_on(cf, cd[C_SURFACE])
+            _emit(pf, pi, sf, cd, SOURCE_DIFF, inv_fz, out_f, out_b, out_s, col)
     elif method == METHOD_SWITCHED:
         if cd[C_SURFACE] >= 0 and want_d:  # step 3
-            _emit(pf, pi, sf, cd, SOURCE_DIFF, out_f, out_b, out_s, col)
+            inv_fz = _inv_fz_on(cf, cd[C_SURFACE])
+            _emit(pf, pi, sf, cd, SOURCE_DIFF, inv_fz, out_f, out_b, out_s, col)
         elif f_mag >= pf[P_CONTACT] and cf[C_SURFACE] >= 0:  # step 4
-            _emit(pf, pi, sf, cf, SOURCE_FORCE, out_f, out_b, out_s, col)
+            _emit(pf, pi, sf, cf, SOURCE_FORCE, cf[C_INV_FZ], out_f, out_b, out_s, col)
     else:
         _choose_fused(pf, pi, sf, cf, cd, cq, out_f, out_b, out_s, col)
 
@@ -292,9 +306,10 @@ def _choose_fused(
 ) -> None:
     """``fused``'s point: the candidates that add information, combined (:func:`_fuse`)."""
     cap = pf[P_VAR_CAP]
-    none = (-1, 0.0, 0.0, cap, cap, 0.0)
+    none = (-1, 0.0, 0.0, cap, cap, 0.0, 0.0)
     max_sigma = pf[P_MAX_SIGMA]
     var_f = cf[C_VAR_U] + cf[C_VAR_V]
+    fast = cq  # (the floor is at the fast wrench's force: its 1/F'z kept)
     if cf[C_SURFACE] >= 0:
         # the fast and the low-passed candidates share their noise (one is filtered from
         # the other's input), so they are not fused: the fast one stands in where it is
@@ -307,7 +322,8 @@ def _choose_fused(
     if cd[C_SURFACE] < 0 and cq[C_SURFACE] < 0:
         # the low-passed force's candidate alone (most samples of a held press): as it is
         if cf[C_SURFACE] >= 0 and var_f <= max_sigma * max_sigma:
-            _emit(pf, pi, sf, cf, SOURCE_FORCE, out_f, out_b, out_s, col)
+            inv_fz = _inv_fz_on(fast, cf[C_SURFACE])
+            _emit(pf, pi, sf, cf, SOURCE_FORCE, inv_fz, out_f, out_b, out_s, col)
     else:
         fused, members = _fuse(pf, pi, cf, cd, cq)
         if fused[C_SURFACE] >= 0 and math.sqrt(fused[C_VAR_U] + fused[C_VAR_V]) <= max_sigma:
@@ -318,4 +334,5 @@ def _choose_fused(
                     if cd[C_SURFACE] >= 0 and cd[C_SURFACE] == fused[C_SURFACE]
                     else SOURCE_FORCE
                 )
-            _emit(pf, pi, sf, fused, source, out_f, out_b, out_s, col)
+            inv_fz = _inv_fz_on(fast, fused[C_SURFACE])
+            _emit(pf, pi, sf, fused, source, inv_fz, out_f, out_b, out_s, col)

@@ -97,13 +97,22 @@ def _shares_summed(sf: np.ndarray, at: int, c_n: int, w: int, s: int) -> None:
 
 @inlined_entry
 def rounding_floor(
-    pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, w: int, s: int, u: float, v: float
+    pf: np.ndarray,
+    pi: np.ndarray,
+    sf: np.ndarray,
+    w: int,
+    s: int,
+    u: float,
+    v: float,
+    inv_fz: float,
 ) -> float:
     """var_u + var_v that the zero's rounding offset gives the point (u, v) of surface ``s``
     under the tared wrench sf[w:w+6]: a floor growing as 1/F'z, the same error for every
     sample until the next tare, so no averaging of samples lowers it (0 where no channel
     keeps an offset). The sums over the channels are the kept ones while the wrench stays
-    near where they were made (module docstring), else made anew."""
+    near where they were made (module docstring), else made anew. ``inv_fz``: 1/F'z of the
+    wrench on ``s`` where a candidate made from it has it (the same bits as made here, as
+    kernel_geometry.intersect makes it), 0 to make it here."""
     at = pi[I_SO_ROUND]
     if sf[at + ROUND_ACTIVE] == 0.0:  # no channel rounds quieter than its step
         return 0.0
@@ -113,10 +122,11 @@ def rounding_floor(
         moved += (sf[w + j] - sf[kept + j]) ** 2
     if sf[at + ROUND_SURFACE] != s or moved > sf[at + ROUND_LIMIT]:
         _shares_summed(sf, at, pi[I_C], w, s)
-    r = pf[surface_at(pi, s) : surface_at(pi, s) + SURF_F]
-    fz = r[0] * sf[w] + r[1] * sf[w + 1] + r[2] * sf[w + 2]
-    fz += r[3] * sf[w + 3] + r[4] * sf[w + 4] + r[5] * sf[w + 5]
-    inv2 = 1.0 / max(fz * fz, 1e-18)
+    if inv_fz == 0.0:
+        r = pf[surface_at(pi, s) : surface_at(pi, s) + SURF_F]
+        w0, w1, w2, w3, w4, w5 = sf[w], sf[w + 1], sf[w + 2], sf[w + 3], sf[w + 4], sf[w + 5]
+        inv_fz = 1.0 / (r[0] * w0 + r[1] * w1 + r[2] * w2 + r[3] * w3 + r[4] * w4 + r[5] * w5)
+    inv2 = min(inv_fz * inv_fz, 1e18)
     sums = at + ROUND_SUMS
     cz, czx, czy, cx, cy = sf[sums], sf[sums + 1], sf[sums + 2], sf[sums + 3], sf[sums + 4]
     # through the Jacobian of eq. (5), as kernel_geometry._point_covariance

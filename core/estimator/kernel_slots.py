@@ -304,8 +304,10 @@ TRACE_FORCE, TRACE_RATE, TRACE_CANDIDATES, TRACE_PER_CANDIDATE, TRACE_ROWS = 0, 
 
 #: a candidate point where a wrench's line of action meets a surface (paper eq. 5), in the
 #: surface's frame, with its covariance (eqs. 11-12): a plain tuple read by these field
-#: indices (a NamedTuple compiled to code twice as slow here: 18.7 against 9.7 ms a minute)
-Candidate = tuple[int, float, float, float, float, float]
-C_SURFACE, C_U, C_V, C_VAR_U, C_VAR_V, C_COV_UV = range(6)  # (surface -1: none)
+#: indices (a NamedTuple compiled to code twice as slow here: 18.7 against 9.7 ms a minute);
+#: C_INV_FZ is 1/F'z of the wrench it was made from on its surface (0 where none: a fused
+#: point, or none), which the rounding floor of the same wrench reuses
+Candidate = tuple[int, float, float, float, float, float, float]
+C_SURFACE, C_U, C_V, C_VAR_U, C_VAR_V, C_COV_UV, C_INV_FZ = range(7)  # (surface -1: none)
 #: a wrench [F; M] held in registers between two stages (six floats)
 Wrench = tuple[float, float, float, float, float, float]

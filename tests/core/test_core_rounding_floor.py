@@ -87,7 +87,7 @@ def test_the_kernels_floor_follows_the_exact_one_through_presses(quiet):
             u, v = -(rows[2] @ w) / (rows[0] @ w), (rows[1] @ w) / (rows[0] @ w)
             sf[ks.S_TARED_W : ks.S_TARED_W + 6] = w
             before = sf[at + ks.ROUND_W : at + ks.ROUND_W + 6].copy()
-            kept.append(rounding_floor(params.pf, params.pi, sf, ks.S_TARED_W, 0, u, v))
+            kept.append(rounding_floor(params.pf, params.pi, sf, ks.S_TARED_W, 0, u, v, 0.0))
             made.append(not np.array_equal(before, sf[at + ks.ROUND_W : at + ks.ROUND_W + 6]))
             exact.append(_exact_floor(estimator, w, u, v))
     ratio = np.sqrt(np.array(kept) / np.array(exact))
@@ -113,6 +113,22 @@ def test_a_stream_in_pieces_gets_the_batchs_sigma(quiet):
         sigma, located = np.concatenate(sigma), np.concatenate(located)
         assert np.array_equal(located, batch.located)
         assert np.array_equal(sigma, batch.sigma_m)
+
+
+def test_the_floor_reuses_a_candidates_1_over_fz_to_the_bit(quiet):
+    """The floor takes 1/F'z from the candidate made from its wrench on its surface or, where
+    none was made (``diff``'s floor is at the low-passed force, whose candidate P_er only a
+    traced estimator makes), makes it as the candidate would: tracing leaves every method's σ
+    as it is, to the last bit."""
+    desk, run = quiet
+    for method in ("force", "diff", "switched", "fused"):
+        plain = ContactEstimator(desk, method=method)
+        alone = plain.push(run.t, run.wrench).copy()
+        assert plain.covariances is not None and plain.covariances.rounding_channels.any()
+        traced = ContactEstimator(desk, method=method, trace=True).push(run.t, run.wrench)
+        assert alone.located.sum() > 100
+        assert np.array_equal(traced.located, alone.located)
+        assert np.array_equal(traced.sigma_m, alone.sigma_m)
 
 
 def _full_grid_noise(counts: np.ndarray, rest_n: int) -> float:

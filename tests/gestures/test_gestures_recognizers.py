@@ -248,23 +248,24 @@ def _with_drag(block, drag_xy, shear):
 
 
 @pytest.mark.parametrize(
-    ("drag", "fires"),
+    ("drag", "shear", "fires"),
     [
-        ((0.5, 0.0), True),  # friction the way the points went: a swipe
-        ((0.4, 0.3), True),  # 37 degrees off: still its way
-        ((0.0, 0.0), True),  # no drag measured (not a horizontal board): the points decide
-        ((-0.5, 0.0), False),  # against the points: a still touch's noise made the "swipe"
-        ((0.0, 0.5), False),  # across them
+        ((0.5, 0.0), 0.3, True),  # friction the way the points went: a swipe
+        ((0.4, 0.3), 0.3, True),  # 37 degrees off: still its way
+        ((0.0, 0.0), 0.0, True),  # no drag measured (not a horizontal board): the points decide
+        ((-0.5, 0.0), 0.3, False),  # against the points: a still touch's noise made the "swipe"
+        ((0.0, 0.5), 0.3, False),  # across them
+        ((0.5, 0.0), 0.1, False),  # its way, but pressed as a tap presses, not slid (desk 92)
     ],
 )
 def test_a_swipe_by_the_points_must_have_dragged_the_board_its_way(
-    make_layout, timeline, drag, fires
+    make_layout, timeline, drag, shear, fires
 ):
     # a light quick touch whose points strayed 6 cm (the sweep's swipes fired on taps: shear
-    # 0.02-0.19, the drag against or across the points in 10 of 13)
+    # 0.02-0.19, the drag against or across the points in 10 of 13; simulated swipes 0.61-0.9)
     layout = make_layout(SWIPES)
     tl = timeline(3.0).touch(1.0, 0.1, np.array([[0.0, 0.0], [0.06, 0.0]]))
-    block = _with_drag(tl.block(), drag, 0.1)
+    block = _with_drag(tl.block(), drag, shear)
     events = run(layout, block)
     assert [e.direction for e in events] == (["right"] if fires else [])
 

@@ -33,9 +33,10 @@ LEAVE_MARGIN_M = 0.01
 #: the share of a tap's samples its place leaves out, touch.SETTLED_SHARE) that keeps the
 #: most right taps the other 119 desks allow with at most 5·119/120 wrong, counted on the
 #: held-out desk: 4.81 with the share 1/3 and taps placed after 0.7 of their samples in 113
-#: of 120 folds (held out 31,632 right, 6 wrong; with the place's share fixed at 0.7, 31,629
-#: and 5; placed by the whole touch, 31,475 and 5 at 5.53). The odds read as a line's σ
-#: before (30, i.e. 900 radially) kept 31,213 right and 2 wrong.
+#: of 120 folds (held out 31,664 right, 6 wrong; with the place's share fixed at 0.7, 31,661
+#: and 5; placed by the whole touch, 31,507 and 5 at 5.53; on all 120 desks 31,667 and 4,
+#: the sweep's). The odds read as a line's σ before (30, i.e. 900 radially) kept 31,213
+#: right and 2 wrong.
 LOG_ODDS = 4.81
 ODDS = math.exp(LOG_ODDS)  # ≈ 120
 #: the share of LOG_ODDS a point inside the region it is placed in needs (odds ≈ 5): a point

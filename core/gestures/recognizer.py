@@ -28,22 +28,24 @@ LEAVE_MARGIN_M = 0.01
 #: a point is placed in a region only when it is this many times likelier there than in any
 #: other bound region (BoundRegions.find with a ``sigma``, read as the radial 1-σ the
 #: estimator gives: σ/√2 along the line to the other region). Chosen leaving one desk out on
-#: the 120-desk sweep's 31,923 taps (scripts/tap_guard_loo.py --seed 1; every tap's place, σ
-#: and distances dumped once, the guard recounted): for each desk the largest number of right
-#: taps the other 119 desks allow with at most 5·119/120 wrong, counted on the held-out desk;
-#: 5.53 in 114 of 120 folds with the share below chosen too (held out 31,520 right, 5 wrong;
-#: with the σ of the kernel's reused floor sums, estimator/kernel_rounding.py; 5.64 with the
-#: exact per-sample floor before). The odds read as a line's σ before (30, i.e. 900
-#: radially) kept 31,213 right and 2 wrong.
-LOG_ODDS = 5.53
-ODDS = math.exp(LOG_ODDS)  # ≈ 250
-#: the share of LOG_ODDS a point inside the region it is placed in needs (odds ≈ 6.3): a point
+#: the 120-desk sweep's taps (scripts/tap_guard_loo.py --seed 1; every tap's place, σ and
+#: distances dumped once, the guard recounted): for each desk the rule (this, INSIDE_SHARE and
+#: the share of a tap's samples its place leaves out, touch.SETTLED_SHARE) that keeps the
+#: most right taps the other 119 desks allow with at most 5·119/120 wrong, counted on the
+#: held-out desk: 4.81 with the share 1/3 and taps placed after 0.7 of their samples in 113
+#: of 120 folds (held out 31,664 right, 6 wrong; with the place's share fixed at 0.7, 31,661
+#: and 5; placed by the whole touch, 31,507 and 5 at 5.53; on all 120 desks 31,667 and 4,
+#: the sweep's). The odds read as a line's σ before (30, i.e. 900 radially) kept 31,213
+#: right and 2 wrong.
+LOG_ODDS = 4.81
+ODDS = math.exp(LOG_ODDS)  # ≈ 120
+#: the share of LOG_ODDS a point inside the region it is placed in needs (odds ≈ 5): a point
 #: outside every region, brought in by ``snap``, is itself proof that the place is off by its
 #: distance to the region. On that sweep all 40 taps a guard-less engine put in a wrong button
-#: were such points; held out, 1 (the guard as one odds) / 2/3 / 1/2 / 1/3 kept 31,455 /
-#: 31,513 / 31,520 / 31,527 right with 5 wrong, and 1/3 was chosen in 114 of 120 folds when
-#: the share was chosen too (a smaller share kept no more right taps). It is not 0: on seed 3
-#: two taps landed inside the wrong button, 34 mm from its neighbour's edge.
+#: were such points; held out (taps placed by the whole touch), 1 (the guard as one odds) /
+#: 2/3 / 1/2 / 1/3 kept 31,455 / 31,513 / 31,520 / 31,527 right with 5 wrong, and 1/3 is
+#: chosen with the other two (a smaller share kept no more right taps). It is not 0: on
+#: seed 3 two taps landed inside the wrong button, 34 mm from its neighbour's edge.
 INSIDE_SHARE = 1 / 3
 
 

@@ -23,6 +23,9 @@ cannot follow the finger at all (flicks on that desk: 12 of 84 found by the poin
 quick touch that dragged the board hard (SLIDE_DRAG) and one way (SLIDE_STRAIGHTNESS) slid:
 it is a swipe the way it dragged (its ``distance`` 0 where the points did not make the same
 swipe). Taps drag 0.06-0.16, simulated swipes 0.6-0.9, a circle drawn quickly every way.
+So where the drag is measured, a touch that dragged the board less than DIRECTION_DRAG was
+pressed, not slid, and makes no swipe by its points: on a swaying desk a light tap's points
+ran 37 mm in 40 ms, and its drag, a tenth of a swipe's, happened to point their way.
 
 Carried on, a short touch's noise can look like motion: the line over a light, quick tap's
 few samples slopes with the touch-down's scatter, and 47 ms (90 ms on a 3 Hz desk) of that
@@ -59,7 +62,12 @@ FLICK_FIT_S = 0.06
 #: "the same way": the two ends' directions from the start within this cosine (45 degrees)
 FLICK_AGREE_COS = math.cos(math.pi / 4)
 #: a touch that dragged the board this hard (Touch.dragged) slid the way it dragged it: a
-#: swipe whose points name another direction is the desk's sway, not the finger (see above)
+#: swipe whose points name another direction is the desk's sway, not the finger (see above);
+#: one that dragged it less, where the drag is measured at all (Touch.dragged above 0), was
+#: pressed, not slid: its points' swipe is none. Simulated swipes on 120 random desks
+#: (scripts/desk_sweep.py's, 98 fired) dragged 0.61-0.9, with up to four legs reporting the
+#: load alone; the swipes fired on taps 0.02-0.19 (desk 92 of that sweep 0.016: its light
+#: tap's points, on an 8-legged 3.6 Hz desk, ran 37 mm "up" in 40 ms)
 DIRECTION_DRAG = 0.2
 #: a quick touch that dragged the board this hard (Touch.dragged; taps 0.06-0.16, simulated
 #: swipes 0.6-0.9) slid: a swipe the way it dragged, where the points could not follow it
@@ -147,6 +155,8 @@ class SwipeRecognizer(Recognizer):
             return []
         else:
             direction, distance, (dx, dy) = by_points
+            if 0.0 < dragged < DIRECTION_DRAG:
+                return []  # the board felt the finger press, not drag: a still touch's points
             if dragged >= DIRECTION_DRAG and direction_name(gx, gy, o["directions"]) != direction:
                 return []  # the points went another way than the finger dragged: the sway
             if gx * dx + gy * dy < POINTS_DRAG_COS * math.hypot(gx, gy) * math.hypot(dx, dy):

@@ -1,7 +1,8 @@
 """Taps, double taps and two-finger taps: one state machine, because they decide together.
 
 A touch is a tap when it is short (``max_duration_s``) and does not move (``max_move``),
-judged at the best position over the touch. Where a double tap is bound at that point, the
+judged where it settled (``Touch.settled``: its last quarter of pressed samples, whose place
+errs less than the whole touch's on light taps). Where a double tap is bound at that point, the
 tap waits up to ``interval_s`` for a second touch; everywhere else it fires at the release,
 so a button reacts without the double-tap delay.
 
@@ -50,10 +51,13 @@ class _PendingTap:
 MAX_TAP_DRAG = 0.35
 
 
-def _is_tap(touch: Touch, x: float, y: float, options: dict[str, Any]) -> bool:
+def _is_tap(touch: Touch, options: dict[str, Any]) -> bool:
+    """Short, still and not slid; still measured from the whole touch's mean (its middle),
+    not from where it settled (a flick's end)."""
+    centre = touch.best()
     return (
         touch.duration() <= options["max_duration_s"]
-        and touch.moved(x, y) <= options["max_move"]
+        and touch.moved(centre.x, centre.y) <= options["max_move"]
         and touch.dragged() <= MAX_TAP_DRAG
     )
 
@@ -124,14 +128,14 @@ class TapRecognizer(Recognizer):
         A touch whose start a gap hid is nothing: its short rest is no tap."""
         if not touch.located or touch.began_unseen:
             return []
-        x, y, _ = touch.best()
+        x, y, _ = touch.settled()
         sigma = touch.place_sigma()  # (a tap whose uncertainty reaches two buttons: neither)
         tap_found, tap_region = self.taps.find(x, y, touch.surface, snap=True, sigma=sigma)
-        is_single = tap_found and _is_tap(touch, x, y, self.taps.options(tap_region))
+        is_single = tap_found and _is_tap(touch, self.taps.options(tap_region))
         double_found, double_region = self.doubles.find(x, y, touch.surface, True, sigma)
         if double_found:
             options = self.doubles.options(double_region)
-            if _is_tap(touch, x, y, options):
+            if _is_tap(touch, options):
                 self._pending = _PendingTap(
                     t, x, y, touch.surface, touch.peak_force_n, tap_region, is_single,
                     double_region, options,
@@ -146,10 +150,10 @@ class TapRecognizer(Recognizer):
         """The two-finger tap ``touch`` makes, judged at its first finger, if it makes one."""
         if not touch.located:
             return None
-        x, y, _ = touch.best()
+        x, y, _ = touch.settled()
         sigma = touch.place_sigma()
         found, region = self.two_finger.find(x, y, touch.surface, snap=True, sigma=sigma)
-        if not found or not _is_tap(touch, x, y, self.two_finger.options(region)):
+        if not found or not _is_tap(touch, self.two_finger.options(region)):
             return None
         second = touch.second
         extra = {} if second is None else {"x2": round(second[0], 6), "y2": round(second[1], 6)}
@@ -161,7 +165,7 @@ class TapRecognizer(Recognizer):
         """The double tap made by ``first`` and the just released ``touch``, if they make one."""
         if not touch.located:
             return None
-        x, y, _ = touch.best()
+        x, y, _ = touch.settled()
         sigma = touch.place_sigma()
         found, region = self.doubles.find(x, y, touch.surface, snap=True, sigma=sigma)
         options = first.double_options
@@ -170,7 +174,7 @@ class TapRecognizer(Recognizer):
             or region != first.double_region
             or touch.surface != first.surface
             or math.hypot(x - first.x, y - first.y) > options["max_distance"]
-            or not _is_tap(touch, x, y, options)
+            or not _is_tap(touch, options)
         ):
             return None
         force = max(first.force_n, touch.peak_force_n)

@@ -73,6 +73,9 @@ class ScoreChoices:
     #: a shape with two or more drawn templates needs a score of its templates' own
     #: agreement less this
     margin: float = 0.065
+    #: the margin instead, for a stroke the built-in catalogue takes for the same shape
+    #: (stroke_verdict.catalogue_says): two recognizers agree, so a looser drawing passes
+    confirmed_margin: float = 0.12
     #: a stroke whose nearest template is a built-in one (drawn by program, so not compared
     #: by form) needs ``min_score`` plus this: the least that takes at most 1 % of strokes
     #: that are none of the shapes (S, Z, spiral, figure eight, scribble:

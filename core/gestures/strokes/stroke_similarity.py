@@ -26,7 +26,7 @@ about twice as much as a bracket) and in the share of the turning in the sharpes
 turns (corners against curves: rectangle against circle); the built-in templates, drawn by
 program with exact corners, are not compared by form. The score is clipped to 0..1.
 
-Every choice in :class:`ScoreChoices` (the mix, whether form counts, the margin, what a
+Every choice in :class:`ScoreChoices` (the mix, whether form counts, the margins, what a
 built-in template asks) was made by leave-one-writer-out on the $1 logs of five people:
 made on four, measured on the fifth, all five ways; every fold made the same but for the
 margin (0.055-0.08), and the shipped ones are the same procedure on all five

@@ -17,8 +17,10 @@ The choices (``stroke_similarity.ScoreChoices``) and how each is made on the fou
   of the four accepts at most 5 % of the fourth's, on their mean (nested: a margin made on
   some writers accepts more of a new writer's unknown shapes);
 - ``confirmed_margin`` (the margin for a stroke the built-in catalogue takes for the same
-  shape): made the same way, at least ``margin``, on the unknown shapes the catalogue has
-  (a shape left out of a writer's templates only: the catalogue's rival rejects most);
+  shape): made the same way, at least ``margin``, on the same unknown shapes, those the
+  catalogue lacks too (on the shapes it has, its rival rule already rejects the strokes, so
+  the looser margin's cost would not be seen there); on the $1 logs every fold makes it
+  equal to ``margin``;
 - ``builtin_extra`` (what a stroke nearest a built-in template asks beyond ``min_score``):
   the smallest of the grid that accepts at most 1 % of strokes that are none of the shapes
   (S, Z, spiral, figure eight, scribble; ``stroke_accuracy.others``, drawn differently each
@@ -370,11 +372,12 @@ def margin(found: Protocols, writers: list[str], choices: ScoreChoices) -> float
 
 def confirmed_margin(found: Protocols, writers: list[str], choices: ScoreChoices) -> float:
     """The margin for strokes the catalogue confirms, made on ``writers`` as :func:`margin`
-    is, on unknown shapes the catalogue has (a person's left-out shape), at least
-    ``choices.margin``."""
+    is, on the same unknown shapes (left out of a writer's templates and of the catalogue:
+    on those the catalogue has, its rival rule rejects them whatever this margin is, so
+    they cannot show what a looser one lets through), at least ``choices.margin``."""
     grid = [m for m in MARGINS if m >= choices.margin]
     candidates = [replace(choices, confirmed_margin=m) for m in grid]
-    rates = _rates(found.unknown, found.unknown_writer, writers, candidates)
+    rates = _rates(found.new, found.unknown_writer, writers, candidates)
     return grid[nested_margin(rates, writers)]
 
 

@@ -197,12 +197,15 @@ def test_a_stroke_nearest_a_built_in_template_asks_more():
 
 
 @needs_logs
-@pytest.mark.parametrize("subject", ["s03", "s05"])
-def test_the_lowo_scripts_verdicts_are_the_recognizers(subject):
+@pytest.mark.parametrize(("subject", "looser"), [("s03", 0.0), ("s05", 0.0), ("s05", 0.06)])
+def test_the_lowo_scripts_verdicts_are_the_recognizers(subject, looser):
     """scripts/stroke_lowo.py judges from one big score matrix (similarity, agreement,
     nearest, the built-in templates as the rival catalogue); a layout's set of the same
     templates without the built-in ones (template_set(..., builtin=False)) gives the same
-    verdicts, a shape left out too (s05's v's and checks, which the catalogue rejects)."""
+    verdicts, a shape left out too (s05's v's and checks, which the catalogue rejects); and
+    so does a set with choices whose ``confirmed_margin`` is ``looser`` above the margin."""
+    from dataclasses import replace
+
     from hapticdesk.gestures.strokes.stroke_similarity import (
         DEFAULT_CHOICES,
         similarity,
@@ -217,6 +220,7 @@ def test_the_lowo_scripts_verdicts_are_the_recognizers(subject):
     from hapticdesk.gestures.strokes.unistroke import template_set
 
     assert DOLLAR is not None
+    choices = replace(DEFAULT_CHOICES, confirmed_margin=DEFAULT_CHOICES.margin + looser)
     strokes = list(read_logs(DOLLAR / subject / "fast"))
     templates = [s for s in strokes if s.repetition <= 3 and s.shape != "check"]
     tests = [s for s in strokes if s.repetition > 3]
@@ -230,11 +234,15 @@ def test_the_lowo_scripts_verdicts_are_the_recognizers(subject):
     own = agreement(scores[:k, :k], names, np.ones(k, bool))
     twins = catalogue_twins(catalogue[:k], names, builtin.names)
     rival = Catalogue(catalogue[k:], builtin.names, twins)
-    lowo = judge(scores[k:, :k], names, np.zeros(k, bool), MIN_SCORE, own, DEFAULT_CHOICES, rival)
+    lowo = judge(scores[k:, :k], names, np.zeros(k, bool), MIN_SCORE, own, choices, rival)
     user: dict[str, list[np.ndarray]] = {}
     for s in templates:
         user.setdefault(s.shape, []).append(s.points)
-    direct = template_set(user, builtin=False).classify_many([s.points for s in tests], MIN_SCORE)
+    layout = template_set(user, builtin=False)
+    if looser:
+        layout = TemplateSet(choices, catalogue=builtin_templates())
+        layout.add_all(user)
+    direct = layout.classify_many([s.points for s in tests], MIN_SCORE)
     assert [m.shape for m in lowo] == [m.shape for m in direct]
     assert np.allclose([m.score for m in lowo], [m.score for m in direct])
     checks = [m.shape for m, s in zip(direct, tests, strict=True) if s.shape == "check"]
@@ -439,28 +447,35 @@ def test_the_rejection_rules_script_measures_the_shipped_rule_as_the_recognizer(
 
 
 def test_a_shape_the_catalogue_confirms_asks_the_looser_margin():
-    """A person's three near-identical circles agree at about 1, so a wobbly
-    circle falls short by more than ``margin``; the built-in catalogue takes it for a circle
-    too, so it asks the agreement less ``confirmed_margin`` and is taken. A plain set (no
-    catalogue) rejects it; a layout's own templates (template_set, builtin off) take it."""
+    """The mechanism, with explicit choices whose ``confirmed_margin`` is above ``margin``:
+    a person's three near-identical circles agree at about 1, so a wobbly circle falls short
+    by more than ``margin``; the built-in catalogue takes it for a circle too, so it asks the
+    agreement less ``confirmed_margin`` and is taken. A plain set (no catalogue) rejects it.
+    With the shipped choices (``confirmed_margin`` made on unknown shapes the catalogue lacks
+    too: no looser than ``margin``) the same circle is rejected with the catalogue too."""
+    from dataclasses import replace
+
     from hapticdesk.gestures.strokes.stroke_similarity import DEFAULT_CHOICES
     from hapticdesk.gestures.strokes.unistroke import template_set
 
-    assert DEFAULT_CHOICES.confirmed_margin > DEFAULT_CHOICES.margin
+    looser = replace(DEFAULT_CHOICES, confirmed_margin=DEFAULT_CHOICES.margin + 0.06)
     u = np.linspace(0.0, 2 * np.pi, 80)
     circles = [np.column_stack([np.cos(u), (1 + 0.01 * k) * np.sin(u)]) for k in range(3)]
     user = {"circle": circles, "line": [np.column_stack([np.linspace(0, 1, 9), np.zeros(9)])]}
-    plain = TemplateSet()
+    plain = TemplateSet(looser)
     plain.add_all(user)
-    rivalled = template_set(user, builtin=False)
-    needed = plain.thresholds()["circle"] + DEFAULT_CHOICES.margin  # the agreement
+    confirming = TemplateSet(looser, catalogue=builtin_templates())
+    confirming.add_all(user)
+    shipped = template_set(user, builtin=False)
+    needed = plain.thresholds()["circle"] + looser.margin  # the agreement
     for wobble in np.linspace(0.6, 1.3, 15):
         oval = np.column_stack([np.cos(u), np.sin(u)]) * (1 + 0.3 * wobble * np.sin(3 * u))[:, None]
         score = plain.classify(oval, MIN_SCORE).score
-        low, high = needed - DEFAULT_CHOICES.confirmed_margin, needed - DEFAULT_CHOICES.margin
+        low, high = needed - looser.confirmed_margin, needed - looser.margin
         if low + 0.01 < score < high - 0.01:
             break
     else:
         raise AssertionError("no wobbly circle between the two margins")
     assert plain.classify(oval, MIN_SCORE).shape is None
-    assert rivalled.classify(oval, MIN_SCORE).shape == "circle"
+    assert confirming.classify(oval, MIN_SCORE).shape == "circle"
+    assert shipped.classify(oval, MIN_SCORE).shape is None

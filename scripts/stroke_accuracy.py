@@ -258,7 +258,10 @@ def run_human_speed(
         subject, speed, shape, rep = lab.split("/")
         for count in (1, 3):
             if int(rep) <= count and captured[lab] is not None:
-                own.setdefault((subject, speed, count), TemplateSet()).add(shape, captured[lab])
+                # a layout's own templates without the built-in ones: those are the rival
+                # catalogue (unistroke.template_set(..., builtin=False))
+                mine = own.setdefault((subject, speed, count), TemplateSet(catalogue=builtin))
+                mine.add(shape, captured[lab])
     rows: dict[tuple[str, str], list[str]] = {}
     speeds: dict[str, list[float]] = {}
     for lab, path, _, t in test:

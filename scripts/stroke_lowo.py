@@ -10,11 +10,17 @@ The choices (``stroke_similarity.ScoreChoices``) and how each is made on the fou
   (a writer's own 3 templates; writer-independent, templates from three of them tested on
   the fourth; the built-in templates), rejection left out;
 - ``margin`` (how far below its own templates' agreement a shape still takes a stroke): the
-  largest of the grid that accepts at most a target share of unknown shapes, pooled over the
-  four (with a writer's own 3 templates a shape, a shape left out, leave-one-shape-out,
-  must be rejected); the target is the largest (5 % down to 1 %) at which a margin made on
-  three of the four accepts at most 5 % of the fourth's, on their mean (nested: a margin
-  made on some writers accepts more of a new writer's unknown shapes);
+  largest of the grid that accepts at most a target share of unknown shapes the built-in
+  catalogue has not either, pooled over the four (with a writer's own 3 templates a shape, a
+  shape left out, leave-one-shape-out, and left out of the catalogue: what the margin alone
+  must reject); the target is the largest (5 % down to 1 %) at which a margin made on three
+  of the four accepts at most 5 % of the fourth's, on their mean (nested: a margin made on
+  some writers accepts more of a new writer's unknown shapes);
+- ``confirmed_margin`` (the margin for a stroke the built-in catalogue takes for the same
+  shape): made the same way, at least ``margin``, on the same unknown shapes, those the
+  catalogue lacks too (on the shapes it has, its rival rule already rejects the strokes, so
+  the looser margin's cost would not be seen there); on the $1 logs every fold makes it
+  equal to ``margin``;
 - ``builtin_extra`` (what a stroke nearest a built-in template asks beyond ``min_score``):
   the smallest of the grid that accepts at most 1 % of strokes that are none of the shapes
   (S, Z, spiral, figure eight, scribble; ``stroke_accuracy.others``, drawn differently each
@@ -26,7 +32,10 @@ on average (``stroke_verdict.neighbourhood``): a fixed rule, not a choice.
 Each held-out writer is then measured with the choices its four made: writer-independent
 (the four writers' 1,920 strokes as templates), the writer's own 3 templates a shape
 (rotated over the 10 repetitions, the 7 others tested), the built-in templates, and unknown
-shapes accepted (own 3 templates, each shape left out in turn). A plain Protractor (Li 2010:
+shapes accepted (own 3 templates, each shape left out in turn; "none built-in": left out of
+the rival catalogue too). A writer's templates are judged as a layout's own are with
+``builtin_templates`` off: the built-in templates their rival catalogue
+(``stroke_verdict.catalogue_says``). A plain Protractor (Li 2010:
 n = 16, uniform scale, rotation within ``max_rotation_deg``, top-1, no rejection) has the
 same templates. The shipped choices are the same procedure on all five writers; they are
 shipped when every fold chose the same.
@@ -63,7 +72,13 @@ from hapticdesk.gestures.strokes.stroke_similarity import (  # noqa: E402
     similarity,
     stroke_features,
 )
-from hapticdesk.gestures.strokes.stroke_verdict import Nearest, agreement, nearest  # noqa: E402
+from hapticdesk.gestures.strokes.stroke_verdict import (  # noqa: E402
+    Catalogue,
+    Nearest,
+    agreement,
+    catalogue_twins,
+    nearest,
+)
 from hapticdesk.gestures.strokes.unistroke import builtin_templates  # noqa: E402
 
 MIN_SCORE = GESTURE_OPTIONS["stroke"]["min_score"].default
@@ -196,7 +211,8 @@ class Found:
 
         shape = joined("shape")
         empty = np.zeros((len(shape), 0))
-        fields = (shape, joined("score"), joined("own"), joined("built_in"))
+        fields = ("score", "own", "built_in", "rival", "confirmed", "floor")
+        fields = (shape, *(joined(f) for f in fields))
         truth = np.concatenate([t for _, t in parts])
         return cls(Nearest([], empty, *fields), truth)
 
@@ -209,23 +225,38 @@ class Found:
 
 
 def drawn_by_people(
-    logs: Logs, scores: np.ndarray, test: np.ndarray, templates: np.ndarray, loso: bool = False
+    logs: Logs,
+    scores: np.ndarray,
+    catalogue: np.ndarray,
+    test: np.ndarray,
+    templates: np.ndarray,
+    loso: str = "",
 ) -> list[tuple[Nearest, np.ndarray]]:
     """The nearest shapes of strokes ``test`` among the strokes ``templates`` as templates
-    (as ``TemplateSet.classify_many`` finds them), with the true shapes; with ``loso``, each
-    shape's strokes among the other shapes' templates only (leave-one-shape-out)."""
+    (as ``TemplateSet.classify_many`` finds them, the built-in templates the rival catalogue:
+    every stroke's ``catalogue`` scores (N, B)), with the true shapes. With ``loso``, each
+    shape's strokes among the other shapes' templates only (leave-one-shape-out): "built-in"
+    a shape the catalogue has, "new" one it has not either (its built-in templates left out)."""
     names = logs.shape[templates]
     people = np.zeros(len(templates), bool)
     own = agreement(scores[np.ix_(templates, templates)], names, ~people)
+    twins = catalogue_twins(catalogue[templates], names, logs.builtin_names)
+
+    def found(strokes: np.ndarray, left_out: str = "") -> tuple[Nearest, np.ndarray]:
+        keep = names != left_out
+        known = logs.builtin_names != (left_out if loso == "new" else "")
+        rival = Catalogue(catalogue[np.ix_(strokes, known)], logs.builtin_names[known], twins)
+        near = nearest(
+            scores[np.ix_(strokes, templates[keep])], names[keep], people[keep], own, rival
+        )
+        return near, logs.shape[strokes]
+
     if not loso:
-        return [(nearest(scores[np.ix_(test, templates)], names, people, own), logs.shape[test])]
-    out = []
-    for shape in dict.fromkeys(logs.shape[test].tolist()):
-        keep = names != shape
-        mine = test[logs.shape[test] == shape]
-        found = nearest(scores[np.ix_(mine, templates[keep])], names[keep], people[keep], own)
-        out.append((found, logs.shape[mine]))
-    return out
+        return [found(test)]
+    return [
+        found(test[logs.shape[test] == shape], shape)
+        for shape in dict.fromkeys(logs.shape[test].tolist())
+    ]
 
 
 @dataclass
@@ -235,6 +266,7 @@ class Protocols:
 
     own: Found
     unknown: Found
+    new: Found  # unknown shapes the catalogue has not either
     independent: Found
     builtin: Found
     unknown_writer: np.ndarray  # (the writer of each stroke of ``unknown``)
@@ -246,24 +278,25 @@ class Protocols:
         """``test_writers``' strokes; writer-independent templates: the strokes of those of
         ``template_writers`` that are not the tested writer."""
         scores = logs.parts.score(choices)
-        own, unknown, independent = [], [], []
+        catalogue = logs.builtin_parts.score(choices)
+        own, unknown, new, independent = [], [], [], []
         unknown_writer = []
         for w, _, te, tm in own_splits(logs, test_writers):
-            own += drawn_by_people(logs, scores, te, tm)
-            left_out = drawn_by_people(logs, scores, te, tm, loso=True)
+            own += drawn_by_people(logs, scores, catalogue, te, tm)
+            new += drawn_by_people(logs, scores, catalogue, te, tm, loso="new")
+            left_out = drawn_by_people(logs, scores, catalogue, te, tm, loso="built-in")
             unknown += left_out
             unknown_writer += [np.full(len(truth), w, dtype=object) for _, truth in left_out]
         for w in test_writers:
             te = np.flatnonzero(logs.writer == w)
             tm = np.flatnonzero(np.isin(logs.writer, template_writers) & (logs.writer != w))
-            independent += drawn_by_people(logs, scores, te, tm)
+            independent += drawn_by_people(logs, scores, catalogue, te, tm)
         tested = np.flatnonzero(np.isin(logs.writer, test_writers))
-        builtin = nearest(
-            logs.builtin_parts.score(choices)[tested], logs.builtin_names, logs.builtin_ideal, {}
-        )
+        builtin = nearest(catalogue[tested], logs.builtin_names, logs.builtin_ideal, {})
         return cls(
             Found.gather(own),
             Found.gather(unknown),
+            Found.gather(new),
             Found.gather(independent),
             Found.gather([(builtin, logs.shape[tested])]),
             np.concatenate(unknown_writer),
@@ -308,7 +341,9 @@ def choose(logs: Logs, writers: list[str], non_shape_parts: Similarity) -> Score
         choices = replace(DEFAULT_CHOICES, direction_weight=dw, form_weight=fw)
         choices = replace(choices, builtin_extra=builtin_extra(non_shape_parts, choices))
         found = Protocols.on(logs, choices, writers, writers)
-        choices = replace(choices, margin=margin(found, writers, choices))
+        tight = margin(found, writers, choices)
+        choices = replace(choices, margin=tight, confirmed_margin=tight)
+        choices = replace(choices, confirmed_margin=confirmed_margin(found, writers, choices))
         right = np.mean(
             [f.right(choices).mean() for f in (found.own, found.independent, found.builtin)]
         )
@@ -319,22 +354,39 @@ def choose(logs: Logs, writers: list[str], non_shape_parts: Similarity) -> Score
 
 
 def margin(found: Protocols, writers: list[str], choices: ScoreChoices) -> float:
-    """The margin made on ``writers``: the largest of MARGINS before the first whose unknown
-    shapes accepted (the mean over the writers) exceed a target, the target the largest of
-    TARGETS that keeps UNKNOWN_TARGET on a writer left out of them: with each of ``writers``
-    left out in turn, the margin made on the others at that target accepts at most
-    UNKNOWN_TARGET of the left-out writer's unknown shapes on their mean (nested
-    leave-one-writer-out: a margin made on some writers accepts more on a new one)."""
-    rates = {
-        w: np.asarray(
-            [
-                found.unknown.accepted(replace(choices, margin=m))[found.unknown_writer == w].mean()
-                for m in MARGINS
-            ]
-        )
-        for w in writers
-    }
+    """The margin made on ``writers`` for unknown shapes the catalogue has not either (what
+    the margin alone must reject; ``confirmed_margin`` the same): the largest of MARGINS
+    before the first whose unknown shapes accepted (the mean over the writers) exceed a
+    target, the target the largest of TARGETS that keeps UNKNOWN_TARGET on a writer left out
+    of them: with each of ``writers`` left out in turn, the margin made on the others at that
+    target accepts at most UNKNOWN_TARGET of the left-out writer's unknown shapes on their
+    mean (nested leave-one-writer-out: a margin made on some writers accepts more on a new
+    one)."""
+
+    def both(m: float) -> ScoreChoices:
+        return replace(choices, margin=m, confirmed_margin=m)
+
+    rates = _rates(found.new, found.unknown_writer, writers, [both(m) for m in MARGINS])
     return MARGINS[nested_margin(rates, writers)]
+
+
+def confirmed_margin(found: Protocols, writers: list[str], choices: ScoreChoices) -> float:
+    """The margin for strokes the catalogue confirms, made on ``writers`` as :func:`margin`
+    is, on the same unknown shapes (left out of a writer's templates and of the catalogue:
+    on those the catalogue has, its rival rule rejects them whatever this margin is, so
+    they cannot show what a looser one lets through), at least ``choices.margin``."""
+    grid = [m for m in MARGINS if m >= choices.margin]
+    candidates = [replace(choices, confirmed_margin=m) for m in grid]
+    rates = _rates(found.new, found.unknown_writer, writers, candidates)
+    return grid[nested_margin(rates, writers)]
+
+
+def _rates(
+    unknown: Found, writer: np.ndarray, writers: list[str], candidates: list[ScoreChoices]
+) -> dict[str, np.ndarray]:
+    """Each writer's unknown shapes accepted with each of the ``candidates``."""
+    taken = np.asarray([unknown.accepted(c) for c in candidates])  # (candidates, strokes)
+    return {w: taken[:, writer == w].mean(axis=1) for w in writers}
 
 
 def nested_margin(rates: dict[str, np.ndarray], writers: list[str]) -> int:
@@ -343,7 +395,7 @@ def nested_margin(rates: dict[str, np.ndarray], writers: list[str]) -> int:
 
     def made_on(some: list[str], target: float) -> int:
         over = np.flatnonzero(np.mean([rates[w] for w in some], axis=0) > target)
-        return max(int(over[0]) - 1, 0) if len(over) else len(MARGINS) - 1
+        return max(int(over[0]) - 1, 0) if len(over) else len(rates[some[0]]) - 1
 
     chosen = TARGETS[-1]
     for target in TARGETS:
@@ -394,6 +446,7 @@ def measure(logs: Logs, held_out: str, choices: ScoreChoices) -> dict[str, dict[
             "builtin": 100 * found.builtin.right(choices)[at].mean(),
             "builtin_protractor": 100 * builtin_protractor[at].mean(),
             "unknown": 100 * found.unknown.accepted(choices)[unknown_speed == speed].mean(),
+            "new": 100 * found.new.accepted(choices)[unknown_speed == speed].mean(),
         }
     return out
 
@@ -406,6 +459,7 @@ COLUMNS = (
     ("builtin", "built-in"),
     ("builtin_protractor", "Protractor"),
     ("unknown", "unknown accepted"),
+    ("new", "none built-in"),
 )
 
 
@@ -428,7 +482,7 @@ def table(folds: dict[str, dict[str, dict[str, float]]]) -> list[str]:
         lines.append(f"| **mean** | {speed} | {mean} |")
         worst = []
         for key, _ in COLUMNS:
-            pick = max if key == "unknown" else min
+            pick = max if key in ("unknown", "new") else min
             value = pick(r[key] for r in rows)
             who = next(w for w, r in zip(folds, rows, strict=True) if r[key] == value)
             worst.append(f"{value:.1f} % ({who})")
@@ -499,7 +553,8 @@ def main() -> None:
 def _choices_text(c: ScoreChoices) -> str:
     return (
         f"direction_weight {c.direction_weight:g}, form_weight {c.form_weight:g}, "
-        f"margin {c.margin:g}, builtin_extra {c.builtin_extra:g}"
+        f"margin {c.margin:g}, confirmed_margin {c.confirmed_margin:g}, "
+        f"builtin_extra {c.builtin_extra:g}"
     )
 
 

@@ -197,31 +197,89 @@ def test_a_stroke_nearest_a_built_in_template_asks_more():
 
 
 @needs_logs
-def test_the_lowo_scripts_verdicts_are_the_recognizers(medium):
+@pytest.mark.parametrize(("subject", "looser"), [("s03", 0.0), ("s05", 0.0), ("s05", 0.06)])
+def test_the_lowo_scripts_verdicts_are_the_recognizers(subject, looser):
     """scripts/stroke_lowo.py judges from one big score matrix (similarity, agreement,
-    nearest); a TemplateSet of the same templates gives the same verdicts."""
+    nearest, the built-in templates as the rival catalogue); a layout's set of the same
+    templates without the built-in ones (template_set(..., builtin=False)) gives the same
+    verdicts, a shape left out too (s05's v's and checks, which the catalogue rejects); and
+    so does a set with choices whose ``confirmed_margin`` is ``looser`` above the margin."""
+    from dataclasses import replace
+
     from hapticdesk.gestures.strokes.stroke_similarity import (
         DEFAULT_CHOICES,
         similarity,
         stroke_features,
     )
-    from hapticdesk.gestures.strokes.stroke_verdict import agreement, judge
+    from hapticdesk.gestures.strokes.stroke_verdict import (
+        Catalogue,
+        agreement,
+        catalogue_twins,
+        judge,
+    )
+    from hapticdesk.gestures.strokes.unistroke import template_set
 
-    strokes = medium["s03"]
-    templates = [s for s in strokes if s.repetition <= 3]
+    assert DOLLAR is not None
+    choices = replace(DEFAULT_CHOICES, confirmed_margin=DEFAULT_CHOICES.margin + looser)
+    strokes = list(read_logs(DOLLAR / subject / "fast"))
+    templates = [s for s in strokes if s.repetition <= 3 and s.shape != "check"]
     tests = [s for s in strokes if s.repetition > 3]
     features, _ = stroke_features([s.points for s in templates + tests])
     scores = similarity(features, features, 30.0).score(DEFAULT_CHOICES)
+    builtin = builtin_templates()
+    against = similarity(features, builtin.features(), 30.0, builtin.ideal)
+    catalogue = against.score(DEFAULT_CHOICES)
     k = len(templates)
     names = np.asarray([s.shape for s in templates], dtype=object)
     own = agreement(scores[:k, :k], names, np.ones(k, bool))
-    lowo = judge(scores[k:, :k], names, np.zeros(k, bool), MIN_SCORE, own)
-    mine = TemplateSet()
+    twins = catalogue_twins(catalogue[:k], names, builtin.names)
+    rival = Catalogue(catalogue[k:], builtin.names, twins)
+    lowo = judge(scores[k:, :k], names, np.zeros(k, bool), MIN_SCORE, own, choices, rival)
+    user: dict[str, list[np.ndarray]] = {}
     for s in templates:
-        mine.add(s.shape, s.points)
-    direct = mine.classify_many([s.points for s in tests], MIN_SCORE, 30.0)
+        user.setdefault(s.shape, []).append(s.points)
+    layout = template_set(user, builtin=False)
+    if looser:
+        layout = TemplateSet(choices, catalogue=builtin_templates())
+        layout.add_all(user)
+    direct = layout.classify_many([s.points for s in tests], MIN_SCORE)
     assert [m.shape for m in lowo] == [m.shape for m in direct]
     assert np.allclose([m.score for m in lowo], [m.score for m in direct])
+    checks = [m.shape for m, s in zip(direct, tests, strict=True) if s.shape == "check"]
+    assert checks == [None] * 7  # no check template: a check is not taken for a v
+
+
+@needs_logs
+@pytest.mark.parametrize("speed", ["slow", "medium", "fast"])
+def test_the_catalogue_rejects_a_writers_check_as_their_v(speed):
+    """s05 draws checks like v's: with their own 3 templates of every shape but the check,
+    their checks scored within the margin of their v's (fast: all 10 taken for v's). A
+    stroke the built-in catalogue takes for a shape the writer drew none of (the check),
+    nearer than their v's come to the catalogue's check, is rejected; none of their own
+    strokes of the other shapes is lost."""
+    assert DOLLAR is not None
+    from hapticdesk.gestures.strokes.unistroke import template_set
+
+    strokes = list(read_logs(DOLLAR / "s05" / speed))
+    user: dict[str, list[np.ndarray]] = {}
+    for s in strokes:
+        if s.shape != "check" and s.repetition <= 3:
+            user.setdefault(s.shape, []).append(s.points)
+    checks = [s.points for s in strokes if s.shape == "check"]
+    rest = [s for s in strokes if s.shape != "check" and s.repetition > 3]
+    plain = TemplateSet()
+    plain.add_all(user)
+    rivalled = template_set(user, builtin=False)
+    taken = [m.shape for m in rivalled.classify_many(checks, MIN_SCORE)]
+    assert taken == [None] * 10, taken
+    before = sum(m.shape is not None for m in plain.classify_many(checks, MIN_SCORE))
+    assert before >= (5 if speed != "medium" else 1)
+    points = [s.points for s in rest]
+    truth = [s.shape for s in rest]
+    right = np.asarray([m.shape for m in rivalled.classify_many(points, MIN_SCORE)]) == truth
+    before = np.asarray([m.shape for m in plain.classify_many(points, MIN_SCORE)]) == truth
+    assert np.all(right | ~before)  # none lost (one more taken at medium speed)
+    assert sum(right) >= 0.97 * len(rest)
 
 
 @needs_logs
@@ -321,11 +379,12 @@ def test_the_margin_made_on_four_writers_expects_a_new_one_to_differ():
         n = len(d)
         found = stroke_lowo.Found(
             Nearest([], np.zeros((n, 0)), np.full(n, "v", dtype=object), 1.0 - d,
-                    np.ones(n), np.zeros(n, bool)),
+                    np.ones(n), np.zeros(n, bool), np.full(n, -np.inf), np.full(n, -np.inf),
+                    np.full(n, np.inf)),
             np.full(n, "check", dtype=object),
         )  # fmt: skip
         writer = np.concatenate([np.full(len(v), w, dtype=object) for w, v in distances.items()])
-        return stroke_lowo.Protocols(found, found, found, found, writer)
+        return stroke_lowo.Protocols(found, found, found, found, found, writer)
 
     def pooled(p: stroke_lowo.Protocols) -> float:
         out = stroke_lowo.MARGINS[0]
@@ -385,3 +444,38 @@ def test_the_rejection_rules_script_measures_the_shipped_rule_as_the_recognizer(
         assert [m.shape is not None for m in direct] == taken.tolist()
         assert [m.best_shape for m in direct] == shape.tolist()
     assert 0 < np.sum(short > 0.02) < len(short)  # the margins above do reject some
+
+
+def test_a_shape_the_catalogue_confirms_asks_the_looser_margin():
+    """The mechanism, with explicit choices whose ``confirmed_margin`` is above ``margin``:
+    a person's three near-identical circles agree at about 1, so a wobbly circle falls short
+    by more than ``margin``; the built-in catalogue takes it for a circle too, so it asks the
+    agreement less ``confirmed_margin`` and is taken. A plain set (no catalogue) rejects it.
+    With the shipped choices (``confirmed_margin`` made on unknown shapes the catalogue lacks
+    too: no looser than ``margin``) the same circle is rejected with the catalogue too."""
+    from dataclasses import replace
+
+    from hapticdesk.gestures.strokes.stroke_similarity import DEFAULT_CHOICES
+    from hapticdesk.gestures.strokes.unistroke import template_set
+
+    looser = replace(DEFAULT_CHOICES, confirmed_margin=DEFAULT_CHOICES.margin + 0.06)
+    u = np.linspace(0.0, 2 * np.pi, 80)
+    circles = [np.column_stack([np.cos(u), (1 + 0.01 * k) * np.sin(u)]) for k in range(3)]
+    user = {"circle": circles, "line": [np.column_stack([np.linspace(0, 1, 9), np.zeros(9)])]}
+    plain = TemplateSet(looser)
+    plain.add_all(user)
+    confirming = TemplateSet(looser, catalogue=builtin_templates())
+    confirming.add_all(user)
+    shipped = template_set(user, builtin=False)
+    needed = plain.thresholds()["circle"] + looser.margin  # the agreement
+    for wobble in np.linspace(0.6, 1.3, 15):
+        oval = np.column_stack([np.cos(u), np.sin(u)]) * (1 + 0.3 * wobble * np.sin(3 * u))[:, None]
+        score = plain.classify(oval, MIN_SCORE).score
+        low, high = needed - looser.confirmed_margin, needed - looser.margin
+        if low + 0.01 < score < high - 0.01:
+            break
+    else:
+        raise AssertionError("no wobbly circle between the two margins")
+    assert plain.classify(oval, MIN_SCORE).shape is None
+    assert confirming.classify(oval, MIN_SCORE).shape == "circle"
+    assert shipped.classify(oval, MIN_SCORE).shape is None

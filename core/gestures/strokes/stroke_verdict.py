@@ -52,11 +52,87 @@ def agreement(scores: np.ndarray, names: np.ndarray, drawn: np.ndarray) -> dict[
     return out
 
 
+class Twins(NamedTuple):
+    """How a person's templates stand to the catalogue, per shape they drew: ``best``, the
+    best score of its templates against each catalogue shape, and ``lowest``, the lowest of
+    its templates' scores against the catalogue's same shape (absent where it has none)."""
+
+    best: Mapping[str, Mapping[str, float]]
+    lowest: Mapping[str, float]
+
+
+class Catalogue(NamedTuple):
+    """The built-in templates as a rival to a person's own: k strokes' ``scores`` (k, B)
+    against them, their shapes ``names`` (B,), and the person's templates' ``twins``
+    (:func:`catalogue_twins`)."""
+
+    scores: np.ndarray
+    names: np.ndarray
+    twins: Twins
+
+
+def catalogue_twins(scores: np.ndarray, names: np.ndarray, catalogue_names: np.ndarray) -> Twins:
+    """The :class:`Twins` of drawn templates of shapes ``names`` (T,) from their ``scores``
+    (T, B) against the catalogue of shapes ``catalogue_names`` (B,)."""
+    shapes = list(dict.fromkeys(catalogue_names.tolist()))
+    per = _per_shape(scores, catalogue_names, shapes)
+    drawn = list(dict.fromkeys(names.tolist()))
+    best = {s: dict(zip(shapes, per[names == s].max(axis=0).tolist(), strict=True)) for s in drawn}
+    lowest = {s: float(per[names == s, shapes.index(s)].min()) for s in drawn if s in shapes}
+    return Twins(best, lowest)
+
+
+class CatalogueSays(NamedTuple):
+    """What the catalogue says of k strokes taken for shapes a person drew: ``rival`` (k,),
+    its best score for a shape the person drew none of that is nearer than the taken one
+    (-inf where none is), ``confirmed`` (k,), its score for the taken shape where that is
+    its own nearest shape (-inf where not), and ``floor`` (k,), the least it gives the
+    person's templates of that shape (inf where it has none)."""
+
+    rival: np.ndarray
+    confirmed: np.ndarray
+    floor: np.ndarray
+
+
+def catalogue_says(chosen: np.ndarray, drawn: np.ndarray, catalogue: Catalogue) -> CatalogueSays:
+    """For k strokes taken for ``chosen`` (k,), with ``drawn`` the shapes of a person's
+    templates: a rival is a shape with no template in ``drawn`` whose catalogue score beats
+    both the catalogue's score for the chosen shape and every one of the chosen shape's drawn
+    templates against it (``catalogue.twins``: a person's shape the catalogue itself takes
+    for another is not rivalled by it). Strokes taken for a shape nobody drew: neither."""
+    shapes = list(dict.fromkeys(catalogue.names.tolist()))
+    per = _per_shape(catalogue.scores, catalogue.names, shapes)
+    column = {shape: j for j, shape in enumerate(shapes)}
+    rows = np.arange(len(chosen))
+    mine = np.asarray([column.get(c, -1) for c in chosen], dtype=int)
+    own = np.where(mine >= 0, per[rows, mine], -np.inf)
+    recorded = set(drawn.tolist())
+    rival = np.full(len(chosen), -np.inf)
+    for shape in shapes:
+        if shape in recorded:
+            continue
+        twin = np.asarray([catalogue.twins.best.get(c, {}).get(shape, np.inf) for c in chosen])
+        score = per[:, column[shape]]
+        rival = np.where((score > own) & (score > twin), np.maximum(rival, score), rival)
+    by_person = np.isin(chosen, list(recorded))
+    floor = np.asarray([catalogue.twins.lowest.get(c, np.inf) for c in chosen])
+    confirmed = np.where(by_person & (own >= per.max(axis=1)), own, -np.inf)
+    return CatalogueSays(np.where(by_person, rival, -np.inf), confirmed, floor)
+
+
+def _per_shape(scores: np.ndarray, names: np.ndarray, shapes: list[str]) -> np.ndarray:
+    """The best of ``scores`` (k, T) per shape of ``names`` (T,): (k, S)."""
+    return np.column_stack([scores[:, names == s].max(axis=1) for s in shapes])
+
+
 class Nearest(NamedTuple):
     """Each stroke's nearest shape among the templates: ``shapes`` (S,) and ``per_shape``
     (k, S), the best score against each; for the nearest, ``shape`` (k,), ``score`` (k,),
-    ``own`` (k,), its templates' :func:`agreement` (-inf without), and ``built_in`` (k,),
-    whether its nearest template was drawn by program."""
+    ``own`` (k,), its templates' :func:`agreement` (-inf without), ``built_in`` (k,),
+    whether its nearest template was drawn by program, and what the built-in catalogue says
+    (:func:`catalogue_says`): ``rival`` (k,), its score for a nearer shape the person drew
+    none of, ``confirmed`` (k,), its score for the same shape where it is its nearest, and
+    ``floor`` (k,), the least it gives the person's templates of that shape."""
 
     shapes: list[str]
     per_shape: np.ndarray
@@ -64,38 +140,53 @@ class Nearest(NamedTuple):
     score: np.ndarray
     own: np.ndarray
     built_in: np.ndarray
+    rival: np.ndarray
+    confirmed: np.ndarray
+    floor: np.ndarray
 
     def accepted(self, min_score: float, choices: ScoreChoices = DEFAULT_CHOICES) -> np.ndarray:
         """Whether each stroke is taken for its nearest shape (k,) bool: its score reaches
         ``min_score`` (plus ``choices.builtin_extra`` when its nearest template is built-in)
-        and its shape's agreement less ``choices.margin``."""
-        needed = np.maximum(min_score, self.own - choices.margin)
-        extra = np.where(self.built_in, min_score + choices.builtin_extra, -np.inf)
-        return self.score >= np.maximum(needed, extra)
+        and its shape's agreement less ``choices.margin`` (``choices.confirmed_margin`` where
+        the catalogue confirms the shape: at the catalogue's own threshold, ``min_score`` plus
+        ``choices.builtin_extra``, and its floor less ``choices.margin``), and no rival shape
+        of the catalogue reaches that threshold."""
+        catalogue = min_score + choices.builtin_extra
+        floor = self.floor - choices.margin
+        confirmed = (self.confirmed >= catalogue) & (self.confirmed >= floor)
+        margin = np.where(confirmed, choices.confirmed_margin, choices.margin)
+        needed = np.maximum(min_score, self.own - margin)
+        extra = np.where(self.built_in, catalogue, -np.inf)
+        return (self.score >= np.maximum(needed, extra)) & (self.rival < catalogue)
 
 
 def nearest(
-    scores: np.ndarray, names: np.ndarray, ideal: np.ndarray, own: Mapping[str, float]
+    scores: np.ndarray,
+    names: np.ndarray,
+    ideal: np.ndarray,
+    own: Mapping[str, float],
+    catalogue: Catalogue | None = None,
 ) -> Nearest:
     """The :class:`Nearest` shapes of k strokes from their ``scores`` (k, T) against
     templates of shapes ``names`` (T,), ``ideal`` (T,) those drawn by program, ``own`` the
-    :func:`agreement` of the shapes that have one."""
+    :func:`agreement` of the shapes that have one; ``catalogue`` the built-in templates as a
+    rival (none: no rival)."""
     shapes = list(dict.fromkeys(names.tolist()))
     ideal = np.asarray(ideal, dtype=bool)
-    per_shape = np.column_stack([scores[:, names == s].max(axis=1) for s in shapes])
+    per_shape = _per_shape(scores, names, shapes)
     best = np.argmax(neighbourhood(scores, names, ideal, shapes), axis=1)
     agreed = np.asarray([own.get(s, -np.inf) for s in shapes])
     rows = np.arange(len(best))
     chosen = np.asarray(shapes, dtype=object)[best]
     mine = np.where(names[None, :] == chosen[:, None], scores, -np.inf)
-    return Nearest(
-        shapes,
-        per_shape,
-        chosen,
-        per_shape[rows, best],
-        agreed[best],
-        ideal[np.argmax(mine, axis=1)],
-    )
+    built_in = ideal[np.argmax(mine, axis=1)]
+    nothing = np.full(len(best), -np.inf)
+    says = CatalogueSays(nothing, nothing, -nothing)
+    if catalogue is not None:
+        said = catalogue_says(chosen, names[~ideal], catalogue)
+        rival, confirmed = (np.where(built_in, -np.inf, a) for a in said[:2])
+        says = CatalogueSays(rival, confirmed, said.floor)
+    return Nearest(shapes, per_shape, chosen, per_shape[rows, best], agreed[best], built_in, *says)
 
 
 def neighbourhood(
@@ -126,12 +217,13 @@ def judge(
     min_score: float,
     own: Mapping[str, float],
     choices: ScoreChoices = DEFAULT_CHOICES,
+    catalogue: Catalogue | None = None,
 ) -> list[Match]:
     """The verdicts on k strokes from their ``scores`` (k, T) against templates of shapes
     ``names`` (T,) (:func:`nearest`, :meth:`Nearest.accepted`)."""
     if not len(scores) or not len(names):
         return [Match(None, 0.0, None, {}) for _ in range(len(scores))]
-    found = nearest(scores, names, ideal, own)
+    found = nearest(scores, names, ideal, own, catalogue)
     taken = found.accepted(min_score, choices)
     return [
         Match(

@@ -4,7 +4,10 @@ own drawings made by program in shapes.py, taken from nobody's strokes) and a pe
 A built-in shape marked closed is also matched from ``START_POINTS`` start points, and one
 marked reversible (closed ones too) the other way round. How alike a stroke and a template
 are is stroke_similarity.py; which shape, if any, a stroke is taken for is stroke_verdict.py
-(the recognizer as a whole: docs/strokes.md).
+(the recognizer as a whole: docs/strokes.md). A person's templates are rivalled by the built-in
+ones (stroke_verdict.catalogue_says): those in the set, or with ``builtin_templates`` off, a
+``catalogue`` that is not matched, only asked whether a stroke is a shape the person drew none
+of.
 """
 
 from __future__ import annotations
@@ -25,7 +28,14 @@ from hapticdesk.gestures.strokes.stroke_similarity import (
     stroke_features,
     stroke_vector,
 )
-from hapticdesk.gestures.strokes.stroke_verdict import Match, agreement, judge
+from hapticdesk.gestures.strokes.stroke_verdict import (
+    Catalogue,
+    Match,
+    Twins,
+    agreement,
+    catalogue_twins,
+    judge,
+)
 
 START_POINTS = 32  # start points tried for closed templates
 
@@ -43,14 +53,20 @@ def _start_points(points: np.ndarray, count: int) -> list[np.ndarray]:
 class TemplateSet:
     """Templates by shape name, matched all at once."""
 
-    def __init__(self, choices: ScoreChoices = DEFAULT_CHOICES) -> None:
+    def __init__(
+        self, choices: ScoreChoices = DEFAULT_CHOICES, catalogue: TemplateSet | None = None
+    ) -> None:
+        """``catalogue``: built-in templates not matched, only a rival to the drawn ones
+        where the set has no built-in templates of its own."""
         self.choices = choices
+        self.catalogue = catalogue
         self._names: list[str] = []
         self._paths: list[np.ndarray] = []
         self._ideal: list[bool] = []  # drawn by program: its form is not compared
         self._drawn: list[bool] = []  # as drawn, not a start point or direction variant
         self._features: StrokeFeatures | None = None
         self._own: dict[float, dict[str, float]] = {}  # rotation limit -> agreement by shape
+        self._twins: dict[float, Twins] = {}  # rotation limit -> catalogue_twins
 
     @property
     def shapes(self) -> list[str]:
@@ -98,6 +114,7 @@ class TemplateSet:
             self._drawn.append(k == 0)
         self._features = None
         self._own = {}
+        self._twins = {}
 
     def add_all(self, templates: Mapping[str, Iterable[np.ndarray]]) -> None:
         """Add user templates: shape -> strokes, each used as drawn."""
@@ -130,7 +147,8 @@ class TemplateSet:
         parts = similarity(features, self.features(), max_rotation_deg, np.asarray(self._ideal))
         own = self._agreement(max_rotation_deg)
         scores = parts.score(self.choices)
-        verdicts = judge(scores, self.names, self.ideal, min_score, own, self.choices)
+        catalogue = self._catalogue(features, scores, max_rotation_deg)
+        verdicts = judge(scores, self.names, self.ideal, min_score, own, self.choices, catalogue)
         for i, verdict in zip(ok.tolist(), verdicts, strict=True):
             out[i] = verdict
         return out
@@ -142,6 +160,33 @@ class TemplateSet:
         so a near miss of a tight shape (one's brace taken for one's bracket) is rejected."""
         own = self._agreement(max_rotation_deg)
         return {shape: v - self.choices.margin for shape, v in own.items()}
+
+    def _catalogue(
+        self, strokes: StrokeFeatures, scores: np.ndarray, max_rotation_deg: float
+    ) -> Catalogue | None:
+        """The built-in templates as a rival to the drawn ones (stroke_verdict.Catalogue):
+        the set's own, else ``catalogue``'s; None without drawn templates or a catalogue."""
+        ideal, drawn = self.ideal, np.asarray(self._drawn) & ~self.ideal
+        if not drawn.any():
+            return None
+        if ideal.any():
+            source, names, against = self, self.names[ideal], scores[:, ideal]
+        elif self.catalogue is not None and len(self.catalogue):
+            source, names = self.catalogue, self.catalogue.names
+            parts = similarity(strokes, source.features(), max_rotation_deg, source.ideal)
+            against = parts.score(self.choices)
+        else:
+            return None
+        twins = self._twins.get(max_rotation_deg)
+        if twins is None:
+            mine = self.features().take(drawn)
+            ideal_of = np.asarray(source.ideal)[source.ideal]
+            parts = similarity(
+                mine, source.features().take(source.ideal), max_rotation_deg, ideal_of
+            )
+            twins = catalogue_twins(parts.score(self.choices), self.names[drawn], names)
+            self._twins[max_rotation_deg] = twins
+        return Catalogue(against, names, twins)
 
     def _agreement(self, max_rotation_deg: float) -> dict[str, float]:
         """:func:`agreement` of the drawn templates (computed once per rotation limit)."""
@@ -180,8 +225,9 @@ def builtin_templates(expand: bool = True, choices: ScoreChoices = DEFAULT_CHOIC
 def template_set(
     user: Mapping[str, Iterable[np.ndarray]] | None = None, builtin: bool = True
 ) -> TemplateSet:
-    """Built-in templates (unless ``builtin`` is False) plus ``user`` templates."""
-    out = builtin_templates() if builtin else TemplateSet()
+    """Built-in templates (unless ``builtin`` is False: then they are only the ``catalogue``
+    that rivals the ``user`` templates) plus ``user`` templates."""
+    out = builtin_templates() if builtin else TemplateSet(catalogue=builtin_templates())
     if user:
         out.add_all(user)
     return out

@@ -1,10 +1,10 @@
 """Taps, double taps and two-finger taps: one state machine, because they decide together.
 
-A touch is a tap when it is short (``max_duration_s``) and does not move (``max_move``),
-judged where it settled (``Touch.settled``: its last quarter of pressed samples, whose place
-errs less than the whole touch's on light taps). Where a double tap is bound at that point, the
-tap waits up to ``interval_s`` for a second touch; everywhere else it fires at the release,
-so a button reacts without the double-tap delay.
+A touch is a tap when it is short (``max_duration_s``) and does not move (``max_move``, from
+the whole touch's place); it is placed where it settled (``Touch.settled``: the last 30 % of
+its pressed samples, whose place errs less than the whole touch's on light taps). Where a
+double tap is bound at that point, the tap waits up to ``interval_s`` for a second touch;
+everywhere else it fires at the release, so a button reacts without the double-tap delay.
 
 A finger's position is known to a few millimetres (≈ 4.5 mm 1-σ for a light tap on the
 paper's desk), so a tap aimed 2 mm inside a button's edge often lands just outside it: a

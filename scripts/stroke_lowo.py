@@ -38,7 +38,9 @@ the rival catalogue too). A writer's templates are judged as a layout's own are 
 (``stroke_verdict.catalogue_says``). A plain Protractor (Li 2010:
 n = 16, uniform scale, rotation within ``max_rotation_deg``, top-1, no rejection) has the
 same templates. The shipped choices are the same procedure on all five writers; they are
-shipped when every fold chose the same.
+shipped when every fold chose the same. Under the table, what each held-out writer's own 3
+templates lose, by cause (``own_losses``: the margin, another shape, below ``min_score``,
+the catalogue's rival), each stroke with the rotations it was lost in.
 
     python scripts/stroke_lowo.py $DOLLAR1            # 4-20 min (the machine's load)
     python scripts/stroke_lowo.py $DOLLAR1 --json lowo.json

@@ -38,7 +38,9 @@ the rival catalogue too). A writer's templates are judged as a layout's own are 
 (``stroke_verdict.catalogue_says``). A plain Protractor (Li 2010:
 n = 16, uniform scale, rotation within ``max_rotation_deg``, top-1, no rejection) has the
 same templates. The shipped choices are the same procedure on all five writers; they are
-shipped when every fold chose the same.
+shipped when every fold chose the same. Under the table, what each held-out writer's own 3
+templates lose, by cause (``own_losses``: the margin, another shape, below ``min_score``,
+the catalogue's rival), each stroke with the rotations it was lost in.
 
     python scripts/stroke_lowo.py $DOLLAR1            # 4-20 min (the machine's load)
     python scripts/stroke_lowo.py $DOLLAR1 --json lowo.json
@@ -52,6 +54,7 @@ import json
 import math
 import sys
 import time
+from collections import Counter
 from collections.abc import Iterator
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
@@ -451,6 +454,50 @@ def measure(logs: Logs, held_out: str, choices: ScoreChoices) -> dict[str, dict[
     return out
 
 
+LOSSES = ("margin", "another shape", "below min_score", "catalogue rival")
+
+
+def own_losses(
+    logs: Logs, held_out: str, choices: ScoreChoices
+) -> tuple[dict[str, Counter[str]], int]:
+    """What the held-out writer's own 3 templates lose with ``choices``, and of how many
+    strokes tested (a stroke once per rotation it is tested in), per cause (LOSSES: in
+    the order :meth:`Nearest.accepted` is read; "another shape" whether taken or not), each a
+    count per stroke ("shape speed rREP", "→ taken" for another shape): a stroke is tested in
+    up to seven of the ten rotations, so one odd stroke can be lost seven times."""
+    scores = logs.parts.score(choices)
+    catalogue = logs.builtin_parts.score(choices)
+    threshold = MIN_SCORE + choices.builtin_extra
+    out: dict[str, Counter[str]] = {cause: Counter() for cause in LOSSES}
+    tested = 0
+    for _, speed, te, tm in own_splits(logs, [held_out]):
+        tested += len(te)
+        ((near, truth),) = drawn_by_people(logs, scores, catalogue, te, tm)
+        right = near.accepted(MIN_SCORE, choices) & (near.shape == truth)
+        for i in np.flatnonzero(~right):
+            stroke = f"{truth[i]} {speed} r{logs.repetition[te[i]]}"
+            if near.shape[i] != truth[i]:
+                out["another shape"][f"{stroke} → {near.shape[i]}"] += 1
+            elif near.score[i] < MIN_SCORE:
+                out["below min_score"][stroke] += 1
+            elif near.rival[i] >= threshold:
+                out["catalogue rival"][stroke] += 1
+            else:
+                out["margin"][stroke] += 1
+    return out, tested
+
+
+def losses_text(writer: str, lost: dict[str, Counter[str]], tested: int) -> str:
+    """One line: the writer's own-3 losses per cause, each stroke with its count."""
+    total = sum(sum(c.values()) for c in lost.values())
+    parts = [
+        f"{cause} {sum(c.values())}"
+        + (f" ({', '.join(f'{k} ×{v}' for k, v in sorted(c.items()))})" if c else "")
+        for cause, c in lost.items()
+    ]
+    return f"- {writer}: {total} of {tested} lost: " + "; ".join(parts)
+
+
 COLUMNS = (
     ("wi", "writer-independent"),
     ("wi_protractor", "Protractor"),
@@ -515,6 +562,12 @@ def main() -> None:
         f"(`python scripts/stroke_lowo.py {args.folder}`, {time.perf_counter() - started:.0f} s)\n"
     )
     print("\n".join(table(folds)))
+    print(
+        "\nWhat each held-out writer's own 3 templates lose, with the choices its four made "
+        "(stroke, speed, repetition; × the rotations it was lost in):\n"
+    )
+    for writer, c in chosen.items():
+        print(losses_text(writer, *own_losses(logs, writer, c)))
     print("\nChoices made by each fold (on the four other writers):\n")
     for writer, c in chosen.items():
         print(f"- without {writer}: {_choices_text(c)}")

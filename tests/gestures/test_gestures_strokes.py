@@ -105,6 +105,19 @@ def test_nothing_like_a_shape_is_rejected_not_forced():
     assert with_zed.classify(spiral, MIN_SCORE).shape is None
 
 
+def test_the_catalogue_is_made_only_where_there_are_templates_to_rival():
+    """Without the built-in templates, they are read only as the rival of a person's own
+    (unistroke.template_set): a layout with none of its own does not read and expand 291
+    templates it never asks; one with its own has the catalogue, and generators of strokes
+    are taken as the lists they were."""
+    zed = np.array([[0, 1], [1, 1], [0, 0], [1, 0]], dtype=float)
+    assert template_set(None, builtin=False).catalogue is None
+    assert template_set({"zed": []}, builtin=False).catalogue is None
+    mine = template_set({"zed": (p for p in [zed, zed[::-1]])}, builtin=False)
+    assert mine.catalogue is not None and len(mine.catalogue) == len(builtin_templates())
+    assert len(mine) == 2 and mine.shapes == ["zed"]
+
+
 def test_degenerate_strokes():
     templates = builtin_templates()
     assert templates.classify(np.zeros((5, 2)), 0.0).shape is None

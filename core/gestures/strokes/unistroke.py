@@ -226,8 +226,14 @@ def template_set(
     user: Mapping[str, Iterable[np.ndarray]] | None = None, builtin: bool = True
 ) -> TemplateSet:
     """Built-in templates (unless ``builtin`` is False: then they are only the ``catalogue``
-    that rivals the ``user`` templates) plus ``user`` templates."""
-    out = builtin_templates() if builtin else TemplateSet(catalogue=builtin_templates())
-    if user:
-        out.add_all(user)
+    that rivals the ``user`` templates, made only where there is one to rival: 291
+    templates read and expanded, 20-30 ms) plus ``user`` templates."""
+    drawn = {shape: list(paths) for shape, paths in (user or {}).items()}
+    if builtin:
+        out = builtin_templates()
+    else:
+        rivalled = any(drawn.values())
+        out = TemplateSet(catalogue=builtin_templates() if rivalled else None)
+    if drawn:
+        out.add_all(drawn)
     return out

@@ -60,3 +60,18 @@ def test_a_tap_that_pressed_the_board_fires_no_swipe_however_its_points_ran():
     assert extra["sw_wrong"] == 0
     assert extra["sw_right"] >= 5  # the swipes made fire (5 of 6, as before)
     assert result["tally"].phantom == 0
+
+
+def test_a_tap_on_a_rocking_desk_is_no_slide():
+    """Desks 2 and 85 of the sweep with 80 taps (three legs under a 34 kg top at 5.3 Hz; seven
+    under a 45 kg one at 5.2 Hz): the top rocks under a light tap (2.2-2.5 N, 50-80 ms) and the
+    legs feel it as shear, 0.35-0.43 of the press, one way while the tap lasts: at SLIDE_DRAG
+    0.35 each was a swipe by its drag alone (its points did not move). Swipes drag 0.495 and
+    more (swipe.SLIDE_DRAG, 0.46 now); the swipe made on each desk still fires."""
+    for index, chunk_seed in ((2, 1021), (85, 1851)):
+        result = _run(index, 80, chunk_seed)
+        extra = result["extra"]
+        assert extra["sw_phantom"] == 0, index  # (1 each before)
+        assert extra["sw_wrong"] == 0, index
+        assert extra["sw_right"] == extra["sw_made"] == 1, index
+        assert result["tally"].phantom == 0, index

@@ -19,9 +19,12 @@ a few hundred ms, paid at the start of the run and after each kill), and per cal
 pickled through a pipe and the answer back (about a tenth of a millisecond; see
 ``tests/runtime/test_runtime_isolation.py``). The action is built in the child from its
 plugin's factory with a context holding the desk, the layout path and the layout's settings.
-An action that needs a resource shared with the rest of the run (``ActionContext.shared``,
-e.g. the run's one MQTT connection) cannot be isolated: a second connection under the same
-client id would throw the first one off the broker, so building it says so.
+The action's ``order_key`` holds across the boundary: its calls take their turns with those of
+the same key in the run's process, each waiting for the child's answer before the next is
+let through. An action that needs a resource shared with the rest of the run
+(``ActionContext.shared``, e.g. the run's one MQTT connection) cannot be isolated: a second
+connection under the same client id would throw the first one off the broker, so building it
+says so.
 """
 
 from __future__ import annotations
@@ -132,6 +135,7 @@ class ProcessAction:
         self._process: Any = None
         self._conn: Any = None
         self.restarts = 0
+        self.order_key: str | None = None  # the child's action's (set by _start)
         self.call_timeout_s = DEFAULT_CALL_TIMEOUT_S
         self.call_timeout_s = self._start()
         # the lane's watchdog only steps in when killing and restarting the child failed
@@ -210,7 +214,10 @@ class ProcessAction:
         if kind == "setup-failed":
             self._kill()
             raise ConfigError(None, f"{self.label}: could not be set up: {detail}")
-        own = detail
+        own, order_key = detail
+        # the action's turn among those of its `order_key` is kept here, in the run, where the
+        # lanes' turnstile waits for a call's answer from the child (lane.Lane reads it)
+        self.order_key = order_key if isinstance(order_key, str) and order_key else None
         return float(own) if own else DEFAULT_CALL_TIMEOUT_S
 
     def _kill(self) -> None:
@@ -262,7 +269,8 @@ def _child_main(
     except Exception as err:
         conn.send(("setup-failed", f"{type(err).__name__}: {err}"))
         return
-    conn.send(("ready", getattr(action, "timeout_s", None)))
+    order_key = getattr(action, "order_key", None)
+    conn.send(("ready", (getattr(action, "timeout_s", None), order_key)))
     while True:
         try:
             event = conn.recv()

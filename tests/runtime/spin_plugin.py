@@ -58,6 +58,24 @@ class Hang:
             time.sleep(3600)
 
 
+class Stamp:
+    """Appends ``label`` and the event's time to the file ``path`` after ``seconds``, under
+    the ``order_key`` ``"stamps"``: two of them keep the gestures' order only by their turns."""
+
+    order_key = "stamps"
+    timeout_s = 5.0
+
+    def __init__(self, options: Any, context: Any) -> None:
+        self.path = str(options["path"])
+        self.label = str(options["label"])
+        self.seconds = float(options.get("seconds", 0.0))
+
+    def __call__(self, event: GestureEvent) -> None:
+        time.sleep(self.seconds)
+        with open(self.path, "a", encoding="utf-8") as out:
+            out.write(f"{self.label} {event.t}\n")
+
+
 @hookimpl
 def register_actions(register: Any) -> None:
     register("spin", Spin, "a busy loop")

@@ -18,7 +18,9 @@ from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.hookspecs import hookimpl
 from hapticdesk.plugin_loading import load_registry
 from hapticdesk.runtime.assembly import build_scene
+from hapticdesk.runtime.dispatcher import Dispatcher, Route
 from hapticdesk.runtime.isolation import IsolationSettings, ProcessAction, action_use_validator
+from hapticdesk.runtime.lane import Lane
 from hapticdesk.runtime.service import Runtime
 
 from . import spin_plugin
@@ -211,3 +213,38 @@ def test_an_action_that_shares_the_runs_connection_cannot_be_isolated(tmp_path):
             "mqtt", MqttAction, {"topic": "lamp/set"}, desk="d", layout_path=None,
             settings={}, isolation=IsolationSettings(),
         )  # fmt: skip
+
+
+def test_isolated_actions_of_one_order_key_keep_the_gestures_order(tmp_path):
+    """An action's ``order_key`` holds across `isolation: process`: the child says it when it
+    is ready, and its calls take their turns in the run (a slow one first, a quick one a
+    moment later on another lane: the quick one waits). Before, an isolated action had no
+    key, so the quick one's call landed first."""
+    path = tmp_path / "device.txt"
+    actions = {
+        label: ProcessAction(
+            label,
+            spin_plugin.Stamp,
+            {"path": str(path), "label": label, "seconds": seconds},
+            desk="d",
+            layout_path=None,
+            settings={},
+            isolation=IsolationSettings(),
+        )  # fmt: skip
+        for label, seconds in (("on", 0.4), ("off", 0.0))
+    }
+    assert {a.order_key for a in actions.values()} == {"stamps"}
+    dispatcher = Dispatcher(watchdog_interval_s=0.01)
+    for label, action in actions.items():
+        dispatcher.add_route(
+            Route(label, lambda e, r=label: e.region == r, [Lane(label, action)])  # type: ignore[misc]
+        )
+    try:
+        dispatcher.submit(GestureEvent(1.0, "tap", "on", 0.0, 0.0))
+        dispatcher.submit(GestureEvent(2.0, "tap", "off", 0.0, 0.0))
+        report = dispatcher.close(10.0)
+    finally:
+        for action in actions.values():
+            action.close()
+    assert report.totals.ok == 2
+    assert path.read_text().split() == ["on", "1.0", "off", "2.0"]

@@ -16,6 +16,10 @@ as ``scheme://host:port/…``: the path of a webhook is itself a secret.
 
 ``timeout_s`` bounds the whole call (connecting, sending, and reading the answer), not each
 socket read: a server that answers a byte at a time is cut off at the deadline.
+
+The calls to one server (scheme, host and port, as written) keep the gestures' order across
+every ``http`` action of the run: a webhook that turns a light on and another that turns it
+off, a moment later, reach the server in that order.
 """
 
 from __future__ import annotations
@@ -192,6 +196,16 @@ def validate(options: Any, position: Position | str) -> None:
     parse_options(options, position)
 
 
+def server_key(url: str) -> str | None:
+    """The ``order_key`` of calls to ``url``'s server, ``http scheme://host:port`` (the
+    scheme's port where none is written); None where the server part is templated."""
+    parts = urllib.parse.urlsplit(url)
+    if "{" in parts.netloc or "}" in parts.netloc or not parts.hostname:
+        return None
+    port = parts.port or (443 if parts.scheme == "https" else 80)
+    return f"http {parts.scheme}://{parts.hostname.lower()}:{port}"
+
+
 class HttpAction:
     """One request per event."""
 
@@ -205,6 +219,10 @@ class HttpAction:
         self.options = HttpOptions(o.url, o.method, o.json, o.body, o.headers, secrets, o.timeout_s)
         self.desk = context.desk_name
         self.timeout_s = self.options.timeout_s + 2.0
+        #: the calls of every `http` action to one server take their turns in the gestures'
+        #: order (a light switched on and then off through two webhooks ends off), each once the
+        #: calls before it have ended or been given up on; none where the server is templated
+        self.order_key = server_key(str(options["url"]))
 
     def __call__(self, event: GestureEvent) -> None:
         o = self.options

@@ -6,6 +6,7 @@ import http.server
 import json
 import sys
 import threading
+import time
 from pathlib import Path
 
 import pytest
@@ -14,7 +15,8 @@ from hapticdesk.errors import ConfigError
 from hapticdesk.gestures.event import GestureEvent
 from hapticdesk.gestures.layout_reader import load_layout
 from hapticdesk.plugin_loading import load_registry
-from hapticdesk.runtime.dispatcher import ActionContext
+from hapticdesk.runtime.dispatcher import ActionContext, Dispatcher, Route
+from hapticdesk.runtime.lane import Lane
 
 LAYOUT = """\
 desk: kitamura2017
@@ -179,6 +181,50 @@ def test_http_posts_the_event_or_a_templated_document(tmp_path, registry, webhoo
         missing(TAP)
     assert Webhook.received[0] == ("POST", "/hook", TAP.to_dict())
     assert Webhook.received[1] == ("POST", "/lamp", {"force": 9.5})
+
+
+class SlowFirst(http.server.BaseHTTPRequestHandler):
+    """Answers `/on` after 0.4 s and `/off` at once; notes each path as it answers."""
+
+    answered: list[str] = []
+
+    def do_POST(self) -> None:  # noqa: N802 (the stdlib's name)
+        self.rfile.read(int(self.headers["Content-Length"]))
+        if self.path == "/on":
+            time.sleep(0.4)
+        SlowFirst.answered.append(self.path)
+        self.send_response(200)
+        self.end_headers()
+
+    def log_message(self, *args: object) -> None:
+        pass
+
+
+def test_two_webhooks_to_one_server_keep_the_gestures_order(tmp_path, registry):
+    """`on` then, a moment later on another binding's lane, `off`, to one server that is slow
+    to answer the first: `off` waits for it (both `http` actions share the server's
+    order_key), so the light ends off. A server written with a template has no key."""
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), SlowFirst)
+    SlowFirst.answered = []
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    url = f"http://127.0.0.1:{server.server_address[1]}"
+    try:
+        uses = [{"http": {"url": f"{url}/on"}}, {"http": {"url": f"{url}/off"}}]
+        on, off = build(tmp_path, registry, json.dumps(uses))
+        assert on.order_key == off.order_key == f"http http://127.0.0.1:{server.server_address[1]}"
+        dispatcher = Dispatcher(watchdog_interval_s=0.01)
+        dispatcher.add_route(Route("on", lambda e: e.region == "on", [Lane("on", on)]))
+        dispatcher.add_route(Route("off", lambda e: e.region == "off", [Lane("off", off)]))
+        dispatcher.submit(GestureEvent(1.0, "tap", "on", 0.0, 0.0))
+        dispatcher.submit(GestureEvent(2.0, "tap", "off", 0.0, 0.0))
+        assert dispatcher.close(10.0).totals.ok == 2
+        assert SlowFirst.answered == ["/on", "/off"]  # (["/off", "/on"] without the key)
+    finally:
+        server.shutdown()
+        server.server_close()
+    [templated] = build(tmp_path, registry, json.dumps({"http": {"url": "http://{{ region }}/x"}}))
+    assert templated.order_key is None
 
 
 def test_http_to_a_closed_port_fails_with_the_reason(tmp_path, registry):

@@ -50,6 +50,9 @@ if TYPE_CHECKING:
 
 #: connections uvicorn serves at once (pages and API calls); beyond, it answers 503
 MAX_CONNECTIONS = MAX_WS_CLIENTS + 32
+#: at the close, how long open connections are given to end before they are dropped (s); the
+#: close waits twice this for the server's thread
+CLOSE_GRACE_S = 1.0
 
 #: the modules whose ``ROUTES`` the page's server serves, one a job (a new group of endpoints
 #: is a module with its ``ROUTES``, named here)
@@ -141,6 +144,9 @@ class UiServer:
             lifespan="on",
             ws_max_size=WS_MAX_MESSAGE_BYTES,  # the page sends nothing; uvicorn's 16 MB each
             limit_concurrency=MAX_CONNECTIONS,
+            # a page that stopped reading (a browser gone without a goodbye) is not waited for
+            # at the close: its connection is dropped, so the server's thread ends within it
+            timeout_graceful_shutdown=CLOSE_GRACE_S,
         )
         server = self._server = uvicorn.Server(config)
         server.install_signal_handlers = lambda: None  # the run owns the signals
@@ -161,7 +167,7 @@ class UiServer:
         host = f"[{self.host}]" if ":" in self.host else self.host
         return f"http://{host}:{self.port}/" + (f"?token={self.token}" if self.token else "")
 
-    def close(self, timeout_s: float = 2.0) -> None:
+    def close(self, timeout_s: float = 2 * CLOSE_GRACE_S) -> None:
         """Stop serving (idempotent)."""
         self._feed.close()
         if self._server is not None:

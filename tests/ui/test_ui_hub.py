@@ -26,6 +26,7 @@ def test_a_browser_that_does_not_read_drops_frames_and_never_blocks(tmp_path: Pa
     shutil.copy(EXAMPLES / "layouts" / "buttons.yaml", layout)
     server = UiServer(layout, load_registry(entry_points=False), port=0)
     server.start()
+    slow = None
     try:
         # a client with a tiny receive buffer that reads the first message and then nothing
         slow = websockets_sync.connect(f"ws://127.0.0.1:{server.port}/ws", max_size=None)
@@ -51,3 +52,7 @@ def test_a_browser_that_does_not_read_drops_frames_and_never_blocks(tmp_path: Pa
         slow.socket.close()  # gone without a goodbye, as a crashed browser
     finally:
         server.close()
+        if slow is not None:
+            slow.close()  # (the client's own threads: its socket is gone, they end)
+    # the close does not wait on the page that stopped reading: the server's thread has ended
+    assert server._thread is not None and not server._thread.is_alive()

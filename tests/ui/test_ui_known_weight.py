@@ -78,6 +78,18 @@ def setup_files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
             "nominal": nominal, "built": built, "cells": cells}  # fmt: skip
 
 
+#: the runs the tests built, released after each test (a run built and never started keeps
+#: its dispatcher's watchdog thread until it is closed)
+_BUILT: list[Any] = []
+
+
+@pytest.fixture(autouse=True)
+def _release_built_runs() -> Any:
+    yield
+    while _BUILT:
+        _BUILT.pop().close()
+
+
 def serve(files: dict[str, Any], **options: Any) -> tuple[UiServer, TestClient, Runtime]:
     """The page's server, with a run replaying the recording (not started yet) attached."""
     registry = load_registry(entry_points=False)
@@ -89,6 +101,7 @@ def serve(files: dict[str, Any], **options: Any) -> tuple[UiServer, TestClient, 
         speed=0,
         actions=False,
     )
+    _BUILT.append(assembly)
     server = UiServer(files["layout"], registry, **options)
     client = TestClient(server.app(), base_url=LOCAL)
     runtime = Runtime(assembly)
@@ -190,6 +203,7 @@ def test_the_guards_and_a_desk_without_load_cells(setup_files: dict[str, Any]) -
         files["layout"], "sim:" + str(ROOT / "examples" / "scenes" / "buttons.yaml"), registry,
         speed=0, actions=False,
     )  # fmt: skip
+    _BUILT.append(assembly)
     six_axis.attach(Runtime(assembly))
     answer = TestClient(six_axis.app(), base_url=LOCAL).get("/api/setup/weight/spots")
     assert answer.status_code == 422

@@ -57,8 +57,8 @@ class Tare:
             return None
         taken, self.windows = self.windows, []
         samples = np.concatenate([w.raw for w in taken], axis=1)
-        mean = samples.mean(axis=1)
-        return Taken(mean.tolist(), _covariance(samples, mean), taken)
+        zero = samples.mean(axis=1)
+        return Taken(zero.tolist(), _covariance(samples, zero), taken)
 
 
 def _covariance(samples: np.ndarray, mean: np.ndarray) -> np.ndarray:

@@ -192,7 +192,7 @@ def _signatures() -> list[tuple[Any, tuple[Any, ...]]]:
         (steps_changed, state),
         (contains, (f1, i1, index, types.float64, types.float64)),
         (tare_yardsticks, (f2, *state)),
-        (likeliest_noise, (f1, f2, f2, f2)),  # (at a tare, from resolution.py)
+        (likeliest_noise, (f1, f2, f2, f2, f2)),  # (at a tare, from resolution.py)
     ]
 
 

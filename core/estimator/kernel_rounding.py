@@ -150,9 +150,17 @@ def _channel_likelihood(
     return top + math.log(summed / mean.shape[1])
 
 
+# rows of likeliest_noise's scratch (6, Q): by channel (q), by place in count order (j), by turn
+_BY_COUNT, _COUNT, _TURN, _TERM, _KNOWN, _SUM = range(6)
+
+
 @compiled
 def likeliest_noise(
-    counts: np.ndarray, mean: np.ndarray, log_mean: np.ndarray, bound: np.ndarray
+    counts: np.ndarray,
+    mean: np.ndarray,
+    log_mean: np.ndarray,
+    bound: np.ndarray,
+    scratch: np.ndarray,
 ) -> int:
     """At the tare (resolution.zero_rounding_noise): which of R noises makes the quiet
     channels' squared rest changes ``counts`` (Q,) likeliest, each a Poisson count of mean
@@ -162,11 +170,12 @@ def likeliest_noise(
     A channel's term is at most max_p (k_q log μ − μ), and that at most the concave
     k log μ − μ's largest over [min_p μ, max_p μ] (at μ = k clipped into it): one logarithm
     a channel and noise, not one a place (into ``bound`` (R, Q + 1), their sum last; the
-    margin covers the rounding of the two logarithms). The likelihoods are worked out from
-    the highest bound down, each left as soon as what it has summed and the bounds of the
-    channels still to come fall below the likeliest so far, until a bound does. The whole
-    grid in numpy, (Q, R, P) arrays, took 8 ms a tare, a tenth of a minute's estimation;
-    the bound at every place, 0.15 ms of this search's 0.4."""
+    margin covers the rounding of the two logarithms). The noises are opened from the highest
+    bound down, until a bound falls below the likeliest so far; an opened noise is summed
+    whole only if :func:`_may_beat` cannot show it falls short. The whole grid in numpy,
+    (Q, R, P) arrays, took 8 ms a tare, a tenth of a minute's estimation; the bound at every
+    place, 0.15 ms of this search's 0.4. ``scratch`` (6, Q): room for the channels' order
+    by count and an opened noise's terms."""
     n_rho, n_places = mean.shape
     n_q = counts.shape[0]
     for r in range(n_rho):
@@ -181,6 +190,7 @@ def likeliest_noise(
             bound[r, q] = top
             total += top
         bound[r, n_q] = total
+    _turns(counts, scratch)
     best, best_r = -math.inf, 0
     while True:
         r = 0
@@ -189,12 +199,115 @@ def likeliest_noise(
                 r = j
         if not bound[r, n_q] >= best or bound[r, n_q] == -math.inf:
             return best_r
-        left = bound[r, n_q]  # (the summed terms so far and the bounds of the rest)
+        left = bound[r, n_q]
         bound[r, n_q] = -math.inf
+        if not _may_beat(best, r, counts, mean, log_mean, bound, scratch):
+            continue
+        # (summed as the bounds and the terms in the channels' order: the same bits as the
+        # search that summed every channel in turn)
         for q in range(n_q):
-            top = bound[r, q]
-            left += _channel_likelihood(counts[q], mean, log_mean, r, top) - top
-            if left < best:
-                break
+            left += scratch[_TERM, q] - bound[r, q]
         if left > best or (left == best and r < best_r):
             best, best_r = left, r
+
+
+@inlined
+def _turns(counts: np.ndarray, scratch: np.ndarray) -> None:
+    """The channels in order of their count (scratch[_BY_COUNT]: which channel is j-th, as a
+    float; [_COUNT] its count), and the order :func:`_may_beat` works their terms out in
+    ([_TURN]: the places j): the lowest count, the highest, then each time the place in the
+    middle of the widest span of counts between two places already taken."""
+    n_q = counts.shape[0]
+    by_count, count, turn, taken = (
+        scratch[_BY_COUNT],
+        scratch[_COUNT],
+        scratch[_TURN],
+        scratch[_KNOWN],
+    )
+    for q in range(n_q):  # (insertion: stable)
+        j = q
+        while j > 0 and count[j - 1] > counts[q]:
+            by_count[j], count[j] = by_count[j - 1], count[j - 1]
+            j -= 1
+        by_count[j], count[j] = q, counts[q]
+        taken[q] = 0.0
+    for i in range(n_q):
+        j = 0 if i == 0 else n_q - 1
+        if i > 1:
+            widest, a = -1.0, 0
+            for b in range(1, n_q):
+                if taken[b] == 1.0:
+                    if b - a > 1 and count[b] - count[a] > widest:
+                        j, widest = (a + b) // 2, count[b] - count[a]
+                    a = b
+        turn[i] = j
+        taken[j] = 1.0
+
+
+@inlined
+def _may_beat(
+    best: float,
+    r: int,
+    counts: np.ndarray,
+    mean: np.ndarray,
+    log_mean: np.ndarray,
+    bound: np.ndarray,
+    scratch: np.ndarray,
+) -> bool:
+    """Noise ``r``'s channel terms into scratch[_TERM] (Q,), worked out one channel at a time
+    (in the turns of :func:`_turns`) until every one is (True) or a bound on their sum falls
+    below ``best`` (False: the noise is less likely). A channel's term log mean_p
+    exp(k log μ_rp − μ_rp) is convex in its count k (a log-sum-exp of lines in k), so below
+    the chord between the terms of the nearest channels worked out either side of it in
+    count (with a margin for their rounding): each channel not yet worked out counts at the
+    lower of that chord and its own bound (in scratch[_SUM], by place in count order). On the
+    paper desk's tare this works out 543 of the 1,241 channel terms the bounds alone needed
+    (the same noise)."""
+    n_q = counts.shape[0]
+    by_count, known, summed = scratch[_BY_COUNT], scratch[_KNOWN], scratch[_SUM]
+    for j in range(n_q):
+        known[j] = 0.0
+        summed[j] = bound[r, int(by_count[j])]
+    for i in range(n_q):
+        j = int(scratch[_TURN, i])
+        q = int(by_count[j])
+        term = _channel_likelihood(counts[q], mean, log_mean, r, bound[r, q])
+        scratch[_TERM, q] = summed[j] = term
+        known[j] = 1.0
+        if i == n_q - 1:
+            return True
+        a, b = j - 1, j + 1
+        while a >= 0 and known[a] == 0.0:
+            a -= 1
+        while b < n_q and known[b] == 0.0:
+            b += 1
+        if a >= 0:
+            _chords(a, j, r, bound, scratch)
+        if b < n_q:
+            _chords(j, b, r, bound, scratch)
+        total = 0.0
+        for u in range(n_q):
+            total += summed[u]
+        if total < best:
+            return False
+    return True
+
+
+@inlined
+def _chords(a: int, b: int, r: int, bound: np.ndarray, scratch: np.ndarray) -> None:
+    """The channels between places ``a`` and ``b`` in count order (whose terms are worked
+    out) at the lower of their own bound and the chord between those two terms
+    (:func:`_may_beat`)."""
+    if b - a < 2:
+        return
+    by_count, count, summed = scratch[_BY_COUNT], scratch[_COUNT], scratch[_SUM]
+    fa, fb = summed[a], summed[b]
+    # (the rounding, and the places a term leaves out, each under e⁻⁴⁰ of its bound: they
+    # lower it by at most exp(bound − term − 40), so the chord of the terms left whole lies
+    # at most that much higher)
+    gap = max(bound[r, int(by_count[a])] - fa, bound[r, int(by_count[b])] - fb)
+    margin = 1e-9 * (1.0 + abs(fa) + abs(fb)) + math.exp(gap - 40.0)
+    ka = count[a]
+    slope = (fb - fa) / (count[b] - ka) if count[b] > ka else 0.0
+    for u in range(a + 1, b):
+        summed[u] = min(fa + (count[u] - ka) * slope + margin, bound[r, int(by_count[u])])

@@ -115,7 +115,8 @@ def zero_rounding_noise(step: np.ndarray, rest_var: np.ndarray, rest_n: int) -> 
         return np.zeros(len(step))
     counts = 2.0 * rest_n * rest_var[quiet] / step[quiet] ** 2
     bound = np.empty((len(_RHO_GRID), len(counts) + 1))
-    rho = float(_RHO_GRID[likeliest_noise(counts, *_count_means(rest_n), bound)])
+    scratch = np.empty((6, len(counts)))
+    rho = float(_RHO_GRID[likeliest_noise(counts, *_count_means(rest_n), bound, scratch)])
     return np.where(quiet, rho, 0.0)
 
 

@@ -8,8 +8,10 @@ import pytest
 
 from hapticdesk.estimator import ContactEstimator
 from hapticdesk.estimator.candidates import Covariances
+from hapticdesk.estimator.kernel_rounding import likeliest_noise
 from hapticdesk.estimator.resolution import (
     CONFIRM_CHANGES,
+    _count_means,
     bias_variance,
     moved_share,
     rest_variance,
@@ -164,6 +166,39 @@ def test_the_noise_is_told_from_many_channels_better_than_by_their_mean_variance
     off = np.abs(np.array(likeliest) - rho)
     assert np.sum(off < 0.02) >= 19
     assert np.std(likeliest) < np.std(by_mean)
+
+
+def _likelihoods(counts: np.ndarray, rest_n: int) -> np.ndarray:
+    """Every noise's log-likelihood of the channels' squared rest changes ``counts``, over the
+    whole grid in plain numpy (the likelihood likeliest_noise's search maximises)."""
+    mean, log_mean = _count_means(rest_n)
+    terms = counts[:, None, None] * log_mean[None] - mean[None]  # (Q, R, P)
+    top = terms.max(axis=2, keepdims=True)
+    per_channel = top[..., 0] + np.log(np.mean(np.exp(terms - top), axis=2))
+    return per_channel.sum(axis=0)
+
+
+@pytest.mark.parametrize("kind", ["alike", "unlike", "equal", "still"])
+def test_the_noise_search_finds_the_likeliest_noise_of_the_whole_grid(kind):
+    """The search (bounds, and chords of the convex channel terms, to leave noises out) picks
+    the noise whose likelihood is the largest of the whole grid's, on channels of one noise,
+    of unlike noises, all of one count, and still ones (counts of 0)."""
+    rng = np.random.default_rng({"alike": 1, "unlike": 2, "equal": 3, "still": 4}[kind])
+    for _ in range(12):
+        rest_n = int(rng.choice([60, 600, 2400]))
+        q = int(rng.integers(1, 40))
+        rho = rng.uniform(0.0, 0.05 if kind == "still" else 0.7)
+        readings = np.round(rng.uniform(0, 1, (q, 1)) + rho * rng.standard_normal((q, rest_n + 1)))
+        counts = np.sum(np.diff(readings, axis=1) ** 2, axis=1)
+        if kind == "unlike":
+            counts = np.round(counts * rng.uniform(0.2, 3.0, q))
+        elif kind == "equal":
+            counts[:] = counts[0]
+        found = likeliest_noise(
+            counts, *_count_means(rest_n), np.empty((141, q + 1)), np.empty((6, q))
+        )
+        likelihood = _likelihoods(counts, rest_n)
+        assert likelihood[found] == pytest.approx(likelihood.max(), rel=1e-12, abs=1e-9)
 
 
 def _mean_bias(x: np.ndarray, noise: np.ndarray) -> np.ndarray:

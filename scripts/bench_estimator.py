@@ -73,8 +73,11 @@ from reference_paper import (  # noqa: E402
 
 MINUTE_S = 60.0
 SLOW_US = 100.0  # a push slower than this is counted (issue 29: none in a minute)
-#: the other CPUs busier than this while the minute ran: said with the figures (on this project's
-#: shared two-core machine the kernel then runs up to twice as slow, the reference 1.2 times)
+#: the other CPUs busier than this while the minute ran: said with the figures. On this
+#: project's shared two-core machine a neighbour moving much memory (a numpy-heavy script) ran
+#: the kernel up to twice as slow and the reference 1.2 times; a neighbour only computing (a
+#: shell loop on the other CPU) did not slow it (2026-12-07 10:31 UTC: force 8.6-8.8 ms against
+#: 8.4-8.7 quiet, docs/performance.md)
 BUSY_NEIGHBOURS = 0.25
 
 
@@ -307,7 +310,7 @@ def main() -> None:
         f"{'all cores' if args.all_cores else 'one core, one BLAS thread'}; load average "
         f"{' '.join(f'{x:.1f}' for x in info['load_average'] or ())}; the other CPUs "
         f"{neighbours:.0%} busy while the minute ran"
-        + (" (not a quiet run: see docs/performance.md)" if neighbours > BUSY_NEIGHBOURS else "")
+        + (" (compare with care: see docs/performance.md)" if neighbours > BUSY_NEIGHBOURS else "")
     )
     print(
         f"one minute ({minute:,} samples), median of {args.repeats}; batch of "

@@ -146,6 +146,14 @@ def parse_options(options: Any, position: Position | str) -> HttpOptions:
         raise ConfigError(
             m.where("url"), f"`url` of `http` must start with http:// or https://, found {url!r}"
         )
+    parts = urllib.parse.urlsplit(url)
+    if "{" not in parts.netloc:  # (a templated server is known at the call only)
+        try:
+            _ = parts.port  # (urllib checks it as it reads it)
+        except ValueError:
+            raise ConfigError(
+                m.where("url"), f"`url` of `http` has no valid port (0-65535): {parts.netloc!r}"
+            ) from None
     if "json" in m and "body" in m:
         raise ConfigError(m.where("body", of_key=True), "`http` takes `json` or `body`, not both")
     headers = {}

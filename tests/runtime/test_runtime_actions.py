@@ -60,6 +60,8 @@ def build(tmp_path: Path, registry, do: str):
         ("{exec: {argv: [ls], shell: true}}", "shell", "unknown key `shell`"),
         ('{exec: {argv: [echo, "{{ regoin }}"]}}', '"{{', "regoin"),
         ("{http: {url: ftp://x}}", "ftp", "http:// or https://"),
+        ("{http: {url: 'http://h:abc/x'}}", "'http", "no valid port (0-65535): 'h:abc'"),
+        ("{http: {url: 'http://h:99999/x'}}", "'http", "no valid port (0-65535): 'h:99999'"),
         ("{http: {url: 'http://x', method: SEND}}", "SEND", "POST, PUT, PATCH, GET, DELETE"),
         ("{mqtt: {topic: 'a/+/set'}}", "'a/+", "must not be empty or hold + or #"),
         ("{mqtt: {topic: a/b, qos: 3}}", "3", "`qos` of `mqtt` must be 0, 1 or 2"),

@@ -92,6 +92,16 @@ def contains(pf: np.ndarray, pi: np.ndarray, s: int, u: float, v: float) -> bool
 
 
 @inlined
+def surface_force(
+    r: np.ndarray, fx: float, fy: float, fz: float, mx: float, my: float, mz: float
+) -> float:
+    """F'z: the wrench's force into the surface whose record is ``r`` (its first row; the
+    denominator of eq. 5). The one sum :func:`intersect` and the rounding floor both make, so
+    that the floor's 1/F'z equals a candidate's to the bit (kernel_rounding.rounding_floor)."""
+    return r[0] * fx + r[1] * fy + r[2] * fz + r[3] * mx + r[4] * my + r[5] * mz
+
+
+@inlined
 def to_desk(
     pf: np.ndarray, pi: np.ndarray, s: int, u: float, v: float
 ) -> tuple[float, float, float]:
@@ -142,7 +152,7 @@ def intersect(
     for s in range(n_surf):
         at = surface_at(pi, s)
         r = pf[at : at + SURF_F]
-        fz = r[0] * fx + r[1] * fy + r[2] * fz_ + r[3] * mx + r[4] * my + r[5] * mz
+        fz = surface_force(r, fx, fy, fz_, mx, my, mz)
         if not fz * sign > pf[P_MIN_COS] * norm:
             continue
         lx = r[6] * fx + r[7] * fy + r[8] * fz_ + r[9] * mx + r[10] * my + r[11] * mz

@@ -25,7 +25,7 @@ import math
 import numpy as np
 
 from hapticdesk.estimator.kernel_compile import compiled, inlined, inlined_entry
-from hapticdesk.estimator.kernel_geometry import surface_at
+from hapticdesk.estimator.kernel_geometry import surface_at, surface_force
 from hapticdesk.estimator.kernel_slots import (
     I_C,
     I_SO_ROUND,
@@ -111,8 +111,8 @@ def rounding_floor(
     sample until the next tare, so no averaging of samples lowers it (0 where no channel
     keeps an offset). The sums over the channels are the kept ones while the wrench stays
     near where they were made (module docstring), else made anew. ``inv_fz``: 1/F'z of the
-    wrench on ``s`` where a candidate made from it has it (the same bits as made here, as
-    kernel_geometry.intersect makes it), 0 to make it here."""
+    wrench on ``s`` where a candidate made from it has it (the same bits as made here: both
+    kernel_geometry.surface_force), 0 to make it here."""
     at = pi[I_SO_ROUND]
     if sf[at + ROUND_ACTIVE] == 0.0:  # no channel rounds quieter than its step
         return 0.0
@@ -124,8 +124,8 @@ def rounding_floor(
         _shares_summed(sf, at, pi[I_C], w, s)
     if inv_fz == 0.0:
         r = pf[surface_at(pi, s) : surface_at(pi, s) + SURF_F]
-        w0, w1, w2, w3, w4, w5 = sf[w], sf[w + 1], sf[w + 2], sf[w + 3], sf[w + 4], sf[w + 5]
-        inv_fz = 1.0 / (r[0] * w0 + r[1] * w1 + r[2] * w2 + r[3] * w3 + r[4] * w4 + r[5] * w5)
+        fz = surface_force(r, sf[w], sf[w + 1], sf[w + 2], sf[w + 3], sf[w + 4], sf[w + 5])
+        inv_fz = 1.0 / fz
     inv2 = min(inv_fz * inv_fz, 1e18)
     sums = at + ROUND_SUMS
     cz, czx, czy, cx, cy = sf[sums], sf[sums + 1], sf[sums + 2], sf[sums + 3], sf[sums + 4]

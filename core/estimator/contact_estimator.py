@@ -156,6 +156,7 @@ class ContactEstimator:
                 slots.J_ZERO_VERSION,
                 slots.J_RESTING_NEXT,
                 slots.J_OBJ_RESTING,
+                slots.J_OBJ_GRACED,
                 slots.J_ZERO_NEXT,
             ),
         ):

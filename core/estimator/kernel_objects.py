@@ -19,6 +19,7 @@ from hapticdesk.estimator.kernel_slots import (
     I_N_OBJECT,
     I_SO_OBJ_WINDOWS,
     I_SO_SCRATCH,
+    J_OBJ_GRACED,
     J_OBJ_RESTING,
     J_OBJ_WINDOWS_N,
     J_OBJ_WINDOWS_POS,
@@ -60,8 +61,9 @@ def object_still(
     still as the idle desk to be an object? Returns the run's new length (0: no object, for
     now) and the verdict. Judged on the last I_N_OBJECT windows (one more under
     P_LIGHT_LOAD): their means within the allowed wander of each other, their upper median
-    spread within the limit, none over P_OBJECT_SPIKE times it. Also notes whether the load
-    rests (J_OBJ_RESTING: its windows so far as still as an object's)."""
+    spread within the limit, none over P_OBJECT_SPIKE times it (but one of a light load that
+    rests on through it, J_OBJ_GRACED). Also notes whether the load rests (J_OBJ_RESTING: its
+    windows so far as still as an object's)."""
     n_object = pi[I_N_OBJECT]
     quiet_spread = sf[S_QUIET_SPREAD]
     limit = max(pf[P_OBJECT_STILL_FACTOR] * quiet_spread, pf[P_HEAVY_SPREAD_SHARE] * load)
@@ -69,11 +71,17 @@ def object_still(
         n_object == 0
         or load < pf[P_DRIFT_MAX]  # (drift, also when drift is not followed)
         or quiet_spread < pf[P_OBJECT_NOISE_FLOOR]
-        or spread >= pf[P_OBJECT_SPIKE] * limit
     ):
         return 0, False
+    # a window spread past an object's ends the run, but for one a run of a light load that
+    # rests and whose mean keeps it resting (a desk still ringing from a cup's landing:
+    # still_objects.OBJECT_SPIKE); it counts toward no verdict
+    spiked = spread >= pf[P_OBJECT_SPIKE] * limit
+    light_rest = load < pf[P_LIGHT_LOAD] and si[J_OBJ_RESTING] and run > 0
+    if spiked and not (light_rest and not si[J_OBJ_GRACED]):
+        return 0, False
     if run == 0:
-        si[J_OBJ_WINDOWS_N] = 0
+        si[J_OBJ_WINDOWS_N] = si[J_OBJ_GRACED] = 0
     run += 1
     wait = n_object + 1 if load < pf[P_LIGHT_LOAD] else n_object
     cap, at = n_object + 1, pi[I_SO_OBJ_WINDOWS]
@@ -87,6 +95,9 @@ def object_still(
     # allowed wander (still_objects.OBJECT_RESTING_KEEP says why)
     keep = pf[P_OBJECT_RESTING_KEEP] if si[J_OBJ_RESTING] and run > 1 else 1.0
     si[J_OBJ_RESTING] = 1 if strayed < keep * allowed else 0
+    if spiked:
+        si[J_OBJ_GRACED] = 1
+        return (run, False) if si[J_OBJ_RESTING] else (0, False)
     median = nth_smallest(sf, at, 4, cap, pos, n, n // 2, pi[I_SO_SCRATCH])
     # (a load that strays is no object, for now)
     return run, strayed < allowed and run >= wait and median < limit

@@ -284,8 +284,9 @@ N_SF_FIXED = 103
     J_OBJ_HELD,  # EV_ABSORBED: the windows whose means made the zero (0: held settle_s)
     J_ZERO_NEXT,  # S_ZERO_NEXT is the zero from the next sample on
     J_REST_N,  # rest readings compared so far (up to I_REST_N)
+    J_OBJ_GRACED,  # a window of the object run spread past an object's and was kept (one a run)
     N_SI_FIXED,
-) = range(60)
+) = range(61)
 # the second-finger stage's history of each sample: smoothed wrench and contact (floats), and
 # its located, surface and in-contact (ints)
 MT_W, MT_X, MT_Y, MT_Z, MT_FORCE, MT_F = 0, 6, 7, 8, 9, 10

@@ -64,14 +64,17 @@ def test_an_object_put_on_a_button_holds_nothing(desk, layout, mass_kg, seed):
 
 @pytest.mark.parametrize(
     ("desk_name", "seeds"),
-    [("unseen-four", (2, 3)), ("unseen-six", (2,)), ("panel-accel", (5,))],
+    [("unseen-four", (2, 3)), ("unseen-six", (2,)), ("panel-accel", (5,)), ("unseen-wide", (2,))],
 )
 def test_a_cup_whose_landing_rings_on_holds_nothing(desk_name, seeds, tmp_path):
     """Desks the resting was not tuned on (scripts/objects_eval.py): on these seeds a 0.3 kg
     cup's 0.2 s means strayed 1.05-1.46 times the allowed wander for a window or two while
     its landing rang out. The resting flag dropped on that window and the due long press
     fired; now the flag, once up, holds until the means stray 1.6 times it, and the cup is
-    absorbed (at once or after ``settle_s``) with nothing fired."""
+    absorbed (at once or after ``settle_s``) with nothing fired. On the wide desk (seed 2) a
+    window spread 1.43 times an object's limit as the ring went on, its mean where the cup
+    rested, and the flag dropped for it: a light load keeps resting through one such window
+    a run (still_objects.OBJECT_SPIKE)."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "scripts"))
     import objects_eval
 

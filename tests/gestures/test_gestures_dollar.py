@@ -216,11 +216,16 @@ def test_the_lowo_scripts_verdicts_are_the_recognizers(subject, looser):
         agreement,
         catalogue_twins,
         judge,
+        medians,
+        separation,
     )
     from hapticdesk.gestures.strokes.unistroke import template_set
 
     assert DOLLAR is not None
-    choices = replace(DEFAULT_CHOICES, confirmed_margin=DEFAULT_CHOICES.margin + looser)
+    choices = DEFAULT_CHOICES
+    if looser:  # the fixed margins, the confirmed one looser
+        fixed = replace(DEFAULT_CHOICES, margin_share=None)
+        choices = replace(fixed, confirmed_margin=fixed.margin + looser)
     strokes = list(read_logs(DOLLAR / subject / "fast"))
     templates = [s for s in strokes if s.repetition <= 3 and s.shape != "check"]
     tests = [s for s in strokes if s.repetition > 3]
@@ -234,7 +239,8 @@ def test_the_lowo_scripts_verdicts_are_the_recognizers(subject, looser):
     own = agreement(scores[:k, :k], names, np.ones(k, bool))
     twins = catalogue_twins(catalogue[:k], names, builtin.names)
     rival = Catalogue(catalogue[k:], builtin.names, twins)
-    lowo = judge(scores[k:, :k], names, np.zeros(k, bool), MIN_SCORE, own, choices, rival)
+    apart = separation(medians(scores[:k, :k], names, catalogue[:k], builtin.names))
+    lowo = judge(scores[k:, :k], names, np.zeros(k, bool), MIN_SCORE, own, choices, rival, apart)
     user: dict[str, list[np.ndarray]] = {}
     for s in templates:
         user.setdefault(s.shape, []).append(s.points)
@@ -380,7 +386,7 @@ def test_the_margin_made_on_four_writers_expects_a_new_one_to_differ():
         found = stroke_lowo.Found(
             Nearest([], np.zeros((n, 0)), np.full(n, "v", dtype=object), 1.0 - d,
                     np.ones(n), np.zeros(n, bool), np.full(n, -np.inf), np.full(n, -np.inf),
-                    np.full(n, np.inf)),
+                    np.full(n, np.inf), np.zeros(n)),
             np.full(n, "check", dtype=object),
         )  # fmt: skip
         writer = np.concatenate([np.full(len(v), w, dtype=object) for w, v in distances.items()])
@@ -389,17 +395,18 @@ def test_the_margin_made_on_four_writers_expects_a_new_one_to_differ():
     def pooled(p: stroke_lowo.Protocols) -> float:
         out = stroke_lowo.MARGINS[0]
         for m in stroke_lowo.MARGINS:
-            if p.unknown.accepted(replace(DEFAULT_CHOICES, margin=m)).mean() > 0.05:
+            if p.unknown.accepted(replace(fixed, margin=m)).mean() > 0.05:
                 break
             out = m
         return out
 
+    fixed = replace(DEFAULT_CHOICES, margin_share=None)
     neat = np.linspace(0.04, 1.0, 200)  # 4 % accepted at a margin of 0.08
     loose = np.linspace(0.0, 0.5, 200)  # 16 %
     alike = protocols({w: neat for w in "abcd"})
-    assert stroke_lowo.margin(alike, list("abcd"), DEFAULT_CHOICES) == pooled(alike) == 0.085
+    assert stroke_lowo.margin(alike, list("abcd"), fixed) == pooled(alike) == 0.085
     mixed = protocols({"a": neat, "b": neat, "c": neat, "d": loose})
-    nested = stroke_lowo.margin(mixed, list("abcd"), DEFAULT_CHOICES)
+    nested = stroke_lowo.margin(mixed, list("abcd"), fixed)
     assert nested < pooled(mixed) == 0.06
 
 
@@ -435,7 +442,7 @@ def test_the_rejection_rules_script_measures_the_shipped_rule_as_the_recognizer(
         scores[k:, :k][:, keep], names[keep], scores[:k, :k][np.ix_(keep, keep)], shipped
     )
     for margin in (0.02, DEFAULT_CHOICES.margin, 0.1):
-        mine = TemplateSet(replace(DEFAULT_CHOICES, margin=margin))
+        mine = TemplateSet(replace(DEFAULT_CHOICES, margin=margin, margin_share=None))
         for s in templates:
             if s.shape not in ("v", "check"):
                 mine.add(s.shape, s.points)
@@ -458,7 +465,8 @@ def test_a_shape_the_catalogue_confirms_asks_the_looser_margin():
     from hapticdesk.gestures.strokes.stroke_similarity import DEFAULT_CHOICES
     from hapticdesk.gestures.strokes.unistroke import template_set
 
-    looser = replace(DEFAULT_CHOICES, confirmed_margin=DEFAULT_CHOICES.margin + 0.06)
+    fixed = replace(DEFAULT_CHOICES, margin_share=None)
+    looser = replace(fixed, confirmed_margin=fixed.margin + 0.06)
     u = np.linspace(0.0, 2 * np.pi, 80)
     circles = [np.column_stack([np.cos(u), (1 + 0.01 * k) * np.sin(u)]) for k in range(3)]
     user = {"circle": circles, "line": [np.column_stack([np.linspace(0, 1, 9), np.zeros(9)])]}

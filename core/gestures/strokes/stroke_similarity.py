@@ -73,6 +73,15 @@ class ScoreChoices:
     #: a shape with two or more drawn templates needs a score of its templates' own
     #: agreement less this
     margin: float = 0.065
+    #: the margin as a share of the set's separation (stroke_verdict.separation: how far
+    #: apart its writer keeps their shapes, on medians over pairs of templates), instead of
+    #: ``margin`` and ``confirmed_margin``; None: those
+    margin_share: float | None = 0.25
+    #: with ``margin_share``: a stroke gets more than ``margin`` only where the built-in
+    #: catalogue's nearest shape is the one it is taken for and its size is at least this
+    #: share of the least of that shape's drawn templates' (a dragged tap against a drawn
+    #: triangle); chosen as the least share the training writers' own strokes showed
+    least_size: float = 0.65
     #: the margin instead, for a stroke the built-in catalogue takes for the same shape
     #: (stroke_verdict.catalogue_says), at least ``margin``. Chosen as ``margin`` is, on
     #: unknown shapes the catalogue lacks too: on those it has, the catalogue's rival rule
@@ -92,15 +101,16 @@ DEFAULT_CHOICES = ScoreChoices()
 
 class StrokeFeatures(NamedTuple):
     """What the recognizer compares, for k paths: Protractor's vectors (k, N_POINTS, 2),
-    the directions of motion (k, N_DIRECTIONS) and the form (k, 2: total turning, corner
-    share)."""
+    the directions of motion (k, N_DIRECTIONS), the form (k, 2: total turning, corner
+    share) and the size (k,: the diagonal of the bounding box, in the path's units)."""
 
     vectors: np.ndarray
     angles: np.ndarray
     forms: np.ndarray
+    sizes: np.ndarray
 
     def take(self, index: np.ndarray | slice) -> StrokeFeatures:
-        return StrokeFeatures(self.vectors[index], self.angles[index], self.forms[index])
+        return StrokeFeatures(*(a[index] for a in self))
 
 
 class Similarity(NamedTuple):
@@ -154,6 +164,11 @@ def corner_share(points: np.ndarray) -> float:
     return top / max(float(turns.sum()), MIN_TURNING)
 
 
+def path_size(points: np.ndarray) -> float:
+    """The diagonal of a path's bounding box (its units)."""
+    return float(np.hypot(*np.ptp(np.asarray(points, dtype=float), axis=0)))
+
+
 def stroke_features(paths: Sequence[np.ndarray]) -> tuple[StrokeFeatures, np.ndarray]:
     """The features of the paths that have an extent, and their indices into ``paths``."""
     vectors = [stroke_vector(p) for p in paths]
@@ -164,6 +179,7 @@ def stroke_features(paths: Sequence[np.ndarray]) -> tuple[StrokeFeatures, np.nda
         np.asarray(
             [(total_turning(paths[i]), corner_share(paths[i])) for i in ok], dtype=float
         ).reshape(len(ok), 2),
+        np.asarray([path_size(paths[i]) for i in ok], dtype=float).reshape(len(ok)),
     )
     return features, ok
 

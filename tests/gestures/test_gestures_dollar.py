@@ -240,7 +240,9 @@ def test_the_lowo_scripts_verdicts_are_the_recognizers(subject, looser):
     twins = catalogue_twins(catalogue[:k], names, builtin.names)
     rival = Catalogue(catalogue[k:], builtin.names, twins)
     apart = separation(medians(scores[:k, :k], names, catalogue[:k], builtin.names))
-    lowo = judge(scores[k:, :k], names, np.zeros(k, bool), MIN_SCORE, own, choices, rival, apart)
+    sizes = (features.sizes[k:], features.sizes[:k])
+    ideal = np.zeros(k, bool)
+    lowo = judge(scores[k:, :k], names, ideal, MIN_SCORE, own, choices, rival, apart, sizes)
     user: dict[str, list[np.ndarray]] = {}
     for s in templates:
         user.setdefault(s.shape, []).append(s.points)
@@ -487,3 +489,129 @@ def test_a_shape_the_catalogue_confirms_asks_the_looser_margin():
     assert plain.classify(oval, MIN_SCORE).shape is None
     assert confirming.classify(oval, MIN_SCORE).shape == "circle"
     assert shipped.classify(oval, MIN_SCORE).shape is None
+
+
+@needs_logs
+def test_the_margin_grows_with_a_writers_separation():
+    """The shipped margin is a share of how far apart a writer keeps their shapes
+    (stroke_verdict.separation, on medians over pairs of templates): s02, who keeps their
+    shapes apart, gets more slack below a shape's agreement than s05, who draws v and check
+    alike; both are that share of their separation, and not the fixed margin."""
+    from hapticdesk.gestures.strokes.stroke_similarity import DEFAULT_CHOICES
+    from hapticdesk.gestures.strokes.unistroke import template_set
+
+    assert DOLLAR is not None and DEFAULT_CHOICES.margin_share is not None
+    margins, apart = {}, {}
+    for subject in ("s02", "s05"):
+        user: dict[str, list[np.ndarray]] = {}
+        for s in read_logs(DOLLAR / subject / "fast"):
+            if s.repetition <= 3:
+                user.setdefault(s.shape, []).append(s.points)
+        layout = template_set(user, builtin=False)
+        margins[subject] = layout.margin()
+        apart[subject] = layout._separation(30.0)
+    assert apart["s02"] > apart["s05"] + 0.03
+    assert margins["s02"] > margins["s05"] + 0.005
+    for subject in margins:
+        assert margins[subject] == pytest.approx(DEFAULT_CHOICES.margin_share * apart[subject])
+        assert margins[subject] != pytest.approx(DEFAULT_CHOICES.margin)
+
+
+def test_the_separation_is_on_medians_and_counts_the_catalogue():
+    """A shape's gap is the median of its templates against each other less the highest
+    median of another shape's against them, the set's or a catalogue shape the set has none
+    of; a shape left out of the set counts as the catalogue's if the catalogue has it."""
+    from hapticdesk.gestures.strokes.stroke_verdict import medians, separation
+
+    names = np.asarray(["a"] * 3 + ["b"] * 3, dtype=object)
+    scores = np.full((6, 6), 0.5)
+    scores[:3, :3] = [[1.0, 0.9, 0.8], [0.9, 1.0, 0.95], [0.8, 0.95, 1.0]]  # median 0.9
+    scores[3:, 3:] = 0.96
+    scores[3:, :3] = [[0.1, 0.2, 0.3], [0.2, 0.3, 0.9], [0.3, 0.2, 0.2]]  # b against a: 0.2
+    catalogue = np.asarray([[0.7, 0.1], [0.6, 0.1], [0.1, 0.1], [0.4, 0.2]] + [[0.0, 0.0]] * 2)
+    found = medians(scores, names, catalogue, np.asarray(["c", "b"], dtype=object))
+    assert found.within.tolist() == pytest.approx([0.9, 0.96])
+    # a: the catalogue's c (0.6) is nearer than b (0.2); b: a against b is 0.5
+    assert separation(found) == pytest.approx(((0.9 - 0.6) + (0.96 - 0.5)) / 2)
+    # without b in the set, the catalogue's b (median 0.1 for a's templates) does not beat c
+    assert separation(found, without="b") == pytest.approx(0.9 - 0.6)
+    assert separation(found, without="b", catalogue_without="c") == pytest.approx(0.9 - 0.1)
+
+
+def _zone(size: float, confirmed: float):
+    """One stroke short of its shape's agreement (0.95) by 0.08: more than ``margin`` (0.065),
+    less than the share of a separation of 0.4 (0.1), of ``size`` over its shape's least
+    template, ``confirmed`` the catalogue's score where its nearest shape is the taken one."""
+    from hapticdesk.gestures.strokes.stroke_verdict import Nearest
+
+    one = np.ones(1)
+    return Nearest(
+        ["triangle"], np.full((1, 1), 0.87), np.asarray(["triangle"], dtype=object), 0.87 * one,
+        0.95 * one, np.zeros(1, bool), np.full(1, -np.inf), confirmed * one, 0.9 * one,
+        0.4 * one, size * one,
+    )  # fmt: skip
+
+
+def test_a_dragged_tap_gets_no_more_than_the_fixed_margin():
+    """Beyond ``margin`` the separation's share is given only to a stroke the catalogue
+    takes for the same shape and not much smaller than the person's templates of it: a tap
+    dragged 5 cm against triangles drawn 15 cm and more, which $1's uniform scale cannot
+    see, falls back to ``margin`` and is rejected; the same stroke at the templates' size is
+    taken, and one the catalogue takes for another shape is not."""
+    from dataclasses import replace
+
+    from hapticdesk.gestures.strokes.stroke_similarity import DEFAULT_CHOICES
+
+    choices = replace(DEFAULT_CHOICES, margin=0.065, margin_share=0.25, least_size=0.65)
+    assert _zone(1.0, 0.9).accepted(MIN_SCORE, choices).tolist() == [True]
+    assert _zone(5.0 / 15.0, 0.9).accepted(MIN_SCORE, choices).tolist() == [False]
+    assert _zone(1.0, -np.inf).accepted(MIN_SCORE, choices).tolist() == [False]
+    assert _zone(0.66, 0.9).margin(choices).tolist() == pytest.approx([0.1])
+    assert _zone(0.64, 0.9).margin(choices).tolist() == pytest.approx([0.065])
+
+
+def test_a_small_dragged_stroke_is_not_taken_for_a_persons_large_triangle():
+    """The same through a layout's templates (the built-in ones their catalogue): a
+    person's three triangles, drawn 15-18 cm, and a small wandering three-segment stroke
+    that scores against them within the separation's share but beyond ``margin``: rejected
+    at 5 cm, taken when as large as the triangles (or when the guard is off). A share of 0.6
+    so that this set, whose shapes are near the catalogue's, has a zone to test."""
+    from dataclasses import replace
+
+    from hapticdesk.gestures.strokes.stroke_similarity import DEFAULT_CHOICES
+
+    def template_set(user, builtin: bool, least_size: float = 0.65) -> TemplateSet:
+        choices = replace(DEFAULT_CHOICES, margin_share=0.6, least_size=least_size)
+        out = TemplateSet(choices, catalogue=builtin_templates())
+        out.add_all(user)
+        return out
+
+    rng = np.random.default_rng(3)
+    corners = np.asarray([[0.0, 0.0], [0.5, 0.9], [1.0, 0.0], [0.0, 0.0]])
+
+    def triangle(size: float, jitter: float) -> np.ndarray:
+        pts = corners + rng.normal(scale=jitter, size=corners.shape)
+        pts[-1] = pts[0]
+        along = np.linspace(0, 3, 120)
+        path = np.column_stack([np.interp(along, np.arange(4), pts[:, k]) for k in (0, 1)])
+        return path * size
+
+    user = {
+        "triangle": [triangle(s, 0.01) for s in (0.15, 0.17, 0.18)],
+        "line": [np.column_stack([np.linspace(0, 0.15, 20), np.zeros(20)]) for _ in range(3)],
+        "v": [np.asarray([[0.0, 0.1], [0.05, 0.0], [0.1, 0.1]]) * (1 + 0.05 * k) for k in range(3)],
+    }
+    layout = template_set(user, builtin=False)
+    margin, share = layout.choices.margin, layout.margin()
+    needed = layout.thresholds()["triangle"]
+    for _ in range(400):
+        tap = triangle(1.0, 0.25)
+        match = layout.classify(tap * 0.17, MIN_SCORE)
+        zone = needed + 0.003 < match.score < needed + share - margin - 0.003
+        if match.shape == "triangle" and zone:
+            break  # short of the agreement by more than margin, less than the share: taken
+    else:
+        raise AssertionError(f"no stroke in the zone (margin {margin}, share {share:.3f})")
+    assert layout.classify(tap * 0.05, MIN_SCORE).shape is None
+    unguarded = template_set(user, builtin=False, least_size=0.0)
+    assert unguarded.classify(tap * 0.05, MIN_SCORE).shape == "triangle"

@@ -76,7 +76,7 @@ class ScoreChoices:
     #: the margin as a share of the set's separation (stroke_verdict.separation: how far
     #: apart its writer keeps their shapes, on medians over pairs of templates), instead of
     #: ``margin`` and ``confirmed_margin``; None: those
-    margin_share: float | None = 0.25
+    margin_share: float | None = 0.22
     #: with ``margin_share``: a stroke gets more than ``margin`` only where the built-in
     #: catalogue's nearest shape is the one it is taken for and its size is at least this
     #: share of the least of that shape's drawn templates' (a dragged tap against a drawn

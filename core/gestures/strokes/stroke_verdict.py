@@ -245,7 +245,7 @@ class Nearest(NamedTuple):
             return fixed
         share = np.maximum(choices.margin_share * self.separation, 0.0)
         share = np.where(np.isnan(self.separation), fixed, share)
-        return np.where(self.trusted(choices), share, np.minimum(share, fixed))
+        return np.where(self.trusted(choices), np.maximum(share, fixed), fixed)
 
     def trusted(self, choices: ScoreChoices = DEFAULT_CHOICES) -> np.ndarray:
         """Whether each stroke may have more than ``choices.margin`` (k,) bool: the built-in

@@ -73,14 +73,16 @@ class ScoreChoices:
     #: a shape with two or more drawn templates needs a score of its templates' own
     #: agreement less this
     margin: float = 0.065
-    #: the margin as a share of the set's separation (stroke_verdict.separation: how far
-    #: apart its writer keeps their shapes, on medians over pairs of templates), instead of
-    #: ``margin`` and ``confirmed_margin``; None: those
+    #: a margin of this share of the set's separation (stroke_verdict.separation: how far
+    #: apart its writer keeps their shapes, on medians over pairs of templates) where that
+    #: is more than ``margin``, for a stroke the catalogue takes for the same shape and not
+    #: smaller than ``least_size`` (stroke_verdict.Nearest.margin); ``confirmed_margin`` is
+    #: then not used. None: ``margin`` and ``confirmed_margin`` only
     margin_share: float | None = 0.22
-    #: with ``margin_share``: a stroke gets more than ``margin`` only where the built-in
-    #: catalogue's nearest shape is the one it is taken for and its size is at least this
-    #: share of the least of that shape's drawn templates' (a dragged tap against a drawn
-    #: triangle); chosen as the least share the training writers' own strokes showed
+    #: with ``margin_share``: a stroke gets more than ``margin`` only where its size is at
+    #: least this share of the least of its shape's drawn templates' (a tap dragged 5 cm
+    #: against triangles drawn 15 cm: $1 is scale-invariant); the least share, rounded down
+    #: to 0.05, of the training writers' own strokes taken for their shape
     least_size: float = 0.65
     #: the margin instead, for a stroke the built-in catalogue takes for the same shape
     #: (stroke_verdict.catalogue_says), at least ``margin``. Chosen as ``margin`` is, on

@@ -237,9 +237,12 @@ class Nearest(NamedTuple):
     size: np.ndarray
 
     def margin(self, choices: ScoreChoices = DEFAULT_CHOICES) -> np.ndarray:
-        """The margin below its shape's agreement each stroke may fall (k,): ``choices.
-        margin_share`` of its set's separation (at least 0), or ``choices.margin`` without a
-        share or a separation (nan: a set with no catalogue to measure it against)."""
+        """The margin below its shape's agreement each stroke may fall (k,): with
+        ``choices.margin_share``, that share of its set's separation where it is more than
+        ``choices.margin`` and the stroke is :meth:`trusted`, else ``choices.margin`` (also
+        without a separation: nan, a set with no catalogue to measure it against). The
+        separation only adds to the fixed margin, and only where the catalogue agrees and
+        the stroke is not much smaller than the person's templates of its shape."""
         fixed = np.full(len(self.shape), choices.margin)
         if choices.margin_share is None:
             return fixed

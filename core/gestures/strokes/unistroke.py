@@ -164,20 +164,21 @@ class TemplateSet:
 
     def thresholds(self, max_rotation_deg: float = 30.0) -> dict[str, float]:
         """Per shape with two or more drawn templates, the score a stroke needs besides
-        ``min_score``: their own agreement (:func:`agreement`) less the margin. A shape its
+        ``min_score``: their own agreement (:func:`agreement`) less the :meth:`margin`. A shape its
         writer draws the same way each time asks more of a stroke than one drawn loosely,
         so a near miss of a tight shape (one's brace taken for one's bracket) is rejected."""
         own = self._agreement(max_rotation_deg)
         return {shape: v - self.margin(max_rotation_deg) for shape, v in own.items()}
 
     def margin(self, max_rotation_deg: float = 30.0) -> float:
-        """The margin below a shape's agreement a stroke may fall: ``choices.margin_share``
-        of the set's :func:`separation` (at least 0), or ``choices.margin`` without a share
-        or without a catalogue to measure the separation against."""
+        """The most a stroke may fall below its shape's agreement: ``choices.margin_share``
+        of the set's :func:`separation` where that is more than ``choices.margin`` (and only
+        for a stroke the catalogue takes for the same shape, of at least
+        ``choices.least_size``: stroke_verdict.Nearest.margin), else ``choices.margin``."""
         share, apart = self.choices.margin_share, self._separation(max_rotation_deg)
         if share is None or np.isnan(apart):
             return self.choices.margin
-        return max(share * apart, 0.0)
+        return max(share * apart, self.choices.margin)
 
     def _catalogue(
         self, strokes: StrokeFeatures, scores: np.ndarray, max_rotation_deg: float

@@ -21,6 +21,14 @@ The choices (``stroke_similarity.ScoreChoices``) and how each is made on the fou
   catalogue lacks too (on the shapes it has, its rival rule already rejects the strokes, so
   the looser margin's cost would not be seen there); on the $1 logs every fold makes it
   equal to ``margin``;
+- ``least_size`` (with ``margin_share``: a stroke gets more than ``margin`` only when at least
+  this share of its shape's least template): the least, rounded down to SIZE_STEP, over the
+  four writers' own strokes (own 3 templates) taken for their shape, of that ratio;
+- ``margin_share`` (the share of the set's separation, ``stroke_verdict.separation``, a stroke
+  may fall short of its shape's agreement where that is more than ``margin``, the catalogue's
+  nearest shape is the taken one and the stroke is not below ``least_size``): made as
+  ``margin`` is, on the same unknown shapes, with ``margin`` and ``least_size`` made first;
+  ``confirmed_margin`` is then not used (nor made);
 - ``builtin_extra`` (what a stroke nearest a built-in template asks beyond ``min_score``):
   the smallest of the grid that accepts at most 1 % of strokes that are none of the shapes
   (S, Z, spiral, figure eight, scribble; ``stroke_accuracy.others``, drawn differently each

@@ -388,7 +388,7 @@ def test_the_margin_made_on_four_writers_expects_a_new_one_to_differ():
         found = stroke_lowo.Found(
             Nearest([], np.zeros((n, 0)), np.full(n, "v", dtype=object), 1.0 - d,
                     np.ones(n), np.zeros(n, bool), np.full(n, -np.inf), np.full(n, -np.inf),
-                    np.full(n, np.inf), np.zeros(n)),
+                    np.full(n, np.inf), np.zeros(n), np.ones(n)),
             np.full(n, "check", dtype=object),
         )  # fmt: skip
         writer = np.concatenate([np.full(len(v), w, dtype=object) for w, v in distances.items()])

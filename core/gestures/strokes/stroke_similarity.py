@@ -28,8 +28,9 @@ program with exact corners, are not compared by form. The score is clipped to 0.
 
 Every choice in :class:`ScoreChoices` (the mix, whether form counts, the margins, what a
 built-in template asks) was made by leave-one-writer-out on the $1 logs of five people:
-made on four, measured on the fifth, all five ways; every fold made the same but for the
-margin (0.055-0.08), and the shipped ones are the same procedure on all five
+made on four, measured on the fifth, all five ways; every fold made the same weights and
+``builtin_extra``, the margins differ (``margin`` 0.055-0.08, ``margin_share`` 0.18-0.28,
+``least_size`` 0.65-0.7), and the shipped ones are the same procedure on all five
 (``python scripts/stroke_lowo.py DIR``; docs/strokes.md). Matching is a few array operations
 over all templates; the warping loops over the band's cells, not over templates or samples.
 """

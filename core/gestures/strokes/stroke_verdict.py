@@ -7,9 +7,11 @@ drew them score highest on average, or whose built-in template scores higher
 it is accepted (:meth:`Nearest.accepted`) when its best score reaches ``min_score`` (plus
 ``builtin_extra`` when that template is a built-in one, not compared by form) and, for a shape
 with two or more templates as drawn, their own agreement (:func:`agreement`: the lowest, over
-them, of the best score of each against another) less the ``margin``: a shape its writer
-draws the same way each time asks more of a stroke than one drawn loosely, so a stroke of
-another shape near it is rejected. The choices are :class:`ScoreChoices`
+them, of the best score of each against another) less the margin (:meth:`Nearest.margin`:
+``margin``, or a share of the set's :func:`separation` where that is more, for a stroke the
+catalogue takes for the same shape and not much smaller than the person's templates of it):
+a shape its writer draws the same way each time asks more of a stroke than one drawn
+loosely, so a stroke of another shape near it is rejected. The choices are :class:`ScoreChoices`
 (stroke_similarity.py), made by leave-one-writer-out (docs/strokes.md).
 """
 

@@ -21,6 +21,14 @@ The choices (``stroke_similarity.ScoreChoices``) and how each is made on the fou
   catalogue lacks too (on the shapes it has, its rival rule already rejects the strokes, so
   the looser margin's cost would not be seen there); on the $1 logs every fold makes it
   equal to ``margin``;
+- ``least_size`` (with ``margin_share``: a stroke gets more than ``margin`` only when at least
+  this share of its shape's least template): the least, rounded down to SIZE_STEP, over the
+  four writers' own strokes (own 3 templates) taken for their shape, of that ratio;
+- ``margin_share`` (the share of the set's separation, ``stroke_verdict.separation``, a stroke
+  may fall short of its shape's agreement where that is more than ``margin``, the catalogue's
+  nearest shape is the taken one and the stroke is not below ``least_size``): made as
+  ``margin`` is, on the same unknown shapes, with ``margin`` and ``least_size`` made first;
+  ``confirmed_margin`` is then not used (nor made);
 - ``builtin_extra`` (what a stroke nearest a built-in template asks beyond ``min_score``):
   the smallest of the grid that accepts at most 1 % of strokes that are none of the shapes
   (S, Z, spiral, figure eight, scribble; ``stroke_accuracy.others``, drawn differently each
@@ -77,10 +85,13 @@ from hapticdesk.gestures.strokes.stroke_similarity import (  # noqa: E402
 )
 from hapticdesk.gestures.strokes.stroke_verdict import (  # noqa: E402
     Catalogue,
+    Medians,
     Nearest,
     agreement,
     catalogue_twins,
+    medians,
     nearest,
+    separation,
 )
 from hapticdesk.gestures.strokes.unistroke import builtin_templates  # noqa: E402
 
@@ -90,6 +101,8 @@ PROTRACTOR_POINTS = 16
 DIRECTION_WEIGHTS = (0.15, 0.3, 0.5, 0.7, 0.85)
 FORM_WEIGHTS = (0.0, 0.3)
 MARGINS = tuple(round(0.02 + 0.005 * k, 3) for k in range(21))  # 0.02 .. 0.12
+SIZE_STEP = 0.05  # least_size is rounded down to this
+SHARES = tuple(round(0.1 + 0.01 * k, 2) for k in range(31))  # 0.1 .. 0.4 of the separation
 BUILTIN_EXTRAS = tuple(round(0.01 * k, 2) for k in range(13))  # 0 .. 0.12
 #: the strokes that are none of the shapes, of stroke_accuracy.others (its partial strokes
 #: and dragged taps are measured on the desk, not chosen on: half a circle is a rounded
@@ -118,6 +131,7 @@ class Logs:
     builtin_ideal: np.ndarray
     protractor: np.ndarray  # (N, N) plain Protractor's cosine
     builtin_protractor: np.ndarray  # (N, B)
+    size: np.ndarray  # (N,) each stroke's bounding diagonal (the logs' pixels)
 
     @property
     def writers(self) -> list[str]:
@@ -175,6 +189,7 @@ def load(folder: str) -> tuple[Logs, dict[str, float]]:
         builtin_ideal=builtin.ideal,
         protractor=protractor,
         builtin_protractor=protractor_cosine(vectors, protractor_vectors(builtin.paths)),
+        size=features.sizes,
     )
     cost["pairs"] = float(len(paths) ** 2)
     return logs, cost
@@ -214,7 +229,7 @@ class Found:
 
         shape = joined("shape")
         empty = np.zeros((len(shape), 0))
-        fields = ("score", "own", "built_in", "rival", "confirmed", "floor")
+        fields = ("score", "own", "built_in", "rival", "confirmed", "floor", "separation", "size")
         fields = (shape, *(joined(f) for f in fields))
         truth = np.concatenate([t for _, t in parts])
         return cls(Nearest([], empty, *fields), truth)
@@ -234,23 +249,36 @@ def drawn_by_people(
     test: np.ndarray,
     templates: np.ndarray,
     loso: str = "",
+    apart: Medians | None = None,
 ) -> list[tuple[Nearest, np.ndarray]]:
     """The nearest shapes of strokes ``test`` among the strokes ``templates`` as templates
     (as ``TemplateSet.classify_many`` finds them, the built-in templates the rival catalogue:
     every stroke's ``catalogue`` scores (N, B)), with the true shapes. With ``loso``, each
     shape's strokes among the other shapes' templates only (leave-one-shape-out): "built-in"
-    a shape the catalogue has, "new" one it has not either (its built-in templates left out)."""
+    a shape the catalogue has, "new" one it has not either (its built-in templates left out).
+    ``apart``: the templates' :class:`Medians`, when already found."""
     names = logs.shape[templates]
     people = np.zeros(len(templates), bool)
     own = agreement(scores[np.ix_(templates, templates)], names, ~people)
     twins = catalogue_twins(catalogue[templates], names, logs.builtin_names)
+    if apart is None:
+        apart = medians(
+            scores[np.ix_(templates, templates)], names, catalogue[templates], logs.builtin_names
+        )
 
     def found(strokes: np.ndarray, left_out: str = "") -> tuple[Nearest, np.ndarray]:
         keep = names != left_out
-        known = logs.builtin_names != (left_out if loso == "new" else "")
+        unknown = left_out if loso == "new" else ""
+        known = logs.builtin_names != unknown
         rival = Catalogue(catalogue[np.ix_(strokes, known)], logs.builtin_names[known], twins)
         near = nearest(
-            scores[np.ix_(strokes, templates[keep])], names[keep], people[keep], own, rival
+            scores[np.ix_(strokes, templates[keep])],
+            names[keep],
+            people[keep],
+            own,
+            rival,
+            separation(apart, left_out, unknown),
+            (logs.size[strokes], logs.size[templates[keep]]),
         )
         return near, logs.shape[strokes]
 
@@ -285,9 +313,12 @@ class Protocols:
         own, unknown, new, independent = [], [], [], []
         unknown_writer = []
         for w, _, te, tm in own_splits(logs, test_writers):
-            own += drawn_by_people(logs, scores, catalogue, te, tm)
-            new += drawn_by_people(logs, scores, catalogue, te, tm, loso="new")
-            left_out = drawn_by_people(logs, scores, catalogue, te, tm, loso="built-in")
+            apart = medians(
+                scores[np.ix_(tm, tm)], logs.shape[tm], catalogue[tm], logs.builtin_names
+            )
+            own += drawn_by_people(logs, scores, catalogue, te, tm, "", apart)
+            new += drawn_by_people(logs, scores, catalogue, te, tm, "new", apart)
+            left_out = drawn_by_people(logs, scores, catalogue, te, tm, "built-in", apart)
             unknown += left_out
             unknown_writer += [np.full(len(truth), w, dtype=object) for _, truth in left_out]
         for w in test_writers:
@@ -344,9 +375,13 @@ def choose(logs: Logs, writers: list[str], non_shape_parts: Similarity) -> Score
         choices = replace(DEFAULT_CHOICES, direction_weight=dw, form_weight=fw)
         choices = replace(choices, builtin_extra=builtin_extra(non_shape_parts, choices))
         found = Protocols.on(logs, choices, writers, writers)
-        tight = margin(found, writers, choices)
+        tight = margin(found, writers, replace(choices, margin_share=None))
         choices = replace(choices, margin=tight, confirmed_margin=tight)
-        choices = replace(choices, confirmed_margin=confirmed_margin(found, writers, choices))
+        if choices.margin_share is None:
+            choices = replace(choices, confirmed_margin=confirmed_margin(found, writers, choices))
+        else:
+            choices = replace(choices, least_size=least_size(found))
+            choices = replace(choices, margin_share=margin(found, writers, choices))
         right = np.mean(
             [f.right(choices).mean() for f in (found.own, found.independent, found.builtin)]
         )
@@ -364,13 +399,27 @@ def margin(found: Protocols, writers: list[str], choices: ScoreChoices) -> float
     of them: with each of ``writers`` left out in turn, the margin made on the others at that
     target accepts at most UNKNOWN_TARGET of the left-out writer's unknown shapes on their
     mean (nested leave-one-writer-out: a margin made on some writers accepts more on a new
-    one)."""
+    one). With ``choices.margin_share`` set, the share of the set's separation (of SHARES)
+    is made the same way."""
+    if choices.margin_share is not None:
+        shares = [replace(choices, margin_share=k) for k in SHARES]
+        rates = _rates(found.new, found.unknown_writer, writers, shares)
+        return SHARES[nested_margin(rates, writers)]
 
     def both(m: float) -> ScoreChoices:
         return replace(choices, margin=m, confirmed_margin=m)
 
     rates = _rates(found.new, found.unknown_writer, writers, [both(m) for m in MARGINS])
     return MARGINS[nested_margin(rates, writers)]
+
+
+def least_size(found: Protocols) -> float:
+    """The least size, over the least drawn template of its shape, of the writers' own
+    strokes taken for their own shape (own 3 templates), rounded down to SIZE_STEP: a stroke
+    smaller than any of them drew gets no more than ``margin`` (ScoreChoices.least_size)."""
+    near = found.own.nearest
+    size = near.size[(near.shape == found.own.truth) & np.isfinite(near.size)]
+    return round(math.floor(float(size.min()) / SIZE_STEP) * SIZE_STEP, 2) if len(size) else 0.0
 
 
 def confirmed_margin(found: Protocols, writers: list[str], choices: ScoreChoices) -> float:
@@ -604,10 +653,15 @@ def main() -> None:
 
 
 def _choices_text(c: ScoreChoices) -> str:
+    margins = (
+        f"margin {c.margin:g}, confirmed_margin {c.confirmed_margin:g}"
+        if c.margin_share is None
+        else f"margin_share {c.margin_share:g} of the separation, beyond margin {c.margin:g} "
+        f"only where the catalogue agrees and at least {c.least_size:g} of the least template"
+    )
     return (
         f"direction_weight {c.direction_weight:g}, form_weight {c.form_weight:g}, "
-        f"margin {c.margin:g}, confirmed_margin {c.confirmed_margin:g}, "
-        f"builtin_extra {c.builtin_extra:g}"
+        f"{margins}, builtin_extra {c.builtin_extra:g}"
     )
 
 

@@ -216,11 +216,16 @@ def test_the_lowo_scripts_verdicts_are_the_recognizers(subject, looser):
         agreement,
         catalogue_twins,
         judge,
+        medians,
+        separation,
     )
     from hapticdesk.gestures.strokes.unistroke import template_set
 
     assert DOLLAR is not None
-    choices = replace(DEFAULT_CHOICES, confirmed_margin=DEFAULT_CHOICES.margin + looser)
+    choices = DEFAULT_CHOICES
+    if looser:  # the fixed margins, the confirmed one looser
+        fixed = replace(DEFAULT_CHOICES, margin_share=None)
+        choices = replace(fixed, confirmed_margin=fixed.margin + looser)
     strokes = list(read_logs(DOLLAR / subject / "fast"))
     templates = [s for s in strokes if s.repetition <= 3 and s.shape != "check"]
     tests = [s for s in strokes if s.repetition > 3]
@@ -234,7 +239,10 @@ def test_the_lowo_scripts_verdicts_are_the_recognizers(subject, looser):
     own = agreement(scores[:k, :k], names, np.ones(k, bool))
     twins = catalogue_twins(catalogue[:k], names, builtin.names)
     rival = Catalogue(catalogue[k:], builtin.names, twins)
-    lowo = judge(scores[k:, :k], names, np.zeros(k, bool), MIN_SCORE, own, choices, rival)
+    apart = separation(medians(scores[:k, :k], names, catalogue[:k], builtin.names))
+    sizes = (features.sizes[k:], features.sizes[:k])
+    ideal = np.zeros(k, bool)
+    lowo = judge(scores[k:, :k], names, ideal, MIN_SCORE, own, choices, rival, apart, sizes)
     user: dict[str, list[np.ndarray]] = {}
     for s in templates:
         user.setdefault(s.shape, []).append(s.points)
@@ -380,7 +388,7 @@ def test_the_margin_made_on_four_writers_expects_a_new_one_to_differ():
         found = stroke_lowo.Found(
             Nearest([], np.zeros((n, 0)), np.full(n, "v", dtype=object), 1.0 - d,
                     np.ones(n), np.zeros(n, bool), np.full(n, -np.inf), np.full(n, -np.inf),
-                    np.full(n, np.inf)),
+                    np.full(n, np.inf), np.zeros(n), np.ones(n)),
             np.full(n, "check", dtype=object),
         )  # fmt: skip
         writer = np.concatenate([np.full(len(v), w, dtype=object) for w, v in distances.items()])
@@ -389,17 +397,18 @@ def test_the_margin_made_on_four_writers_expects_a_new_one_to_differ():
     def pooled(p: stroke_lowo.Protocols) -> float:
         out = stroke_lowo.MARGINS[0]
         for m in stroke_lowo.MARGINS:
-            if p.unknown.accepted(replace(DEFAULT_CHOICES, margin=m)).mean() > 0.05:
+            if p.unknown.accepted(replace(fixed, margin=m)).mean() > 0.05:
                 break
             out = m
         return out
 
+    fixed = replace(DEFAULT_CHOICES, margin_share=None)
     neat = np.linspace(0.04, 1.0, 200)  # 4 % accepted at a margin of 0.08
     loose = np.linspace(0.0, 0.5, 200)  # 16 %
     alike = protocols({w: neat for w in "abcd"})
-    assert stroke_lowo.margin(alike, list("abcd"), DEFAULT_CHOICES) == pooled(alike) == 0.085
+    assert stroke_lowo.margin(alike, list("abcd"), fixed) == pooled(alike) == 0.085
     mixed = protocols({"a": neat, "b": neat, "c": neat, "d": loose})
-    nested = stroke_lowo.margin(mixed, list("abcd"), DEFAULT_CHOICES)
+    nested = stroke_lowo.margin(mixed, list("abcd"), fixed)
     assert nested < pooled(mixed) == 0.06
 
 
@@ -435,7 +444,7 @@ def test_the_rejection_rules_script_measures_the_shipped_rule_as_the_recognizer(
         scores[k:, :k][:, keep], names[keep], scores[:k, :k][np.ix_(keep, keep)], shipped
     )
     for margin in (0.02, DEFAULT_CHOICES.margin, 0.1):
-        mine = TemplateSet(replace(DEFAULT_CHOICES, margin=margin))
+        mine = TemplateSet(replace(DEFAULT_CHOICES, margin=margin, margin_share=None))
         for s in templates:
             if s.shape not in ("v", "check"):
                 mine.add(s.shape, s.points)
@@ -458,7 +467,8 @@ def test_a_shape_the_catalogue_confirms_asks_the_looser_margin():
     from hapticdesk.gestures.strokes.stroke_similarity import DEFAULT_CHOICES
     from hapticdesk.gestures.strokes.unistroke import template_set
 
-    looser = replace(DEFAULT_CHOICES, confirmed_margin=DEFAULT_CHOICES.margin + 0.06)
+    fixed = replace(DEFAULT_CHOICES, margin_share=None)
+    looser = replace(fixed, confirmed_margin=fixed.margin + 0.06)
     u = np.linspace(0.0, 2 * np.pi, 80)
     circles = [np.column_stack([np.cos(u), (1 + 0.01 * k) * np.sin(u)]) for k in range(3)]
     user = {"circle": circles, "line": [np.column_stack([np.linspace(0, 1, 9), np.zeros(9)])]}
@@ -479,3 +489,134 @@ def test_a_shape_the_catalogue_confirms_asks_the_looser_margin():
     assert plain.classify(oval, MIN_SCORE).shape is None
     assert confirming.classify(oval, MIN_SCORE).shape == "circle"
     assert shipped.classify(oval, MIN_SCORE).shape is None
+
+
+@needs_logs
+def test_the_margin_grows_with_a_writers_separation():
+    """The margin may be a share of how far apart a writer keeps their shapes
+    (stroke_verdict.separation, on medians over pairs of templates), where that is more
+    than the fixed margin: s02, who keeps their shapes apart (0.28 at fast speed), gets more
+    slack below a shape's agreement than s05, who draws v and check alike (0.21), at a share
+    of 0.3 (folds made 0.2-0.28); at the shipped share neither passes the fixed margin."""
+    from dataclasses import replace
+
+    from hapticdesk.gestures.strokes.stroke_similarity import DEFAULT_CHOICES
+
+    assert DOLLAR is not None
+    wider = replace(DEFAULT_CHOICES, margin_share=0.3)
+    fixed = DEFAULT_CHOICES.margin
+    margins, shipped, apart = {}, {}, {}
+    for subject in ("s02", "s05"):
+        user: dict[str, list[np.ndarray]] = {}
+        for s in read_logs(DOLLAR / subject / "fast"):
+            if s.repetition <= 3:
+                user.setdefault(s.shape, []).append(s.points)
+        for choices, out in ((wider, margins), (DEFAULT_CHOICES, shipped)):
+            layout = TemplateSet(choices, catalogue=builtin_templates())
+            layout.add_all(user)
+            out[subject] = layout.margin()
+            apart[subject] = layout._separation(30.0)
+    assert apart["s02"] > apart["s05"] + 0.05
+    assert margins["s02"] == pytest.approx(0.3 * apart["s02"]) and margins["s02"] > fixed + 0.015
+    assert margins["s05"] == pytest.approx(fixed)
+    assert shipped == {"s02": fixed, "s05": fixed}
+
+
+def test_the_separation_is_on_medians_and_counts_the_catalogue():
+    """A shape's gap is the median of its templates against each other less the highest
+    median of another shape's against them, the set's or a catalogue shape the set has none
+    of; a shape left out of the set counts as the catalogue's if the catalogue has it."""
+    from hapticdesk.gestures.strokes.stroke_verdict import medians, separation
+
+    names = np.asarray(["a"] * 3 + ["b"] * 3, dtype=object)
+    scores = np.full((6, 6), 0.5)
+    scores[:3, :3] = [[1.0, 0.9, 0.8], [0.9, 1.0, 0.95], [0.8, 0.95, 1.0]]  # median 0.9
+    scores[3:, 3:] = 0.96
+    scores[3:, :3] = [[0.1, 0.2, 0.3], [0.2, 0.3, 0.9], [0.3, 0.2, 0.2]]  # b against a: 0.2
+    catalogue = np.asarray([[0.7, 0.1], [0.6, 0.1], [0.1, 0.1], [0.4, 0.2]] + [[0.0, 0.0]] * 2)
+    found = medians(scores, names, catalogue, np.asarray(["c", "b"], dtype=object))
+    assert found.within.tolist() == pytest.approx([0.9, 0.96])
+    # a: the catalogue's c (0.6) is nearer than b (0.2); b: a against b is 0.5
+    assert separation(found) == pytest.approx(((0.9 - 0.6) + (0.96 - 0.5)) / 2)
+    # without b in the set, the catalogue's b (median 0.1 for a's templates) does not beat c
+    assert separation(found, without="b") == pytest.approx(0.9 - 0.6)
+    assert separation(found, without="b", catalogue_without="c") == pytest.approx(0.9 - 0.1)
+
+
+def _zone(size: float, confirmed: float):
+    """One stroke short of its shape's agreement (0.95) by 0.08: more than ``margin`` (0.065),
+    less than the share of a separation of 0.4 (0.1), of ``size`` over its shape's least
+    template, ``confirmed`` the catalogue's score where its nearest shape is the taken one."""
+    from hapticdesk.gestures.strokes.stroke_verdict import Nearest
+
+    one = np.ones(1)
+    return Nearest(
+        ["triangle"], np.full((1, 1), 0.87), np.asarray(["triangle"], dtype=object), 0.87 * one,
+        0.95 * one, np.zeros(1, bool), np.full(1, -np.inf), confirmed * one, 0.9 * one,
+        0.4 * one, size * one,
+    )  # fmt: skip
+
+
+def test_a_dragged_tap_gets_no_more_than_the_fixed_margin():
+    """Beyond ``margin`` the separation's share is given only to a stroke the catalogue
+    takes for the same shape and not much smaller than the person's templates of it: a tap
+    dragged 5 cm against triangles drawn 15 cm and more, which $1's uniform scale cannot
+    see, falls back to ``margin`` and is rejected; the same stroke at the templates' size is
+    taken, and one the catalogue takes for another shape is not."""
+    from dataclasses import replace
+
+    from hapticdesk.gestures.strokes.stroke_similarity import DEFAULT_CHOICES
+
+    choices = replace(DEFAULT_CHOICES, margin=0.065, margin_share=0.25, least_size=0.65)
+    assert _zone(1.0, 0.9).accepted(MIN_SCORE, choices).tolist() == [True]
+    assert _zone(5.0 / 15.0, 0.9).accepted(MIN_SCORE, choices).tolist() == [False]
+    assert _zone(1.0, -np.inf).accepted(MIN_SCORE, choices).tolist() == [False]
+    assert _zone(0.66, 0.9).margin(choices).tolist() == pytest.approx([0.1])
+    assert _zone(0.64, 0.9).margin(choices).tolist() == pytest.approx([0.065])
+
+
+def test_a_small_dragged_stroke_is_not_taken_for_a_persons_large_triangle():
+    """The same through a layout's templates (the built-in ones their catalogue): a
+    person's three triangles, drawn 15-18 cm, and a small wandering three-segment stroke
+    that scores against them within the separation's share but beyond ``margin``: rejected
+    at 5 cm, taken when as large as the triangles (or when the guard is off). A share of 0.6
+    so that this set, whose shapes are near the catalogue's, has a zone to test."""
+    from dataclasses import replace
+
+    from hapticdesk.gestures.strokes.stroke_similarity import DEFAULT_CHOICES
+
+    def template_set(user, builtin: bool, least_size: float = 0.65) -> TemplateSet:
+        choices = replace(DEFAULT_CHOICES, margin_share=0.6, least_size=least_size)
+        out = TemplateSet(choices, catalogue=builtin_templates())
+        out.add_all(user)
+        return out
+
+    rng = np.random.default_rng(3)
+    corners = np.asarray([[0.0, 0.0], [0.5, 0.9], [1.0, 0.0], [0.0, 0.0]])
+
+    def triangle(size: float, jitter: float) -> np.ndarray:
+        pts = corners + rng.normal(scale=jitter, size=corners.shape)
+        pts[-1] = pts[0]
+        along = np.linspace(0, 3, 120)
+        path = np.column_stack([np.interp(along, np.arange(4), pts[:, k]) for k in (0, 1)])
+        return path * size
+
+    user = {
+        "triangle": [triangle(s, 0.01) for s in (0.15, 0.17, 0.18)],
+        "line": [np.column_stack([np.linspace(0, 0.15, 20), np.zeros(20)]) for _ in range(3)],
+        "v": [np.asarray([[0.0, 0.1], [0.05, 0.0], [0.1, 0.1]]) * (1 + 0.05 * k) for k in range(3)],
+    }
+    layout = template_set(user, builtin=False)
+    margin, share = layout.choices.margin, layout.margin()
+    needed = layout.thresholds()["triangle"]
+    for _ in range(400):
+        tap = triangle(1.0, 0.25)
+        match = layout.classify(tap * 0.17, MIN_SCORE)
+        zone = needed + 0.003 < match.score < needed + share - margin - 0.003
+        if match.shape == "triangle" and zone:
+            break  # short of the agreement by more than margin, less than the share: taken
+    else:
+        raise AssertionError(f"no stroke in the zone (margin {margin}, share {share:.3f})")
+    assert layout.classify(tap * 0.05, MIN_SCORE).shape is None
+    unguarded = template_set(user, builtin=False, least_size=0.0)
+    assert unguarded.classify(tap * 0.05, MIN_SCORE).shape == "triangle"

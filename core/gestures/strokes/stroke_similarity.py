@@ -28,8 +28,9 @@ program with exact corners, are not compared by form. The score is clipped to 0.
 
 Every choice in :class:`ScoreChoices` (the mix, whether form counts, the margins, what a
 built-in template asks) was made by leave-one-writer-out on the $1 logs of five people:
-made on four, measured on the fifth, all five ways; every fold made the same but for the
-margin (0.055-0.08), and the shipped ones are the same procedure on all five
+made on four, measured on the fifth, all five ways; every fold made the same weights and
+``builtin_extra``, the margins differ (``margin`` 0.055-0.08, ``margin_share`` 0.18-0.28,
+``least_size`` 0.65-0.7), and the shipped ones are the same procedure on all five
 (``python scripts/stroke_lowo.py DIR``; docs/strokes.md). Matching is a few array operations
 over all templates; the warping loops over the band's cells, not over templates or samples.
 """
@@ -73,6 +74,17 @@ class ScoreChoices:
     #: a shape with two or more drawn templates needs a score of its templates' own
     #: agreement less this
     margin: float = 0.065
+    #: a margin of this share of the set's separation (stroke_verdict.separation: how far
+    #: apart its writer keeps their shapes, on medians over pairs of templates) where that
+    #: is more than ``margin``, for a stroke the catalogue takes for the same shape and not
+    #: smaller than ``least_size`` (stroke_verdict.Nearest.margin); ``confirmed_margin`` is
+    #: then not used. None: ``margin`` and ``confirmed_margin`` only
+    margin_share: float | None = 0.22
+    #: with ``margin_share``: a stroke gets more than ``margin`` only where its size is at
+    #: least this share of the least of its shape's drawn templates' (a tap dragged 5 cm
+    #: against triangles drawn 15 cm: $1 is scale-invariant); the least share, rounded down
+    #: to 0.05, of the training writers' own strokes taken for their shape
+    least_size: float = 0.65
     #: the margin instead, for a stroke the built-in catalogue takes for the same shape
     #: (stroke_verdict.catalogue_says), at least ``margin``. Chosen as ``margin`` is, on
     #: unknown shapes the catalogue lacks too: on those it has, the catalogue's rival rule
@@ -92,15 +104,16 @@ DEFAULT_CHOICES = ScoreChoices()
 
 class StrokeFeatures(NamedTuple):
     """What the recognizer compares, for k paths: Protractor's vectors (k, N_POINTS, 2),
-    the directions of motion (k, N_DIRECTIONS) and the form (k, 2: total turning, corner
-    share)."""
+    the directions of motion (k, N_DIRECTIONS), the form (k, 2: total turning, corner
+    share) and the size (k,: the diagonal of the bounding box, in the path's units)."""
 
     vectors: np.ndarray
     angles: np.ndarray
     forms: np.ndarray
+    sizes: np.ndarray
 
     def take(self, index: np.ndarray | slice) -> StrokeFeatures:
-        return StrokeFeatures(self.vectors[index], self.angles[index], self.forms[index])
+        return StrokeFeatures(*(a[index] for a in self))
 
 
 class Similarity(NamedTuple):
@@ -154,6 +167,11 @@ def corner_share(points: np.ndarray) -> float:
     return top / max(float(turns.sum()), MIN_TURNING)
 
 
+def path_size(points: np.ndarray) -> float:
+    """The diagonal of a path's bounding box (its units)."""
+    return float(np.hypot(*np.ptp(np.asarray(points, dtype=float), axis=0)))
+
+
 def stroke_features(paths: Sequence[np.ndarray]) -> tuple[StrokeFeatures, np.ndarray]:
     """The features of the paths that have an extent, and their indices into ``paths``."""
     vectors = [stroke_vector(p) for p in paths]
@@ -164,6 +182,7 @@ def stroke_features(paths: Sequence[np.ndarray]) -> tuple[StrokeFeatures, np.nda
         np.asarray(
             [(total_turning(paths[i]), corner_share(paths[i])) for i in ok], dtype=float
         ).reshape(len(ok), 2),
+        np.asarray([path_size(paths[i]) for i in ok], dtype=float).reshape(len(ok)),
     )
     return features, ok
 

@@ -7,9 +7,11 @@ drew them score highest on average, or whose built-in template scores higher
 it is accepted (:meth:`Nearest.accepted`) when its best score reaches ``min_score`` (plus
 ``builtin_extra`` when that template is a built-in one, not compared by form) and, for a shape
 with two or more templates as drawn, their own agreement (:func:`agreement`: the lowest, over
-them, of the best score of each against another) less the ``margin``: a shape its writer
-draws the same way each time asks more of a stroke than one drawn loosely, so a stroke of
-another shape near it is rejected. The choices are :class:`ScoreChoices`
+them, of the best score of each against another) less the margin (:meth:`Nearest.margin`:
+``margin``, or a share of the set's :func:`separation` where that is more, for a stroke the
+catalogue takes for the same shape and not much smaller than the person's templates of it):
+a shape its writer draws the same way each time asks more of a stroke than one drawn
+loosely, so a stroke of another shape near it is rejected. The choices are :class:`ScoreChoices`
 (stroke_similarity.py), made by leave-one-writer-out (docs/strokes.md).
 """
 
@@ -50,6 +52,94 @@ def agreement(scores: np.ndarray, names: np.ndarray, drawn: np.ndarray) -> dict[
         np.fill_diagonal(own, -np.inf)
         out[shape] = float(own.max(axis=1).min())
     return out
+
+
+class Medians(NamedTuple):
+    """How a set's drawn templates stand to each other, on medians over pairs (so not on how
+    many templates a shape has): ``shapes`` (S,); ``within`` (S,), the median score of a
+    shape's templates against each other (nan with fewer than two); ``between`` (S, S), at
+    [o, s] the median score of shape o's templates against shape s's; ``catalogue`` (S, C),
+    the median over a shape's templates of their best score against each catalogue shape of
+    ``catalogue_shapes`` (C,)."""
+
+    shapes: list[str]
+    within: np.ndarray
+    between: np.ndarray
+    catalogue: np.ndarray
+    catalogue_shapes: list[str]
+
+
+def medians(
+    scores: np.ndarray,
+    names: np.ndarray,
+    catalogue: np.ndarray | None = None,
+    catalogue_names: np.ndarray | None = None,
+) -> Medians:
+    """The :class:`Medians` of templates of shapes ``names`` (T,) from their ``scores``
+    (T, T) against each other and ``catalogue`` (T, B) against built-in templates of shapes
+    ``catalogue_names`` (B,) (none: no catalogue)."""
+    shapes = list(dict.fromkeys(names.tolist()))
+    rows = [np.flatnonzero(names == s) for s in shapes]
+    scores = np.asarray(scores, dtype=float)
+    count = len(shapes)
+    within, between = _pair_medians(scores, rows)
+    c_shapes: list[str] = []
+    against = np.zeros((count, 0))
+    if catalogue is not None and catalogue_names is not None and len(catalogue_names):
+        c_shapes = list(dict.fromkeys(catalogue_names.tolist()))
+        per = _per_shape(np.asarray(catalogue, dtype=float), catalogue_names, c_shapes)
+        against = np.asarray([np.median(per[r], axis=0) for r in rows]).reshape(count, -1)
+    return Medians(shapes, within, between, against, c_shapes)
+
+
+def _pair_medians(scores: np.ndarray, rows: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """:class:`Medians` ``within`` and ``between`` from the templates' ``scores`` (T, T) and
+    each shape's rows: in one call when every shape has as many templates (a person's
+    three, other writers' 120), else block by block."""
+    count, size = len(rows), {len(r) for r in rows}
+    within = np.full(count, np.nan)
+    if len(size) == 1:
+        n = size.pop()
+        order = np.concatenate(rows)
+        blocks = scores[np.ix_(order, order)].reshape(count, n, count, n).transpose(0, 2, 1, 3)
+        between = np.median(blocks.reshape(count, count, n * n), axis=2)
+        if n >= 2:
+            own = blocks[np.arange(count), np.arange(count)].reshape(count, n * n)
+            within = np.median(own[:, ~np.eye(n, dtype=bool).ravel()], axis=1)
+        np.fill_diagonal(between, 0.0)
+        return within, between
+    between = np.zeros((count, count))
+    for j, mine in enumerate(rows):
+        for i, theirs in enumerate(rows):
+            block = scores[np.ix_(theirs, mine)]
+            if i != j:
+                between[i, j] = np.median(block)
+            elif len(mine) >= 2:
+                within[j] = np.median(block[~np.eye(len(mine), dtype=bool)])
+    return within, between
+
+
+def separation(found: Medians, without: str = "", catalogue_without: str = "") -> float:
+    """How far apart a set keeps its shapes: the mean, over its shapes with two or more
+    templates, of their :class:`Medians` ``within`` less the highest median score against
+    them of another shape, another of the set's or a catalogue shape the set has none of
+    (so two shapes far apart are still judged against the shapes a person might draw; with
+    neither, 0: a set with no catalogue passes nan, unmeasured, to :meth:`Nearest.margin`).
+    ``without``: the set without that shape (a layout that lacks it: the catalogue's shape
+    of that name then counts); ``catalogue_without``: the catalogue without that shape. nan
+    when no shape has two templates (unmeasured)."""
+    keep = np.asarray([s != without for s in found.shapes], dtype=bool)
+    drawn = set(np.asarray(found.shapes, dtype=object)[keep].tolist())
+    columns = np.asarray(
+        [s not in drawn and s != catalogue_without for s in found.catalogue_shapes], dtype=bool
+    )
+    others = keep[:, None] & ~np.eye(len(keep), dtype=bool)
+    near = np.maximum(
+        np.where(others, found.between, 0.0).max(axis=0, initial=0.0),
+        found.catalogue[:, columns].max(axis=1, initial=0.0),
+    )
+    gaps = (found.within - near)[keep & ~np.isnan(found.within)]
+    return float(gaps.mean()) if len(gaps) else math.nan
 
 
 class Twins(NamedTuple):
@@ -132,7 +222,9 @@ class Nearest(NamedTuple):
     whether its nearest template was drawn by program, and what the built-in catalogue says
     (:func:`catalogue_says`): ``rival`` (k,), its score for a nearer shape the person drew
     none of, ``confirmed`` (k,), its score for the same shape where it is its nearest, and
-    ``floor`` (k,), the least it gives the person's templates of that shape."""
+    ``floor`` (k,), the least it gives the person's templates of that shape; ``separation``
+    (k,), the :func:`separation` of the set each stroke was judged against; ``size`` (k,),
+    the stroke's size over the least of its shape's drawn templates' (nan: not measured)."""
 
     shapes: list[str]
     per_shape: np.ndarray
@@ -143,18 +235,42 @@ class Nearest(NamedTuple):
     rival: np.ndarray
     confirmed: np.ndarray
     floor: np.ndarray
+    separation: np.ndarray
+    size: np.ndarray
+
+    def margin(self, choices: ScoreChoices = DEFAULT_CHOICES) -> np.ndarray:
+        """The margin below its shape's agreement each stroke may fall (k,): with
+        ``choices.margin_share``, that share of its set's separation where it is more than
+        ``choices.margin`` and the stroke is :meth:`trusted`, else ``choices.margin`` (also
+        without a separation: nan, a set with no catalogue to measure it against). The
+        separation only adds to the fixed margin, and only where the catalogue agrees and
+        the stroke is not much smaller than the person's templates of its shape."""
+        fixed = np.full(len(self.shape), choices.margin)
+        if choices.margin_share is None:
+            return fixed
+        share = np.maximum(choices.margin_share * self.separation, 0.0)
+        share = np.where(np.isnan(self.separation), fixed, share)
+        return np.where(self.trusted(choices), np.maximum(share, fixed), fixed)
+
+    def trusted(self, choices: ScoreChoices = DEFAULT_CHOICES) -> np.ndarray:
+        """Whether each stroke may have more than ``choices.margin`` (k,) bool: the built-in
+        catalogue's nearest shape is the one it is taken for (``confirmed``) and it is at
+        least ``choices.least_size`` of its shape's least drawn template (or unmeasured)."""
+        big = ~(self.size < choices.least_size)
+        return np.isfinite(self.confirmed) & big
 
     def accepted(self, min_score: float, choices: ScoreChoices = DEFAULT_CHOICES) -> np.ndarray:
         """Whether each stroke is taken for its nearest shape (k,) bool: its score reaches
         ``min_score`` (plus ``choices.builtin_extra`` when its nearest template is built-in)
-        and its shape's agreement less ``choices.margin`` (``choices.confirmed_margin`` where
-        the catalogue confirms the shape: at the catalogue's own threshold, ``min_score`` plus
-        ``choices.builtin_extra``, and its floor less ``choices.margin``), and no rival shape
-        of the catalogue reaches that threshold."""
+        and its shape's agreement less the :meth:`margin` (without a share,
+        ``choices.confirmed_margin`` where the catalogue confirms the shape: at the
+        catalogue's own threshold, ``min_score`` plus ``choices.builtin_extra``, and its floor
+        less the margin), and no rival shape of the catalogue reaches that threshold."""
         catalogue = min_score + choices.builtin_extra
-        floor = self.floor - choices.margin
-        confirmed = (self.confirmed >= catalogue) & (self.confirmed >= floor)
-        margin = np.where(confirmed, choices.confirmed_margin, choices.margin)
+        margin = self.margin(choices)
+        if choices.margin_share is None:
+            confirmed = (self.confirmed >= catalogue) & (self.confirmed >= self.floor - margin)
+            margin = np.where(confirmed, choices.confirmed_margin, margin)
         needed = np.maximum(min_score, self.own - margin)
         extra = np.where(self.built_in, catalogue, -np.inf)
         return (self.score >= np.maximum(needed, extra)) & (self.rival < catalogue)
@@ -166,11 +282,14 @@ def nearest(
     ideal: np.ndarray,
     own: Mapping[str, float],
     catalogue: Catalogue | None = None,
+    apart: float = math.nan,
+    sizes: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> Nearest:
     """The :class:`Nearest` shapes of k strokes from their ``scores`` (k, T) against
     templates of shapes ``names`` (T,), ``ideal`` (T,) those drawn by program, ``own`` the
     :func:`agreement` of the shapes that have one; ``catalogue`` the built-in templates as a
-    rival (none: no rival)."""
+    rival (none: no rival); ``apart`` the set's :func:`separation`; ``sizes`` those of the
+    strokes (k,) and the templates (T,)."""
     shapes = list(dict.fromkeys(names.tolist()))
     ideal = np.asarray(ideal, dtype=bool)
     per_shape = _per_shape(scores, names, shapes)
@@ -186,7 +305,36 @@ def nearest(
         said = catalogue_says(chosen, names[~ideal], catalogue)
         rival, confirmed = (np.where(built_in, -np.inf, a) for a in said[:2])
         says = CatalogueSays(rival, confirmed, said.floor)
-    return Nearest(shapes, per_shape, chosen, per_shape[rows, best], agreed[best], built_in, *says)
+    return Nearest(
+        shapes,
+        per_shape,
+        chosen,
+        per_shape[rows, best],
+        agreed[best],
+        built_in,
+        *says,
+        np.full(len(best), apart),
+        _size(sizes, names, ideal, chosen),
+    )
+
+
+def _size(
+    sizes: tuple[np.ndarray, np.ndarray] | None,
+    names: np.ndarray,
+    ideal: np.ndarray,
+    chosen: np.ndarray,
+) -> np.ndarray:
+    """Each stroke's size over the least of its chosen shape's drawn templates' (nan
+    without sizes or drawn templates)."""
+    if sizes is None:
+        return np.full(len(chosen), np.nan)
+    strokes, templates = sizes
+    least = {
+        shape: float(np.min(templates[(names == shape) & ~ideal], initial=np.inf))
+        for shape in set(chosen.tolist())
+    }
+    out = np.asarray([least[c] for c in chosen], dtype=float)
+    return np.where(np.isfinite(out), np.asarray(strokes, dtype=float) / out, np.nan)
 
 
 def neighbourhood(
@@ -218,12 +366,14 @@ def judge(
     own: Mapping[str, float],
     choices: ScoreChoices = DEFAULT_CHOICES,
     catalogue: Catalogue | None = None,
+    apart: float = math.nan,
+    sizes: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> list[Match]:
     """The verdicts on k strokes from their ``scores`` (k, T) against templates of shapes
     ``names`` (T,) (:func:`nearest`, :meth:`Nearest.accepted`)."""
     if not len(scores) or not len(names):
         return [Match(None, 0.0, None, {}) for _ in range(len(scores))]
-    found = nearest(scores, names, ideal, own, catalogue)
+    found = nearest(scores, names, ideal, own, catalogue, apart, sizes)
     taken = found.accepted(min_score, choices)
     return [
         Match(

@@ -13,6 +13,7 @@ of.
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Iterable, Mapping, Sequence
 from importlib import resources
 
@@ -35,6 +36,8 @@ from hapticdesk.gestures.strokes.stroke_verdict import (
     agreement,
     catalogue_twins,
     judge,
+    medians,
+    separation,
 )
 
 START_POINTS = 32  # start points tried for closed templates
@@ -67,6 +70,7 @@ class TemplateSet:
         self._features: StrokeFeatures | None = None
         self._own: dict[float, dict[str, float]] = {}  # rotation limit -> agreement by shape
         self._twins: dict[float, Twins] = {}  # rotation limit -> catalogue_twins
+        self._apart: dict[float, float] = {}  # rotation limit -> separation
 
     @property
     def shapes(self) -> list[str]:
@@ -115,6 +119,7 @@ class TemplateSet:
         self._features = None
         self._own = {}
         self._twins = {}
+        self._apart = {}
 
     def add_all(self, templates: Mapping[str, Iterable[np.ndarray]]) -> None:
         """Add user templates: shape -> strokes, each used as drawn."""
@@ -148,18 +153,32 @@ class TemplateSet:
         own = self._agreement(max_rotation_deg)
         scores = parts.score(self.choices)
         catalogue = self._catalogue(features, scores, max_rotation_deg)
-        verdicts = judge(scores, self.names, self.ideal, min_score, own, self.choices, catalogue)
+        apart = self._separation(max_rotation_deg)
+        sizes = (features.sizes, self.features().sizes)
+        verdicts = judge(
+            scores, self.names, self.ideal, min_score, own, self.choices, catalogue, apart, sizes
+        )
         for i, verdict in zip(ok.tolist(), verdicts, strict=True):
             out[i] = verdict
         return out
 
     def thresholds(self, max_rotation_deg: float = 30.0) -> dict[str, float]:
         """Per shape with two or more drawn templates, the score a stroke needs besides
-        ``min_score``: their own agreement (:func:`agreement`) less the margin. A shape its
+        ``min_score``: their own agreement (:func:`agreement`) less the :meth:`margin`. A shape its
         writer draws the same way each time asks more of a stroke than one drawn loosely,
         so a near miss of a tight shape (one's brace taken for one's bracket) is rejected."""
         own = self._agreement(max_rotation_deg)
-        return {shape: v - self.choices.margin for shape, v in own.items()}
+        return {shape: v - self.margin(max_rotation_deg) for shape, v in own.items()}
+
+    def margin(self, max_rotation_deg: float = 30.0) -> float:
+        """The most a stroke may fall below its shape's agreement: ``choices.margin_share``
+        of the set's :func:`separation` where that is more than ``choices.margin`` (and only
+        for a stroke the catalogue takes for the same shape, of at least
+        ``choices.least_size``: stroke_verdict.Nearest.margin), else ``choices.margin``."""
+        share, apart = self.choices.margin_share, self._separation(max_rotation_deg)
+        if share is None or np.isnan(apart):
+            return self.choices.margin
+        return max(share * apart, self.choices.margin)
 
     def _catalogue(
         self, strokes: StrokeFeatures, scores: np.ndarray, max_rotation_deg: float
@@ -167,26 +186,59 @@ class TemplateSet:
         """The built-in templates as a rival to the drawn ones (stroke_verdict.Catalogue):
         the set's own, else ``catalogue``'s; None without drawn templates or a catalogue."""
         ideal, drawn = self.ideal, np.asarray(self._drawn) & ~self.ideal
-        if not drawn.any():
+        source = self._catalogue_source()
+        if not drawn.any() or source is None:
             return None
-        if ideal.any():
-            source, names, against = self, self.names[ideal], scores[:, ideal]
-        elif self.catalogue is not None and len(self.catalogue):
-            source, names = self.catalogue, self.catalogue.names
+        if source is self:
+            names, against = self.names[ideal], scores[:, ideal]
+        else:
+            names = source.names
             parts = similarity(strokes, source.features(), max_rotation_deg, source.ideal)
             against = parts.score(self.choices)
-        else:
-            return None
         twins = self._twins.get(max_rotation_deg)
         if twins is None:
-            mine = self.features().take(drawn)
-            ideal_of = np.asarray(source.ideal)[source.ideal]
-            parts = similarity(
-                mine, source.features().take(source.ideal), max_rotation_deg, ideal_of
-            )
-            twins = catalogue_twins(parts.score(self.choices), self.names[drawn], names)
+            mine = self._against_catalogue(source, drawn, max_rotation_deg)
+            twins = catalogue_twins(mine, self.names[drawn], names)
             self._twins[max_rotation_deg] = twins
         return Catalogue(against, names, twins)
+
+    def _catalogue_source(self) -> TemplateSet | None:
+        """Where the rival built-in templates are: the set itself when it has any, else
+        ``catalogue`` (None without one)."""
+        if self.ideal.any():
+            return self
+        if self.catalogue is not None and len(self.catalogue):
+            return self.catalogue
+        return None
+
+    def _against_catalogue(
+        self, source: TemplateSet, drawn: np.ndarray, max_rotation_deg: float
+    ) -> np.ndarray:
+        """The scores of the ``drawn`` templates against ``source``'s built-in ones."""
+        mine = self.features().take(drawn)
+        ideal_of = np.asarray(source.ideal)[source.ideal]
+        parts = similarity(mine, source.features().take(source.ideal), max_rotation_deg, ideal_of)
+        return parts.score(self.choices)
+
+    def _separation(self, max_rotation_deg: float) -> float:
+        """:func:`separation` of the templates people drew (against each other and the
+        catalogue's shapes they drew none of; computed once per rotation limit); nan
+        without a catalogue (nothing to measure it against: ``choices.margin`` then) or when
+        the margin is not a share of it."""
+        apart = self._apart.get(max_rotation_deg)
+        if apart is None:
+            apart = math.nan
+            drawn = np.asarray(self._drawn, dtype=bool) & ~self.ideal
+            source = self._catalogue_source()
+            if self.choices.margin_share is not None and source is not None and drawn.sum() > 1:
+                mine = self.features().take(drawn)
+                parts = similarity(mine, mine, max_rotation_deg, self.ideal[drawn])
+                against = self._against_catalogue(source, drawn, max_rotation_deg)
+                names = source.names[source.ideal]
+                found = medians(parts.score(self.choices), self.names[drawn], against, names)
+                apart = separation(found)
+            self._apart[max_rotation_deg] = apart
+        return apart
 
     def _agreement(self, max_rotation_deg: float) -> dict[str, float]:
         """:func:`agreement` of the drawn templates (computed once per rotation limit)."""

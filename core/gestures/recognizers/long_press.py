@@ -10,7 +10,8 @@ or that moves away after a tier ends with phase ``cancel`` instead of ``end``.
 
 A load as still as an object put down (the estimator's ``resting``) holds no tier until the
 estimator has decided: an object joins the zero and its touch ends without an event; a
-finger soon trembles or wanders, and the tiers due by then fire.
+finger soon trembles or wanders, and the tiers due by then fire. A load that rested while a
+tier was due holds none while it is released: a cup lifted before it was judged.
 """
 
 from __future__ import annotations

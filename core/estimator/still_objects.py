@@ -41,10 +41,11 @@ HEAVY_SPREAD_SHARE = 0.003
 # and the resting, but for one window a run of a load under LIGHT_LOAD_N that rests, whose mean
 # keeps it resting (within OBJECT_RESTING_KEEP of the run's): a light desk still ringing from
 # a cup's landing, its mean where the cup rests (the flag dropped for that window and a due
-# long press fired: on the random desks of scripts/desk_sweep.py 5 such in 48,000 taps, 3 in
-# 504 objects of scripts/objects_eval.py; a finger's window that spreads so moves its mean
-# with it, 2.7 times the allowed wander at the median). Not for heavier loads: firm presses
-# held that way fired 0.2 s later, cups of 0.7 kg and more never fired
+# long press fired: on the random desks of scripts/desk_sweep.py 3 of the 5 long presses nobody
+# made in 48,000 taps, 2 in 336 objects of scripts/objects_eval.py; a finger's window that
+# spreads so moves its mean with it, 2.7 times the allowed wander at the median). Not for
+# heavier loads: firm presses held that way fired 0.2 s later, cups of 0.7 kg and more never
+# fired
 OBJECT_SPIKE = 1.3
 # once a load rests (its means within the allowed wander), it rests on until they stray this
 # many times the allowed wander (or a window is not still): on seven desks a 0.3 kg cup's

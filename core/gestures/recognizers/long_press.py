@@ -10,7 +10,8 @@ or that moves away after a tier ends with phase ``cancel`` instead of ``end``.
 
 A load as still as an object put down (the estimator's ``resting``) holds no tier until the
 estimator has decided: an object joins the zero and its touch ends without an event; a
-finger soon trembles or wanders, and the tiers due by then fire.
+finger soon trembles or wanders, and the tiers due by then fire. A load that rested while a
+tier was due holds none while it is released: a cup lifted before it was judged.
 """
 
 from __future__ import annotations
@@ -55,6 +56,7 @@ class LongPressRecognizer(Recognizer):
         self._region: str | None = None
         self._placed = False
         self._cancelled = False
+        self._rested = False  # the load was resting while a tier was due
         self._next = 0  # index of the next tier to reach
         self._reached: float | None = None  # the highest tier fired
         self._repeats: dict[float, float] = {}  # repeating tier -> sample time of its next repeat
@@ -85,6 +87,11 @@ class LongPressRecognizer(Recognizer):
             # estimator decides within 0.6-0.8 s of stillness: an object ends the touch (it
             # joins the zero), a finger's tremor or wander ends the resting and the due tiers
             # fire then. (Once a tier fired, the touch was a finger: repeats go on.)
+            self._rested = True
+            return []
+        if self._rested and self._reached is None and event.phase == "release":
+            # a load that rested, leaving: a cup lifted before it was judged is no hold (a
+            # finger that wanders fires at its next sample that is not a release)
             return []
         if not self._placed:
             self._placed = True

@@ -77,13 +77,13 @@ def object_still(
     # rests and whose mean keeps it resting (a desk still ringing from a cup's landing:
     # still_objects.OBJECT_SPIKE); it counts toward no verdict
     spiked = spread >= pf[P_OBJECT_SPIKE] * limit
-    light_rest = load < pf[P_LIGHT_LOAD] and si[J_OBJ_RESTING] and run > 0
-    if spiked and not (light_rest and not si[J_OBJ_GRACED]):
+    light = load < pf[P_LIGHT_LOAD]
+    if spiked and not (light and si[J_OBJ_RESTING] and run > 0 and not si[J_OBJ_GRACED]):
         return 0, False
     if run == 0:
         si[J_OBJ_WINDOWS_N] = si[J_OBJ_GRACED] = 0
     run += 1
-    wait = n_object + 1 if load < pf[P_LIGHT_LOAD] else n_object
+    wait = n_object + 1 if light else n_object
     cap, at = n_object + 1, pi[I_SO_OBJ_WINDOWS]
     k = ring_push(si, J_OBJ_WINDOWS_N, J_OBJ_WINDOWS_POS, cap, wait)
     sf[at + 4 * k] = spread

@@ -142,6 +142,17 @@ def separation(found: Medians, without: str = "", catalogue_without: str = "") -
     return float(gaps.mean()) if len(gaps) else math.nan
 
 
+def separation_margin(choices: ScoreChoices, apart: np.ndarray | float) -> np.ndarray:
+    """The margin a set's :func:`separation` ``apart`` allows a stroke the catalogue agrees
+    with: ``choices.margin_share`` of it where that is more than ``choices.margin``, else
+    ``choices.margin`` (also without a share, or with the separation unmeasured: nan)."""
+    apart = np.asarray(apart, dtype=float)
+    if choices.margin_share is None:
+        return np.full(apart.shape, choices.margin)
+    wider = np.maximum(choices.margin_share * apart, choices.margin)
+    return np.where(np.isnan(apart), choices.margin, wider)
+
+
 class Twins(NamedTuple):
     """How a person's templates stand to the catalogue, per shape they drew: ``best``, the
     best score of its templates against each catalogue shape, and ``lowest``, the lowest of
@@ -248,9 +259,7 @@ class Nearest(NamedTuple):
         fixed = np.full(len(self.shape), choices.margin)
         if choices.margin_share is None:
             return fixed
-        share = np.maximum(choices.margin_share * self.separation, 0.0)
-        share = np.where(np.isnan(self.separation), fixed, share)
-        return np.where(self.trusted(choices), np.maximum(share, fixed), fixed)
+        return np.where(self.trusted(choices), separation_margin(choices, self.separation), fixed)
 
     def trusted(self, choices: ScoreChoices = DEFAULT_CHOICES) -> np.ndarray:
         """Whether each stroke may have more than ``choices.margin`` (k,) bool: the built-in

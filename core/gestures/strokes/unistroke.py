@@ -38,6 +38,7 @@ from hapticdesk.gestures.strokes.stroke_verdict import (
     judge,
     medians,
     separation,
+    separation_margin,
 )
 
 START_POINTS = 32  # start points tried for closed templates
@@ -175,10 +176,7 @@ class TemplateSet:
         of the set's :func:`separation` where that is more than ``choices.margin`` (and only
         for a stroke the catalogue takes for the same shape, of at least
         ``choices.least_size``: stroke_verdict.Nearest.margin), else ``choices.margin``."""
-        share, apart = self.choices.margin_share, self._separation(max_rotation_deg)
-        if share is None or np.isnan(apart):
-            return self.choices.margin
-        return max(share * apart, self.choices.margin)
+        return float(separation_margin(self.choices, self._separation(max_rotation_deg)))
 
     def _catalogue(
         self, strokes: StrokeFeatures, scores: np.ndarray, max_rotation_deg: float

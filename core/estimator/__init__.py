@@ -9,9 +9,9 @@ million, so streaming and batch give the same output for any split of the input:
 - **state**: one set of arrays per run (filter memories, delay rings, the zero, the window
   being filled, the detector's and the second finger's state); a snapshot is a copy, a
   re-tare resets slices;
-- **one kernel, two entries**: a per-sample function over those arrays; the block entry loops
-  it over a push into preallocated output columns, the one-sample entry runs it into a
-  reused one-sample record; ``push`` returns a view of them (it holds until the next push);
+- **one kernel, one loop**: a per-sample function over those arrays, looped over a push into
+  preallocated output columns, or over a single sample into a reused one-sample record (the
+  same machine code); ``push`` returns a view of them (it holds until the next push);
 - **event codes**: what happens rarely (a zero window's end, a notice, the covariances made
   anew, a second finger's fit) leaves the loop with a code and the sample's index; Python
   (:class:`~.contact_estimator.ContactEstimator`) handles it and resumes.

@@ -2,9 +2,10 @@
 
 :class:`ContactEstimator` holds one desk's parameters (its settings flattened once,
 :mod:`.params`), a run's state arrays and the output columns, and runs the kernel
-(:mod:`.kernel`) over each push: a block through its loop entry, a single sample through its
-one-sample entry. Between samples it handles what the kernel leaves to Python — notices, the
-zero's windows before the tare and the objects absorbed or lifted after it (:mod:`.zero`),
+(:mod:`.kernel`) over each push: a block through its loop into the output columns, a single
+sample through the same loop into a reused one-sample record. Between samples it handles
+what the kernel leaves to Python — notices, the zero's windows before the tare and the
+objects absorbed or lifted after it (:mod:`.zero`),
 the covariances made at the tare and when a resolution step is learned (:mod:`.candidates`),
 the accelerometers' gain for partial readings (:mod:`.inertia`), the second finger's fit and
 stray (:mod:`.multitouch`) — and resumes.
@@ -87,6 +88,7 @@ class ContactEstimator:
         n_axes = 0 if self.inertia_settings is None else self.inertia_settings.n_axes
         self._no_readings = np.zeros((1, n_axes))  # (the kernels' accel when there is none)
         self._record = OutputColumns(1, self.params.out_rows)  # the one-sample record
+        self._one_t = np.empty(1)  # (its time, for the loop)
         self._columns = OutputColumns(0, self.params.out_rows)
         self._second_finger_on = settings.second_finger
         k.warm()
@@ -212,7 +214,7 @@ class ContactEstimator:
         given = readings is not None
         a = self._no_readings if readings is None else readings
         if n == 1:
-            block = self._step(float(t[0]), x, a[0], given)
+            block = self._step(float(t[0]), x, a[:1], given)
         else:
             block = self._run(t, x, a, given, n)
         if self.notices.total - noticed > 1:  # in time order, however the stages found them
@@ -249,16 +251,17 @@ class ContactEstimator:
         return None if checked is None else np.ascontiguousarray(checked)
 
     def _step(self, t: float, x: np.ndarray, a: np.ndarray, given: bool) -> ContactBlock:
-        """One sample (``x`` (1, C)) through the kernel's one-sample entry, into the reused
-        record."""
-        rec = self._record
+        """One sample (``x`` (1, C), ``a`` (1, A)) through the kernel's loop, into the reused
+        one-sample record."""
+        rec, one = self._record, self._one_t
+        one[0] = t
         pf, pi = self.params.pf, self.params.pi
         sf, si = self.state
-        while True:
-            events = k.run_step(t, x, a, given, pf, pi, sf, si, rec.f, rec.b, rec.s)
+        while True:  # (the block loop over one sample: the machine code a block runs)
+            events = k.run_block(one, x, a, given, pf, pi, sf, si, rec.f, rec.b, rec.s, 0, 1)
             if not events:
                 break
-            self._handle(events, rec, 0, a)
+            self._handle(events, rec, 0, a[0])
             if si[slots.J_RESUME] == slots.RESUME_NEXT:
                 break
         if self.trace and rec.b[slots.OUT_B_TRACED, 0]:

@@ -1,11 +1,14 @@
-"""The estimator's per-sample work, compiled (numba): one function over flat arrays, two entries.
+"""The estimator's per-sample work, compiled (numba): one function over flat arrays, one loop.
 
 Every sample goes through :func:`~hapticdesk.estimator.kernel_sample._sample` once, whether it
-came in a block of a million or alone: the block entry :func:`run_block` (here) loops it over
-a push, writing into preallocated output columns, and the one-sample entry :func:`run_step`
-calls it for a single sample, into a reused one-sample record. So streaming equals batch by
-construction. This module holds the entries, the argument types they are compiled for and
-:func:`warm`; the stages are in the ``kernel_*`` modules of this folder.
+came in a block of a million or alone, through the one compiled loop :func:`run_block`
+(here): a push of many samples writes into preallocated output columns, a push of one sample
+into a reused one-sample record (the estimator's two ways in, ``ContactEstimator._run`` and
+``_step``). So streaming equals batch by construction: the same machine code runs both. (A
+second compiled entry for one sample cost a sixth of the first compile, 6.6 s of CPU, and
+its load at every process's start-up, to save 0.2 µs of a single push's 3:
+docs/performance.md.) This module holds the entry, the argument types it is compiled for
+and :func:`warm`; the stages are in the ``kernel_*`` modules of this folder.
 
 The arrays (built once per estimator by :mod:`hapticdesk.estimator.params`):
 
@@ -77,7 +80,7 @@ from hapticdesk.estimator.kernel_sample import _sample
 from hapticdesk.estimator.kernel_slots import EV_PARTIAL_ACCEL, I_C, I_SO_PREV_ROW, J_EVENT_AT
 from hapticdesk.estimator.kernel_yardsticks import tare_yardsticks
 
-# --- the two entries ----------------------------------------------------------------------------
+# --- the loop, and the intersection over arrays ---------------------------------------------
 
 
 @compiled
@@ -123,30 +126,6 @@ def run_block(
 
 
 @compiled
-def run_step(
-    t: float,
-    x: np.ndarray,
-    accel: np.ndarray,
-    given: bool,
-    pf: np.ndarray,
-    pi: np.ndarray,
-    sf: np.ndarray,
-    si: np.ndarray,
-    out_f: np.ndarray,
-    out_b: np.ndarray,
-    out_s: np.ndarray,
-) -> int:
-    """One sample (``x`` (1, C), ``accel`` (A,), used if ``given``) into the one-sample
-    record's columns; returns its events, as :func:`run_block` (si[J_EVENT_AT] 0)."""
-    mapped = wrench_of(x[0], pf, pi)
-    before = sf[pi[I_SO_PREV_ROW] : pi[I_SO_PREV_ROW] + pi[I_C]]  # (keep_row's)
-    events = _sample(t, x[0], before, mapped, accel, given, pf, pi, sf, si, out_f, out_b, out_s, 0)
-    keep_row(x, -1 if events & EV_PARTIAL_ACCEL else 0, 0, pi, sf)
-    si[J_EVENT_AT] = 0
-    return events
-
-
-@compiled
 def intersect_block(
     pf: np.ndarray,
     pi: np.ndarray,
@@ -188,7 +167,6 @@ def _signatures() -> list[tuple[Any, tuple[Any, ...]]]:
     flag, index = types.boolean, types.int64
     return [
         (run_block, (f1, f2, f2, flag, *state, *outputs, index, index)),
-        (run_step, (types.float64, f2, f1, flag, *state, *outputs)),
         (steps_changed, state),
         (contains, (f1, i1, index, types.float64, types.float64)),
         (tare_yardsticks, (f2, *state)),

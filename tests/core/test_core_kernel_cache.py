@@ -166,7 +166,7 @@ def test_the_kernels_cache_is_stamped_with_every_kernel_module() -> None:
     attribute fails here first)."""
     from hapticdesk.estimator import kernel, kernel_compile, kernel_geometry
 
-    for dispatcher in (kernel.run_block, kernel.run_step, kernel_geometry.contains):
+    for dispatcher in (kernel.run_block, kernel.intersect_block, kernel_geometry.contains):
         stamp = dispatcher._cache._cache_file._source_stamp
         assert stamp[1] == kernel_compile.KERNEL_SOURCES
     # the digest covers the files named kernel*.py: every module compiled through

@@ -27,7 +27,7 @@ est = ContactEstimator(profile)
 loaded = [m for m in ("numba.np.linalg", "numba.np.arraymath", "scipy.linalg") if m in sys.modules]
 from hapticdesk.sim import Scene, Tap, simulate  # (the simulator's own imports come after)
 rec = simulate(profile, Scene([Tap(point=(0.2, 0.1), peak_n=5.0)]), seed=3)
-k = len(rec.t) - 3  # a block through run_block, the last samples one by one through run_step
+k = len(rec.t) - 3  # a block, then the last samples one by one (the one-sample record)
 block = est.push(rec.t[:k], rec.wrench[:k])
 one = [est.push(rec.t[i : i + 1], rec.wrench[i : i + 1]) for i in range(k, k + 3)]
 np.savez(sys.argv[2], x=block.x, y=block.y, force=block.force_n, flags=block.flags,

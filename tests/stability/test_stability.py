@@ -167,7 +167,62 @@ def test_nan_bursts(paper_desk):
     )
 
 
+@pytest.mark.parametrize("where", ["downs", "ups"])
+def test_a_nan_time_keeps_the_times_finite_and_the_gestures(paper_desk, tmp_path, where):
+    # a sample whose time is NaN (a corrupt line) is flagged `nan` and skipped, but its time
+    # was written out as it came: NaN in ContactBlock.t. At a touch's first sample the touch
+    # began at NaN and its tap or long press was lost; at its last, the long press ended at
+    # t = NaN and the tap was lost. Now the sample carries the latest finite time before it.
+    scene = Scene(
+        actions=[
+            Tap(point=(0.1, 0.05), peak_n=5.0),
+            Press(point=(-0.2, 0.1), hold_s=1.5),
+            Tap(point=(0.1, -0.1), peak_n=5.0),
+        ]
+    )
+    rec = simulate(paper_desk, scene, seed=3)
+    clean = estimate(paper_desk, rec)
+    (tmp_path / "layout.yaml").write_text(SWIPES_AND_HOLDS)
+    layout = load_layout(tmp_path / "layout.yaml")
+    delay = ContactEstimator(paper_desk).position_delay_s
+    want = [(e.gesture, e.phase) for e in gestures_of(layout, clean, delay)]
+    assert want == [("tap", None), ("long_press", None), ("long_press", "end"), ("tap", None)]
+    inc = clean.in_contact
+    edges = np.flatnonzero(inc[1:] != inc[:-1]) + 1
+    at = edges[0::2] if where == "downs" else edges[1::2]
+    t = rec.t.copy()
+    t[at] = np.nan
+    for size in (len(t), 1, 7):
+        est = ContactEstimator(paper_desk)
+        parts = [est.push(t[a : a + size], rec.wrench[a : a + size]).copy()
+                 for a in range(0, len(t), size)]  # fmt: skip
+        block = ContactBlock.concat(parts)
+        assert finite(block)
+        assert (np.diff(block.t) >= 0).all()
+        np.testing.assert_array_equal(block.t[at], rec.t[at - 1])
+        assert (block.flags[at] & FLAG_NAN).all()
+        events = gestures_of(layout, block, delay)
+        assert all(np.isfinite(e.t) for e in events)
+        assert [(e.gesture, e.phase) for e in events] == want
+
+
 BUTTONS = Path(__file__).resolve().parents[2] / "examples" / "layouts" / "buttons.yaml"
+
+
+SWIPES_AND_HOLDS = """
+desk: kitamura2017
+units: cm
+regions:
+  pad: {rect: [-37.5, -25, 37.5, 25]}
+bindings:
+  - {gesture: tap, region: pad, do: log}
+  - {gesture: long_press, region: pad, hold_s: 0.8, do: log}
+"""
+
+
+def gestures_of(layout, contacts: ContactBlock, delay: float) -> list:
+    engine = GestureEngine(layout, position_delay_s=delay)
+    return engine.feed(contacts) + engine.flush(float(contacts.t[-1]))
 
 
 def taps_on_buttons(desk: DeskProfile, contacts: ContactBlock) -> list[tuple[str, str | None]]:

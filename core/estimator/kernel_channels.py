@@ -59,6 +59,8 @@ from hapticdesk.estimator.kernel_slots import (
     J_TIME_BACK,
     P_MAX_GAP,
     P_STEP_CHANGE,
+    S_BACK_FROM,
+    S_BACK_LAST,
     S_EV_LATEST,
     S_EV_T,
     S_LAST_STUCK_T,
@@ -94,7 +96,7 @@ def _samples(
         v = x[c]
         within &= abs(v) < limit[c]
         repeat &= v == before[c]
-    finite, saturated = True, False
+    finite, saturated, reset = True, False, False
     if not within:  # (rare) which of the two
         finite = abs(t) < math.inf
         for c in range(c_n):
@@ -105,28 +107,48 @@ def _samples(
     else:
         if saturated:
             flags |= FLAG_SATURATED
-        if t <= sf[S_MAX_T]:  # not after an earlier finite sample
-            flags |= FLAG_TIME_BACK
-            si[J_TIME_BACK] += 1
-            count = si[J_TIME_BACK]
-            mark = 1
-            while mark < count:
-                mark *= 10
-            if mark == count:
-                sf[S_EV_T], sf[S_EV_LATEST] = t, sf[S_MAX_T]
-                events |= EV_TIME_BACK
-        else:
-            sf[S_MAX_T] = t
+        back, events, reset = _time_back(t, pf, sf, si)
+        flags |= back
     stuck, told = _stuck_check(t, repeat, finite, pi, sf, si)
     flags |= stuck
     events |= told
     if flags:
         return flags, events
-    if sf[S_LAST_T] > -math.inf and t - sf[S_LAST_T] > pf[P_MAX_GAP]:
+    if reset or sf[S_LAST_T] > -math.inf and t - sf[S_LAST_T] > pf[P_MAX_GAP]:
         flags |= FLAG_GAP
     sf[S_LAST_T] = t
     _learn_steps(x, pi, sf, si)
     return flags, events
+
+
+@inlined
+def _time_back(t: float, pf: np.ndarray, sf: np.ndarray, si: np.ndarray) -> tuple[int, int, bool]:
+    """Whether the finite sample's time ``t`` is not after an earlier one's (FLAG_TIME_BACK,
+    told at the 1st, 10th, 100th… such sample). Times that went back but rise among
+    themselves for longer than ``max_gap_s`` are a clock that jumped back (or one earlier
+    time far ahead, a corrupt line): from there on they are the times (the third item True:
+    a gap, the filters restart), where before one bad time kept every later sample out.
+    Returns (flags, events, reset)."""
+    if t > sf[S_MAX_T]:
+        sf[S_MAX_T] = t
+        sf[S_BACK_LAST] = math.inf
+        return 0, 0, False
+    if not t > sf[S_BACK_LAST]:  # a run of times that went back starts here
+        sf[S_BACK_FROM] = t
+    sf[S_BACK_LAST] = t
+    if t - sf[S_BACK_FROM] > pf[P_MAX_GAP]:
+        sf[S_MAX_T] = t
+        sf[S_BACK_LAST] = math.inf
+        return 0, 0, True
+    si[J_TIME_BACK] += 1
+    count = si[J_TIME_BACK]
+    mark = 1
+    while mark < count:
+        mark *= 10
+    if mark == count:
+        sf[S_EV_T], sf[S_EV_LATEST] = t, sf[S_MAX_T]
+        return FLAG_TIME_BACK, EV_TIME_BACK, False
+    return FLAG_TIME_BACK, 0, False
 
 
 @inlined

@@ -89,6 +89,7 @@ from hapticdesk.estimator.kernel_slots import (
     S_EV_T,
     S_LAST_GOOD,
     S_LP,
+    S_MAX_T,
     S_RAW,
     S_TARED_Q,
     S_TARED_W,
@@ -181,7 +182,7 @@ def _back(
     # every output row of the sample written once (a row written twice, zeroed then set,
     # cost ~6 ns a sample): the point's rows by _emit where a point is chosen, the defaults
     # below where none is
-    out_f[OUT_T, col] = t
+    out_f[OUT_T, col] = _out_time(t, sf)
     out_b[OUT_B_LOCATED, col] = 0
     inside = located = False
     phase = traced = 0
@@ -221,6 +222,16 @@ def _back(
     if si[J_MT_ON] and si[J_STARTED]:
         return _second_finger(pf, pi, sf, si, flags, out_f, out_b, out_s, col)
     return 0
+
+
+@inlined
+def _out_time(t: float, sf: np.ndarray) -> float:
+    """The time a sample is written out with: its own, or for one whose time is NaN or
+    infinite (flagged ``nan``) the latest finite time so far (0 before any), so the outputs
+    stay finite and in order."""
+    if abs(t) < math.inf:
+        return t
+    return sf[S_MAX_T] if sf[S_MAX_T] > -math.inf else 0.0
 
 
 @inlined

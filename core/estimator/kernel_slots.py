@@ -222,7 +222,9 @@ S_OBJ_WEIGHT = 92  # ... its |F|
 S_OBJ_F = 93  # (3,) ... its force (EV_ABSORBED: put on or taken off)
 S_ZERO_NEXT = 96  # (6,) a zero decided at a window's end for the next sample on (J_ZERO_NEXT)
 S_ZERO_T_NEXT = 102  # ... and its time
-N_SF_FIXED = 103
+S_BACK_FROM = 103  # the run of samples whose times went back: its first time
+S_BACK_LAST = 104  # ... and its last (inf: no run)
+N_SF_FIXED = 105
 # --- state: fixed int slots (si) ----------------------------------------------------------------
 (
     J_STARTED,  # a good sample has been seen: the filters run

@@ -183,6 +183,7 @@ def params_of(s: EstimatorSettings, inertia: InertiaSettings | None) -> Params:
     state_f = {
         slots.S_LAST_T: -math.inf,
         slots.S_MAX_T: -math.inf,
+        slots.S_BACK_LAST: math.inf,
         slots.S_STUCK_SINCE: math.nan,
         slots.S_LAST_STUCK_T: math.nan,
         slots.S_MT_MIN_APART: MIN_APART_M,

@@ -13,7 +13,13 @@ import pytest
 
 from hapticdesk.bench.accuracy import measure_accuracy
 from hapticdesk.estimator import ContactEstimator, estimate
-from hapticdesk.estimator.contacts import FLAG_NAN, FLAG_SATURATED, FLAG_STUCK, ContactBlock
+from hapticdesk.estimator.contacts import (
+    FLAG_NAN,
+    FLAG_SATURATED,
+    FLAG_STUCK,
+    FLAG_TIME_BACK,
+    ContactBlock,
+)
 from hapticdesk.estimator.samples import STUCK_RUN
 from hapticdesk.files.profile import METHODS, DeskProfile
 from hapticdesk.gestures.engine import GestureEngine
@@ -167,7 +173,102 @@ def test_nan_bursts(paper_desk):
     )
 
 
+@pytest.mark.parametrize("where", ["downs", "ups"])
+def test_a_nan_time_keeps_the_times_finite_and_the_gestures(paper_desk, tmp_path, where):
+    # a sample whose time is NaN (a corrupt line) is flagged `nan` and skipped, but its time
+    # was written out as it came: NaN in ContactBlock.t. At a touch's first sample the touch
+    # began at NaN and its tap or long press was lost; at its last, the long press ended at
+    # t = NaN and the tap was lost. Now the sample carries the latest finite time before it.
+    scene = Scene(
+        actions=[
+            Tap(point=(0.1, 0.05), peak_n=5.0),
+            Press(point=(-0.2, 0.1), hold_s=1.5),
+            Tap(point=(0.1, -0.1), peak_n=5.0),
+        ]
+    )
+    rec = simulate(paper_desk, scene, seed=3)
+    clean = estimate(paper_desk, rec)
+    (tmp_path / "layout.yaml").write_text(SWIPES_AND_HOLDS)
+    layout = load_layout(tmp_path / "layout.yaml")
+    delay = ContactEstimator(paper_desk).position_delay_s
+    want = [(e.gesture, e.phase) for e in gestures_of(layout, clean, delay)]
+    assert want == [("tap", None), ("long_press", None), ("long_press", "end"), ("tap", None)]
+    inc = clean.in_contact
+    edges = np.flatnonzero(inc[1:] != inc[:-1]) + 1
+    at = edges[0::2] if where == "downs" else edges[1::2]
+    t = rec.t.copy()
+    t[at] = np.nan
+    for size in (len(t), 1, 7):
+        est = ContactEstimator(paper_desk)
+        parts = [est.push(t[a : a + size], rec.wrench[a : a + size]).copy()
+                 for a in range(0, len(t), size)]  # fmt: skip
+        block = ContactBlock.concat(parts)
+        assert finite(block)
+        assert (np.diff(block.t) >= 0).all()
+        np.testing.assert_array_equal(block.t[at], rec.t[at - 1])
+        assert (block.flags[at] & FLAG_NAN).all()
+        events = gestures_of(layout, block, delay)
+        assert all(np.isfinite(e.t) for e in events)
+        assert [(e.gesture, e.phase) for e in events] == want
+
+
+@pytest.mark.parametrize("ahead_s", [1e12, 0.3])
+def test_one_time_far_ahead_does_not_deafen_the_rest_of_the_run(paper_desk, tmp_path, ahead_s):
+    # one sample whose time is ahead (a corrupt line, a clock's glitch) put every later
+    # sample's time "back": each flagged and skipped until the times passed it, so no touch
+    # was seen for the rest of the run (1e12 s: ever). Times that rise among themselves for
+    # longer than max_gap_s after going back are now a clock that went back: taken, a gap.
+    scene = Scene(
+        actions=[
+            Tap(point=(0.1, 0.05), peak_n=5.0),
+            Press(point=(-0.2, 0.1), hold_s=1.5),
+            Tap(point=(0.1, -0.1), peak_n=5.0),
+        ]
+    )
+    rec = simulate(paper_desk, scene, seed=3)
+    (tmp_path / "layout.yaml").write_text(SWIPES_AND_HOLDS)
+    layout = load_layout(tmp_path / "layout.yaml")
+    delay = ContactEstimator(paper_desk).position_delay_s
+    clean = estimate(paper_desk, rec)
+    want = [(e.gesture, e.phase, e.t) for e in gestures_of(layout, clean, delay)]
+    assert [w[:2] for w in want] == [
+        ("tap", None), ("long_press", None), ("long_press", "end"), ("tap", None)
+    ]  # fmt: skip
+    fs = paper_desk.sample_rate_hz
+    at = int(2.5 * fs)  # in the quiet before the first tap
+    assert not clean.in_contact[at - 10 : at + int(0.5 * fs)].any()
+    t = rec.t.copy()
+    t[at] += ahead_s
+    for size in (len(t), 1, 7):
+        est = ContactEstimator(paper_desk)
+        parts = [est.push(t[a : a + size], rec.wrench[a : a + size]).copy()
+                 for a in range(0, len(t), size)]  # fmt: skip
+        block = ContactBlock.concat(parts)
+        assert finite(block)
+        back = np.flatnonzero(block.flags & FLAG_TIME_BACK)
+        assert len(back) <= paper_desk.estimation.max_gap_s * fs + 1
+        assert back.max() < at + 0.1 * fs
+        got = [(e.gesture, e.phase, e.t) for e in gestures_of(layout, block, delay)]
+        assert got == want
+
+
 BUTTONS = Path(__file__).resolve().parents[2] / "examples" / "layouts" / "buttons.yaml"
+
+
+SWIPES_AND_HOLDS = """
+desk: kitamura2017
+units: cm
+regions:
+  pad: {rect: [-37.5, -25, 37.5, 25]}
+bindings:
+  - {gesture: tap, region: pad, do: log}
+  - {gesture: long_press, region: pad, hold_s: 0.8, do: log}
+"""
+
+
+def gestures_of(layout, contacts: ContactBlock, delay: float) -> list:
+    engine = GestureEngine(layout, position_delay_s=delay)
+    return engine.feed(contacts) + engine.flush(float(contacts.t[-1]))
 
 
 def taps_on_buttons(desk: DeskProfile, contacts: ContactBlock) -> list[tuple[str, str | None]]:

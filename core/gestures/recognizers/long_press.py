@@ -6,7 +6,9 @@ on. After a tier was reached, the release gives an event with phase ``end`` (Zig
 A binding with ``repeat: true`` keeps firing while the finger stays (hold to dim, like a
 keyboard's auto-repeat): events with phase ``repeat`` every ``interval_s`` after its tier.
 A held press that ends without a release being seen (a gap, a stop, the end of a recording)
-or that moves away after a tier ends with phase ``cancel`` instead of ``end``.
+or that moves away after a tier ends with phase ``cancel`` instead of ``end``. A touch the
+stream resumed with after a gap (its start unseen) holds no tier: how long it was held is not
+known, and the tiers it reached before the gap fired then.
 
 A load as still as an object put down (the estimator's ``resting``) holds no tier until the
 estimator has decided: an object joins the zero and its touch ends without an event; a
@@ -78,8 +80,8 @@ class LongPressRecognizer(Recognizer):
                     extra={"duration_s": round(touch.duration(), 6)},
                 )
             ]  # fmt: skip
-        if self._cancelled or not touch.located:
-            return []
+        if self._cancelled or not touch.located or touch.began_unseen:
+            return []  # (a touch whose start a gap hid: how long it was held is not known)
         if event.t < touch.t_down + self.first_tier:
             return []
         if touch.resting and self._reached is None:

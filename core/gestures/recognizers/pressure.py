@@ -2,11 +2,12 @@
 
 ``press`` fires when the force rises past a level (light, firm, hard, …) and re-arms that
 level once the force has dropped ``hysteresis_n`` below it, so a trembling finger at the
-threshold does not fire twice. ``force`` maps the force between ``min_n`` and ``max_n`` to
-0..1 with begin/update/end, updates rate-limited by ``interval_s`` and ``step``; a touch
-that broke off without a release ends with ``cancel`` (value 0: the force is not known), and
-so does one that leaves its region when the binding says ``leave: cancel`` (the value it had
-last on the region).
+threshold does not fire twice. A touch the stream resumed with after a gap (its start
+unseen) fires only the levels its force rises past after the gap, not those it is above.
+``force`` maps the force between ``min_n`` and ``max_n`` to 0..1 with begin/update/end,
+updates rate-limited by ``interval_s`` and ``step``; a touch that broke off without a release
+ends with ``cancel`` (value 0: the force is not known), and so does one that leaves its
+region when the binding says ``leave: cancel`` (the value it had last on the region).
 """
 
 from __future__ import annotations
@@ -55,7 +56,10 @@ class PressRecognizer(Recognizer):
             if not found:
                 self._ignore = True
                 return []
-            self._armed = dict.fromkeys(self.bound.options(self._region)["levels"], True)
+            levels = self.bound.options(self._region)["levels"]
+            # a touch already down when the stream came back from a gap: the levels it was
+            # above then fired before the gap (or rose unseen); only a rise past one fires
+            self._armed = {n: not touch.began_unseen or force < v for n, v in levels.items()}
         options = self.bound.options(self._region)
         out: list[GestureEvent] = []
         for name, level in options["levels"].items():

@@ -230,3 +230,24 @@ def test_a_region_on_a_desk_without_surfaces_is_refused_at_the_region(tmp_path, 
     err = capsys.readouterr().err
     assert re.search(r"layout.yaml:2:\d+: region `a`: the desk `ati-bench` has no surfaces", err)
     assert "Traceback" not in err
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        "units: {long}\n" + REGION_A,  # a choice
+        REGION_A + TAP.replace("region: a", "region: {long}"),  # a region's name
+        REGION_A + TAP.replace("do: log", "do: {long}"),  # an action's name
+        REGION_A + "bindings: {long}\n",  # a value of the wrong kind, quoted whole
+    ],
+    ids=["a choice", "a region's name", "an action's name", "a value of the wrong kind"],
+)
+def test_an_error_quoting_a_huge_value_stays_one_short_line(bad, tmp_path, capsys):
+    """An error quotes what it found; a 500 kB value was printed whole, a line of 500 kB."""
+    layout = tmp_path / "long.yaml"
+    layout.write_text("desk: kitamura2017\n" + bad.replace("{long}", "x" * 500_000))
+    assert main(["check", str(layout)]) == 2
+    err = capsys.readouterr().err
+    assert re.match(rf"hapticdesk check: error: {re.escape(str(layout))}:\d+:\d+: `?\w", err)
+    assert err.count("\n") == 1 and len(err) < 1_200, len(err)
+    assert "characters left out" in err

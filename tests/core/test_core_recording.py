@@ -139,6 +139,21 @@ def test_a_row_without_a_time_is_an_error(tmp_path, t):
         read_recording(path, NAMES)
 
 
+@pytest.mark.parametrize("t", ["1e300", "-3e11"])
+def test_a_time_no_clock_gives_is_an_error_at_its_cell(tmp_path, t):
+    """A time of 1e300 in one row was read: every sample after it went back in time, each
+    skipped (one bad cell lost the rest, said only as "time went back" at t=1000…0.000 s)."""
+    path = tmp_path / "rec.csv"
+    _csv(path, [_row(0.0), _row(0.001).replace("0.001", t, 1), _row(0.002)])
+    with pytest.raises(ConfigError, match=rf"rec\.csv:3:1: `t` is '{t}'; .*within ±253402214400"):
+        read_recording(path, NAMES)
+    cols = _npz_columns(3)
+    cols["t"][1] = float(t)
+    _npz(tmp_path / "rec.npz", **cols)
+    with pytest.raises(ConfigError, match=r"rec\.npz: `t` is .* in row 2; .*year 9999"):
+        read_recording(tmp_path / "rec.npz", NAMES)
+
+
 def test_all_nan_times_are_refused_by_replay(tmp_path, paper_desk):
     from hapticdesk.plugins.replay import open_replay
 

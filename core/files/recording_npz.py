@@ -125,6 +125,8 @@ class NpzRecordingReader:
                         f"{self.length} rows (a truncated file?)",
                     )
                 table[:, j] = np.frombuffer(raw, dtype=dtype)
+        except ConfigError:  # (a ValueError too: said once, not wrapped in the message below)
+            raise
         except _NPZ_ERRORS as err:
             raise ConfigError(self.where, f"not a readable NPZ recording: {err}") from None
         rec = recording_from_table(table, self.extra, self.sensor_names, self.channel_names)

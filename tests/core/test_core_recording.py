@@ -243,3 +243,25 @@ def test_a_replay_closed_from_another_thread_ends_cleanly(tmp_path, paper_desk):
     assert not thread.is_alive() and errors == []
     assert 0 < sum(got) < 40_000
     assert source.recording._reader._fh is None  # the file was closed
+
+
+def test_an_npz_column_cut_short_is_said_once(tmp_path):
+    """A member whose header promises more values than it holds: the error named the file
+    twice ("rec.npz: not a readable NPZ recording: rec.npz: column `t` ends after …")."""
+    import io
+    import zipfile
+
+    path = tmp_path / "rec.npz"
+    with zipfile.ZipFile(path, "w") as archive:
+        for name, column in _npz_columns(8).items():
+            member = io.BytesIO()
+            np.lib.format.write_array_header_1_0(
+                member, {"descr": "<f8", "fortran_order": False, "shape": (12,)}
+            )
+            member.write(column.astype("<f8").tobytes())
+            archive.writestr(f"{name}.npy", member.getvalue())
+    with pytest.raises(ConfigError) as caught:
+        read_recording(path, NAMES)
+    said = str(caught.value)
+    assert said.startswith(f"{path}: column `t` ends after 8 of its 12 rows"), said
+    assert said.count(str(path)) == 1

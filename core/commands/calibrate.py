@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 from datetime import date
 from pathlib import Path
 
@@ -32,9 +33,15 @@ from hapticdesk.files.profile_reader import load_profile, resolve_profile_path
 from hapticdesk.recordings import read_any_recording
 
 MIN_SPOTS, MAX_SPOTS = 3, 5
+#: what argparse takes for a value, not an option, though it starts with "-": a negative
+#: number, and a spot that starts with one (``--spot -0.33,-0.18``, as the guide and
+#: ``--suggest`` write it; before Python 3.13 argparse saw an option there and said
+#: "argument --spot: expected one argument"). This command has no option that looks so.
+NEGATIVE_VALUE = re.compile(r"^-\.?\d")
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
+    parser._negative_number_matcher = NEGATIVE_VALUE  # (argparse's own, for this parser)
     parser.add_argument(
         "recording",
         nargs="?",

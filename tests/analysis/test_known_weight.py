@@ -340,3 +340,29 @@ def test_spots_are_written_as_the_guide_writes_them(
     code = main(["calibrate", str(rec_path), "--desk", DESK, "--mass-kg", "1", *spots, "--json"])
     out = capsys.readouterr().out
     assert code == 0 and json.loads(out)["passed"]
+
+
+@pytest.mark.parametrize(
+    ("spot", "said"),
+    [
+        ((5.0, 5.0), "--spot: spot 2 (5, 5) is off the top of desk"),  # the fit moved cells 5 m
+        (None, "--spot: spots 1 and 2 are 0 mm apart"),  # the first spot given twice
+    ],
+)
+def test_a_spot_off_the_top_or_given_twice_is_refused(
+    setup_recording: Recording,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    spot: tuple[float, float] | None,
+    said: str,
+) -> None:
+    from hapticdesk.cli import main
+
+    rec_path = tmp_path / "setup.csv"
+    write_recording(rec_path, setup_recording)
+    points = np.vstack([suggested_spots(load_profile(DESK), 4), [[0.1, 0.05]]])
+    points[1] = points[0] if spot is None else spot
+    spots = [f"--spot={x:.4f},{y:.4f}" for x, y in points]
+    code = main(["calibrate", str(rec_path), "--desk", DESK, "--mass-kg", "1", *spots])
+    assert code == 2
+    assert capsys.readouterr().err.startswith(f"hapticdesk calibrate: error: {said}")

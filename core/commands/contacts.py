@@ -131,7 +131,8 @@ FLAGS_SAID = {
     "saturated": "were at or beyond a sensor's range",
     "time_back": "were not after the sample before",
     "stuck": "repeated one reading",
-    "not_tared": "came before the desk was tared (the tare needs a still desk and whole samples)",
+    "not_tared": "came before the desk was tared, which it never was (the tare needs a still "
+    "desk and whole samples)",
 }
 
 
@@ -145,7 +146,8 @@ def why_nothing(info: dict[str, object]) -> str | None:
     said = [
         f"{flagged[name]:,} {text}"
         for name, text in FLAGS_SAID.items()
-        if flagged.get(name, 0) * 2 > samples
+        # (the tare's own second is never tared: only a desk never tared is said)
+        if flagged.get(name, 0) == samples or name != "not_tared" and flagged[name] * 2 > samples
     ]
     if not said:
         return None

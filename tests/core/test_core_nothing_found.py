@@ -42,7 +42,7 @@ def test_a_recording_too_short_to_tare_says_so(idle, tmp_path, capsys):
     err = contacts(tmp_path, capsys, short)
     assert (
         f"hapticdesk contacts: warning: {tmp_path / 'rec.csv'}: no contact found: of its 600 "
-        "samples, 600 came before the desk was tared"
+        "samples, 600 came before the desk was tared, which it never was"
     ) in err
 
 
@@ -73,3 +73,11 @@ def test_a_recording_with_contacts_gets_no_warning(tmp_path, capsys):
     profile = load_profile("kitamura2017")
     rec = simulate(profile, Scene([Idle(1.5), Tap((0.0, 0.0), peak_n=5.0), Idle(0.5)]), seed=1)
     assert "warning" not in contacts(tmp_path, capsys, rec)
+
+
+def test_a_short_quiet_recording_that_tared_gets_no_warning(idle, tmp_path, capsys):
+    """Most of 1.5 s comes before the tare's end, but the desk was tared: nothing to say."""
+    _, rec = idle
+    assert "warning" not in contacts(
+        tmp_path, capsys, Recording(rec.t[:1800], rec.wrench[:1800], rec.sensor_names)
+    )

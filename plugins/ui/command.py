@@ -51,11 +51,19 @@ def run(args: argparse.Namespace) -> int:
     from hapticdesk.files.profile_reader import load_profile
     from hapticdesk.plugin_loading import load_registry
     from hapticdesk.plugins.mqtt.demo import examples_dir
+    from hapticdesk.plugins.ui.guard import LOOPBACK_NAMES
     from hapticdesk.plugins.ui.server import UiServer
     from hapticdesk.runtime.assembly import build_scene
     from hapticdesk.runtime.lane import Lane
     from hapticdesk.runtime.service import Runtime
 
+    token = args.token or os.environ.get(TOKEN_ENV)
+    if args.host not in LOOPBACK_NAMES and not token:  # (before a new layout is written)
+        raise ConfigError(
+            "--host",
+            f"listening on {args.host} lets other machines in: give a token "
+            f"(--token or {TOKEN_ENV})",
+        )
     examples = examples_dir()
     layout = Path(args.layout) if args.layout else examples / "layouts" / "demo.yaml"
     if args.layout and not layout.exists():  # a new layout: started as `hapticdesk init` does
@@ -65,7 +73,6 @@ def run(args: argparse.Namespace) -> int:
         print(f"hapticdesk ui: created {layout}, a new layout for desk {desk}", file=sys.stderr)
     source = args.source or f"sim:{examples / 'scenes' / 'demo.yaml'}"
     registry = load_registry()
-    token = args.token or os.environ.get(TOKEN_ENV)
     server = UiServer(
         layout,
         registry,

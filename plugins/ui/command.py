@@ -42,6 +42,21 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _token(args: argparse.Namespace) -> str | None:
+    """The page's token; a ConfigError naming ``--host`` when it listens beyond loopback
+    without one (``ui --layout new.yaml --host 0.0.0.0`` wrote new.yaml, then refused)."""
+    from hapticdesk.plugins.ui.guard import LOOPBACK_NAMES
+
+    token = args.token or os.environ.get(TOKEN_ENV)
+    if args.host not in LOOPBACK_NAMES and not token:
+        raise ConfigError(
+            "--host",
+            f"listening on {args.host} lets other machines in: give a token "
+            f"(--token or {TOKEN_ENV})",
+        )
+    return token
+
+
 def run(args: argparse.Namespace) -> int:
     from hapticdesk.extras import require
 
@@ -51,19 +66,12 @@ def run(args: argparse.Namespace) -> int:
     from hapticdesk.files.profile_reader import load_profile
     from hapticdesk.plugin_loading import load_registry
     from hapticdesk.plugins.mqtt.demo import examples_dir
-    from hapticdesk.plugins.ui.guard import LOOPBACK_NAMES
     from hapticdesk.plugins.ui.server import UiServer
     from hapticdesk.runtime.assembly import build_scene
     from hapticdesk.runtime.lane import Lane
     from hapticdesk.runtime.service import Runtime
 
-    token = args.token or os.environ.get(TOKEN_ENV)
-    if args.host not in LOOPBACK_NAMES and not token:  # (before a new layout is written)
-        raise ConfigError(
-            "--host",
-            f"listening on {args.host} lets other machines in: give a token "
-            f"(--token or {TOKEN_ENV})",
-        )
+    token = _token(args)  # (before a new layout is written)
     examples = examples_dir()
     layout = Path(args.layout) if args.layout else examples / "layouts" / "demo.yaml"
     if args.layout and not layout.exists():  # a new layout: started as `hapticdesk init` does

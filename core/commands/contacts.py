@@ -157,7 +157,9 @@ def why_nothing(info: dict[str, object]) -> str | None:
 def run(args: argparse.Namespace) -> int:
     output = Path(args.output) if args.output and args.output != "-" else None
     if output is not None:  # before the work: a wrong name is not found after it
-        check_output_path(output, str(output), what="the contacts file")
+        check_output_path(
+            output, str(output), what="the contacts file", reads={"the recording": args.recording}
+        )
     given = load_input(args)
     profile, recording = given.profile, given.recording
     estimator = ContactEstimator(profile, method=args.method)

@@ -40,6 +40,19 @@ def _line_of_error(err: ConfigError, first_line: int, count: int) -> int | None:
     return line if first_line <= line < first_line + count else None
 
 
+def _separator_hint(header: list[str]) -> str:
+    """A hint for a header read as one column that other separators split (a file of
+    tabs or semicolons was told only which columns it lacked)."""
+    if len(header) != 1:
+        return ""
+    for separator, name in (("\t", "tabs"), (";", "semicolons")):
+        if len(header[0].split(separator)) > 2:
+            return (
+                f" (its header is one column: are its values separated by {name}? expected commas)"
+            )
+    return ""
+
+
 def _data_line_offsets(lines: list[str]) -> list[int]:
     """Offsets of the lines numpy reads as rows (it skips empty ones); for error messages."""
     return [j for j, line in enumerate(lines) if line.strip("\r\n")]
@@ -85,7 +98,8 @@ class CsvRecordingReader:
             seen = {name: i for i, name in enumerate(self.header)}
             missing = [c for c in needed if c not in seen]
             if missing:
-                raise missing_columns_error(f"{self.where}:1", missing, sensor_names)
+                error = missing_columns_error(f"{self.where}:1", missing, sensor_names)
+                raise ConfigError(error.where, error.message + _separator_hint(self.header))
         except BaseException:
             self.close()
             raise

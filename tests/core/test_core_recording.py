@@ -265,3 +265,17 @@ def test_an_npz_column_cut_short_is_said_once(tmp_path):
     said = str(caught.value)
     assert said.startswith(f"{path}: column `t` ends after 8 of its 12 rows"), said
     assert said.count(str(path)) == 1
+
+
+@pytest.mark.parametrize(("separator", "name"), [("\t", "tabs"), (";", "semicolons")])
+def test_a_recording_not_separated_by_commas_is_told_so(tmp_path, separator, name):
+    """It was told only the columns it lacked: all of them, `t` first."""
+    path = tmp_path / "rec.csv"
+    path.write_text(
+        HEADER.replace(",", separator) + "\n" + _row(0.0).replace(",", separator) + "\n"
+    )
+    with pytest.raises(
+        ConfigError,
+        match=rf"rec\.csv:1: missing column\(s\) t, .*separated by {name}\? expected commas\)$",
+    ):
+        read_recording(path, NAMES)

@@ -23,10 +23,27 @@ class Position:
         return f"{self.file}:{self.line}:{self.column}"
 
 
+#: the longest message a :class:`ConfigError` keeps: what it quotes of the file (a value it
+#: found, 500 kB of one line) is cut in the middle beyond it, so an error stays one line
+MAX_MESSAGE_CHARS = 1000
+_KEPT_HEAD, _KEPT_TAIL = 700, 200
+
+
+def shortened(message: str) -> str:
+    """``message`` at most about :data:`MAX_MESSAGE_CHARS` long: its middle left out, and
+    said so, when it is longer (its start says what was expected, its end what follows)."""
+    if len(message) <= MAX_MESSAGE_CHARS:
+        return message
+    left_out = len(message) - _KEPT_HEAD - _KEPT_TAIL
+    return f"{message[:_KEPT_HEAD]} … ({left_out:,} characters left out) … {message[-_KEPT_TAIL:]}"
+
+
 class ConfigError(ValueError):
-    """A user-written file is wrong. ``str(err)`` is ``file:line:column: what was expected``."""
+    """A user-written file is wrong. ``str(err)`` is ``file:line:column: what was expected``
+    (a message that quotes too much of the file is :func:`shortened`)."""
 
     def __init__(self, where: Position | str | None, message: str) -> None:
+        message = shortened(message)
         self.where = where
         self.message = message
         super().__init__(f"{where}: {message}" if where is not None else message)

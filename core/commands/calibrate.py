@@ -14,7 +14,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
+import re
 from datetime import date
+from itertools import combinations
 from pathlib import Path
 
 from hapticdesk.analysis.calibrated_profile import write_calibrated_profile
@@ -28,13 +31,24 @@ from hapticdesk.analysis.known_weight import (
 from hapticdesk.analysis.weight_rests import spots_from_recording
 from hapticdesk.commands.output_path import cannot_write, check_output_path
 from hapticdesk.errors import ConfigError
+from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.profile_reader import load_profile, resolve_profile_path
 from hapticdesk.recordings import read_any_recording
 
 MIN_SPOTS, MAX_SPOTS = 3, 5
+#: how far beyond the top's outline a spot may be (a mark on its edge, measured roughly)
+SPOT_MARGIN_M = 0.02
+#: the least distance between two spots
+MIN_SPOT_DISTANCE_M = 0.02
+#: what argparse takes for a value, not an option, though it starts with "-": a negative
+#: number, and a spot that starts with one (``--spot -0.33,-0.18``, as the guide and
+#: ``--suggest`` write it; before Python 3.13 argparse saw an option there and said
+#: "argument --spot: expected one argument"). This command has no option that looks so.
+NEGATIVE_VALUE = re.compile(r"^-\.?\d")
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
+    parser._negative_number_matcher = NEGATIVE_VALUE  # (argparse's own, for this parser)
     parser.add_argument(
         "recording",
         nargs="?",
@@ -99,6 +113,7 @@ def run(args: argparse.Namespace) -> int:
             "--spot",
             f"give {MIN_SPOTS} to {MAX_SPOTS} spots (--spot X,Y each), found {len(points)}",
         )
+    _spots_on_the_top(profile, points)
     check_index = _check_index(args.check, len(points))
     output = Path(args.output) if args.output else None
     if output is not None:
@@ -120,6 +135,33 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(format_report(result, args.output))
     return 0 if result.passed else 1
+
+
+def _spots_on_the_top(profile: DeskProfile, points: list[tuple[float, float]]) -> None:
+    """Refuse a spot off the desk's top (beyond its outline's extent and
+    :data:`SPOT_MARGIN_M`) and two spots at one place: the fit took a spot 5 m off a 0.5 m
+    board, or four at one place, and moved the cells by metres (exit 0 without a check)."""
+    top = profile.surfaces[0]  # (load_cell_channels: a horizontal top)
+    outline = top.to_desk(top.polygon[:, 0], top.polygon[:, 1])[:, :2]
+    low, high = outline.min(axis=0) - SPOT_MARGIN_M, outline.max(axis=0) + SPOT_MARGIN_M
+    for k, point in enumerate(points, 1):
+        if not ((low <= point) & (point <= high)).all():
+            raise ConfigError(
+                "--spot",
+                f"spot {k} ({point[0]:g}, {point[1]:g}) is off the top of desk {profile.name!r} "
+                f"(x {low[0] + SPOT_MARGIN_M:.3f} to {high[0] - SPOT_MARGIN_M:.3f} m, y "
+                f"{low[1] + SPOT_MARGIN_M:.3f} to {high[1] - SPOT_MARGIN_M:.3f} m): expected "
+                "where the weight sat, desk x,y in metres",
+            )
+    for i, j in combinations(range(len(points)), 2):
+        apart = math.dist(points[i], points[j])
+        if apart < MIN_SPOT_DISTANCE_M:
+            raise ConfigError(
+                "--spot",
+                f"spots {i + 1} and {j + 1} are {apart * 1000:.0f} mm apart: expected spots "
+                f"at least {MIN_SPOT_DISTANCE_M * 100:g} cm apart (the fit tells the cells "
+                "apart by how the readings change from spot to spot)",
+            )
 
 
 def _check_index(text: str, count: int) -> int | None:

@@ -125,10 +125,41 @@ def summary(block: ContactBlock, seconds: float, method: str) -> dict[str, objec
     }
 
 
+#: what a flag that keeps a sample from any contact says of it (docs/reference/files.md)
+FLAGS_SAID = {
+    "nan": "held NaN or an infinite value",
+    "saturated": "were at or beyond a sensor's range",
+    "time_back": "were not after the sample before",
+    "stuck": "repeated one reading",
+    "not_tared": "came before the desk was tared, which it never was (the tare needs a still "
+    "desk and whole samples)",
+}
+
+
+def why_nothing(info: dict[str, object]) -> str | None:
+    """Why a recording gave no contact, when most of its samples were flagged (a warning
+    for the user; ``None`` when it has samples in contact, none, or few flagged)."""
+    samples, flagged = info["samples"], info["flagged"]
+    assert isinstance(samples, int) and isinstance(flagged, dict)
+    if not samples or info["contact_samples"]:
+        return None
+    said = [
+        f"{flagged[name]:,} {text}"
+        for name, text in FLAGS_SAID.items()
+        # (the tare's own second is never tared: only a desk never tared is said)
+        if flagged.get(name, 0) == samples or name != "not_tared" and flagged[name] * 2 > samples
+    ]
+    if not said:
+        return None
+    return f"no contact found: of its {samples:,} samples, " + "; ".join(said)
+
+
 def run(args: argparse.Namespace) -> int:
     output = Path(args.output) if args.output and args.output != "-" else None
     if output is not None:  # before the work: a wrong name is not found after it
-        check_output_path(output, str(output), what="the contacts file")
+        check_output_path(
+            output, str(output), what="the contacts file", reads={"the recording": args.recording}
+        )
     given = load_input(args)
     profile, recording = given.profile, given.recording
     estimator = ContactEstimator(profile, method=args.method)
@@ -164,4 +195,7 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
     # (a refused tare is said as the estimator logs it, once: it was printed twice)
+    nothing = why_nothing(info)
+    if nothing is not None:  # (a plate whose samples were all flagged said nothing at all)
+        print(f"hapticdesk contacts: warning: {args.recording}: {nothing}", file=sys.stderr)
     return 0

@@ -13,10 +13,16 @@ from hapticdesk.errors import ConfigError
 
 
 def check_output_path(
-    path: Path, where: str, suffixes: tuple[str, ...] | None = None, what: str = "the output"
+    path: Path,
+    where: str,
+    suffixes: tuple[str, ...] | None = None,
+    what: str = "the output",
+    reads: dict[str, str | Path | None] | None = None,
 ) -> None:
     """Raise ConfigError at ``where`` (the file or the flag naming it) unless ``path`` can be
-    a file to write: not a folder, in a folder that exists, with one of ``suffixes``."""
+    a file to write: not a folder, in a folder that exists, with one of ``suffixes``, and
+    none of the files the command reads (``reads``: what each is, as "the recording", and
+    its path; ``contacts rec.csv -o rec.csv`` replaced the recording with its contacts)."""
     if suffixes is not None and path.suffix.lower() not in suffixes:
         raise ConfigError(
             where,
@@ -28,6 +34,20 @@ def check_output_path(
         raise ConfigError(where, f"cannot write{target}: it is a folder; expected a file name")
     if not path.parent.is_dir():
         raise ConfigError(where, f"cannot write{target}: the folder {path.parent} does not exist")
+    for read, other in (reads or {}).items():
+        if other is not None and _same_file(path, Path(other)):
+            raise ConfigError(
+                where,
+                f"cannot write{target}: it is {read}, which this command reads; give another "
+                "file name",
+            )
+
+
+def _same_file(path: Path, other: Path) -> bool:
+    try:
+        return path.samefile(other)
+    except OSError:  # (either does not exist, or cannot be looked at: not the same file)
+        return False
 
 
 def cannot_write(path: Path | str, err: OSError) -> ConfigError:

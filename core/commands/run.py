@@ -18,7 +18,9 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from pathlib import Path
 
+from hapticdesk.commands.output_path import check_output_path
 from hapticdesk.commands.recording_input import plate_number, source_desk
 from hapticdesk.plugin_loading import load_registry
 from hapticdesk.runtime.assembly import build_scene
@@ -110,6 +112,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.events:
+        check_events_path(args)
     registry = load_registry(strict=args.strict)
     # a C3D replay brings its desk, its plate, unless --desk says otherwise
     desk = source_desk(args.source, args.plate, given=args.desk) or args.desk
@@ -141,6 +145,22 @@ def run(args: argparse.Namespace) -> int:
         print(f"error: not everything was delivered: {'; '.join(problems)}", file=sys.stderr)
         return UNDELIVERED_EXIT
     return 0
+
+
+def check_events_path(args: argparse.Namespace) -> None:
+    """``--events`` names a file to write, none that the run reads: ``--events rec.csv``
+    with ``--source replay:rec.csv`` wrote over the recording as it was replayed (the run
+    then failed on a line it had cut), ``--events`` at the layout replaced it."""
+    check_output_path(
+        Path(args.events),
+        "--events",
+        what="the events",
+        reads={
+            "the layout": args.layout,
+            "the desk profile": args.desk,
+            "the file --source reads": args.source.partition(":")[2],
+        },
+    )
 
 
 def overrides(args: argparse.Namespace) -> dict[str, dict[str, str]]:

@@ -98,12 +98,19 @@ class ZeroStage:
         taken = st.tare.add(float(sf[S_WIN_SPREAD]), bad, mean, raw)
         if taken is None:
             if si[J_WINDOWS_SEEN] % st.tare.n_tare == 0:
+                why = (
+                    # (NaN, saturated, out of order or stuck: a desk that is still but whose
+                    # readings are not whole was told to stop leaning on it)
+                    "its readings were not usable (over a tenth of the last window's "
+                    "samples NaN, saturated, out of order, stuck or after a gap)"
+                    if bad
+                    else "the desk was not quiet (is someone touching or leaning on it?)"
+                )
                 add_notice(
                     self.notices,
                     t_end,
                     "tare_refused",
-                    f"tare refused: the desk was not quiet in the {s.tare_s:g} s before "
-                    f"t = {t_end:.2f} s (is someone touching or leaning on it?); retrying",
+                    f"tare refused in the {s.tare_s:g} s before t = {t_end:.2f} s: {why}; retrying",
                     logging.WARNING,
                 )
             return False

@@ -25,6 +25,7 @@ import numpy as np
 from numba import njit, types
 
 from hapticdesk.cached_load import cache_loads
+from hapticdesk.files.recording import MAX_TIME_S
 
 # (as the estimator's kernels are compiled: a cached load leaves numba's runtime out)
 _OPTIONS: dict[str, Any] = {"cache": True, "nogil": True, "error_model": "numpy", "_nrt": False}
@@ -105,8 +106,9 @@ def _number(data: np.ndarray, i: int) -> tuple[float, int]:
 def _parse(data: np.ndarray, width: int, time_column: int, table: np.ndarray) -> tuple[int, int]:
     """Fill rows of ``table`` (× ``width``) from the start of ``data`` until the table is
     full, the data ends or a row is not ``width`` plain decimals separated by commas and
-    ended by a line end, or its ``time_column`` (-1: none) is not finite. Returns the rows
-    filled and the index of ``data`` after them."""
+    ended by a line end, or its ``time_column`` (-1: none) is not a time a recording may
+    hold (finite, within ``MAX_TIME_S``). Returns the rows filled and the index of ``data``
+    after them."""
     i = 0
     for row in range(table.shape[0]):
         start = i
@@ -118,7 +120,7 @@ def _parse(data: np.ndarray, width: int, time_column: int, table: np.ndarray) ->
                 return row, start
             table[row, column] = value
             i += 1
-        if time_column >= 0 and not np.isfinite(table[row, time_column]):
+        if time_column >= 0 and not abs(table[row, time_column]) <= MAX_TIME_S:
             return row, start
     return table.shape[0], i
 
@@ -131,8 +133,8 @@ def plain_rows(
 ) -> tuple[int, int]:
     """Rows of ``table`` (C-contiguous, ``width`` columns) read from ``data``, whole lines
     each ended by a line end, as many as fit, up to the first that is not ``width`` plain
-    decimals with a finite time (``time_column``; -1: any): the rows filled and the bytes
-    of ``data`` they were. The rows after are left to numpy's ``loadtxt``."""
+    decimals with a time a recording may hold (``time_column``; -1: any): the rows filled
+    and the bytes of ``data`` they were. The rows after are left to numpy's ``loadtxt``."""
     global _loaded
     if not _loaded:  # (from numba's cache without readying its compiler: cached_load)
         with cache_loads():

@@ -109,6 +109,12 @@ def _rotation(m: MarkedDict, what: str) -> np.ndarray:
         f"`rotation_rpy_deg` of {what}",
         3,
     )
+    if not all(abs(angle) <= 360 for angle in rpy):  # (1e300 was taken: cos and sin of noise)
+        raise ConfigError(
+            m.where("rotation_rpy_deg"),
+            f"`rotation_rpy_deg` of {what} must be angles in degrees from -360 to 360, "
+            f"found {list(rpy)}",
+        )
     return rotation_matrix(*rpy)
 
 

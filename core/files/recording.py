@@ -20,6 +20,18 @@ import numpy as np
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import ACCEL_COLUMN, AXES
 
+#: the largest sample time a recording may hold, seconds (from 1970, year 9999: what a CAN
+#: log's time may be too). One beyond it is no clock's: a time of 1e300 in one row took every
+#: sample after it for one that went back in time
+MAX_TIME_S = 253_402_214_400.0
+#: what a bad time is told
+TIME_EXPECTED = f"every sample needs a finite time in seconds, within ±{MAX_TIME_S:.0f} (year 9999)"
+
+
+def bad_times(t: np.ndarray) -> np.ndarray:
+    """Where the times ``t`` are not finite or beyond :data:`MAX_TIME_S` (bool, like ``t``)."""
+    return ~(np.abs(t) <= MAX_TIME_S)
+
 
 def six_axis_columns(sensor_names: list[str]) -> list[str]:
     """The channel columns of a desk of six-axis sensors called ``sensor_names``."""

@@ -18,7 +18,9 @@ from hapticdesk.errors import ConfigError
 from hapticdesk.files.file_safety import regular_file_size
 from hapticdesk.files.profile import ACCEL_COLUMN
 from hapticdesk.files.recording import (
+    TIME_EXPECTED,
     Recording,
+    bad_times,
     missing_columns_error,
     needed_columns,
     recording_from_table,
@@ -36,6 +38,19 @@ def _line_of_error(err: ConfigError, first_line: int, count: int) -> int | None:
         return None
     line = int(found.group(1))
     return line if first_line <= line < first_line + count else None
+
+
+def _separator_hint(header: list[str]) -> str:
+    """A hint for a header read as one column that other separators split (a file of
+    tabs or semicolons was told only which columns it lacked)."""
+    if len(header) != 1:
+        return ""
+    for separator, name in (("\t", "tabs"), (";", "semicolons")):
+        if len(header[0].split(separator)) > 2:
+            return (
+                f" (its header is one column: are its values separated by {name}? expected commas)"
+            )
+    return ""
 
 
 def _data_line_offsets(lines: list[str]) -> list[int]:
@@ -83,7 +98,8 @@ class CsvRecordingReader:
             seen = {name: i for i, name in enumerate(self.header)}
             missing = [c for c in needed if c not in seen]
             if missing:
-                raise missing_columns_error(f"{self.where}:1", missing, sensor_names)
+                error = missing_columns_error(f"{self.where}:1", missing, sensor_names)
+                raise ConfigError(error.where, error.message + _separator_hint(self.header))
         except BaseException:
             self.close()
             raise
@@ -173,15 +189,16 @@ class CsvRecordingReader:
         if table is None:
             table = self._parse_careful(lines, first_line)
         rec = self._recording(table)
-        if not np.isfinite(rec.t).all():
-            i = int(np.argmax(~np.isfinite(rec.t)))
+        bad = bad_times(rec.t)
+        if bad.any():
+            i = int(np.argmax(bad))
             offset = _data_line_offsets(lines)[i]
             column = self.needed_index[0]
             cells = self._cells(lines[offset], first_line + offset)
             cell = cells[column].strip() if column < len(cells) else ""
             raise ConfigError(
                 f"{self.where}:{first_line + offset}:{column + 1}",
-                f"`t` is {cell or 'empty'!r}; every sample needs a finite time in seconds",
+                f"`t` is {cell or 'empty'!r}; {TIME_EXPECTED}",
             )
         return rec
 
@@ -198,7 +215,7 @@ class CsvRecordingReader:
     def _plain_ahead(self, rows: int) -> np.ndarray | None:
         """Up to ``rows`` next lines' table (every column) parsed straight from the bytes
         read, where numba is loaded (:func:`.csv_numbers.plain_rows`), as long as they are
-        plain numbers, as many as the header's columns, with a finite time; None when the
+        plain numbers, as many as the header's columns, with a time it may hold; None when the
         next line is not (the lines are then read as text, and any fault named). (The
         minute's 72,000 lines: no line decoded, split, joined and encoded again.)"""
         width = len(self.header)

@@ -15,7 +15,9 @@ import numpy as np
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.file_safety import regular_file_size
 from hapticdesk.files.recording import (
+    TIME_EXPECTED,
     Recording,
+    bad_times,
     missing_columns_error,
     needed_columns,
     recording_from_table,
@@ -123,16 +125,16 @@ class NpzRecordingReader:
                         f"{self.length} rows (a truncated file?)",
                     )
                 table[:, j] = np.frombuffer(raw, dtype=dtype)
+        except ConfigError:  # (a ValueError too: said once, not wrapped in the message below)
+            raise
         except _NPZ_ERRORS as err:
             raise ConfigError(self.where, f"not a readable NPZ recording: {err}") from None
         rec = recording_from_table(table, self.extra, self.sensor_names, self.channel_names)
-        bad = ~np.isfinite(rec.t)
+        bad = bad_times(rec.t)
         if bad.any():
             row = done + int(np.argmax(bad)) + 1
             raise ConfigError(
-                self.where,
-                f"`t` is {rec.t[np.argmax(bad)]} in row {row}; every sample needs a finite "
-                "time in seconds",
+                self.where, f"`t` is {rec.t[np.argmax(bad)]:g} in row {row}; {TIME_EXPECTED}"
             )
         return rec
 

@@ -35,12 +35,13 @@ _MAX_JSON_DEPTH = 32
 def read_stroke(path: str | Path) -> np.ndarray:
     """Points (n, 2) of one stroke file; a ConfigError naming file and line when malformed."""
     path = Path(path)
+    # (first: a missing file is said missing, not to end in the wrong suffix)
+    size = regular_file_size(path, "the stroke file")
     suffix = path.suffix.lower()
     if suffix not in STROKE_SUFFIXES:
         raise ConfigError(
             str(path), 'a stroke file must end in .csv (x,y[,t]) or .json ({"points": ...})'
         )
-    size = regular_file_size(path, "the stroke file")
     if size > MAX_STROKE_BYTES:
         raise ConfigError(
             str(path),

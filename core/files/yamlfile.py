@@ -46,6 +46,7 @@ _UNSUPPORTED_TAGS = {
 }
 _NUMBER_TAGS = {"tag:yaml.org,2002:int", "tag:yaml.org,2002:float"}
 _TIMESTAMP_TAG = "tag:yaml.org,2002:timestamp"
+_MERGE_TAG = "tag:yaml.org,2002:merge"
 
 
 def _pos(file: str, node: yaml.Node | yaml.Event) -> Position:
@@ -156,29 +157,65 @@ def _yaml12_scalar(node: yaml.ScalarNode) -> Any:
     return None
 
 
+def _construct_mapping(node: yaml.MappingNode, file: str, loader: _Loader) -> MarkedDict:
+    """A mapping, its keys text, none written twice in it. A merge (``<<: *base``, or a
+    list of them) gives the keys the mapping does not write itself, as YAML's merge key
+    says: a key written overrides a merged one (``{<<: *base, rect: …}`` was refused, "key
+    `rect` appears twice"), and of a list of merged mappings the earlier wins."""
+    out = _merged(node, file, loader)  # (first: merged keys keep their place, as before)
+    own: set[str] = set()  # the keys written in this mapping itself
+    for key_node, value_node in node.value:
+        if key_node.tag == _MERGE_TAG:
+            continue
+        if key_node.tag == "tag:yaml.org,2002:value":  # (`=` as a key: text, as PyYAML has it)
+            key_node.tag = "tag:yaml.org,2002:str"
+        key = _construct(key_node, file, loader)
+        if not isinstance(key, str):
+            raw = key_node.value if isinstance(key_node, yaml.ScalarNode) else key
+            hint = ""
+            if isinstance(raw, str) and raw.lower() in _YAML11_BOOL_WORDS:
+                hint = f"; YAML reads a bare `{raw}` as a boolean, write it in quotes"
+            raise ConfigError(_pos(file, key_node), f"keys must be text, found {raw!r}{hint}")
+        if key in own:
+            raise ConfigError(_pos(file, key_node), f"key `{key}` appears twice")
+        own.add(key)
+        out[key] = _construct(value_node, file, loader)
+        out.key_positions[key] = _pos(file, key_node)
+        out.value_positions[key] = _pos(file, value_node)
+    return out
+
+
+def _merged(node: yaml.MappingNode, file: str, loader: _Loader) -> MarkedDict:
+    """The keys ``node``'s merges (``<<``) give it, each merged mapping read as a mapping of
+    its own (its own merges resolved), the earlier of a list winning; empty without one."""
+    out = MarkedDict()
+    out.position = _pos(file, node)
+    out.key_positions = {}
+    out.value_positions = {}
+    for key_node, value_node in node.value:
+        if key_node.tag != _MERGE_TAG:
+            continue
+        many = isinstance(value_node, yaml.SequenceNode)
+        for source in value_node.value if many else [value_node]:
+            if not isinstance(source, yaml.MappingNode):
+                raise ConfigError(
+                    _pos(file, source),
+                    "not valid YAML: a merge (`<<`) takes a mapping or a list of mappings",
+                )
+            merged = _construct(source, file, loader)
+            for key, value in merged.items():
+                if key not in out:
+                    out[key] = value
+                    out.key_positions[key] = merged.key_positions[key]
+                    out.value_positions[key] = merged.value_positions[key]
+    return out
+
+
 def _construct(node: yaml.Node, file: str, loader: _Loader) -> Any:
     if isinstance(node, yaml.MappingNode):
         if node.tag in _UNSUPPORTED_TAGS:
             raise _unsupported(node, file)
-        loader.flatten_mapping(node)
-        out = MarkedDict()
-        out.position = _pos(file, node)
-        out.key_positions = {}
-        out.value_positions = {}
-        for key_node, value_node in node.value:
-            key = _construct(key_node, file, loader)
-            if not isinstance(key, str):
-                raw = key_node.value if isinstance(key_node, yaml.ScalarNode) else key
-                hint = ""
-                if isinstance(raw, str) and raw.lower() in _YAML11_BOOL_WORDS:
-                    hint = f"; YAML reads a bare `{raw}` as a boolean, write it in quotes"
-                raise ConfigError(_pos(file, key_node), f"keys must be text, found {raw!r}{hint}")
-            if key in out:
-                raise ConfigError(_pos(file, key_node), f"key `{key}` appears twice")
-            out[key] = _construct(value_node, file, loader)
-            out.key_positions[key] = _pos(file, key_node)
-            out.value_positions[key] = _pos(file, value_node)
-        return out
+        return _construct_mapping(node, file, loader)
     if isinstance(node, yaml.SequenceNode):
         if node.tag in _UNSUPPORTED_TAGS:
             raise _unsupported(node, file)

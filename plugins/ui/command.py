@@ -42,6 +42,21 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _token(args: argparse.Namespace) -> str | None:
+    """The page's token; a ConfigError naming ``--host`` when it listens beyond loopback
+    without one (``ui --layout new.yaml --host 0.0.0.0`` wrote new.yaml, then refused)."""
+    from hapticdesk.plugins.ui.guard import LOOPBACK_NAMES
+
+    token = args.token or os.environ.get(TOKEN_ENV)
+    if args.host not in LOOPBACK_NAMES and not token:
+        raise ConfigError(
+            "--host",
+            f"listening on {args.host} lets other machines in: give a token "
+            f"(--token or {TOKEN_ENV})",
+        )
+    return token
+
+
 def run(args: argparse.Namespace) -> int:
     from hapticdesk.extras import require
 
@@ -56,6 +71,7 @@ def run(args: argparse.Namespace) -> int:
     from hapticdesk.runtime.lane import Lane
     from hapticdesk.runtime.service import Runtime
 
+    token = _token(args)  # (before a new layout is written)
     examples = examples_dir()
     layout = Path(args.layout) if args.layout else examples / "layouts" / "demo.yaml"
     if args.layout and not layout.exists():  # a new layout: started as `hapticdesk init` does
@@ -65,7 +81,6 @@ def run(args: argparse.Namespace) -> int:
         print(f"hapticdesk ui: created {layout}, a new layout for desk {desk}", file=sys.stderr)
     source = args.source or f"sim:{examples / 'scenes' / 'demo.yaml'}"
     registry = load_registry()
-    token = args.token or os.environ.get(TOKEN_ENV)
     server = UiServer(
         layout,
         registry,

@@ -56,13 +56,14 @@ def test_a_header_without_samples(desk, tmp_path, capsys):
     [
         ("reversed", "no sample time is after the one before it"),
         ("same", "no sample time is after the one before it"),
-        ("huge", "the sample times are 1e+300 s apart (median): 1e-300 Hz; characterize "
+        # (a time beyond year 9999 is refused where it is read: test_core_recording.py)
+        ("huge", "the sample times are 1e+06 s apart (median): 1e-06 Hz; characterize "
          "expects 10 Hz to 100000 Hz (the profile says 1200 Hz; are the times in seconds?)"),
     ],
 )  # fmt: skip
 def test_unusable_sample_times_name_the_file(desk, tmp_path, capsys, times, expected):
     rec = quiet_recording(desk)
-    t = {"reversed": rec.t[::-1], "same": np.zeros_like(rec.t), "huge": rec.t * 1200 * 1e300}
+    t = {"reversed": rec.t[::-1], "same": np.zeros_like(rec.t), "huge": rec.t * 1200 * 1e6}
     code, err = cli_error(capsys, tmp_path, Recording(t[times], rec.wrench, rec.sensor_names))
     assert code == 2
     assert err.startswith(f"hapticdesk characterize: error: {tmp_path / 'rec.csv'}: {expected}")

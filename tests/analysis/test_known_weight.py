@@ -322,3 +322,47 @@ def test_the_set_up_reads_every_desk(name: str) -> None:
     spots = spots_from_recording(desk, rec.t, rec.channels, points, 1.0)
     result = calibrate(desk, spots, 1.0, check_index=None)
     assert max(c.error_m for c in result.leave_one_out) < 0.003
+
+
+def test_spots_are_written_as_the_guide_writes_them(
+    setup_recording: Recording, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--spot -0.33,-0.18`` (docs/guides/load-cells.md, and what ``--suggest`` prints): a
+    spot starting with a minus was taken for an option, "argument --spot: expected one
+    argument", exit 2 (only ``--spot=-0.33,-0.18`` passed)."""
+    from hapticdesk.cli import main
+
+    rec_path = tmp_path / "setup.csv"
+    write_recording(rec_path, setup_recording)
+    points = np.vstack([suggested_spots(load_profile(DESK), 4), [[0.1, 0.05]]])
+    assert (points < 0).any()
+    spots = [a for x, y in points for a in ("--spot", f"{x:.4f},{y:.4f}")]
+    code = main(["calibrate", str(rec_path), "--desk", DESK, "--mass-kg", "1", *spots, "--json"])
+    out = capsys.readouterr().out
+    assert code == 0 and json.loads(out)["passed"]
+
+
+@pytest.mark.parametrize(
+    ("spot", "said"),
+    [
+        ((5.0, 5.0), "--spot: spot 2 (5, 5) is off the top of desk"),  # the fit moved cells 5 m
+        (None, "--spot: spots 1 and 2 are 0 mm apart"),  # the first spot given twice
+    ],
+)
+def test_a_spot_off_the_top_or_given_twice_is_refused(
+    setup_recording: Recording,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    spot: tuple[float, float] | None,
+    said: str,
+) -> None:
+    from hapticdesk.cli import main
+
+    rec_path = tmp_path / "setup.csv"
+    write_recording(rec_path, setup_recording)
+    points = np.vstack([suggested_spots(load_profile(DESK), 4), [[0.1, 0.05]]])
+    points[1] = points[0] if spot is None else spot
+    spots = [f"--spot={x:.4f},{y:.4f}" for x, y in points]
+    code = main(["calibrate", str(rec_path), "--desk", DESK, "--mass-kg", "1", *spots])
+    assert code == 2
+    assert capsys.readouterr().err.startswith(f"hapticdesk calibrate: error: {said}")

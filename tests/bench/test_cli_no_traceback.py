@@ -179,6 +179,16 @@ def test_a_folder_without_strokes_is_said(tmp_path, capsys):
     )
 
 
+def test_a_missing_stroke_file_is_said_missing(tmp_path, capsys):
+    """It was told to end in .csv or .json: `strokes classify /no/such` said the suffix."""
+    missing = tmp_path / "no-such"
+    assert main(["strokes", "classify", str(missing)]) == 1
+    assert capsys.readouterr().err == (
+        f"hapticdesk strokes: error: {missing}: cannot read the stroke file: No such file or "
+        "directory\n"
+    )
+
+
 def test_a_real_run_prints_no_traceback(tmp_path):
     """End to end in a fresh interpreter: what a user sees (one line, exit 2)."""
     folder = tmp_path / "out.csv"

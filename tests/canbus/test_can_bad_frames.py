@@ -136,7 +136,15 @@ def test_recording_far_in_the_future_as_a_can_log_is_a_located_error(
     assert main([*argv, str(out)]) == 2
     err = capsys.readouterr().err
     assert "unexpected" not in err and len(err.strip().splitlines()) == 1
-    assert f"{out}: cannot write a frame at 3.0" in err and not out.exists()
+    # beyond year 9999 the recording itself is refused, at its row (as a CSV's at its cell)
+    assert f"{source}: `t` is 3e+11 in row 1; every sample needs" in err and not out.exists()
+    # a time a recording may hold, but not a CAN log once it starts now (record dates the
+    # frames from the wall clock): the log's writer refuses it
+    write_recording(source, Recording(t + 2.53e11, wrench, can_desk.sensor_names))
+    assert main([*argv, str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "unexpected" not in err and len(err.strip().splitlines()) == 1
+    assert f"{out}: cannot write a frame at 2.5" in err and not out.exists()
 
 
 @pytest.mark.parametrize("error", [NameError("name 'canGetNumberOfChannels' is not defined")])

@@ -97,6 +97,12 @@ def test_any_orientation_and_sign(tmp_path):
             4,
             "give one of `kind`, `axes` or `channels`",
         ),
+        (  # (1e300 was read: cos and sin of it, a turn nobody measured)
+            "rotation_rpy_deg: [0, 0, 90]}",
+            "rotation_rpy_deg: [0, 0, 1e300]}",
+            6,
+            "must be angles in degrees from -360 to 360, found [0.0, 0.0, 1e+300]",
+        ),
         # YAML 1.2 reads `on` as text (PyYAML's 1.1 read it as true): an unknown key
         ("name: bench", "name: bench\non: 1", 2, "unknown key `on`"),
         (

@@ -139,6 +139,21 @@ def test_a_row_without_a_time_is_an_error(tmp_path, t):
         read_recording(path, NAMES)
 
 
+@pytest.mark.parametrize("t", ["1e300", "-3e11"])
+def test_a_time_no_clock_gives_is_an_error_at_its_cell(tmp_path, t):
+    """A time of 1e300 in one row was read: every sample after it went back in time, each
+    skipped (one bad cell lost the rest, said only as "time went back" at t=1000…0.000 s)."""
+    path = tmp_path / "rec.csv"
+    _csv(path, [_row(0.0), _row(0.001).replace("0.001", t, 1), _row(0.002)])
+    with pytest.raises(ConfigError, match=rf"rec\.csv:3:1: `t` is '{t}'; .*within ±253402214400"):
+        read_recording(path, NAMES)
+    cols = _npz_columns(3)
+    cols["t"][1] = float(t)
+    _npz(tmp_path / "rec.npz", **cols)
+    with pytest.raises(ConfigError, match=r"rec\.npz: `t` is .* in row 2; .*year 9999"):
+        read_recording(tmp_path / "rec.npz", NAMES)
+
+
 def test_all_nan_times_are_refused_by_replay(tmp_path, paper_desk):
     from hapticdesk.plugins.replay import open_replay
 
@@ -228,3 +243,39 @@ def test_a_replay_closed_from_another_thread_ends_cleanly(tmp_path, paper_desk):
     assert not thread.is_alive() and errors == []
     assert 0 < sum(got) < 40_000
     assert source.recording._reader._fh is None  # the file was closed
+
+
+def test_an_npz_column_cut_short_is_said_once(tmp_path):
+    """A member whose header promises more values than it holds: the error named the file
+    twice ("rec.npz: not a readable NPZ recording: rec.npz: column `t` ends after …")."""
+    import io
+    import zipfile
+
+    path = tmp_path / "rec.npz"
+    with zipfile.ZipFile(path, "w") as archive:
+        for name, column in _npz_columns(8).items():
+            member = io.BytesIO()
+            np.lib.format.write_array_header_1_0(
+                member, {"descr": "<f8", "fortran_order": False, "shape": (12,)}
+            )
+            member.write(column.astype("<f8").tobytes())
+            archive.writestr(f"{name}.npy", member.getvalue())
+    with pytest.raises(ConfigError) as caught:
+        read_recording(path, NAMES)
+    said = str(caught.value)
+    assert said.startswith(f"{path}: column `t` ends after 8 of its 12 rows"), said
+    assert said.count(str(path)) == 1
+
+
+@pytest.mark.parametrize(("separator", "name"), [("\t", "tabs"), (";", "semicolons")])
+def test_a_recording_not_separated_by_commas_is_told_so(tmp_path, separator, name):
+    """It was told only the columns it lacked: all of them, `t` first."""
+    path = tmp_path / "rec.csv"
+    path.write_text(
+        HEADER.replace(",", separator) + "\n" + _row(0.0).replace(",", separator) + "\n"
+    )
+    with pytest.raises(
+        ConfigError,
+        match=rf"rec\.csv:1: missing column\(s\) t, .*separated by {name}\? expected commas\)$",
+    ):
+        read_recording(path, NAMES)

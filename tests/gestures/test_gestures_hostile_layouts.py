@@ -194,6 +194,26 @@ def test_aliases_within_the_limit_still_work(tmp_path):
     assert doc["lol3"][0] is not doc["lol3"][1]  # expanded, so validators may annotate freely
 
 
+def test_a_merged_key_is_overridden_by_one_written_as_yaml_says(tmp_path):
+    """`{<<: *base, rect: …}` was refused: "key `rect` appears twice" (YAML's merge key: a
+    key written overrides a merged one; of merged mappings the earlier wins). A key written
+    twice in one mapping is still an error."""
+    path = tmp_path / "m.yaml"
+    path.write_text(
+        "a: &a {rect: [0, 0, 1, 1], surface: top}\n"
+        "b: &b {rect: [5, 5, 6, 6], axis: x}\n"
+        "c: {<<: *a, rect: [2, 2, 3, 3]}\n"
+        "d: {<<: [*a, *b]}\n"
+    )
+    doc = load_marked_yaml(path)
+    assert doc["c"] == {"rect": [2, 2, 3, 3], "surface": "top"}
+    assert doc["c"].where("rect").line == 3
+    assert doc["d"] == {"rect": [0, 0, 1, 1], "surface": "top", "axis": "x"}
+    path.write_text("a: &a {x: 1}\nc: {<<: *a, y: 2, y: 3}\n")
+    with pytest.raises(ConfigError, match=r"m\.yaml:2:19: key `y` appears twice"):
+        load_marked_yaml(path)
+
+
 def test_a_warning_is_printed_once(tmp_path, capsys, caplog, monkeypatch):
     """A failing plugin's warning was logged by the registry and printed again by check."""
     import hapticdesk.plugin_loading as registry_module
@@ -230,3 +250,24 @@ def test_a_region_on_a_desk_without_surfaces_is_refused_at_the_region(tmp_path, 
     err = capsys.readouterr().err
     assert re.search(r"layout.yaml:2:\d+: region `a`: the desk `ati-bench` has no surfaces", err)
     assert "Traceback" not in err
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        "units: {long}\n" + REGION_A,  # a choice
+        REGION_A + TAP.replace("region: a", "region: {long}"),  # a region's name
+        REGION_A + TAP.replace("do: log", "do: {long}"),  # an action's name
+        REGION_A + "bindings: {long}\n",  # a value of the wrong kind, quoted whole
+    ],
+    ids=["a choice", "a region's name", "an action's name", "a value of the wrong kind"],
+)
+def test_an_error_quoting_a_huge_value_stays_one_short_line(bad, tmp_path, capsys):
+    """An error quotes what it found; a 500 kB value was printed whole, a line of 500 kB."""
+    layout = tmp_path / "long.yaml"
+    layout.write_text("desk: kitamura2017\n" + bad.replace("{long}", "x" * 500_000))
+    assert main(["check", str(layout)]) == 2
+    err = capsys.readouterr().err
+    assert re.match(rf"hapticdesk check: error: {re.escape(str(layout))}:\d+:\d+: `?\w", err)
+    assert err.count("\n") == 1 and len(err) < 1_200, len(err)
+    assert "characters left out" in err

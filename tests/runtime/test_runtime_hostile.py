@@ -161,3 +161,38 @@ def test_a_filter_asked_for_gigabytes_is_refused_before_it_makes_them(text, need
     ordinary = compile_template('{{ event | tojson(indent=2) }}{{ "%5.2f" | format(x) }}',
                                 "layout.yaml:1:1", "`payload`")  # fmt: skip
     assert ordinary.render(SAMPLE_VARIABLES)
+
+
+@pytest.mark.parametrize("target", ["recording", "layout"])
+def test_events_are_never_written_over_a_file_the_run_reads(tmp_path, paper_desk, capsys, target):
+    """`run --source replay:rec.csv --events rec.csv` wrote the events over the recording as it
+    was replayed (the run then failed at a line it had cut); `--events layout.yaml` replaced
+    the layout. Both are refused before anything is read, and the files are as they were."""
+    from hapticdesk.cli import main
+
+    layout = tmp_path / "layout.yaml"
+    layout.write_text(json.dumps(LAYOUT))
+    recording = tmp_path / "taps.csv"
+    write_recording(recording, tap_recording(paper_desk, [Tap(1.5, 0.0, 0.0)], 2.5))
+    before = {p: p.read_bytes() for p in (layout, recording)}
+    events = recording if target == "recording" else layout
+    argv = ["run", "--layout", str(layout), "--source", f"replay:{recording}", "--speed", "0"]
+    assert main([*argv, "--events", str(events)]) == 2
+    what = "the file --source reads" if target == "recording" else "the layout"
+    assert capsys.readouterr().err == (
+        f"hapticdesk run: error: --events: cannot write {events}: it is {what}, which this "
+        "command reads; give another file name\n"
+    )
+    assert {p: p.read_bytes() for p in before} == before
+
+
+def test_contacts_are_never_written_over_their_recording(tmp_path, paper_desk, capsys):
+    from hapticdesk.cli import main
+
+    recording = tmp_path / "taps.csv"
+    write_recording(recording, tap_recording(paper_desk, [Tap(1.5, 0.0, 0.0)], 2.5))
+    before = recording.read_bytes()
+    argv = ["contacts", str(recording), "--desk", "kitamura2017"]
+    assert main([*argv, "-o", str(tmp_path / "." / "taps.csv")]) == 2
+    assert "it is the recording, which this command reads" in capsys.readouterr().err
+    assert recording.read_bytes() == before

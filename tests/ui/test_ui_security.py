@@ -301,3 +301,21 @@ def test_a_paused_desk_says_so_to_the_page(layout: Path, paper_desk) -> None:
     assert seen == [False, True, False]
     page = (STATIC / "app.js").read_text()
     assert 'm.paused ? "paused: gestures are not sent"' in page
+
+
+def test_listening_everywhere_without_a_token_writes_no_new_layout(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`hapticdesk ui --layout new.yaml --host 0.0.0.0` without a token was refused only
+    after it had written new.yaml (and said `--ui`, an option of `run`, not of `ui`)."""
+    from hapticdesk.cli import main
+
+    monkeypatch.delenv("HAPTICDESK_UI_TOKEN", raising=False)
+    layout = tmp_path / "new.yaml"
+    assert main(["ui", "--layout", str(layout), "--host", "0.0.0.0", "--port", "0"]) == 2
+    err = capsys.readouterr().err
+    assert err == (
+        "hapticdesk ui: error: --host: listening on 0.0.0.0 lets other machines in: give a "
+        "token (--token or HAPTICDESK_UI_TOKEN)\n"
+    )
+    assert not layout.exists()

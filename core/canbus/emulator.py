@@ -48,6 +48,8 @@ class CanEmulator:
         status: np.ndarray | None = None,
         accel: np.ndarray | None = None,
     ) -> None:
+        if loop and len(t) < 2:  # (one sample has no spacing: looped, it was sent unpaced)
+            raise ValueError("an emulator that loops needs two samples or more")
         self.encoder = encoder
         self.t = np.asarray(t, dtype=float)
         self.wrench = wrench

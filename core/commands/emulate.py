@@ -131,6 +131,12 @@ def _samples(args: argparse.Namespace, profile: DeskProfile) -> Recording:
         rec = simulate(profile, load_scene(args.scene), args.seed)
     if not len(rec):
         raise ConfigError(args.recording or args.scene, "nothing to send: no samples")
+    if args.loop and len(rec) < 2:  # (one sample has no spacing: the loop sent it unpaced)
+        raise ConfigError(
+            "--loop",
+            f"{args.recording or args.scene} has one sample: expected two or more to repeat "
+            "(their spacing paces the loop)",
+        )
     return rec
 
 

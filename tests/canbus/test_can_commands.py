@@ -374,3 +374,16 @@ def test_record_a_live_bus_keeps_the_accelerometers_readings(tmp_path, capsys, v
     got = accelerometer_readings(desk, rec.extra)
     assert got is not None, f"no accelerometer columns in {sorted(rec.extra)}"
     np.testing.assert_allclose(got, accel, atol=0.0005 + 1e-9)
+
+
+def test_emulate_loop_of_one_sample_is_refused(tmp_path, monkeypatch, capsys, can_desk):
+    """A one-sample recording has no spacing to pace a loop: it was sent as fast as the
+    bus took it, one core at 100 % until Ctrl-C."""
+    monkeypatch.chdir(tmp_path)
+    write_recording(
+        tmp_path / "one.csv", Recording(np.zeros(1), np.zeros((1, 4, 6)), can_desk.sensor_names)
+    )
+    argv = ["emulate", "--desk", "kitamura2017-can", "--recording", "one.csv", "--loop"]
+    assert main([*argv, "--bus", "virtual:one"]) == 2
+    err = capsys.readouterr().err
+    assert "--loop" in err and "one sample" in err and "Traceback" not in err

@@ -22,6 +22,7 @@ from hapticdesk.estimator.contacts import (
 )
 from hapticdesk.estimator.samples import STUCK_RUN
 from hapticdesk.files.profile import METHODS, DeskProfile
+from hapticdesk.files.recording import Recording
 from hapticdesk.gestures.engine import GestureEngine
 from hapticdesk.gestures.layout_reader import load_layout
 from hapticdesk.sim import (
@@ -173,12 +174,17 @@ def test_nan_bursts(paper_desk):
     )
 
 
-@pytest.mark.parametrize("where", ["downs", "ups"])
-def test_a_nan_time_keeps_the_times_finite_and_the_gestures(paper_desk, tmp_path, where):
-    # a sample whose time is NaN (a corrupt line) is flagged `nan` and skipped, but its time
-    # was written out as it came: NaN in ContactBlock.t. At a touch's first sample the touch
-    # began at NaN and its tap or long press was lost; at its last, the long press ended at
-    # t = NaN and the tap was lost. Now the sample carries the latest finite time before it.
+def _pushed_in(desk: DeskProfile, t: np.ndarray, wrench: np.ndarray, size: int) -> ContactBlock:
+    """The contacts of (t, wrench) pushed ``size`` samples at a time into one estimator."""
+    est = ContactEstimator(desk)
+    parts = [est.push(t[a : a + size], wrench[a : a + size]).copy()
+             for a in range(0, len(t), size)]  # fmt: skip
+    return ContactBlock.concat(parts)
+
+
+def _tap_hold_tap(desk: DeskProfile) -> Recording:
+    """A tap, a 1.5 s press and a tap on ``desk`` (seed 3): a tap, a long press and its
+    end, a tap on SWIPES_AND_HOLDS' pad."""
     scene = Scene(
         actions=[
             Tap(point=(0.1, 0.05), peak_n=5.0),
@@ -186,7 +192,16 @@ def test_a_nan_time_keeps_the_times_finite_and_the_gestures(paper_desk, tmp_path
             Tap(point=(0.1, -0.1), peak_n=5.0),
         ]
     )
-    rec = simulate(paper_desk, scene, seed=3)
+    return simulate(desk, scene, seed=3)
+
+
+@pytest.mark.parametrize("where", ["downs", "ups"])
+def test_a_nan_time_keeps_the_times_finite_and_the_gestures(paper_desk, tmp_path, where):
+    # a sample whose time is NaN (a corrupt line) is flagged `nan` and skipped, but its time
+    # was written out as it came: NaN in ContactBlock.t. At a touch's first sample the touch
+    # began at NaN and its tap or long press was lost; at its last, the long press ended at
+    # t = NaN and the tap was lost. Now the sample carries the latest finite time before it.
+    rec = _tap_hold_tap(paper_desk)
     clean = estimate(paper_desk, rec)
     (tmp_path / "layout.yaml").write_text(SWIPES_AND_HOLDS)
     layout = load_layout(tmp_path / "layout.yaml")
@@ -199,10 +214,7 @@ def test_a_nan_time_keeps_the_times_finite_and_the_gestures(paper_desk, tmp_path
     t = rec.t.copy()
     t[at] = np.nan
     for size in (len(t), 1, 7):
-        est = ContactEstimator(paper_desk)
-        parts = [est.push(t[a : a + size], rec.wrench[a : a + size]).copy()
-                 for a in range(0, len(t), size)]  # fmt: skip
-        block = ContactBlock.concat(parts)
+        block = _pushed_in(paper_desk, t, rec.wrench, size)
         assert finite(block)
         assert (np.diff(block.t) >= 0).all()
         np.testing.assert_array_equal(block.t[at], rec.t[at - 1])
@@ -218,14 +230,7 @@ def test_one_time_far_ahead_does_not_deafen_the_rest_of_the_run(paper_desk, tmp_
     # sample's time "back": each flagged and skipped until the times passed it, so no touch
     # was seen for the rest of the run (1e12 s: ever). Times that rise among themselves for
     # longer than max_gap_s after going back are now a clock that went back: taken, a gap.
-    scene = Scene(
-        actions=[
-            Tap(point=(0.1, 0.05), peak_n=5.0),
-            Press(point=(-0.2, 0.1), hold_s=1.5),
-            Tap(point=(0.1, -0.1), peak_n=5.0),
-        ]
-    )
-    rec = simulate(paper_desk, scene, seed=3)
+    rec = _tap_hold_tap(paper_desk)
     (tmp_path / "layout.yaml").write_text(SWIPES_AND_HOLDS)
     layout = load_layout(tmp_path / "layout.yaml")
     delay = ContactEstimator(paper_desk).position_delay_s
@@ -240,10 +245,7 @@ def test_one_time_far_ahead_does_not_deafen_the_rest_of_the_run(paper_desk, tmp_
     t = rec.t.copy()
     t[at] += ahead_s
     for size in (len(t), 1, 7):
-        est = ContactEstimator(paper_desk)
-        parts = [est.push(t[a : a + size], rec.wrench[a : a + size]).copy()
-                 for a in range(0, len(t), size)]  # fmt: skip
-        block = ContactBlock.concat(parts)
+        block = _pushed_in(paper_desk, t, rec.wrench, size)
         assert finite(block)
         back = np.flatnonzero(block.flags & FLAG_TIME_BACK)
         assert len(back) <= paper_desk.estimation.max_gap_s * fs + 1

@@ -71,7 +71,7 @@ def event_sink(
         server.start()
         import sys
 
-        print(f"hapticdesk ui: {server.url}", file=sys.stderr, flush=True)
+        print(server.said, file=sys.stderr, flush=True)
         return server
 
     server: UiServer = context.shared(SHARED, open_server)  # closed with the run's resources

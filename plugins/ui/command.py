@@ -7,8 +7,8 @@ and shown, nothing is sent. A ``--layout`` that does not exist yet is created as
 init`` makes one (for ``--desk``, else the paper's desk). ``--source`` defaults to the
 simulator playing the demo scene. The page stays up after a finite source ends, until
 Ctrl-C. Without ``--layout`` the demo layout is shown and cannot be saved. Listening anywhere
-but loopback needs a token (``--token`` or ``HAPTICDESK_UI_TOKEN``; the URL printed carries
-it).
+but loopback needs a token of 12 characters or more (``HAPTICDESK_UI_TOKEN``, or
+``--token``); the address printed never carries it: the page asks for it (``.login``).
 """
 
 from __future__ import annotations
@@ -23,6 +23,8 @@ from pathlib import Path
 from hapticdesk.errors import ConfigError
 
 TOKEN_ENV = "HAPTICDESK_UI_TOKEN"
+#: the shortest token taken where other machines can reach the page
+MIN_TOKEN_CHARS = 12
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -36,7 +38,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--speed", type=float, default=1.0, help="1 real time (default)")
     parser.add_argument("--host", default="127.0.0.1", help="where to listen (127.0.0.1)")
     parser.add_argument("--port", type=int, default=8765, help="port (8765; 0: any free one)")
-    parser.add_argument("--token", help=f"required from the page (default ${TOKEN_ENV})")
+    parser.add_argument(
+        "--token",
+        help=f"required from the page (default ${TOKEN_ENV}; on the command line it is "
+        "visible to this machine's other users)",
+    )
     parser.add_argument(
         "--actions", action="store_true", help="run the layout's actions too (off by default)"
     )
@@ -53,6 +59,13 @@ def _token(args: argparse.Namespace) -> str | None:
             "--host",
             f"listening on {args.host} lets other machines in: give a token "
             f"(--token or {TOKEN_ENV})",
+        )
+    if args.host not in LOOPBACK_NAMES and token and len(token) < MIN_TOKEN_CHARS:
+        raise ConfigError(
+            "--token" if args.token else TOKEN_ENV,
+            f"a token of {len(token)} characters lets other machines guess it: expected "
+            f"{MIN_TOKEN_CHARS} or more (python3 -c 'import secrets; "
+            "print(secrets.token_urlsafe(16))' makes one)",
         )
     return token
 
@@ -95,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
     )
     scene.dispatcher.add_sink(Lane("every event → ui", server.on_gesture))
     server.start()
-    print(f"hapticdesk ui: {server.url}", file=sys.stderr, flush=True)
+    print(server.said, file=sys.stderr, flush=True)
     runtime = Runtime(scene, drain_timeout_s=1.0)
     server.attach(runtime)
     report = runtime.run()

@@ -5,7 +5,8 @@ One ASGI middleware (docs/security.md, "The browser UI"), for HTTP and WebSocket
 - **Host and Origin**: a request from another site (its ``Origin``), or naming the server by
   a name it does not answer to (its ``Host``: DNS rebinding), is refused;
 - **the token**, when one is set: ``?token=``, ``Authorization: Bearer`` or the page's own
-  cookie; everything is behind it, ``/static`` included;
+  cookie; everything is behind it, ``/static`` included; a browser opening the page without
+  it gets the form of :mod:`.login`, which sets the cookie;
 - **the body's size**: past :data:`MAX_BODY_BYTES` a request is refused (413), on its declared
   length before anything is read, else as soon as it streams past;
 - **confined reads**: whatever a request makes the server read through the layout's readers
@@ -33,6 +34,7 @@ from starlette.websockets import WebSocket
 
 from hapticdesk.files.file_safety import reads_confined_to
 from hapticdesk.plugins.ui.answers import BadRequest, message_error, refusal
+from hapticdesk.plugins.ui.login import LOGIN_PATH, login, login_page
 
 T = TypeVar("T")
 
@@ -120,11 +122,22 @@ class PageGuard:
         if scope["type"] not in ("http", "websocket"):  # (the lifespan)
             await self.app(scope, receive, send)
             return
-        if not self.allowed(HTTPConnection(scope)):
+        connection = HTTPConnection(scope)
+        if self._login(scope, connection):  # (the page's own form: no handler behind it)
+            assert self.token is not None
+            await (await login(receive, self.token, TOKEN_COOKIE))(scope, receive, send)
+            return
+        if not self.allowed(connection):
             if scope["type"] == "websocket":
                 await WebSocket(scope, receive, send).close(code=4401)
                 return
-            refused = "a token is needed (?token=...), from the page's own address"
+            if self._asks_for_page(scope, connection):
+                await login_page()(scope, receive, send)
+                return
+            refused = (
+                "a token is needed (the page asks for it; a script: Authorization: Bearer), "
+                "from the page's own address"
+            )
             await PlainTextResponse(refused, status_code=401)(scope, receive, send)
             return
         declared = Headers(scope=scope).get("content-length", "")
@@ -135,6 +148,26 @@ class PageGuard:
             self._read_roots = self._roots()
         with reads_confined_to(*self._read_roots):
             await self.app(scope, _bounded(receive), send)
+
+    def _login(self, scope: Scope, connection: HTTPConnection) -> bool:
+        """A token posted by the page's form (:mod:`.login`), from the page's own address."""
+        return (
+            self.token is not None
+            and scope["type"] == "http"
+            and scope["method"] == "POST"
+            and scope["path"] == LOGIN_PATH
+            and same_origin(connection.headers, self.bound, self.names)
+        )
+
+    def _asks_for_page(self, scope: Scope, connection: HTTPConnection) -> bool:
+        """A browser opening the page without the token, at the page's own address: it gets
+        the form that asks for it."""
+        return (
+            self.token is not None
+            and scope["method"] in ("GET", "HEAD")
+            and scope["path"] == "/"
+            and same_origin(connection.headers, self.bound, self.names)
+        )
 
     def allowed(self, connection: HTTPConnection) -> bool:
         """The right Host and Origin, and the token when one is set."""

@@ -164,8 +164,17 @@ class UiServer:
 
     @property
     def url(self) -> str:
+        """The page's address, printed for the user: never with the token in it (a secret
+        in an address and a log line); the page asks for it (:mod:`.login`)."""
         host = f"[{self.host}]" if ":" in self.host else self.host
-        return f"http://{host}:{self.port}/" + (f"?token={self.token}" if self.token else "")
+        return f"http://{host}:{self.port}/"
+
+    @property
+    def said(self) -> str:
+        """The line printed when it serves: its address, and that the page asks for the
+        token when there is one."""
+        asks = " (the page asks for its token)" if self.token else ""
+        return f"hapticdesk ui: {self.url}{asks}"
 
     def close(self, timeout_s: float = 2 * CLOSE_GRACE_S) -> None:
         """Stop serving (idempotent)."""

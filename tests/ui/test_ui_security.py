@@ -319,3 +319,50 @@ def test_listening_everywhere_without_a_token_writes_no_new_layout(
         "token (--token or HAPTICDESK_UI_TOKEN)\n"
     )
     assert not layout.exists()
+
+
+def test_the_token_is_asked_by_the_page_and_never_in_the_address(layout: Path) -> None:
+    """The printed address carried the token (``http://…/?token=…``: a secret in a URL and
+    in the terminal's log). Now it is bare; a browser opening it gets a form that posts the
+    token to /login, which sets the page's cookie; a wrong token gets the form again."""
+    server = UiServer(
+        layout, load_registry(entry_points=False), host="0.0.0.0", token="long-enough-s3cret"
+    )
+    assert "s3cret" not in server.url and "s3cret" not in server.said
+    assert "asks for its token" in server.said
+    app = server.app()
+    here = "http://192.0.2.7:8765"
+    browser = TestClient(app, base_url=here, follow_redirects=False)
+    asked = browser.get("/")
+    assert asked.status_code == 401 and 'action="/login"' in asked.text
+    assert "s3cret" not in asked.text and "<script" not in asked.text
+    assert browser.get("/api/layout").status_code == 401  # (an API call gets no form)
+    wrong = browser.post("/login", data={"token": "guess"}, headers={"origin": here})
+    assert wrong.status_code == 401 and "not the token" in wrong.text
+    assert TOKEN_COOKIE not in wrong.headers.get("set-cookie", "")
+    elsewhere = browser.post(
+        "/login", data={"token": "long-enough-s3cret"}, headers={"origin": "http://evil.example"}
+    )
+    assert elsewhere.status_code == 401 and TOKEN_COOKIE not in elsewhere.headers.get(
+        "set-cookie", ""
+    )
+    right = browser.post("/login", data={"token": "long-enough-s3cret"}, headers={"origin": here})
+    assert right.status_code == 303 and right.headers["location"] == "/"
+    cookie = right.headers["set-cookie"]
+    assert "HttpOnly" in cookie and f"{TOKEN_COOKIE}=long-enough-s3cret" in cookie
+    assert browser.get("/").status_code == 200  # (the cookie kept by the client)
+    assert browser.get("/static/app.js").status_code == 200
+
+
+def test_a_short_token_is_refused_where_other_machines_reach_the_page(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A one-character token was taken for a page listening on every address."""
+    from hapticdesk.cli import main
+
+    monkeypatch.setenv("HAPTICDESK_UI_TOKEN", "a")
+    layout = tmp_path / "new.yaml"
+    assert main(["ui", "--layout", str(layout), "--host", "0.0.0.0", "--port", "0"]) == 2
+    err = capsys.readouterr().err
+    assert "HAPTICDESK_UI_TOKEN" in err and "12 or more" in err and "Traceback" not in err
+    assert not layout.exists()

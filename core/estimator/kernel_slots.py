@@ -75,12 +75,10 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     P_OBJECT_RESTING_KEEP,
     P_LIGHT_LOAD,
     P_OBJECT_NOISE_FLOOR,
-    P_STEP_SPREAD_SHARE,  # a desk quieter than its steps: its yardsticks in steps
-    P_STEP_WANDER_SHARE,
     P_LIFT_TOLERANCE,
     P_IDLE_QUANTILE,
     N_PF_FIXED,
-) = range(43)
+) = range(41)
 # --- parameters: fixed int slots (pi) -----------------------------------------------------------
 (
     I_C,  # raw channels

@@ -50,6 +50,7 @@ from hapticdesk.estimator.kernel_slots import (
     J_IN_CONTACT,
     J_LIVE,
     J_N_LEARNING,
+    J_OFF_STEPS,
     J_REPEATS,
     J_REST_N,
     J_SEEN,
@@ -274,6 +275,8 @@ def _learn_steps(x: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray) 
                 if now != before:
                     step[c] = now
                     si[J_DIRTY] = 1
+                if not (_whole(change / now) and _whole(before / now)):
+                    si[J_OFF_STEPS] = 1  # (a continuous reading: its "step" is no resolution)
                 changes[c] += 1
                 if changes[c] >= pi[I_CONFIRM]:
                     learning[c] = 0
@@ -281,6 +284,12 @@ def _learn_steps(x: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray) 
     for c in range(c_n):
         last[c] = x[c]
     si[J_HAVE_LAST_ROW] = 1
+
+
+@inlined
+def _whole(ratio: float) -> bool:
+    """Whether a change in steps is a whole number of them (0 too: no step before)."""
+    return abs(ratio - round(ratio)) <= 1e-6 * max(1.0, ratio)
 
 
 @inlined_entry

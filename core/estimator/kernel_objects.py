@@ -16,13 +16,17 @@ import numpy as np
 
 from hapticdesk.estimator.kernel_compile import inlined
 from hapticdesk.estimator.kernel_slots import (
+    I_C,
     I_N_OBJECT,
+    I_PO_MAP,
     I_SO_OBJ_WINDOWS,
     I_SO_SCRATCH,
+    I_SO_STEP,
     J_OBJ_GRACED,
     J_OBJ_RESTING,
     J_OBJ_WINDOWS_N,
     J_OBJ_WINDOWS_POS,
+    J_OFF_STEPS,
     P_DRIFT_MAX,
     P_HEAVY_SPREAD_SHARE,
     P_HEAVY_WANDER_SHARE,
@@ -33,6 +37,8 @@ from hapticdesk.estimator.kernel_slots import (
     P_OBJECT_SPIKE,
     P_OBJECT_STILL_FACTOR,
     P_OBJECT_WANDER_FACTOR,
+    P_STEP_SPREAD_SHARE,
+    P_STEP_WANDER_SHARE,
     P_STILL_N,
     S_OBJ_WEIGHT,
     S_OBJ_ZERO,
@@ -65,7 +71,7 @@ def object_still(
     rests on through it, J_OBJ_GRACED). Also notes whether the load rests (J_OBJ_RESTING: its
     windows so far as still as an object's)."""
     n_object = pi[I_N_OBJECT]
-    quiet_spread = sf[S_QUIET_SPREAD]
+    quiet_spread, quiet_wander = _yardsticks(pf, pi, sf, si)
     limit = max(pf[P_OBJECT_STILL_FACTOR] * quiet_spread, pf[P_HEAVY_SPREAD_SHARE] * load)
     if (
         n_object == 0
@@ -90,7 +96,7 @@ def object_still(
     sf[at + 4 * k + 1], sf[at + 4 * k + 2], sf[at + 4 * k + 3] = f0, f1, f2
     n, pos = si[J_OBJ_WINDOWS_N], si[J_OBJ_WINDOWS_POS]
     strayed = ring_wander(sf, at, cap, pos, n)
-    allowed = max(pf[P_OBJECT_WANDER_FACTOR] * sf[S_QUIET_WANDER], pf[P_HEAVY_WANDER_SHARE] * load)
+    allowed = max(pf[P_OBJECT_WANDER_FACTOR] * quiet_wander, pf[P_HEAVY_WANDER_SHARE] * load)
     # the resting flag, once up in this run, drops only past P_OBJECT_RESTING_KEEP times the
     # allowed wander (still_objects.OBJECT_RESTING_KEEP says why)
     keep = pf[P_OBJECT_RESTING_KEEP] if si[J_OBJ_RESTING] and run > 1 else 1.0
@@ -101,6 +107,28 @@ def object_still(
     median = nth_smallest(sf, at, 4, cap, pos, n, n // 2, pi[I_SO_SCRATCH])
     # (a load that strays is no object, for now)
     return run, strayed < allowed and run >= wait and median < limit
+
+
+@inlined
+def _yardsticks(
+    pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray
+) -> tuple[float, float]:
+    """The idle desk's quiet spread and wander (S_QUIET_*); where its readings sat still (a
+    spread under P_OBJECT_NOISE_FLOOR: a sensor quieter than its resolution step), shares of
+    the force one step of its coarsest channel makes (still_objects.STEP_SPREAD_SHARE), 0
+    while no step is known or where the readings are not quantised (J_OFF_STEPS: the
+    smallest change of a continuous reading is no resolution step)."""
+    spread, wander = sf[S_QUIET_SPREAD], sf[S_QUIET_WANDER]
+    if spread >= pf[P_OBJECT_NOISE_FLOOR] or si[J_OFF_STEPS]:
+        return spread, wander
+    c_n = pi[I_C]
+    m = pf[pi[I_PO_MAP] : pi[I_PO_MAP] + 6 * c_n]
+    step = sf[pi[I_SO_STEP] : pi[I_SO_STEP] + c_n]
+    force = 0.0
+    for c in range(c_n):
+        k = 6 * c
+        force = max(force, math.sqrt(m[k] ** 2 + m[k + 1] ** 2 + m[k + 2] ** 2) * step[c])
+    return pf[P_STEP_SPREAD_SHARE] * force, pf[P_STEP_WANDER_SHARE] * force
 
 
 @inlined

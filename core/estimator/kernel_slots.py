@@ -75,10 +75,12 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     P_OBJECT_RESTING_KEEP,
     P_LIGHT_LOAD,
     P_OBJECT_NOISE_FLOOR,
+    P_STEP_SPREAD_SHARE,  # a desk quieter than its steps: its yardsticks in steps
+    P_STEP_WANDER_SHARE,
     P_LIFT_TOLERANCE,
     P_IDLE_QUANTILE,
     N_PF_FIXED,
-) = range(41)
+) = range(43)
 # --- parameters: fixed int slots (pi) -----------------------------------------------------------
 (
     I_C,  # raw channels
@@ -287,8 +289,9 @@ N_SF_FIXED = 105
     J_ZERO_NEXT,  # S_ZERO_NEXT is the zero from the next sample on
     J_REST_N,  # rest readings compared so far (up to I_REST_N)
     J_OBJ_GRACED,  # a window of the object run spread past an object's and was kept (one a run)
+    J_OFF_STEPS,  # a channel changed by no whole number of its step: readings not quantised
     N_SI_FIXED,
-) = range(61)
+) = range(62)
 # the second-finger stage's history of each sample: smoothed wrench and contact (floats), and
 # its located, surface and in-contact (ints)
 MT_W, MT_X, MT_Y, MT_Z, MT_FORCE, MT_F = 0, 6, 7, 8, 9, 10

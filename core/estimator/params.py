@@ -47,6 +47,8 @@ from hapticdesk.estimator.still_objects import (
     OBJECT_SPIKE,
     OBJECT_STILL_FACTOR,
     OBJECT_WANDER_FACTOR,
+    STEP_SPREAD_SHARE,
+    STEP_WANDER_SHARE,
 )
 from hapticdesk.estimator.yardsticks import IDLE_QUANTILE, IDLE_WINDOWS
 from hapticdesk.files.profile import METHODS
@@ -251,6 +253,8 @@ def _fixed_floats(s: EstimatorSettings) -> dict[int, float]:
         slots.P_OBJECT_RESTING_KEEP: OBJECT_RESTING_KEEP,
         slots.P_LIGHT_LOAD: LIGHT_LOAD_N,
         slots.P_OBJECT_NOISE_FLOOR: OBJECT_NOISE_FLOOR_N,
+        slots.P_STEP_SPREAD_SHARE: STEP_SPREAD_SHARE,
+        slots.P_STEP_WANDER_SHARE: STEP_WANDER_SHARE,
         slots.P_LIFT_TOLERANCE: LIFT_TOLERANCE,
         slots.P_IDLE_QUANTILE: IDLE_QUANTILE,
     }

@@ -58,9 +58,20 @@ OBJECT_RESTING_KEEP = 1.6
 # within 1 s 158 of 168 -> 138 (touch_release_eval's light long presses on its unseen desk:
 # 2 phantom releases -> 0)
 LIGHT_LOAD_N = 5.0
-# below this spread at the tare the readings are synthetic (no real sensor is that quiet):
-# there is no yardstick for stillness, and objects wait for ``settle_s``
+# below this spread at the tare the idle readings sat still: a sensor quieter than its
+# resolution step (or synthetic readings). Its yardsticks are then these shares of the force
+# one step of its coarsest channel makes, once a load's readings have taught the steps (the
+# paper's desk, whose readings flicker by a step at noise 0.4 N, steps 0.075-0.15 N, has a
+# quiet spread of 0.19 and a wander of 0.09 of that force; taken a little quieter). Without
+# them, on the paper's desk at noise 0.1-0.25 N, a 0.3-1.5 kg cup on a long-press button
+# fired it 12 of 16 times (no yardstick: objects waited for ``settle_s``); with them 1 of 16,
+# fingers held still 3 s taken for an object 5 of 72 (3 of 72 at noise 0.4 N; 7 of 72 with
+# shares 0.2 and 0.1). Without steps learned, or where a channel changed by no whole number of
+# its step (unquantised synthetic readings: a perfectly static press was taken for an object,
+# tests/sim/test_sim_simulate.py), there is no yardstick, as before
 OBJECT_NOISE_FLOOR_N = 1e-4
+STEP_SPREAD_SHARE = 0.15
+STEP_WANDER_SHARE = 0.075
 # a lift restores the zero from before the object when the load is back within this share
 # of the object's weight (or ``still_n``, whichever is larger) of that zero
 LIFT_TOLERANCE = 0.2

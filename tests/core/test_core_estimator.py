@@ -153,7 +153,8 @@ def test_tare_is_refused_while_someone_leans_and_retried(paper_desk):
     t, w = lean_then_press(paper_desk, 3.0)
     est = ContactEstimator(paper_desk)
     block = est.push(t, w)
-    kinds = [n.kind for n in est.notices]
+    # (the tare's notices: a press held this still may be taken for an object after it)
+    kinds = [n.kind for n in est.notices if n.kind.startswith("tare")]
     assert kinds.count("tare_refused") >= 2 and kinds[-1] == "tare"
     tare_t = next(n.t for n in est.notices if n.kind == "tare")
     assert tare_t > 3.0  # not a silent bad zero taken while leaning

@@ -134,3 +134,31 @@ def test_objects_are_absorbed_on_desks_it_was_not_tuned_on(desk_name, tmp_path):
         assert all(delays[i] <= 1.0 for i in heavy), (seed, delays)
         assert all(worse[i] <= 2e-3 for i in heavy), (seed, worse)
         assert all(lifts[i] <= 0.6 for i in heavy), (seed, lifts)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_cup_on_a_desk_quieter_than_its_steps_rests_and_is_absorbed(seed):
+    """Sensors whose noise stays under their resolution step read the idle desk as still as
+    constant: the idle desk's yardsticks are then its steps' (still_objects.STEP_SPREAD_SHARE).
+    A 0.3 kg cup rests before a 0.8 s long press is due and is absorbed within a second of
+    being down, where without a yardstick it waited for ``settle_s`` (5 s) and the long press
+    fired; a finger's press on the same desk is no object."""
+    from hapticdesk.sim import SensorParameters
+
+    desk = load_profile("kitamura2017")
+    quiet = SensorParameters(noise_amplitude_n=0.2)
+    put = PutObject(name="cup", mass_kg=0.3, point=CUP, start_s=PUT_S)
+    rec = simulate(desk, Scene([put, Idle(duration_s=3.0)], seed=seed), sensors=quiet)
+    est = ContactEstimator(desk)
+    block = est.push(rec.t, rec.wrench)
+    assert est.state.sf[slots.S_QUIET_SPREAD] < 1e-4  # (the idle readings sat still)
+    down = float(block.t[np.argmax(block.in_contact)])
+    absorbed = [n.t for n in est.notices if n.kind == "absorbed"]
+    assert absorbed and absorbed[0] - down < 1.5
+    due = block.in_contact & (block.t >= down + 0.8)
+    assert block.resting[due].all()
+    press = Press(point=BUTTON, peak_n=15.0, hold_s=1.0, start_s=PUT_S)
+    rec = simulate(desk, Scene([press], seed=seed), sensors=quiet)
+    est = ContactEstimator(desk)
+    est.push(rec.t, rec.wrench)
+    assert not [n for n in est.notices if n.kind == "absorbed"]

@@ -22,9 +22,7 @@ from pathlib import Path
 
 from hapticdesk.errors import ConfigError
 
-TOKEN_ENV = "HAPTICDESK_UI_TOKEN"
-#: the shortest token taken where other machines can reach the page
-MIN_TOKEN_CHARS = 12
+TOKEN_ENV = "HAPTICDESK_UI_TOKEN"  # (guard.TOKEN_ENV: the guard's module is imported late)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -49,24 +47,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def _token(args: argparse.Namespace) -> str | None:
-    """The page's token; a ConfigError naming ``--host`` when it listens beyond loopback
-    without one (``ui --layout new.yaml --host 0.0.0.0`` wrote new.yaml, then refused)."""
-    from hapticdesk.plugins.ui.guard import LOOPBACK_NAMES
+    """The page's token, checked as the server checks it (guard.check_token) but before a
+    new layout is written and naming this command's options (``ui --layout new.yaml --host
+    0.0.0.0`` wrote new.yaml, then refused)."""
+    from hapticdesk.plugins.ui.guard import check_token
 
     token = args.token or os.environ.get(TOKEN_ENV)
-    if args.host not in LOOPBACK_NAMES and not token:
-        raise ConfigError(
-            "--host",
-            f"listening on {args.host} lets other machines in: give a token "
-            f"(--token or {TOKEN_ENV})",
-        )
-    if args.host not in LOOPBACK_NAMES and token and len(token) < MIN_TOKEN_CHARS:
-        raise ConfigError(
-            "--token" if args.token else TOKEN_ENV,
-            f"a token of {len(token)} characters lets other machines guess it: expected "
-            f"{MIN_TOKEN_CHARS} or more (python3 -c 'import secrets; "
-            "print(secrets.token_urlsafe(16))' makes one)",
-        )
+    check_token(args.host, token, "--host", "--token" if args.token else TOKEN_ENV)
     return token
 
 

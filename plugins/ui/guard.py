@@ -32,6 +32,7 @@ from starlette.responses import PlainTextResponse
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from starlette.websockets import WebSocket
 
+from hapticdesk.errors import ConfigError
 from hapticdesk.files.file_safety import reads_confined_to
 from hapticdesk.plugins.ui.answers import BadRequest, message_error, refusal
 from hapticdesk.plugins.ui.login import LOGIN_PATH, login, login_page
@@ -49,6 +50,30 @@ HOSTS_ENV = "HAPTICDESK_UI_HOSTS"
 #: the names a server bound to loopback answers to: another Host is a page of another site
 #: reaching it through DNS rebinding
 LOOPBACK_NAMES = {"127.0.0.1", "localhost", "::1"}
+#: where the token comes from when no option gives it
+TOKEN_ENV = "HAPTICDESK_UI_TOKEN"
+#: the shortest token taken where other machines can reach the page
+MIN_TOKEN_CHARS = 12
+
+
+def check_token(host: str, token: str | None, where_host: str, where_token: str) -> None:
+    """A ConfigError where a page listening on ``host`` beyond loopback has no token (at
+    ``where_host``) or one under :data:`MIN_TOKEN_CHARS`, which other machines may guess (at
+    ``where_token``): ``ui``'s options and ``run --ui`` alike (:class:`.server.UiServer`)."""
+    if host in LOOPBACK_NAMES:
+        return
+    if not token:
+        raise ConfigError(
+            where_host,
+            f"listening on {host} lets other machines in: give a token (--token or {TOKEN_ENV})",
+        )
+    if len(token) < MIN_TOKEN_CHARS:
+        raise ConfigError(
+            where_token,
+            f"a token of {len(token)} characters lets other machines guess it: expected "
+            f"{MIN_TOKEN_CHARS} or more (python3 -c 'import secrets; "
+            "print(secrets.token_urlsafe(16))' makes one)",
+        )
 
 
 def host_names() -> frozenset[str]:

@@ -37,7 +37,7 @@ from hapticdesk.plugins.ui import (
 )
 from hapticdesk.plugins.ui.answers import EXCEPTION_HANDLERS, OneLineErrors
 from hapticdesk.plugins.ui.feed import Feed
-from hapticdesk.plugins.ui.guard import LOOPBACK_NAMES, PageGuard, host_names
+from hapticdesk.plugins.ui.guard import PageGuard, check_token, host_names
 from hapticdesk.plugins.ui.hub import MAX_WS_CLIENTS, WS_MAX_MESSAGE_BYTES, Hub
 from hapticdesk.plugins.ui.shown_desk import ShownDesk
 
@@ -98,12 +98,7 @@ class UiServer:
         desk: DeskProfile | None = None,
         read_only: bool = False,
     ) -> None:
-        if host not in LOOPBACK_NAMES and not token:
-            raise ConfigError(
-                "--ui",
-                f"listening on {host} lets other machines in: give a token "
-                "(--token or HAPTICDESK_UI_TOKEN)",
-            )
+        check_token(host, token, "--ui", "--ui")
         self.shown = ShownDesk(layout_path, registry, desk, read_only)
         self.hub = Hub()
         self.host, self.port = host, port

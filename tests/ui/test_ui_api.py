@@ -171,20 +171,25 @@ def test_other_hosts_need_a_token(layout: Path) -> None:
     registry = load_registry(entry_points=False)
     with pytest.raises(ConfigError, match="token"):
         UiServer(layout, registry, host="0.0.0.0")
-    app = UiServer(layout, registry, host="0.0.0.0", token="s3cret").app()
+    app = UiServer(layout, registry, host="0.0.0.0", token="s3cret-s3cret").app()
     # (a server on every address answers to IP addresses and the machine's names)
     client = TestClient(app, base_url="http://192.0.2.7:8765")
     assert client.get("/").status_code == 401
     assert client.get("/api/layout").status_code == 401
     assert client.put("/api/layout", content="x").status_code == 401
     assert client.get("/?token=wrong").status_code == 401
-    assert client.get("/?token=s3cret").status_code == 200
-    assert client.get("/api/layout", headers={"Authorization": "Bearer s3cret"}).status_code == 200
+    assert client.get("/?token=s3cret-s3cret").status_code == 200
+    assert (
+        client.get("/api/layout", headers={"Authorization": "Bearer s3cret-s3cret"}).status_code
+        == 200
+    )
     stranger = TestClient(app, base_url="http://192.0.2.7:8765")  # (no cookie of the page's)
     with pytest.raises(Exception):  # noqa: B017 - the socket is closed before it is accepted
         with stranger.websocket_connect("/ws", headers={"host": "192.0.2.7:8765"}) as ws:
             ws.receive_text()
-    with client.websocket_connect("/ws?token=s3cret", headers={"host": "192.0.2.7:8765"}) as ws:
+    with client.websocket_connect(
+        "/ws?token=s3cret-s3cret", headers={"host": "192.0.2.7:8765"}
+    ) as ws:
         assert '"type": "desk"' in ws.receive_text()
 
 

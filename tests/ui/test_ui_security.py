@@ -18,6 +18,7 @@ pytest.importorskip("httpx")
 
 from starlette.testclient import TestClient  # noqa: E402
 
+from hapticdesk.errors import ConfigError  # noqa: E402
 from hapticdesk.files.profile_reader import load_profile  # noqa: E402
 from hapticdesk.plugin_loading import load_registry  # noqa: E402
 from hapticdesk.plugins.ui import hub as ui_hub  # noqa: E402
@@ -203,16 +204,18 @@ def test_static_files_are_behind_the_token_and_the_page_gets_them(layout: Path) 
     """Guards item 10: with a token, /static answers 401 without it (b5a43bd served it to
     anyone); the page itself gets a SameSite=Strict cookie, so the browser's requests for
     its scripts carry the token."""
-    server = UiServer(layout, load_registry(entry_points=False), host="0.0.0.0", token="s3cret")
+    server = UiServer(
+        layout, load_registry(entry_points=False), host="0.0.0.0", token="s3cret-s3cret"
+    )
     app = server.app()
     stranger = TestClient(app, base_url="http://192.0.2.7:8765")
     assert stranger.get("/static/app.js").status_code == 401
     assert stranger.get("/static/../layout_edit.py").status_code in (401, 404)
     page = TestClient(app, base_url="http://192.0.2.7:8765")
-    answer = page.get("/?token=s3cret")
+    answer = page.get("/?token=s3cret-s3cret")
     assert answer.status_code == 200
     cookie = answer.headers["set-cookie"]
-    assert f"{TOKEN_COOKIE}=s3cret" in cookie and "HttpOnly" in cookie
+    assert f"{TOKEN_COOKIE}=s3cret-s3cret" in cookie and "HttpOnly" in cookie
     assert "SameSite=strict" in cookie or "SameSite=Strict" in cookie
     script = page.get("/static/app.js")
     assert script.status_code == 200 and "function onContact" in script.text
@@ -225,9 +228,11 @@ def test_the_host_header_is_checked_on_a_server_listening_everywhere(layout: Pat
     whose name resolves to the desk (DNS rebinding) is refused (b5a43bd: not checked)."""
     import socket
 
-    server = UiServer(layout, load_registry(entry_points=False), host="0.0.0.0", token="s3cret")
+    server = UiServer(
+        layout, load_registry(entry_points=False), host="0.0.0.0", token="s3cret-s3cret"
+    )
     app = server.app()
-    bearer = {"Authorization": "Bearer s3cret"}
+    bearer = {"Authorization": "Bearer s3cret-s3cret"}
     for host, status in [
         ("192.0.2.7:8765", 200),
         ("[2001:db8::7]:8765", 200),
@@ -352,6 +357,16 @@ def test_the_token_is_asked_by_the_page_and_never_in_the_address(layout: Path) -
     assert "HttpOnly" in cookie and f"{TOKEN_COOKIE}=long-enough-s3cret" in cookie
     assert browser.get("/").status_code == 200  # (the cookie kept by the client)
     assert browser.get("/static/app.js").status_code == 200
+
+
+def test_the_server_of_run_ui_refuses_a_short_token_beyond_loopback(layout: Path) -> None:
+    """`run --ui 0.0.0.0:PORT` builds the server from the layout's `ui:` or the environment:
+    it holds the same rule as `ui`'s options (guard.check_token), not `ui`'s alone."""
+    with pytest.raises(ConfigError, match="a token of 6 characters"):
+        UiServer(layout, load_registry(entry_points=False), host="0.0.0.0", token="s3cret")
+    with pytest.raises(ConfigError, match="give a token"):
+        UiServer(layout, load_registry(entry_points=False), host="0.0.0.0")
+    UiServer(layout, load_registry(entry_points=False), host="127.0.0.1", token="s3cret")
 
 
 def test_a_short_token_is_refused_where_other_machines_reach_the_page(

@@ -20,8 +20,9 @@ import numpy as np
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import ACCEL_COLUMN, AXES
 
-#: the largest sample time a recording may hold, seconds (from 1970, year 9999: what a CAN
-#: log's time may be too). One beyond it is no clock's: a time of 1e300 in one row took every
+#: the largest sample time a recording may hold, seconds since 1970: 9999-12-31 00:00 UTC (a
+#: day short of the last date Python has, for the local time zone), a CAN log's too
+#: (canbus.logs.skipped). One beyond it is no clock's: a time of 1e300 in one row took every
 #: sample after it for one that went back in time
 MAX_TIME_S = 253_402_214_400.0
 #: what a bad time is told

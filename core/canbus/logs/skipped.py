@@ -7,6 +7,8 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
+from hapticdesk.files.recording import MAX_TIME_S
+
 log = logging.getLogger(__name__)
 
 #: the widest identifiers CAN has (python-can's own ``Message`` check): 29 bits for an extended
@@ -14,11 +16,11 @@ log = logging.getLogger(__name__)
 #: reached numpy's uint32 and ended the read with an OverflowError)
 MAX_EXTENDED_ID = 0x1FFF_FFFF
 MAX_STANDARD_ID = 0x7FF
-#: the latest time a CAN log holds, in seconds since 1970: 9999-12-31 00:00 UTC (a day short
-#: of the last date Python has, for the local time zone). python-can's .asc, .blf and .trc
-#: writers date a log by its first frame, so a later one cannot be written; read, a time beyond
-#: it (either way) is no clock's, and its gaps overflowed the assembler's integer sample counts
-MAX_LOG_TIME_S = 253_402_214_400.0
+#: the latest time a CAN log holds, in seconds since 1970: any recording's (year 9999).
+#: python-can's .asc, .blf and .trc writers date a log by its first frame, so a later one
+#: cannot be written; read, a time beyond it (either way) is no clock's, and its gaps
+#: overflowed the assembler's integer sample counts
+MAX_LOG_TIME_S = MAX_TIME_S
 
 BAD_ID = (
     f"frame(s) whose identifier is out of range (up to 0x{MAX_EXTENDED_ID:X} extended, "

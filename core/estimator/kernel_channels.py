@@ -3,6 +3,7 @@
 Stage 1 of the kernel (:mod:`hapticdesk.estimator.kernel`), the per-sample side of
 :mod:`hapticdesk.estimator.samples` and :mod:`hapticdesk.estimator.resolution`:
 :func:`_samples` flags a sample (NaN, saturated, its time going back, a stuck input, a gap);
+:func:`held_over` holds over a reading that jumps for one sample (a corrupt one);
 :func:`wrench_of` maps its channels to the resultant force and moment about P_o,
 [F_o; M_o] = M x (paper eqs. 1–4; the entries make it a sample ahead); :func:`_learn_steps`
 learns each channel's resolution step from the changes between good readings, and
@@ -24,6 +25,7 @@ from hapticdesk.estimator.contacts import (
 )
 from hapticdesk.estimator.kernel_compile import inlined, inlined_entry
 from hapticdesk.estimator.kernel_slots import (
+    EV_JUMP,
     EV_LIVE,
     EV_NOISE_FREE,
     EV_STUCK,
@@ -48,6 +50,8 @@ from hapticdesk.estimator.kernel_slots import (
     J_HAVE_LAST_ROW,
     J_HAVE_PREV,
     J_IN_CONTACT,
+    J_JUMP,
+    J_JUMPS,
     J_LIVE,
     J_N_LEARNING,
     J_OFF_STEPS,
@@ -55,15 +59,24 @@ from hapticdesk.estimator.kernel_slots import (
     J_REST_N,
     J_SEEN,
     J_SEEN_REPEATS,
+    J_STARTED,
     J_STUCK_CHECK,
     J_TARED,
     J_TIME_BACK,
+    JUMP_CALM,
+    JUMP_HELD,
+    JUMP_MOVING,
+    P_JUMP_ARM_INV_SQ,
+    P_JUMP_SQ,
     P_MAX_GAP,
     P_STEP_CHANGE,
     S_BACK_FROM,
     S_BACK_LAST,
     S_EV_LATEST,
     S_EV_T,
+    S_JUMP_SIZE,
+    S_JUMP_T,
+    S_LAST_GOOD,
     S_LAST_STUCK_T,
     S_LAST_T,
     S_MAX_T,
@@ -142,14 +155,61 @@ def _time_back(t: float, pf: np.ndarray, sf: np.ndarray, si: np.ndarray) -> tupl
         sf[S_BACK_LAST] = math.inf
         return 0, 0, True
     si[J_TIME_BACK] += 1
-    count = si[J_TIME_BACK]
-    mark = 1
-    while mark < count:
-        mark *= 10
-    if mark == count:
+    if _told_at(si[J_TIME_BACK]):
         sf[S_EV_T], sf[S_EV_LATEST] = t, sf[S_MAX_T]
         return FLAG_TIME_BACK, EV_TIME_BACK, False
     return FLAG_TIME_BACK, 0, False
+
+
+@inlined
+def _told_at(count: int) -> bool:
+    """Whether the ``count``-th of a kind of bad reading is told: the 1st, 10th, 100th…"""
+    mark = 1
+    while mark < count:
+        mark *= 10
+    return mark == count
+
+
+@inlined
+def held_over(
+    t: float, mapped: Wrench, flags: int, pf: np.ndarray, sf: np.ndarray, si: np.ndarray
+) -> tuple[bool, int]:
+    """Whether the sample (``flags``, its wrench ``mapped``) is held over for its jump
+    (:func:`jumped`), and the events: a good sample after a good one may be; one after a
+    gap is taken (the filters restart there)."""
+    if flags == 0 and si[J_STARTED]:
+        return jumped(t, mapped, pf, sf, si)
+    if flags == FLAG_GAP:
+        si[J_JUMP] = JUMP_CALM
+    return False, 0
+
+
+@inlined
+def jumped(
+    t: float, mapped: Wrench, pf: np.ndarray, sf: np.ndarray, si: np.ndarray
+) -> tuple[bool, int]:
+    """Whether a good sample after a good one is held (its wrench ``mapped`` not taken: the
+    last good one stands for it), and the events. A corrupt reading lasts one sample: one that
+    jumps from a calm wrench (settings.JUMP_SHARE) is held; the next is taken whatever it is:
+    if it came back, the held one was corrupt (counted, told at the 1st, 10th… such); if it
+    jumped too, the change is real, and none is held while it keeps jumping."""
+    good = sf[S_LAST_GOOD : S_LAST_GOOD + 6]
+    df = (mapped[0] - good[0]) ** 2 + (mapped[1] - good[1]) ** 2 + (mapped[2] - good[2]) ** 2
+    dm = (mapped[3] - good[3]) ** 2 + (mapped[4] - good[4]) ** 2 + (mapped[5] - good[5]) ** 2
+    dm *= pf[P_JUMP_ARM_INV_SQ]
+    jump = df > pf[P_JUMP_SQ] or dm > pf[P_JUMP_SQ]
+    state = si[J_JUMP]
+    if state == JUMP_CALM:
+        if jump:
+            si[J_JUMP] = JUMP_HELD
+            sf[S_JUMP_T], sf[S_JUMP_SIZE] = t, math.sqrt(max(df, dm))
+        return jump, 0
+    si[J_JUMP] = JUMP_MOVING if jump else JUMP_CALM
+    if state == JUMP_HELD and not jump:  # it came back: the held reading was corrupt
+        si[J_JUMPS] += 1
+        if _told_at(si[J_JUMPS]):
+            return False, EV_JUMP
+    return False, 0
 
 
 @inlined

@@ -24,7 +24,7 @@ from hapticdesk.estimator.contacts import (
     PHASE_RELEASE,
     PHASE_TOUCH,
 )
-from hapticdesk.estimator.kernel_channels import _samples, steps_changed
+from hapticdesk.estimator.kernel_channels import _samples, held_over, steps_changed
 from hapticdesk.estimator.kernel_compile import inlined
 from hapticdesk.estimator.kernel_detector import detect
 from hapticdesk.estimator.kernel_filters import _filters, _restart_filters
@@ -119,7 +119,7 @@ def _front(
 ) -> int:
     """The first half of a sample (``before``: the channels of the sample before; ``mapped``:
     its channels' wrench, kernel_channels.wrench_of):
-    its flags and wrench (stages 1, 1b), the filters
+    its flags and wrench (stages 1, 1b; a jump held over: kernel_channels.held_over), the filters
     (stage 2) and the zero's window (stage 3). Leaves the sample in flight in S_RAW, S_LP,
     S_DET, S_DIFF, S_SLOPE, S_RELEASE and J_FLAGS; returns its events."""
     accel, no_accel = _accel_use(a, given, pf, pi, si)
@@ -128,8 +128,10 @@ def _front(
     flags, events = _samples(t, x, before, pf, pi, sf, si)
     first_good = False
     zeroed = pi[I_ZEROED] == 1
-    if flags == 0 or flags == FLAG_GAP:  # a good sample: its wrench (paper eqs. 1–4) kept
-        good = sf[S_LAST_GOOD : S_LAST_GOOD + 6]
+    held, told = held_over(t, mapped, flags, pf, sf, si)
+    events |= told
+    if (flags == 0 or flags == FLAG_GAP) and not held:  # a good sample: its wrench kept
+        good = sf[S_LAST_GOOD : S_LAST_GOOD + 6]  # (paper eqs. 1–4)
         good[0], good[1], good[2], good[3], good[4], good[5] = mapped
         first_good = si[J_STARTED] == 0
         si[J_STARTED] = 1

@@ -31,6 +31,7 @@ EV_COVS = 256  # a resolution step is new or shrank: make the covariances anew (
 EV_PARTIAL_ACCEL = 512  # some readings of several accelerometers are not usable (pre-sample)
 EV_ABSORBED = 1024  # a still load joined the zero (S_OBJ_*, J_OBJ_HELD): tell it
 EV_LIFTED = 2048  # the last absorbed object was lifted, its zero restored: tell it
+EV_JUMP = 4096  # the 1st, 10th, 100th… reading that jumped for one sample and came back
 # where an entry resumes after an event (si[J_RESUME])
 RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
 
@@ -79,8 +80,10 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     P_STEP_WANDER_SHARE,
     P_LIFT_TOLERANCE,
     P_IDLE_QUANTILE,
+    P_JUMP_SQ,  # a change of the wrench's force beyond this, squared, in one sample: a jump
+    P_JUMP_ARM_INV_SQ,  # ... or of its moment beyond it times the desk's arm: 1 / arm²
     N_PF_FIXED,
-) = range(43)
+) = range(45)
 # --- parameters: fixed int slots (pi) -----------------------------------------------------------
 (
     I_C,  # raw channels
@@ -226,7 +229,9 @@ S_ZERO_NEXT = 96  # (6,) a zero decided at a window's end for the next sample on
 S_ZERO_T_NEXT = 102  # ... and its time
 S_BACK_FROM = 103  # the run of samples whose times went back: its first time
 S_BACK_LAST = 104  # ... and its last (inf: no run)
-N_SF_FIXED = 105
+S_JUMP_T = 105  # the last sample held for its jump: its time
+S_JUMP_SIZE = 106  # ... and how far it jumped (N, or N·m / arm)
+N_SF_FIXED = 107
 # --- state: fixed int slots (si) ----------------------------------------------------------------
 (
     J_STARTED,  # a good sample has been seen: the filters run
@@ -290,8 +295,13 @@ N_SF_FIXED = 105
     J_REST_N,  # rest readings compared so far (up to I_REST_N)
     J_OBJ_GRACED,  # a window of the object run spread past an object's and was kept (one a run)
     J_OFF_STEPS,  # a channel changed by no whole number of its step: readings not quantised
+    J_JUMP,  # JUMP_CALM, JUMP_HELD (the sample before was held for its jump) or JUMP_MOVING
+    J_JUMPS,  # readings that jumped for one sample and came back, so far
     N_SI_FIXED,
-) = range(62)
+) = range(64)
+# a reading's jump (kernel_channels.jumped): from a calm wrench it is held for one sample;
+# the next one is taken, and while the wrench keeps jumping (a real change) none is held
+JUMP_CALM, JUMP_HELD, JUMP_MOVING = range(3)
 # the second-finger stage's history of each sample: smoothed wrench and contact (floats), and
 # its located, surface and in-contact (ints)
 MT_W, MT_X, MT_Y, MT_Z, MT_FORCE, MT_F = 0, 6, 7, 8, 9, 10

@@ -13,7 +13,7 @@ class Notice:
     """Something the estimator did on its own that a user should know about."""
 
     t: float
-    kind: str  # tare, tare_refused, absorbed, drift, gap, stuck, live
+    kind: str  # tare, tare_refused, absorbed, drift, gap, stuck, live, time_back, jump…
     message: str
 
 

@@ -257,6 +257,8 @@ def _fixed_floats(s: EstimatorSettings) -> dict[int, float]:
         slots.P_STEP_WANDER_SHARE: STEP_WANDER_SHARE,
         slots.P_LIFT_TOLERANCE: LIFT_TOLERANCE,
         slots.P_IDLE_QUANTILE: IDLE_QUANTILE,
+        slots.P_JUMP_SQ: s.jump_n**2,
+        slots.P_JUMP_ARM_INV_SQ: 1.0 / s.jump_arm_m**2,
     }
 
 

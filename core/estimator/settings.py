@@ -15,7 +15,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from hapticdesk.estimator.filters import butter_lowpass_sos, group_delay_s, noise_gain
+from hapticdesk.estimator.filters import (
+    butter_lowpass_sos,
+    group_delay_s,
+    impulse_response,
+    noise_gain,
+)
 from hapticdesk.estimator.geometry import SurfaceFrame
 from hapticdesk.estimator.sway import SwaySettings
 from hapticdesk.files.profile import DeskProfile, EstimationSettings
@@ -34,6 +39,14 @@ RELEASE_WINDOW_S = 0.02
 # low-pass, and the 6 Hz sway that is left: 98 %) and drops most of that noise.
 SWAY_STILL_MEAN_S = 0.02
 UNRATED_LIMIT = 1e12  # a channel without a rating counts as saturated beyond this
+# A reading that jumps from a calm wrench is held for one sample (kernel_channels.held_over):
+# a corrupt reading (an HX711's odd garbage word, a bit error on a line) lasts one sample and
+# made a tap nobody made (+50 N on one channel at idle, the paper's desk). Held are jumps of
+# which the fast low-pass passes at least this share of the contact threshold: smaller ones
+# cannot start a contact. A real change lasts: the next sample is taken whatever it is, so a
+# real step lands one sample late and nothing else changes.
+JUMP_SHARE = 0.5
+JUMP_ARM_MIN_M = 0.1  # a moment's jump counts over the legs' reach, at least this (one sensor)
 
 
 @dataclass(frozen=True, eq=False)
@@ -78,6 +91,8 @@ class EstimatorSettings:
     n_object: int  # windows a load as still as the idle desk is held before it joins the zero
     det_full: bool  # the fast low-pass filters the whole wrench (`fused`, trace), not the force
     sway: SwaySettings | None  # the legs-as-accelerometer compensation, or None (off)
+    jump_n: float  # a force's change in one sample beyond which a calm reading is held
+    jump_arm_m: float  # ... a moment's, over this arm
 
     @classmethod
     def of(cls, profile: DeskProfile, user: EstimationSettings, trace: bool) -> EstimatorSettings:
@@ -89,6 +104,7 @@ class EstimatorSettings:
         n_release = min(n_rate, max(1, round(RELEASE_WINDOW_S * fs)))
         window = max(1, round(WINDOW_S * fs))
         sway = SwaySettings.of(profile, s)
+        det_hz = _detect_hz(s, fs)
 
         def windows(seconds: float) -> int:
             return max(1, math.ceil(seconds / (window / fs) - 1e-9))
@@ -125,6 +141,14 @@ class EstimatorSettings:
             det_full=s.method == "fused" or trace,
             sway=sway,
             still_block=_divisor_near(window, SWAY_STILL_MEAN_S * fs) if sway else 1,
+            # the fast low-pass's largest response to a one-sample pulse (it peaks within
+            # half a period of its cut-off): how much of a corrupt reading reaches the detector
+            jump_n=JUMP_SHARE
+            * s.contact_force_n
+            / float(np.max(np.abs(impulse_response(filters.det_sos, 4 + int(fs / det_hz))))),
+            jump_arm_m=max(
+                JUMP_ARM_MIN_M, *(float(np.linalg.norm(x.position)) for x in profile.sensors)
+            ),
         )
 
     def up(self) -> np.ndarray:
@@ -153,7 +177,7 @@ class _FilterBank(NamedTuple):
         """Designed from the user's cut-offs at ``fs`` Hz."""
         lp_sos = butter_lowpass_sos(s.force_lowpass_hz, fs)
         diff_sos = butter_lowpass_sos(s.diff_lowpass_hz, fs)
-        det_sos = butter_lowpass_sos(min(s.detect_lowpass_hz, 0.45 * fs), fs)
+        det_sos = butter_lowpass_sos(_detect_hz(s, fs), fs)
         n_diff = max(1, round(s.diff_window_s * fs))
         diff_scale = 1.0 / (n_diff / fs)
         fir = np.zeros(n_diff + 1)
@@ -176,6 +200,11 @@ class _FilterBank(NamedTuple):
             position_delay_s=group_delay_s(lp_sos, fs, long),
             det_delay_s=group_delay_s(det_sos, fs, long),
         )
+
+
+def _detect_hz(s: EstimationSettings, fs: float) -> float:
+    """The fast low-pass's cut-off: the user's, or under the Nyquist frequency at a low rate."""
+    return min(s.detect_lowpass_hz, 0.45 * fs)
 
 
 def _floor_terms(frames: list[SurfaceFrame], wrench_map: np.ndarray) -> np.ndarray:

@@ -142,7 +142,8 @@ LAYOUT_KEY_WORDS = {
     "builtin_templates": "`false` matches strokes against your `templates:` only (default `true`)",
     "description": "free text, for people",
     "layouts": "other layout files a running desk can switch to: `{name: file.yaml}` (the MQTT "
-    '`set` command `{"layout": name}`)',
+    '`set` command `{"layout": name}`); each is checked, by `check` and as `run` starts, as '
+    "the switch loads it: valid, for the same desk and `desk_name`",
 }
 
 REGION_KEY_WORDS = {

@@ -2,8 +2,10 @@
 
 Actions, gestures and the sections plugins claim (``mqtt:``) are checked by the installed
 plugins, exactly as ``run`` loads the layout (unknown names and bad options are errors with
-file:line:column). Prints the verdict and a summary of regions, bindings, settings and
-templates; ``--png`` draws the layout on the desk's outline (matplotlib, imported only then).
+file:line:column); so is every layout it names under ``layouts:``, as the running desk
+loads one it switches to (the same desk, the same ``desk_name``). Prints the verdict and a
+summary of regions, bindings, settings and templates; ``--png`` draws the layout on the
+desk's outline (matplotlib, imported only then).
 """
 
 from __future__ import annotations
@@ -27,13 +29,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from hapticdesk.plugin_loading import load_registry
-    from hapticdesk.runtime.assembly import load_scene_layout
+    from hapticdesk.runtime.assembly import check_named_layouts, load_scene_layout
 
     if args.png:  # before the work: matplotlib would refuse the format only after it
         check_output_path(Path(args.png), "--png", (".png",), "the drawing")
     registry = load_registry()
     # the same loading as `run`: actions, recognizers and plugins' sections all checked
     layout, _ = load_scene_layout(args.layout, registry, args.desk)
+    check_named_layouts(layout, registry, args.desk)  # (those a running desk switches to)
     # (a plugin's problem was logged once by the registry as it loaded; not repeated here)
     print(explain(layout))
     if args.png:

@@ -22,6 +22,7 @@ from pathlib import Path
 
 from hapticdesk.commands.output_path import check_output_path
 from hapticdesk.commands.recording_input import plate_number, source_desk
+from hapticdesk.errors import ConfigError
 from hapticdesk.plugin_loading import load_registry
 from hapticdesk.runtime.assembly import build_scene
 from hapticdesk.runtime.run_report import RunReport, report_json
@@ -108,10 +109,18 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="serve the browser view and layout designer (127.0.0.1 unless a HOST is given; "
         "another host needs a token, see `hapticdesk ui --help`); needs the `ui` extra",
     )
+    parser.add_argument(
+        "--token-file",
+        metavar="PATH",
+        help="with --ui: the page's token, the file's first line (keep it mode 600; default "
+        "$HAPTICDESK_UI_TOKEN)",
+    )
     parser.add_argument("--json", action="store_true", help="print the run's report as JSON")
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.token_file and not args.ui:
+        raise ConfigError("--token-file", "is the token of the page --ui serves: give --ui too")
     if args.events:
         check_events_path(args)
     registry = load_registry(strict=args.strict)
@@ -171,6 +180,8 @@ def overrides(args: argparse.Namespace) -> dict[str, dict[str, str]]:
         out["mqtt"] = {"broker": args.mqtt}
     if getattr(args, "ui", None):
         out["ui"] = {"listen": args.ui}
+        if getattr(args, "token_file", None):  # (the path: the page's plugin reads the token)
+            out["ui"]["token_file"] = args.token_file
     return out
 
 

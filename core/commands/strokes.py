@@ -5,12 +5,15 @@
 
 ``classify`` prints, per stroke, the file, the recognised shape (null when nothing matches
 well enough) and the score; with ``--json`` one JSON object a line (docs/reference/files.md).
-A file that cannot be read is reported and the others are still classified (exit code 1).
+A file that cannot be read is reported and the others are still classified; the exit status
+is then 2, as for any input a command was given wrong (docs/reference/cli.md).
 
 ``record`` runs a source (``sim:SCENE.yaml``, ``replay:REC.csv``, a live CAN bus …) through
 the estimator and saves every touch big enough to be a stroke as ``DIR/NAME/NAME-<n>.csv``,
 each as soon as it ends, so Ctrl-C loses nothing already drawn. DIR defaults to the layout's
 template folder (its ``templates:`` when that names a folder, else ``strokes/`` beside it).
+Exit status 1 when no stroke was saved, or when sensing stopped part way on an error (a
+replayed recording's bad line: the strokes before it are kept), as ``run`` and ``record``.
 """
 
 from __future__ import annotations
@@ -147,7 +150,9 @@ def classify(args: argparse.Namespace) -> int:
             shape = r["shape"] or f"-- (nearest {r.get('nearest')})"
             print(f"{r['file']:<{width}}  {r['score']:.3f}  {shape}")
     _hint_unknown_folders(args.paths, rows, set(templates.shapes))
-    return 1 if failed else 0
+    # a file given that could not be read is an input error (2, as every command's), even
+    # with the others classified: `grep` exits 2 on an unreadable file beside its matches
+    return 2 if failed else 0
 
 
 def _hint_unknown_folders(given: list[str], rows: list[dict[str, Any]], known: set[str]) -> None:
@@ -204,13 +209,11 @@ def record(args: argparse.Namespace) -> int:
     templates = template_set(layout.templates, builtin=layout.builtin_templates)
     estimator = ContactEstimator(layout.desk)
     saved: list[Path] = []
+    stopped_by: ConfigError | None = None
     source = open_source(args.source, layout.desk, registry, speed=args.speed)
     try:
-        try:
-            folder.mkdir(parents=True, exist_ok=True)
-        except OSError as err:
-            raise ConfigError(str(folder), f"cannot create it: {err.strerror or err}") from None
-        _capture_strokes(
+        _make_folder(folder)
+        stopped_by = _capture_strokes(
             source,
             capture,
             estimator,
@@ -221,19 +224,36 @@ def record(args: argparse.Namespace) -> int:
         print("stopped; the strokes drawn so far are saved", file=sys.stderr)
     finally:
         source.close()
+    if stopped_by is not None:
+        print(
+            f"hapticdesk strokes: error: sensing stopped part way: {stopped_by}; the strokes "
+            "drawn before it are saved",
+            file=sys.stderr,
+        )
     print(
         f"recorded {len(saved)} stroke(s) of `{args.name}` into {folder}"
         + (f" ({capture.small} smaller touches skipped)" if capture.small else ""),
         file=sys.stderr,
     )
     if saved and not _layout_uses(layout, into, args.name):
-        hint = (
-            f"templates: {_relative(into, layout.path.parent)}"
-            if "templates" not in layout.raw
-            else f"{args.name}: [{_relative(folder, layout.path.parent)}] under `templates:`"
+        print(
+            f"to use them, add to {layout.path}:  {_hint(layout, into, args.name)}", file=sys.stderr
         )
-        print(f"to use them, add to {layout.path}:  {hint}", file=sys.stderr)
-    return 0 if saved else 1
+    return 0 if saved and stopped_by is None else 1
+
+
+def _make_folder(folder: Path) -> None:
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise ConfigError(str(folder), f"cannot create it: {err.strerror or err}") from None
+
+
+def _hint(layout: Any, into: Path, name: str) -> str:
+    """What to add to the layout so that it loads the templates recorded into ``into``."""
+    if "templates" not in layout.raw:
+        return f"templates: {_relative(into, layout.path.parent)}"
+    return f"{name}: [{_relative(into / name, layout.path.parent)}] under `templates:`"
 
 
 def _capture_strokes(
@@ -242,23 +262,31 @@ def _capture_strokes(
     estimator: ContactEstimator,
     count: int,
     keep: Callable[[CapturedStroke], None],
-) -> None:
+) -> ConfigError | None:
     """Every stroke drawn on ``source`` handed to ``keep``, until ``count`` (0: the source's
-    end, when a stroke still open is closed)."""
+    end, when a stroke still open is closed). The source's error after it gave samples (a
+    replayed recording's bad line) is returned, not raised: sensing stopped part way, as a
+    run's does, and the strokes before it are kept; one before any sample is the input's."""
     kept = 0
     t_last = None
-    for block in source.blocks():
-        if len(block.t) == 0:
-            continue
-        t_last = float(block.t[-1])
-        for stroke in capture.feed(estimator.push(block.t, block.wrench, block.accel)):
-            keep(stroke)
-            kept += 1
-        if count and kept >= count:
-            return
+    try:
+        for block in source.blocks():
+            if len(block.t) == 0:
+                continue
+            t_last = float(block.t[-1])
+            for stroke in capture.feed(estimator.push(block.t, block.wrench, block.accel)):
+                keep(stroke)
+                kept += 1
+            if count and kept >= count:
+                return None
+    except ConfigError as err:
+        if t_last is None:
+            raise
+        return err  # (a stroke still open when it stopped is cut short: not saved)
     if t_last is not None:
         for stroke in capture.flush(t_last):
             keep(stroke)
+    return None
 
 
 def _save(stroke: Any, folder: Path, name: str, templates: Any, options: dict[str, Any]) -> Path:

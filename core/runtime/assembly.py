@@ -102,6 +102,54 @@ def load_scene_layout(
     return layout, layout.desk
 
 
+def load_switch_layout(
+    path: str | Path,
+    registry: Registry,
+    desk: str | DeskProfile | None,
+    running: DeskProfile,
+    desk_name: str,
+) -> tuple[Any, DeskProfile]:
+    """The layout at ``path`` loaded as a running desk takes it over (a reload, a switch to
+    one of its ``layouts:``): loaded as :func:`load_scene_layout` does, with the run's
+    ``desk`` override, and refused when it is for another desk than ``running`` or names
+    another ``desk_name`` (the estimator, topics and identity are the run's)."""
+    layout, profile = load_scene_layout(path, registry, desk)
+    if desk_key(profile) != desk_key(running):
+        raise ConfigError(
+            str(path),
+            f"the layout is for desk `{profile.name}` but this run senses desk "
+            f"`{running.name}`; a new desk needs a restart",
+        )
+    if layout.desk_name != desk_name:
+        raise ConfigError(
+            str(path),
+            f"the layout names the desk `{layout.desk_name}` but this run is "
+            f"`{desk_name}` (its topics and identity); a new name needs a restart",
+        )
+    return layout, profile
+
+
+def desk_key(profile: DeskProfile) -> tuple[Any, ...]:
+    """What makes two profiles the same desk for a running estimator."""
+    return (profile.name, profile.sample_rate_hz, tuple(s.name for s in profile.sensors))
+
+
+def check_named_layouts(layout: Any, registry: Registry, desk: str | DeskProfile | None) -> None:
+    """Each layout ``layout`` names under ``layouts:``, loaded as the running desk would load
+    it when switched to (:func:`load_switch_layout`); a ConfigError at its name in
+    ``layouts:`` that quotes the named file's own error. The reader checks only that the
+    files exist, so `check` said OK and `run` started with a named layout a switch then
+    refused, hours later, over MQTT."""
+    for name, path in layout.named_layouts.items():
+        try:
+            load_switch_layout(path, registry, desk, layout.desk, layout.desk_name)
+        except ConfigError as err:
+            raise ConfigError(
+                layout.raw["layouts"].where(name),
+                f"`layouts.{name}` would be refused when the desk switches to it: {err}",
+            ) from None
+
+
 def build_scene(
     layout_path: str | Path,
     source_spec: str,
@@ -119,6 +167,7 @@ def build_scene(
     ``actions=False`` recognises gestures without running the layout's actions or plugins'
     event sinks (a preview: nothing leaves the machine; the caller may add its own sink)."""
     layout, profile = load_scene_layout(layout_path, registry, desk)
+    check_named_layouts(layout, registry, desk)  # (at the start, as `check` does)
     for warning in layout.warnings:
         log.warning("%s", warning)
     source = open_source(source_spec, profile, registry, speed=speed)

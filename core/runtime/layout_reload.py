@@ -15,10 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from hapticdesk.errors import ConfigError
-from hapticdesk.files.profile import DeskProfile
 from hapticdesk.gestures.event import GestureEvent
-from hapticdesk.runtime.assembly import Assembly, build_routes, load_scene_layout
+from hapticdesk.runtime.assembly import Assembly, build_routes, load_switch_layout
 from hapticdesk.runtime.dispatcher import Route
 from hapticdesk.runtime.operator_secrets import OperatorSecrets
 
@@ -126,24 +124,14 @@ class LayoutReloads:
         """The layout at ``path``, refused when it changes what is the operator's alone or
         is for another desk."""
         scene, context = self.scene, self.scene.context
-        layout, profile = load_scene_layout(path, scene.registry, scene.desk_override)
+        layout, _ = load_switch_layout(
+            path, scene.registry, scene.desk_override, scene.profile, context.desk_name
+        )
         refused = self.operator_secrets.refusal(
             layout.raw, Path(path), scene.registry, RELOAD_WAYS, "restart the desk to use it"
         )
         if refused is not None:
             raise refused
-        if _desk_key(profile) != _desk_key(scene.profile):
-            raise ConfigError(
-                str(path),
-                f"the layout is for desk `{profile.name}` but this run senses desk "
-                f"`{scene.profile.name}`; a new desk needs a restart",
-            )
-        if layout.desk_name != context.desk_name:
-            raise ConfigError(
-                str(path),
-                f"the layout names the desk `{layout.desk_name}` but this run is "
-                f"`{context.desk_name}` (its topics and identity); a new name needs a restart",
-            )
         for warning in layout.warnings:
             log.warning("%s", warning)
         return layout
@@ -173,8 +161,3 @@ class LayoutReloads:
             context.layout, context.settings, context.layout_path = before
             raise
         return engine, routes, dict(before[1])
-
-
-def _desk_key(profile: DeskProfile) -> tuple[Any, ...]:
-    """What makes two profiles the same desk for a running estimator."""
-    return (profile.name, profile.sample_rate_hz, tuple(s.name for s in profile.sensors))

@@ -8,15 +8,15 @@ uvicorn in a thread of their own (the ``ui`` extra: ``pip install 'hapticdesk[ui
 module only registers hooks and imports nothing heavy (``hapticdesk --help`` loads it):
 
 - ``register_commands``: ``hapticdesk ui``;
-- ``event_sink``: with ``run --ui [HOST:]PORT`` (the ``ui`` override), starts the server and
-  hands it every gesture event, on a dispatcher lane;
+- ``event_sink``: with ``run --ui [HOST:]PORT`` (the ``ui`` override, with ``token_file``
+  from ``run --token-file``), starts the server and hands it every gesture event, on a
+  dispatcher lane;
 - ``startup``: gives the server the run (the latest contact sample, notices, action counts,
   and the reload that a saved layout triggers).
 """
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
@@ -32,7 +32,6 @@ if TYPE_CHECKING:  # (numpy with them: the hooks load for `hapticdesk --help`)
 
 SECTION = "ui"  # the override key `run --ui` sets
 SHARED = "ui server"  # the ActionContext.shared key of a run's server
-TOKEN_ENV = "HAPTICDESK_UI_TOKEN"
 
 
 @hookimpl
@@ -57,15 +56,19 @@ def event_sink(
     require("starlette", "uvicorn", "ruamel.yaml", needed_by="the browser UI (`--ui`)")
 
     def open_server() -> UiServer:
+        from hapticdesk.plugins.ui.guard import check_token
+        from hapticdesk.plugins.ui.page_token import page_token
         from hapticdesk.plugins.ui.server import UiServer, parse_listen
 
         host, port = parse_listen(str(wanted["listen"]))
+        token, where = page_token(wanted.get("token"), wanted.get("token_file"))
+        check_token(host, token, "--ui", where)  # (naming the file a short token came from)
         server = UiServer(
             layout.path,
             None,  # the registry arrives with the run, in startup
             host=host,
             port=port,
-            token=wanted.get("token") or os.environ.get(TOKEN_ENV),
+            token=token,
             desk=desk,
         )
         server.start()

@@ -7,22 +7,21 @@ and shown, nothing is sent. A ``--layout`` that does not exist yet is created as
 init`` makes one (for ``--desk``, else the paper's desk). ``--source`` defaults to the
 simulator playing the demo scene. The page stays up after a finite source ends, until
 Ctrl-C. Without ``--layout`` the demo layout is shown and cannot be saved. Listening anywhere
-but loopback needs a token of 12 characters or more (``HAPTICDESK_UI_TOKEN``, or
-``--token``); the address printed never carries it: the page asks for it (``.login``).
+but loopback needs a token of 12 characters or more (``--token-file PATH``, the file's first
+line; ``HAPTICDESK_UI_TOKEN``; or ``--token``, which ``ps`` shows other users: :mod:`.page_token`);
+the address printed never carries it: the page asks for it (``.login``).
 """
 
 from __future__ import annotations
 
 import argparse
-import os
 import signal
 import sys
 import threading
 from pathlib import Path
 
 from hapticdesk.errors import ConfigError
-
-TOKEN_ENV = "HAPTICDESK_UI_TOKEN"  # (guard.TOKEN_ENV: the guard's module is imported late)
+from hapticdesk.plugins.ui.page_token import TOKEN_ENV
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -36,10 +35,16 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--speed", type=float, default=1.0, help="1 real time (default)")
     parser.add_argument("--host", default="127.0.0.1", help="where to listen (127.0.0.1)")
     parser.add_argument("--port", type=int, default=8765, help="port (8765; 0: any free one)")
-    parser.add_argument(
+    given = parser.add_mutually_exclusive_group()
+    given.add_argument(
+        "--token-file",
+        metavar="PATH",
+        help=f"the page's token: the file's first line (keep it mode 600; default ${TOKEN_ENV})",
+    )
+    given.add_argument(
         "--token",
         help=f"required from the page (default ${TOKEN_ENV}; on the command line it is "
-        "visible to this machine's other users)",
+        "visible to this machine's other users: prefer --token-file)",
     )
     parser.add_argument(
         "--actions", action="store_true", help="run the layout's actions too (off by default)"
@@ -51,9 +56,10 @@ def _token(args: argparse.Namespace) -> str | None:
     new layout is written and naming this command's options (``ui --layout new.yaml --host
     0.0.0.0`` wrote new.yaml, then refused)."""
     from hapticdesk.plugins.ui.guard import check_token
+    from hapticdesk.plugins.ui.page_token import page_token
 
-    token = args.token or os.environ.get(TOKEN_ENV)
-    check_token(args.host, token, "--host", "--token" if args.token else TOKEN_ENV)
+    token, where = page_token(args.token, args.token_file)
+    check_token(args.host, token, "--host", where)
     return token
 
 

@@ -36,6 +36,7 @@ from hapticdesk.errors import ConfigError
 from hapticdesk.files.file_safety import reads_confined_to
 from hapticdesk.plugins.ui.answers import BadRequest, message_error, refusal
 from hapticdesk.plugins.ui.login import LOGIN_PATH, login, login_page
+from hapticdesk.plugins.ui.page_token import TOKEN_ENV
 
 T = TypeVar("T")
 
@@ -50,8 +51,6 @@ HOSTS_ENV = "HAPTICDESK_UI_HOSTS"
 #: the names a server bound to loopback answers to: another Host is a page of another site
 #: reaching it through DNS rebinding
 LOOPBACK_NAMES = {"127.0.0.1", "localhost", "::1"}
-#: where the token comes from when no option gives it
-TOKEN_ENV = "HAPTICDESK_UI_TOKEN"
 #: the shortest token taken where other machines can reach the page
 MIN_TOKEN_CHARS = 12
 
@@ -65,7 +64,8 @@ def check_token(host: str, token: str | None, where_host: str, where_token: str)
     if not token:
         raise ConfigError(
             where_host,
-            f"listening on {host} lets other machines in: give a token (--token or {TOKEN_ENV})",
+            f"listening on {host} lets other machines in: give a token (--token-file PATH or "
+            f"{TOKEN_ENV})",
         )
     if len(token) < MIN_TOKEN_CHARS:
         raise ConfigError(

@@ -168,7 +168,7 @@ def test_classify_command_json_lines_folders_and_a_bad_file(tmp_path, capsys):
     code = main(["strokes", "classify", str(strokes), "--json"])
     out, err = capsys.readouterr()
     rows = [json.loads(line) for line in out.splitlines()]
-    assert code == 1 and "3-broken.csv:2: not a number" in err
+    assert code == 2 and "3-broken.csv:2: not a number" in err  # (an input error: cli.md)
     assert [(Path(r["file"]).name, r["shape"]) for r in rows] == [
         ("1-circle.csv", "circle"), ("2-zed.json", None)
     ]  # fmt: skip
@@ -242,6 +242,41 @@ def test_record_command_captures_strokes_from_a_simulated_scene(tmp_path, capsys
         main(["strokes", "record", "2bad", "--layout", str(layout), "--source", f"sim:{scene}"])
         == 2
     )
+
+
+def test_record_keeps_the_strokes_before_a_bad_line_and_exits_1(tmp_path, capsys):
+    """A replayed recording with a bad line after a stroke: sensing stopped part way, as
+    `run` and `record` say it (exit 1, the strokes before it kept and counted); it was
+    exit 2, an input error, and the count of the strokes already saved was never said."""
+    from hapticdesk.files.profile_reader import load_profile
+    from hapticdesk.files.recording_io import write_recording
+    from hapticdesk.sim import load_scene, simulate
+
+    scene = tmp_path / "scene.yaml"
+    scene.write_text(
+        "name: zed\ndesk: kitamura2017\nunits: cm\nquiet_s: 1.5\ntimeline:\n"
+        "  - stroke: {path: [[-5, 5], [5, 5], [-5, -5], [5, -5]], speed: 10}\n"
+        "  - idle: 1.0\n"
+    )
+    recording = tmp_path / "zed.csv"
+    write_recording(recording, simulate(load_profile("kitamura2017"), load_scene(scene)))
+    lines = recording.read_text().splitlines()
+    recording.write_text("\n".join([*lines[:-200], "1,2,zero", *lines[-200:]]) + "\n")
+    layout = tmp_path / "layout.yaml"
+    layout.write_text(
+        "desk: kitamura2017\nbindings:\n  - {gesture: stroke, shape: circle, do: log}\n"
+    )
+    (tmp_path / "strokes").mkdir()
+    argv = ["strokes", "record", "zed", "--layout", str(layout), "--source", f"replay:{recording}"]
+    code = main([*argv, "--into", str(tmp_path / "strokes")])
+    err = capsys.readouterr().err
+    bad = len(lines) - 200 + 1
+    assert code == 1, err
+    assert f"hapticdesk strokes: error: sensing stopped part way: {recording}:{bad}:" in err
+    assert "the strokes drawn before it are saved" in err and "recorded 1 stroke(s)" in err
+    assert [f.name for f in (tmp_path / "strokes" / "zed").iterdir()] == ["zed-001.csv"]
+    recording.write_text("\n".join([lines[0], "1,2,zero", *lines[1:]]) + "\n")
+    assert main([*argv, "--into", str(tmp_path / "again")]) == 2  # nothing read: the input's
 
 
 def test_a_compensated_desks_strokes_keep_their_corners():

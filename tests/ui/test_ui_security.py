@@ -321,7 +321,7 @@ def test_listening_everywhere_without_a_token_writes_no_new_layout(
     err = capsys.readouterr().err
     assert err == (
         "hapticdesk ui: error: --host: listening on 0.0.0.0 lets other machines in: give a "
-        "token (--token or HAPTICDESK_UI_TOKEN)\n"
+        "token (--token-file PATH or HAPTICDESK_UI_TOKEN)\n"
     )
     assert not layout.exists()
 

@@ -32,8 +32,8 @@ _PAGE = """<!doctype html>
 <style>body{{font:16px system-ui,sans-serif;margin:3em auto;max-width:26em;padding:0 1em}}
 input{{font:inherit;width:100%;margin:.5em 0;padding:.4em}}p.err{{color:#b00}}</style></head>
 <body><h1>hapticdesk</h1>
-<p>This desk's page asks for its token: the one given to <code>hapticdesk ui</code>
-(<code>HAPTICDESK_UI_TOKEN</code>).</p>{said}
+<p>This desk's page asks for its token: the one given to <code>hapticdesk ui</code> or
+<code>run --ui</code> (<code>--token-file</code> or <code>HAPTICDESK_UI_TOKEN</code>).</p>{said}
 <form method="post" action="{action}">
 <label for="token">Token</label>
 <input id="token" name="token" type="password" autocomplete="current-password" autofocus required>

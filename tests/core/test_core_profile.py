@@ -151,6 +151,59 @@ def test_estimation_values_are_checked(tmp_path):
         load_profile(path)
 
 
+def _numeric_estimation_keys() -> list[str]:
+    from dataclasses import fields
+
+    from hapticdesk.files.profile import EstimationSettings
+
+    return [f.name for f in fields(EstimationSettings) if isinstance(f.default, float)]
+
+
+@pytest.mark.parametrize("key", _numeric_estimation_keys())
+def test_every_estimation_number_has_an_upper_bound(tmp_path, key):
+    """The fuzzing pass: `contact_force_n: 1e300` was accepted (no touch could ever start),
+    as was any of a dozen settings with no upper bound. Every number in `estimation` now
+    has one, refused at its place with the range expected."""
+    path = write(tmp_path, GOOD + f"estimation:\n  {key}: 1.0e+300\n")
+    with pytest.raises(ConfigError) as info:
+        load_profile(path)
+    text = str(info.value)
+    assert text.startswith(f"{path}:{GOOD.count(chr(10)) + 2}:{len(key) + 5}:"), text
+    assert "1e+300" in text
+    assert "expected" in text or "below half the sample rate" in text, text
+
+
+def test_a_force_threshold_says_the_range_it_expects(tmp_path):
+    path = write(tmp_path, GOOD + "estimation: {contact_force_n: 1.0e+300}\n")
+    with pytest.raises(ConfigError) as info:
+        load_profile(path)
+    assert str(info.value) == (
+        f"{path}:{GOOD.count(chr(10)) + 1}:31: `contact_force_n` in `estimation` must be <= "
+        "10000, found 1e+300; expected > 0 and <= 10000"
+    )
+
+
+@pytest.mark.parametrize(
+    ("extra", "needle"),
+    [
+        (
+            "accelerometer: {position: [0, 0, 0.7], noise_m_s2: 1.0e+300}",
+            "`noise_m_s2` in `accelerometer` must be <= 1000",
+        ),
+        (
+            "accelerometer: {position: [0, 0, 0.7], range_m_s2: 1.0e+300}",
+            "`range_m_s2` in `accelerometer` must be <= 1e+06",
+        ),
+    ],
+)
+def test_accelerometer_numbers_have_upper_bounds(tmp_path, extra, needle):
+    path = write(tmp_path, GOOD + extra + "\n")
+    with pytest.raises(ConfigError) as info:
+        load_profile(path)
+    assert str(info.value).startswith(f"{path}:{GOOD.count(chr(10)) + 1}:")
+    assert needle in str(info.value)
+
+
 @pytest.mark.parametrize(
     ("extra", "needle"),
     [

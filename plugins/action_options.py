@@ -57,9 +57,16 @@ def text(m: MarkedDict, key: str, what: str, default: str | None = None) -> str:
     return value
 
 
+#: the longest an action may be given, seconds: a gesture's command that may take over an
+#: hour is a typing mistake (its thread is waited for that long; 1e300 is no timeout at all)
+MAX_ACTION_S = 3600.0
+
+
 def seconds(m: MarkedDict, key: str, what: str, default: float) -> float:
-    """A positive duration in seconds."""
-    return number(m, key, what, default=default, minimum=0.0, exclusive_minimum=True)
+    """A positive duration in seconds, at most :data:`MAX_ACTION_S`."""
+    return number(
+        m, key, what, default=default, minimum=0.0, exclusive_minimum=True, maximum=MAX_ACTION_S
+    )
 
 
 def where(options: Any, fallback: str) -> Position | str:

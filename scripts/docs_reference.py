@@ -283,7 +283,7 @@ def _bounds(spec: Any) -> str:
     if spec.choices:
         parts.append(", ".join(str(c) for c in spec.choices))
     lo, hi = spec.minimum, spec.maximum
-    unit = {"seconds": " s", "newtons": " N", "degrees": "°"}.get(spec.kind, "")
+    unit = {"seconds": " s", "newtons": " N", "degrees": "°", "length": " m"}.get(spec.kind, "")
     if lo is not None and hi is not None:
         parts.append(f"{lo:g}–{hi:g}{unit}")
     elif lo is not None and lo > 0:
@@ -750,9 +750,27 @@ def estimation_settings() -> Generated:
             shown = str(default).lower()
         else:
             shown = f"{default:g}" if isinstance(default, float) else str(default)
-        rows.append([code(f.name), code(shown), said])
-    out.markdown = table(["key", "default", "what"], rows)
+        rows.append([code(f.name), code(shown), _estimation_allowed(f.name), said])
+    out.markdown = table(["key", "default", "allowed", "what"], rows)
     return out
+
+
+def _estimation_allowed(key: str) -> str:
+    """What the profile reader accepts at ``estimation: key`` (its own tables)."""
+    from hapticdesk.files import profile_estimation as pe
+    from hapticdesk.files.profile import METHODS
+
+    if key == "method":
+        return ", ".join(METHODS)
+    if key in pe.CUTOFF_KEYS:
+        return "below half `sample_rate_hz`"
+    largest = pe.MAX_WINDOW_S.get(key, pe.MAX_ESTIMATION.get(key))
+    if largest is None:
+        return "true, false or auto" if key == "sway_compensation" else "true or false"
+    if key == "min_normal_cos":
+        return "0 to below 1"
+    low = "0" if key in pe.MAY_BE_ZERO else "above 0"
+    return f"{low} to {largest:g}"
 
 
 # --- files ----------------------------------------------------------------------------------

@@ -27,6 +27,12 @@ from hapticdesk.files.marked_values import MarkedDict, as_flag
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.validators import check_keys, choice, number, require_mapping, whole_number
 
+#: the longest a `can:` wait may be, seconds (as a serial board's, boards.settings.MAX_WAIT_S):
+#: beyond an hour a silence or a lost bus is a typing mistake, not a setting
+MAX_CAN_WAIT_S = 3600.0
+#: the longest pause within one sample's frames, seconds: a sample period of the slowest
+#: desk (10 Hz); a longer gap would never start a sample
+MAX_FRAME_GAP_S = 0.1
 _CAN_KEYS = {
     "interface",
     "channel",
@@ -81,7 +87,14 @@ def parse_can_section(section: MarkedDict, profile: DeskProfile) -> CanConfig:
     assemble = _assemble(section, sensors, accelerometers, database)
     frame_gap = None
     if "frame_gap_s" in section:
-        frame_gap = number(section, "frame_gap_s", "`can`", minimum=0.0, exclusive_minimum=True)
+        frame_gap = number(
+            section,
+            "frame_gap_s",
+            "`can`",
+            minimum=0.0,
+            exclusive_minimum=True,
+            maximum=MAX_FRAME_GAP_S,
+        )
     return CanConfig(
         sensors=sensors,
         interface=bus.interface,
@@ -93,13 +106,24 @@ def parse_can_section(section: MarkedDict, profile: DeskProfile) -> CanConfig:
         assemble=assemble,
         frame_gap_s=frame_gap,
         silent_timeout_s=number(
-            section, "silent_timeout_s", "`can`", default=0.2, minimum=0.0, exclusive_minimum=True
+            section,
+            "silent_timeout_s",
+            "`can`",
+            default=0.2,
+            minimum=0.0,
+            exclusive_minimum=True,
+            maximum=MAX_CAN_WAIT_S,
         ),
         silent_sensor=choice(
             section, "silent_sensor", SILENT_POLICIES, "`can`", default="continue"
         ),
         reconnect_timeout_s=number(
-            section, "reconnect_timeout_s", "`can`", default=10.0, minimum=0.0
+            section,
+            "reconnect_timeout_s",
+            "`can`",
+            default=10.0,
+            minimum=0.0,
+            maximum=MAX_CAN_WAIT_S,
         ),
         where=section.where(),
         accelerometers=accelerometers,

@@ -31,6 +31,9 @@ from hapticdesk.files.validators import (
 
 _SIGNAL_SENSOR_KEYS = set(AXES) | {"counter", "status"}
 _ATI_KEYS = {"base", "calibration", "slot"}
+#: the most counts per newton (or N·m) an ATI calibration may give: its readings are 32-bit
+#: counts, so more would leave the whole range within ±2 N
+MAX_COUNTS_PER_UNIT = 1e9
 _CALIBRATION_KEYS = {"matrix", "counts_per_force", "counts_per_torque", "force_unit", "torque_unit"}
 
 
@@ -247,10 +250,22 @@ def _calibration(raw: Any, where: Position | str, name: str) -> AtiCalibration:
     return AtiCalibration(
         matrix=matrix,
         counts_per_force=number(
-            m, "counts_per_force", what, default=1e6, minimum=0.0, exclusive_minimum=True
+            m,
+            "counts_per_force",
+            what,
+            default=1e6,
+            minimum=0.0,
+            exclusive_minimum=True,
+            maximum=MAX_COUNTS_PER_UNIT,
         ),
         counts_per_torque=number(
-            m, "counts_per_torque", what, default=1e6, minimum=0.0, exclusive_minimum=True
+            m,
+            "counts_per_torque",
+            what,
+            default=1e6,
+            minimum=0.0,
+            exclusive_minimum=True,
+            maximum=MAX_COUNTS_PER_UNIT,
         ),
         force_unit=choice(m, "force_unit", tuple(force_names), what, default="N"),
         torque_unit=choice(m, "torque_unit", tuple(torque_names), what, default="N-m"),

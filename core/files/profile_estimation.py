@@ -12,6 +12,8 @@ from hapticdesk.errors import ConfigError
 from hapticdesk.files.marked_values import MarkedDict
 from hapticdesk.files.profile import LOWPASS_PER_NATURAL_FREQUENCY, METHODS, EstimationSettings
 from hapticdesk.files.validators import (
+    MAX_REACH_M,
+    MAX_SETTING_FORCE_N,
     check_keys,
     choice,
     flag,
@@ -26,6 +28,8 @@ MIN_CUTOFF_PER_RATE = 4e-6
 #: the shortest gap in sample times, in sample intervals, where ``max_gap_s`` is not given
 #: (its default, 0.05 s, is under one interval below 20 Hz)
 GAP_INTERVALS = 2.5
+#: the steepest force slope a setting may name, N/s (10 kN within a millisecond)
+MAX_FORCE_SLOPE_N_S = 1e7
 #: physical bounds on `estimation` values that are not windows: beyond them a value is a
 #: typing mistake, and its square (a covariance) or inverse would overflow downstream
 MAX_ESTIMATION = {
@@ -33,6 +37,21 @@ MAX_ESTIMATION = {
     "noise_moment_nm": 1e3,
     "drift_force_n_per_min": 1e3,
     "drift_moment_nm_per_min": 1e3,
+    # forces a threshold names: no desk's beyond MAX_SETTING_FORCE_N (10 kN)
+    "tare_quiet_n": MAX_SETTING_FORCE_N,
+    "contact_force_n": MAX_SETTING_FORCE_N,
+    "release_hysteresis_n": MAX_SETTING_FORCE_N,
+    "touch_threshold_n": MAX_SETTING_FORCE_N,
+    "release_threshold_n": MAX_SETTING_FORCE_N,
+    "drift_max_n": MAX_SETTING_FORCE_N,
+    "still_n": MAX_SETTING_FORCE_N,
+    "release_slope_n_s": MAX_FORCE_SLOPE_N_S,
+    "phase_rate_n_s": MAX_FORCE_SLOPE_N_S,
+    # a point's 1-σ, metres: none beyond the room a desk stands in
+    "max_sigma_m": MAX_REACH_M,
+    # a finger's drift, m/s: a flick across a desk is a few
+    "contact_speed_m_s": 10.0,
+    "min_normal_cos": 1.0,  # (a cosine; 1 itself is refused below)
 }
 #: the longest estimation windows, seconds (the paper's: 0.166 s, a 1 s tare, 5 s settle)
 MAX_WINDOW_S = {
@@ -43,6 +62,24 @@ MAX_WINDOW_S = {
     "object_settle_s": 3600.0,
     "drift_settle_s": 3600.0,
 }
+
+#: `estimation` numbers that may be 0 (measured at the tare, or off); the others must be above
+MAY_BE_ZERO = frozenset(
+    {
+        "noise_force_n",
+        "noise_moment_nm",
+        "min_normal_cos",
+        "contact_speed_m_s",
+        "release_hysteresis_n",
+        "release_slope_n_s",
+        "drift_settle_s",
+        "object_settle_s",
+        "drift_force_n_per_min",
+        "drift_moment_nm_per_min",
+    }
+)
+#: the low-passes' cut-offs, bounded by the sample rate (:func:`fit_to_desk`), not a number
+CUTOFF_KEYS = ("force_lowpass_hz", "diff_lowpass_hz", "detect_lowpass_hz")
 
 
 def read_estimation(doc: MarkedDict) -> EstimationSettings:
@@ -81,9 +118,10 @@ def _check_against_rate(
     `sample_rate_hz` (a default cut-off)."""
     estimation = given if isinstance(given, MarkedDict) else None
     lowest = MIN_CUTOFF_PER_RATE * rate
-    for key in ("force_lowpass_hz", "diff_lowpass_hz", "detect_lowpass_hz"):
+    for key in CUTOFF_KEYS:
         value = getattr(settings, key)
-        if estimation is not None and key in estimation:
+        given_here = estimation is not None and key in estimation
+        if estimation is not None and given_here:
             where, source = estimation.where(key), f"`{key}` in `estimation`"
         elif (
             key != "detect_lowpass_hz"
@@ -95,7 +133,9 @@ def _check_against_rate(
         else:
             where, source = doc.where("sample_rate_hz"), f"the default `{key}`"
         # the fast detection low-pass is held below 0.45 × the rate by the estimator itself
-        if key != "detect_lowpass_hz" and value >= rate / 2:
+        # (its default, 30 Hz, is above a slow desk's Nyquist); given, it is a frequency no
+        # sampled signal has (1e300 was taken)
+        if (key != "detect_lowpass_hz" or given_here) and value >= rate / 2:
             raise ConfigError(
                 where,
                 f"{source} is {value:g} Hz; a low-pass cut-off must be below half the sample "
@@ -126,24 +166,12 @@ def _estimation(item: Any, where: Any) -> EstimationSettings:
         elif key == "zeroed":
             values[key] = flag(m, key, "`estimation`", default=defaults.zeroed)
         elif key in m:
-            strict = key not in (
-                "noise_force_n",
-                "noise_moment_nm",
-                "min_normal_cos",
-                "contact_speed_m_s",
-                "release_hysteresis_n",
-                "release_slope_n_s",
-                "drift_settle_s",
-                "object_settle_s",
-                "drift_force_n_per_min",
-                "drift_moment_nm_per_min",
-            )
             values[key] = number(
                 m,
                 key,
                 "`estimation`",
                 minimum=0.0,
-                exclusive_minimum=strict,
+                exclusive_minimum=key not in MAY_BE_ZERO,
                 maximum=MAX_WINDOW_S.get(key, MAX_ESTIMATION.get(key)),
             )
     settings = EstimationSettings(**values)

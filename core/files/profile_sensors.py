@@ -45,6 +45,10 @@ SENSOR_KINDS = {
 }
 #: the most raw channels one sensor may deliver (a force plate's amplifier: 8 to 12)
 MAX_SENSOR_CHANNELS = 64
+#: an accelerometer's range and noise, m/s²: a shock accelerometer's range is 60,000 g, and
+#: noise beyond 100 g is no reading of a desk (the estimator weighs by its inverse square)
+MAX_ACCEL_RANGE_M_S2 = 1e6
+MAX_ACCEL_NOISE_M_S2 = 1e3
 ACCELEROMETER_KEYS = {"position", "rotation_rpy_deg", "axes", "noise_m_s2", "range_m_s2"}
 
 
@@ -276,6 +280,14 @@ def _accelerometer(
     rotation = _rotation(m, what)
     # (columns in x, y, z order)
     axes = _listed_axes(m, "axes", ACCEL_AXES, what) if "axes" in m else ACCEL_AXES
-    noise = number(m, "noise_m_s2", what, default=0.0, minimum=0.0)
-    limit = number(m, "range_m_s2", what, default=math.inf, minimum=0.0, exclusive_minimum=True)
+    noise = number(m, "noise_m_s2", what, default=0.0, minimum=0.0, maximum=MAX_ACCEL_NOISE_M_S2)
+    limit = number(
+        m,
+        "range_m_s2",
+        what,
+        default=math.inf,
+        minimum=0.0,
+        exclusive_minimum=True,
+        maximum=MAX_ACCEL_RANGE_M_S2,
+    )
     return AccelerometerSpec(position, rotation, axes, noise, limit, accel_column_prefix(index))

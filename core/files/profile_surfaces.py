@@ -11,7 +11,7 @@ import numpy as np
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.marked_values import MarkedDict, MarkedList
 from hapticdesk.files.profile import DeskProfile, SensorSpec, Surface
-from hapticdesk.files.sensing import surface_locatable
+from hapticdesk.files.sensing import MIN_FOOTPRINT_SHARE, surface_locatable, thin_footprint
 from hapticdesk.files.validators import check_keys, place, require_mapping, vector
 
 #: enough for any surface outline drawn by hand (as a layout's regions)
@@ -49,6 +49,7 @@ def _check_locatable(
     wrench_map = probe.wrench_map()
     for i, surface in enumerate(surfaces):
         if surface_locatable(wrench_map, surface):
+            _check_footprint(probe, surface, doc)
             continue
         kinds = sorted({" ".join(s.channels) for s in sensors})
         raise ConfigError(
@@ -58,6 +59,28 @@ def _check_locatable(
             "it and the moments about its two axes (a horizontal board needs 3 or more "
             "sensors not on one line, or one six-axis sensor)",
         )
+
+
+def _check_footprint(probe: DeskProfile, surface: Surface, doc: MarkedDict) -> None:
+    """Sensors that locate a touch on ``surface`` by their forces' moments must not stand
+    nearly on one line (:func:`.sensing.thin_footprint`): refused at the `position` of the
+    sensor that sets the footprint's width."""
+    thin = thin_footprint(probe, surface)
+    if thin is None:
+        return
+    sensor = probe.sensors[thin.widest]
+    items = doc["sensors"]
+    where = items[thin.widest].where("position") if isinstance(items, MarkedList) else doc.where()
+    needed_mm = MIN_FOOTPRINT_SHARE * thin.length_m * 1000
+    raise ConfigError(
+        where,
+        f"the sensors under surface `{surface.name}` stand nearly on one line: their footprint "
+        f"is {thin.width_m * 1000:.3g} mm wide and {thin.length_m:.3g} m long "
+        f"({thin.share:.2%}, sensor `{sensor.name}` the farthest off it). They locate a touch "
+        "by the moments their forces make, which across a strip this thin a millimetre's "
+        f"error in a sensor's place turns into centimetres: a footprint needs a width of at "
+        f"least {MIN_FOOTPRINT_SHARE:.0%} of its length ({needed_mm:.0f} mm here)",
+    )
 
 
 def _unit(v: list[float], where: Any, what: str) -> np.ndarray:

@@ -25,6 +25,16 @@ from hapticdesk.files.profile import ACCEL_COLUMN, AXES
 #: (canbus.logs.skipped). One beyond it is no clock's: a time of 1e300 in one row took every
 #: sample after it for one that went back in time
 MAX_TIME_S = 253_402_214_400.0
+#: the most columns a recording (CSV or NPZ) may have: every one is kept (an extra as
+#: ``extra``), so its width sets the memory a sample takes (a 164 MB CSV of 4,000 columns:
+#: 457 MB to estimate from; the fuzzing pass saw 1.38 GB). A 40-sensor desk of six-axis
+#: sensors has 241, its accelerometers and the simulator's truth a few more
+MAX_COLUMNS = 1024
+#: the most values a block read holds (samples × columns, 8 MB as floats): 16,384 samples
+#: up to 64 columns, fewer of a wider file, so a replay's memory does not grow with the width
+#: (a 164 MB CSV of 1,024 columns: 360 MB resident when a block was 16,384 samples whatever
+#: its width)
+MAX_BLOCK_VALUES = 16_384 * 64
 #: what a bad time is told
 TIME_EXPECTED = f"every sample needs a finite time in seconds, within ±{MAX_TIME_S:.0f} (year 9999)"
 
@@ -32,6 +42,12 @@ TIME_EXPECTED = f"every sample needs a finite time in seconds, within ±{MAX_TIM
 def bad_times(t: np.ndarray) -> np.ndarray:
     """Where the times ``t`` are not finite or beyond :data:`MAX_TIME_S` (bool, like ``t``)."""
     return ~(np.abs(t) <= MAX_TIME_S)
+
+
+def rows_per_block(rows: int, width: int) -> int:
+    """At most ``rows`` samples of ``width`` columns, and no more than
+    :data:`MAX_BLOCK_VALUES` values (at least one sample)."""
+    return max(1, min(rows, MAX_BLOCK_VALUES // max(1, width)))
 
 
 def six_axis_columns(sensor_names: list[str]) -> list[str]:

@@ -18,12 +18,14 @@ from hapticdesk.errors import ConfigError
 from hapticdesk.files.file_safety import regular_file_size
 from hapticdesk.files.profile import ACCEL_COLUMN
 from hapticdesk.files.recording import (
+    MAX_COLUMNS,
     TIME_EXPECTED,
     Recording,
     bad_times,
     missing_columns_error,
     needed_columns,
     recording_from_table,
+    rows_per_block,
 )
 from hapticdesk.files.recording_lines import MAX_BLOCK_CHARS, MAX_LINE_CHARS, RecordingLines
 
@@ -116,6 +118,12 @@ class CsvRecordingReader:
         if not first.strip():
             raise ConfigError(f"{self.where}:1", "empty file, expected a header starting with `t`")
         header = [h.strip() for h in self._cells(first, 1)]
+        if len(header) > MAX_COLUMNS:  # (before a block of them is parsed and kept)
+            raise ConfigError(
+                f"{self.where}:1:{MAX_COLUMNS + 1}",
+                f"{len(header):,} columns; a recording has one per channel (time, the desk's "
+                f"channels, a few more): at most {MAX_COLUMNS:,} are read",
+            )
         seen: dict[str, int] = {}
         for i, name in enumerate(header):
             if name and name in seen:
@@ -160,6 +168,7 @@ class CsvRecordingReader:
     def read(self, rows: int, _done: int) -> Recording | None:
         if self._fh is None:
             return None
+        rows = rows_per_block(rows, len(self.header))
         table = self._plain_ahead(rows)
         if table is not None:
             return self._recording(self._in_order(table))

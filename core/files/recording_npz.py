@@ -15,17 +15,19 @@ import numpy as np
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.file_safety import regular_file_size
 from hapticdesk.files.recording import (
+    MAX_COLUMNS,
     TIME_EXPECTED,
     Recording,
     bad_times,
     missing_columns_error,
     needed_columns,
     recording_from_table,
+    rows_per_block,
 )
 
-#: the most members (columns) an NPZ recording may have: 60,000 tiny extra columns took
-#: 3.4 GB (each read as a stream of its own); a 40-sensor desk has 241
-MAX_NPZ_MEMBERS = 1024
+#: the most members (columns) an NPZ recording may have, as many as a CSV's columns: 60,000
+#: tiny extra columns took 3.4 GB (each read as a stream of its own)
+MAX_NPZ_MEMBERS = MAX_COLUMNS
 
 
 #: what a damaged or unusual zip raises as a member is read: an encrypted member or one of an
@@ -113,7 +115,7 @@ class NpzRecordingReader:
         if self._zip is None or done >= self.length:
             self.close()
             return None
-        k = min(rows, self.length - done)
+        k = min(rows_per_block(rows, len(self._members)), self.length - done)
         table = np.empty((k, len(self._members)))
         try:
             for j, (name, fh, dtype) in enumerate(self._members):

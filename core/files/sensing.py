@@ -109,3 +109,118 @@ def sensing_of(profile: DeskProfile) -> Sensing:
         locatable={s.name: surface_locatable(wrench_map, s) for s in profile.surfaces},
         shear_seen={s.name: shear_seen(wrench_map, s) for s in profile.surfaces},
     )
+
+
+#: the narrowest footprint a touch is located on, as a share of its length (see
+#: :func:`thin_footprint`)
+MIN_FOOTPRINT_SHARE = 0.05
+
+
+@dataclass(frozen=True)
+class Footprint:
+    """Where the sensors pushing into a surface stand, seen along its normal: the width of
+    their convex hull's narrowest strip, its length along the strip, and the sensor farthest
+    off the strip's edge (the one whose place sets the width)."""
+
+    width_m: float
+    length_m: float
+    widest: int  # index into the desk's sensors
+
+    @property
+    def share(self) -> float:
+        return self.width_m / self.length_m if self.length_m > 0 else 0.0
+
+
+def thin_footprint(profile: DeskProfile, surface: Surface) -> Footprint | None:
+    """The footprint of the sensors under ``surface`` when a touch on it is located through
+    it and it is too thin for that (narrower than :data:`MIN_FOOTPRINT_SHARE` of its length);
+    None otherwise.
+
+    Why the footprint and this share: where the sensors measure no moment themselves (load
+    cells, three-axis cells), the moments about the surface's axes come only from the forces
+    times the legs' places (paper eqs. 1–4). Legs a width w off one line, touched a distance d
+    beside it, must push and pull by about F·d/w to hold the moment; a mounting error δ in a
+    leg's place then moves the located point by about d·δ/w. With d up to half the length L,
+    a millimetre of δ costs centimetres unless w is some percent of L: at 5 % and L = 0.7 m,
+    1 mm moves a touch at the edge by 1 cm (and the legs carry 10 times the touch). The same
+    ratio sets the conditioning of the map from the legs' forces to (F, M_u, M_v), moments
+    over L: its smallest singular value against its largest is of the order of w/L (0.47 w/L
+    for three legs), but the footprint says which leg to move and how far, in millimetres.
+    Sensors that measure the moments themselves (six-axis, a force plate's calibrated
+    channels) need no footprint. Every shipped desk's is over 50 %.
+    """
+    own = _own_map(profile)
+    zero = np.zeros(3)
+    if sees(own, np.concatenate((zero, surface.u_axis))) and sees(
+        own, np.concatenate((zero, surface.v_axis))
+    ):
+        return None
+    pushing = [
+        i
+        for i, s in enumerate(profile.sensors)
+        if np.abs(surface.normal @ (s.rotation @ s.own_wrench_matrix()[:3])).max() > 1e-9
+    ]
+    if len(pushing) < 3:  # (the moments come from elsewhere, or are not seen: refused before)
+        return None
+    places = np.array([profile.sensors[i].position - surface.origin for i in pushing])
+    flat = np.column_stack((places @ surface.u_axis, places @ surface.v_axis))
+    width, length, widest = _narrowest_strip(flat)
+    found = Footprint(width, length, pushing[widest])
+
+    return found if found.share < MIN_FOOTPRINT_SHARE else None
+
+
+def _own_map(profile: DeskProfile) -> np.ndarray:
+    """(6, C): the channels to what the sensors measure themselves, each in the desk's axes,
+    without the moments their forces make about P_o (no lever arms)."""
+    blocks = []
+    for s in profile.sensors:
+        block = np.zeros((6, 6))
+        block[:3, :3] = block[3:, 3:] = s.rotation
+        blocks.append(block @ s.own_wrench_matrix())
+    return np.hstack(blocks)
+
+
+def _narrowest_strip(points: np.ndarray) -> tuple[float, float, int]:
+    """(width, length, index) of the narrowest strip holding the (N, 2) ``points``: a convex
+    hull's narrowest strip lies along one of its edges (rotating calipers), so each edge's
+    direction is tried; ``index`` is the point farthest from that edge."""
+    hull = _convex_hull(points)
+    if len(hull) < 2:
+        return 0.0, 0.0, 0
+    best = (np.inf, 0.0, 0)
+    for a, b in zip(hull, np.roll(hull, -1), strict=True):
+        along = points[b] - points[a]
+        norm = float(np.hypot(*along))
+        if norm == 0.0:
+            continue
+        along /= norm
+        across = np.array([-along[1], along[0]])
+        offsets, spread = (points - points[a]) @ across, (points - points[a]) @ along
+        width = float(np.ptp(offsets))
+        if width < best[0]:
+            best = (width, float(np.ptp(spread)), int(np.argmax(np.abs(offsets))))
+    return best
+
+
+def _convex_hull(points: np.ndarray) -> np.ndarray:
+    """Indices of the (N, 2) ``points``' convex hull, counter-clockwise (Andrew's monotone
+    chain: bounded by N log N, whatever the number of sensors); all of a line's two ends."""
+    order = np.lexsort((points[:, 1], points[:, 0]))
+
+    def half(indices: np.ndarray) -> list[int]:
+        chain: list[int] = []
+        for i in indices.tolist():
+            while len(chain) >= 2:
+                o, a = points[chain[-2]], points[chain[-1]]
+                cross = (a[0] - o[0]) * (points[i][1] - o[1]) - (a[1] - o[1]) * (
+                    points[i][0] - o[0]
+                )
+                if cross > 0:
+                    break
+                chain.pop()
+            chain.append(i)
+        return chain
+
+    lower, upper = half(order), half(order[::-1])
+    return np.array(lower[:-1] + upper[:-1], dtype=int)

@@ -15,6 +15,10 @@ from hapticdesk.files.marked_values import MarkedDict, MarkedList, as_flag, as_n
 #: region) may lie, metres: a room, not a desk, is 100 m across (a sensor at 1e300 m made the
 #: wrench map's moments infinite, and the estimator crashed on its covariances)
 MAX_REACH_M = 100.0
+#: the largest force a threshold or a force setting may name, newtons: a desk's sensors are
+#: rated to a few hundred, a force plate's to 10 kN under a jump; beyond it no desk is meant
+#: (a `contact_force_n` of 1e300 was taken, and no touch could ever start)
+MAX_SETTING_FORCE_N = 1e4
 
 
 def require_mapping(value: Any, where: Position | str, what: str) -> MarkedDict:
@@ -67,11 +71,19 @@ def number(
     value = float(value)
     if value != value or value in (float("inf"), float("-inf")):
         raise ConfigError(where, f"`{key}` in {what} must be finite, found {value}")
+    op = ">" if exclusive_minimum else ">="
+    # (with both bounds, the message ends with the whole range expected)
+    span = (
+        ""
+        if minimum is None or maximum is None
+        else f"; expected {op} {minimum:g} and <= {maximum:g}"
+    )
     if minimum is not None and (value < minimum or (exclusive_minimum and value == minimum)):
-        op = ">" if exclusive_minimum else ">="
-        raise ConfigError(where, f"`{key}` in {what} must be {op} {minimum:g}, found {value:g}")
+        raise ConfigError(
+            where, f"`{key}` in {what} must be {op} {minimum:g}, found {value:g}{span}"
+        )
     if maximum is not None and value > maximum:
-        raise ConfigError(where, f"`{key}` in {what} must be <= {maximum:g}, found {value:g}")
+        raise ConfigError(where, f"`{key}` in {what} must be <= {maximum:g}, found {value:g}{span}")
     return value
 
 

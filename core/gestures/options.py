@@ -20,7 +20,7 @@ from typing import Any, Literal
 
 from hapticdesk.errors import ConfigError, Position
 from hapticdesk.files.marked_values import MarkedDict, as_flag
-from hapticdesk.files.validators import number
+from hapticdesk.files.validators import MAX_REACH_M, MAX_SETTING_FORCE_N, number
 
 Kind = Literal[
     "seconds", "length", "newtons", "fraction", "degrees", "choice", "bool", "names", "levels"
@@ -65,7 +65,12 @@ MIN_EVENT_INTERVAL_S = 0.02
 
 
 def _m(default: float, help: str) -> OptionSpec:
-    return OptionSpec("length", default, "recognize", help, 0.0)
+    # (metres: stored so, read in the layout's units; no length on a desk is beyond the room)
+    return OptionSpec("length", default, "recognize", help, 0.0, MAX_REACH_M)
+
+
+def _n(default: float, help: str) -> OptionSpec:
+    return OptionSpec("newtons", default, "recognize", help, 0.0, MAX_SETTING_FORCE_N)
 
 
 def _phase_filter() -> OptionSpec:
@@ -137,18 +142,12 @@ GESTURE_OPTIONS: dict[str, dict[str, OptionSpec]] = {
             "recognize",
             "named force levels in newtons; each fires when the force rises past it",
         ),
-        "hysteresis_n": OptionSpec(
-            "newtons",
-            1.0,
-            "recognize",
-            "a level re-arms when the force drops this far below it",
-            0.0,
-        ),
+        "hysteresis_n": _n(1.0, "a level re-arms when the force drops this far below it"),
         "level": OptionSpec("names", None, "match", "which level(s) to react to; all by default"),
     },
     "force": {
-        "min_n": OptionSpec("newtons", 2.0, "recognize", "force at value 0", 0.0),
-        "max_n": OptionSpec("newtons", 20.0, "recognize", "force at value 1", 0.0),
+        "min_n": _n(2.0, "force at value 0"),
+        "max_n": _n(20.0, "force at value 1"),
         "interval_s": _s(0.05, "shortest time between two updates", 10.0, MIN_EVENT_INTERVAL_S),
         "step": OptionSpec(
             "fraction", 0.01, "recognize", "smallest change worth an update", 0.0, 1.0
@@ -214,6 +213,16 @@ GESTURE_OPTIONS: dict[str, dict[str, OptionSpec]] = {
 ANYWHERE_GESTURES = frozenset({"stroke", "swipe"})
 
 _UNIT_SYMBOL = {"seconds": "s", "newtons": "N", "degrees": "deg"}
+#: the largest value of a kind, where an option (a plugin's among them) sets none: a time
+#: beyond an hour is a typing mistake, a force beyond 10 kN no desk's, a length beyond the
+#: room, a fraction beyond the whole
+KIND_MAXIMUM = {
+    "seconds": 3600.0,
+    "newtons": MAX_SETTING_FORCE_N,
+    "length": MAX_REACH_M,
+    "fraction": 1.0,
+    "degrees": 360.0,
+}
 
 
 def defaults(specs: dict[str, OptionSpec]) -> dict[str, Any]:
@@ -238,11 +247,18 @@ def read_option(
             key,
             what,
             minimum=spec.minimum,
-            maximum=spec.maximum,
+            maximum=spec.maximum if spec.maximum is not None else KIND_MAXIMUM[spec.kind],
             exclusive_minimum=strict,
         )
     if spec.kind == "length":
-        value_units = number(mapping, key, what, minimum=0.0, exclusive_minimum=True)
+        value_units = number(
+            mapping,
+            key,
+            what,
+            minimum=0.0,
+            exclusive_minimum=True,
+            maximum=(spec.maximum or KIND_MAXIMUM["length"]) / metres_per_unit,  # (its units)
+        )
         return value_units * metres_per_unit
     if spec.kind == "choice":
         if value not in spec.choices or isinstance(value, bool):
@@ -281,7 +297,9 @@ def _read_levels(value: Any, where: Position, label: str) -> dict[str, float]:
                 value.where(name, of_key=True),
                 f"level names must be letters, digits and _, found {name!r}",
             )
-        levels[name] = number(value, name, label, minimum=0.0, exclusive_minimum=True)
+        levels[name] = number(
+            value, name, label, minimum=0.0, exclusive_minimum=True, maximum=MAX_SETTING_FORCE_N
+        )
     forces = list(levels.values())
     if len(set(forces)) != len(forces):
         raise ConfigError(where, f"{label}: two levels have the same force {forces}")

@@ -52,6 +52,9 @@ log = logging.getLogger(__name__)
 
 ISOLATION_KEYS = ("isolation", "max_memory_mb")
 DEFAULT_MAX_MEMORY_MB = 512.0
+#: the largest limit an action's process may be given, MB (a terabyte: no machine a desk runs on
+#: has more; beyond it the limit is a typing mistake that never holds)
+MAX_MEMORY_LIMIT_MB = 1e6
 DEFAULT_CALL_TIMEOUT_S = 5.0
 START_TIMEOUT_S = 30.0  # a fresh interpreter importing the plugin, on a busy machine
 
@@ -83,7 +86,14 @@ def split_isolation(options: Any, position: Position | str) -> tuple[Any, Isolat
             marked.where("max_memory_mb", of_key=True),
             "`max_memory_mb` needs `isolation: process` (a thread's memory cannot be told apart)",
         )
-    limit = number(marked, "max_memory_mb", "the action", default=DEFAULT_MAX_MEMORY_MB, minimum=16)
+    limit = number(
+        marked,
+        "max_memory_mb",
+        "the action",
+        default=DEFAULT_MAX_MEMORY_MB,
+        minimum=16,
+        maximum=MAX_MEMORY_LIMIT_MB,
+    )
     rest = _marked({k: v for k, v in marked.items() if k not in ISOLATION_KEYS}, marked.where())
     rest.key_positions = {k: p for k, p in marked.key_positions.items() if k in rest}
     rest.value_positions = {k: p for k, p in marked.value_positions.items() if k in rest}

@@ -137,6 +137,10 @@ def test_bad_choices_and_numbers(profile_text):
         ("  assemble: magic\n", "assemble", "counter, time"),
         ("  silent_sensor: panic\n", "silent_sensor", "continue, stop"),
         ("  silent_timeout_s: 0\n", "silent_timeout_s", "> 0"),
+        # the fuzzing pass: waits had no upper bound
+        ("  silent_timeout_s: 1.0e+300\n", "silent_timeout_s", "expected > 0 and <= 3600"),
+        ("  reconnect_timeout_s: 1.0e+300\n", "reconnect_timeout_s", "<= 3600"),
+        ("  frame_gap_s: 1.0e+300\n", "frame_gap_s", "expected > 0 and <= 0.1"),
         ("  bitrate: fast\n", "bitrate", "whole number"),
         ("  busrate: 5\n", "busrate", "unknown key"),
     ):

@@ -151,6 +151,59 @@ def test_estimation_values_are_checked(tmp_path):
         load_profile(path)
 
 
+def _numeric_estimation_keys() -> list[str]:
+    from dataclasses import fields
+
+    from hapticdesk.files.profile import EstimationSettings
+
+    return [f.name for f in fields(EstimationSettings) if isinstance(f.default, float)]
+
+
+@pytest.mark.parametrize("key", _numeric_estimation_keys())
+def test_every_estimation_number_has_an_upper_bound(tmp_path, key):
+    """The fuzzing pass: `contact_force_n: 1e300` was accepted (no touch could ever start),
+    as was any of a dozen settings with no upper bound. Every number in `estimation` now
+    has one, refused at its place with the range expected."""
+    path = write(tmp_path, GOOD + f"estimation:\n  {key}: 1.0e+300\n")
+    with pytest.raises(ConfigError) as info:
+        load_profile(path)
+    text = str(info.value)
+    assert text.startswith(f"{path}:{GOOD.count(chr(10)) + 2}:{len(key) + 5}:"), text
+    assert "1e+300" in text
+    assert "expected" in text or "below half the sample rate" in text, text
+
+
+def test_a_force_threshold_says_the_range_it_expects(tmp_path):
+    path = write(tmp_path, GOOD + "estimation: {contact_force_n: 1.0e+300}\n")
+    with pytest.raises(ConfigError) as info:
+        load_profile(path)
+    assert str(info.value) == (
+        f"{path}:{GOOD.count(chr(10)) + 1}:31: `contact_force_n` in `estimation` must be <= "
+        "10000, found 1e+300; expected > 0 and <= 10000"
+    )
+
+
+@pytest.mark.parametrize(
+    ("extra", "needle"),
+    [
+        (
+            "accelerometer: {position: [0, 0, 0.7], noise_m_s2: 1.0e+300}",
+            "`noise_m_s2` in `accelerometer` must be <= 1000",
+        ),
+        (
+            "accelerometer: {position: [0, 0, 0.7], range_m_s2: 1.0e+300}",
+            "`range_m_s2` in `accelerometer` must be <= 1e+06",
+        ),
+    ],
+)
+def test_accelerometer_numbers_have_upper_bounds(tmp_path, extra, needle):
+    path = write(tmp_path, GOOD + extra + "\n")
+    with pytest.raises(ConfigError) as info:
+        load_profile(path)
+    assert str(info.value).startswith(f"{path}:{GOOD.count(chr(10)) + 1}:")
+    assert needle in str(info.value)
+
+
 @pytest.mark.parametrize(
     ("extra", "needle"),
     [
@@ -323,3 +376,53 @@ def test_the_gap_follows_the_sample_rate_where_the_profile_does_not_set_it(
     assert not (np.delete(flags, len(t) // 2) & FLAG_GAP).any()
     given = GOOD.replace("1000", f"{rate:g}") + "estimation:\n  max_gap_s: 0.05\n"
     assert load_profile(write(tmp_path, given)).estimation.max_gap_s == 0.05
+
+
+THREE_CELLS = """\
+name: cells
+sample_rate_hz: 80
+sensors:
+  - {{name: a, kind: {kind}, position: [-0.34, 0.0, 0.0]}}
+  - {{name: b, kind: {kind}, position: [0.34, 0.0, 0.0]}}
+  - {{name: c, kind: {kind}, position: [0.0, {off}, 0.0]}}
+surfaces:
+  - name: top
+    origin: [0, 0, 0.7]
+    normal: [0, 0, 1]
+    polygon: [[-0.4, -0.3], [0.4, -0.3], [0.4, 0.3], [-0.4, 0.3]]
+"""
+
+
+@pytest.mark.parametrize("off_mm", [1, 3, 5, -5])
+def test_legs_nearly_on_one_line_are_refused_at_the_leg_off_it(tmp_path, off_mm):
+    """The fuzzing pass: load cells 1-5 mm off one line were taken, and a touch beside the
+    line was located by moments their forces barely make (a millimetre's error in a leg's
+    place moved it by centimetres). Refused at the `position` of the leg off the line."""
+    path = write(tmp_path, THREE_CELLS.format(kind="load_cell", off=off_mm / 1000))
+    with pytest.raises(ConfigError) as info:
+        load_profile(path)
+    text = str(info.value)
+    assert text.startswith(f"{path}:6:42: the sensors under surface `top` stand nearly on "), text
+    assert f"footprint is {abs(off_mm)} mm wide and 0.68 m long" in text
+    assert "sensor `c` the farthest off it" in text
+    assert "at least 5% of its length (34 mm here)" in text
+
+
+def test_legs_a_few_percent_off_one_line_and_six_axis_sensors_on_one_are_taken(tmp_path):
+    """A triangle of load cells 3.5 cm deep (5 % of its 0.68 m) is a desk; six-axis sensors
+    measure the moments themselves, so even two of them on one line locate a touch."""
+    load_profile(write(tmp_path, THREE_CELLS.format(kind="load_cell", off=0.035)))
+    load_profile(write(tmp_path, THREE_CELLS.format(kind="six_axis", off=0.001)))
+    load_profile(write(tmp_path, THREE_CELLS.format(kind="six_axis", off=0.0)))
+
+
+def test_four_legs_scattered_a_few_mm_about_one_line_are_refused(tmp_path):
+    text = THREE_CELLS.format(kind="load_cell", off=0.004).replace(
+        "[-0.34, 0.0, 0.0]", "[-0.34, 0.001, 0.0]"
+    )
+    text = text.replace(
+        "surfaces:", "  - {name: d, kind: load_cell, position: [0.2, -0.002, 0]}\nsurfaces:"
+    )
+    path = write(tmp_path, text)
+    with pytest.raises(ConfigError, match=r":6:42: .* footprint is 4.89 mm wide and 0.68 m long"):
+        load_profile(path)

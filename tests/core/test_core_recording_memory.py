@@ -90,3 +90,41 @@ def test_an_npz_of_thousands_of_members_is_refused_before_they_are_opened(tmp_pa
     np.savez(path, **columns)
     with pytest.raises(ConfigError, match=r"many\.npz: 1,049 members; .* at most 1,024"):
         read_recording(path, sensors)
+
+
+def test_a_csv_wider_than_any_desk_is_refused_at_its_header(tmp_path):
+    """The fuzzing pass: a 164 MB CSV of 4,000 columns took 1.38 GB to read, every extra
+    column kept. A header of more than 1,024 columns (as many as an NPZ's members) is refused
+    at the first column beyond them; one of 1,024 is read, its extras kept."""
+    from hapticdesk.errors import ConfigError
+    from hapticdesk.files.recording_io import read_recording
+
+    def wide(columns: int):
+        path = tmp_path / f"wide{columns}.csv"
+        extras = [f"x{k}" for k in range(columns - 25)]
+        row = ",".join(["0"] * columns)
+        path.write_text(",".join([HEADER, *extras]) + "\n" + f"{row}\n" * 3)
+        return path
+
+    with pytest.raises(ConfigError) as refused:
+        read_recording(wide(1_025), NAMES)
+    assert str(refused.value) == (
+        f"{tmp_path}/wide1025.csv:1:1025: 1,025 columns; a recording has one per channel "
+        "(time, the desk's channels, a few more): at most 1,024 are read"
+    )
+    rec = read_recording(wide(1_024), NAMES)
+    assert (len(rec), len(rec.extra)) == (3, 1_024 - 25)
+
+
+def test_a_wide_recording_is_read_in_fewer_samples_a_block(tmp_path):
+    """A block holds at most 16,384 × 64 values: 1,024 samples of 1,024 columns (16,384 of
+    them held 128 MB a block, and a replay of a 164 MB file 360 MB; now 223 MB)."""
+    from hapticdesk.files.recording_io import RecordingBlocks
+
+    path = tmp_path / "wide.csv"
+    extras = [f"x{k}" for k in range(1_024 - 25)]
+    rows = "".join(f"{i / 1200:.6f}," + ",".join(["0"] * 1_023) + "\n" for i in range(3_000))
+    path.write_text(",".join([HEADER, *extras]) + "\n" + rows)
+    with RecordingBlocks(path, NAMES) as reader:
+        lengths = [len(block) for block in reader.blocks()]
+    assert (sum(lengths), max(lengths)) == (3_000, 1_024)

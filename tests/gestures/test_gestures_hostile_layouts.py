@@ -114,6 +114,31 @@ HOSTILE: dict[str, tuple[bytes, tuple[int, int], str]] = {
         (4, 64),
         "`interval_s` in binding 1 (`long_press`) must be >= 0.02, found 1e-300",
     ),
+    # the fuzzing pass: forces and lengths had no upper bound (a slider's full scale at 1e300 N)
+    "a press level of 1e300 N": (
+        (
+            "desk: kitamura2017\n" + REGION_A + "bindings:\n  - {gesture: press, region: a, "
+            "levels: {light: 1e300}, do: log}\n"
+        ).encode(),
+        (4, 49),
+        "`light` in `levels` of binding 1 (`press`) must be <= 10000, found 1e+300",
+    ),
+    "a force slider's full scale at 1e300 N": (
+        (
+            "desk: kitamura2017\n" + REGION_A + "bindings:\n  - {gesture: force, region: a, "
+            "max_n: 1e300, do: log}\n"
+        ).encode(),
+        (4, 40),
+        "must be <= 10000, found 1e+300; expected >= 0 and <= 10000",
+    ),
+    "a tap that may move 1e300 mm": (
+        (
+            b"desk: kitamura2017\nunits: mm\nregions: {a: {rect: [0, 0, 100, 100]}}\n"
+            b"bindings:\n  - {gesture: tap, region: a, max_move: 1e300, do: log}\n"
+        ),
+        (5, 41),
+        "must be <= 100000, found 1e+300; expected > 0 and <= 100000",
+    ),
     "a payload template that fails on every event": (
         (
             "desk: kitamura2017\n" + REGION_A + "bindings:\n  - {gesture: tap, region: a, do: "

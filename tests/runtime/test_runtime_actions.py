@@ -67,6 +67,13 @@ def build(tmp_path: Path, registry, do: str):
         ("{mqtt: {topic: a/b, qos: 3}}", "3", "`qos` of `mqtt` must be 0, 1 or 2"),
         ("{log: {message: 5}}", "5", "`message` of `log` must be non-empty text"),
         ("{lamp: {}}", "lamp", "unknown action `lamp`"),
+        # the fuzzing pass: an action's timeout had no upper bound
+        (
+            "{http: {url: 'http://x', timeout_s: 1e300}}",
+            "1e300",
+            "`timeout_s` in `http` must be <= 3600, found 1e+300; expected > 0 and <= 3600",
+        ),
+        ("{exec: {argv: [ls], timeout_s: 1e9}}", "1e9", "must be <= 3600, found 1e+09"),
     ],
 )
 def test_bad_action_options_name_file_line_and_column(tmp_path, registry, do, at, expected):

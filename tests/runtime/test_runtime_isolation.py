@@ -178,6 +178,10 @@ def test_the_cost_of_a_call_through_a_process(capsys):
         ("{spin: {isolation: fork}}", "`isolation` must be thread or process, found 'fork'"),
         ("{spin: {max_memory_mb: 100}}", "`max_memory_mb` needs `isolation: process`"),
         ("{spin: {isolation: process, max_memory_mb: 1}}", "must be >= 16"),
+        (
+            "{spin: {isolation: process, max_memory_mb: 1.0e+300}}",
+            "must be <= 1e\\+06, found 1e\\+300; expected >= 16 and <= 1e\\+06",
+        ),
     ],
 )
 def test_isolation_options_are_checked_in_the_layout(tmp_path, options, expected):

@@ -145,7 +145,9 @@ class EstimatorSettings:
             # half a period of its cut-off): how much of a corrupt reading reaches the detector
             jump_n=JUMP_SHARE
             * s.contact_force_n
-            / float(np.max(np.abs(impulse_response(filters.det_sos, 4 + int(fs / det_hz))))),
+            / float(np.max(np.abs(impulse_response(filters.det_sos, 4 + int(fs / det_hz)))))
+            if s.hold_jumps
+            else math.inf,  # (none held: no change is that large)
             jump_arm_m=max(
                 JUMP_ARM_MIN_M, *(float(np.linalg.norm(x.position)) for x in profile.sensors)
             ),

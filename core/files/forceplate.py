@@ -200,6 +200,7 @@ def _plate_estimation(
         force_lowpass_hz=PLATE_LOWPASS_SHARE * file.analog_rate_hz,
         diff_lowpass_hz=PLATE_LOWPASS_SHARE * file.analog_rate_hz,
         zeroed=True,
+        hold_jumps=False,  # (a lab amplifier's readings: every jump is a foot's, none corrupt)
         noise_force_n=_rms(sigma[~moments]),
         noise_moment_nm=_rms(sigma[moments]),
     )

@@ -1,9 +1,8 @@
 """Desk profiles: where the sensors stand, which surfaces can be touched, and how to estimate.
 
 The YAML format is a contract (docs/reference/profile.md); this module is the model it fills,
-and knows nothing of YAML: :mod:`.profile_reader` loads and checks a profile (``load_profile``).
-The profile also owns the one linear map from the stacked sensor channels to the resultant
-wrench about P_o (paper eqs. 1–4), which every consumer of sensor data uses.
+knowing nothing of YAML (:mod:`.profile_reader` loads and checks a profile), and owns the one
+map from the sensors' channels to the wrench about P_o (paper eqs. 1–4) all consumers use.
 """
 
 from __future__ import annotations
@@ -199,12 +198,13 @@ class EstimationSettings:
     # covariances take noise_force_n / noise_moment_nm, which must then be given
     zeroed: bool = False
     # the legs as the accelerometer: the desk's inertial force from the measured force's
-    # curvature and `desk.natural_frequency_hz` (see hapticdesk.estimator.sway); None (auto,
+    # curvature and `desk.natural_frequency_hz` (hapticdesk.estimator.sway); None (auto,
     # the default): on for `fused` on a desk without an accelerometer
     sway_compensation: bool | None = None
-    # flag a second finger that lands while the first holds, and locate it (see
-    # hapticdesk.estimator.multitouch); a layout that binds two_finger_tap turns it on
+    # flag a second finger that lands while the first holds, and locate it
+    # (hapticdesk.estimator.multitouch); a layout that binds two_finger_tap turns it on
     second_finger: bool = False
+    hold_jumps: bool = True  # hold over a reading that jumps for one sample (a corrupt one)
 
 
 @dataclass(frozen=True)

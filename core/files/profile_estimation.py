@@ -163,8 +163,8 @@ def _estimation(item: Any, where: Any) -> EstimationSettings:
             values[key] = flag_or_auto(m, key, "`estimation`")
         elif key == "second_finger":
             values[key] = flag(m, key, "`estimation`", default=defaults.second_finger)
-        elif key == "zeroed":
-            values[key] = flag(m, key, "`estimation`", default=defaults.zeroed)
+        elif key in ("zeroed", "hold_jumps"):
+            values[key] = flag(m, key, "`estimation`", default=getattr(defaults, key))
         elif key in m:
             values[key] = number(
                 m,

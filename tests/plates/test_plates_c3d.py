@@ -104,6 +104,24 @@ def test_without_its_zero_frames_the_offset_would_be_a_load(tmp_path):
     assert abs(rec.channels[0, 2] - 25.0) < 1e-9  # [0, 0]: the channels are taken as zeroed
 
 
+def test_a_plate_holds_no_jump_over(tmp_path):
+    # a foot's strike is a jump from a still plate: held over for its first sample it began
+    # a millisecond late (the real BTS files); a lab amplifier's readings hold nothing
+    spec, point = SPECS["type2-z-up-mm"]
+    push = 600.0 * spec.rotation()[:, 2]
+    path = write_plate_file(tmp_path / "p.c3d", [spec], [Press(point, tuple(-push))])
+    file = open_c3d(path)
+    desk = plate_desk(file, 1)
+    assert desk.profile.estimation.hold_jumps is False
+    rec = read_plate_recording(path, desk.profile, file)
+    held = desk.profile.with_estimation(hold_jumps=True)
+    first = [
+        int(np.argmax(ContactEstimator(p).push(rec.t, rec.wrench).in_contact))
+        for p in (desk.profile, held)
+    ]
+    assert first[1] == first[0] + 1
+
+
 def test_two_plates_of_one_file_each_a_desk(tmp_path):
     a = PlateSpec(2, z_up_corners(centre=(0.3, 0.2, 0.0)), (0.0, 0.0, -40.0))
     b = PlateSpec(3, z_up_corners(centre=(1.0, 0.2, 0.0), half=(0.3, 0.45)), (210.0, 350.0, -53.0))

@@ -6,6 +6,7 @@ for one sample; the next is taken whatever it is, so a real change lands one sam
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,6 +20,7 @@ from hapticdesk.sim import Press, Scene, Tap, simulate
 
 from .test_stability import SWIPES_AND_HOLDS, _pushed_in, _tap_hold_tap, finite, gestures_of
 
+PROFILES = Path(__file__).resolve().parents[2] / "profiles"
 WANT = [("tap", None), ("long_press", None), ("long_press", "end"), ("tap", None)]
 
 
@@ -115,3 +117,20 @@ def test_load_cells_at_80_hz_lose_no_tap_and_make_none(profile, tmp_path):
     assert not clean.in_contact[idle - 3 : idle + 3].any()
     bad = corrupted(rec, [idle], 0, 50.0)
     assert gestures(desk, estimate(desk, bad), tmp_path) == want
+
+
+def test_hold_jumps_off_takes_every_reading(paper_desk, tmp_path):
+    # `estimation: {hold_jumps: false}` holds nothing: the corrupt reading's tap is back
+    rec = _tap_hold_tap(paper_desk)
+    bad = corrupted(rec, [int(2.5 * paper_desk.sample_rate_hz)], 2, 100.0)
+    off = paper_desk.with_estimation(hold_jumps=False)
+    got = [g[:2] for g in gestures(off, estimate(off, bad), tmp_path)]
+    assert got == [WANT[0], ("tap", None), *WANT[1:]]
+    # ... and a profile says so in its YAML
+    text = (PROFILES / "kitamura2017.yaml").read_text()
+    assert "\nestimation:\n" in text
+    (tmp_path / "desk.yaml").write_text(
+        text.replace("\nestimation:\n", "\nestimation:\n  hold_jumps: false\n", 1)
+    )
+    assert load_profile(tmp_path / "desk.yaml").estimation.hold_jumps is False
+    assert paper_desk.estimation.hold_jumps is True

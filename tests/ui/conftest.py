@@ -84,6 +84,27 @@ def browser() -> Iterator[Any]:
         b.close()
 
 
+def watch_address(
+    proc: subprocess.Popen[str], lines: list[str]
+) -> tuple[threading.Event, list[str]]:
+    """A thread that keeps ``proc``'s stderr lines in ``lines``; the event is set, and the
+    list holds the page's address, once the page's line (``hapticdesk ui: http://…``) came."""
+    found = threading.Event()
+    url: list[str] = []
+
+    def read() -> None:
+        assert proc.stderr is not None
+        for line in proc.stderr:
+            lines.append(line)
+            m = re.search(r"hapticdesk ui: (http://\S+)", line)
+            if m and not url:
+                url.append(m.group(1))
+                found.set()
+
+    threading.Thread(target=read, daemon=True).start()
+    return found, url
+
+
 class UiProcess:
     """A `hapticdesk ui` child process and the URL it serves."""
 
@@ -99,7 +120,6 @@ class UiProcess:
             stdout=subprocess.PIPE,
             text=True,
         )
-        found = threading.Event()
         self.url = ""
 
         def printed() -> None:
@@ -108,20 +128,11 @@ class UiProcess:
                 self.printed.append(line)
 
         threading.Thread(target=printed, daemon=True).start()
-
-        def read() -> None:
-            assert self.proc.stderr is not None
-            for line in self.proc.stderr:
-                self.lines.append(line)
-                m = re.search(r"hapticdesk ui: (http://\S+)", line)
-                if m:
-                    self.url = m.group(1)
-                    found.set()
-
-        threading.Thread(target=read, daemon=True).start()
+        found, url = watch_address(self.proc, self.lines)
         if not found.wait(30):
             self.stop()
             raise AssertionError("hapticdesk ui did not start:\n" + "".join(self.lines))
+        self.url = url[0]
 
     def stop(self) -> None:
         if self.proc.poll() is None:

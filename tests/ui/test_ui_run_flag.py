@@ -3,12 +3,10 @@
 from __future__ import annotations
 
 import json
-import re
 import shutil
 import signal
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -17,6 +15,9 @@ import pytest
 httpx = pytest.importorskip("httpx")
 websockets_sync = pytest.importorskip("websockets.sync.client")
 pytest.importorskip("uvicorn")
+
+
+from .conftest import watch_address  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -38,19 +39,7 @@ def test_run_with_ui_serves_the_page_and_reloads_a_saved_layout(tmp_path: Path) 
         text=True,
     )
     lines: list[str] = []
-    found = threading.Event()
-    url: list[str] = []
-
-    def read() -> None:
-        assert proc.stderr is not None
-        for line in proc.stderr:
-            lines.append(line)
-            m = re.search(r"hapticdesk ui: (http://\S+)", line)
-            if m:
-                url.append(m.group(1))
-                found.set()
-
-    threading.Thread(target=read, daemon=True).start()
+    found, url = watch_address(proc, lines)
     try:
         assert found.wait(30), "".join(lines)
         base = url[0]

@@ -6,12 +6,10 @@ address; a file open to other users is warned about, as ssh does for a key."""
 from __future__ import annotations
 
 import os
-import re
 import shutil
 import signal
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -21,6 +19,8 @@ httpx = pytest.importorskip("httpx")
 pytest.importorskip("uvicorn")
 
 from hapticdesk.cli import main  # noqa: E402
+
+from .conftest import watch_address  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 TOKEN = "long-enough-s3cret"
@@ -118,19 +118,7 @@ def _serve(argv: list[str], env: dict[str, str]) -> tuple[subprocess.Popen[str],
         env=env,
     )
     lines: list[str] = []
-    found = threading.Event()
-    url: list[str] = []
-
-    def read() -> None:
-        assert proc.stderr is not None
-        for line in proc.stderr:
-            lines.append(line)
-            m = re.search(r"hapticdesk ui: (http://\S+)", line)
-            if m and not url:
-                url.append(m.group(1))
-                found.set()
-
-    threading.Thread(target=read, daemon=True).start()
+    found, url = watch_address(proc, lines)
     deadline = time.monotonic() + 60
     while not found.wait(0.2):  # (a refusal ends the process: no need to wait the minute)
         if proc.poll() is not None or time.monotonic() > deadline:

@@ -105,6 +105,17 @@ def watch_address(
     return found, url
 
 
+def stop_process(proc: subprocess.Popen[str], how: int = signal.SIGINT) -> None:
+    """``proc`` stopped as a user stops it (Ctrl-C, or ``how``), killed if it hangs."""
+    if proc.poll() is None:
+        proc.send_signal(how)
+        try:
+            proc.wait(20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(5)
+
+
 class UiProcess:
     """A `hapticdesk ui` child process and the URL it serves."""
 
@@ -135,13 +146,7 @@ class UiProcess:
         self.url = url[0]
 
     def stop(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGTERM)
-            try:
-                self.proc.wait(10)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait(5)
+        stop_process(self.proc, signal.SIGTERM)
 
 
 @pytest.fixture(scope="module")

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import shutil
-import signal
 import subprocess
 import sys
 import time
@@ -17,7 +16,7 @@ websockets_sync = pytest.importorskip("websockets.sync.client")
 pytest.importorskip("uvicorn")
 
 
-from .conftest import watch_address  # noqa: E402
+from .conftest import stop_process, watch_address  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -76,12 +75,7 @@ def test_run_with_ui_serves_the_page_and_reloads_a_saved_layout(tmp_path: Path) 
             assert "centre" in {r["name"] for r in wait_for(ws, "desk")["regions"]}
             assert wait_for(ws, "gesture", "centre")["gesture"] == "tap"
     finally:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(20)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(5)
+        stop_process(proc)
     out.close()
     taps = [json.loads(line.split("] ", 1)[1]) for line in (tmp_path / "stdout.txt").open()]
     regions = [t["region"] for t in taps]

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import os
 import shutil
-import signal
 import subprocess
 import sys
 import time
@@ -20,7 +19,7 @@ pytest.importorskip("uvicorn")
 
 from hapticdesk.cli import main  # noqa: E402
 
-from .conftest import watch_address  # noqa: E402
+from .conftest import stop_process, watch_address  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 TOKEN = "long-enough-s3cret"
@@ -128,15 +127,6 @@ def _serve(argv: list[str], env: dict[str, str]) -> tuple[subprocess.Popen[str],
     return proc, url[0], lines
 
 
-def _stop(proc: subprocess.Popen[str]) -> None:
-    proc.send_signal(signal.SIGINT)
-    try:
-        proc.wait(20)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.wait(5)
-
-
 @pytest.mark.parametrize("command", ["ui", "run"])
 def test_the_real_server_asks_for_the_token_from_the_file(tmp_path: Path, command: str) -> None:
     """`ui --token-file` and `run --ui … --token-file`, served for real: the page and its API
@@ -165,7 +155,7 @@ def test_the_real_server_asks_for_the_token_from_the_file(tmp_path: Path, comman
         right = httpx.get(base + "api/layout", headers={"authorization": f"Bearer {TOKEN}"})
         assert right.status_code == 200 and right.text == layout.read_text()
     finally:
-        _stop(proc)
+        stop_process(proc)
     said = "".join(lines)
     assert f"hapticdesk ui: warning: {token}: the page's token file is open to other users " in (
         said

@@ -81,6 +81,9 @@ def test_run_replays_the_plate_as_the_desk(two_plates, tmp_path):
         (["contacts", "{f}", "--desk", "kitamura2017"], "a desk's sensors are its force plates"),
         (["contacts", "{f}", "--desk", "kitamura2017", "--plate", "1"], "--plate"),
         (["contacts", "{d}/x.csv", "--plate", "1"], "is not a .c3d file"),
+        # a C3D file given as the desk: said so, not "larger than 1 MB" or "a NUL byte"
+        (["contacts", "{f}", "--desk", "{f}"], "walk.c3d: a C3D file is not a desk profile"),
+        (["init", "{d}/plate.yaml", "--desk", "{f}"], "make the desk from its force plate"),
     ],
 )
 def test_wrong_combinations_are_one_line(two_plates, capsys, argv, said):

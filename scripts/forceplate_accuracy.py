@@ -119,6 +119,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", action="store_true", help="one JSON object per row")
     args = parser.parse_args(argv)
     ezc3d = import_ezc3d()
+    if not any((args.data / name).is_file() for name in FILES):  # (not an empty table)
+        print(
+            f"forceplate_accuracy: error: none of {', '.join(FILES)} is in {args.data}: "
+            "give their folder with --data DIR",
+            file=sys.stderr,
+        )
+        return 2
     rows = []
     for name in FILES:
         path = args.data / name

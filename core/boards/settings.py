@@ -57,6 +57,7 @@ class SerialSettings:
     hello_timeout_s: float = 5.0
     silent_timeout_s: float = 1.0
     reconnect_timeout_s: float = 10.0
+    scale_given: bool = True  # False: no `scale` anywhere, the board's values taken as newtons
 
 
 def board_channels(profile: DeskProfile) -> list[str]:
@@ -154,6 +155,7 @@ def serial_settings(profile: DeskProfile, spec: str) -> SerialSettings:
         zero=zero,
         offsets_us=offsets,
         simultaneous=simultaneous,
+        scale_given="scale" in merged,
         **waits,
     )
 

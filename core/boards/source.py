@@ -95,6 +95,11 @@ class SerialSource(Source):
             lines.append(
                 f"{self.silences} silences of {self.settings.silent_timeout_s:g} s or more"
             )
+        if not self.settings.scale_given:  # (raw counts as newtons: the desk never tares)
+            lines.append(
+                "no `scale` given (the profile's `serial: scale` or ?scale=): the board's values "
+                "were taken as newtons; a board printing its converters' counts needs one"
+            )
         return [f"serial {self.port_name}: {line}" for line in lines]
 
     # --- the port -----------------------------------------------------------------------

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from hapticdesk.errors import ConfigError
+from hapticdesk.files.c3d import is_c3d
 from hapticdesk.files.file_safety import check_confined, file_kind
 from hapticdesk.files.marked_values import MarkedDict
 from hapticdesk.files.profile import DeskProfile
@@ -72,6 +73,12 @@ def resolve_profile_path(name_or_path: str | Path, relative_to: Path | None = No
     path = Path(text)
     if not path.is_absolute() and relative_to is not None:
         path = relative_to / path
+    if is_c3d(path):  # (read as YAML it says "larger than 1 MB" or "a NUL byte")
+        raise ConfigError(
+            str(name_or_path),
+            "a C3D file is not a desk profile: without --desk, `contacts`, `plot` and "
+            "`run --source replay:FILE.c3d` make the desk from its force plate (--plate N)",
+        )
     check_confined(path, "the desk profile", str(name_or_path))  # (before it is looked at)
     if not path.is_file():
         try:

@@ -241,3 +241,16 @@ def test_a_board_on_the_network_that_drops_is_reconnected(desk, registry):
     told = [n.message for n in stats.notices if n.kind in ("port", "resume")]
     assert any("failed" in m for m in told) and any("is back" in m for m in told)
     assert any("the port was opened again" in m for m in told)
+
+
+@pytest.mark.parametrize("scale", ["", "?scale=2e-5"])
+def test_the_summary_says_when_no_scale_made_the_values_newtons(tmp_path, registry, boards, scale):
+    """A board's raw counts taken as newtons never let the desk tare ("not quiet"): the run's
+    summary says that no `scale` was given, and says nothing when one was."""
+    board = boards(sample_lines(np.arange(50), counts(np.ones((50, 4)))), hello_line(HELLO),
+                   rate=1000)  # fmt: skip
+    source = open_source(f"serial:{board.path}{scale}", cells_desk(tmp_path), registry)
+    read_all(source, 50)
+    said = "\n".join(source.summary())
+    assert ("no `scale` given" in said) is (not scale), said
+    assert "taken as newtons" in said or scale

@@ -4,8 +4,10 @@ contacts come in the lab frame, and what is wrong is said in one line."""
 from __future__ import annotations
 
 import csv
+import importlib.util
 import json
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,6 +16,7 @@ from hapticdesk.cli import main
 
 from .conftest import PlateSpec, Press, write_plate_file, y_up_corners, z_up_corners
 
+ROOT = Path(__file__).resolve().parents[2]
 POINT = (1.08, 0.0, 0.41)  # on the top of a plate in a lab whose vertical is y
 
 
@@ -81,6 +84,9 @@ def test_run_replays_the_plate_as_the_desk(two_plates, tmp_path):
         (["contacts", "{f}", "--desk", "kitamura2017"], "a desk's sensors are its force plates"),
         (["contacts", "{f}", "--desk", "kitamura2017", "--plate", "1"], "--plate"),
         (["contacts", "{d}/x.csv", "--plate", "1"], "is not a .c3d file"),
+        # a C3D file given as the desk: said so, not "larger than 1 MB" or "a NUL byte"
+        (["contacts", "{f}", "--desk", "{f}"], "walk.c3d: a C3D file is not a desk profile"),
+        (["init", "{d}/plate.yaml", "--desk", "{f}"], "make the desk from its force plate"),
     ],
 )
 def test_wrong_combinations_are_one_line(two_plates, capsys, argv, said):
@@ -95,3 +101,17 @@ def test_without_ezc3d_the_install_command_is_named(two_plates, capsys, monkeypa
     assert main(["contacts", str(two_plates), "-o", "-"]) == 2
     err = capsys.readouterr().err
     assert "pip install 'hapticdesk[c3d]'" in err and "Traceback" not in err
+
+
+def test_the_accuracy_script_without_the_files_says_where_to_give_them(tmp_path, capsys):
+    """A clone has no real recordings: the script says so and fails (it printed an empty
+    table and exited 0)."""
+    pytest.importorskip("ezc3d")
+    script = ROOT / "scripts" / "forceplate_accuracy.py"
+    spec = importlib.util.spec_from_file_location("forceplate_accuracy", script)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert module.main(["--data", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert f"is in {tmp_path}: give their folder with --data DIR" in err

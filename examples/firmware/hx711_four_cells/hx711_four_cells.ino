@@ -1,4 +1,4 @@
-// hapticdesk board: four load cells under a desk's legs, each on its own HX711, one line per
+// hapticdesk board: four load cells under a desk's top, each on its own HX711, one line per
 // sample in hapticdesk's serial line format (docs/serial.md).
 //
 // NOT COMPILED OR RUN BY HAPTICDESK'S TESTS: the tests feed the same format to the source

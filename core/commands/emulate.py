@@ -1,10 +1,13 @@
-"""``hapticdesk emulate --desk D --scene S --bus INTERFACE:CHANNEL [--encoding dbc|ati]``.
+"""``hapticdesk emulate --desk D --scene S (--bus INTERFACE:CHANNEL [--encoding dbc|ati] |
+--serial)``.
 
 Sends a simulated desk's sensor frames onto a CAN bus (python-can's virtual bus, a SocketCAN
-vcan or real hardware), so the whole CAN path can be tried without sensors. ``--recording``
-sends a recorded CSV/NPZ instead of a scene. Database desks stream, paced by sample time
-(``--speed 1``, the default; ``--speed 0`` as fast as possible); ATI boards answer polls, one
-sample per poll, and their calibration requests, so the poller sets the pace.
+vcan or real hardware), so the whole CAN path can be tried without sensors; or, with
+``--serial``, prints its samples as a board on a serial line does, on a pseudo-terminal whose
+path it says (:mod:`hapticdesk.boards.emulator`: ``run --source serial:PATH`` reads it).
+``--recording`` sends a recorded CSV/NPZ instead of a scene. Database desks stream, paced by
+sample time (``--speed 1``, the default; ``--speed 0`` as fast as possible); ATI boards answer
+polls, one sample per poll, and their calibration requests, so the poller sets the pace.
 
 python-can's ``virtual`` bus only reaches buses in the same process: to emulate for another
 program use a SocketCAN ``vcan`` interface (``ip link add dev vcan0 type vcan``) or
@@ -20,6 +23,8 @@ import time
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
+import numpy as np
+
 from hapticdesk.commands import bit_rate, seed_number
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile
@@ -34,8 +39,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
     what = parser.add_mutually_exclusive_group(required=True)
     what.add_argument("--scene", help="scene YAML to simulate and send")
     what.add_argument("--recording", help="recording (.csv, .npz) to send instead of a scene")
-    parser.add_argument(
-        "--bus", required=True, help="INTERFACE:CHANNEL, e.g. socketcan:vcan0 or virtual:desk"
+    where = parser.add_mutually_exclusive_group(required=True)
+    where.add_argument("--bus", help="INTERFACE:CHANNEL, e.g. socketcan:vcan0 or virtual:desk")
+    where.add_argument(
+        "--serial",
+        action="store_true",
+        help="a board on a serial line instead: a pseudo-terminal (its path is printed) "
+        "printing the lines of docs/serial.md",
     )
     parser.add_argument(
         "--encoding",
@@ -60,6 +70,8 @@ class _BusAddress(NamedTuple):
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.serial:
+        return _run_serial(args)
     import can  # (a missing python-can is named before any work)
 
     from hapticdesk.canbus.config_reader import can_config
@@ -111,6 +123,41 @@ def run(args: argparse.Namespace) -> int:
             f"sent {stats.frames} frames ({stats.samples} samples, {summary['encoding']}) "
             f"on {args.bus} in {summary['seconds']:.2f} s"
         )
+    return 0
+
+
+def _run_serial(args: argparse.Namespace) -> int:
+    """``--serial``: the desk's samples printed on a pseudo-terminal until the end (or
+    Ctrl-C; with ``--loop`` until Ctrl-C), the board then still answering its hello."""
+    from hapticdesk.boards.emulator import PtyBoard, board_lines
+
+    check_speed(args.speed)
+    profile = load_profile(args.desk)
+    rec = _samples(args, profile)
+    values = rec.wrench.reshape(len(rec), -1)
+    from hapticdesk.estimator.inertia import accelerometer_readings
+
+    accel = accelerometer_readings(profile, rec.extra)
+    if accel is not None:
+        values = np.concatenate([values, accel], axis=1)
+    hello, lines = board_lines(profile, values)
+    board = PtyBoard(hello, lines, rec.t, speed=args.speed, loop=args.loop)
+    print(
+        f"a board of desk {profile.name} on {board.path}: read it with  hapticdesk run "
+        f"--desk {args.desk} --source serial:{board.path}  (Ctrl-C stops)",
+        file=sys.stderr,
+        flush=True,
+    )
+    start = time.perf_counter()
+    try:
+        board.run()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        board.stop()
+    summary = {"desk": profile.name, "port": board.path, "samples": board.printed,
+               "seconds": round(time.perf_counter() - start, 3)}  # fmt: skip
+    print(json.dumps(summary) if args.json else f"printed {board.printed} samples on {board.path}")
     return 0
 
 

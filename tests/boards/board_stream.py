@@ -10,7 +10,6 @@ moment (an ADS1256 reading four bridges one after the other).
 from __future__ import annotations
 
 import os
-import select
 import threading
 import time
 import tty
@@ -19,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hapticdesk.boards.emulator import read_asks
 from hapticdesk.boards.hello import BoardHello, with_checksum
 from hapticdesk.files.profile import DeskProfile
 from hapticdesk.files.profile_reader import builtin_profile_path, load_profile
@@ -149,17 +149,10 @@ class PtyBoard:
         return self
 
     def _answer(self) -> None:
-        while select.select([self.master], [], [], 0)[0]:
-            try:
-                data = os.read(self.master, 1024)
-            except OSError:
-                return
-            if not data:
-                return
-            for _ in range(data.count(b"?")):
-                self.asked += 1
-                if self.answer_hello:
-                    os.write(self.master, self.hello)
+        for _ in range(read_asks(self.master)):
+            self.asked += 1
+            if self.answer_hello:
+                os.write(self.master, self.hello)
 
     def _write(self) -> None:
         while self.wait_for_ask and not self.asked and not self._stop.is_set():

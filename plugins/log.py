@@ -84,6 +84,9 @@ class LogAction:
     """Prints ``[desk] message`` (or the event's JSON) to standard output."""
 
     timeout_s = 2.0
+    # every binding's log prints to one standard output: in the gestures' order (each
+    # binding's action has its lane, so at --speed 0 a later tap's line came out first)
+    order_key = "log"
 
     def __init__(self, options: Any, context: ActionContext) -> None:
         self.options = parse_options(options, where(options, "`log`"))

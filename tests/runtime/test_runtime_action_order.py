@@ -10,7 +10,7 @@ import time
 import pytest
 
 from hapticdesk.gestures.event import GestureEvent
-from hapticdesk.runtime.dispatcher import Dispatcher, Route
+from hapticdesk.runtime.dispatcher import ActionContext, Dispatcher, Route
 from hapticdesk.runtime.lane import Lane
 from hapticdesk.runtime.ordering import Turnstile
 
@@ -157,3 +157,26 @@ def test_a_turn_lost_is_given_way_to():
     turns.done(first)  # late and twice: harmless
     turns.done(first)
     assert turns.wait_turn(third + 1, 0.0)
+
+
+def test_log_lines_keep_the_gestures_order_across_bindings(capsys):
+    # each binding's `log` runs on its own lane: at --speed 0 a later tap's line came out
+    # before an earlier one's (b2 before b1); they print to one standard output, so they
+    # share an order key
+    from hapticdesk.plugins.log import LogAction
+
+    class SlowFirst(LogAction):  # (the first gesture's line takes a moment to make)
+        def __call__(self, event: GestureEvent) -> None:
+            if event.region == "b1":
+                time.sleep(0.1)
+            super().__call__(event)
+
+    dispatcher = Dispatcher(watchdog_interval_s=0.01)
+    for region in ("b1", "b2"):
+        action = SlowFirst({"message": "{{ region }}"}, ActionContext("desk"))
+        lane = Lane(region, action)
+        dispatcher.add_route(Route(region, lambda e, r=region: e.region == r, [lane]))  # type: ignore[misc]
+    dispatcher.submit(tap(1, "b1"))
+    dispatcher.submit(tap(2, "b2"))
+    assert dispatcher.close(5.0).totals.ok == 2
+    assert capsys.readouterr().out.splitlines() == ["[desk] b1", "[desk] b2"]

@@ -69,8 +69,9 @@ def compare(
     def stats(where: np.ndarray) -> tuple[int, float, float, float]:
         e = err[where]
         got = e[np.isfinite(e)]
-        if not got.size:
-            return int(where.sum()), float("nan"), float("nan"), float("nan")
+        if not got.size:  # (none located: 0 %, no error to take a median of)
+            share = 0.0 if e.size else float("nan")
+            return int(where.sum()), share, float("nan"), float("nan")
         share = got.size / e.size
         return int(where.sum()), share, float(np.median(got)), float(np.percentile(got, 95))
 
@@ -169,15 +170,20 @@ def main(argv: list[str] | None = None) -> int:
     )
     print("|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
-        slow = f"{r['slow']}" + (f" ({r['slow_p95_mm']:.2f} mm)" if r["slow"] else "")
+        slow = f"{r['slow']}" + (f" ({_mm(r['slow_p95_mm'])})" if r["slow"] else "")
         print(
             f"| {r['file']} | {r['plate']} ({r['type']}) | {r['loaded']} "
             f"({r['rate_hz']:g} Hz) | {100 * r['located_share']:.1f} % | "
-            f"{r['median_mm']:.2f} mm | {r['p95_mm']:.2f} mm | {slow} | {r['method']}, "
+            f"{_mm(r['median_mm'])} | {_mm(r['p95_mm'])} | {slow} | {r['method']}, "
             f"{r['lowpass_hz']:g} Hz ({r['delay_ms']:.1f} ms) | "
             f"{r['samples_per_s'] / 1e6:.1f} M samples/s | {r['map_max_mm']:.0e} mm |"
         )
     return 0
+
+
+def _mm(value: float) -> str:
+    """A distance for the table; "–" where nothing was located to measure it."""
+    return f"{value:.2f} mm" if np.isfinite(value) else "–"
 
 
 if __name__ == "__main__":

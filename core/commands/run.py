@@ -135,6 +135,12 @@ def run(args: argparse.Namespace) -> int:
         overrides=overrides(args),
         action_timeout_s=args.action_timeout,
     )
+    if desk is not args.desk and "desk" in scene.layout.raw:  # (the plate's desk, not it)
+        print(
+            f"hapticdesk run: the layout's `desk: {scene.layout.raw['desk']}` is not used: a "
+            f"C3D replay's desk is its force plate {args.plate or 1} (--desk chooses another)",
+            file=sys.stderr,
+        )
     show_status = args.status or sys.stderr.isatty()
     runtime = Runtime(
         scene,

@@ -74,6 +74,22 @@ def test_run_replays_the_plate_as_the_desk(two_plates, tmp_path):
     assert all(abs(e["x"] + 0.09) < 1e-3 and abs(e["y"] - 0.08) < 1e-3 for e in fired)
 
 
+def test_a_layouts_desk_a_plate_replay_does_not_use_is_said(two_plates, tmp_path, capsys):
+    # the layout's `desk:` (which `check` needs) was silently left out for the plate's
+    layout = tmp_path / "plate.yaml"
+    layout.write_text(
+        "desk: kitamura2017\nregions:\n  back: {rect: [-0.2, 0, 0.2, 0.3]}\n"
+        "bindings:\n  - {gesture: press, region: back, do: log}\n"
+    )
+    argv = ["run", "--layout", str(layout), "--source", f"replay:{two_plates}", "--speed", "0"]
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert (
+        "the layout's `desk: kitamura2017` is not used: a C3D replay's desk is its force "
+        "plate 1 (--desk chooses another)" in err
+    )
+
+
 @pytest.mark.parametrize(
     ("argv", "said"),
     [

@@ -82,8 +82,9 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     P_IDLE_QUANTILE,
     P_JUMP_SQ,  # a change of the wrench's force beyond this, squared, in one sample: a jump
     P_JUMP_ARM_INV_SQ,  # ... or of its moment beyond it times the desk's arm: 1 / arm²
+    P_STILL_NOISE_FACTOR,  # ... or this many times the idle desk's quiet spread (yardsticks.py)
     N_PF_FIXED,
-) = range(45)
+) = range(46)
 # --- parameters: fixed int slots (pi) -----------------------------------------------------------
 (
     I_C,  # raw channels

@@ -50,7 +50,7 @@ from hapticdesk.estimator.still_objects import (
     STEP_SPREAD_SHARE,
     STEP_WANDER_SHARE,
 )
-from hapticdesk.estimator.yardsticks import IDLE_QUANTILE, IDLE_WINDOWS
+from hapticdesk.estimator.yardsticks import IDLE_QUANTILE, IDLE_WINDOWS, STILL_NOISE_FACTOR
 from hapticdesk.files.profile import METHODS
 
 
@@ -259,6 +259,7 @@ def _fixed_floats(s: EstimatorSettings) -> dict[int, float]:
         slots.P_IDLE_QUANTILE: IDLE_QUANTILE,
         slots.P_JUMP_SQ: s.jump_n**2,
         slots.P_JUMP_ARM_INV_SQ: 1.0 / s.jump_arm_m**2,
+        slots.P_STILL_NOISE_FACTOR: STILL_NOISE_FACTOR,
     }
 
 

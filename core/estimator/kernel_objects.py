@@ -33,6 +33,7 @@ from hapticdesk.estimator.kernel_slots import (
     P_HEAVY_WANDER_SHARE,
     P_LIFT_TOLERANCE,
     P_LIGHT_LOAD,
+    P_NOISY_STILL_SHARE,
     P_NOISY_WANDER_SHARE,
     P_OBJECT_NOISE_FLOOR,
     P_OBJECT_RESTING_KEEP,
@@ -52,7 +53,6 @@ from hapticdesk.estimator.kernel_yardsticks import (
     nth_smallest,
     ring_push,
     ring_wander,
-    still_limit,
 )
 
 
@@ -123,11 +123,12 @@ def _waits(
     light: bool, allowed: float, load: float, pf: np.ndarray, pi: np.ndarray, sf: np.ndarray
 ) -> tuple[int, int]:
     """The windows a load's resting is judged on (I_N_OBJECT, one more when ``light``) and
-    the windows it waits to be an object: I_N_NOISY_EXTRA more where the desk's own noise
-    sets the still limit and the wander ``allowed`` is P_NOISY_WANDER_SHARE of the ``load``
-    or more (still_objects.NOISY_EXTRA_WINDOWS says why)."""
+    the windows it waits to be an object: I_N_NOISY_EXTRA more on a desk whose idle windows
+    spread P_NOISY_STILL_SHARE of P_STILL_N or more and where the wander ``allowed`` is
+    P_NOISY_WANDER_SHARE of the ``load`` or more (still_objects.NOISY_EXTRA_WINDOWS says
+    why)."""
     judged = pi[I_N_OBJECT] + 1 if light else pi[I_N_OBJECT]
-    noisy = still_limit(pf, sf) > pf[P_STILL_N]
+    noisy = sf[S_QUIET_SPREAD] >= pf[P_NOISY_STILL_SHARE] * pf[P_STILL_N]
     if noisy and allowed >= pf[P_NOISY_WANDER_SHARE] * load:
         return judged, judged + pi[I_N_NOISY_EXTRA]
     return judged, judged

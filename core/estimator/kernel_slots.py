@@ -84,8 +84,9 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     P_JUMP_ARM_INV_SQ,  # ... or of its moment beyond it times the desk's arm: 1 / arm²
     P_STILL_NOISE_FACTOR,  # ... or this many times the idle desk's quiet spread (yardsticks.py)
     P_NOISY_WANDER_SHARE,  # still_objects.NOISY_WANDER_SHARE
+    P_NOISY_STILL_SHARE,  # still_objects.NOISY_STILL_SHARE
     N_PF_FIXED,
-) = range(47)
+) = range(48)
 # --- parameters: fixed int slots (pi) -----------------------------------------------------------
 (
     I_C,  # raw channels

@@ -43,6 +43,7 @@ from hapticdesk.estimator.still_objects import (
     LIFT_TOLERANCE,
     LIGHT_LOAD_N,
     NOISY_EXTRA_WINDOWS,
+    NOISY_STILL_SHARE,
     NOISY_WANDER_SHARE,
     OBJECT_NOISE_FLOOR_N,
     OBJECT_RESTING_KEEP,
@@ -263,6 +264,7 @@ def _fixed_floats(s: EstimatorSettings) -> dict[int, float]:
         slots.P_JUMP_ARM_INV_SQ: 1.0 / s.jump_arm_m**2,
         slots.P_STILL_NOISE_FACTOR: STILL_NOISE_FACTOR,
         slots.P_NOISY_WANDER_SHARE: NOISY_WANDER_SHARE,
+        slots.P_NOISY_STILL_SHARE: NOISY_STILL_SHARE,
     }
 
 

@@ -140,10 +140,21 @@ def under_the_legs(desk: DeskProfile) -> DeskProfile:
     return replace(desk, sensors=sensors, mass_kg=13.7, center_of_mass_m=None)
 
 
-def random_desk(rng: np.random.Generator, index: int) -> DeskProfile:
-    """An unseen load-cell desk (see the module docstring)."""
-    width, depth = rng.uniform(0.5, 1.6), rng.uniform(0.4, 0.9)
-    count = int(rng.integers(3, 7))
+def random_desk(
+    rng: np.random.Generator,
+    index: int,
+    *,
+    count: int | None = None,
+    rate_hz: float | None = None,
+    widths_m: tuple[float, float] = (0.5, 1.6),
+    name: str = "unseen-loadcells",
+) -> DeskProfile:
+    """An unseen load-cell desk (see the module docstring); ``count`` cells (3–6, or 8: four
+    along each long side), ``rate_hz`` and the range of widths fix what is otherwise drawn
+    (the same draws either way, so the unseen desks stay as they were)."""
+    width, depth = rng.uniform(*widths_m), rng.uniform(0.4, 0.9)
+    drawn = int(rng.integers(3, 7))
+    count = count or drawn
     inset = rng.uniform(0.03, 0.08)
     hx, hy = width / 2 - inset, depth / 2 - inset
     places = {
@@ -151,10 +162,11 @@ def random_desk(rng: np.random.Generator, index: int) -> DeskProfile:
         4: [(-hx, -hy), (hx, -hy), (-hx, hy), (hx, hy)],
         5: [(-hx, -hy), (hx, -hy), (-hx, hy), (hx, hy), (0.0, hy)],
         6: [(-hx, -hy), (0.0, -hy), (hx, -hy), (-hx, hy), (0.0, hy), (hx, hy)],
+        8: [(x, y) for y in (-hy, hy) for x in (-hx, -hx / 3, hx / 3, hx)],
     }[count]
     cells_z = rng.uniform(0.4, 0.75)
     top = cells_z + rng.uniform(0.02, 0.06)
-    rate = (80, 1000)[index % 2]
+    rate = rate_hz or (80, 1000)[index % 2]
     rated = float(rng.choice([196.0, 490.0, 980.0]))
     lines = []
     for i, (x, y) in enumerate(places):
@@ -181,8 +193,8 @@ def random_desk(rng: np.random.Generator, index: int) -> DeskProfile:
         mass / 12 * (width**2 + board**2),
         mass / 12 * (width**2 + depth**2),
     ]
-    text = f"""name: unseen-loadcells-{index + 1}
-sample_rate_hz: {rate}
+    text = f"""name: {name}-{index + 1}
+sample_rate_hz: {rate:g}
 desk:
   mass_kg: {mass:.3f}
   natural_frequency_hz: {rng.uniform(4, 9):.2f}
@@ -197,7 +209,7 @@ surfaces:
     polygon: {outline}
 estimation: {{method: fused, sway_compensation: false, force_lowpass_hz: 8, diff_lowpass_hz: 8}}
 """
-    path = Path(f"unseen-loadcells-{index + 1}.yaml")
+    path = Path(f"{name}-{index + 1}.yaml")
     return profile_from_mapping(load_marked_yaml(path, text), path)
 
 

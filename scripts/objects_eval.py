@@ -21,7 +21,13 @@ objects of 0.15, 0.3, 0.5 and 1.5 kg (a phone, a cup, a full mug, a heavy book) 
 (a tier fired: a gesture nobody made) and fingers
 holding it 2 s at 2.6, 4, 8 and 15 N (how much later than its tier the long press fired).
 
-    python scripts/objects_eval.py [--seeds 4] [--long-press]
+With ``--desks loadcells``: instead of those desks, load-cell desks read by HX711s
+(hapticdesk.sim.loadcells, the converter their rate implies): the shipped
+kitamura2017-loadcells-80hz and balance-board (80 Hz), and desks drawn as
+``loadcell_accuracy.random_desk`` draws its unseen ones (1.2–1.6 m wide here) with 8 and with
+4 cells, at 50 and at 80 Hz (``DRAWN_DESKS`` of each); each desk's figures are printed too.
+
+    python scripts/objects_eval.py [--seeds 4] [--long-press] [--desks paper|loadcells]
 """
 
 from __future__ import annotations
@@ -35,6 +41,7 @@ from typing import Any
 import numpy as np
 import touch_release_eval as tre  # (scripts beside this one)
 import vibration_eval as ve
+from loadcell_accuracy import random_desk
 from tap_accuracy import (
     UNSEEN_DESKS,
     add_sway_compensation_option,
@@ -72,6 +79,29 @@ def desks(folder: Path) -> dict[str, DeskProfile]:
         found[name] = unseen_desk(name)
     for name in ("heavy-six", "small-light"):
         found[name] = ve._variant_profile(name, ve.PANEL_VARIANTS[name], folder)
+    return found
+
+
+#: the load-cell desks drawn (``--desks loadcells``): this many of each count and rate, from
+#: this seed
+DRAWN_DESKS = 3
+DRAWN_SEED = 8050
+DRAWN_WIDTHS_M = (1.2, 1.6)
+SHIPPED_LOADCELL_DESKS = ("kitamura2017-loadcells-80hz", "balance-board")
+
+
+def loadcell_desks() -> dict[str, DeskProfile]:
+    """The load-cell desks measured (``--desks loadcells``; the module docstring), by name."""
+    found = {name: load_profile(name) for name in SHIPPED_LOADCELL_DESKS}
+    rng = np.random.default_rng(DRAWN_SEED)
+    for count in (8, 4):
+        for rate in (50, 80):
+            for k in range(DRAWN_DESKS):
+                name = f"cells{count}-{rate}hz"
+                desk = random_desk(
+                    rng, k, count=count, rate_hz=rate, widths_m=DRAWN_WIDTHS_M, name=name
+                )
+                found[desk.name] = desk
     return found
 
 
@@ -190,51 +220,80 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=4)
     parser.add_argument("--long-press", action="store_true", help="objects and fingers on a button")
+    parser.add_argument(
+        "--desks",
+        choices=("paper", "loadcells"),
+        default="paper",
+        help="the paper's desk and six unlike it (default), or load-cell desks",
+    )
     add_sway_compensation_option(parser, "every desk")
     args = parser.parse_args()
 
     def desks_as_asked(folder: Path) -> dict[str, DeskProfile]:
-        found = desks(folder).items()
+        found = (desks(folder) if args.desks == "paper" else loadcell_desks()).items()
         return {name: with_sway_compensation(d, args.sway_compensation) for name, d in found}
 
     started = time.perf_counter()
-    if args.long_press:
-        delays: dict[float, list[float]] = {}
-        fired_by: dict[float, list[bool]] = {}
-        with tempfile.TemporaryDirectory() as folder:
-            for desk in desks_as_asked(Path(folder)).values():
-                d, o = long_presses(desk, Path(folder), range(1, args.seeds + 1))
-                for key, values in d.items():
-                    delays.setdefault(key, []).extend(values)
-                for key, flags in o.items():
-                    fired_by.setdefault(key, []).extend(flags)
-        for force, values in delays.items():
-            late = np.array(values) * 1e3
-            ok = np.isfinite(late)
-            p95 = np.percentile(late[ok], 95)
-            print(
-                f"finger long press {force:g} N: fired {ok.sum()} of {len(late)}; after its "
-                f"tier by a median {np.median(late[ok]):.0f} ms, p95 {p95:.0f} ms, at most "
-                f"{late[ok].max():.0f} ms"
-            )
-        for mass, flags in fired_by.items():
-            fired = f"{sum(flags)} of {len(flags)}"
-            print(f"a {mass:g} kg object put on the button: a long press fired {fired}")
-        print(f"({time.perf_counter() - started:.0f} s)")
-        return
-    totals: dict[str, list] = {"delays": [], "lifts": [], "worse": [], "taken": []}
+    seeds = range(1, args.seeds + 1)
     with tempfile.TemporaryDirectory() as folder:
-        for name, desk in desks_as_asked(Path(folder)).items():
-            runs = [objects(desk, s) for s in range(1, args.seeds + 1)]
-            delays = np.array([d for run in runs for d in run[0]])
-            lifts = np.array([d for run in runs for d in run[1]])
-            worse = np.array([d for run in runs for d in run[2]]) * 1e3
-            taken = [x for s in range(1, args.seeds + 1) for x in holds(desk, s)]
-            for key, values in zip(totals, (delays, lifts, worse, taken), strict=True):
-                totals[key] += list(values)
-            print(f"{name:12s} " + _line(delays, lifts, worse, taken))
-    print("all          " + _line(*(np.array(v) for v in totals.values())))  # type: ignore[misc]
+        found = desks_as_asked(Path(folder))
+        if args.long_press:
+            long_press_report(found, Path(folder), seeds, each=args.desks == "loadcells")
+        else:
+            objects_report(found, seeds)
     print(f"({time.perf_counter() - started:.0f} s)")
+
+
+def long_press_report(
+    found: dict[str, DeskProfile], folder: Path, seeds: range, each: bool
+) -> None:
+    """Print :func:`long_presses` over ``found``'s desks (``each``: each desk's line too)."""
+    delays: dict[float, list[float]] = {}
+    fired_by: dict[float, list[bool]] = {}
+    for name, desk in found.items():
+        d, o = long_presses(desk, folder, seeds)
+        if each:
+            objects = " / ".join(f"{sum(o[m])}" for m in OBJECTS_ON_BUTTON_KG)
+            fingers = " / ".join(f"{int(np.isfinite(d[f]).sum())}" for f in d)
+            late = np.concatenate([np.array(v) for v in d.values()])
+            late = late[np.isfinite(late)] * 1e3
+            print(
+                f"{name:30s} {desk.sample_rate_hz:g} Hz, {len(desk.sensors)} cells: objects "
+                f"{'/'.join(f'{m:g}' for m in OBJECTS_ON_BUTTON_KG)} kg fired {objects} of "
+                f"{len(seeds)}; fingers {'/'.join(f'{f:g}' for f in d)} N fired {fingers}, "
+                f"late p50 {np.median(late):.0f} ms, p95 {np.percentile(late, 95):.0f} ms"
+            )
+        for key, values in d.items():
+            delays.setdefault(key, []).extend(values)
+        for key, flags in o.items():
+            fired_by.setdefault(key, []).extend(flags)
+    for force, values in delays.items():
+        late = np.array(values) * 1e3
+        ok = np.isfinite(late)
+        p95 = np.percentile(late[ok], 95)
+        print(
+            f"finger long press {force:g} N: fired {ok.sum()} of {len(late)}; after its "
+            f"tier by a median {np.median(late[ok]):.0f} ms, p95 {p95:.0f} ms, at most "
+            f"{late[ok].max():.0f} ms"
+        )
+    for mass, flags in fired_by.items():
+        fired = f"{sum(flags)} of {len(flags)}"
+        print(f"a {mass:g} kg object put on the button: a long press fired {fired}")
+
+
+def objects_report(found: dict[str, DeskProfile], seeds: range) -> None:
+    """Print :func:`objects` and :func:`holds` over ``found``'s desks, and all of them."""
+    totals: dict[str, list] = {"delays": [], "lifts": [], "worse": [], "taken": []}
+    for name, desk in found.items():
+        runs = [objects(desk, s) for s in seeds]
+        delays = np.array([d for run in runs for d in run[0]])
+        lifts = np.array([d for run in runs for d in run[1]])
+        worse = np.array([d for run in runs for d in run[2]]) * 1e3
+        taken = [x for s in seeds for x in holds(desk, s)]
+        for key, values in zip(totals, (delays, lifts, worse, taken), strict=True):
+            totals[key] += list(values)
+        print(f"{name:12s} " + _line(delays, lifts, worse, taken))
+    print("all          " + _line(*(np.array(v) for v in totals.values())))  # type: ignore[misc]
 
 
 def _line(delays: np.ndarray, lifts: np.ndarray, worse: np.ndarray, taken: Any) -> str:

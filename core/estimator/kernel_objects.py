@@ -17,6 +17,7 @@ import numpy as np
 from hapticdesk.estimator.kernel_compile import inlined
 from hapticdesk.estimator.kernel_slots import (
     I_C,
+    I_N_NOISY_EXTRA,
     I_N_OBJECT,
     I_PO_MAP,
     I_SO_OBJ_WINDOWS,
@@ -32,6 +33,8 @@ from hapticdesk.estimator.kernel_slots import (
     P_HEAVY_WANDER_SHARE,
     P_LIFT_TOLERANCE,
     P_LIGHT_LOAD,
+    P_NOISY_STILL_SHARE,
+    P_NOISY_WANDER_SHARE,
     P_OBJECT_NOISE_FLOOR,
     P_OBJECT_RESTING_KEEP,
     P_OBJECT_SPIKE,
@@ -46,7 +49,11 @@ from hapticdesk.estimator.kernel_slots import (
     S_QUIET_WANDER,
     S_WIN_MEAN,
 )
-from hapticdesk.estimator.kernel_yardsticks import nth_smallest, ring_push, ring_wander
+from hapticdesk.estimator.kernel_yardsticks import (
+    nth_smallest,
+    ring_push,
+    ring_wander,
+)
 
 
 @inlined
@@ -66,10 +73,11 @@ def object_still(
     its mean force less the zero and that force's size ``load``): is it held long enough as
     still as the idle desk to be an object? Returns the run's new length (0: no object, for
     now) and the verdict. Judged on the last I_N_OBJECT windows (one more under
-    P_LIGHT_LOAD): their means within the allowed wander of each other, their upper median
-    spread within the limit, none over P_OBJECT_SPIKE times it (but one of a light load that
-    rests on through it, J_OBJ_GRACED). Also notes whether the load rests (J_OBJ_RESTING: its
-    windows so far as still as an object's)."""
+    P_LIGHT_LOAD; I_N_NOISY_EXTRA more on a noisy desk, :func:`_waits`): their means
+    within the allowed wander of each other, their upper median spread within the limit, none
+    over P_OBJECT_SPIKE times it (but one of a light load that rests on through it,
+    J_OBJ_GRACED). Also notes whether the load rests (J_OBJ_RESTING: its last windows so
+    far, as many as elsewhere, as still as an object's)."""
     n_object = pi[I_N_OBJECT]
     quiet_spread, quiet_wander = _yardsticks(pf, pi, sf, si)
     limit = max(pf[P_OBJECT_STILL_FACTOR] * quiet_spread, pf[P_HEAVY_SPREAD_SHARE] * load)
@@ -89,24 +97,41 @@ def object_still(
     if run == 0:
         si[J_OBJ_WINDOWS_N] = si[J_OBJ_GRACED] = 0
     run += 1
-    wait = n_object + 1 if light else n_object
-    cap, at = n_object + 1, pi[I_SO_OBJ_WINDOWS]
+    allowed = max(pf[P_OBJECT_WANDER_FACTOR] * quiet_wander, pf[P_HEAVY_WANDER_SHARE] * load)
+    judged, wait = _waits(light, allowed, load, pf, pi, sf)
+    cap, at = n_object + 1 + pi[I_N_NOISY_EXTRA], pi[I_SO_OBJ_WINDOWS]
     k = ring_push(si, J_OBJ_WINDOWS_N, J_OBJ_WINDOWS_POS, cap, wait)
     sf[at + 4 * k] = spread
     sf[at + 4 * k + 1], sf[at + 4 * k + 2], sf[at + 4 * k + 3] = f0, f1, f2
     n, pos = si[J_OBJ_WINDOWS_N], si[J_OBJ_WINDOWS_POS]
     strayed = ring_wander(sf, at, cap, pos, n)
-    allowed = max(pf[P_OBJECT_WANDER_FACTOR] * quiet_wander, pf[P_HEAVY_WANDER_SHARE] * load)
+    recent = strayed if n <= judged else ring_wander(sf, at, cap, pos, judged)
     # the resting flag, once up in this run, drops only past P_OBJECT_RESTING_KEEP times the
     # allowed wander (still_objects.OBJECT_RESTING_KEEP says why)
     keep = pf[P_OBJECT_RESTING_KEEP] if si[J_OBJ_RESTING] and run > 1 else 1.0
-    si[J_OBJ_RESTING] = 1 if strayed < keep * allowed else 0
+    si[J_OBJ_RESTING] = 1 if recent < keep * allowed else 0
     if spiked:
         si[J_OBJ_GRACED] = 1
         return (run, False) if si[J_OBJ_RESTING] else (0, False)
     median = nth_smallest(sf, at, 4, cap, pos, n, n // 2, pi[I_SO_SCRATCH])
     # (a load that strays is no object, for now)
     return run, strayed < allowed and run >= wait and median < limit
+
+
+@inlined
+def _waits(
+    light: bool, allowed: float, load: float, pf: np.ndarray, pi: np.ndarray, sf: np.ndarray
+) -> tuple[int, int]:
+    """The windows a load's resting is judged on (I_N_OBJECT, one more when ``light``) and
+    the windows it waits to be an object: I_N_NOISY_EXTRA more on a desk whose idle windows
+    spread P_NOISY_STILL_SHARE of P_STILL_N or more and where the wander ``allowed`` is
+    P_NOISY_WANDER_SHARE of the ``load`` or more (still_objects.NOISY_EXTRA_WINDOWS says
+    why)."""
+    judged = pi[I_N_OBJECT] + 1 if light else pi[I_N_OBJECT]
+    noisy = sf[S_QUIET_SPREAD] >= pf[P_NOISY_STILL_SHARE] * pf[P_STILL_N]
+    if noisy and allowed >= pf[P_NOISY_WANDER_SHARE] * load:
+        return judged, judged + pi[I_N_NOISY_EXTRA]
+    return judged, judged
 
 
 @inlined

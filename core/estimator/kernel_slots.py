@@ -82,8 +82,11 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     P_IDLE_QUANTILE,
     P_JUMP_SQ,  # a change of the wrench's force beyond this, squared, in one sample: a jump
     P_JUMP_ARM_INV_SQ,  # ... or of its moment beyond it times the desk's arm: 1 / arm²
+    P_STILL_NOISE_FACTOR,  # ... or this many times the idle desk's quiet spread (yardsticks.py)
+    P_NOISY_WANDER_SHARE,  # still_objects.NOISY_WANDER_SHARE
+    P_NOISY_STILL_SHARE,  # still_objects.NOISY_STILL_SHARE
     N_PF_FIXED,
-) = range(45)
+) = range(48)
 # --- parameters: fixed int slots (pi) -----------------------------------------------------------
 (
     I_C,  # raw channels
@@ -118,6 +121,7 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     I_IDLE_WINDOWS,  # the idle windows whose spreads and wanders make the yardsticks
     I_ZEROED,  # the readings come zeroed: the zero is 0 from the first good sample, no windows
     I_REST_N,  # rest readings whose changes measure each channel's noise (resolution.py)
+    I_N_NOISY_EXTRA,  # windows more an object waits where the noise sets the still limit
     # offsets into pf
     I_PO_MAP,  # (C, 6) channels -> [F_o; M_o]: the matrix (6, C) stored by channel
     I_PO_LIMIT,  # (C,) a channel at or beyond this is saturated
@@ -172,7 +176,7 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     I_JO_WIN_BAD,  # (WINDOW,)
     I_JO_MT_HIST,  # (2·LAG + 1, MT_I)
     N_PI,
-) = range(82)
+) = range(83)
 # a surface in pf: the rows of F'z, M'x, M'y of its wrench transform, origin, axes, normal,
 # bounds of its outline; in pi: whether the outline is a rectangle, whether (u, v) are the
 # desk's (x, y), where its polygon's vertices are in pf and how many

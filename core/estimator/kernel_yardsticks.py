@@ -31,6 +31,8 @@ from hapticdesk.estimator.kernel_slots import (
     J_IDLE_WANDERS_N,
     J_IDLE_WANDERS_POS,
     P_IDLE_QUANTILE,
+    P_STILL_N,
+    P_STILL_NOISE_FACTOR,
     S_QUIET_SPREAD,
     S_QUIET_WANDER,
 )
@@ -159,3 +161,11 @@ def tare_yardsticks(
         row = windows[j]
         idle_window_joins(row[0], row[1], row[2], row[3], int(row[4]), pi, sf, si)
     yardsticks_update(pf, pi, sf, si)
+
+
+@inlined
+def still_limit(pf: np.ndarray, sf: np.ndarray) -> float:
+    """How far a still window's low-passed force may spread: ``still_n``, or on a desk whose
+    own idle windows spread more, P_STILL_NOISE_FACTOR times their median (S_QUIET_SPREAD,
+    yardsticks.STILL_NOISE_FACTOR says why)."""
+    return max(pf[P_STILL_N], pf[P_STILL_NOISE_FACTOR] * sf[S_QUIET_SPREAD])

@@ -75,7 +75,11 @@ from hapticdesk.estimator.kernel_slots import (
     S_ZERO_T_NEXT,
 )
 from hapticdesk.estimator.kernel_sums import exact_mean, pairwise_sum
-from hapticdesk.estimator.kernel_yardsticks import idle_window_joins, yardsticks_update
+from hapticdesk.estimator.kernel_yardsticks import (
+    idle_window_joins,
+    still_limit,
+    yardsticks_update,
+)
 
 
 @inlined
@@ -123,7 +127,7 @@ def window_add(
     si[J_WIN_BADS] = bads
     spread = _window_spread(pi, sf, w)
     si[J_WINDOW_INDEX] += 1
-    if si[J_TARED] and (bads / w > 0.1 or spread >= pf[P_STILL_N]):
+    if si[J_TARED] and (bads / w > 0.1 or spread >= still_limit(pf, sf)):
         # once tared, a window that is not still (or mostly held over) only ends a still run
         # and the resting, from the next sample on
         si[J_STILL_RUN] = si[J_OBJECT_RUN] = 0

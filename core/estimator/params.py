@@ -42,6 +42,9 @@ from hapticdesk.estimator.still_objects import (
     HEAVY_WANDER_SHARE,
     LIFT_TOLERANCE,
     LIGHT_LOAD_N,
+    NOISY_EXTRA_WINDOWS,
+    NOISY_STILL_SHARE,
+    NOISY_WANDER_SHARE,
     OBJECT_NOISE_FLOOR_N,
     OBJECT_RESTING_KEEP,
     OBJECT_SPIKE,
@@ -50,7 +53,7 @@ from hapticdesk.estimator.still_objects import (
     STEP_SPREAD_SHARE,
     STEP_WANDER_SHARE,
 )
-from hapticdesk.estimator.yardsticks import IDLE_QUANTILE, IDLE_WINDOWS
+from hapticdesk.estimator.yardsticks import IDLE_QUANTILE, IDLE_WINDOWS, STILL_NOISE_FACTOR
 from hapticdesk.files.profile import METHODS
 
 
@@ -169,7 +172,7 @@ def params_of(s: EstimatorSettings, inertia: InertiaSettings | None) -> Params:
         lag=max(1, round(LAG_S * fs)),
         landing=max(1, round(LANDING_S * fs)),
         span=s.sway.span if s.sway is not None else 0,
-        still_ring=max(s.n_drift, s.n_object + 1),
+        still_ring=max(s.n_drift, s.n_object + 1 + NOISY_EXTRA_WINDOWS),
         # the idle desk's wander is measured over as many windows as an object waits
         wander_windows=max(2, s.n_object),
         live_n=max(1, round(LIVE_AGAIN_S * fs)),
@@ -259,6 +262,9 @@ def _fixed_floats(s: EstimatorSettings) -> dict[int, float]:
         slots.P_IDLE_QUANTILE: IDLE_QUANTILE,
         slots.P_JUMP_SQ: s.jump_n**2,
         slots.P_JUMP_ARM_INV_SQ: 1.0 / s.jump_arm_m**2,
+        slots.P_STILL_NOISE_FACTOR: STILL_NOISE_FACTOR,
+        slots.P_NOISY_WANDER_SHARE: NOISY_WANDER_SHARE,
+        slots.P_NOISY_STILL_SHARE: NOISY_STILL_SHARE,
     }
 
 
@@ -293,6 +299,7 @@ def _counts(s: EstimatorSettings, inertia: InertiaSettings | None, n: _Sizes) ->
         slots.I_STILL_RING: n.still_ring,
         slots.I_N_SETTLE: s.n_settle,
         slots.I_N_OBJECT: s.n_object,
+        slots.I_N_NOISY_EXTRA: NOISY_EXTRA_WINDOWS,
         slots.I_WANDER_WINDOWS: n.wander_windows,
         slots.I_IDLE_WINDOWS: IDLE_WINDOWS,
         slots.I_ZEROED: int(s.user.zeroed),
@@ -368,8 +375,8 @@ def _state_parts(s: EstimatorSettings, n: _Sizes, sf: _Packer, si: _Packer) -> d
         slots.I_SO_IDLE_SPREADS: sf.room(IDLE_WINDOWS),
         slots.I_SO_IDLE_WANDERS: sf.room(IDLE_WINDOWS),
         slots.I_SO_IDLE_TAIL: sf.room(4 * n.wander_windows),
-        slots.I_SO_OBJ_WINDOWS: sf.room(4 * (s.n_object + 1)),
-        slots.I_SO_SCRATCH: sf.room(IDLE_WINDOWS + s.n_object + 1),
+        slots.I_SO_OBJ_WINDOWS: sf.room(4 * (s.n_object + 1 + NOISY_EXTRA_WINDOWS)),
+        slots.I_SO_SCRATCH: sf.room(IDLE_WINDOWS + s.n_object + 1 + NOISY_EXTRA_WINDOWS),
         slots.I_SO_ROUND: sf.room(slots.ROUND_SPREAD + 7 * c_n + 5 * c_n * max(1, len(s.frames))),
         slots.I_SO_REST_SQ: sf.room(c_n),
         slots.I_JO_CHANGES: si.room(c_n),

@@ -214,6 +214,15 @@ def fit_cells(
             f"each spot needs {len(alpha0)} finite readings (the desk's channels "
             f"{', '.join(profile.channel_names())})",
         )
+    # a scale every cell shares (a board's `scale` worked out roughly: an HX711's gain, the
+    # cells' rating) is no cell's own ±10 %: where the weight as the profile reads it on the
+    # spots is off by more than a cell's own spread, that share is taken out first (×0.6
+    # readings left the cells' places 12 mm off; within it, the prior stays the profile's:
+    # taken out there too, the leave-one-out of scripts/loadcell_accuracy.py grew 0.1-0.3 mm)
+    read_as = float(np.mean(readings @ alpha0))
+    common = weight / read_as if read_as > 0 and np.isfinite(read_as) else 1.0
+    if abs(common - 1.0) > gain_sd:
+        alpha0, beta0, gamma0 = alpha0 * common, beta0 * common, gamma0 * common
     # prior spread of α, β, γ around the profile's (β = α x: its gain's and position's)
     sd_alpha = gain_sd * np.abs(alpha0)
     sd_beta = np.hypot(sd_alpha * pos0[:, 0], np.abs(alpha0) * position_sd_m)

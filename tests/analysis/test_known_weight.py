@@ -103,6 +103,23 @@ def test_after_four_spots_of_1_kg_a_press_lands_within_5_mm(
     assert check_spot(result.fit, spots[4], 1.0).error_m < 0.005
 
 
+@pytest.mark.parametrize("scale", [0.3, 0.45, 0.6, 2.0, 3.0])
+def test_a_board_scale_off_by_a_factor_still_calibrates(
+    nominal: DeskProfile, setup_recording: Recording, scale: float
+) -> None:
+    """A `scale` worked out roughly (an HX711's gain 64 for 128: ×0.5) puts every cell's
+    readings off by one factor: found and taken out, no cell's own ±10 %. Before: ×0.6 left
+    the check spot 12 mm off, ×0.45 found no rests, ×2 and ×3 3 mm off."""
+    points = np.vstack([suggested_spots(nominal, 4), [[0.1, 0.05]]])
+    rec = setup_recording
+    spots = spots_from_recording(nominal, rec.t, rec.channels * scale, points, 1.0)
+    result = calibrate(nominal, spots, 1.0)
+    assert result.check is not None and result.passed
+    assert result.check.error_m < 0.002, result.check.error_m
+    assert abs(result.check.mass_error) < 0.01
+    np.testing.assert_allclose(result.fit.gains * scale, 1 / np.array(GAINS), rtol=0.02)
+
+
 def test_the_check_spot_is_left_out_of_the_fit(
     nominal: DeskProfile, setup_recording: Recording
 ) -> None:

@@ -155,6 +155,11 @@ class PtyBoard:
             except OSError:  # (the terminal closed: stop())
                 return
 
+    def halt(self, signum: int = 0, frame: object = None) -> None:
+        """Have :meth:`run` return soon (a signal handler's signature: Ctrl-C or SIGTERM;
+        a process started in the background by a shell ignores Ctrl-C's KeyboardInterrupt)."""
+        self._stop.set()
+
     def stop(self) -> None:
         """Stop printing and close the terminal."""
         self._stop.set()

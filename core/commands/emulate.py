@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
 import time
 from collections.abc import Callable
@@ -149,12 +150,14 @@ def _run_serial(args: argparse.Namespace) -> int:
         flush=True,
     )
     start = time.perf_counter()
+    stops = (signal.SIGINT, signal.SIGTERM)
+    previous = {s: signal.signal(s, board.halt) for s in stops}  # (Ctrl-C, or a kill)
     try:
         board.run()
-    except KeyboardInterrupt:
-        pass
     finally:
         board.stop()
+        for s, handler in previous.items():
+            signal.signal(s, handler)
     summary = {"desk": profile.name, "port": board.path, "samples": board.printed,
                "seconds": round(time.perf_counter() - start, 3)}  # fmt: skip
     print(json.dumps(summary) if args.json else f"printed {board.printed} samples on {board.path}")

@@ -56,19 +56,18 @@ def event_sink(
     require("starlette", "uvicorn", "ruamel.yaml", needed_by="the browser UI (`--ui`)")
 
     def open_server() -> UiServer:
-        from hapticdesk.plugins.ui.guard import check_token
         from hapticdesk.plugins.ui.page_token import page_token
         from hapticdesk.plugins.ui.server import UiServer, parse_listen
 
         host, port = parse_listen(str(wanted["listen"]))
         token, where = page_token(wanted.get("token"), wanted.get("token_file"))
-        check_token(host, token, "--ui", where)  # (naming the file a short token came from)
         server = UiServer(
             layout.path,
             None,  # the registry arrives with the run, in startup
             host=host,
             port=port,
             token=token,
+            token_from=where,  # (a short token's refusal names the file it came from)
             desk=desk,
         )
         server.start()

@@ -83,9 +83,9 @@ def parse_listen(text: str) -> tuple[str, int]:
 
 class UiServer:
     """The page and its API for one layout file, and the live view of whichever run is
-    attached (:meth:`attach`). ``token``: required from every request when not None;
-    ``desk``: a profile overriding the layout's ``desk:``; ``read_only``: the shipped demo
-    layout, shown and never written."""
+    attached (:meth:`attach`). ``token``: required from every request when not None (a
+    refusal of it names ``token_from``: where it came from); ``desk``: a profile overriding
+    the layout's ``desk:``; ``read_only``: the shipped demo layout, shown and never written."""
 
     def __init__(
         self,
@@ -95,10 +95,11 @@ class UiServer:
         host: str = "127.0.0.1",
         port: int = 8765,
         token: str | None = None,
+        token_from: str = "--ui",
         desk: DeskProfile | None = None,
         read_only: bool = False,
     ) -> None:
-        check_token(host, token, "--ui", "--ui")
+        check_token(host, token, "--ui", token_from)
         self.shown = ShownDesk(layout_path, registry, desk, read_only)
         self.hub = Hub()
         self.host, self.port = host, port

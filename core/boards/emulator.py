@@ -23,7 +23,7 @@ import tty
 import numpy as np
 
 from hapticdesk.boards.hello import BoardHello, with_checksum
-from hapticdesk.boards.settings import SerialSettings, board_channels, serial_settings
+from hapticdesk.boards.settings import board_channels, serial_settings
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.profile import DeskProfile
 
@@ -35,7 +35,7 @@ def board_lines(profile: DeskProfile, values: np.ndarray) -> tuple[str, list[byt
     """The hello and the sample lines (each with its checksum and newline) a board of
     ``profile`` prints for ``values`` (n, C) in the profile's units, in its channels' order
     (:func:`~hapticdesk.boards.settings.board_channels`)."""
-    settings = _settings(profile)
+    settings = serial_settings(profile, "emulated")  # (its scale, zero and offsets: any port)
     channels = board_channels(profile)
     if values.shape[1:] != (len(channels),):
         raise ConfigError(
@@ -59,11 +59,6 @@ def board_lines(profile: DeskProfile, values: np.ndarray) -> tuple[str, list[byt
     stamps = np.arange(len(values)).astype(str)
     rows = [",".join((stamp, *row)) for stamp, row in zip(stamps, cells.tolist(), strict=True)]
     return with_checksum(hello.text()), [(with_checksum(r) + "\n").encode() for r in rows]
-
-
-def _settings(profile: DeskProfile) -> SerialSettings:
-    """The profile's ``serial:`` settings (scale, zero, offsets), whatever its port."""
-    return serial_settings(profile, "emulated")
 
 
 def read_asks(master: int) -> int:

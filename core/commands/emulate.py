@@ -131,13 +131,12 @@ def _run_serial(args: argparse.Namespace) -> int:
     """``--serial``: the desk's samples printed on a pseudo-terminal until the end (or
     Ctrl-C; with ``--loop`` until Ctrl-C), the board then still answering its hello."""
     from hapticdesk.boards.emulator import PtyBoard, board_lines
+    from hapticdesk.estimator.inertia import accelerometer_readings
 
     check_speed(args.speed)
     profile = load_profile(args.desk)
     rec = _samples(args, profile)
     values = rec.wrench.reshape(len(rec), -1)
-    from hapticdesk.estimator.inertia import accelerometer_readings
-
     accel = accelerometer_readings(profile, rec.extra)
     if accel is not None:
         values = np.concatenate([values, accel], axis=1)

@@ -66,17 +66,14 @@ def test_corrupt_readings_are_told_at_the_first_and_tenth(paper_desk):
     fs = paper_desk.sample_rate_hz
     quiet = [int(2.3 * fs) + 7 * j for j in range(12)]
     est = ContactEstimator(paper_desk)
-    est.push(*_t_and_wrench(corrupted(rec, quiet, 2, 80.0)))
+    bad = corrupted(rec, quiet, 2, 80.0)
+    est.push(bad.t, bad.wrench)
     told = [n for n in est.notices if n.kind == "jump"]
     assert [round(n.t * fs) for n in told] == [
         round(rec.t[quiet[0]] * fs),
         round(rec.t[quiet[9]] * fs),
     ]
     assert "80" in told[0].message and "(1 such so far)" in told[0].message
-
-
-def _t_and_wrench(rec: Recording) -> tuple[np.ndarray, np.ndarray]:
-    return rec.t, rec.wrench
 
 
 def test_a_real_step_lands_one_sample_late(paper_desk):

@@ -150,9 +150,8 @@ class PtyBoard:
             except OSError:  # (the terminal closed: stop())
                 return
 
-    def halt(self, signum: int = 0, frame: object = None) -> None:
-        """Have :meth:`run` return soon (a signal handler's signature: Ctrl-C or SIGTERM;
-        a process started in the background by a shell ignores Ctrl-C's KeyboardInterrupt)."""
+    def halt(self) -> None:
+        """Have :meth:`run` return soon (from another thread, or a signal handler)."""
         self._stop.set()
 
     def stop(self) -> None:

@@ -17,11 +17,13 @@ program use a SocketCAN ``vcan`` interface (``ip link add dev vcan0 type vcan``)
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import signal
 import sys
+import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -102,9 +104,12 @@ def run(args: argparse.Namespace) -> int:
     )
     start = time.perf_counter()
     try:
-        emulator.run()
-    except KeyboardInterrupt:
-        pass
+        with _stopped_by_signals(emulator.stop):
+            until = "Ctrl-C stops" if args.loop else "to the end; Ctrl-C stops"
+            print(
+                f"sending desk {profile.name} on {args.bus} ({until})", file=sys.stderr, flush=True
+            )
+            emulator.run()
     finally:
         bus.shutdown()
     stats = emulator.stats
@@ -149,18 +154,33 @@ def _run_serial(args: argparse.Namespace) -> int:
         flush=True,
     )
     start = time.perf_counter()
-    stops = (signal.SIGINT, signal.SIGTERM)
-    previous = {s: signal.signal(s, board.halt) for s in stops}  # (Ctrl-C, or a kill)
     try:
-        board.run()
+        with _stopped_by_signals(board.halt):
+            board.run()
     finally:
         board.stop()
-        for s, handler in previous.items():
-            signal.signal(s, handler)
     summary = {"desk": profile.name, "port": board.path, "samples": board.printed,
                "seconds": round(time.perf_counter() - start, 3)}  # fmt: skip
     print(json.dumps(summary) if args.json else f"printed {board.printed} samples on {board.path}")
     return 0
+
+
+@contextlib.contextmanager
+def _stopped_by_signals(stop: Callable[[], None]) -> Iterator[None]:
+    """``stop`` called on Ctrl-C or a kill (SIGINT, SIGTERM) while the block runs, so the
+    emulator ends its run and its summary is printed. By handlers of its own: a process
+    started in the background by a shell ignores Ctrl-C's KeyboardInterrupt. (Only the main
+    thread may set them: run from another, ``stop`` is its caller's.)"""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    stops = (signal.SIGINT, signal.SIGTERM)
+    previous = {s: signal.signal(s, lambda _signum, _frame: stop()) for s in stops}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
 
 
 def _bus_address(bus: str) -> _BusAddress:

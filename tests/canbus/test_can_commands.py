@@ -3,8 +3,12 @@
 from __future__ import annotations
 
 import json
+import signal
+import subprocess
+import sys
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,6 +16,8 @@ import pytest
 from hapticdesk.cli import main
 from hapticdesk.files.recording import Recording
 from hapticdesk.files.recording_io import read_recording, write_recording
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 
 @pytest.fixture
@@ -387,3 +393,25 @@ def test_emulate_loop_of_one_sample_is_refused(tmp_path, monkeypatch, capsys, ca
     assert main([*argv, "--bus", "virtual:one"]) == 2
     err = capsys.readouterr().err
     assert "--loop" in err and "one sample" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("stop", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_emulate_on_a_bus_stops_on_a_signal_and_says_what_it_sent(stop):
+    """Ctrl-C or a kill ends a looping `emulate --bus` with its summary, by its own handlers
+    (a process started in the background by a shell ignores Ctrl-C's KeyboardInterrupt)."""
+    command = [sys.executable, "-m", "hapticdesk", "emulate", "--desk", "kitamura2017-can"]
+    command += ["--scene", str(EXAMPLES / "scenes" / "buttons.yaml"), "--seed", "1"]
+    command += ["--bus", "virtual:stop-test", "--loop", "--json"]
+    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stderr is not None
+        said = proc.stderr.readline()  # (said once its handlers are set)
+        assert "sending desk kitamura2017-can on virtual:stop-test (Ctrl-C stops)" in said, said
+        time.sleep(0.5)
+    finally:
+        proc.send_signal(stop)
+        out, err = proc.communicate(timeout=20)
+    assert proc.returncode == 0, err
+    summary = json.loads(out.strip().splitlines()[-1])
+    assert summary["frames"] > 0 and summary["desk"] == "kitamura2017-can"
+    assert "Traceback" not in err

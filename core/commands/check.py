@@ -1,4 +1,5 @@
-"""``hapticdesk check LAYOUT [--desk D] [--png FILE]``: validate a layout and explain it.
+"""``hapticdesk check LAYOUT [--desk D | --desk FILE.c3d [--plate N]] [--png FILE]``: validate a
+layout and explain it (a C3D file's force plate is the desk as ``run --source replay:`` makes it).
 
 Actions, gestures and the sections plugins claim (``mqtt:``) are checked by the installed
 plugins, exactly as ``run`` loads the layout (unknown names and bad options are errors with
@@ -15,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from hapticdesk.commands.output_path import check_output_path
+from hapticdesk.commands.recording_input import desk_or_plate, plate_number
 from hapticdesk.errors import ConfigError
 from hapticdesk.files.sensing import sensing_of
 from hapticdesk.gestures.layout import Binding, Layout
@@ -23,7 +25,17 @@ from hapticdesk.gestures.options import GESTURE_OPTIONS, describe_value
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("layout", help="the layout YAML file")
-    parser.add_argument("--desk", help="a desk profile name or path (overrides the layout's)")
+    parser.add_argument(
+        "--desk",
+        help="a desk profile name or path (overrides the layout's), or a C3D file: its force "
+        "plate is the desk, as in run --source replay:FILE.c3d",
+    )
+    parser.add_argument(
+        "--plate",
+        type=plate_number,
+        metavar="N",
+        help="with --desk FILE.c3d: its force plate, from 1 as C3D counts (default 1)",
+    )
     parser.add_argument("--png", metavar="FILE", help="draw the layout on the desk into FILE")
 
 
@@ -33,10 +45,11 @@ def run(args: argparse.Namespace) -> int:
 
     if args.png:  # before the work: matplotlib would refuse the format only after it
         check_output_path(Path(args.png), "--png", (".png",), "the drawing")
+    desk = desk_or_plate(args.desk, args.plate)  # (a C3D file's plate is read here, once)
     registry = load_registry()
     # the same loading as `run`: actions, recognizers and plugins' sections all checked
-    layout, _ = load_scene_layout(args.layout, registry, args.desk)
-    check_named_layouts(layout, registry, args.desk)  # (those a running desk switches to)
+    layout, _ = load_scene_layout(args.layout, registry, desk)
+    check_named_layouts(layout, registry, desk)  # (those a running desk switches to)
     # (a plugin's problem was logged once by the registry as it loaded; not repeated here)
     print(explain(layout))
     if args.png:
@@ -46,6 +59,10 @@ def run(args: argparse.Namespace) -> int:
             raise ConfigError("--png", f"cannot write {args.png}: {err.strerror or err}") from None
         print(f"drawn: {args.png}")
     return 0
+
+
+def _count(n: int, thing: str) -> str:
+    return f"{n} {thing}" if n == 1 else f"{n} {thing}s"
 
 
 def explain(layout: Layout) -> str:
@@ -58,7 +75,7 @@ def explain(layout: Layout) -> str:
     )
     lines = [
         f"OK: {layout.path} is a valid layout",
-        f"desk      {desk.name} ({len(desk.sensors)} sensors; {surfaces})",
+        f"desk      {desk.name} ({_count(len(desk.sensors), 'sensor')}; {surfaces})",
         *(f"sensing   {line}" for line in sensing_of(desk).lines()),
         f"units     {units}",
         f"regions   {len(layout.regions)}",

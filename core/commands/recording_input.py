@@ -1,7 +1,7 @@
 """The recording a command reads and its desk: ``--desk`` with a recording (.csv, .npz, a CAN
 log), or a C3D file whose force plate (``--plate N``, from 1) is the desk when no ``--desk``
 is given (:mod:`hapticdesk.files.forceplate`). ``contacts`` and ``plot`` read through here;
-``run`` takes :func:`source_desk` for a C3D replay."""
+``run`` takes :func:`source_desk` for a C3D replay, ``check`` :func:`desk_or_plate`."""
 
 from __future__ import annotations
 
@@ -107,3 +107,18 @@ def source_desk(source: str, plate: int | None, given: str | None = None) -> Des
     if not c3d or given is not None:
         return None
     return plate_desk(open_c3d(Path(argument).expanduser()), plate or 1).profile
+
+
+def desk_or_plate(desk: str | None, plate: int | None) -> str | DeskProfile | None:
+    """For ``check``: ``--desk`` as given, or for a C3D file its force plate ``plate``
+    (default 1) made a desk, as ``run --source replay:FILE.c3d`` makes it (``--plate``
+    chooses the plate of a C3D ``--desk`` only)."""
+    if desk is None or not is_c3d(desk):
+        if plate is not None:
+            raise ConfigError(
+                "--plate", "chooses the force plate of a C3D file given as --desk FILE.c3d"
+            )
+        return desk
+    from hapticdesk.files.forceplate import plate_desk
+
+    return plate_desk(open_c3d(Path(desk).expanduser()), plate or 1).profile

@@ -77,7 +77,8 @@ def resolve_profile_path(name_or_path: str | Path, relative_to: Path | None = No
         raise ConfigError(
             str(name_or_path),
             "a C3D file is not a desk profile: without --desk, `contacts`, `plot` and "
-            "`run --source replay:FILE.c3d` make the desk from its force plate (--plate N)",
+            "`run --source replay:FILE.c3d` make the desk from its force plate (--plate N), "
+            "as `check LAYOUT --desk FILE.c3d` does",
         )
     check_confined(path, "the desk profile", str(name_or_path))  # (before it is looked at)
     if not path.is_file():

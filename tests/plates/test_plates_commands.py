@@ -90,6 +90,26 @@ def test_a_layouts_desk_a_plate_replay_does_not_use_is_said(two_plates, tmp_path
     )
 
 
+def test_check_takes_a_plate_as_the_desk(two_plates, tmp_path, capsys):
+    # a lab checks its layout against the plate `run --source replay:` makes the desk
+    layout = tmp_path / "plate.yaml"
+    layout.write_text(
+        "regions:\n  back: {rect: [-0.2, 0, 0.2, 0.3]}\n"
+        "bindings:\n  - {gesture: press, region: back, do: log}\n"
+    )
+    assert main(["check", str(layout), "--desk", str(two_plates), "--plate", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "OK:" in out and "desk      walk-plate2 (1 sensor; top 0.4 × 0.6 m)" in out
+    # a region off the plate is refused, as run refuses it
+    layout.write_text(
+        "regions:\n  off: {rect: [0.5, 0.5, 0.7, 0.7]}\n"
+        "bindings:\n  - {gesture: press, region: off, do: log}\n"
+    )
+    assert main(["check", str(layout), "--desk", str(two_plates), "--plate", "2"]) == 2
+    err = capsys.readouterr().err
+    assert "plate.yaml:2:" in err and "Traceback" not in err
+
+
 @pytest.mark.parametrize(
     ("argv", "said"),
     [
@@ -103,6 +123,8 @@ def test_a_layouts_desk_a_plate_replay_does_not_use_is_said(two_plates, tmp_path
         # a C3D file given as the desk: said so, not "larger than 1 MB" or "a NUL byte"
         (["contacts", "{f}", "--desk", "{f}"], "walk.c3d: a C3D file is not a desk profile"),
         (["init", "{d}/plate.yaml", "--desk", "{f}"], "make the desk from its force plate"),
+        (["check", "{d}/plate.yaml", "--plate", "2"], "of a C3D file given as --desk FILE.c3d"),
+        (["check", "{d}/plate.yaml", "--desk", "{f}", "--plate", "3"], "expected --plate 1 to 2"),
     ],
 )
 def test_wrong_combinations_are_one_line(two_plates, capsys, argv, said):

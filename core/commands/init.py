@@ -1,10 +1,13 @@
-"""``hapticdesk init [FILE] [--desk D] [--units U] [--blank] [--force]``: start a layout.
+"""``hapticdesk init [FILE] [--desk D | --desk FILE.c3d [--plate N]] [--units U] [--blank]
+[--force]``: start a layout.
 
 Writes a layout for a chosen desk that ``check``, ``run`` and the browser's designer take as
 it is: commented, with one button in the middle of the desk's top bound to a tap that logs,
 and the other region shapes and a slider as comments to copy; or, with ``--blank``, no
 regions and no bindings yet (``check`` then warns that nothing will happen). An existing
-file is never overwritten without ``--force``. ``hapticdesk ui --layout NEW.yaml`` starts a
+file is never overwritten without ``--force``. For a C3D file's force plate the layout names
+no desk (the replay brings it: ``run --source replay:FILE.c3d``) and its button is pressed,
+a foot's gesture. ``hapticdesk ui --layout NEW.yaml`` starts a
 missing layout the same way.
 """
 
@@ -15,7 +18,10 @@ import os
 from pathlib import Path
 from typing import Any
 
+from hapticdesk.commands.recording_input import desk_or_plate, plate_number
 from hapticdesk.errors import ConfigError
+from hapticdesk.files.c3d import is_c3d
+from hapticdesk.files.profile import DeskProfile
 
 DEFAULT_FILE = "layout.yaml"
 DEFAULT_DESK = "kitamura2017"
@@ -30,7 +36,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--desk",
         default=DEFAULT_DESK,
-        help="a desk profile name or path (default %(default)s, the paper's desk)",
+        help="a desk profile name or path (default %(default)s, the paper's desk), or a C3D "
+        "file: its force plate is the desk, as in run --source replay:FILE.c3d",
+    )
+    parser.add_argument(
+        "--plate",
+        type=plate_number,
+        metavar="N",
+        help="with --desk FILE.c3d: its force plate, from 1 as C3D counts (default 1)",
     )
     parser.add_argument(
         "--units", choices=("m", "cm", "mm"), default="cm", help="lengths in (default cm)"
@@ -45,11 +58,13 @@ def run(args: argparse.Namespace) -> int:
     path = Path(args.file)
     if path.exists() and not args.force:
         raise ConfigError(str(path), "already exists; give another name, or --force to replace it")
-    desk = write_starter(path, args.desk, units=args.units, blank=args.blank)
-    regions = "no regions yet" if args.blank else "a button bound to a tap that logs"
+    desk = write_starter(path, args.desk, units=args.units, blank=args.blank, plate=args.plate)
+    plate = is_c3d(args.desk)
+    gesture = "press" if plate else "tap"
+    regions = "no regions yet" if args.blank else f"a button bound to a {gesture} that logs"
     print(f"wrote {path}: a layout for desk {desk} with {regions}")
     print("next:")
-    print(f"  hapticdesk check {path}")
+    print(f"  hapticdesk check {path}{_plate_arguments(args.desk, args.plate)}")
     print(f"  hapticdesk ui --layout {path}     # draw regions and bind gestures in the browser")
     return 0
 
@@ -65,8 +80,37 @@ def desk_reference(desk: str, layout: Path) -> str:
     return given.resolve().as_posix() if relative.startswith("..") else Path(relative).as_posix()
 
 
-def starter_text(profile: Any, desk: str, file_name: str, units: str, blank: bool) -> str:
-    """The layout ``init`` writes (see the module docstring)."""
+def _plate_arguments(desk: str, plate: int | None) -> str:
+    """`` --desk FILE.c3d --plate N`` for a C3D desk (a layout cannot name it), else ``""``."""
+    return f" --desk {desk} --plate {plate or 1}" if is_c3d(desk) else ""
+
+
+def _desk_line(desk: str, file_name: str, plate: int | None) -> str:
+    """The layout's ``desk:``; for a C3D file's plate, which a layout cannot name, how a
+    replay brings it."""
+    if not is_c3d(desk):
+        return f"desk: {desk}"
+    return (
+        f"# desk: the force plate {plate or 1} of {desk}, which a replay brings:\n"
+        f"#   hapticdesk run --layout {file_name} --source replay:{desk} --plate {plate or 1}"
+    )
+
+
+def _example_binding(gesture: str) -> list[str]:
+    """The button's binding: ``gesture`` (a tap; a press on a plate, a foot's) that logs."""
+    done = {"tap": "tapped", "press": "pressed"}[gesture]
+    return [
+        f"  - gesture: {gesture}",
+        "    region: button",
+        f'    do: {{log: {{message: "{{{{ region }}}} {done} at {{{{ t }}}} s"}}}}',
+    ]
+
+
+def starter_text(
+    profile: Any, desk: str, file_name: str, units: str, blank: bool, plate: int | None = None
+) -> str:
+    """The layout ``init`` writes (see the module docstring); for a C3D file's force plate
+    (``desk`` the file) no ``desk:`` (the replay brings it) and a press, a foot's gesture."""
     from hapticdesk.gestures.layout import UNITS
 
     scale = UNITS[units]
@@ -84,10 +128,11 @@ def starter_text(profile: Any, desk: str, file_name: str, units: str, blank: boo
         f"# A layout for hapticdesk, started by `hapticdesk init` for desk {profile.name}.",
         f"# Its surface `{top.name}` spans x {n(x0)}..{n(x1)} and y {n(y0)}..{n(y1)} {units}:",
         "# x to your right, y away from you, seen from where you sit.",
-        f"#   hapticdesk check {file_name}            # what it means, or where it is wrong",
+        f"#   hapticdesk check {file_name}{_plate_arguments(desk, plate)}"
+        "            # what it means, or where it is wrong",
         f"#   hapticdesk ui --layout {file_name}      # draw regions and bind gestures",
         "# Every key, gesture and action: the documentation's Reference pages.",
-        f"desk: {desk}",
+        _desk_line(desk, file_name, plate),
         f"units: {units}                  # m | cm | mm, for every length below",
     ]
     if blank:
@@ -105,9 +150,7 @@ def starter_text(profile: Any, desk: str, file_name: str, units: str, blank: boo
         f"  # corner: {{polygon: [[{n(x0)}, {n(y0)}], [{n(x0 + width / 5)}, {n(y0)}], "
         f"[{n(x0)}, {n(y0 + depth / 5)}]]}}",
         "bindings:",
-        "  - gesture: tap",
-        "    region: button",
-        '    do: {log: {message: "{{ region }} tapped at {{ t }} s"}}',
+        *_example_binding("press" if is_c3d(desk) else "tap"),
         "  # - gesture: slide",
         "  #   region: dimmer",
         "  #   do: {mqtt: {topic: zigbee2mqtt/desk_lamp/set,",
@@ -118,20 +161,29 @@ def starter_text(profile: Any, desk: str, file_name: str, units: str, blank: boo
 
 
 def write_starter(
-    path: Path, desk: str = DEFAULT_DESK, *, units: str = "cm", blank: bool = False
+    path: Path,
+    desk: str = DEFAULT_DESK,
+    *,
+    units: str = "cm",
+    blank: bool = False,
+    plate: int | None = None,
 ) -> str:
     """Write the starter layout to ``path`` (checked as ``check`` would, first); the desk's
-    name."""
+    name. ``desk`` a C3D file: its force plate ``plate`` (default 1) is the desk."""
     from hapticdesk.files.profile_reader import load_profile
     from hapticdesk.plugin_loading import load_registry
     from hapticdesk.runtime.assembly import load_scene_layout
 
-    reference = desk_reference(desk, path)
-    profile = load_profile(desk)
-    text = starter_text(profile, reference, path.name, units, blank)
+    profile = desk_or_plate(desk, plate)
+    assert profile is not None
+    if not isinstance(profile, DeskProfile):
+        profile = load_profile(desk)
+    reference = desk if is_c3d(desk) else desk_reference(desk, path)
+    text = starter_text(profile, reference, path.name, units, blank, plate)
     if not path.parent.is_dir():
         raise ConfigError(str(path), f"no such folder {path.parent}")
-    load_scene_layout(path, load_registry(), None, text=text)  # (it is ours: never fails)
+    # (it is ours: never fails; a plate's layout names no desk, so it is given)
+    load_scene_layout(path, load_registry(), profile if is_c3d(desk) else None, text=text)
     try:
         with path.open("x" if not path.exists() else "w", encoding="utf-8") as out:
             out.write(text)

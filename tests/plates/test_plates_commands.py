@@ -110,6 +110,21 @@ def test_check_takes_a_plate_as_the_desk(two_plates, tmp_path, capsys):
     assert "plate.yaml:2:" in err and "Traceback" not in err
 
 
+def test_init_starts_a_layout_for_a_plate_that_check_and_run_take(two_plates, tmp_path, capsys):
+    layout = tmp_path / "start.yaml"
+    argv = ["init", str(layout), "--desk", str(two_plates), "--plate", "2", "--units", "m"]
+    assert main(argv) == 0
+    said = capsys.readouterr().out
+    assert f"hapticdesk check {layout} --desk {two_plates} --plate 2" in said
+    text = layout.read_text()
+    assert "\ndesk:" not in text and "- gesture: press" in text  # (the replay brings the desk)
+    assert f"--source replay:{two_plates} --plate 2" in text
+    assert main(["check", str(layout), "--desk", str(two_plates), "--plate", "2"]) == 0
+    run = ["run", "--layout", str(layout), "--source", f"replay:{two_plates}", "--plate", "2"]
+    assert main([*run, "--speed", "0"]) == 0
+    assert "is not used" not in capsys.readouterr().err  # (no desk: in it to leave out)
+
+
 @pytest.mark.parametrize(
     ("argv", "said"),
     [
@@ -122,7 +137,7 @@ def test_check_takes_a_plate_as_the_desk(two_plates, tmp_path, capsys):
         (["contacts", "{d}/x.csv", "--plate", "1"], "is not a .c3d file"),
         # a C3D file given as the desk: said so, not "larger than 1 MB" or "a NUL byte"
         (["contacts", "{f}", "--desk", "{f}"], "walk.c3d: a C3D file is not a desk profile"),
-        (["init", "{d}/plate.yaml", "--desk", "{f}"], "make the desk from its force plate"),
+        (["init", "{d}/plate.yaml", "--plate", "2"], "of a C3D file given as --desk FILE.c3d"),
         (["check", "{d}/plate.yaml", "--plate", "2"], "of a C3D file given as --desk FILE.c3d"),
         (["check", "{d}/plate.yaml", "--desk", "{f}", "--plate", "3"], "expected --plate 1 to 2"),
     ],

@@ -61,10 +61,6 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _count(n: int, thing: str) -> str:
-    return f"{n} {thing}" if n == 1 else f"{n} {thing}s"
-
-
 def explain(layout: Layout) -> str:
     """The verdict and a summary a person can check their intent against."""
     desk = layout.desk
@@ -73,9 +69,10 @@ def explain(layout: Layout) -> str:
         f"{s.name} {_span(s.polygon[:, 0], scale)} × {_span(s.polygon[:, 1], scale)} {units}"
         for s in desk.surfaces
     )
+    sensors = len(desk.sensors)
     lines = [
         f"OK: {layout.path} is a valid layout",
-        f"desk      {desk.name} ({_count(len(desk.sensors), 'sensor')}; {surfaces})",
+        f"desk      {desk.name} ({sensors} sensor{'s' if sensors != 1 else ''}; {surfaces})",
         *(f"sensing   {line}" for line in sensing_of(desk).lines()),
         f"units     {units}",
         f"regions   {len(layout.regions)}",

@@ -59,8 +59,7 @@ def run(args: argparse.Namespace) -> int:
     if path.exists() and not args.force:
         raise ConfigError(str(path), "already exists; give another name, or --force to replace it")
     desk = write_starter(path, args.desk, units=args.units, blank=args.blank, plate=args.plate)
-    plate = is_c3d(args.desk)
-    gesture = "press" if plate else "tap"
+    gesture = _button_gesture(args.desk)
     regions = "no regions yet" if args.blank else f"a button bound to a {gesture} that logs"
     print(f"wrote {path}: a layout for desk {desk} with {regions}")
     print("next:")
@@ -96,8 +95,13 @@ def _desk_line(desk: str, file_name: str, plate: int | None) -> str:
     )
 
 
+def _button_gesture(desk: str) -> str:
+    """The example button's gesture: a tap; on a C3D file's force plate a press, a foot's."""
+    return "press" if is_c3d(desk) else "tap"
+
+
 def _example_binding(gesture: str) -> list[str]:
-    """The button's binding: ``gesture`` (a tap; a press on a plate, a foot's) that logs."""
+    """The button's binding: ``gesture`` (:func:`_button_gesture`) that logs."""
     done = {"tap": "tapped", "press": "pressed"}[gesture]
     return [
         f"  - gesture: {gesture}",
@@ -150,7 +154,7 @@ def starter_text(
         f"  # corner: {{polygon: [[{n(x0)}, {n(y0)}], [{n(x0 + width / 5)}, {n(y0)}], "
         f"[{n(x0)}, {n(y0 + depth / 5)}]]}}",
         "bindings:",
-        *_example_binding("press" if is_c3d(desk) else "tap"),
+        *_example_binding(_button_gesture(desk)),
         "  # - gesture: slide",
         "  #   region: dimmer",
         "  #   do: {mqtt: {topic: zigbee2mqtt/desk_lamp/set,",
@@ -174,16 +178,15 @@ def write_starter(
     from hapticdesk.plugin_loading import load_registry
     from hapticdesk.runtime.assembly import load_scene_layout
 
-    profile = desk_or_plate(desk, plate)
-    assert profile is not None
-    if not isinstance(profile, DeskProfile):
-        profile = load_profile(desk)
-    reference = desk if is_c3d(desk) else desk_reference(desk, path)
+    chosen = desk_or_plate(desk, plate)  # (a C3D file: its plate's desk; else as given)
+    plate_profile = chosen if isinstance(chosen, DeskProfile) else None
+    profile = plate_profile or load_profile(desk)
+    reference = desk if plate_profile else desk_reference(desk, path)
     text = starter_text(profile, reference, path.name, units, blank, plate)
     if not path.parent.is_dir():
         raise ConfigError(str(path), f"no such folder {path.parent}")
     # (it is ours: never fails; a plate's layout names no desk, so it is given)
-    load_scene_layout(path, load_registry(), profile if is_c3d(desk) else None, text=text)
+    load_scene_layout(path, load_registry(), plate_profile, text=text)
     try:
         with path.open("x" if not path.exists() else "w", encoding="utf-8") as out:
             out.write(text)

@@ -93,7 +93,6 @@ def source_desk(source: str, plate: int | None, given: str | None = None) -> Des
     (default 1), when no desk is ``given`` (--desk); None for any other source (its desk
     comes from --desk or the layout)."""
     # (here, not at the top: it loads the plugin registry, which contacts and plot never use)
-    from hapticdesk.files.forceplate import plate_desk
     from hapticdesk.runtime.source_spec import parse_source_spec
 
     kind, argument = parse_source_spec(source)
@@ -106,19 +105,24 @@ def source_desk(source: str, plate: int | None, given: str | None = None) -> Des
         )
     if not c3d or given is not None:
         return None
-    return plate_desk(open_c3d(Path(argument).expanduser()), plate or 1).profile
+    return _plate_profile(argument, plate)
 
 
 def desk_or_plate(desk: str | None, plate: int | None) -> str | DeskProfile | None:
-    """For ``check``: ``--desk`` as given, or for a C3D file its force plate ``plate``
-    (default 1) made a desk, as ``run --source replay:FILE.c3d`` makes it (``--plate``
-    chooses the plate of a C3D ``--desk`` only)."""
+    """For ``check`` and ``init``: ``--desk`` as given, or for a C3D file its force plate
+    ``plate`` (default 1) made a desk, as ``run --source replay:FILE.c3d`` makes it
+    (``--plate`` chooses the plate of a C3D ``--desk`` only)."""
     if desk is None or not is_c3d(desk):
         if plate is not None:
             raise ConfigError(
                 "--plate", "chooses the force plate of a C3D file given as --desk FILE.c3d"
             )
         return desk
+    return _plate_profile(desk, plate)
+
+
+def _plate_profile(path: str, plate: int | None) -> DeskProfile:
+    """The desk a C3D file's force plate ``plate`` (default 1) makes."""
     from hapticdesk.files.forceplate import plate_desk
 
-    return plate_desk(open_c3d(Path(desk).expanduser()), plate or 1).profile
+    return plate_desk(open_c3d(Path(path).expanduser()), plate or 1).profile

@@ -6,8 +6,9 @@ it is: commented, with one button in the middle of the desk's top bound to a tap
 and the other region shapes and a slider as comments to copy; or, with ``--blank``, no
 regions and no bindings yet (``check`` then warns that nothing will happen). An existing
 file is never overwritten without ``--force``. For a C3D file's force plate the layout names
-no desk (the replay brings it: ``run --source replay:FILE.c3d``) and its button is pressed,
-a foot's gesture. ``hapticdesk ui --layout NEW.yaml`` starts a
+no desk (the replay brings it: ``run --source replay:FILE.c3d``) and its button, a foot's
+size, is pressed, a foot's gesture, where the recording's feet bore (:func:`stepped_on`), so
+that replaying it fires the press. ``hapticdesk ui --layout NEW.yaml`` starts a
 missing layout the same way.
 """
 
@@ -27,6 +28,13 @@ DEFAULT_FILE = "layout.yaml"
 DEFAULT_DESK = "kitamura2017"
 #: the example button's side, metres (a fingertip's width and some)
 BUTTON_M = 0.05
+#: on a force plate: a foot's length, metres (the centre of pressure runs heel to toe)
+FOOT_M = 0.25
+#: on a force plate the starter press's one level, newtons: a foot bearing weight (a
+#: finger's 4, 10 and 20 N levels would all fire at a heel strike's first sample)
+STEP_N = 100.0
+#: how far inside the top's bounding box a button moved to the steps is kept, metres
+EDGE_M = 0.005
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -64,6 +72,11 @@ def run(args: argparse.Namespace) -> int:
     print(f"wrote {path}: a layout for desk {desk} with {regions}")
     print("next:")
     print(f"  hapticdesk check {path}{_plate_arguments(args.desk, args.plate)}")
+    if is_c3d(args.desk):
+        print(
+            f"  hapticdesk run --layout {path} --source replay:{args.desk} --plate "
+            f"{args.plate or 1} --speed 0     # the recording's steps on the button"
+        )
     print(f"  hapticdesk ui --layout {path}     # draw regions and bind gestures in the browser")
     return 0
 
@@ -95,26 +108,87 @@ def _desk_line(desk: str, file_name: str, plate: int | None) -> str:
     )
 
 
+def _axes_line(desk: str, centre: tuple[float, float] | None) -> str:
+    """The comment that says which way x and y run, and on a plate where the button is."""
+    if not is_c3d(desk):
+        return "# x to your right, y away from you, seen from where you sit."
+    where = (
+        "the button is where the recording's steps come down"
+        if centre is not None
+        else f"no step of the recording reaches {STEP_N:g} N: the button is in the middle"
+    )
+    return f"# x, y from the plate's centre, the lab's axes as its corners turn them; {where}."
+
+
 def _button_gesture(desk: str) -> str:
     """The example button's gesture: a tap; on a C3D file's force plate a press, a foot's."""
     return "press" if is_c3d(desk) else "tap"
 
 
 def _example_binding(gesture: str) -> list[str]:
-    """The button's binding: ``gesture`` (:func:`_button_gesture`) that logs."""
+    """The button's binding: ``gesture`` (:func:`_button_gesture`) that logs; a foot's press
+    at one level, STEP_N."""
     done = {"tap": "tapped", "press": "pressed"}[gesture]
+    levels = [f"    levels: {{step: {STEP_N:g}}}   # newtons: a foot bearing weight"]
     return [
         f"  - gesture: {gesture}",
         "    region: button",
+        *(levels if gesture == "press" else []),
         f'    do: {{log: {{message: "{{{{ region }}}} {done} at {{{{ t }}}} s"}}}}',
     ]
 
 
+def stepped_on(desk: str, profile: DeskProfile) -> tuple[float, float] | None:
+    """Where the feet of the C3D file ``desk`` come down on its plate whose desk is
+    ``profile``, as the starter's press sees them: each step's centre of pressure (paper
+    eq. 5 on the top z = 0: x = −M_y / F_z, y = M_x / F_z) at its first sample whose force
+    reaches STEP_N, where the press places itself (a heel's, not the median of the roll to
+    the toes); the median over steps. None where no step reaches STEP_N."""
+    import numpy as np
+
+    from hapticdesk.files.forceplate import read_plate_recording
+
+    recording = read_plate_recording(desk, profile)
+    wrench = recording.channels @ profile.wrench_map().T  # [F_o; M_o] (paper eqs. 1–4)
+    force = np.linalg.norm(wrench[:, :3], axis=1)
+    bearing = force >= STEP_N
+    # a step's first sample at STEP_N: a bearing sample after one that was not
+    starts = np.flatnonzero(bearing & ~np.concatenate(([False], bearing[:-1])))
+    starts = starts[np.abs(wrench[starts, 2]) > 0]
+    if not starts.size:
+        return None
+    x = -wrench[starts, 4] / wrench[starts, 2]
+    y = wrench[starts, 3] / wrench[starts, 2]
+    return float(np.median(x)), float(np.median(y))
+
+
+def _button_square(
+    polygon: Any, foot: bool, centre: tuple[float, float] | None
+) -> tuple[float, float, float]:
+    """The example button's centre and half side: BUTTON_M at most a fifth of the top
+    (``polygon``'s bounding box), or for a ``foot`` FOOT_M at most half of it; at ``centre``
+    (the top's middle when None), kept EDGE_M inside the box (a plate's measured corners
+    are seldom square to the mm)."""
+    (x0, y0), (x1, y1) = polygon.min(axis=0), polygon.max(axis=0)
+    side, share = (FOOT_M, 2) if foot else (BUTTON_M, 5)
+    half = min(side, (x1 - x0) / share, (y1 - y0) / share) / 2
+    cx, cy = centre if centre is not None else ((x0 + x1) / 2, (y0 + y1) / 2)
+    inset = half + EDGE_M
+    return min(max(cx, x0 + inset), x1 - inset), min(max(cy, y0 + inset), y1 - inset), half
+
+
 def starter_text(
-    profile: Any, desk: str, file_name: str, units: str, blank: bool, plate: int | None = None
+    profile: Any,
+    desk: str,
+    file_name: str,
+    units: str,
+    blank: bool,
+    plate: int | None = None,
+    centre: tuple[float, float] | None = None,
 ) -> str:
     """The layout ``init`` writes (see the module docstring); for a C3D file's force plate
-    (``desk`` the file) no ``desk:`` (the replay brings it) and a press, a foot's gesture."""
+    (``desk`` the file) no ``desk:`` (the replay brings it) and a foot's button, pressed,
+    at ``centre`` (:func:`stepped_on`; the top's middle when None)."""
     from hapticdesk.gestures.layout import UNITS
 
     scale = UNITS[units]
@@ -126,12 +200,13 @@ def starter_text(
     (x0, y0), (x1, y1) = top.polygon.min(axis=0), top.polygon.max(axis=0)
 
     def n(metres: float) -> str:
-        return f"{metres / scale:.4g}"
+        # (a float's last bits, such as a centre's 2.78e-07, rounded away: to 1 µm)
+        return f"{round(metres, 6) / scale + 0.0:.4g}"
 
     lines = [
         f"# A layout for hapticdesk, started by `hapticdesk init` for desk {profile.name}.",
         f"# Its surface `{top.name}` spans x {n(x0)}..{n(x1)} and y {n(y0)}..{n(y1)} {units}:",
-        "# x to your right, y away from you, seen from where you sit.",
+        _axes_line(desk, centre),
         f"#   hapticdesk check {file_name}{_plate_arguments(desk, plate)}"
         "            # what it means, or where it is wrong",
         f"#   hapticdesk ui --layout {file_name}      # draw regions and bind gestures",
@@ -141,12 +216,12 @@ def starter_text(
     ]
     if blank:
         return "\n".join(lines + ["regions: {}", "bindings: []", ""])
-    cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
-    half = min(BUTTON_M, (x1 - x0) / 5, (y1 - y0) / 5) / 2
+    bx, by, half = _button_square(top.polygon, is_c3d(desk), centre)
+    cx, cy = (x0 + x1) / 2, (y0 + y1) / 2  # (the other shapes about the top's middle)
     width, depth = x1 - x0, y1 - y0
     lines += [
         "regions:",
-        f"  button: {{rect: [{n(cx - half)}, {n(cy - half)}, {n(cx + half)}, {n(cy + half)}]}}"
+        f"  button: {{rect: [{n(bx - half)}, {n(by - half)}, {n(bx + half)}, {n(by + half)}]}}"
         "   # x0, y0, x1, y1",
         f"  # knob: {{circle: {{center: [{n(cx + width / 4)}, {n(cy)}], radius: {n(half)}}}}}",
         f"  # dimmer: {{rect: [{n(cx - width / 4)}, {n(cy + depth / 4 - half)}, "
@@ -182,7 +257,8 @@ def write_starter(
     plate_profile = chosen if isinstance(chosen, DeskProfile) else None
     profile = plate_profile or load_profile(desk)
     reference = desk if plate_profile else desk_reference(desk, path)
-    text = starter_text(profile, reference, path.name, units, blank, plate)
+    centre = stepped_on(desk, profile) if plate_profile and not blank else None
+    text = starter_text(profile, reference, path.name, units, blank, plate, centre)
     if not path.parent.is_dir():
         raise ConfigError(str(path), f"no such folder {path.parent}")
     # (it is ours: never fails; a plate's layout names no desk, so it is given)

@@ -121,8 +121,45 @@ def test_init_starts_a_layout_for_a_plate_that_check_and_run_take(two_plates, tm
     assert f"--source replay:{two_plates} --plate 2" in text
     assert main(["check", str(layout), "--desk", str(two_plates), "--plate", "2"]) == 0
     run = ["run", "--layout", str(layout), "--source", f"replay:{two_plates}", "--plate", "2"]
-    assert main([*run, "--speed", "0"]) == 0
+    events = tmp_path / "events.jsonl"
+    assert main([*run, "--speed", "0", "--events", str(events)]) == 0
     assert "is not used" not in capsys.readouterr().err  # (no desk: in it to leave out)
+    # the button sits where the step comes down (not the top's middle, 0.12 m from it), a
+    # foot's 0.2 m (half the 0.4 m plate), and the step presses it once: one level, 100 N
+    fired = [json.loads(line) for line in events.read_text().splitlines()]
+    assert [(e["gesture"], e["region"]) for e in fired] == [("press", "button")]
+    assert abs(fired[0]["x"] + 0.09) < 1e-3 and abs(fired[0]["y"] - 0.08) < 1e-3
+    assert "button: {rect: [-0.19, -0.02, 0.01, 0.18]}" in text
+    assert "levels: {step: 100}" in text and "the recording's steps come down" in text
+
+
+def test_init_on_a_plate_nobody_stepped_on_puts_the_button_in_the_middle(
+    two_plates, tmp_path, capsys
+):
+    layout = tmp_path / "start.yaml"
+    assert main(["init", str(layout), "--desk", str(two_plates), "--units", "m"]) == 0
+    text = layout.read_text()
+    assert "button: {rect: [-0.1, -0.1, 0.1, 0.1]}" in text  # (0.5 N at most on plate 1)
+    assert "no step of the recording reaches 100 N: the button is in the middle" in text
+
+
+@pytest.mark.parametrize(("name", "plate"), [("BTS.c3d", 1), ("BTS.c3d", 4), ("Qualisys.c3d", 2)])
+def test_init_on_a_real_recording_puts_the_button_under_its_step(name, plate, tmp_path, capsys):
+    from .conftest import shared_file
+
+    recording = shared_file(name)
+    layout = tmp_path / "start.yaml"
+    assert main(["init", str(layout), "--desk", str(recording), "--plate", str(plate)]) == 0
+    assert main(["check", str(layout), "--desk", str(recording), "--plate", str(plate)]) == 0
+    assert "warning" not in capsys.readouterr().err  # (the button kept on the plate)
+    events = tmp_path / "events.jsonl"
+    source = ["--source", f"replay:{recording}", "--plate", str(plate)]
+    assert (
+        main(["run", "--layout", str(layout), *source, "--speed", "0", "--events", str(events)])
+        == 0
+    )
+    fired = [json.loads(line) for line in events.read_text().splitlines()]
+    assert [(e["gesture"], e["region"]) for e in fired] == [("press", "button")]
 
 
 @pytest.mark.parametrize(

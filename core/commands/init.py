@@ -7,9 +7,9 @@ and the other region shapes and a slider as comments to copy; or, with ``--blank
 regions and no bindings yet (``check`` then warns that nothing will happen). An existing
 file is never overwritten without ``--force``. For a C3D file's force plate the layout names
 no desk (the replay brings it: ``run --source replay:FILE.c3d``) and its button, a foot's
-size, is pressed, a foot's gesture, where the recording's feet bore (:func:`stepped_on`), so
-that replaying it fires the press. ``hapticdesk ui --layout NEW.yaml`` starts a
-missing layout the same way.
+size, is pressed, a foot's gesture, where the recording's steps come down
+(:func:`stepped_on`), so that replaying it fires the press. ``hapticdesk ui --layout
+NEW.yaml`` starts a missing layout the same way.
 """
 
 from __future__ import annotations

@@ -35,6 +35,7 @@ from hapticdesk.estimator.kernel_slots import (
     I_CONFIRM,
     I_JO_CHANGES,
     I_JO_LEARNING,
+    I_JUMP_HOLD_N,
     I_LIVE_N,
     I_NOISE_FREE_REPEATS,
     I_PO_LIMIT,
@@ -51,6 +52,7 @@ from hapticdesk.estimator.kernel_slots import (
     J_HAVE_PREV,
     J_IN_CONTACT,
     J_JUMP,
+    J_JUMP_HELD_N,
     J_JUMPS,
     J_LIVE,
     J_N_LEARNING,
@@ -172,13 +174,19 @@ def _told_at(count: int) -> bool:
 
 @inlined
 def held_over(
-    t: float, mapped: Wrench, flags: int, pf: np.ndarray, sf: np.ndarray, si: np.ndarray
+    t: float,
+    mapped: Wrench,
+    flags: int,
+    pf: np.ndarray,
+    pi: np.ndarray,
+    sf: np.ndarray,
+    si: np.ndarray,
 ) -> tuple[bool, int]:
     """Whether the sample (``flags``, its wrench ``mapped``) is held over for its jump
     (:func:`jumped`), and the events: a good sample after a good one may be; one after a
     gap is taken (the filters restart there)."""
     if flags == 0 and si[J_STARTED]:
-        return jumped(t, mapped, pf, sf, si)
+        return jumped(t, mapped, pf, pi, sf, si)
     if flags == FLAG_GAP:
         si[J_JUMP] = JUMP_CALM
     return False, 0
@@ -186,13 +194,15 @@ def held_over(
 
 @inlined
 def jumped(
-    t: float, mapped: Wrench, pf: np.ndarray, sf: np.ndarray, si: np.ndarray
+    t: float, mapped: Wrench, pf: np.ndarray, pi: np.ndarray, sf: np.ndarray, si: np.ndarray
 ) -> tuple[bool, int]:
     """Whether a good sample after a good one is held (its wrench ``mapped`` not taken: the
-    last good one stands for it), and the events. A corrupt reading lasts one sample: one that
-    jumps from a calm wrench (settings.JUMP_SHARE) is held; the next is taken whatever it is:
-    if it came back, the held one was corrupt (counted, told at the 1st, 10th… such); if it
-    jumped too, the change is real, and none is held while it keeps jumping."""
+    last good one stands for it), and the events. A corrupt reading lasts a sample or a few:
+    one that jumps from a calm wrench (settings.JUMP_SHARE) is held, and so are the next ones
+    that stay away from the last good wrench, up to I_JUMP_HOLD_N in a row
+    (settings.JUMP_HOLD_S); the one after is taken whatever it is. One that came back ends
+    the run: the held ones were corrupt (counted, told at the 1st, 10th… such); if the run
+    outlasts the hold, the change is real, and none is held while it keeps jumping."""
     good = sf[S_LAST_GOOD : S_LAST_GOOD + 6]
     df = (mapped[0] - good[0]) ** 2 + (mapped[1] - good[1]) ** 2 + (mapped[2] - good[2]) ** 2
     dm = (mapped[3] - good[3]) ** 2 + (mapped[4] - good[4]) ** 2 + (mapped[5] - good[5]) ** 2
@@ -202,8 +212,12 @@ def jumped(
     if state == JUMP_CALM:
         if jump:
             si[J_JUMP] = JUMP_HELD
+            si[J_JUMP_HELD_N] = 1
             sf[S_JUMP_T], sf[S_JUMP_SIZE] = t, math.sqrt(max(df, dm))
         return jump, 0
+    if state == JUMP_HELD and jump and si[J_JUMP_HELD_N] < pi[I_JUMP_HOLD_N]:
+        si[J_JUMP_HELD_N] += 1  # (still away: held too)
+        return True, 0
     si[J_JUMP] = JUMP_MOVING if jump else JUMP_CALM
     if state == JUMP_HELD and not jump:  # it came back: the held reading was corrupt
         si[J_JUMPS] += 1

@@ -128,7 +128,7 @@ def _front(
     flags, events = _samples(t, x, before, pf, pi, sf, si)
     first_good = False
     zeroed = pi[I_ZEROED] == 1
-    held, told = held_over(t, mapped, flags, pf, sf, si)
+    held, told = held_over(t, mapped, flags, pf, pi, sf, si)
     events |= told
     if (flags == 0 or flags == FLAG_GAP) and not held:  # a good sample: its wrench kept
         good = sf[S_LAST_GOOD : S_LAST_GOOD + 6]  # (paper eqs. 1–4)

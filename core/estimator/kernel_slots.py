@@ -122,6 +122,7 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     I_ZEROED,  # the readings come zeroed: the zero is 0 from the first good sample, no windows
     I_REST_N,  # rest readings whose changes measure each channel's noise (resolution.py)
     I_N_NOISY_EXTRA,  # windows more an object waits where the noise sets the still limit
+    I_JUMP_HOLD_N,  # samples in a row a jump is held at most (settings.JUMP_HOLD_S)
     # offsets into pf
     I_PO_MAP,  # (C, 6) channels -> [F_o; M_o]: the matrix (6, C) stored by channel
     I_PO_LIMIT,  # (C,) a channel at or beyond this is saturated
@@ -176,7 +177,7 @@ RESUME_NEXT, RESUME_BACK, RESUME_AGAIN = 0, 1, 2
     I_JO_WIN_BAD,  # (WINDOW,)
     I_JO_MT_HIST,  # (2·LAG + 1, MT_I)
     N_PI,
-) = range(83)
+) = range(84)
 # a surface in pf: the rows of F'z, M'x, M'y of its wrench transform, origin, axes, normal,
 # bounds of its outline; in pi: whether the outline is a rectangle, whether (u, v) are the
 # desk's (x, y), where its polygon's vertices are in pf and how many
@@ -300,11 +301,13 @@ N_SF_FIXED = 107
     J_OBJ_GRACED,  # a window of the object run spread past an object's and was kept (one a run)
     J_OFF_STEPS,  # a channel changed by no whole number of its step: readings not quantised
     J_JUMP,  # JUMP_CALM, JUMP_HELD (the sample before was held for its jump) or JUMP_MOVING
-    J_JUMPS,  # readings that jumped for one sample and came back, so far
+    J_JUMPS,  # readings that jumped and came back within I_JUMP_HOLD_N samples, so far
+    J_JUMP_HELD_N,  # the samples held in the latest run of held ones
     N_SI_FIXED,
-) = range(64)
-# a reading's jump (kernel_channels.jumped): from a calm wrench it is held for one sample;
-# the next one is taken, and while the wrench keeps jumping (a real change) none is held
+) = range(65)
+# a reading's jump (kernel_channels.jumped): from a calm wrench it is held while it stays
+# away, for up to I_JUMP_HOLD_N samples; the next one is taken, and while the wrench keeps
+# jumping (a real change) none is held
 JUMP_CALM, JUMP_HELD, JUMP_MOVING = range(3)
 # the second-finger stage's history of each sample: smoothed wrench and contact (floats), and
 # its located, surface and in-contact (ints)

@@ -300,6 +300,7 @@ def _counts(s: EstimatorSettings, inertia: InertiaSettings | None, n: _Sizes) ->
         slots.I_N_SETTLE: s.n_settle,
         slots.I_N_OBJECT: s.n_object,
         slots.I_N_NOISY_EXTRA: NOISY_EXTRA_WINDOWS,
+        slots.I_JUMP_HOLD_N: s.jump_hold_n,
         slots.I_WANDER_WINDOWS: n.wander_windows,
         slots.I_IDLE_WINDOWS: IDLE_WINDOWS,
         slots.I_ZEROED: int(s.user.zeroed),

@@ -17,11 +17,11 @@ only for an input with fewer than ``NOISE_FREE_REPEATS`` exact repeats in its fi
 ``NOISE_CHECK_S``. A time that is not after an earlier sample's is told at the 1st, 10th,
 100th… such sample.
 
-A reading that jumps from a calm wrench for one sample (a corrupt word from a converter, a
-bit error on a line) is held over: the sample before stands for it, and the next is taken
-whatever it is (a real change lasts, and lands one sample late); one that came back is told
-at the 1st, 10th, 100th… (``kernel_channels.held_over``; the size of a jump held:
-``settings.JUMP_SHARE``).
+A reading that jumps from a calm wrench for a sample or a few (a corrupt word from a
+converter, a bit error on a line) is held over: the last good sample stands for it while it
+stays away, up to ``settings.JUMP_HOLD_S``, and the next is taken whatever it is (a real
+change lasts, and lands that late); one that came back is told at the 1st, 10th, 100th…
+(``kernel_channels.held_over``; the size of a jump held: ``settings.JUMP_SHARE``).
 
 The per-sample work is ``_samples`` in :mod:`hapticdesk.estimator.kernel_channels`; here are its
 constants and the notices it raises (:func:`tell_events`).
@@ -40,6 +40,7 @@ from hapticdesk.estimator.kernel_slots import (
     EV_NOISE_FREE,
     EV_STUCK,
     EV_TIME_BACK,
+    J_JUMP_HELD_N,
     J_JUMPS,
     J_TIME_BACK,
     S_EV_LATEST,
@@ -72,14 +73,15 @@ def tell_time_back(notices: list[Notice], t: float, latest: float, count: int) -
     )
 
 
-def tell_jump(notices: list[Notice], t: float, size: float, count: int) -> None:
+def tell_jump(notices: list[Notice], t: float, size: float, count: int, samples: int) -> None:
     """The ``count``-th reading (1, 10, 100…), at ``t``, that jumped by ``size`` newtons for
-    one sample and came back: held over, so it made no touch."""
+    ``samples`` samples and came back: held over, so it made no touch."""
+    lasted = "one sample" if samples == 1 else f"{samples} samples"
     add_notice(
         notices,
         t,
         "jump",
-        f"a reading jumped by {size:.3g} N for one sample and came back ({count} such so far):"
+        f"a reading jumped by {size:.3g} N for {lasted} and came back ({count} such so far):"
         " taken as corrupt and held over (a loose wire, a converter's odd bad word?)",
         logging.WARNING,
     )
@@ -124,7 +126,8 @@ def tell_events(notices: list[Notice], events: int, sf: np.ndarray, si: np.ndarr
     if events & EV_LIVE:
         tell_live(notices, float(sf[S_EV_T]), float(sf[S_STUCK_SINCE]), float(sf[S_LAST_STUCK_T]))
     if events & EV_JUMP:
-        tell_jump(notices, float(sf[S_JUMP_T]), float(sf[S_JUMP_SIZE]), int(si[J_JUMPS]))
+        held = int(si[J_JUMP_HELD_N])
+        tell_jump(notices, float(sf[S_JUMP_T]), float(sf[S_JUMP_SIZE]), int(si[J_JUMPS]), held)
     if events & EV_GAP:
         add_notice(
             notices,

@@ -39,13 +39,16 @@ RELEASE_WINDOW_S = 0.02
 # low-pass, and the 6 Hz sway that is left: 98 %) and drops most of that noise.
 SWAY_STILL_MEAN_S = 0.02
 UNRATED_LIMIT = 1e12  # a channel without a rating counts as saturated beyond this
-# A reading that jumps from a calm wrench is held for one sample (kernel_channels.held_over):
-# a corrupt reading (an HX711's odd garbage word, a bit error on a line) lasts one sample and
-# made a tap nobody made (+50 N on one channel at idle, the paper's desk). Held are jumps of
-# which the fast low-pass passes at least this share of the contact threshold: smaller ones
-# cannot start a contact. A real change lasts: the next sample is taken whatever it is, so a
-# real step lands one sample late and nothing else changes.
+# A reading that jumps from a calm wrench is held (kernel_channels.held_over): a corrupt
+# reading (an HX711's odd garbage word, a bit error on a line) made a tap nobody made (+50 N on
+# one channel at idle, the paper's desk). Held are jumps of which the fast low-pass passes at
+# least this share of the contact threshold: smaller ones cannot start a contact.
 JUMP_SHARE = 0.5
+# ... for up to this long (at least one sample) while it stays away: two corrupt readings in a
+# row, held for one sample only, made the same tap (+50 and +100 N on the paper desk's F_z).
+# A real change lasts: the sample after the hold is taken whatever it is, so a real step lands
+# this late (3 samples at 1.2 kHz, 2 at 1 kHz, 1 at 500 Hz and below) and nothing else changes.
+JUMP_HOLD_S = 0.0025
 JUMP_ARM_MIN_M = 0.1  # a moment's jump counts over the legs' reach, at least this (one sensor)
 
 
@@ -93,6 +96,7 @@ class EstimatorSettings:
     sway: SwaySettings | None  # the legs-as-accelerometer compensation, or None (off)
     jump_n: float  # a force's change in one sample beyond which a calm reading is held
     jump_arm_m: float  # ... a moment's, over this arm
+    jump_hold_n: int  # samples in a row a jump is held at most (JUMP_HOLD_S)
 
     @classmethod
     def of(cls, profile: DeskProfile, user: EstimationSettings, trace: bool) -> EstimatorSettings:
@@ -151,6 +155,7 @@ class EstimatorSettings:
             jump_arm_m=max(
                 JUMP_ARM_MIN_M, *(float(np.linalg.norm(x.position)) for x in profile.sensors)
             ),
+            jump_hold_n=max(1, int(JUMP_HOLD_S * fs + 1e-9)),
         )
 
     def up(self) -> np.ndarray:

@@ -169,13 +169,21 @@ def _run_serial(args: argparse.Namespace) -> int:
 def _stopped_by_signals(stop: Callable[[], None]) -> Iterator[None]:
     """``stop`` called on Ctrl-C or a kill (SIGINT, SIGTERM) while the block runs, so the
     emulator ends its run and its summary is printed. By handlers of its own: a process
-    started in the background by a shell ignores Ctrl-C's KeyboardInterrupt. (Only the main
-    thread may set them: run from another, ``stop`` is its caller's.)"""
+    started in the background by a shell ignores Ctrl-C's KeyboardInterrupt. A handler hands
+    ``stop`` to a thread of its own: called in the handler, ``stop`` (an Event's set, which
+    takes the Event's lock) hung the emulator for good when the signal came while its own
+    loop held that lock in the Event's wait (a test's child, still running 45 minutes later);
+    an exception raised from the handler can leave that lock taken alike. (Only the main
+    thread may set handlers: run from another, ``stop`` is its caller's.)"""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
+
+    def handed_on(_signum: int, _frame: Any) -> None:
+        threading.Thread(target=stop, name="hapticdesk-stop", daemon=True).start()
+
     stops = (signal.SIGINT, signal.SIGTERM)
-    previous = {s: signal.signal(s, lambda _signum, _frame: stop()) for s in stops}
+    previous = {s: signal.signal(s, handed_on) for s in stops}
     try:
         yield
     finally:

@@ -85,7 +85,11 @@ def test_emulate_serial_says_its_port_and_a_reader_gets_the_scene(tmp_path):
         _, got = _read(port.group(1), desk, len(rec))
     finally:
         proc.send_signal(signal.SIGINT)
-        out, err = proc.communicate(timeout=20)
+        try:
+            out, err = proc.communicate(timeout=20)
+        except subprocess.TimeoutExpired:
+            proc.kill()  # (never left running past the test, whatever made it miss the signal)
+            raise
     np.testing.assert_allclose(got, rec.wrench.reshape(len(rec), -1), rtol=0, atol=SCALE)
     assert f"printed {len(rec)} samples on {port.group(1)}" in out
     assert "Traceback" not in err

@@ -21,9 +21,8 @@ import contextlib
 import json
 import signal
 import sys
-import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -165,30 +164,15 @@ def _run_serial(args: argparse.Namespace) -> int:
     return 0
 
 
-@contextlib.contextmanager
-def _stopped_by_signals(stop: Callable[[], None]) -> Iterator[None]:
+def _stopped_by_signals(stop: Callable[[], None]) -> contextlib.AbstractContextManager[None]:
     """``stop`` called on Ctrl-C or a kill (SIGINT, SIGTERM) while the block runs, so the
     emulator ends its run and its summary is printed. By handlers of its own: a process
-    started in the background by a shell ignores Ctrl-C's KeyboardInterrupt. A handler hands
-    ``stop`` to a thread of its own: called in the handler, ``stop`` (an Event's set, which
-    takes the Event's lock) hung the emulator for good when the signal came while its own
-    loop held that lock in the Event's wait (a test's child, still running 45 minutes later);
-    an exception raised from the handler can leave that lock taken alike. (Only the main
-    thread may set handlers: run from another, ``stop`` is its caller's.)"""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
+    started in the background by a shell ignores Ctrl-C's KeyboardInterrupt. Off the
+    handler (:mod:`hapticdesk.runtime.signal_handoff`: set in it, the stop Event's lock
+    could be the one the emulator's own wait held, and it hung for good)."""
+    from hapticdesk.runtime.signal_handoff import signals_handed_off
 
-    def handed_on(_signum: int, _frame: Any) -> None:
-        threading.Thread(target=stop, name="hapticdesk-stop", daemon=True).start()
-
-    stops = (signal.SIGINT, signal.SIGTERM)
-    previous = {s: signal.signal(s, handed_on) for s in stops}
-    try:
-        yield
-    finally:
-        for s, handler in previous.items():
-            signal.signal(s, handler)
+    return signals_handed_off({signal.SIGINT: lambda _: stop(), signal.SIGTERM: lambda _: stop()})
 
 
 def _bus_address(bus: str) -> _BusAddress:

@@ -20,10 +20,9 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import Future
 from pathlib import Path
-from types import FrameType
 from typing import IO, Any
 
 from hapticdesk.errors import ConfigError
@@ -36,6 +35,7 @@ from hapticdesk.runtime.layout_reload import LayoutReloads
 from hapticdesk.runtime.live_status import LiveStatus
 from hapticdesk.runtime.operator_secrets import OperatorSecrets
 from hapticdesk.runtime.run_report import RunReport
+from hapticdesk.runtime.signal_handoff import signals_handed_off
 
 log = logging.getLogger(__name__)
 
@@ -324,7 +324,7 @@ class Runtime:
             yield
             return
 
-        def on_signal(signum: int, frame: FrameType | None) -> None:
+        def on_signal(signum: int) -> None:
             name = signal.Signals(signum).name
             if self._stop.is_set():
                 print(
@@ -339,16 +339,18 @@ class Runtime:
                 )
                 self.stop(name)
 
-        def on_hangup(signum: int, frame: FrameType | None) -> None:
+        def on_hangup(signum: int) -> None:
             # only queued: the sensing thread reloads between two blocks
             print("\nSIGHUP: reloading the layout", file=sys.stderr)
             self.request("reload")
 
-        previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+        # (answered in a thread of their own: a stop set in the handler could wait for good
+        # on a lock the main thread held where the signal came, signal_handoff.py)
+        work: dict[signal.Signals, Callable[[int], None]] = {
+            signal.SIGINT: on_signal,
+            signal.SIGTERM: on_signal,
+        }
         if hasattr(signal, "SIGHUP"):  # not on Windows
-            previous[signal.SIGHUP] = signal.signal(signal.SIGHUP, on_hangup)
-        try:
+            work[signal.SIGHUP] = on_hangup
+        with signals_handed_off(work):
             yield
-        finally:
-            for s, handler in previous.items():
-                signal.signal(s, handler)

@@ -76,6 +76,7 @@ def run(args: argparse.Namespace) -> int:
     from hapticdesk.runtime.assembly import build_scene
     from hapticdesk.runtime.lane import Lane
     from hapticdesk.runtime.service import Runtime
+    from hapticdesk.runtime.signal_handoff import signals_handed_off
 
     token = _token(args)  # (before a new layout is written)
     examples = examples_dir()
@@ -112,9 +113,10 @@ def run(args: argparse.Namespace) -> int:
     if runtime.report.stopped_by is None:  # the source ended: the page stays for the designer
         print("the source ended; the page stays up (Ctrl-C to stop)", file=sys.stderr, flush=True)
         stop = threading.Event()
-        for s in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(s, lambda *_: stop.set())
-        while not stop.wait(0.5):
-            pass
+        # (set off the handler: in it, the Event's lock could be the one its wait held)
+        ended = {s: (lambda _signum: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
+        with signals_handed_off(ended):
+            while not stop.wait(0.5):
+                pass
     server.close()
     return 1 if report.error else 0

@@ -320,7 +320,7 @@ class Runtime:
 
     @contextlib.contextmanager
     def _signals(self, enabled: bool) -> Iterator[None]:
-        if not enabled or threading.current_thread() is not threading.main_thread():
+        if not enabled:  # (nor from a thread other than the main one: signals_handed_off)
             yield
             return
 
